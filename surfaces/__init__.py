@@ -1,0 +1,1 @@
+"""Shared surface model: bicubic Bezier patches and everything built on them."""

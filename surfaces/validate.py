@@ -1,0 +1,104 @@
+"""One small validation helper used by every public function of the workbench.
+
+Validate at the edge, trust inside: public functions call :func:`as_array` on
+their array arguments, so bad input fails early with a ``ValueError`` that names
+the argument and says what is wrong.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+
+def as_array(
+    value,
+    name: str,
+    *,
+    shape: Sequence[int | None] | None = None,
+    ndim: int | Sequence[int] | None = None,
+    dtype=np.float64,
+    finite: bool = True,
+    min_size: int | None = None,
+) -> np.ndarray:
+    """Convert ``value`` to an array and check it.
+
+    Parameters
+    ----------
+    value : array_like
+        The input.
+    name : str
+        Argument name used in error messages.
+    shape : sequence of int or None, optional
+        Required shape; ``None`` entries match any length. A leading ``...``
+        is not supported: give the full shape.
+    ndim : int or sequence of int, optional
+        Allowed numbers of dimensions (checked when ``shape`` is not given).
+    dtype : numpy dtype, optional
+        Target dtype (default float64). ``None`` keeps the input dtype.
+    finite : bool, optional
+        Reject NaN and infinite values (default True; only for inexact dtypes).
+    min_size : int, optional
+        Minimum number of elements.
+
+    Returns
+    -------
+    numpy.ndarray
+        The converted array (a copy only when conversion needs one).
+
+    Raises
+    ------
+    ValueError
+        When the value cannot be converted, or its shape, size or values are wrong.
+    """
+    try:
+        arr = np.asarray(value, dtype=dtype) if dtype is not None else np.asarray(value)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{name}: cannot be read as a numeric array ({exc})") from None
+    if shape is not None:
+        if arr.ndim != len(shape) or any(s is not None and s != a for s, a in zip(shape, arr.shape)):
+            want = "(" + ", ".join("N" if s is None else str(s) for s in shape) + ")"
+            raise ValueError(f"{name}: expected shape {want}, got {arr.shape}")
+    elif ndim is not None:
+        allowed = (ndim,) if isinstance(ndim, int) else tuple(ndim)
+        if arr.ndim not in allowed:
+            raise ValueError(f"{name}: expected {' or '.join(map(str, allowed))} dimensions, got shape {arr.shape}")
+    if min_size is not None and arr.size < min_size:
+        raise ValueError(f"{name}: needs at least {min_size} values, got {arr.size}")
+    if finite and np.issubdtype(arr.dtype, np.inexact) and not np.all(np.isfinite(arr)):
+        bad = int(np.size(arr) - np.count_nonzero(np.isfinite(arr)))
+        raise ValueError(f"{name}: contains {bad} NaN or infinite value(s)")
+    return arr
+
+
+def positive(value: float, name: str, *, allow_zero: bool = False) -> float:
+    """Check that a scalar is finite and positive (or non-negative).
+
+    Parameters
+    ----------
+    value : float
+        The scalar.
+    name : str
+        Argument name used in error messages.
+    allow_zero : bool, optional
+        Accept zero.
+
+    Returns
+    -------
+    float
+        ``value`` as a Python float.
+
+    Raises
+    ------
+    ValueError
+        When the value is not finite, negative, or zero while ``allow_zero`` is False.
+    """
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name}: expected a number, got {value!r}") from None
+    if not np.isfinite(x) or x < 0 or (x == 0 and not allow_zero):
+        kind = "non-negative" if allow_zero else "positive"
+        raise ValueError(f"{name}: must be a finite {kind} number, got {value!r}")
+    return x

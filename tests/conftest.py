@@ -1,0 +1,24 @@
+"""Shared test fixtures.
+
+Real public data lives in ``../shared/data`` beside the repository (CI has it;
+a user's clone does not). Tests that need it take the ``shared_data`` fixture,
+which skips them with a clear reason when the folder is absent.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+SHARED_DATA = Path(os.environ.get("WORKBENCH_SHARED_DATA", REPO.parent / "shared" / "data"))
+
+
+@pytest.fixture(scope="session")
+def shared_data() -> Path:
+    """Path of ``../shared/data``; skips the test when it is not there."""
+    if not SHARED_DATA.is_dir():
+        pytest.skip(f"real data folder {SHARED_DATA} is absent (it lies beside the repository in CI)")
+    return SHARED_DATA

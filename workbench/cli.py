@@ -1,0 +1,135 @@
+"""The ``workbench`` console script: one entry point, sub-commands per package.
+
+Errors that come from bad input (``ValueError``, ``FileNotFoundError``,
+``NotADirectoryError``, ``PermissionError``) are printed as one line on stderr
+and the process exits with code 2, without a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+from collections.abc import Sequence
+
+# group name -> (help text, modules that register sub-commands into the group)
+GROUPS: dict[str, tuple[str, tuple[str, ...]]] = {
+    "surfaces": (
+        "shared Bezier/Coons surface model: build, measure, export, render, sweep, boolean",
+        (
+            "workbench.commands.surfaces",
+            "workbench.commands.kinematic",
+            "workbench.commands.render",
+            "workbench.commands.boolean",
+        ),
+    ),
+    "photometric": (
+        "photometric stereo: normals, height, defects, light-deviation error analysis",
+        ("workbench.commands.photometric", "workbench.commands.errors"),
+    ),
+    "slices": (
+        "CT contour stacks and structure sets to one interpolating surface",
+        ("workbench.commands.slices",),
+    ),
+    "synth": (
+        "synthetic scenes with exact ground truth (image triads, CT phantoms)",
+        ("workbench.commands.synth",),
+    ),
+    "batch": (
+        "many photometric or slices jobs on a Dask cluster",
+        ("workbench.commands.batch",),
+    ),
+}
+# modules that add top-level commands (``workbench view``, ``workbench demo``)
+TOP_LEVEL: tuple[str, ...] = ("workbench.commands.view", "workbench.commands.demo")
+
+INPUT_ERRORS = (ValueError, FileNotFoundError, NotADirectoryError, IsADirectoryError, PermissionError)
+
+
+class _Parser(argparse.ArgumentParser):
+    """Argument parser whose usage errors are one line and exit code 2."""
+
+    def error(self, message: str) -> None:  # noqa: D102 - argparse hook
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+def _load(module_name: str):
+    """Import a command module; ``None`` when that module does not exist yet."""
+    try:
+        return importlib.import_module(module_name)
+    except ModuleNotFoundError as exc:
+        if exc.name == module_name:
+            return None
+        raise
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Build the full ``workbench`` argument parser.
+
+    Returns
+    -------
+    argparse.ArgumentParser
+        Parser with one sub-parser per group and per top-level command.
+    """
+    parser = _Parser(
+        prog="workbench",
+        description="Surface-reconstruction workbench: photometric stereo and CT contour "
+        "stacks converge on one Coons/Bezier surface model.",
+    )
+    top = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    for name, (help_text, modules) in GROUPS.items():
+        group = top.add_parser(name, help=help_text, description=help_text)
+        sub = group.add_subparsers(dest="subcommand", metavar="SUBCOMMAND", parser_class=_Parser)
+        group.set_defaults(func=_group_help(group))
+        for module_name in modules:
+            module = _load(module_name)
+            if module is not None:
+                module.register(sub)
+    for module_name in TOP_LEVEL:
+        module = _load(module_name)
+        if module is not None:
+            module.register(top)
+    return parser
+
+
+def _group_help(group: argparse.ArgumentParser):
+    def show(_args: argparse.Namespace) -> int:
+        group.print_help()
+        return 2
+
+    return show
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the ``workbench`` command line.
+
+    Parameters
+    ----------
+    argv : sequence of str, optional
+        Arguments without the program name; ``sys.argv[1:]`` when omitted.
+
+    Returns
+    -------
+    int
+        Exit code: 0 on success, 2 on bad input or usage.
+    """
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    func = getattr(args, "func", None)
+    if func is None:
+        parser.print_help()
+        return 2
+    try:
+        code = func(args)
+    except INPUT_ERRORS as exc:
+        message = str(exc) or exc.__class__.__name__
+        print(f"workbench: error: {message.splitlines()[0] if message else ''}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("workbench: interrupted", file=sys.stderr)
+        return 130
+    return int(code or 0)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
