@@ -1,0 +1,249 @@
+"""Files and open3d conversion for the shared surface model.
+
+Meshes are written with numpy alone (binary little-endian PLY with vertex
+normals and colours, Wavefront OBJ with normals, binary STL with facet
+normals), atomically: into a temporary file beside the target, renamed when
+complete. Reading and the open3d conversion import open3d inside the function.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from contextlib import contextmanager
+from pathlib import Path
+
+import numpy as np
+
+from surfaces.bezier import BezierPatches
+from surfaces.mesh import TriangleMesh, tessellate, weld
+
+MESH_FORMATS = (".ply", ".obj", ".stl")
+
+
+@contextmanager
+def atomic_path(path, suffix: str | None = None):
+    """Yield a temporary path beside ``path``; rename it onto ``path`` on success.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Final file name. Its folder must exist.
+    suffix : str, optional
+        Suffix of the temporary name (some writers choose the format by it);
+        defaults to the suffix of ``path``.
+
+    Yields
+    ------
+    pathlib.Path
+        Where to write. Removed if the block raises.
+    """
+    target = Path(path)
+    if not target.parent.is_dir():
+        raise FileNotFoundError(f"{target}: folder {target.parent} does not exist")
+    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=suffix or target.suffix, dir=target.parent)
+    os.close(fd)
+    try:
+        yield Path(tmp)
+        os.replace(tmp, target)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def _as_mesh(obj, samples: int = 8) -> TriangleMesh:
+    if isinstance(obj, TriangleMesh):
+        return obj
+    if isinstance(obj, BezierPatches):
+        return tessellate(obj, samples)
+    raise ValueError(f"mesh: expected TriangleMesh or BezierPatches, got {type(obj).__name__}")
+
+
+def _ply_bytes(mesh: TriangleMesh) -> bytes:
+    fields = [("x", "<f4"), ("y", "<f4"), ("z", "<f4")]
+    if mesh.vertex_normals is not None:
+        fields += [("nx", "<f4"), ("ny", "<f4"), ("nz", "<f4")]
+    if mesh.vertex_colors is not None:
+        fields += [("red", "u1"), ("green", "u1"), ("blue", "u1")]
+    vert = np.empty(mesh.n_vertices, dtype=fields)
+    vert["x"], vert["y"], vert["z"] = mesh.vertices.T
+    if mesh.vertex_normals is not None:
+        vert["nx"], vert["ny"], vert["nz"] = mesh.vertex_normals.T
+    if mesh.vertex_colors is not None:
+        rgb = np.clip(np.round(mesh.vertex_colors * 255.0), 0, 255).astype(np.uint8)
+        vert["red"], vert["green"], vert["blue"] = rgb.T
+    faces = np.empty(mesh.n_triangles, dtype=[("n", "u1"), ("idx", "<i4", (3,))])
+    faces["n"] = 3
+    faces["idx"] = mesh.triangles
+    names = {"<f4": "float", "u1": "uchar"}
+    header = ["ply", "format binary_little_endian 1.0", "comment surface-workbench"]
+    header.append(f"element vertex {mesh.n_vertices}")
+    header += [f"property {names[t]} {n}" for n, t in fields]
+    header += [f"element face {mesh.n_triangles}", "property list uchar int vertex_indices", "end_header"]
+    return ("\n".join(header) + "\n").encode("ascii") + vert.tobytes() + faces.tobytes()
+
+
+def _obj_text(mesh: TriangleMesh) -> str:
+    lines = ["# surface-workbench"]
+    lines += [f"v {x:.9g} {y:.9g} {z:.9g}" for x, y, z in mesh.vertices]
+    face = mesh.triangles + 1
+    if mesh.vertex_normals is not None:
+        lines += [f"vn {x:.7g} {y:.7g} {z:.7g}" for x, y, z in mesh.vertex_normals]
+        lines += [f"f {a}//{a} {b}//{b} {c}//{c}" for a, b, c in face]
+    else:
+        lines += [f"f {a} {b} {c}" for a, b, c in face]
+    return "\n".join(lines) + "\n"
+
+
+def _stl_bytes(mesh: TriangleMesh) -> bytes:
+    rec = np.zeros(mesh.n_triangles, dtype=[("n", "<f4", (3,)), ("v", "<f4", (3, 3)), ("attr", "<u2")])
+    rec["n"] = mesh.face_normals()
+    rec["v"] = mesh.triangle_corners()
+    header = b"surface-workbench binary STL".ljust(80, b" ")
+    return header + np.uint32(mesh.n_triangles).tobytes() + rec.tobytes()
+
+
+def write_mesh(mesh, path, samples: int = 8) -> Path:
+    """Write a mesh (or a tessellated patch model) to PLY, OBJ or STL.
+
+    Parameters
+    ----------
+    mesh : TriangleMesh or BezierPatches
+        What to write; patches are tessellated with ``samples`` subdivisions.
+    path : str or os.PathLike
+        Output file; the format follows the suffix (.ply, .obj, .stl).
+    samples : int
+        Subdivisions per patch side when ``mesh`` is a patch model.
+
+    Returns
+    -------
+    pathlib.Path
+        The written path.
+    """
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix not in MESH_FORMATS:
+        raise ValueError(f"path: unsupported mesh format {path.suffix!r}; use one of {', '.join(MESH_FORMATS)}")
+    mesh = _as_mesh(mesh, samples)
+    with atomic_path(path) as tmp:
+        if suffix == ".ply":
+            tmp.write_bytes(_ply_bytes(mesh))
+        elif suffix == ".obj":
+            tmp.write_text(_obj_text(mesh))
+        else:
+            tmp.write_bytes(_stl_bytes(mesh))
+    return path
+
+
+def read_mesh(path) -> TriangleMesh:
+    """Read a triangle mesh from PLY, OBJ or STL (through open3d).
+
+    STL files store every triangle's corners separately; their coincident
+    vertices are welded so that the mesh is indexed again.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Mesh file.
+
+    Returns
+    -------
+    TriangleMesh
+        With vertex normals and colours when the file has them.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no such mesh file")
+    if path.suffix.lower() not in MESH_FORMATS:
+        raise ValueError(f"{path}: unsupported mesh format; use one of {', '.join(MESH_FORMATS)}")
+    import open3d as o3d
+
+    m = o3d.io.read_triangle_mesh(str(path))
+    verts = np.asarray(m.vertices, dtype=np.float64)
+    tri = np.asarray(m.triangles, dtype=np.int64)
+    if len(verts) == 0 or len(tri) == 0:
+        raise ValueError(f"{path}: no triangles could be read")
+    normals = np.asarray(m.vertex_normals, dtype=np.float64) if m.has_vertex_normals() else None
+    colors = np.asarray(m.vertex_colors, dtype=np.float64) if m.has_vertex_colors() else None
+    mesh = TriangleMesh(verts, tri, normals, colors)
+    if path.suffix.lower() == ".stl":
+        mesh = weld(mesh)
+    return mesh
+
+
+def to_open3d(obj, colors=None, samples: int = 8):
+    """Convert a mesh or a patch model to an ``open3d.geometry.TriangleMesh``.
+
+    Parameters
+    ----------
+    obj : TriangleMesh or BezierPatches
+        What to convert; patches are tessellated with ``samples`` subdivisions.
+    colors : array_like, shape (V, 3) or (3,), optional
+        Vertex colours in [0, 1] (overrides the mesh's own).
+    samples : int
+        Subdivisions per patch side when ``obj`` is a patch model.
+
+    Returns
+    -------
+    open3d.geometry.TriangleMesh
+        With the patch (or stored) vertex normals.
+    """
+    import open3d as o3d
+
+    mesh = _as_mesh(obj, samples)
+    out = o3d.geometry.TriangleMesh(
+        o3d.utility.Vector3dVector(mesh.vertices), o3d.utility.Vector3iVector(mesh.triangles.astype(np.int32))
+    )
+    if mesh.vertex_normals is not None:
+        out.vertex_normals = o3d.utility.Vector3dVector(mesh.vertex_normals)
+    else:
+        out.compute_vertex_normals()
+    col = mesh.vertex_colors if colors is None else np.broadcast_to(np.asarray(colors, float), mesh.vertices.shape)
+    if col is not None:
+        out.vertex_colors = o3d.utility.Vector3dVector(np.ascontiguousarray(col, dtype=np.float64))
+    return out
+
+
+def save_patches(patches: BezierPatches, path) -> Path:
+    """Save the Bezier control points and closure flags to ``.npz``.
+
+    Parameters
+    ----------
+    patches : BezierPatches
+        The model.
+    path : str or os.PathLike
+        Output ``.npz`` file (keys ``control`` (R, C, 4, 4, 3), ``closed_u``, ``closed_v``).
+
+    Returns
+    -------
+    pathlib.Path
+    """
+    path = Path(path)
+    with atomic_path(path, suffix=".npz") as tmp:
+        with open(tmp, "wb") as fh:
+            np.savez_compressed(
+                fh, control=patches.control, closed_u=patches.closed_u, closed_v=patches.closed_v
+            )
+    return path
+
+
+def load_patches(path) -> BezierPatches:
+    """Load a patch model written by :func:`save_patches`.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        ``.npz`` file.
+
+    Returns
+    -------
+    BezierPatches
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no such patch file")
+    with np.load(path) as data:
+        if "control" not in data:
+            raise ValueError(f"{path}: no 'control' array (not a patch file)")
+        return BezierPatches(data["control"], bool(data["closed_u"]), bool(data["closed_v"]))

@@ -1,0 +1,116 @@
+"""Area and enclosed volume of the patch model, by Gauss-Legendre quadrature.
+
+Both integrate over the patches themselves, not over a triangle mesh:
+
+* area ``A = sum_patches  int int |S_u x S_v| du dv``. The integrand is the
+  square root of a polynomial; ``order``-point rules converge fast for smooth
+  patches (on a 32x16 Coons sphere, 8 points per direction agree with 16 to
+  better than 1e-9 relative). :func:`area` can return the difference to an
+  ``order + 4`` rule as an error estimate.
+* volume by the divergence theorem with ``F = x / 3``:
+  ``V = 1/3 sum_patches int int S . (S_u x S_v) du dv``. For bicubic patches the
+  integrand is a polynomial of degree 8 in each parameter, so the 5-point rule
+  (exact to degree 9) is exact up to rounding. The sign is positive when
+  ``S_u x S_v`` points out of the enclosed region.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from surfaces.bezier import BezierPatches, bernstein
+
+#: Patches per chunk, to bound temporary memory on very large grids.
+_PATCH_CHUNK = 4096
+
+
+def _gauss(order: int) -> tuple[np.ndarray, np.ndarray]:
+    order = int(order)
+    if order < 1:
+        raise ValueError(f"order: need at least 1 quadrature point, got {order}")
+    x, w = np.polynomial.legendre.leggauss(order)
+    return 0.5 * (x + 1.0), 0.5 * w
+
+
+def _integrate(patches: BezierPatches, order: int, integrand) -> float:
+    if not isinstance(patches, BezierPatches):
+        raise ValueError(f"patches: expected BezierPatches, got {type(patches).__name__}")
+    t, w = _gauss(order)
+    b0, b1 = bernstein(t), bernstein(t, 1)
+    ww = np.outer(w, w)
+    flat = patches.control.reshape(-1, 4, 4, 3)
+    total = 0.0
+    for start in range(0, len(flat), _PATCH_CHUNK):
+        ctrl = flat[start : start + _PATCH_CHUNK]
+        s = np.einsum("ua,pabx,vb->puvx", b0, ctrl, b0, optimize=True)
+        su = np.einsum("ua,pabx,vb->puvx", b1, ctrl, b0, optimize=True)
+        sv = np.einsum("ua,pabx,vb->puvx", b0, ctrl, b1, optimize=True)
+        total += float(np.einsum("puv,uv->", integrand(s, np.cross(su, sv)), ww))
+    return total
+
+
+def area(patches: BezierPatches, order: int = 8, return_error: bool = False):
+    """Surface area by Gauss-Legendre quadrature over every patch.
+
+    Parameters
+    ----------
+    patches : BezierPatches
+        The surface.
+    order : int
+        Quadrature points per direction and patch (default 8).
+    return_error : bool
+        Also return ``|A(order) - A(order + 4)|`` as an error estimate.
+
+    Returns
+    -------
+    float or (float, float)
+        Area in squared model units (mm^2 for CT surfaces), and optionally the
+        error estimate.
+    """
+    value = _integrate(patches, order, lambda s, n: np.linalg.norm(n, axis=-1))
+    if not return_error:
+        return value
+    finer = _integrate(patches, order + 4, lambda s, n: np.linalg.norm(n, axis=-1))
+    return value, abs(finer - value)
+
+
+def volume(patches: BezierPatches, order: int = 5) -> float:
+    """Enclosed volume by the divergence theorem, integrated over the patches.
+
+    Parameters
+    ----------
+    patches : BezierPatches
+        A closed surface (or an open one whose missing parts the caller adds
+        as further flux terms).
+    order : int
+        Quadrature points per direction (5 is exact for bicubic patches).
+
+    Returns
+    -------
+    float
+        ``1/3 * flux of x`` through the surface, in cubed model units; positive
+        when ``S_u x S_v`` points outward.
+    """
+    return _integrate(patches, order, lambda s, n: np.einsum("...x,...x->...", s, n)) / 3.0
+
+
+def flux_z(patches: BezierPatches, order: int = 5) -> float:
+    """Flux of the field ``F = (0, 0, z)`` through the surface.
+
+    For a closed surface this is also the enclosed volume; for a surface open
+    at planes ``z = const`` (a CT stack) the missing planar caps contribute
+    ``z0 * (signed cap area)``, which makes capping a volume computation easy.
+
+    Parameters
+    ----------
+    patches : BezierPatches
+        The surface.
+    order : int
+        Quadrature points per direction (5 is exact for bicubic patches).
+
+    Returns
+    -------
+    float
+        ``int z n_z dA`` in cubed model units.
+    """
+    return _integrate(patches, order, lambda s, n: s[..., 2] * n[..., 2])
