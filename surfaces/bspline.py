@@ -1,0 +1,637 @@
+"""Global B-spline interpolation of curves and surfaces (seed 003; Piegl & Tiller ch. 9).
+
+A curve through points ``Q_0 .. Q_n`` gets parameters ``u_k`` (uniform, chord
+length or centripetal; The NURBS Book eqs. 9.3-9.6), a clamped knot vector by
+averaging (eq. 9.8) and control points from the collocation system
+``sum_i N_{i,p}(u_k) P_i = Q_k`` (eq. 9.7), solved once for every coordinate
+(and every row of a surface) as one sparse system with many right-hand sides.
+
+A surface through a grid ``Q[k, l]`` (shape ``(R, C, 3)``) is built by the
+two-stage method of seed 003 (The NURBS Book, Algorithm A9.4): interpolate
+along the first index (u) for every column, then interpolate the resulting
+control points along the second index (v). One parameter vector per direction
+is the average of the per-line parameters (lines of zero length, i.e. a
+collapsed row at a pole, are left out of the average).
+
+Conventions
+-----------
+* ``points[k, l]``: ``k`` runs along **u** (axis 0), ``l`` along **v** (axis 1).
+  For a CT contour stack pass the grid as ``(n_samples_around_contour,
+  n_slices, 3)`` with ``closed_u=True``: u goes around the contour, v across
+  the slices.
+* Parameters of an open direction run over ``[0, 1]`` (``u = 1`` is the last
+  data point). A closed (periodic) direction also uses ``[0, 1]`` with period 1:
+  ``u = 0`` and ``u = 1`` are the first data point; the data points of a closed
+  direction are given **without** repeating the first one at the end (a last
+  point/row equal to the first is dropped, which is the stated rule).
+* Closed knot vectors: periodic knots at the data parameters for odd degree and
+  at the parameter midpoints for even degree (the periodic counterpart of the
+  averaging of eq. 9.8; for odd degree it is also what
+  ``scipy.interpolate.make_interp_spline(bc_type="periodic")`` uses).
+* Degenerate input: repeated consecutive points in a curve (zero chord) raise
+  ``ValueError``; in a surface a parameter step is zero only when the two rows
+  (columns) coincide in every column (row), which raises ``ValueError`` naming
+  them. A collapsed row (all its points equal: a pole) is allowed.
+
+Conversion to the shared model (:class:`surfaces.bezier.BezierPatches`) is
+exact: every knot span becomes one Bezier piece whose control points are the
+blossom values ``f(t_s, .., t_s, t_{s+1}, .., t_{s+1})`` (the result of
+inserting every interior knot up to multiplicity ``p``, The NURBS Book
+Algorithm A5.6). Degree 3 maps directly; degree 2 is elevated exactly to 3;
+degrees 4 and 5 cannot be represented by bicubic patches and raise
+``ValueError``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+import scipy.sparse
+import scipy.sparse.linalg
+from scipy.interpolate import BSpline, NdBSpline
+
+from surfaces.validate import as_array
+
+if TYPE_CHECKING:
+    from surfaces.bezier import BezierPatches
+
+METHODS = ("uniform", "chord", "centripetal")
+# relative size under which a parameter step counts as zero (coincident points)
+_ZERO_STEP = 1e-12
+
+
+# ----------------------------------------------------------------------------- parameters, knots
+def _check_degree(degree, name: str = "degree") -> int:
+    if isinstance(degree, bool) or not isinstance(degree, (int, np.integer)):
+        raise ValueError(f"{name}: expected an integer from 2 to 5, got {degree!r}")
+    if not 2 <= int(degree) <= 5:
+        raise ValueError(f"{name}: expected an integer from 2 to 5, got {degree}")
+    return int(degree)
+
+
+def _check_method(method: str) -> str:
+    if method not in METHODS:
+        raise ValueError(f"method: expected one of {', '.join(METHODS)}, got {method!r}")
+    return method
+
+
+def _line_parameters(lines: np.ndarray, method: str, closed: bool) -> np.ndarray:
+    """Average per-line parameters (The NURBS Book eqs. 9.4-9.6, Algorithm A9.3).
+
+    ``lines`` has shape ``(L, N, d)``: ``L`` polylines of ``N`` points each.
+    Returns ``N`` parameters in ``[0, 1]`` (``[0, 1)`` when closed, the last
+    point's successor being the first point at parameter 1).
+    """
+    n = lines.shape[1]
+    if method == "uniform":
+        steps = np.ones((1, n if closed else n - 1))
+    else:
+        seg = np.diff(np.concatenate([lines, lines[:, :1]], axis=1) if closed else lines, axis=1)
+        steps = np.linalg.norm(seg, axis=2)
+        if method == "centripetal":
+            steps = np.sqrt(steps)
+    total = steps.sum(axis=1)
+    scale = max(float(np.max(np.abs(lines))), 1.0) if lines.size else 1.0
+    # a line of zero length (a pole) carries no parameter information: leave it out
+    keep = total > _ZERO_STEP * scale
+    if not np.any(keep):
+        raise ValueError("points: every line has zero length (all points coincide)")
+    cum = np.cumsum(steps[keep], axis=1) / total[keep, None]
+    params = np.concatenate([[0.0], cum.mean(axis=0)])
+    params = params[:n]
+    if not closed:
+        params[-1] = 1.0
+    return params
+
+
+def _check_params(params: np.ndarray, closed: bool, what: str) -> None:
+    step = np.diff(np.append(params, 1.0) if closed else params)
+    bad = np.flatnonzero(step <= _ZERO_STEP)
+    if bad.size:
+        k = int(bad[0])
+        nxt = (k + 1) % params.size
+        raise ValueError(
+            f"points: {what} {k} and {nxt} coincide (zero parameter step); "
+            "remove repeated points or pass distinct data"
+        )
+
+
+def averaged_knots(params: np.ndarray, degree: int) -> np.ndarray:
+    """Clamped knot vector by averaging parameters (The NURBS Book eq. 9.8).
+
+    Parameters
+    ----------
+    params : (N,) array_like of float
+        Strictly increasing parameters in ``[0, 1]``, ``params[0] = 0``, ``params[-1] = 1``.
+    degree : int
+        Degree ``p`` (2 to 5); needs ``N >= p + 1``.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(N + p + 1,)`` float64 knots: ``p + 1`` zeros, ``u_{j+p} = (1/p) sum_{i=j}^{j+p-1}
+        params_i`` for ``j = 1 .. N - p - 1``, ``p + 1`` ones.
+    """
+    p = _check_degree(degree)
+    u = as_array(params, "params", ndim=1, min_size=p + 1)
+    n = u.size - 1
+    inner = np.convolve(u[1:n], np.ones(p) / p, mode="valid") if n > p else np.empty(0)
+    return np.concatenate([np.zeros(p + 1), inner, np.ones(p + 1)])
+
+
+def periodic_knots(params: np.ndarray, degree: int) -> np.ndarray:
+    """Knot vector of a periodic (closed) B-spline through ``N`` data parameters.
+
+    Parameters
+    ----------
+    params : (N,) array_like of float
+        Strictly increasing parameters in ``[0, 1)``, period 1, ``params[0] = 0``.
+    degree : int
+        Degree ``p`` (2 to 5); needs ``N >= p + 1``.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(N + 2p + 1,)`` float64 knots of the unwrapped spline with ``N + p``
+        control points (the last ``p`` repeat the first ``p``). Period knots
+        ``tau_k`` are the parameters (odd ``p``) or the midpoints
+        ``(u_{k-1} + u_k) / 2`` (even ``p``); the domain is ``[tau_0, tau_0 + 1]``.
+    """
+    p = _check_degree(degree)
+    u = as_array(params, "params", ndim=1, min_size=p + 1)
+    tau = u.copy() if p % 2 else 0.5 * (np.concatenate([[u[-1] - 1.0], u[:-1]]) + u)
+    return np.concatenate([tau[u.size - p :] - 1.0, tau, tau[: p + 1] + 1.0])
+
+
+def _collocation(params: np.ndarray, knots: np.ndarray, degree: int, closed: bool):
+    """Sparse LU of the (N, N) collocation matrix (eq. 9.7); closed: columns folded."""
+    n = params.size
+    x = params.copy()
+    if closed:
+        x = _wrap(x, knots, degree)
+    dm = BSpline.design_matrix(x, knots, degree).tocoo()
+    cols = dm.col % n if closed else dm.col
+    mat = scipy.sparse.csc_matrix((dm.data, (dm.row, cols)), shape=(n, n))
+    try:
+        return scipy.sparse.linalg.splu(mat)
+    except RuntimeError as exc:  # singular: Schoenberg-Whitney violated
+        raise ValueError(f"points: the interpolation system is singular ({exc})") from None
+
+
+def _solve(lu, rhs: np.ndarray) -> np.ndarray:
+    """Solve for all right-hand sides at once; ``rhs`` (N, ...) -> (N, ...)."""
+    flat = rhs.reshape(rhs.shape[0], -1)
+    return lu.solve(np.ascontiguousarray(flat)).reshape(rhs.shape)
+
+
+def _wrap(u: np.ndarray, knots: np.ndarray, degree: int) -> np.ndarray:
+    """Map periodic parameters (period 1) into the knot domain ``[t_p, t_p + 1]``."""
+    start = knots[degree]
+    return start + np.mod(u - start, 1.0)
+
+
+def _unwrap_control(control: np.ndarray, degree: int, axis: int) -> np.ndarray:
+    """Append the first ``p`` control points along ``axis`` (periodic unwrapping)."""
+    head = np.take(control, np.arange(degree), axis=axis)
+    return np.concatenate([control, head], axis=axis)
+
+
+def _domain_u(u, name: str, closed: bool) -> np.ndarray:
+    arr = as_array(u, name, ndim=(0, 1))
+    arr = np.atleast_1d(arr)
+    if not closed:
+        if arr.size and (arr.min() < -1e-12 or arr.max() > 1 + 1e-12):
+            raise ValueError(f"{name}: parameters of an open direction must lie in [0, 1]")
+        arr = np.clip(arr, 0.0, 1.0)
+    return arr
+
+
+# ----------------------------------------------------------------------------- Bezier extraction
+def _bezier_extract(knots: np.ndarray, degree: int, control: np.ndarray) -> np.ndarray:
+    """Bezier control points of every non-empty knot span in the domain.
+
+    ``control`` has shape ``(n, ...)`` (full, unwrapped). Returns ``(S, p + 1, ...)``:
+    piece ``s`` control point ``a`` is the blossom ``f(t_s^(p-a), t_{s+1}^a)``
+    (equal to knot insertion up to multiplicity ``p``, The NURBS Book A5.6),
+    computed by de Boor's recursion with one blossom argument per level,
+    vectorised over spans, Bezier indices and trailing dimensions.
+    """
+    p = degree
+    n = control.shape[0]
+    spans = np.arange(p, n)
+    spans = spans[knots[spans + 1] > knots[spans]]
+    a = np.arange(p + 1)
+    rest = control.shape[1:]
+    # local control points d[s, a, i] = P_{s-p+i}, copied for every Bezier index a
+    local = control[spans[:, None] + np.arange(-p, 1)[None, :]]  # (S, p+1, ...)
+    d = np.broadcast_to(local[:, None], (spans.size, p + 1, p + 1, *rest)).copy()
+    extra = (1,) * len(rest)
+    for r in range(1, p + 1):
+        # blossom argument of level r: t_{s+1} for the first a levels, t_s after
+        x = np.where(r <= a[None, :], knots[spans + 1][:, None], knots[spans][:, None])
+        for i in range(p, r - 1, -1):
+            j = spans - p + i
+            lo = knots[j][:, None]
+            hi = knots[j + p + 1 - r][:, None]
+            alpha = ((x - lo) / (hi - lo)).reshape(spans.size, p + 1, *extra)
+            d[:, :, i] = (1.0 - alpha) * d[:, :, i - 1] + alpha * d[:, :, i]
+    return d[:, :, p]
+
+
+def _elevate_to_cubic(pieces: np.ndarray, axis: int) -> np.ndarray:
+    """Exact degree elevation of quadratic Bezier pieces along ``axis`` (size 3 -> 4)."""
+    b = np.moveaxis(pieces, axis, 0)
+    out = np.stack([b[0], b[0] / 3.0 + 2.0 * b[1] / 3.0, 2.0 * b[1] / 3.0 + b[2] / 3.0, b[2]])
+    return np.moveaxis(out, 0, axis)
+
+
+def _cubic_pieces(knots: np.ndarray, degree: int, control: np.ndarray) -> np.ndarray:
+    if degree not in (2, 3):
+        raise ValueError(
+            f"degree: conversion to bicubic Bezier patches is exact only for degree 2 "
+            f"(elevated) or 3, got degree {degree}; interpolate with degree=3"
+        )
+    pieces = _bezier_extract(knots, degree, control)
+    return _elevate_to_cubic(pieces, 1) if degree == 2 else pieces
+
+
+def _span_parameters(knots: np.ndarray, degree: int, x: np.ndarray):
+    """Piece index and local parameter in [0, 1] of knot-domain parameters ``x``."""
+    n = knots.size - degree - 1
+    breaks = np.unique(knots[degree : n + 1])
+    idx = np.clip(np.searchsorted(breaks, x, side="right") - 1, 0, breaks.size - 2)
+    local = (x - breaks[idx]) / (breaks[idx + 1] - breaks[idx])
+    return idx, np.clip(local, 0.0, 1.0)
+
+
+# ----------------------------------------------------------------------------- curves
+@dataclass(frozen=True)
+class BSplineCurve:
+    """Non-rational B-spline curve (open or periodic) from :func:`interpolate_curve`.
+
+    Attributes
+    ----------
+    degree : int
+        Degree ``p``.
+    knots : (K,) numpy.ndarray of float64
+        Full knot vector: clamped ``(N + p + 1,)`` when open; the unwrapped periodic
+        vector ``(N + 2p + 1,)`` when closed.
+    control : (N, d) numpy.ndarray of float64
+        Distinct control points (a closed curve repeats the first ``p`` implicitly).
+    params : (M,) numpy.ndarray of float64
+        Parameters of the interpolated data points (empty for a curve built from
+        control points).
+    closed : bool
+        Periodic curve with period 1 in the parameter.
+    """
+
+    degree: int
+    knots: np.ndarray
+    control: np.ndarray
+    params: np.ndarray
+    closed: bool = False
+
+    @property
+    def dim(self) -> int:
+        """Dimension ``d`` of the curve's points."""
+        return int(self.control.shape[1])
+
+    @property
+    def full_control(self) -> np.ndarray:
+        """Control points of the unwrapped spline, ``(len(knots) - p - 1, d)``."""
+        if self.closed:
+            return _unwrap_control(self.control, self.degree, 0)
+        return self.control
+
+    def _spline(self) -> BSpline:
+        return BSpline(self.knots, self.full_control, self.degree, extrapolate=True)
+
+    def evaluate(self, u) -> np.ndarray:
+        """Points at parameters ``u`` (``(M,)`` in ``[0, 1]``; periodic when closed) -> ``(M, d)``."""
+        x = _domain_u(u, "u", self.closed)
+        if self.closed:
+            x = _wrap(x, self.knots, self.degree)
+        return self._spline()(x)
+
+    def derivative(self, u, order: int = 1) -> np.ndarray:
+        """Derivative of the given order (1 .. p) with respect to u at ``u`` -> ``(M, d)``."""
+        if not 0 <= int(order) <= self.degree:
+            raise ValueError(f"order: expected 0 to {self.degree}, got {order}")
+        x = _domain_u(u, "u", self.closed)
+        if self.closed:
+            x = _wrap(x, self.knots, self.degree)
+        return self._spline()(x, nu=int(order))
+
+    def with_control(self, control) -> BSplineCurve:
+        """The same knots and degree with moved control points (deformation, seed 004).
+
+        Parameters
+        ----------
+        control : (N, d) array_like of float
+            New distinct control points, same shape as :attr:`control`.
+        """
+        c = as_array(control, "control", shape=self.control.shape)
+        return BSplineCurve(self.degree, self.knots, c, np.empty(0), self.closed)
+
+    def bezier_segments(self) -> np.ndarray:
+        """Exact Bezier pieces of the curve, ``(S, p + 1, d)`` (knot insertion)."""
+        return _bezier_extract(self.knots, self.degree, self.full_control)
+
+
+def interpolate_curve(
+    points,
+    degree: int = 3,
+    method: str = "chord",
+    closed: bool = False,
+    params=None,
+) -> BSplineCurve:
+    """Global B-spline interpolation of a curve (The NURBS Book sec. 9.2.1, seed 003).
+
+    Parameters
+    ----------
+    points : (N, d) array_like of float
+        Data points (any unit), ``d >= 1``. Open: ``N >= degree + 1``. Closed: the
+        first point is not repeated at the end (a repeated last point is dropped).
+    degree : int, optional
+        Degree 2 to 5 (default 3).
+    method : {"chord", "uniform", "centripetal"}, optional
+        Parameterisation (eqs. 9.3, 9.4-9.5, 9.6).
+    closed : bool, optional
+        Periodic interpolation (C^{p-1} everywhere, period 1).
+    params : (N,) array_like of float, optional
+        Explicit data parameters instead of ``method``: strictly increasing, ``[0, 1]``
+        with both ends when open, ``[0, 1)`` starting at 0 when closed.
+
+    Returns
+    -------
+    BSplineCurve
+        The curve with ``curve.evaluate(curve.params) == points``.
+
+    Raises
+    ------
+    ValueError
+        Bad shape, too few points, repeated consecutive points (zero chord), bad degree.
+    """
+    p = _check_degree(degree)
+    _check_method(method)
+    q = as_array(points, "points", ndim=2)
+    if closed and q.shape[0] > 2 and np.allclose(q[-1], q[0], rtol=0.0, atol=1e-12 * _scale(q)):
+        q = q[:-1]
+    if q.shape[0] < p + 1:
+        raise ValueError(f"points: degree {p} needs at least {p + 1} points, got {q.shape[0]}")
+    if params is None:
+        u = _line_parameters(q[None], method, closed)
+    else:
+        u = _explicit_params(params, q.shape[0], closed, "params")
+    _check_params(u, closed, "points")
+    knots = periodic_knots(u, p) if closed else averaged_knots(u, p)
+    control = _solve(_collocation(u, knots, p, closed), q)
+    return BSplineCurve(p, knots, control, u, bool(closed))
+
+
+def _scale(q: np.ndarray) -> float:
+    return max(float(np.max(np.abs(q))), 1.0)
+
+
+def _explicit_params(params, n: int, closed: bool, name: str) -> np.ndarray:
+    u = as_array(params, name, shape=(n,))
+    if closed:
+        if u[0] != 0.0 or u[-1] >= 1.0:
+            raise ValueError(f"{name}: closed parameters must start at 0 and stay below 1")
+    elif u[0] != 0.0 or u[-1] != 1.0:
+        raise ValueError(f"{name}: open parameters must run from 0 to 1")
+    if np.any(np.diff(u) <= 0):
+        raise ValueError(f"{name}: must be strictly increasing")
+    return u
+
+
+# ----------------------------------------------------------------------------- surfaces
+@dataclass(frozen=True)
+class BSplineSurface:
+    """Tensor-product B-spline surface from :func:`interpolate_surface`.
+
+    Attributes
+    ----------
+    degree_u, degree_v : int
+        Degrees in u (axis 0 of the data grid) and v (axis 1).
+    knots_u, knots_v : numpy.ndarray of float64
+        Full knot vectors (clamped when open, unwrapped periodic when closed).
+    control : (n_u, n_v, 3) numpy.ndarray of float64
+        Distinct control points (closed directions repeat the first ``p`` implicitly).
+    params_u, params_v : numpy.ndarray of float64
+        Parameters of the data rows (u) and columns (v).
+    closed_u, closed_v : bool
+        Periodic directions (period 1).
+    """
+
+    degree_u: int
+    degree_v: int
+    knots_u: np.ndarray
+    knots_v: np.ndarray
+    control: np.ndarray
+    params_u: np.ndarray
+    params_v: np.ndarray
+    closed_u: bool = False
+    closed_v: bool = False
+
+    @property
+    def full_control(self) -> np.ndarray:
+        """Unwrapped control net ``(len(knots_u) - p_u - 1, len(knots_v) - p_v - 1, 3)``."""
+        c = self.control
+        if self.closed_u:
+            c = _unwrap_control(c, self.degree_u, 0)
+        if self.closed_v:
+            c = _unwrap_control(c, self.degree_v, 1)
+        return c
+
+    def _domain(self, u, v) -> np.ndarray:
+        x = _domain_u(u, "u", self.closed_u)
+        y = _domain_u(v, "v", self.closed_v)
+        if x.shape != y.shape:
+            raise ValueError(f"u, v: expected equal shapes, got {x.shape} and {y.shape}")
+        if self.closed_u:
+            x = _wrap(x, self.knots_u, self.degree_u)
+        if self.closed_v:
+            y = _wrap(y, self.knots_v, self.degree_v)
+        return np.stack([x, y], axis=1)
+
+    def evaluate(self, u, v) -> np.ndarray:
+        """Surface points ``S(u, v)``.
+
+        Parameters
+        ----------
+        u, v : (N,) array_like of float
+            Parameters in ``[0, 1]`` (periodic in a closed direction).
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(N, 3)`` float64 points.
+        """
+        return self.derivative(u, v, 0, 0)
+
+    def derivative(self, u, v, nu: int = 1, nv: int = 0) -> np.ndarray:
+        """Partial derivative ``d^(nu+nv) S / du^nu dv^nv`` at ``(u, v)`` -> ``(N, 3)``.
+
+        ``nu <= degree_u``, ``nv <= degree_v``; evaluated by scipy's ``NdBSpline``
+        (tensor-product de Boor, vectorised over all points).
+        """
+        if not (0 <= nu <= self.degree_u and 0 <= nv <= self.degree_v):
+            raise ValueError(f"nu, nv: expected 0..{self.degree_u} and 0..{self.degree_v}")
+        xi = self._domain(u, v)
+        spline = NdBSpline(
+            (self.knots_u, self.knots_v), self.full_control, (self.degree_u, self.degree_v)
+        )
+        return spline(xi, nu=(int(nu), int(nv)))
+
+    def normals(self, u, v) -> np.ndarray:
+        """Unit normals along ``Su x Sv`` at ``(u, v)`` -> ``(N, 3)`` (zero where degenerate)."""
+        n = np.cross(self.derivative(u, v, 1, 0), self.derivative(u, v, 0, 1))
+        length = np.linalg.norm(n, axis=1, keepdims=True)
+        return np.divide(n, length, out=np.zeros_like(n), where=length > 0)
+
+    def evaluate_grid(self, u, v) -> np.ndarray:
+        """Points on the grid ``u (M,) x v (K,)`` -> ``(M, K, 3)``."""
+        uu = np.atleast_1d(as_array(u, "u", ndim=(0, 1)))
+        vv = np.atleast_1d(as_array(v, "v", ndim=(0, 1)))
+        gu, gv = np.meshgrid(uu, vv, indexing="ij")
+        return self.evaluate(gu.ravel(), gv.ravel()).reshape(uu.size, vv.size, 3)
+
+    def patch_parameters(self, u, v):
+        """Map global ``(u, v)`` to ``(pi, pj, s, t)`` of :meth:`to_bezier`'s patches.
+
+        Returns
+        -------
+        tuple of numpy.ndarray
+            ``pi, pj`` (N,) int64 patch indices and ``s, t`` (N,) local parameters in
+            ``[0, 1]`` such that ``to_bezier().evaluate(pi, pj, s, t) == evaluate(u, v)``.
+        """
+        xi = self._domain(u, v)
+        pi, s = _span_parameters(self.knots_u, self.degree_u, xi[:, 0])
+        pj, t = _span_parameters(self.knots_v, self.degree_v, xi[:, 1])
+        return pi, pj, s, t
+
+    def bezier_control(self) -> np.ndarray:
+        """Exact bicubic Bezier control points ``(R, C, 4, 4, 3)`` by knot insertion.
+
+        Patch ``(i, j)`` covers the i-th non-empty u span and the j-th v span of the
+        knot domains; ``control[i, j, a, b]`` has ``a`` along u and ``b`` along v.
+        Neighbouring patches share their boundary control points bit for bit (and
+        so do the first and last patches of a closed direction).
+
+        Raises
+        ------
+        ValueError
+            When a degree is not 2 or 3 (no exact bicubic representation).
+        """
+        c = _cubic_pieces(self.knots_u, self.degree_u, self.full_control)  # (Su, 4, nv, 3)
+        c = _cubic_pieces(self.knots_v, self.degree_v, np.moveaxis(c, 2, 0))  # (Sv, 4, Su, 4, 3)
+        c = np.ascontiguousarray(c.transpose(2, 0, 3, 1, 4))
+        # shared seams must be identical, not equal up to rounding
+        c[1:, :, 0] = c[:-1, :, 3]
+        c[:, 1:, :, 0] = c[:, :-1, :, 3]
+        if self.closed_u:
+            c[-1, :, 3] = c[0, :, 0]
+        if self.closed_v:
+            c[:, -1, :, 3] = c[:, 0, :, 0]
+        return c
+
+    def to_bezier(self) -> BezierPatches:
+        """Exact conversion to the shared :class:`surfaces.bezier.BezierPatches` model."""
+        from surfaces.bezier import BezierPatches
+
+        return BezierPatches(
+            control=self.bezier_control(), closed_u=self.closed_u, closed_v=self.closed_v
+        )
+
+
+def interpolate_surface(
+    points,
+    degree: int | tuple[int, int] = 3,
+    method: str = "chord",
+    closed_u: bool = False,
+    closed_v: bool = False,
+    params_u=None,
+    params_v=None,
+) -> BSplineSurface:
+    """Global B-spline surface interpolation through a grid (seed 003; The NURBS Book A9.4).
+
+    Parameters
+    ----------
+    points : (R, C, 3) array_like of float
+        Grid ``Q[k, l]``; ``k`` runs along u, ``l`` along v. Any length unit.
+    degree : int or (int, int), optional
+        Degrees ``(p_u, p_v)``, each 2 to 5 (default 3, bicubic).
+    method : {"chord", "uniform", "centripetal"}, optional
+        Parameterisation; per-line parameters are averaged over all lines of the
+        other direction, lines of zero length (poles) excluded.
+    closed_u, closed_v : bool, optional
+        Periodic direction(s). Give the grid without repeating the first row
+        (column) at the end; a repeated one is dropped.
+    params_u, params_v : array_like of float, optional
+        Explicit data parameters (``(R,)`` and ``(C,)``) instead of ``method``.
+
+    Returns
+    -------
+    BSplineSurface
+        Surface with ``S(params_u[k], params_v[l]) == Q[k, l]``.
+
+    Raises
+    ------
+    ValueError
+        Bad shape, too few rows/columns for the degree, coincident rows or columns.
+    """
+    pu, pv = (degree, degree) if not isinstance(degree, (tuple, list)) else tuple(degree)
+    pu, pv = _check_degree(pu, "degree_u"), _check_degree(pv, "degree_v")
+    _check_method(method)
+    q = as_array(points, "points", shape=(None, None, 3))
+    atol = 1e-12 * _scale(q)
+    if closed_u and q.shape[0] > 2 and np.allclose(q[-1], q[0], rtol=0.0, atol=atol):
+        q = q[:-1]
+    if closed_v and q.shape[1] > 2 and np.allclose(q[:, -1], q[:, 0], rtol=0.0, atol=atol):
+        q = q[:, :-1]
+    r, c = q.shape[:2]
+    if r < pu + 1 or c < pv + 1:
+        raise ValueError(
+            f"points: degrees ({pu}, {pv}) need at least {pu + 1} x {pv + 1} grid points, "
+            f"got {r} x {c}"
+        )
+    if params_u is None:
+        u = _line_parameters(q.transpose(1, 0, 2), method, closed_u)
+    else:
+        u = _explicit_params(params_u, r, closed_u, "params_u")
+    if params_v is None:
+        v = _line_parameters(q, method, closed_v)
+    else:
+        v = _explicit_params(params_v, c, closed_v, "params_v")
+    _check_params(u, closed_u, "rows")
+    _check_params(v, closed_v, "columns")
+    ku = periodic_knots(u, pu) if closed_u else averaged_knots(u, pu)
+    kv = periodic_knots(v, pv) if closed_v else averaged_knots(v, pv)
+    # stage 1: along u for every column at once; stage 2: along v for every row of controls
+    stage1 = _solve(_collocation(u, ku, pu, closed_u), q)
+    control = _solve(_collocation(v, kv, pv, closed_v), stage1.transpose(1, 0, 2))
+    return BSplineSurface(
+        pu, pv, ku, kv, np.ascontiguousarray(control.transpose(1, 0, 2)), u, v,
+        bool(closed_u), bool(closed_v),
+    )
+
+
+def interpolate_surface_patches(points, **kwargs) -> BezierPatches:
+    """Interpolate a grid and convert it exactly to bicubic Bezier patches.
+
+    Parameters
+    ----------
+    points : (R, C, 3) array_like of float
+        Grid, axis 0 along u, axis 1 along v (see :func:`interpolate_surface`).
+    **kwargs
+        Passed to :func:`interpolate_surface` (``degree`` must be 2 or 3).
+
+    Returns
+    -------
+    surfaces.bezier.BezierPatches
+        One patch per knot span pair; closure flags as requested.
+    """
+    return interpolate_surface(points, **kwargs).to_bezier()
