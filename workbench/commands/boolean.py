@@ -1,0 +1,145 @@
+"""``workbench surfaces boolean``: union, intersection or difference of two closed meshes.
+
+Writes the result mesh (``--out C.ply``, format by suffix: .ply, .obj, .stl)
+and, next to it, a JSON summary with the volumes (``C.json``); optionally the
+intersection curve as polylines (``--curves``) and a Loop-subdivision
+smoothing of the result (``--smooth N``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import numpy as np
+
+
+def register(subparsers) -> None:
+    """Add the ``boolean`` sub-command to the ``surfaces`` group.
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+        The ``surfaces`` group's sub-parsers.
+    """
+    from surfaces.boolean import FILTERS, OPS
+
+    p = subparsers.add_parser(
+        "boolean",
+        help="union / intersection / difference of two closed meshes (manifold3d)",
+        description="Set operation on two solids bounded by closed, outward oriented triangle "
+        "meshes (PLY/OBJ/STL). Writes the result mesh and a JSON summary with the volumes "
+        "(same name as --out, suffix .json).",
+    )
+    p.add_argument("a", type=Path, help="first closed mesh A (.ply, .obj or .stl)")
+    p.add_argument("b", type=Path, help="second closed mesh B (.ply, .obj or .stl)")
+    p.add_argument("--op", choices=OPS, required=True, help="operation; difference is A minus B")
+    p.add_argument("--out", type=Path, required=True, help="result mesh (.ply, .obj or .stl)")
+    p.add_argument(
+        "--repair",
+        action="store_true",
+        help="weld, drop degenerate/duplicate triangles, orient and fill small holes in the "
+        "inputs instead of refusing them (what was repaired goes into the JSON)",
+    )
+    p.add_argument(
+        "--smooth",
+        type=int,
+        default=0,
+        metavar="N",
+        help="Loop subdivision steps applied to the result (each x4 triangles; default 0)",
+    )
+    p.add_argument(
+        "--filter",
+        choices=FILTERS,
+        default="taubin",
+        help="filter after subdivision when --smooth > 0 (default taubin)",
+    )
+    p.add_argument(
+        "--filter-iterations",
+        type=int,
+        default=10,
+        help="filter steps after subdivision (default 10)",
+    )
+    p.add_argument(
+        "--curves",
+        type=Path,
+        default=None,
+        help="also write the intersection curve polylines to this JSON file",
+    )
+    p.set_defaults(func=run)
+
+
+def _write_json(path: Path, data: dict) -> None:
+    from surfaces.io import atomic_path
+
+    with atomic_path(path) as tmp:
+        tmp.write_text(json.dumps(data, indent=2) + "\n")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the set operation and write the mesh, the summary and optionally the curves.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        Parsed arguments of ``workbench surfaces boolean``.
+
+    Returns
+    -------
+    int
+        0 on success.
+    """
+    from surfaces.boolean import boolean, loop_smooth, mesh_volume
+    from surfaces.io import MESH_FORMATS, read_mesh, write_mesh
+
+    if args.out.suffix.lower() not in MESH_FORMATS:
+        raise ValueError(f"--out: unsupported mesh format {args.out.suffix!r}; use {', '.join(MESH_FORMATS)}")
+    if args.smooth < 0 or args.filter_iterations < 0:
+        raise ValueError("--smooth, --filter-iterations: must be >= 0")
+    a = read_mesh(args.a)
+    b = read_mesh(args.b)
+    result = boolean(a, b, args.op, repair=args.repair, names=(str(args.a), str(args.b)))
+    mesh = result.mesh
+    summary = {"a": str(args.a), "b": str(args.b), "out": str(args.out), **result.summary()}
+    if args.smooth > 0 and len(mesh.triangles):
+        mesh = loop_smooth(mesh, args.smooth, filter=args.filter, filter_iterations=args.filter_iterations)
+        summary["smooth"] = {
+            "iterations": args.smooth,
+            "filter": args.filter,
+            "filter_iterations": args.filter_iterations,
+            "volume_smoothed": mesh_volume(mesh),
+            "n_triangles": len(mesh.triangles),
+        }
+    json_path = args.out.with_suffix(".json")
+    summary["empty"] = len(mesh.triangles) == 0
+    if summary["empty"]:
+        # a valid answer (disjoint solids): there is no surface to write, only the summary
+        summary["out"] = None
+    else:
+        write_mesh(mesh, args.out)
+    if args.curves is not None:
+        _write_json(
+            args.curves,
+            {
+                "units": "as the input meshes",
+                "curves": [
+                    {"closed": closed, "points": np.asarray(c).tolist()}
+                    for c, closed in zip(result.curves, result.curves_closed)
+                ],
+            },
+        )
+        summary["curves_file"] = str(args.curves)
+    summary["summary_file"] = str(json_path)
+    _write_json(json_path, summary)
+    print(
+        f"{args.op}: volume A {result.volume_a:.6g}, B {result.volume_b:.6g}, "
+        f"result {result.volume:.6g}; {summary['n_triangles']} triangles, "
+        f"watertight {summary['watertight']}, {summary['n_curves']} intersection curve(s)"
+    )
+    if "smooth" in summary:
+        print(
+            f"smoothed ({args.smooth} Loop step(s), {args.filter}): volume {summary['smooth']['volume_smoothed']:.6g}"
+        )
+    print(f"wrote {json_path}" if summary["empty"] else f"wrote {args.out} and {json_path}")
+    return 0
