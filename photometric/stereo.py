@@ -1,0 +1,326 @@
+"""Lambertian photometric stereo: per-pixel normal and albedo (seed 002(a)).
+
+``I_k = rho * (l_k . n)``, k = 1..N: with the matrix ``L`` of unit light directions,
+``rho n = L^-1 I`` for a triad and ``rho n = L^+ I`` (least squares) for ``N >= 4``.
+The solve is one pass over whole image planes (OpenCV weighted sums, which run close to
+memory speed); shadow/highlight outliers are handled by grouping the affected pixels by
+their outlier pattern and solving once per distinct pattern, never per pixel.
+Coordinates follow :data:`photometric.lights.CONVENTION`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from photometric.lights import as_intensities, validate_lights
+from surfaces.validate import as_array
+
+#: Light sub-matrices worse conditioned than this give no trustworthy normal.
+MAX_CONDITION = 100.0
+
+
+@dataclass(frozen=True)
+class StereoResult:
+    """Per-pixel output of :func:`solve`.
+
+    Attributes
+    ----------
+    normals : numpy.ndarray, shape (H, W, 3), float32
+        Unit normals in the lights' frame; ``(0, 0, 1)`` where no solution exists
+        (outside the mask, or zero albedo).
+    albedo : numpy.ndarray, shape (H, W) or (H, W, 3), float32
+        ``rho`` in image units divided by light intensity; RGB for colour input.
+        Zero where no solution exists.
+    valid : numpy.ndarray, shape (H, W), bool
+        Inside the mask, positive albedo, normal facing the camera (``n_z > 0``), and,
+        in outlier mode, at least 3 well-conditioned inlier observations (triad: none
+        of the three is an outlier).
+    residual : numpy.ndarray, shape (H, W), float32
+        Root-mean-square of ``x_k - l_k . (rho n)`` over the observations used (grey,
+        intensity-divided units); zero for an exactly determined triad.
+    p, q : numpy.ndarray, shape (H, W), float32
+        ``p = dz/dx = -n_x / n_z`` and ``q = dz/dy = -n_y / n_z`` (y up); zero where
+        not valid.
+    outliers : numpy.ndarray or None, shape (N, H, W), bool
+        Observations flagged as shadow/highlight (outlier mode only).
+    """
+
+    normals: np.ndarray
+    albedo: np.ndarray
+    valid: np.ndarray
+    residual: np.ndarray
+    p: np.ndarray
+    q: np.ndarray
+    outliers: np.ndarray | None = None
+
+
+def _check_images(images) -> np.ndarray:
+    """Images as float32 (N, H, W) or (N, H, W, 3), finiteness checked cheaply."""
+    arr = as_array(images, "images", ndim=(3, 4), dtype=np.float32, finite=False)
+    if arr.ndim == 4 and arr.shape[3] not in (1, 3):
+        raise ValueError(f"images: expected 1 or 3 channels, got shape {arr.shape}")
+    if arr.ndim == 4 and arr.shape[3] == 1:
+        arr = arr[..., 0]
+    if min(arr.shape[1:3]) < 1:
+        raise ValueError(f"images: empty image size {arr.shape[1:3]}")
+    # A NaN or inf anywhere makes the sum non-finite; one reduction instead of a full
+    # boolean temporary as large as the input.
+    if not np.isfinite(np.sum(arr, dtype=np.float32)):
+        bad = int(arr.size - np.count_nonzero(np.isfinite(arr)))
+        raise ValueError(
+            f"images: contains {bad} NaN or infinite value(s)"
+            if bad
+            else "images: values too large (sum overflows float32)"
+        )
+    return np.ascontiguousarray(arr)
+
+
+def _combine(weights: np.ndarray, planes: list[np.ndarray]) -> np.ndarray:
+    """``sum_k weights[k] * planes[k]`` for (H, W) float32 planes, OpenCV passes."""
+    out = cv2.addWeighted(planes[0], float(weights[0]), planes[1], float(weights[1]), 0.0)
+    for w, plane in zip(weights[2:], planes[2:]):
+        cv2.scaleAdd(plane, float(w), out, dst=out)
+    return out
+
+
+def _grey_planes(imgs: np.ndarray, intens: np.ndarray) -> list[np.ndarray]:
+    """Intensity-divided grey planes: ``x_k = mean_c I_kc / E_kc`` (channels averaged)."""
+    planes = []
+    for k in range(imgs.shape[0]):
+        if imgs.ndim == 4:
+            w = (1.0 / (imgs.shape[3] * intens[k])).reshape(1, 3)
+            planes.append(cv2.transform(imgs[k], w))
+        else:
+            e = float(intens[k].mean())
+            planes.append(imgs[k] if e == 1.0 else imgs[k] * np.float32(1.0 / e))
+    return planes
+
+
+def _solve_patterns(
+    X: np.ndarray, L: np.ndarray, out: np.ndarray, G: np.ndarray, ok: np.ndarray
+) -> None:
+    """Re-solve ``G`` (3, P) in place from the inlier observations of each pixel.
+
+    Pixels are grouped by their outlier pattern (a bit code per pixel) and each distinct
+    pattern is solved once with the pseudo-inverse of its light sub-matrix. ``ok`` (P,)
+    is cleared where fewer than 3 inliers remain or the sub-matrix is ill-conditioned.
+    """
+    n = L.shape[0]
+    sub = np.flatnonzero(out.any(axis=0))
+    if sub.size == 0:
+        return
+    pat = out[:, sub]
+    if n <= 62:
+        codes = (np.uint64(1) << np.arange(n, dtype=np.uint64)) @ pat.astype(np.uint64)
+        uniq, inverse = np.unique(codes, return_inverse=True)
+        patterns = ((uniq[:, None] >> np.arange(n, dtype=np.uint64)) & np.uint64(1)).astype(bool)
+    else:
+        patterns, inverse = np.unique(pat.T, axis=0, return_inverse=True)
+    inverse = inverse.reshape(-1)
+    order = np.argsort(inverse, kind="stable")
+    bounds = np.searchsorted(inverse[order], np.arange(len(patterns) + 1))
+    for j, pattern in enumerate(patterns):
+        cols = sub[order[bounds[j] : bounds[j + 1]]]
+        keep = ~pattern
+        if keep.sum() < 3:
+            ok[cols] = False
+            continue
+        Lk = L[keep]
+        s = np.linalg.svd(Lk, compute_uv=False)
+        if s[-1] <= 0 or s[0] / s[-1] > MAX_CONDITION:
+            ok[cols] = False
+            continue
+        G[:, cols] = (np.linalg.pinv(Lk).astype(np.float32) @ X[keep][:, cols]).astype(np.float32)
+
+
+def solve(
+    images,
+    lights,
+    intensities=None,
+    mask=None,
+    outliers: bool = False,
+    *,
+    dark: float = 0.1,
+    saturation: float = 0.99,
+    highlight: float | None = None,
+    iterations: int = 2,
+) -> StereoResult:
+    """Per-pixel normals and albedo from N >= 3 images under known lights.
+
+    Parameters
+    ----------
+    images : array_like, shape (N, H, W) or (N, H, W, 3)
+        Linear images (float, typically in [0, 1]); colour in RGB order.
+    lights : array_like, shape (N, 3)
+        Unit light directions (:data:`photometric.lights.CONVENTION`).
+    intensities : None, float or array_like, shape (N,) or (N, 3), optional
+        Light intensities, divided out per channel (``None``: all ones).
+    mask : array_like, shape (H, W), optional
+        Pixels to solve (default all).
+    outliers : bool, optional
+        Shadow/highlight handling. An observation is an outlier when it is dark
+        (``x_k < dark * rho``), saturated (any channel ``>= saturation`` in the input
+        images) or, when ``highlight`` is given, brighter than the Lambertian
+        prediction by more than ``highlight * rho``. With ``N >= 4`` outliers are
+        dropped and the pixel re-solved from the rest (at least 3, well conditioned);
+        with a triad the pixel becomes invalid.
+    dark, saturation, highlight : float, optional
+        Thresholds of the outlier test (see above).
+    iterations : int, optional
+        Detect/re-solve rounds in outlier mode (the albedo estimate improves after the
+        first).
+
+    Returns
+    -------
+    StereoResult
+        Normals, albedo, validity, residual, ``p``, ``q`` (and outlier flags).
+
+    Notes
+    -----
+    Seed 002(a): ``rho n = L^-1 I``; for ``N >= 4`` the least-squares solution
+    ``rho n = (L^T L)^-1 L^T I``. Colour images: channels are divided by the
+    intensities and averaged to grey to solve for one normal; the albedo of channel
+    ``c`` is then ``sum_k x_kc s_k / sum_k s_k^2`` with ``s_k = l_k . n`` over the
+    observations used.
+    """
+    imgs = _check_images(images)
+    n_img, height, width = imgs.shape[:3]
+    L = validate_lights(lights)
+    if L.shape[0] != n_img:
+        raise ValueError(f"lights: {L.shape[0]} directions for {n_img} images")
+    intens = as_intensities(intensities, n_img)
+    m = None if mask is None else as_array(mask, "mask", shape=(height, width), dtype=bool)
+    if m is not None and not m.any():
+        raise ValueError("mask: no pixel is selected")
+    for value, name in ((dark, "dark"), (saturation, "saturation")):
+        if not np.isfinite(value) or value <= 0:
+            raise ValueError(f"{name}: must be a positive number, got {value}")
+    if highlight is not None and (not np.isfinite(highlight) or highlight <= 0):
+        raise ValueError(f"highlight: must be a positive number or None, got {highlight}")
+    if int(iterations) < 1:
+        raise ValueError(f"iterations: must be at least 1, got {iterations}")
+
+    planes = _grey_planes(imgs, intens)
+    M = np.linalg.inv(L) if n_img == 3 else np.linalg.pinv(L)
+    g = [_combine(M[i], planes) for i in range(3)]
+    rho = cv2.magnitude(cv2.magnitude(g[0], g[1]), g[2])
+    ok = rho > 0
+    if m is not None:
+        ok &= m
+
+    residual = np.zeros((height, width), np.float32)
+    out_flags = None
+    inliers = None  # (N, P) over `idx` pixels, only when some observations are dropped
+    idx = None
+    if outliers or n_img > 3:
+        idx = np.flatnonzero(m) if m is not None else slice(None)
+        X = np.stack([pl.reshape(-1)[idx] for pl in planes])
+        G = np.stack([gi.reshape(-1)[idx] for gi in g])
+        L32 = L.astype(np.float32)
+        ok_base = ok.reshape(-1)[idx]
+        ok_m = ok_base.copy()
+        if outliers:
+            sat_src = imgs.max(axis=3) if imgs.ndim == 4 else imgs
+            sat = sat_src.reshape(n_img, -1)[:, idx] >= saturation
+            G_all = G.copy()
+            for _ in range(int(iterations)):
+                r = np.sqrt(np.einsum("ip,ip->p", G, G))
+                out = (X < dark * r) | sat
+                if highlight is not None:
+                    out |= (X - L32 @ G) > highlight * r
+                if n_img == 3:
+                    ok_m &= ~out.any(axis=0)
+                    break
+                G = G_all.copy()
+                ok_m = ok_base.copy()
+                _solve_patterns(X, L, out, G, ok_m)
+            inliers = ~out
+            out_flags = np.zeros((n_img, height * width), bool)
+            out_flags[:, idx] = out
+            out_flags = out_flags.reshape(n_img, height, width)
+        if n_img > 3:
+            err = X - L32 @ G
+            if inliers is not None:
+                err = np.where(inliers, err, 0.0)
+                count = np.maximum(inliers.sum(axis=0), 1)
+            else:
+                count = n_img
+            residual.reshape(-1)[idx] = np.sqrt((err * err).sum(axis=0) / count)
+        for i in range(3):
+            g[i].reshape(-1)[idx] = G[i]
+        rho = cv2.magnitude(cv2.magnitude(g[0], g[1]), g[2])
+        ok.reshape(-1)[idx] = ok_m & (rho.reshape(-1)[idx] > 0)
+        del X, G
+
+    # Normalise in place; rho == 0 only where `ok` is already False.
+    inv = np.divide(1.0, rho, out=np.zeros_like(rho), where=rho > 0)
+    for gi in g:
+        cv2.multiply(gi, inv, dst=gi)
+    del inv
+    ok &= g[2] > 0
+    # No solution: a flat normal and zero albedo, so downstream sums stay finite.
+    blank = rho <= 0 if m is None else (rho <= 0) | ~m
+    if blank.any():
+        g[2][blank] = 1.0
+        g[0][blank] = 0.0
+        g[1][blank] = 0.0
+        rho[blank] = 0.0
+    p = np.divide(g[0], g[2], out=np.zeros_like(g[0]), where=ok)
+    np.negative(p, out=p)
+    q = np.divide(g[1], g[2], out=np.zeros_like(g[1]), where=ok)
+    np.negative(q, out=q)
+    normals = cv2.merge(g)
+    del g
+
+    albedo = rho
+    if imgs.ndim == 4:
+        albedo = _colour_albedo(imgs, intens, L, normals, inliers, idx, blank)
+    return StereoResult(
+        normals=normals, albedo=albedo, valid=ok, residual=residual, p=p, q=q, outliers=out_flags
+    )
+
+
+def _colour_albedo(imgs, intens, L, normals, inliers, idx, blank) -> np.ndarray:
+    """Per-channel albedo given the normal: ``sum_k x_kc s_k / sum_k s_k^2``."""
+    n_img, height, width = imgs.shape[:3]
+    shading = (normals.reshape(-1, 3) @ L.T.astype(np.float32)).T  # (N, P)
+    if inliers is not None:
+        used = np.ones((n_img, height * width), bool)
+        used[:, idx] = inliers
+        shading = np.where(used, shading, 0.0).astype(np.float32)
+    num = np.zeros((height * width, 3), np.float32)
+    for k in range(n_img):
+        num += imgs[k].reshape(-1, 3) * (shading[k][:, None] / intens[k].astype(np.float32))
+    den = np.einsum("kp,kp->p", shading, shading)
+    albedo = np.divide(num, den[:, None], out=np.zeros_like(num), where=den[:, None] > 0)
+    albedo = albedo.reshape(height, width, 3)
+    albedo[blank] = 0.0
+    return albedo
+
+
+def angular_error_deg(normals, reference, mask=None) -> np.ndarray:
+    """Angle between two normal maps, degrees.
+
+    Parameters
+    ----------
+    normals, reference : array_like, shape (H, W, 3)
+        Normal maps (normalised here).
+    mask : array_like, shape (H, W), optional
+        Pixels to return (default all).
+
+    Returns
+    -------
+    numpy.ndarray, float64
+        ``arccos(n . n_ref)`` in degrees, shape (H, W), or (K,) over the mask pixels.
+    """
+    a = as_array(normals, "normals", shape=(None, None, 3))
+    b = as_array(reference, "reference", shape=a.shape)
+    a = a / np.maximum(np.linalg.norm(a, axis=2, keepdims=True), 1e-300)
+    b = b / np.maximum(np.linalg.norm(b, axis=2, keepdims=True), 1e-300)
+    err = np.degrees(np.arccos(np.clip(np.einsum("hwc,hwc->hw", a, b), -1.0, 1.0)))
+    if mask is None:
+        return err
+    return err[as_array(mask, "mask", shape=a.shape[:2], dtype=bool)]
