@@ -48,6 +48,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
+import scipy.linalg
 import scipy.sparse
 import scipy.sparse.linalg
 from scipy.interpolate import BSpline, NdBSpline
@@ -165,25 +166,41 @@ def periodic_knots(params: np.ndarray, degree: int) -> np.ndarray:
     return np.concatenate([tau[u.size - p :] - 1.0, tau, tau[: p + 1] + 1.0])
 
 
-def _collocation(params: np.ndarray, knots: np.ndarray, degree: int, closed: bool):
-    """Sparse LU of the (N, N) collocation matrix (eq. 9.7); closed: columns folded."""
-    n = params.size
-    x = params.copy()
-    if closed:
-        x = _wrap(x, knots, degree)
-    dm = BSpline.design_matrix(x, knots, degree).tocoo()
-    cols = dm.col % n if closed else dm.col
-    mat = scipy.sparse.csc_matrix((dm.data, (dm.row, cols)), shape=(n, n))
-    try:
-        return scipy.sparse.linalg.splu(mat)
-    except RuntimeError as exc:  # singular: Schoenberg-Whitney violated
-        raise ValueError(f"points: the interpolation system is singular ({exc})") from None
+class _Collocation:
+    """Factorised (N, N) collocation matrix of eq. 9.7, solved for many right-hand sides.
 
+    Open: the matrix is banded (at most ``p`` nonzeros per row, within ``p`` of the
+    diagonal): LAPACK's banded solver via ``scipy.linalg.solve_banded``. Closed:
+    periodic columns fold the band into the corners, so a sparse LU is used.
+    """
 
-def _solve(lu, rhs: np.ndarray) -> np.ndarray:
-    """Solve for all right-hand sides at once; ``rhs`` (N, ...) -> (N, ...)."""
-    flat = rhs.reshape(rhs.shape[0], -1)
-    return lu.solve(np.ascontiguousarray(flat)).reshape(rhs.shape)
+    def __init__(self, params: np.ndarray, knots: np.ndarray, degree: int, closed: bool):
+        n = params.size
+        x = _wrap(params, knots, degree) if closed else params
+        dm = BSpline.design_matrix(x, knots, degree).tocoo()
+        self.degree = degree
+        self.lu = None
+        if closed:
+            mat = scipy.sparse.csc_matrix((dm.data, (dm.row, dm.col % n)), shape=(n, n))
+            try:
+                self.lu = scipy.sparse.linalg.splu(mat)
+            except RuntimeError as exc:  # singular: Schoenberg-Whitney violated
+                raise ValueError(f"points: the interpolation system is singular ({exc})") from None
+        else:
+            self.band = np.zeros((2 * degree + 1, n))
+            np.add.at(self.band, (degree + dm.row - dm.col, dm.col), dm.data)
+
+    def solve(self, rhs: np.ndarray) -> np.ndarray:
+        """Solve for all right-hand sides at once; ``rhs`` (N, ...) -> (N, ...)."""
+        flat = np.ascontiguousarray(rhs.reshape(rhs.shape[0], -1))
+        if self.lu is not None:
+            out = self.lu.solve(flat)
+        else:
+            try:
+                out = scipy.linalg.solve_banded((self.degree, self.degree), self.band, flat)
+            except np.linalg.LinAlgError as exc:
+                raise ValueError(f"points: the interpolation system is singular ({exc})") from None
+        return out.reshape(rhs.shape)
 
 
 def _wrap(u: np.ndarray, knots: np.ndarray, degree: int) -> np.ndarray:
@@ -387,7 +404,7 @@ def interpolate_curve(
         u = _explicit_params(params, q.shape[0], closed, "params")
     _check_params(u, closed, "points")
     knots = periodic_knots(u, p) if closed else averaged_knots(u, p)
-    control = _solve(_collocation(u, knots, p, closed), q)
+    control = _Collocation(u, knots, p, closed).solve(q)
     return BSplineCurve(p, knots, control, u, bool(closed))
 
 
@@ -611,8 +628,8 @@ def interpolate_surface(
     ku = periodic_knots(u, pu) if closed_u else averaged_knots(u, pu)
     kv = periodic_knots(v, pv) if closed_v else averaged_knots(v, pv)
     # stage 1: along u for every column at once; stage 2: along v for every row of controls
-    stage1 = _solve(_collocation(u, ku, pu, closed_u), q)
-    control = _solve(_collocation(v, kv, pv, closed_v), stage1.transpose(1, 0, 2))
+    stage1 = _Collocation(u, ku, pu, closed_u).solve(q)
+    control = _Collocation(v, kv, pv, closed_v).solve(stage1.transpose(1, 0, 2))
     return BSplineSurface(
         pu, pv, ku, kv, np.ascontiguousarray(control.transpose(1, 0, 2)), u, v,
         bool(closed_u), bool(closed_v),
