@@ -1,0 +1,122 @@
+"""Tests of ``workbench surfaces boolean``: files written, JSON volumes, errors as exit code 2."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from surfaces import boolean as bl
+from surfaces.io import read_mesh, write_mesh
+from surfaces.mesh import TriangleMesh
+from tests.surfaces.test_boolean import box, icosphere
+from workbench.cli import main
+
+
+@pytest.fixture()
+def pair(tmp_path):
+    a, b = tmp_path / "A.ply", tmp_path / "B.stl"
+    write_mesh(icosphere(1.0, (0, 0, 0), 3), a)
+    write_mesh(icosphere(1.0, (0.7, 0.2, 0.0), 3), b)
+    return a, b
+
+
+@pytest.mark.parametrize("op", ["union", "intersection", "difference"])
+def test_writes_mesh_and_summary(pair, tmp_path, op, capsys):
+    a, b = pair
+    out = tmp_path / f"C_{op}.obj"
+    code = main(["surfaces", "boolean", str(a), str(b), "--op", op, "--out", str(out)])
+    assert code == 0
+    summary = json.loads(out.with_suffix(".json").read_text())
+    for key in ("op", "volume_a", "volume_b", "volume", "n_triangles", "watertight", "n_curves"):
+        assert key in summary
+    assert summary["op"] == op and summary["watertight"] and summary["n_curves"] == 1
+    mesh = read_mesh(out)
+    assert bl.check_solid(mesh)["solid"]
+    assert bl.mesh_volume(mesh) == pytest.approx(summary["volume"], rel=1e-6)
+    printed = capsys.readouterr().out
+    assert f"{summary['volume']:.6g}" in printed
+
+
+def test_volumes_satisfy_inclusion_exclusion(pair, tmp_path):
+    a, b = pair
+    vol = {}
+    for op in ("union", "intersection"):
+        out = tmp_path / f"{op}.ply"
+        assert main(["surfaces", "boolean", str(a), str(b), "--op", op, "--out", str(out)]) == 0
+        vol[op] = json.loads(out.with_suffix(".json").read_text())
+    s = vol["union"]
+    total = s["volume_a"] + s["volume_b"]
+    assert abs(s["volume"] + vol["intersection"]["volume"] - total) <= 1e-6 * total
+
+
+def test_smooth_and_curves(pair, tmp_path):
+    a, b = pair
+    out, curves = tmp_path / "S.ply", tmp_path / "curves.json"
+    args = ["surfaces", "boolean", str(a), str(b), "--op", "union", "--out", str(out)]
+    assert main([*args, "--smooth", "1", "--curves", str(curves)]) == 0
+    summary = json.loads(out.with_suffix(".json").read_text())
+    smoothed = read_mesh(out)
+    assert len(smoothed.triangles) == 4 * summary["n_triangles"]
+    assert bl.check_solid(smoothed)["solid"]
+    assert summary["smooth"]["volume_smoothed"] == pytest.approx(bl.mesh_volume(smoothed), rel=1e-6)
+    lines = json.loads(curves.read_text())["curves"]
+    assert len(lines) == 1 and lines[0]["closed"] and np.asarray(lines[0]["points"]).shape[1] == 3
+
+
+def test_open_input_is_refused_then_repaired(tmp_path, capsys):
+    m = icosphere(1.0, level=3)
+    holed = TriangleMesh(m.vertices, np.delete(m.triangles, [5, 300], axis=0))
+    a, b = tmp_path / "holed.ply", tmp_path / "box.ply"
+    write_mesh(holed, a)
+    write_mesh(box([0, 0, 0], [2, 2, 2]), b)
+    out = tmp_path / "D.ply"
+    args = ["surfaces", "boolean", str(a), str(b), "--op", "difference", "--out", str(out)]
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert "holed.ply: not closed" in err and "--repair" in err
+    assert not out.exists()
+    assert main([*args, "--repair"]) == 0
+    summary = json.loads(out.with_suffix(".json").read_text())
+    assert summary["repairs"][str(a)]["filled_holes"] == 2
+
+
+def test_empty_result_writes_only_summary(tmp_path):
+    a, b = tmp_path / "a.ply", tmp_path / "b.ply"
+    write_mesh(box([0, 0, 0], [1, 1, 1]), a)
+    write_mesh(box([2, 0, 0], [3, 1, 1]), b)
+    out = tmp_path / "E.ply"
+    assert main(["surfaces", "boolean", str(a), str(b), "--op", "intersection", "--out", str(out)]) == 0
+    summary = json.loads(out.with_suffix(".json").read_text())
+    assert summary["empty"] and summary["volume"] == 0.0 and not out.exists()
+
+
+@pytest.mark.parametrize(
+    "extra, message",
+    [
+        (["--out", "X.vtk"], "unsupported mesh format"),
+        (["--out", "X.ply", "--smooth", "-1"], "must be >= 0"),
+    ],
+)
+def test_bad_options(pair, tmp_path, extra, message, capsys):
+    a, b = pair
+    extra = [str(tmp_path / e) if e.startswith("X.") else e for e in extra]
+    assert main(["surfaces", "boolean", str(a), str(b), "--op", "union", *extra]) == 2
+    assert message in capsys.readouterr().err
+
+
+def test_missing_file(tmp_path, capsys):
+    code = main(
+        [
+            "surfaces",
+            "boolean",
+            str(tmp_path / "no.ply"),
+            str(tmp_path / "no2.ply"),
+            "--op",
+            "union",
+            "--out",
+            str(tmp_path / "o.ply"),
+        ]
+    )
+    assert code == 2 and "no such mesh file" in capsys.readouterr().err
