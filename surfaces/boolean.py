@@ -57,17 +57,13 @@ class _Arrays:
 def _mesh_arrays(mesh, name: str) -> tuple[np.ndarray, np.ndarray]:
     """Validated ``(vertices (V,3) float64, triangles (T,3) int64)`` of a mesh-like input."""
     if not (hasattr(mesh, "vertices") and hasattr(mesh, "triangles")):
-        raise ValueError(
-            f"{name}: expected a TriangleMesh (with .vertices and .triangles), got {type(mesh).__name__}"
-        )
+        raise ValueError(f"{name}: expected a TriangleMesh (with .vertices and .triangles), got {type(mesh).__name__}")
     vertices = as_array(mesh.vertices, f"{name}.vertices", shape=(None, 3))
     triangles = np.asarray(mesh.triangles)
     if triangles.size == 0:
         triangles = triangles.reshape(0, 3)
     if not np.issubdtype(triangles.dtype, np.integer):
-        raise ValueError(
-            f"{name}.triangles: expected integer vertex indices, got dtype {triangles.dtype}"
-        )
+        raise ValueError(f"{name}.triangles: expected integer vertex indices, got dtype {triangles.dtype}")
     triangles = as_array(triangles, f"{name}.triangles", shape=(None, 3), dtype=np.int64)
     if triangles.size and (triangles.min() < 0 or triangles.max() >= len(vertices)):
         raise ValueError(
@@ -210,9 +206,7 @@ def check_solid(mesh, name: str = "mesh") -> dict:
         )
     )
     info["signed_volume"] = signed_volume(vertices, triangles) if len(triangles) else 0.0
-    info["closed"] = bool(
-        len(triangles) > 0 and info["boundary_edges"] == 0 and info["nonmanifold_edges"] == 0
-    )
+    info["closed"] = bool(len(triangles) > 0 and info["boundary_edges"] == 0 and info["nonmanifold_edges"] == 0)
     info["oriented"] = bool(info["misoriented_edges"] == 0)
     info["outward"] = bool(info["signed_volume"] > 0)
     problems = []
@@ -233,9 +227,7 @@ def check_solid(mesh, name: str = "mesh") -> dict:
             "direction by both of their triangles"
         )
     if info["degenerate_triangles"]:
-        problems.append(
-            f"{name}: {info['degenerate_triangles']} degenerate triangle(s) with a repeated vertex"
-        )
+        problems.append(f"{name}: {info['degenerate_triangles']} degenerate triangle(s) with a repeated vertex")
     if len(triangles) and not problems and not info["outward"]:
         problems.append(
             f"{name}: oriented inward (signed volume {info['signed_volume']:.6g} <= 0); normals must point outward"
@@ -281,9 +273,7 @@ def _orient_consistently(triangles: np.ndarray, n_vertices: int) -> tuple[np.nda
     b = np.concatenate([f1 + s * n_tri, f1 + (1 - s) * n_tri])
     graph = coo_matrix((np.ones(len(a)), (a, b)), shape=(2 * n_tri, 2 * n_tri))
     _, label = connected_components(graph, directed=False)
-    _, shell = connected_components(
-        coo_matrix((np.ones(len(f0)), (f0, f1)), shape=(n_tri, n_tri)), directed=False
-    )
+    _, shell = connected_components(coo_matrix((np.ones(len(f0)), (f0, f1)), shape=(n_tri, n_tri)), directed=False)
     first = np.full(shell.max() + 1 if n_tri else 0, n_tri, dtype=np.int64)
     np.minimum.at(first, shell, np.arange(n_tri))
     reference = label[first[shell]]
@@ -309,9 +299,7 @@ def _fill_holes(vertices: np.ndarray, triangles: np.ndarray, max_hole_edges: int
     if len(open_edges) == 0:
         return vertices, triangles, 0, 0, 0
     n_v = len(vertices)
-    graph = coo_matrix(
-        (np.ones(len(open_edges)), (open_edges[:, 0], open_edges[:, 1])), shape=(n_v, n_v)
-    )
+    graph = coo_matrix((np.ones(len(open_edges)), (open_edges[:, 0], open_edges[:, 1])), shape=(n_v, n_v))
     _, label = connected_components(graph, directed=False)
     loop = label[open_edges[:, 0]]
     loops, loop_index, n_edges = np.unique(loop, return_inverse=True, return_counts=True)
@@ -442,11 +430,7 @@ def repair_mesh(
         raise ValueError(f"max_hole_edges: must be >= 0, got {max_hole_edges}")
     used = vertices[np.unique(triangles)]
     diagonal = float(np.linalg.norm(used.max(axis=0) - used.min(axis=0)))
-    tol = (
-        1e-9 * diagonal
-        if weld_tolerance is None
-        else positive(weld_tolerance, "weld_tolerance", allow_zero=True)
-    )
+    tol = 1e-9 * diagonal if weld_tolerance is None else positive(weld_tolerance, "weld_tolerance", allow_zero=True)
     report: dict = {}
 
     # weld: exact duplicates first (cheap), then pairs closer than tol, as graph components
@@ -454,9 +438,7 @@ def repair_mesh(
     inverse = inverse.ravel()
     if tol > 0 and len(unique) > 1:
         pairs = cKDTree(unique).query_pairs(tol, output_type="ndarray")
-        graph = coo_matrix(
-            (np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(len(unique),) * 2
-        )
+        graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(len(unique),) * 2)
         n_groups, group = connected_components(graph, directed=False)
         first = np.full(n_groups, len(unique), dtype=np.int64)
         np.minimum.at(first, group, np.arange(len(unique)))
@@ -465,9 +447,7 @@ def repair_mesh(
     report["welded_vertices"] = int(len(np.unique(triangles)) - len(np.unique(tris)))
     vertices = unique
 
-    degenerate = (
-        (tris[:, 0] == tris[:, 1]) | (tris[:, 1] == tris[:, 2]) | (tris[:, 2] == tris[:, 0])
-    )
+    degenerate = (tris[:, 0] == tris[:, 1]) | (tris[:, 1] == tris[:, 2]) | (tris[:, 2] == tris[:, 0])
     tris = tris[~degenerate]
     report["removed_degenerate_triangles"] = int(np.count_nonzero(degenerate))
     _, keep = np.unique(np.sort(tris, axis=1), axis=0, return_index=True)
@@ -537,17 +517,13 @@ def chain_edges(src: np.ndarray, dst: np.ndarray) -> tuple[list[np.ndarray], lis
     # successor of edge e: the outgoing edge of dst[e] with the same rank
     out_keys = np.column_stack([src, out_rank])[out_order]
     want = np.column_stack([dst, in_rank])
-    pos = np.searchsorted(
-        out_keys[:, 0] * (n + 1) + out_keys[:, 1], want[:, 0] * (n + 1) + want[:, 1]
-    )
+    pos = np.searchsorted(out_keys[:, 0] * (n + 1) + out_keys[:, 1], want[:, 0] * (n + 1) + want[:, 1])
     pos = np.minimum(pos, n - 1)
     hit = (out_keys[pos, 0] == want[:, 0]) & (out_keys[pos, 1] == want[:, 1])
     succ = np.where(hit, out_order[pos], -1)
 
     linked = succ >= 0
-    graph = coo_matrix(
-        (np.ones(np.count_nonzero(linked)), (np.flatnonzero(linked), succ[linked])), shape=(n, n)
-    )
+    graph = coo_matrix((np.ones(np.count_nonzero(linked)), (np.flatnonzero(linked), succ[linked])), shape=(n, n))
     n_comp, comp = connected_components(graph, directed=False)
     has_pred = np.zeros(n, bool)
     has_pred[succ[linked]] = True
@@ -665,11 +641,7 @@ class BooleanResult:
     def summary(self) -> dict:
         """JSON-ready summary: op, volumes, sizes, watertightness, curves, repairs."""
         lengths = [
-            float(
-                np.sum(
-                    np.linalg.norm(np.diff(np.vstack([c, c[:1]]) if closed else c, axis=0), axis=1)
-                )
-            )
+            float(np.sum(np.linalg.norm(np.diff(np.vstack([c, c[:1]]) if closed else c, axis=0), axis=1)))
             for c, closed in zip(self.curves, self.curves_closed)
         ]
         return {
@@ -679,9 +651,7 @@ class BooleanResult:
             "volume": self.volume,
             "n_vertices": self.check.get("n_vertices", 0),
             "n_triangles": self.check.get("n_triangles", 0),
-            "watertight": bool(
-                self.check.get("closed", False) or self.check.get("n_triangles", 0) == 0
-            ),
+            "watertight": bool(self.check.get("closed", False) or self.check.get("n_triangles", 0) == 0),
             "oriented": bool(self.check.get("oriented", False)),
             "n_curves": len(self.curves),
             "curve_points": [len(c) for c in self.curves],
@@ -701,9 +671,7 @@ def _prepare(mesh, name: str, repair: bool) -> tuple[np.ndarray, np.ndarray, dic
     return vertices, triangles, {}
 
 
-def boolean(
-    a, b, op: str = "union", *, repair: bool = False, names: Sequence[str] = ("A", "B")
-) -> BooleanResult:
+def boolean(a, b, op: str = "union", *, repair: bool = False, names: Sequence[str] = ("A", "B")) -> BooleanResult:
     """Union, intersection or difference of two solids bounded by closed triangle meshes.
 
     Seed 002(b): set operations on free-form solids bounded by closed,
@@ -832,20 +800,16 @@ def loop_smooth(
     RuntimeError
         When the smoothed mesh is not closed and oriented.
     """
-    import open3d as o3d
-
     iterations, filter_iterations = int(iterations), int(filter_iterations)
     if iterations < 0 or filter_iterations < 0:
-        raise ValueError(
-            f"iterations, filter_iterations: must be >= 0, got {iterations}, {filter_iterations}"
-        )
+        raise ValueError(f"iterations, filter_iterations: must be >= 0, got {iterations}, {filter_iterations}")
     if filter not in FILTERS:
         raise ValueError(f"filter: must be one of {', '.join(FILTERS)}, got {filter!r}")
     vertices, triangles = _mesh_arrays(mesh, "mesh")
     _require_solid(vertices, triangles, "mesh", "")
-    o3 = o3d.geometry.TriangleMesh(
-        o3d.utility.Vector3dVector(vertices), o3d.utility.Vector3iVector(triangles)
-    )
+    import open3d as o3d
+
+    o3 = o3d.geometry.TriangleMesh(o3d.utility.Vector3dVector(vertices), o3d.utility.Vector3iVector(triangles))
     if iterations:
         o3 = o3.subdivide_loop(number_of_iterations=iterations)
     if filter_iterations and filter == "taubin":
@@ -904,23 +868,15 @@ def compose(
     plus_names = [str(n) for n in names.get("plus", [f"plus[{i}]" for i in range(len(plus))])]
     if len(minus_names) != len(minus) or len(plus_names) != len(plus):
         raise ValueError("names: needs one name per minus and plus mesh")
-    prepared = [
-        _prepare(m, n, repair)
-        for m, n in zip([base, *plus, *minus], [base_name, *plus_names, *minus_names])
-    ]
+    prepared = [_prepare(m, n, repair) for m, n in zip([base, *plus, *minus], [base_name, *plus_names, *minus_names])]
     all_v = np.vstack([p[0] for p in prepared])
     centre = 0.5 * (all_v.min(axis=0) + all_v.max(axis=0))
-    solids = [
-        _to_manifold(v, t, centre, n)
-        for (v, t, _), n in zip(prepared, [base_name, *plus_names, *minus_names])
-    ]
+    solids = [_to_manifold(v, t, centre, n) for (v, t, _), n in zip(prepared, [base_name, *plus_names, *minus_names])]
     vols = [signed_volume(v, t) for v, t, _ in prepared]
     grown = manifold3d.Manifold.batch_boolean(solids[: 1 + len(plus)], manifold3d.OpType.Add)
     result = grown
     if minus:
-        result = manifold3d.Manifold.batch_boolean(
-            [grown, *solids[1 + len(plus) :]], manifold3d.OpType.Subtract
-        )
+        result = manifold3d.Manifold.batch_boolean([grown, *solids[1 + len(plus) :]], manifold3d.OpType.Subtract)
     vertices, triangles, _ = _from_manifold(result, centre)
     mesh = _make_mesh(vertices, triangles)
     info = check_solid(mesh, "composition")
@@ -937,8 +893,6 @@ def compose(
         "removed_volume": signed_volume(gv, gt) - volume,
         "n_triangles": len(mesh.triangles),
         "watertight": bool(info["closed"] or len(mesh.triangles) == 0),
-        "repairs": {n: p[2] for n, p in zip([base_name, *plus_names, *minus_names], prepared)}
-        if repair
-        else {},
+        "repairs": {n: p[2] for n, p in zip([base_name, *plus_names, *minus_names], prepared)} if repair else {},
     }
     return mesh, summary

@@ -367,3 +367,37 @@ def test_compose_matches_pairwise_operations():
     assert summary["names"] == {"base": "Lung", "minus": ["Bed"], "plus": ["Lobe"]}
     inter = bl.boolean(bl.boolean(organ, lobe, "union").mesh, bed, "intersection").volume
     assert summary["removed_volume"] == pytest.approx(inter, rel=1e-9)
+
+
+# ----------------------------------------------------------------------------- kidney phantom
+def kidney_mesh(step=1.0):
+    """Closed mesh of the kidney phantom: marching cubes of its smoothed indicator (mm)."""
+    from scipy.ndimage import gaussian_filter
+    from skimage.measure import marching_cubes
+
+    from datasets_synthetic.phantoms import make_phantom
+
+    kidney = make_phantom("kidney")
+    surface = kidney.surface_points(20000, seed=0)
+    lo, hi = surface.min(axis=0), surface.max(axis=0)
+    axes = [np.arange(a - 2 * step, b + 2 * step, step) for a, b in zip(lo, hi)]
+    grid = np.stack(np.meshgrid(*axes, indexing="ij"), -1)
+    inside = kidney.inside(grid.reshape(-1, 3)).reshape(grid.shape[:3])
+    v, t, *_ = marching_cubes(gaussian_filter(inside.astype(float), 0.7), 0.5, spacing=(step,) * 3)
+    # marching cubes winds the faces towards increasing values (inward for an indicator)
+    return kidney, TriangleMesh(v + [a[0] for a in axes], t[:, ::-1].astype(np.int64))
+
+
+def test_kidney_phantom_minus_tumour_bed():
+    kidney, k = kidney_mesh()
+    assert bl.check_solid(k, "kidney")["solid"]
+    assert bl.mesh_volume(k) == pytest.approx(kidney.volume_mm3, rel=0.01)
+    bed = icosphere(9.0, (-8.0, 0.0, 12.0), level=3)  # on the concave hilum side
+    lobe = bezier_ellipsoid([10.0, 14.0, 20.0], [6.0, 4.0, -25.0], samples=3)
+    for other in (bed, lobe):
+        assert_identities(all_ops(k, other))
+    mesh, summary = bl.compose(k, minus=[bed], plus=[lobe])
+    inter = bl.boolean(bl.boolean(k, lobe, "union").mesh, bed, "intersection").volume
+    assert summary["removed_volume"] == pytest.approx(inter, rel=1e-9)
+    assert 0 < inter < bl.mesh_volume(bed)
+    assert bl.check_solid(mesh)["solid"]
