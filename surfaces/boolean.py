@@ -43,6 +43,7 @@ from surfaces.validate import as_array, positive
 
 OPS: tuple[str, ...] = ("union", "intersection", "difference")
 FILTERS: tuple[str, ...] = ("taubin", "laplacian", "none")
+PATCH_SAMPLES = 8  # subdivisions per patch side when a BezierPatches model is given instead of a mesh
 
 
 # --------------------------------------------------------------------------- helpers
@@ -55,7 +56,16 @@ class _Arrays:
 
 
 def _mesh_arrays(mesh, name: str) -> tuple[np.ndarray, np.ndarray]:
-    """Validated ``(vertices (V,3) float64, triangles (T,3) int64)`` of a mesh-like input."""
+    """Validated ``(vertices (V,3) float64, triangles (T,3) int64)`` of a mesh-like input.
+
+    A :class:`surfaces.bezier.BezierPatches` model is tessellated first (``PATCH_SAMPLES``).
+    """
+    from surfaces.bezier import BezierPatches
+
+    if isinstance(mesh, BezierPatches):
+        from surfaces.mesh import tessellate
+
+        mesh = tessellate(mesh, PATCH_SAMPLES)
     if not (hasattr(mesh, "vertices") and hasattr(mesh, "triangles")):
         raise ValueError(f"{name}: expected a TriangleMesh (with .vertices and .triangles), got {type(mesh).__name__}")
     vertices = as_array(mesh.vertices, f"{name}.vertices", shape=(None, 3))
@@ -682,9 +692,10 @@ def boolean(a, b, op: str = "union", *, repair: bool = False, names: Sequence[st
 
     Parameters
     ----------
-    a, b : TriangleMesh
+    a, b : TriangleMesh or BezierPatches
         Closed, consistently and outward oriented meshes (vertices (V, 3)
-        float64 in any length unit, triangles (T, 3) int64).
+        float64 in any length unit, triangles (T, 3) int64); a closed patch
+        model is tessellated with ``PATCH_SAMPLES`` subdivisions per side.
     op : {"union", "intersection", "difference"}
         The operation; ``"difference"`` is A minus B.
     repair : bool, optional
