@@ -108,7 +108,8 @@ def main() -> int:
         f"**{total_geomdl / total_ours:.0f}x** |",
         f"| exact conversion to {surf.to_bezier().shape} Bezier patches | {t_bez:.4f} | n/a | |",
         "",
-        f"Largest coordinate difference between the two surfaces at the points geomdl evaluated: {diff:.2e}.",
+        "Largest coordinate difference between the two surfaces at the points geomdl "
+        f"evaluated: {diff:.2e}.",
         "",
         f"Machine: {platform.machine()}, {os.cpu_count()} logical CPUs (shared, timings noisy), "
         f"Python {platform.python_version()}, numpy {np.__version__}.",

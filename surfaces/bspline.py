@@ -326,7 +326,7 @@ class BSplineCurve:
         return BSpline(self.knots, self.full_control, self.degree, extrapolate=True)
 
     def evaluate(self, u) -> np.ndarray:
-        """Points at parameters ``u`` (``(M,)`` in ``[0, 1]``; periodic when closed) -> ``(M, d)``."""
+        """Points at parameters ``u`` (``(M,)`` in ``[0, 1]``, periodic if closed) -> ``(M, d)``."""
         x = _domain_u(u, "u", self.closed)
         if self.closed:
             x = _wrap(x, self.knots, self.degree)

@@ -1,0 +1,92 @@
+"""Command-line tests of ``workbench surfaces sweep`` and ``workbench surfaces helix``."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import pytest
+
+from surfaces.io import load_patches, read_mesh
+from workbench.cli import main
+
+
+def _write(path, obj):
+    path.write_text(json.dumps(obj))
+    return str(path)
+
+
+def test_sweep_cylinder_summary_matches_closed_form(tmp_path, capsys):
+    g = _write(tmp_path / "g.json", {"type": "circle", "radius": 0.5})
+    d = _write(tmp_path / "d.json", {"type": "line", "start": [0, 0, 0], "end": [0, 0, 2]})
+    out = tmp_path / "cyl.ply"
+    code = main(["surfaces", "sweep", "--generatrix", g, "--directrix", d, "--samples-v", "6",
+                 "--mesh-samples", "3", "--out", str(out)])
+    assert code == 0
+    summary = json.loads(out.with_suffix(".json").read_text())
+    assert summary["area"] == pytest.approx(2 * math.pi * 0.5 * 2, rel=1e-5)
+    assert summary["volume"] == pytest.approx(math.pi * 0.25 * 2, rel=1e-5)
+    assert summary["frame"] == "rmf" and summary["closed_u"] and not summary["closed_v"]
+    mesh = read_mesh(out)
+    assert mesh.n_triangles == summary["n_triangles"]
+    shape = (summary["patch_rows"], summary["patch_cols"])
+    assert load_patches(out.with_suffix(".npz")).shape == shape
+    printed = capsys.readouterr().out
+    assert f"area {summary['area']:.6g}" in printed and f"volume {summary['volume']:.6g}" in printed
+
+
+def test_sweep_with_bspline_directrix_scale_twist(tmp_path):
+    g = _write(tmp_path / "g.json", {"points": [[0.3, 0], [0, 0.2], [-0.3, 0], [0, -0.2]],
+                                     "closed": True})
+    d = _write(tmp_path / "d.json", {"points": [[0, 0, 0], [1, 0, 0.5], [2, 1, 1], [3, 1, 2]]})
+    summary_path = tmp_path / "custom.json"
+    code = main(["surfaces", "sweep", "--generatrix", g, "--directrix", d, "--frame", "fixed",
+                 "--scale", "1", "0.5", "--twist", "90", "--samples-u", "16", "--samples-v", "16",
+                 "--mesh-samples", "2", "--out", str(tmp_path / "s.obj"),
+                 "--summary", str(summary_path)])
+    assert code == 0
+    summary = json.loads(summary_path.read_text())
+    assert summary["scale"] == [1.0, 0.5] and summary["twist_deg"] == 90.0
+    assert summary["volume"] > 0 and summary["area"] > 0
+    assert (tmp_path / "s.obj").is_file()
+
+
+@pytest.mark.parametrize("profile", ["circle", "thread"])
+def test_helix_profiles(tmp_path, profile):
+    out = tmp_path / f"{profile}.ply"
+    code = main(["surfaces", "helix", "--radius", "2", "--pitch", "1", "--turns", "1.5",
+                 "--profile", profile, "--samples-u", "16", "--mesh-samples", "2",
+                 "--out", str(out)])
+    assert code == 0
+    summary = json.loads(out.with_suffix(".json").read_text())
+    if profile == "circle":
+        assert summary["area"] == pytest.approx(summary["closed_form_area"], rel=1e-3)
+        assert summary["volume"] == pytest.approx(summary["closed_form_volume"], rel=1e-3)
+    else:
+        assert summary["volume"] is None and summary["area"] > 0
+
+
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["surfaces", "helix", "--radius", "2", "--pitch", "0.2", "--turns", "1",
+          "--wire-radius", "0.3", "--out", "{tmp}/x.ply"], "overlap"),
+        (["surfaces", "helix", "--radius", "2", "--pitch", "1", "--turns", "1",
+          "--out", "{tmp}/x.xyz"], "unsupported mesh format"),
+        (["surfaces", "sweep", "--generatrix", "{tmp}/missing.json", "--directrix",
+          "{tmp}/missing.json", "--out", "{tmp}/x.ply"], "does not exist"),
+    ],
+)
+def test_bad_input_exits_2(tmp_path, capsys, argv, message):
+    code = main([a.format(tmp=tmp_path) for a in argv])
+    assert code == 2
+    assert message in capsys.readouterr().err
+
+
+def test_frenet_on_line_is_a_clear_error(tmp_path, capsys):
+    g = _write(tmp_path / "g.json", {"type": "circle", "radius": 0.5})
+    d = _write(tmp_path / "d.json", {"type": "line", "start": [0, 0, 0], "end": [0, 0, 2]})
+    code = main(["surfaces", "sweep", "--generatrix", g, "--directrix", d, "--frame", "frenet",
+                 "--out", str(tmp_path / "x.ply")])
+    assert code == 2
+    assert "Frenet frame is undefined" in capsys.readouterr().err
