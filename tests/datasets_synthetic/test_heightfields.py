@@ -1,0 +1,154 @@
+"""Analytic height fields: the image convention, exact slopes and exact defect truth."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from datasets_synthetic import heightfields as hfm
+from datasets_synthetic.heightfields import (
+    CONVENTION,
+    SCENES,
+    inspection_plate,
+    make_scene,
+    pixel_grid,
+    spherical_dent,
+    tilted_plane,
+    u_scratch,
+    v_crack,
+    xy_to_pixel,
+)
+
+
+def test_convention_is_stated():
+    for words in ("x to the right", "y up", "z towards the camera", "row 0 is the TOP row",
+                  "n = (-p, -q, 1)"):
+        assert words in CONVENTION
+
+
+def test_surface_rising_to_the_right_has_normals_with_negative_x():
+    hf = tilted_plane(16, 0.1, slope_x=0.5, slope_y=0.0)
+    assert np.all(np.diff(hf.height, axis=1) > 0)  # rises with the column index
+    assert np.all(hf.normals[..., 0] < 0)
+    np.testing.assert_allclose(hf.normals[0, 0], np.array([-0.5, 0.0, 1.0]) / np.sqrt(1.25))
+
+
+def test_surface_rising_upwards_is_higher_on_the_top_row():
+    hf = tilted_plane(16, 0.1, slope_x=0.0, slope_y=0.3)
+    assert np.all(np.diff(hf.height, axis=0) < 0)  # y up: row 0 is highest
+    assert np.all(hf.normals[..., 1] < 0)
+
+
+def test_pixel_grid_round_trip():
+    x, y = pixel_grid((5, 7), 0.2)
+    assert x[0, 0] < x[0, -1] and y[0, 0] > y[-1, 0]
+    row, col = xy_to_pixel(x, y, (5, 7), 0.2)
+    np.testing.assert_allclose(row, np.mgrid[0:5, 0:7][0], atol=1e-12)
+    np.testing.assert_allclose(col, np.mgrid[0:5, 0:7][1], atol=1e-12)
+
+
+@pytest.mark.parametrize("name", SCENES)
+def test_slopes_are_exact_derivatives(name):
+    hf = make_scene(name, 96, 0.05, seed=1)
+    assert hf.height.shape == hf.p.shape == hf.q.shape == (96, 96)
+    assert hf.normals.shape == (96, 96, 3)
+    np.testing.assert_allclose(np.linalg.norm(hf.normals, axis=2), 1.0, atol=1e-12)
+    np.testing.assert_allclose(hf.normals[..., 0] / hf.normals[..., 2], -hf.p, atol=1e-12)
+    np.testing.assert_allclose(hf.normals[..., 1] / hf.normals[..., 2], -hf.q, atol=1e-12)
+    # central differences agree with the exact slopes except on kinks and steep rims
+    dzdr, dzdc = np.gradient(hf.height, hf.pixel_size)
+    bad = ((np.abs(dzdc - hf.p) > 0.02 * (1.0 + np.abs(hf.p)))
+           | (np.abs(-dzdr - hf.q) > 0.02 * (1.0 + np.abs(hf.q))))
+    assert bad[1:-1, 1:-1].mean() < 0.08
+
+
+def test_wrong_slopes_would_be_caught():
+    hf = make_scene("bumps", 96, 0.05, seed=1)
+    dzdr, _ = np.gradient(hf.height, hf.pixel_size)
+    # the sign convention matters: q with y DOWN fails the same check
+    assert (np.abs(dzdr - hf.q) > 0.02 * (1.0 + np.abs(hf.q))).mean() > 0.3
+
+
+@pytest.mark.parametrize(
+    "build",
+    [
+        lambda: v_crack(400, 0.01, depth_mm=0.2, width_mm=0.5, length_mm=3.0, axis_deg=25.0),
+        lambda: u_scratch(400, 0.01, depth_mm=0.05, width_mm=0.4, length_mm=2.5, axis_deg=-40.0),
+        lambda: spherical_dent(400, 0.01, depth_mm=0.1, width_mm=2.0),
+    ],
+    ids=["crack", "scratch", "dent"],
+)
+def test_defect_truth_matches_the_sampled_surface(build):
+    hf = build()
+    (d,) = hf.defects
+    ps = hf.pixel_size
+    for key in ("kind", "depth_mm", "width_mm", "length_mm", "area_mm2", "depth_px", "width_px",
+                "length_px", "area_px", "center_px", "axis_deg"):
+        assert key in d
+    assert d["depth_px"] * ps == pytest.approx(d["depth_mm"])
+    assert d["area_px"] * ps**2 == pytest.approx(d["area_mm2"])
+    assert d["length_px"] * ps == pytest.approx(d["length_mm"])
+    assert -hf.height.min() == pytest.approx(d["depth_mm"], rel=0.02)
+    assert hf.defect_mask.sum() == pytest.approx(d["area_px"], rel=0.02)
+    assert -hf.height.sum() * ps**2 == pytest.approx(d["volume_mm3"], rel=0.02)
+    row, col = np.rint(d["center_px"]).astype(int)
+    assert hf.height[row, col] == pytest.approx(-d["depth_mm"], rel=0.05)
+    assert not hf.defect_mask[0, 0]
+
+
+def test_crack_axis_follows_y_up():
+    hf = v_crack(200, 0.02, depth_mm=0.1, width_mm=0.2, length_mm=3.0, axis_deg=45.0)
+    rows, cols = np.nonzero(hf.defect_mask)
+    # axis at +45 deg (towards +x and +y): the crack runs from lower left to upper right,
+    # so the row index falls as the column index grows
+    assert np.corrcoef(rows, cols)[0, 1] < -0.9
+
+
+@pytest.mark.parametrize("seed", [0, 3])
+def test_inspection_plate_has_three_disjoint_defects(seed):
+    hf = inspection_plate(256, 0.1, seed=seed)
+    kinds = [d["kind"] for d in hf.defects]
+    assert kinds == ["v_crack", "spherical_dent", "u_scratch"]
+    assert hf.defect_mask.sum() == pytest.approx(sum(d["area_px"] for d in hf.defects), rel=0.05)
+    # each defect's deepest point is at its own centre
+    for d in hf.defects:
+        row, col = np.rint(d["center_px"]).astype(int)
+        assert hf.defect_mask[row, col]
+        assert hf.height[row, col] == pytest.approx(-d["depth_mm"], rel=0.1)
+    again = inspection_plate(256, 0.1, seed=seed)
+    np.testing.assert_array_equal(again.height, hf.height)
+    other = inspection_plate(256, 0.1, seed=seed + 1)
+    assert not np.array_equal(other.height, hf.height)
+
+
+def test_plate_tilt_adds_slopes():
+    flat = inspection_plate(64, 0.1, jitter=False)
+    tilted = inspection_plate(64, 0.1, tilt=(0.02, -0.01), jitter=False)
+    np.testing.assert_allclose(tilted.p - flat.p, 0.02, atol=1e-12)
+    np.testing.assert_allclose(tilted.q - flat.q, -0.01, atol=1e-12)
+
+
+def test_vase_lies_on_its_support():
+    hf = make_scene("vase", 128, 0.05, seed=0)
+    assert np.all(hf.height[hf.defect_mask] > 0)
+    assert np.all(hf.height[~hf.defect_mask] == 0) and np.all(hf.p[~hf.defect_mask] == 0)
+    # C1: the slope next to the outline is far below the peak slope reached inside
+    row = hf.defect_mask[64]
+    assert abs(hf.p[64][row][0]) < abs(hf.p[64]).max()
+
+
+@pytest.mark.parametrize(
+    "call, message",
+    [
+        (lambda: make_scene("moon", 64, 0.05, 0), "name"),
+        (lambda: make_scene("plane", 1, 0.05, 0), "size"),
+        (lambda: make_scene("plane", 64, -1.0, 0), "pixel_size"),
+        (lambda: spherical_dent(64, 0.05, depth_mm=2.0, width_mm=1.0), "depth_mm"),
+        (lambda: v_crack(64, 0.05, width_mm=2.0, length_mm=1.0), "length_mm"),
+        (lambda: inspection_plate(16, 0.05), "size"),
+        (lambda: hfm.normals_from_slopes(np.zeros((2, 2)), np.zeros((3, 3))), "p and q"),
+    ],
+)
+def test_bad_input_names_the_argument(call, message):
+    with pytest.raises(ValueError, match=message):
+        call()
