@@ -248,6 +248,17 @@ def test_collapsed_row_pole_works():
     assert np.all(np.isfinite(patches.control))
 
 
+def test_pole_that_breaks_geomdl_is_handled():
+    """geomdl divides by the zero chord length of the pole row; we leave that row out."""
+    from geomdl import fitting
+
+    q = _hemisphere(7, 9)
+    with pytest.raises(ZeroDivisionError):
+        fitting.interpolate_surface(q.reshape(-1, 3).tolist(), 7, 9, 3, 3)
+    surf = bspline.interpolate_surface(q)
+    assert np.all(np.isfinite(surf.control))
+
+
 def test_collapsed_row_matches_pole_free_averaging():
     """The pole row is left out of the v averaging (Algorithm A9.3), not divided by zero."""
     q = _hemisphere(7, 9)

@@ -55,8 +55,8 @@ def register(sub) -> None:
         help="helical surfaces: coil spring (circle profile) or screw thread (thread profile)",
         description="Helical kinematic surfaces about the z axis. --profile circle: a wire of "
         "radius --wire-radius swept along the helix (coil spring, rotation-minimising frame). "
-        "--profile thread: a round thread profile of depth --depth swept helically with the same pitch "
-        "(screw thread; --radius is the major radius).",
+        "--profile thread: a round thread profile of depth --depth swept helically with the "
+        "same pitch (screw thread; --radius is the major radius).",
     )
     p.add_argument("--radius", type=float, required=True,
                    help="helix radius (circle) or major thread radius (thread), model units")
@@ -77,8 +77,8 @@ def _common(p: argparse.ArgumentParser, samples_u: int, samples_v: int | None) -
     p.add_argument("--samples-v", type=int, default=samples_v,
                    help="grid samples along the motion (default "
                    + (f"{samples_v})" if samples_v else "24 per turn)"))
-    p.add_argument("--mesh-samples", type=int, default=6,
-                   help="subdivisions per patch side in the written mesh (default 6)")
+    p.add_argument("--mesh-samples", type=int, default=4,
+                   help="subdivisions per patch side in the written mesh (default 4)")
     p.add_argument("--out", required=True, help="mesh file to write (.ply, .obj or .stl)")
     p.add_argument("--summary", help="JSON summary path (default: --out with suffix .json)")
 
