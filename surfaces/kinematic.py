@@ -324,7 +324,9 @@ def _reflection(vec: np.ndarray) -> np.ndarray:
     return h
 
 
-def rotation_minimizing_frames(directrix, v, up=None, samples: int = RMF_SAMPLES):
+def rotation_minimizing_frames(
+    directrix, v, up=None, samples: int = RMF_SAMPLES
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Rotation-minimising frames by double reflection (Wang et al. 2008, eqs. 4-5).
 
     The frame is propagated on ``samples`` uniform intervals of ``[0, 1]`` plus the
@@ -369,7 +371,9 @@ def rotation_minimizing_frames(directrix, v, up=None, samples: int = RMF_SAMPLES
     return tq, rq, np.cross(tq, rq)
 
 
-def frames(directrix, v, kind: str = "rmf", up=None):
+def frames(
+    directrix, v, kind: str = "rmf", up=None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Moving frame along a directrix: ``fixed``, ``frenet`` or ``rmf``.
 
     Parameters
@@ -598,13 +602,24 @@ def sweep(
         Scale ``s(v)`` and twist ``th(v)`` [rad] laws (see :class:`KinematicSurface`).
     up : (3,) array_like of float, optional
         First normal at the start.
+
+    Returns
+    -------
+    KinematicSurface
+        Evaluate exactly with ``evaluate``; ``to_bezier(n_u, n_v)`` gives the shared model.
     """
     return KinematicSurface(generatrix, directrix, frame, "normal", scale, twist, up)
 
 
 def pipe(directrix, radius: float, frame: str = "rmf", up=None) -> KinematicSurface:
     """Tube of circular section ``radius`` along a directrix (area ``2 pi r L`` when it does
-    not overlap itself)."""
+    not overlap itself).
+
+    Returns
+    -------
+    KinematicSurface
+        Evaluate exactly with ``evaluate``; ``to_bezier(n_u, n_v)`` gives the shared model.
+    """
     return sweep(circle(radius), directrix, frame, up=up)
 
 
@@ -613,6 +628,11 @@ def revolve(profile, angle: float = 2 * np.pi) -> KinematicSurface:
 
     ``X(u, v) = (r cos(angle v), r sin(angle v), z)``; obeys Pappus' theorems
     (area ``2 pi r_c L``, volume ``2 pi r_c A`` for a full turn).
+
+    Returns
+    -------
+    KinematicSurface
+        Evaluate exactly with ``evaluate``; ``to_bezier(n_u, n_v)`` gives the shared model.
     """
     return KinematicSurface(profile, None, "fixed", "axial", twist=float(angle))
 
@@ -623,6 +643,11 @@ def helical_sweep(profile, pitch: float, turns: float) -> KinematicSurface:
     ``X(u, v) = (r cos(2 pi n v), r sin(2 pi n v), z + P n v)`` with ``n = turns``,
     ``P = pitch`` (> 0: right-handed; mirror the result for a left-handed screw):
     helicoids, screw threads.
+
+    Returns
+    -------
+    KinematicSurface
+        Evaluate exactly with ``evaluate``; ``to_bezier(n_u, n_v)`` gives the shared model.
     """
     n, p = positive(turns, "turns"), positive(pitch, "pitch")
     # the axis is the directrix; the fixed frame (T, N, B) = (z, x, y) and the twist turn it
@@ -632,7 +657,13 @@ def helical_sweep(profile, pitch: float, turns: float) -> KinematicSurface:
 
 
 def helicoid(inner: float, outer: float, pitch: float, turns: float) -> KinematicSurface:
-    """Helicoid ``(r cos th, r sin th, c th)``, ``c = pitch / 2 pi``, ``inner <= r <= outer``."""
+    """Helicoid ``(r cos th, r sin th, c th)``, ``c = pitch / 2 pi``, ``inner <= r <= outer``.
+
+    Returns
+    -------
+    KinematicSurface
+        Evaluate exactly with ``evaluate``; ``to_bezier(n_u, n_v)`` gives the shared model.
+    """
     if not outer > inner >= 0:
         raise ValueError(f"inner, outer: need 0 <= inner < outer, got {inner}, {outer}")
     return helical_sweep(line([inner, 0.0], [outer, 0.0]), pitch, turns)
@@ -645,20 +676,31 @@ def coil_spring(radius: float, pitch: float, turns: float, wire_radius: float) -
     ------
     ValueError
         When the wire would overlap itself (``2 * wire_radius >= |pitch|``, or
-        ``wire_radius`` at least the helix's radius of curvature).
+        ``wire_radius >= radius``).
+
+    Returns
+    -------
+    KinematicSurface
+        Evaluate exactly with ``evaluate``; ``to_bezier(n_u, n_v)`` gives the shared model.
     """
     a = positive(wire_radius, "wire_radius")
     r = positive(radius, "radius")
     if 2 * a >= abs(float(pitch)):
         raise ValueError(f"wire_radius: neighbouring turns overlap (2 * {a} >= pitch {pitch})")
-    curvature_radius = r + (float(pitch) / (2 * np.pi)) ** 2 / r
-    if a >= min(r, curvature_radius):
+    # the helix's radius of curvature (r^2 + c^2) / r is at least r: a < r suffices
+    if a >= r:
         raise ValueError(f"wire_radius: must be smaller than the coil radius {r}")
     return pipe(helix(r, pitch, turns), a)
 
 
 def screw_thread(major_radius: float, pitch: float, turns: float, depth: float) -> KinematicSurface:
-    """Screw-thread surface: :func:`thread_profile` swept helically with its own pitch."""
+    """Screw-thread surface: :func:`thread_profile` swept helically with its own pitch.
+
+    Returns
+    -------
+    KinematicSurface
+        Evaluate exactly with ``evaluate``; ``to_bezier(n_u, n_v)`` gives the shared model.
+    """
     big, h = positive(major_radius, "major_radius"), positive(depth, "depth")
     if h >= big:
         raise ValueError(f"depth: must be smaller than the major radius {big}, got {h}")
