@@ -251,6 +251,8 @@ class Phantom(ABC):
             raise ValueError(f"n_points: expected a whole number >= 8, got {n_points!r}")
         noise = positive(noise_mm, "noise_mm", allow_zero=True)
         rng = np.random.default_rng(seed)
+        # a separate stream for the noise: the same seed gives the same points with or without it
+        rng_noise = np.random.default_rng([int(seed), 1])
         planes = self.plane_positions(spacing_mm, offset_mm)
         per_plane = [(float(z), self._curves(float(z))) for z in planes]
         perims = [[_perimeter(c) for c in curves] for _, curves in per_plane]
@@ -261,7 +263,7 @@ class Phantom(ABC):
                 k = max(8, int(round(n_points * np.sqrt(per / p_max) * (0.8 + 0.4 * rng.random()))))
                 pts = _sample_closed(curve, k, rng.random())
                 if noise > 0:
-                    pts = pts + rng.normal(0.0, noise, pts.shape)
+                    pts = pts + rng_noise.normal(0.0, noise, pts.shape)
                 out.append({"z": z, "points": pts})
         return out
 
