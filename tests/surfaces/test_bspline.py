@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy.interpolate import BSpline, make_interp_spline
 
 from surfaces import bspline
@@ -308,3 +310,24 @@ def test_parameters_outside_domain_raise():
     surf = bspline.interpolate_surface(_grid(6, 6))
     with pytest.raises(ValueError, match="u: parameters"):
         surf.evaluate([1.5], [0.5])
+
+
+# ------------------------------------------------------------------ properties
+@settings(max_examples=40, deadline=None)
+@given(
+    n=st.integers(6, 30),
+    degree=st.integers(2, 5),
+    method=st.sampled_from(bspline.METHODS),
+    seed=st.integers(0, 2**31 - 1),
+)
+def test_knot_vector_properties(n, degree, method, seed):
+    q = np.random.default_rng(seed).uniform(-10, 10, (n, 3))
+    curve = bspline.interpolate_curve(q, degree=degree, method=method)
+    t = curve.knots
+    assert t.size == n + degree + 1
+    assert np.all(np.diff(t) >= 0)
+    assert np.all(t[: degree + 1] == 0) and np.all(t[-degree - 1 :] == 1)
+    # Schoenberg-Whitney: every data parameter lies inside its basis function's support
+    idx = np.arange(n)
+    assert np.all((t[idx] <= curve.params) & (curve.params <= t[idx + degree + 1]))
+    np.testing.assert_allclose(curve.evaluate(curve.params), q, atol=1e-9)

@@ -177,6 +177,19 @@ def test_rmf_is_rotation_minimising():
     np.testing.assert_allclose(np.sum(t * n, axis=1), 0, atol=1e-12)
 
 
+@pytest.mark.parametrize("radius, pitch, turns", [(2.0, 1.0, 1.0), (1.0, 3.0, 0.8)])
+def test_rmf_of_helix_turns_against_frenet_by_torsion(radius, pitch, turns):
+    """On a helix the RMF normal turns away from the Frenet normal by int tau ds."""
+    c = pitch / (2 * np.pi)
+    v = np.linspace(0, 1, 21)
+    curve = K.helix(radius, pitch, turns)
+    _, n_rmf, _ = K.frames(curve, v, "rmf")
+    _, n_frenet, _ = K.frames(curve, v, "frenet")
+    expected = c / np.hypot(radius, c) * 2 * np.pi * turns * v  # tau * arc length
+    got = np.arccos(np.clip(np.sum(n_rmf * n_frenet, axis=1), -1, 1))
+    np.testing.assert_allclose(got, expected, atol=1e-7)
+
+
 def test_frenet_frame_of_helix():
     v = np.linspace(0, 1, 11)
     t, n, b = K.frames(K.helix(2.0, 1.0, 1.0), v, "frenet")
