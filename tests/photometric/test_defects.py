@@ -1,0 +1,86 @@
+import numpy as np
+import pytest
+
+from datasets_synthetic.heightfields import inspection_plate, make_scene, v_crack
+from datasets_synthetic.render import render, ring_lights
+from photometric.defects import fit_background, measure_defects
+from photometric.integrate import integrate
+from photometric.stereo import solve
+
+
+def _match(found, truth):
+    c = np.array(truth["center_px"])
+    return min(found, key=lambda d: np.hypot(*(np.array(d["center_px"]) - c)))
+
+
+def _check(found, truths, keys=(("max_depth_mm", "depth_mm"), ("mean_width_mm", "width_mm"),
+                               ("length_mm", "length_mm"))):
+    for truth in truths:
+        got = _match(found, truth)
+        for mine, theirs in keys:
+            assert abs(got[mine] - truth[theirs]) <= 0.10 * truth[theirs], (truth["kind"], mine, got[mine], truth[theirs])
+
+
+@pytest.mark.parametrize("tilt", [(0.0, 0.0), (0.05, -0.03)])
+def test_analytic_crack_on_tilted_plate(tilt):
+    hf = v_crack(200, 0.05, depth_mm=0.2, width_mm=0.8, length_mm=6.0, axis_deg=25.0)
+    x = (np.arange(200) - 99.5) * 0.05
+    z = hf.height + tilt[0] * x[None, :] + tilt[1] * -x[:, None] + 1.0
+    found = measure_defects(z, 0.05)
+    assert len(found) == 1
+    d = found[0]
+    _check(found, hf.defects)
+    assert abs(d["axis_deg"] - 25.0) < 2.0
+    assert abs(d["area_mm2"] - hf.defects[0]["area_mm2"]) < 0.1 * hf.defects[0]["area_mm2"]
+    assert abs(d["volume_mm3"] - hf.defects[0]["volume_mm3"]) < 0.1 * hf.defects[0]["volume_mm3"]
+
+
+@pytest.mark.parametrize("seed", [0, 3])
+def test_inspection_plate_exact_height(seed):
+    hf = inspection_plate(256, 0.1, seed=seed)
+    found = measure_defects(hf.height, hf.pixel_size)
+    assert len(found) == 3
+    _check(found, hf.defects)
+
+
+@pytest.mark.parametrize("noise", [0.0, 0.005])
+def test_inspection_plate_through_photometric_stereo(noise):
+    """Render a triad, solve, integrate (DCT), measure: depth, width, length within 10 %."""
+    hf = inspection_plate(384, 0.05 * 512 / 384, seed=1)
+    lights = ring_lights(3, 45.0)
+    images = render(hf, lights, albedo=0.8, noise=noise, seed=4)
+    res = solve(images, lights)
+    z = integrate(res.p, res.q, "dct", pixel_size=hf.pixel_size)
+    found = measure_defects(z, hf.pixel_size, p=res.p, q=res.q)
+    assert len(found) == 3
+    _check(found, hf.defects)
+
+
+def test_bump_polarity_and_smooth_background():
+    hf = make_scene("dent", 128, 0.05)
+    rows, cols = np.indices(hf.height.shape)
+    curved = -hf.height + 1e-5 * (cols - 40.0) ** 2 + 2e-5 * rows * cols / 10  # a bump on a bowl
+    assert measure_defects(curved, 0.05, background="smooth", degree=2, polarity="depression") == []
+    bumps = measure_defects(curved, 0.05, background="smooth", degree=2, polarity="bump")
+    assert len(bumps) == 1 and bumps[0]["kind"] == "bump"
+    assert abs(bumps[0]["max_depth_mm"] - hf.defects[0]["depth_mm"]) < 0.05 * hf.defects[0]["depth_mm"]
+
+
+def test_fit_background_robust_to_defect():
+    rows, cols = np.indices((80, 90)).astype(float)
+    plane = 0.3 + 0.01 * cols - 0.02 * rows
+    z = plane.copy()
+    z[30:50, 20:60] -= 0.5
+    bg, sigma = fit_background(z)
+    assert np.allclose(bg, plane, atol=1e-9) and sigma < 1e-9
+
+
+def test_bad_input():
+    with pytest.raises(ValueError, match="polarity"):
+        measure_defects(np.zeros((10, 10)), 1.0, polarity="up")
+    with pytest.raises(ValueError, match="background"):
+        measure_defects(np.zeros((10, 10)), 1.0, background="sphere")
+    with pytest.raises(ValueError, match="pixel_size"):
+        measure_defects(np.zeros((10, 10)), -1.0)
+    with pytest.raises(ValueError, match="p, q"):
+        measure_defects(np.zeros((10, 10)), 1.0, p=np.zeros((10, 10)))

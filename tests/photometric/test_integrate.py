@@ -1,0 +1,140 @@
+import numpy as np
+import pytest
+
+from datasets_synthetic.heightfields import make_scene
+from photometric.integrate import height_to_patches, integrate
+
+
+def _rmse_rel(z, ref, mask=None):
+    m = np.isfinite(z) if mask is None else mask
+    ref = ref - ref[m].mean()
+    return float(np.sqrt(np.mean((z[m] - z[m].mean() - ref[m]) ** 2)) / np.ptp(ref[m]))
+
+
+@pytest.mark.parametrize("scene", ["sphere", "vase"])
+@pytest.mark.parametrize("method", ["dct", "lsq"])
+def test_smooth_scenes_within_0p2_percent(scene, method):
+    hf = make_scene(scene, 512, 0.05)
+    z = integrate(hf.p, hf.q, method, pixel_size=hf.pixel_size)
+    assert z.shape == (512, 512) and z.dtype == np.float64
+    assert _rmse_rel(z, hf.height) < 0.002
+
+
+@pytest.mark.parametrize("method,tol", [("fc", 0.01), ("dct", 0.01)])
+def test_crack_plate(method, tol):
+    """Slope kinks at the defect rims: first order there, so a looser bound at 256 px."""
+    hf = make_scene("plate", 256, 0.1)
+    z = integrate(hf.p, hf.q, method, pixel_size=hf.pixel_size)
+    assert _rmse_rel(z, hf.height) < tol
+
+
+def test_dct_and_lsq_agree_on_rectangle():
+    hf = make_scene("bumps", 96, 0.05, seed=2)
+    a = integrate(hf.p, hf.q, "dct", pixel_size=0.05)
+    b = integrate(hf.p, hf.q, "lsq", pixel_size=0.05)
+    assert np.abs(a - b).max() < 1e-8 * np.ptp(a) + 1e-12
+
+
+@pytest.mark.parametrize("a,b", [(0.2, 0.0), (0.0, 0.3), (-0.1, 0.25)])
+@pytest.mark.parametrize("method", ["dct", "lsq"])
+def test_plane_signs_y_up(a, b, method):
+    """z = a x + b y with x = col h, y = -row h (row 0 at the top)."""
+    h, n = 0.5, 40
+    z = integrate(np.full((n, n), a), np.full((n, n), b), method, pixel_size=h)
+    rows, cols = np.indices((n, n))
+    ref = a * cols * h - b * rows * h
+    assert np.allclose(z, ref - ref.mean(), atol=1e-9)
+
+
+@pytest.mark.parametrize("method", ["dct", "lsq", "fc"])
+def test_bump_lands_up_right(method):
+    """A Gaussian bump centred at x > 0, y > 0 must appear right of centre and ABOVE it
+    (smaller row index): catches a flipped q."""
+    n, h = 64, 1.0
+    rows, cols = np.indices((n, n)).astype(float)
+    x, y = cols - 31.5, 31.5 - rows
+    z = np.exp(-((x - 10.5) ** 2 + (y - 8.5) ** 2) / 30.0)
+    p = z * -2 * (x - 10.5) / 30.0
+    q = z * -2 * (y - 8.5) / 30.0
+    out = integrate(p, q, method, pixel_size=h)
+    r, c = np.unravel_index(np.argmax(out), out.shape)
+    assert (r, c) == np.unravel_index(np.argmax(z), z.shape) == (23, 42)
+    assert np.abs(out - (z - z.mean())).max() < 0.02  # trapezoidal error at 4 px width
+
+
+def test_pixel_size_scales_height():
+    hf = make_scene("sphere", 64, 1.0)
+    z1 = integrate(hf.p, hf.q, "dct", pixel_size=1.0)
+    z3 = integrate(hf.p, hf.q, "dct", pixel_size=3.0)
+    assert np.allclose(z3, 3 * z1)
+
+
+def test_lsq_masked_domain_with_hole_and_two_parts():
+    n = 120
+    rows, cols = np.indices((n, n)).astype(float)
+    x, y = cols, -rows
+    z = 1e-3 * (x - 60) ** 2 + 2e-3 * (y + 50) * (x - 30)
+    p = 2e-3 * (x - 60) + 2e-3 * (y + 50)
+    q = 2e-3 * (x - 30)
+    mask = ((rows - 60) ** 2 + (cols - 50) ** 2 < 45**2) & ~((rows - 60) ** 2 + (cols - 50) ** 2 < 10**2)
+    mask |= (rows > 5) & (rows < 20) & (cols > 100) & (cols < 115)  # a separate part
+    # garbage outside the domain must not leak in
+    p = np.where(mask, p, 50.0)
+    q = np.where(mask, q, -50.0)
+    out = integrate(p, q, "lsq", mask=mask)
+    assert np.isnan(out[~mask]).all()
+    from scipy import ndimage
+
+    labels, count = ndimage.label(mask)
+    assert count == 2
+    for k in (1, 2):
+        part = labels == k
+        ref = z[part] - z[part].mean()
+        assert np.abs(out[part] - ref).max() < 1e-3 * np.ptp(z[mask])
+        assert abs(out[part].mean()) < 1e-9
+
+
+def test_bad_input():
+    with pytest.raises(ValueError, match="method"):
+        integrate(np.zeros((4, 4)), np.zeros((4, 4)), "poisson")
+    with pytest.raises(ValueError, match="q"):
+        integrate(np.zeros((4, 4)), np.zeros((4, 5)))
+    with pytest.raises(ValueError, match="pixel_size"):
+        integrate(np.zeros((4, 4)), np.zeros((4, 4)), pixel_size=0)
+    with pytest.raises(ValueError, match="mask"):
+        integrate(np.zeros((4, 4)), np.zeros((4, 4)), mask=np.zeros((4, 4), bool))
+
+
+@pytest.mark.parametrize("step", [4, 7])
+def test_height_to_patches_interpolates_and_uses_measured_tangents(step):
+    hf = make_scene("sphere", 65, 0.1)
+    patches = height_to_patches(hf.height, hf.p, hf.q, pixel_size=0.1, step=step)
+    n_r = int(np.ceil(64 / step)) + 1
+    assert patches.shape == (n_r - 1, n_r - 1)
+    # the grid corners are interpolated
+    corners = patches.control[:, :, 0, 0]
+    s = 64 / (n_r - 1)
+    rows = np.arange(n_r - 1) * s
+    cols = np.arange(n_r - 1) * s
+    assert np.allclose(corners[..., 0], cols[None, :] * 0.1)
+    assert np.allclose(corners[..., 1], -rows[:, None] * 0.1)
+    if step == 4:  # integer grid positions: heights exactly
+        assert np.allclose(corners[..., 2], hf.height[::4, ::4][:-1, :-1])
+        # tangent along v at a node is dP/dj = 3 (b01 - b00) = s h (1, 0, p)
+        tv = 3 * (patches.control[:, :, 0, 1] - patches.control[:, :, 0, 0])
+        assert np.allclose(tv[..., 2], s * 0.1 * hf.p[::4, ::4][:-1, :-1])
+    # surface normals point up (+z) and match the analytic ones at patch centres
+    pi, pj = np.meshgrid(np.arange(patches.shape[0]), np.arange(patches.shape[1]), indexing="ij")
+    half = np.full(pi.size, 0.5)
+    nrm = patches.normals(pi.ravel(), pj.ravel(), half, half)
+    assert (nrm[:, 2] > 0).all()
+
+
+def test_height_to_patches_fills_nan():
+    hf = make_scene("vase", 33, 0.1)
+    z = hf.height.copy()
+    z[:5] = np.nan
+    patches = height_to_patches(z, hf.p, hf.q, 0.1, step=8)
+    assert np.isfinite(patches.control).all()
+    with pytest.raises(ValueError, match="step"):
+        height_to_patches(hf.height, hf.p, hf.q, 0.1, step=0)
