@@ -1449,3 +1449,130 @@ def height_error(lights_nominal, lights_true, height, pixel_size: float = 1.0, m
         "max_abs_dh_mm": float(np.abs(dh[m]).max()),
         "max_angle_deg": float(ex.angle_deg[m].max()),
     }
+
+
+def _plane_depth(height: np.ndarray, defect_mask: np.ndarray) -> float:
+    """Depth below the least-squares plane of the sound surface: plane - min inside the defect."""
+    rows, cols = np.indices(height.shape)
+    sound = ~defect_mask
+    A = np.stack([cols[sound], rows[sound], np.ones(int(sound.sum()))], axis=1).astype(float)
+    coef, *_ = np.linalg.lstsq(A, height[sound], rcond=None)
+    plane = coef[0] * cols + coef[1] * rows + coef[2]
+    return float(np.max((plane - height)[defect_mask]))
+
+
+def crack_study(
+    lights,
+    deviations_deg,
+    size: int = 128,
+    pixel_size: float = 0.05,
+    scene: str = "crack",
+    seed: int = 0,
+) -> dict:
+    """Render a crack with deviated lights, reconstruct with the nominal ones, compare.
+
+    Seed 002(a)'s test image of a crack: the scene ``datasets_synthetic.heightfields.
+    make_scene(scene)`` is rendered (attached shadows, no noise) with the true lights
+    ``deviate_lights(lights, d)`` for each ``d``, solved by ``photometric.stereo.solve``
+    with the nominal lights, and integrated (``photometric.integrate.integrate``, DCT).
+    The measured derivative error ``p_rec - p_true`` is set beside the exact prediction
+    :func:`exact_error` and the first-order one, on pixels lit by every light; the crack
+    depth is measured below the least-squares plane of the sound surface (and by
+    ``photometric.defects.measure_defects``).
+
+    Parameters
+    ----------
+    lights : array_like, (N, 3)
+        Nominal unit lights.
+    deviations_deg : array_like, (M, N, 2)
+        ``[d_slant, d_azimuth]`` per light for each of the M cases, degrees.
+    size : int
+        Image side, pixels.
+    pixel_size : float
+        Pixel pitch, mm.
+    scene : str
+        Scene name for ``make_scene`` ("crack" or "plate").
+    seed : int
+        Scene seed.
+
+    Returns
+    -------
+    dict
+        ``true_depth_mm``, ``depth_nominal_mm`` (measured with undeviated lights: the
+        discretisation and integration error alone), ``pixel_size_mm``, ``scene``; ``cases``: one dict per
+        deviation with ``deviations_deg``, ``max_abs_dp_measured``, ``max_abs_dp_predicted``,
+        ``max_abs_dp_first_order`` (and ``dq``), ``rms_dp_measured``, ``rms_dp_predicted``,
+        ``max_abs_diff_measured_predicted``, ``depth_mm`` (plane method),
+        ``depth_mm_defects`` (``measure_defects``' deepest ``max_depth_mm`` or None),
+        ``depth_error_mm`` (against the truth), ``depth_change_mm`` (against
+        ``depth_nominal_mm``: the effect of the deviation); and arrays for plotting under ``maps``: ``p_true`` (H, W),
+        ``dp_measured``, ``dp_predicted``, ``dq_measured``, ``dq_predicted`` (M, H, W)
+        and ``lit`` (H, W) bool.
+    """
+    from datasets_synthetic.heightfields import make_scene
+    from datasets_synthetic.render import render
+    from photometric.defects import measure_defects
+    from photometric.integrate import integrate
+    from photometric.stereo import solve
+
+    L = _unit_lights(lights, "lights", nominal=True)
+    dev = as_array(deviations_deg, "deviations_deg")
+    if dev.ndim != 3 or dev.shape[1:] != (L.shape[0], 2):
+        raise ValueError(f"deviations_deg: expected shape (M, {L.shape[0]}, 2), got {dev.shape}")
+    ps = positive(pixel_size, "pixel_size")
+    hf = make_scene(scene, int(size), ps, int(seed))
+    mask = np.asarray(hf.defect_mask, bool)
+    if not mask.any():
+        raise ValueError(f"scene: {scene!r} has no defect to measure")
+    true_lights = deviate_lights(L, dev)
+    lit = _lit(L, hf.p.ravel(), hf.q.ravel()).reshape(hf.p.shape)
+    for Lt in true_lights:
+        lit &= _lit(Lt, hf.p.ravel(), hf.q.ravel()).reshape(hf.p.shape)
+    base = solve(render(hf, L, shadows="attached"), L)
+    depth_nominal = _plane_depth(
+        integrate(base.p.astype(float), base.q.astype(float), method="dct", pixel_size=ps), mask
+    )
+    cases = []
+    maps = {k: [] for k in ("dp_measured", "dp_predicted", "dq_measured", "dq_predicted")}
+    for d, Lt in zip(dev, true_lights):
+        res = solve(render(hf, Lt, shadows="attached"), L)
+        ok = lit & np.asarray(res.valid, bool)
+        dp_m, dq_m = res.p.astype(float) - hf.p, res.q.astype(float) - hf.q
+        ex = exact_error(L, Lt, hf.p, hf.q)
+        fp, fq = first_order_error(L, d, hf.p, hf.q)
+        height = integrate(res.p.astype(float), res.q.astype(float), method="dct", pixel_size=ps)
+        found = measure_defects(height, ps)
+        depths = [float(f["max_depth_mm"]) for f in found if "max_depth_mm" in f]
+        depth = _plane_depth(height, mask)
+        cases.append({
+            "deviations_deg": d.tolist(),
+            "max_abs_dp_measured": float(np.abs(dp_m[ok]).max()),
+            "max_abs_dp_predicted": float(np.abs(ex.dp[ok]).max()),
+            "max_abs_dp_first_order": float(np.abs(fp[ok]).max()),
+            "max_abs_dq_measured": float(np.abs(dq_m[ok]).max()),
+            "max_abs_dq_predicted": float(np.abs(ex.dq[ok]).max()),
+            "max_abs_dq_first_order": float(np.abs(fq[ok]).max()),
+            "rms_dp_measured": float(np.sqrt(np.mean(dp_m[ok] ** 2))),
+            "rms_dp_predicted": float(np.sqrt(np.mean(ex.dp[ok] ** 2))),
+            "max_abs_diff_measured_predicted": float(
+                max(np.abs(dp_m - ex.dp)[ok].max(), np.abs(dq_m - ex.dq)[ok].max())
+            ),
+            "depth_mm": depth,
+            "depth_mm_defects": max(depths) if depths else None,
+            "depth_error_mm": depth - float(hf.defects[0]["depth_mm"]),
+            "depth_change_mm": depth - depth_nominal,
+        })
+        maps["dp_measured"].append(np.where(ok, dp_m, np.nan))
+        maps["dq_measured"].append(np.where(ok, dq_m, np.nan))
+        maps["dp_predicted"].append(ex.dp)
+        maps["dq_predicted"].append(ex.dq)
+    return {
+        "scene": scene,
+        "size_px": int(size),
+        "pixel_size_mm": ps,
+        "true_depth_mm": float(hf.defects[0]["depth_mm"]),
+        "depth_nominal_mm": depth_nominal,
+        "lit_fraction": float(lit.mean()),
+        "cases": cases,
+        "maps": {"p_true": hf.p, "lit": lit, **{k: np.stack(v) for k, v in maps.items()}},
+    }
