@@ -1,0 +1,306 @@
+"""Photometric stereo end to end: images and lights in, measured surface files out.
+
+``reconstruct`` is what ``workbench photometric reconstruct``, the demo and batch
+jobs call. It reads the input, solves normals and albedo (:mod:`photometric.stereo`),
+integrates the height (:mod:`photometric.integrate`), builds the shared surface model
+and its mesh, measures defects (:mod:`photometric.defects`) and writes:
+
+``normals.npy`` (H, W, 3) float32 unit, ``albedo.npy`` (H, W[, 3]) float32,
+``p.npy``, ``q.npy`` (H, W) float32, ``valid.npy`` (H, W) bool, ``height.npy`` (H, W)
+float64 in mm (NaN outside the solved pixels), ``normals.png``, ``albedo.png``,
+``height.png``, ``surface.ply``, ``defects.json`` and ``summary.json`` (the returned
+dict). Every file is written atomically.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+import numpy as np
+
+from photometric.io import PhotometricData, read_folder, read_images, read_mask
+from photometric.lights import as_intensities, condition_number, load_intensities, load_lights, validate_lights
+from surfaces.io import atomic_path
+from surfaces.validate import as_array, positive
+
+#: Patches per image side aimed at when ``step`` is not given.
+TARGET_PATCHES = 64
+
+
+def _save_npy(path: Path, array: np.ndarray) -> None:
+    with atomic_path(path) as tmp:
+        with open(tmp, "wb") as fh:
+            np.save(fh, array)
+
+
+def _save_json(path: Path, data: dict) -> None:
+    with atomic_path(path) as tmp:
+        tmp.write_text(json.dumps(data, indent=2) + "\n")
+
+
+def _load_input(source, lights, intensities, mask, select) -> tuple[PhotometricData, dict]:
+    """PhotometricData from a folder, a list of image files or an image array."""
+    if isinstance(source, PhotometricData):
+        return source, {"kind": "data"}
+    if isinstance(source, (str, Path)) and Path(source).is_dir():
+        data = read_folder(source, select=select)
+        folder = Path(source)
+        extra = {}
+        if (folder / "height_gt.npy").is_file():
+            extra["height_gt"] = np.load(folder / "height_gt.npy", allow_pickle=False)
+        if (folder / "scene.json").is_file():
+            # datasets_synthetic folders state their pixel size
+            try:
+                scene = json.loads((folder / "scene.json").read_text())
+            except json.JSONDecodeError as exc:
+                raise ValueError(f"input: {folder / 'scene.json'} is not valid JSON ({exc})") from None
+            if isinstance(scene, dict) and "pixel_size_mm" in scene:
+                extra["scene_pixel_size_mm"] = float(scene["pixel_size_mm"])
+        replace = {}
+        if lights is not None:
+            replace["lights"] = load_lights(lights) if isinstance(lights, (str, Path)) else validate_lights(lights)
+        if intensities is not None:
+            n = len(data.names)
+            replace["intensities"] = (
+                load_intensities(intensities, n)
+                if isinstance(intensities, (str, Path))
+                else as_intensities(intensities, n)
+            )
+        if mask is not None:
+            replace["mask"] = (
+                read_mask(mask, data.images.shape[1:3])
+                if isinstance(mask, (str, Path))
+                else as_array(mask, "mask", shape=data.images.shape[1:3], dtype=bool)
+            )
+        if replace:
+            fields = {k: getattr(data, k) for k in PhotometricData.__dataclass_fields__}
+            fields.update(replace)
+            data = PhotometricData(**fields)
+        return data, {"kind": "folder", "path": str(folder), **extra}
+    if isinstance(source, (str, Path)):
+        raise NotADirectoryError(f"input: {source} is not a folder (give --images and --lights for files)")
+    if lights is None:
+        raise ValueError("lights: required when the input is a list of images or an array")
+    if isinstance(source, Sequence) and all(isinstance(s, (str, Path)) for s in source):
+        images = read_images(list(source))
+        names = tuple(Path(s).name for s in source)
+        kind = {"kind": "files", "paths": [str(s) for s in source]}
+    else:
+        images = as_array(source, "images", ndim=(3, 4), dtype=np.float32)
+        names = tuple(f"image{k:03d}" for k in range(images.shape[0]))
+        kind = {"kind": "array"}
+    L = load_lights(lights) if isinstance(lights, (str, Path)) else validate_lights(lights)
+    if L.shape[0] != images.shape[0]:
+        raise ValueError(f"lights: {L.shape[0]} directions for {images.shape[0]} images")
+    n = images.shape[0]
+    E = load_intensities(intensities, n) if isinstance(intensities, (str, Path)) else as_intensities(intensities, n)
+    shape = images.shape[1:3]
+    if mask is None:
+        m = np.ones(shape, bool)
+    elif isinstance(mask, (str, Path)):
+        m = read_mask(mask, shape)
+    else:
+        m = as_array(mask, "mask", shape=shape, dtype=bool)
+    return PhotometricData(images, L, E, m, None, names), kind
+
+
+def _trimmed_mesh(patches, region: np.ndarray, pixel_size: float, samples: int):
+    """Tessellate and drop triangles whose centroid falls outside ``region``."""
+    from surfaces.mesh import TriangleMesh, tessellate
+
+    mesh = tessellate(patches, samples=samples)
+    if region.all():
+        return mesh
+    centroid = mesh.vertices[mesh.triangles].mean(axis=1)
+    col = np.clip(np.rint(centroid[:, 0] / pixel_size), 0, region.shape[1] - 1).astype(np.int64)
+    row = np.clip(np.rint(-centroid[:, 1] / pixel_size), 0, region.shape[0] - 1).astype(np.int64)
+    tri = mesh.triangles[region[row, col]]
+    used = np.unique(tri)
+    remap = np.full(len(mesh.vertices), -1, np.int64)
+    remap[used] = np.arange(used.size)
+    normals = None if mesh.vertex_normals is None else mesh.vertex_normals[used]
+    return TriangleMesh(mesh.vertices[used], remap[tri], normals)
+
+
+def reconstruct(
+    source,
+    out_dir,
+    *,
+    lights=None,
+    intensities=None,
+    mask=None,
+    select: str | Sequence[str] | None = None,
+    integrator: str = "dct",
+    pixel_size: float | None = None,
+    outliers: bool = False,
+    dark: float = 0.1,
+    saturation: float = 0.99,
+    highlight: float | None = None,
+    step: int | None = None,
+    samples: int | None = None,
+    background: str = "plane",
+    progress: Callable[[str], None] | None = None,
+) -> dict:
+    """Run photometric stereo end to end and write the result files.
+
+    Parameters
+    ----------
+    source : str, Path, sequence of paths, array_like or PhotometricData
+        A DiLiGenT-style folder (:func:`photometric.io.read_folder`), image files, or an
+        ``(N, H, W[, 3])`` image array.
+    out_dir : str or Path
+        Output folder (created if missing).
+    lights : str, Path or array_like, shape (N, 3), optional
+        Light directions (file or array); required for files/arrays, overrides a
+        folder's own.
+    intensities : str, Path, float or array_like, optional
+        Light intensities (scalar, (N,) or (N, 3)); overrides a folder's own.
+    mask : str, Path or array_like, shape (H, W), optional
+        Object mask; overrides a folder's ``mask.png``.
+    select : None, "triad" or sequence of str, optional
+        Subset of a folder's images (``"triad"``: those in ``triad.txt``).
+    integrator : {"dct", "fc", "lsq"}
+        Height integrator (:func:`photometric.integrate.integrate`).
+    pixel_size : float, optional
+        Pixel size in mm (heights, defect measures and the mesh are in mm); default: the
+        folder's ``scene.json`` ``pixel_size_mm`` when present, else 1.
+    outliers, dark, saturation, highlight :
+        Shadow/highlight handling, see :func:`photometric.stereo.solve`.
+    step : int, optional
+        Pixels per patch of the surface model; default ``ceil(max(H, W) / 64)``, at least 2.
+    samples : int, optional
+        Mesh subdivisions per patch side; default ``min(step, 8)`` (about one vertex per
+        pixel).
+    background : {"plane", "smooth"}
+        Background removed before measuring defects.
+    progress : callable, optional
+        Called with the name of each stage as it starts (the command line's progress bar).
+
+    Returns
+    -------
+    dict
+        The content of ``summary.json``: input, sizes, options, light condition number,
+        invalid fraction, timings (s), files, mesh size, number of defects and, when the
+        folder has ground truth, ``mean_angular_error_deg`` (over the mask) and
+        ``height_rmse_mm`` (over valid pixels, means removed).
+    """
+    from photometric.defects import measure_defects
+    from photometric.integrate import METHODS, height_to_patches, integrate
+    from photometric.preview import normals_rgb, scaled, write_png
+    from photometric.stereo import angular_error_deg, solve
+    from surfaces.io import write_mesh
+
+    if integrator not in METHODS:
+        raise ValueError(f"integrator: expected one of {METHODS}, got {integrator!r}")
+    if pixel_size is not None:
+        positive(pixel_size, "pixel_size")
+    if samples is not None and int(samples) < 1:
+        raise ValueError(f"samples: must be at least 1, got {samples}")
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    say = progress or (lambda _stage: None)
+    timings: dict[str, float] = {}
+    t_all = time.perf_counter()
+
+    say("read")
+    t0 = time.perf_counter()
+    data, input_info = _load_input(source, lights, intensities, mask, select)
+    height_gt = input_info.pop("height_gt", None)
+    scene_h = input_info.pop("scene_pixel_size_mm", None)
+    if pixel_size is not None:
+        h, h_source = float(pixel_size), "option"
+    elif scene_h is not None:
+        h, h_source = positive(scene_h, "scene.json pixel_size_mm"), "scene.json"
+    else:
+        h, h_source = 1.0, "default (1 unit per pixel)"
+    timings["read"] = time.perf_counter() - t0
+    n_img, rows, cols = data.images.shape[:3]
+    channels = data.images.shape[3] if data.images.ndim == 4 else 1
+
+    say("normals")
+    t0 = time.perf_counter()
+    res = solve(
+        data.images, data.lights, data.intensities, data.mask, outliers=outliers,
+        dark=dark, saturation=saturation, highlight=highlight,
+    )
+    timings["solve"] = time.perf_counter() - t0
+
+    say("height")
+    t0 = time.perf_counter()
+    height = integrate(res.p, res.q, integrator, mask=res.valid, pixel_size=h)
+    timings["integrate"] = time.perf_counter() - t0
+
+    say("surface")
+    t0 = time.perf_counter()
+    step_px = int(step) if step is not None else max(2, int(np.ceil(max(rows, cols) / TARGET_PATCHES)))
+    patches = height_to_patches(height, res.p, res.q, pixel_size=h, step=step_px)
+    n_samples = int(samples) if samples is not None else min(step_px, 8)
+    mesh = _trimmed_mesh(patches, data.mask, h, n_samples)
+    write_mesh(mesh, out / "surface.ply")
+    timings["surface"] = time.perf_counter() - t0
+
+    say("defects")
+    t0 = time.perf_counter()
+    defects = measure_defects(height, h, res.valid, background=background, p=res.p, q=res.q)
+    timings["defects"] = time.perf_counter() - t0
+
+    say("write")
+    t0 = time.perf_counter()
+    _save_npy(out / "normals.npy", res.normals)
+    _save_npy(out / "albedo.npy", res.albedo)
+    _save_npy(out / "p.npy", res.p)
+    _save_npy(out / "q.npy", res.q)
+    _save_npy(out / "valid.npy", res.valid)
+    _save_npy(out / "height.npy", height)
+    write_png(out / "normals.png", normals_rgb(res.normals, res.valid))
+    write_png(out / "albedo.png", scaled(res.albedo, data.mask))
+    import cv2
+
+    write_png(out / "height.png", scaled(height, res.valid, colormap=cv2.COLORMAP_VIRIDIS))
+    _save_json(
+        out / "defects.json",
+        {"units": "mm", "pixel_size_mm": h, "background": background, "defects": defects},
+    )
+    timings["write"] = time.perf_counter() - t0
+    timings["total"] = time.perf_counter() - t_all
+
+    n_mask = int(data.mask.sum())
+    summary = {
+        "input": input_info,
+        "images": list(data.names),
+        "size": {"height": rows, "width": cols, "images": n_img, "channels": channels},
+        "pixel_size_mm": h,
+        "pixel_size_source": h_source,
+        "integrator": integrator,
+        "outliers": bool(outliers),
+        "light_condition_number": condition_number(data.lights),
+        "lights": data.lights.tolist(),
+        "mask_pixels": n_mask,
+        "valid_pixels": int(res.valid.sum()),
+        "invalid_fraction": float(1.0 - res.valid[data.mask].sum() / max(n_mask, 1)),
+        "mean_residual": float(res.residual[res.valid].mean()) if res.valid.any() else 0.0,
+        "height_range_mm": float(np.nanmax(height) - np.nanmin(height)) if res.valid.any() else 0.0,
+        "patches": list(patches.shape),
+        "patch_step_px": step_px,
+        "mesh_samples_per_patch": n_samples,
+        "mesh": {"vertices": int(mesh.n_vertices), "triangles": int(mesh.n_triangles)},
+        "n_defects": len(defects),
+        "timings_s": {k: round(v, 4) for k, v in timings.items()},
+        "files": sorted(
+            ["normals.npy", "albedo.npy", "p.npy", "q.npy", "valid.npy", "height.npy", "normals.png",
+             "albedo.png", "height.png", "surface.ply", "defects.json", "summary.json"]
+        ),
+    }
+    if data.normal_gt is not None:
+        err = angular_error_deg(res.normals, data.normal_gt, data.mask)
+        summary["mean_angular_error_deg"] = float(err.mean())
+        summary["median_angular_error_deg"] = float(np.median(err))
+    if height_gt is not None and np.shape(height_gt) == (rows, cols) and res.valid.any():
+        v = res.valid & np.isfinite(height)
+        diff = (height[v] - height[v].mean()) - (height_gt[v] - height_gt[v].mean())
+        summary["height_rmse_mm"] = float(np.sqrt(np.mean(diff**2)))
+    _save_json(out / "summary.json", summary)
+    return summary
