@@ -819,6 +819,33 @@ def _shading_options(
     )
 
 
+def _visible_segments(scene: _Scene, segments: np.ndarray, camera: Camera, pieces: int) -> np.ndarray:
+    """Split segments into ``pieces`` parts; keep the parts whose midpoint the camera sees.
+
+    A part is hidden when a ray from the camera towards its midpoint hits the
+    geometry more than 0.5 % of the scene diagonal before reaching it, so lines
+    lying on the surface (contours) stay visible.
+    """
+    t = np.linspace(0.0, 1.0, pieces + 1)
+    a, b = segments[:, 0], segments[:, 1]
+    pts = a[:, None, :] + (b - a)[:, None, :] * t[None, :, None]
+    parts = np.stack([pts[:, :-1], pts[:, 1:]], axis=2).reshape(-1, 2, 3)
+    mid = parts.mean(axis=1)
+    right, up, back = camera.basis()
+    if camera.perspective:
+        origin = np.broadcast_to(camera.eye, mid.shape)
+        direction = mid - origin
+    else:
+        origin = mid + back * (2.0 * scene.diagonal + float(np.abs((mid - camera.eye) @ back).max()))
+        direction = mid - origin
+    dist = np.linalg.norm(direction, axis=1)
+    rays = np.empty((len(mid), 6), np.float32)
+    rays[:, :3] = origin
+    rays[:, 3:] = direction / np.where(dist > 0, dist, 1.0)[:, None]
+    t_hit = scene.cast(rays)["t_hit"]
+    return parts[~(t_hit < dist - 5e-3 * scene.diagonal)]
+
+
 def _draw_net(tile: np.ndarray, segments: np.ndarray, camera: Camera, scale: int, color) -> None:
     import cv2
 
@@ -841,6 +868,7 @@ def render(
     fov_deg: float = 30.0,
     net: bool | np.ndarray = False,
     net_color: Sequence[float] = (0.08, 0.08, 0.08),
+    net_hidden: bool = False,
     colorbar: bool = True,
     colorbar_label: str = "",
     labels: bool = True,
@@ -879,6 +907,10 @@ def render(
         or the given world-space segments, drawn anti-aliased on top.
     net_color : (3,) float
         RGB of the net lines.
+    net_hidden : bool
+        Hide the parts of the lines that the geometry occludes (each segment is
+        split in 4 and an occlusion ray is cast to each part's midpoint); lines
+        on the surface itself, such as CT contours, stay visible.
     colorbar : bool
         Add a colour bar on the right when ``scalars`` are given.
     colorbar_label : str
@@ -955,7 +987,8 @@ def render(
         image = _shade(scene, rays[part], view_hits, cam, vrange=vrange, **opts)[0]
         tile = (image.reshape(rh, rw, 3) * 255 + 0.5).astype(np.uint8)
         if segments is not None:
-            _draw_net(tile, segments, cam, ss, tuple(int(255 * c) for c in net_color))
+            drawn = _visible_segments(scene, segments, cam, 4) if net_hidden else segments
+            _draw_net(tile, drawn, cam, ss, tuple(int(255 * c) for c in net_color))
         if ss > 1:
             tile = cv2.resize(tile, (tile_w, tile_h), interpolation=cv2.INTER_AREA)
         if labels and len(views) > 1:
@@ -997,12 +1030,36 @@ def save_png(path: str | os.PathLike, image: np.ndarray) -> Path:
     ok, data = cv2.imencode(".png", np.ascontiguousarray(img))
     if not ok:
         raise ValueError(f"image: PNG encoding failed for shape {img.shape}")
+    return write_bytes_atomic(path, data.tobytes())
+
+
+def write_bytes_atomic(path: str | os.PathLike, data: bytes) -> Path:
+    """Write bytes to a file atomically (temporary name in the same folder, then rename).
+
+    The file gets the usual permissions (``0o666`` minus the umask), not the
+    private ``0o600`` of a temporary file.
+
+    Parameters
+    ----------
+    path : path-like
+        Output file; its folder is created when missing.
+    data : bytes
+        Content.
+
+    Returns
+    -------
+    pathlib.Path
+        The written file.
+    """
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
+    umask = os.umask(0)
+    os.umask(umask)
     fd, tmp = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent)
     try:
         with os.fdopen(fd, "wb") as fh:
-            fh.write(data.tobytes())
+            fh.write(data)
+        os.chmod(tmp, 0o666 & ~umask)
         os.replace(tmp, out)
     except BaseException:
         if os.path.exists(tmp):

@@ -288,7 +288,7 @@ def label_image(image: np.ndarray, text: str, scale: float = 0.5) -> np.ndarray:
     """
     import cv2
 
-    img = np.array(image, dtype=np.uint8, copy=True)
+    img = np.array(image, dtype=np.uint8, order="C", copy=True)
     if img.ndim != 3 or img.shape[2] != 3:
         raise ValueError(f"image: expected (H, W, 3) uint8, got {img.shape}")
     (tw, th), base = cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, scale, 1)
@@ -346,3 +346,70 @@ def montage(
         y, x = r * (h + pad), c * (w + pad)
         out[y : y + pic.shape[0], x : x + pic.shape[1]] = pic
     return out
+
+
+def plot_map(
+    values: np.ndarray,
+    x: np.ndarray,
+    y: np.ndarray,
+    *,
+    xlabel: str,
+    ylabel: str,
+    title: str = "",
+    label: str = "",
+    cmap: str = "magma",
+    vmin: float | None = None,
+    vmax: float | None = None,
+    contours: Sequence[float] = (),
+    size: tuple[int, int] = (480, 400),
+) -> np.ndarray:
+    """A scalar map over two parameters with labelled axes and a colour bar (matplotlib, Agg).
+
+    Parameters
+    ----------
+    values : (Ny, Nx) array_like
+        Map values; ``values[i, j]`` belongs to ``(x[j], y[i])``.
+    x, y : (Nx,), (Ny,) array_like
+        Axis coordinates (increasing).
+    xlabel, ylabel, title, label : str
+        Axis titles, picture title and colour-bar title (units included).
+    cmap, vmin, vmax
+        Colour map and range (finite min/max when omitted).
+    contours : sequence of float
+        Levels drawn as labelled contour lines (e.g. tolerances).
+    size : (width, height)
+        Picture size in pixels.
+
+    Returns
+    -------
+    (height, width, 3) uint8
+        The rendered plot.
+    """
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    from surfaces.view import scalar_range
+
+    v = as_array(values, "values", ndim=2, finite=False)
+    xs = as_array(x, "x", shape=(v.shape[1],))
+    ys = as_array(y, "y", shape=(v.shape[0],))
+    lo, hi = scalar_range(v, vmin, vmax)
+    w, h = int(size[0]), int(size[1])
+    fig = Figure(figsize=(w / 100, h / 100), dpi=100)
+    canvas = FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    mesh = ax.pcolormesh(xs, ys, v, cmap=cmap, vmin=lo, vmax=hi, shading="nearest")
+    bar = fig.colorbar(mesh, ax=ax)
+    bar.set_label(label)
+    levels = sorted(c for c in contours if lo < c < hi)
+    if levels:
+        cs = ax.contour(xs, ys, v, levels=levels, colors="white", linewidths=0.9)
+        ax.clabel(cs, fmt="%g", fontsize=8)
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    if title:
+        ax.set_title(title, fontsize=10)
+    fig.tight_layout()
+    canvas.draw()
+    rgb = np.asarray(canvas.buffer_rgba())[..., :3].copy()
+    return rgb

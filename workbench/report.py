@@ -12,9 +12,7 @@ from __future__ import annotations
 import base64
 import html
 import math
-import os
 import re
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -191,16 +189,9 @@ class Report:
             f"<title>{html.escape(self.title)}</title><style>{CSS}</style></head><body>"
             f"<h1>{html.escape(self.title)}</h1>{meta_html}\n{body}\n</body></html>\n"
         )
-        out = self.out_dir / name
-        fd, tmp = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".tmp", dir=self.out_dir)
-        try:
-            with os.fdopen(fd, "w", encoding="utf-8") as fh:
-                fh.write(page)
-            os.replace(tmp, out)
-        except BaseException:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
-            raise
+        from surfaces.view import write_bytes_atomic
+
+        out = write_bytes_atomic(self.out_dir / name, page.encode("utf-8"))
         return out
 
 

@@ -307,3 +307,16 @@ def test_render_and_view_commands(tmp_path, sphere, capsys, monkeypatch):
     assert main(["view", str(tmp_path / "a.ply"), str(tmp_path / "b.ply"), "--png",
                  str(tmp_path / "both.png"), "--size", "200x150"]) == 0
     assert cv2.imread(str(tmp_path / "both.png")).shape == (150, 200, 3)
+
+
+def test_hidden_net_lines(sphere):
+    """With net_hidden, a segment behind the sphere disappears; one in front stays."""
+    cam = _top_camera()
+    behind = np.array([[[-0.5, 0.0, -1.5], [0.5, 0.0, -1.5]]])
+    front = np.array([[[-0.5, 0.0, 1.5], [0.5, 0.0, 1.5]]])
+    plain = view.render(sphere, cam, (200, 200))
+    for seg, visible in ((behind, False), (front, True)):
+        img = view.render(sphere, cam, (200, 200), net=seg, net_hidden=True, net_color=(1, 0, 0))
+        assert np.any(img != plain) == visible
+        img = view.render(sphere, cam, (200, 200), net=seg, net_hidden=False, net_color=(1, 0, 0))
+        assert np.any(img != plain)

@@ -5,7 +5,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import tempfile
 import time
 from pathlib import Path
 
@@ -50,14 +49,9 @@ def parse_vector(text: str, name: str) -> np.ndarray:
 
 def write_json(path: str | os.PathLike, data: dict) -> Path:
     """Write ``data`` as indented JSON, atomically."""
-    out = Path(path)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent)
-    with os.fdopen(fd, "w") as fh:
-        json.dump(data, fh, indent=2)
-        fh.write("\n")
-    os.replace(tmp, out)
-    return out
+    from surfaces.view import write_bytes_atomic
+
+    return write_bytes_atomic(path, (json.dumps(data, indent=2) + "\n").encode())
 
 
 def picture(args: argparse.Namespace, geometry, *, colors=None) -> tuple[np.ndarray, dict]:

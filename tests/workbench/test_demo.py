@@ -1,0 +1,201 @@
+"""The HTML report writer and a reduced-size (--quick) smoke run of the demo."""
+
+from __future__ import annotations
+
+import base64
+import json
+import math
+import time
+from html.parser import HTMLParser
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from workbench.report import Report
+
+
+class _Collector(HTMLParser):
+    """Image sources, links, and the text of every table cell."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.images: list[str] = []
+        self.links: list[str] = []
+        self.cells: list[str] = []
+        self.headers: list[str] = []
+        self._cell: list[str] | None = None
+
+    def handle_starttag(self, tag, attrs):
+        attrs = dict(attrs)
+        if tag == "img":
+            self.images.append(attrs.get("src", ""))
+        elif tag == "a":
+            self.links.append(attrs.get("href", ""))
+        elif tag in ("td", "th"):
+            self._cell = []
+
+    def handle_endtag(self, tag):
+        if tag in ("td", "th") and self._cell is not None:
+            (self.cells if tag == "td" else self.headers).append("".join(self._cell).strip())
+            self._cell = None
+
+    def handle_data(self, data):
+        if self._cell is not None:
+            self._cell.append(data)
+
+
+def _decode(data: bytes):
+    import cv2
+
+    return cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
+
+
+def check_report(path: Path) -> _Collector:
+    """Every image decodes, every linked file exists and decodes, every cell has a value."""
+    parsed = _Collector()
+    parsed.feed(path.read_text(encoding="utf-8"))
+    assert parsed.images, "the report has no images"
+    for src in parsed.images:
+        if src.startswith("data:image/png;base64,"):
+            img = _decode(base64.b64decode(src.split(",", 1)[1]))
+        else:
+            assert not src.startswith(("http:", "https:")), f"external image {src}"
+            img = _decode((path.parent / src).read_bytes())
+        assert img is not None and img.size > 0 and img.std() > 0, f"blank or broken image {src[:60]}"
+    for href in parsed.links:
+        if href.startswith("#"):
+            continue
+        assert not href.startswith(("http:", "https:")), f"the report needs the network: {href}"
+        target = path.parent / href
+        assert target.is_file(), f"link to a missing file {href}"
+        if target.suffix == ".png":
+            assert _decode(target.read_bytes()) is not None
+    for cell in parsed.cells:
+        assert cell and cell.lower() not in ("none", "nan", "null"), f"empty table cell {cell!r}"
+    return parsed
+
+
+def _picture(seed: int) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    return (rng.random((20, 30, 3)) * 255).astype(np.uint8)
+
+
+def test_report_roundtrip(tmp_path):
+    rep = Report("t", tmp_path)
+    rep.section("One", "intro <b>escaped</b>")
+    rep.figure(_picture(0), "first", "a caption & more", "workbench demo --quick")
+    rep.table(["a", "b", "c"], [[1, 2.5, "x"], [np.int64(3), np.float32(0.125), True]])
+    rep.note("not available: reason")
+    rep.section("Two")
+    rep.figure(_picture(1), "second", "another", "workbench view x.ply --png y.png")
+    rep.table(["figure", "file", "caption", "command"],
+              [[a, b, c, f"`{d}`"] for a, b, c, d in rep.figure_index()])
+    path = rep.write(meta="now")
+    parsed = check_report(path)
+    assert len(parsed.images) == 2
+    assert "<b>escaped</b>" not in path.read_text()
+    assert (tmp_path / "figures" / "first.png").is_file()
+    assert parsed.cells[:3] == ["1", "2.5", "x"]
+    assert "workbench view x.ply --png y.png" in parsed.cells
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["figures", "report.html"]
+
+
+@pytest.mark.parametrize("cell", [None, "", "  ", float("nan"), math.inf])
+def test_report_rejects_missing_values(tmp_path, cell):
+    rep = Report("t", tmp_path)
+    with pytest.raises(ValueError, match="rows\\[0\\]\\[1\\]"):
+        rep.table(["a", "b"], [[1, cell]])
+
+
+def test_report_rejects_bad_figures(tmp_path):
+    rep = Report("t", tmp_path)
+    rep.figure(_picture(0), "a", "c", "cmd")
+    with pytest.raises(ValueError, match="already"):
+        rep.figure(_picture(0), "a", "c", "cmd")
+    with pytest.raises(ValueError, match="name"):
+        rep.figure(_picture(0), "../x", "c", "cmd")
+    with pytest.raises(ValueError, match="command"):
+        rep.figure(_picture(0), "b", "c", " ")
+    with pytest.raises(ValueError, match="cells"):
+        rep.table(["a", "b"], [[1]])
+
+
+def test_heightfield_mesh_orientation():
+    """Counter-clockwise seen from +z, masked cells dropped, area of a flat field exact."""
+    from workbench.demo import heightfield_mesh
+
+    h = np.zeros((5, 6))
+    mesh = heightfield_mesh(h, 0.5)
+    assert len(mesh.triangles) == 2 * 4 * 5
+    assert np.all(mesh.face_normals()[:, 2] > 0.99)
+    assert mesh.surface_area() == pytest.approx(2.0 * 2.5)
+    mask = np.ones_like(h, bool)
+    mask[0, 0] = False
+    assert len(heightfield_mesh(h, 0.5, mask).triangles) == 2 * 4 * 5 - 2
+
+
+def test_missing_shared_data_is_reported(tmp_path):
+    """Without ../shared the real-data sections say so; nothing is faked."""
+    from workbench import demo
+
+    ctx = demo.Context(out=tmp_path, quick=True, shared=tmp_path / "absent", report=Report("t", tmp_path))
+    demo.section_real(ctx)
+    demo.section_breast(ctx)
+    assert set(ctx.unavailable) == {"Real captures", "CT: breast structure set"}
+    assert all("absent" in reason for reason in ctx.unavailable.values())
+    html = ctx.report.write().read_text()
+    assert html.count("not available") == 2 and "<img" not in html
+
+
+def test_command_check():
+    """Commands in the figure table exist in the parser, or the demo's own command is shown."""
+    from workbench import demo
+
+    ctx = demo.Context(out=Path("o"), quick=True, shared=Path("s"), report=None)
+    assert ctx.cmd("surfaces", "render", "x.ply", "--out", "v.png") == \
+        "workbench surfaces render x.ply --out v.png"
+    assert ctx.cmd("surfaces", "render", "x.ply", "--no-such-option") == "workbench demo --out o --quick"
+    assert ctx.cmd("no-such-group", "x") == "workbench demo --out o --quick"
+
+
+@pytest.fixture(scope="module")
+def quick_demo(tmp_path_factory):
+    """One --quick run of ``workbench demo`` through the command line."""
+    from workbench.cli import main
+
+    out = tmp_path_factory.mktemp("demo")
+    start = time.perf_counter()
+    code = main(["demo", "--out", str(out), "--quick"])
+    return out, code, time.perf_counter() - start
+
+
+def test_quick_demo_report(quick_demo, shared_data):
+    out, code, seconds = quick_demo
+    assert code == 0
+    summary = json.loads((out / "demo.json").read_text())
+    # every section ran: a package that has not landed fails here, loudly
+    assert summary["unavailable"] == {}
+    parsed = check_report(out / "report.html")
+    assert len(parsed.images) == len(summary["figures"]) >= 12
+    for fig in summary["figures"]:
+        assert (out / fig["file"]).is_file() and fig["command"].startswith("workbench ")
+    # the figure index (section 5) lists every figure with its command
+    for fig in summary["figures"]:
+        assert fig["command"] in parsed.cells
+    insp = summary["inspection"]
+    assert insp["normal_error_mean_deg"] < 2.0
+    assert insp["height_rms_error_mm"] < 0.1 * insp["height_range_true_mm"]
+    assert {d["kind"] for d in insp["defects"]} == {"v_crack", "spherical_dent", "u_scratch"}
+    for d in insp["defects"]:
+        assert d["depth_measured_mm"] == pytest.approx(d["depth_true_mm"], rel=0.35)
+    assert summary["accuracy"]["recommendation"]
+    real = summary["real"]
+    # plain least squares reproduces the published subset baselines (11.74 / 9.60 deg)
+    assert real["triad_mean_error_deg"] == pytest.approx(11.74, abs=0.3)
+    assert real["all14_mean_error_deg"] == pytest.approx(9.60, abs=0.3)
+    kidney = summary["ct"]["kidney"]
+    assert abs(kidney["volume_error_percent"]) < 5.0
+    assert kidney["surface_distance_mean_mm"] < 1.0
+    assert summary["ct"]["Heart"]["volume_cc"] == pytest.approx(437.46, rel=0.05)
+    assert seconds < 180

@@ -1,0 +1,733 @@
+"""The end-to-end demo: every package on data it makes (or the shared real data), one HTML report.
+
+``run_demo(out_dir)`` computes everything in the run (no precomputed results)
+and writes ``out_dir/report.html`` (self-contained: figures embedded as data
+URIs), the figures as PNG files in ``out_dir/figures/``, every number in
+``out_dir/demo.json`` and the intermediate data (triad folder, phantom,
+surfaces) in sub-folders. Sections:
+
+1. Inspection: a synthetic plate with a crack, a dent and a scratch, rendered
+   under three lights; photometric stereo, height by integration, the Bezier
+   surface through it, and the defects measured against their truth.
+2. Accuracy study: derivative-error maps against light deviations and the
+   recommended deviation tolerances for that light set (seed 002a).
+3. Real captures: DiLiGenT bear (``../shared/data/diligent_bear``), triad and
+   all 14 images, normal maps and angular error beside the baseline figures.
+4. CT: a folding kidney phantom reconstructed from contours (volume, surface
+   distance) and the breast structure set's Heart and Lt Lung beside their
+   reference volumes.
+5. A table of every figure and the command that reproduces it.
+
+A section whose package is missing (``ModuleNotFoundError`` for one of the
+workbench's own packages) is reported as "not available: <reason>" and listed
+under ``unavailable`` in the returned summary; any other error propagates.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import functools
+import json
+import os
+import platform
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from workbench import images as im
+from workbench.report import Report
+
+OWN_PACKAGES = ("surfaces", "photometric", "slices", "datasets_synthetic", "workbench")
+BEAR_BASELINE_DEG = {"triad": 11.74, "all14": 9.60}
+BEAR_PUBLISHED_96_DEG = 8.39
+HEART_REFERENCE_CC = {"dicompyler-core (polygon areas, end planes half)": 432.84,
+                      "treatment planning system DVH": 437.46,
+                      "dicompyler-core (rasterised on dose grid)": 440.23}
+LUNG_REFERENCE_CC = {"dicompyler-core (polygon areas, holes subtracted)": 1995.18}
+TOLERANCES = (0.01, 0.02, 0.05, 0.1)
+RANGES = (0.5, 1.0, 2.0)
+
+
+def shared_data_dir() -> Path:
+    """The real-data folder: ``$WORKBENCH_SHARED_DATA`` or ``../shared/data`` beside the repository."""
+    env = os.environ.get("WORKBENCH_SHARED_DATA")
+    if env:
+        return Path(env)
+    return Path(__file__).resolve().parents[2] / "shared" / "data"
+
+
+@dataclass
+class Context:
+    """State shared by the demo sections."""
+
+    out: Path
+    quick: bool
+    shared: Path
+    report: Report
+    numbers: dict = field(default_factory=dict)
+    unavailable: dict = field(default_factory=dict)
+    bar: object = None
+
+    def step(self, text: str) -> None:
+        """Advance the progress bar by one step."""
+        if self.bar is not None:
+            self.bar.set_postfix_str(text[:40])
+            self.bar.update(1)
+
+    def cmd(self, *words: str) -> str:
+        """The command line ``workbench <words>``, checked against the parser.
+
+        Returns the command when the sub-command and every ``--option`` exist,
+        otherwise the demo's own command (so the table never names a command
+        that does not exist).
+        """
+        if _command_exists(list(words)):
+            return "workbench " + " ".join(words)
+        return self.demo_cmd()
+
+    def demo_cmd(self) -> str:
+        return f"workbench demo --out {self.out}" + (" --quick" if self.quick else "")
+
+    @contextlib.contextmanager
+    def guard(self, what: str):
+        """Report ``what`` as not available when one of our packages is missing."""
+        try:
+            yield
+        except ModuleNotFoundError as exc:
+            top = (exc.name or "").split(".")[0]
+            if top not in OWN_PACKAGES:
+                raise
+            reason = f"module {exc.name} is not available"
+            self.unavailable[what] = reason
+            self.report.note(f"{what}: not available: {reason}")
+
+
+@functools.lru_cache(maxsize=1)
+def _parser():
+    from workbench.cli import build_parser
+
+    return build_parser()
+
+
+def _command_exists(words: list[str]) -> bool:
+    """True when ``workbench <words>`` names an existing sub-command with existing options."""
+    import argparse
+
+    parser = _parser()
+    i = 0
+    while True:
+        subs = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
+        if not subs:
+            break
+        if i >= len(words) or words[i] not in subs[0].choices:
+            return False
+        parser = subs[0].choices[words[i]]
+        i += 1
+    options = [w.split("=")[0] for w in words[i:] if w.startswith("--")]
+    return all(o in parser._option_string_actions for o in options)
+
+
+def _write_json(path: Path, data: dict) -> None:
+    from surfaces.view import write_bytes_atomic
+
+    write_bytes_atomic(path, (json.dumps(data, indent=2, default=_jsonable) + "\n").encode())
+
+
+def _jsonable(value):
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, (np.floating, np.integer, np.bool_)):
+        return value.item()
+    if isinstance(value, Path):
+        return str(value)
+    raise TypeError(f"not JSON serialisable: {type(value).__name__}")
+
+
+def heightfield_mesh(height: np.ndarray, pixel_size: float, mask: np.ndarray | None = None,
+                     exaggeration: float = 1.0, step: int = 1):
+    """Triangle mesh of a height field (x = col h, y = -row h, z = exaggeration * height).
+
+    Parameters
+    ----------
+    height : (H, W) array_like
+        Heights in mm; NaN pixels (or pixels outside ``mask``) are left out.
+    pixel_size : float
+        Pixel size in mm.
+    mask : (H, W) bool, optional
+        Pixels to keep.
+    exaggeration : float
+        Vertical scale factor for display.
+    step : int
+        Keep every ``step``-th row and column.
+
+    Returns
+    -------
+    surfaces.mesh.TriangleMesh
+        Two triangles per grid cell whose four corners are kept, counter-clockwise
+        seen from +z.
+    """
+    from surfaces.mesh import TriangleMesh
+
+    z = np.asarray(height, float)[::step, ::step]
+    keep = np.isfinite(z)
+    if mask is not None:
+        keep &= np.asarray(mask, bool)[::step, ::step]
+    rows, cols = z.shape
+    r, c = np.mgrid[0:rows, 0:cols]
+    verts = np.column_stack([c.ravel() * pixel_size * step, -r.ravel() * pixel_size * step,
+                             np.nan_to_num(z).ravel() * exaggeration])
+    idx = np.arange(rows * cols).reshape(rows, cols)
+    a, b = idx[:-1, :-1].ravel(), idx[:-1, 1:].ravel()
+    d, e = idx[1:, :-1].ravel(), idx[1:, 1:].ravel()
+    cell = (keep[:-1, :-1] & keep[:-1, 1:] & keep[1:, :-1] & keep[1:, 1:]).ravel()
+    # rows run towards -y, so (a, d, b) is counter-clockwise seen from +z
+    tris = np.concatenate([np.column_stack([a, d, b])[cell], np.column_stack([b, d, e])[cell]])
+    used = np.unique(tris)
+    remap = np.full(rows * cols, -1, np.int64)
+    remap[used] = np.arange(len(used))
+    return TriangleMesh(verts[used], remap[tris], None, None)
+
+
+# ----------------------------------------------------------------------------- section 1
+
+
+def section_inspection(ctx: Context) -> None:
+    """Synthetic plate: triad render, photometric stereo, height, Bezier surface, defects."""
+    from surfaces import view
+
+    rep = ctx.report
+    rep.section("1. Inspection: a plate with a crack, a dent and a scratch",
+                "A synthetic 25.6 mm plate (datasets_synthetic.inspection_plate) with a V-crack, a "
+                "spherical dent and a U-scratch, a textured albedo, rendered under three lights at "
+                "45 deg slant, 120 deg apart, with cast shadows and 0.5 % noise (16-bit). The "
+                "triad is solved by Lambertian photometric stereo (rho n = L^-1 I), the slopes "
+                "are integrated into a height field (DCT Poisson solver), a bicubic Coons/Bezier "
+                "surface is fitted through it and the defects are measured against the truth.")
+    size, pixel = (128, 0.2) if ctx.quick else (512, 0.05)
+    folder = ctx.out / "inspection" / "triad"
+    nums: dict = {"size_px": size, "pixel_size_mm": pixel}
+    ctx.numbers["inspection"] = nums
+    with ctx.guard("Inspection: synthetic triad"):
+        from datasets_synthetic.render import make_triad_folder
+
+        scene = make_triad_folder(folder, scene="plate", size=size, pixel_size=pixel, lights=3,
+                                  slant=45.0, noise=0.005, shadows="cast", deviate=None, seed=0)
+        ctx.step("inspection: triad rendered")
+    if "Inspection: synthetic triad" in ctx.unavailable:
+        return
+    triad_cmd = ctx.cmd("synth", "triad", "--scene", "plate", "--size", str(size), "--pixel-size",
+                        str(pixel), "--deviate", "0,0,0", "--out", str(folder))
+    height_gt = np.load(folder / "height_gt.npy")
+    truth_mesh = heightfield_mesh(height_gt, pixel, exaggeration=10.0, step=1 if ctx.quick else 2)
+    vsize = (800, 400) if ctx.quick else (1200, 560)
+    pic = view.render(truth_mesh, ["iso", "top"], vsize, scalars=truth_mesh.vertices[:, 2] / 10.0,
+                      colorbar_label="height mm", cmap="cividis", shadows=True,
+                      light=(-0.45, 0.5, 0.74))
+    rep.figure(pic, "inspection-truth",
+               "The plate's true height field, ray-cast with shadow rays (height exaggerated 10x; "
+               "colour = true height in mm). Crack upper left, dent right, scratch at the bottom.",
+               triad_cmd)
+    with ctx.guard("Inspection: photometric stereo"):
+        from photometric.integrate import height_to_patches, integrate
+        from photometric.io import read_folder
+        from photometric.stereo import solve
+
+        data = read_folder(folder)
+        lights = np.asarray(scene["lights_nominal"], float)
+        pics = [im.to_uint8(img, vmax=1.0) for img in data.images]
+        slants = np.degrees(np.arccos(np.clip(lights[:, 2], -1, 1)))
+        azim = np.degrees(np.arctan2(lights[:, 1], lights[:, 0]))
+        labels = [f"light {k + 1}: slant {s:.0f}, azimuth {a:.0f} deg"
+                  for k, (s, a) in enumerate(zip(slants, azim))]
+        rep.figure(im.montage(pics, cols=3, labels=labels), "inspection-images",
+                   "The three rendered images (16-bit PNG, shown linearly); the shadows are cast "
+                   "by the defects' walls.", triad_cmd)
+        res = solve(data.images, data.lights, data.intensities, data.mask)
+        ctx.step("inspection: photometric stereo")
+        err = im.angular_error(res.normals, data.normal_gt, res.valid)
+        nums.update(normal_error_mean_deg=float(np.nanmean(err)),
+                    normal_error_median_deg=float(np.nanmedian(err)),
+                    valid_fraction=float(res.valid.mean()))
+        height = integrate(res.p, res.q, "dct", mask=None, pixel_size=pixel)
+        height_true = height_gt - np.mean(height_gt)
+        height = height - np.nanmean(height)
+        herr = height - height_true
+        nums.update(height_rms_error_mm=float(np.sqrt(np.nanmean(herr**2))),
+                    height_range_true_mm=float(np.ptp(height_gt)))
+        ctx.step("inspection: integration")
+        recon_cmd = ctx.cmd("photometric", "reconstruct", str(folder), "--out",
+                            str(ctx.out / "inspection" / "reconstruction"))
+        tiles = [
+            im.label_image(im.albedo_image(res.albedo, res.valid), "albedo"),
+            im.label_image(im.normal_map(res.normals, res.valid), "normals (RGB = (n+1)/2)"),
+            im.label_image(im.normal_map(data.normal_gt), "true normals"),
+        ]
+        rep.figure(im.montage(tiles, cols=3), "inspection-normals",
+                   "Recovered albedo, recovered normal map and the true normal map "
+                   "(x to R, y up to G, z towards the camera to B).", recon_cmd)
+        rep.figure(im.montage([
+            im.error_image(err, res.valid, label="angle deg"),
+            im.height_image(height, label="height mm", cmap="cividis"),
+            im.error_image(np.abs(herr), label="|dz| mm", cmap="magma"),
+        ], cols=3), "inspection-height",
+            f"Angular error of the normals (mean {nums['normal_error_mean_deg']:.2f} deg), the "
+            f"integrated height and its absolute error against the truth (RMS "
+            f"{nums['height_rms_error_mm'] * 1000:.1f} um after removing the mean).", recon_cmd)
+        step = 4 if ctx.quick else 8
+        patches = height_to_patches(height, res.p, res.q, pixel_size=pixel, step=step)
+        nums["bezier_patches"] = int(patches.n_patches)
+        from surfaces.bezier import BezierPatches
+
+        shown = BezierPatches(patches.control * np.array([1.0, 1.0, 10.0]))
+        mesh_samples = 4
+        from surfaces.mesh import tessellate
+
+        mesh = tessellate(shown, samples=mesh_samples)
+        pic = view.render(mesh, ["iso"], vsize, scalars=mesh.vertices[:, 2] / 10.0,
+                          colorbar_label="height mm", cmap="cividis", antialias=1 if ctx.quick else 2,
+                          light=(-0.45, 0.5, 0.74))
+        rep.figure(pic, "inspection-bezier",
+                   f"The bicubic Coons/Bezier surface through the measured height "
+                   f"({patches.shape[0]} x {patches.shape[1]} patches, one grid point every "
+                   f"{step} pixels, tangents from the measured slopes), tessellated and ray-cast "
+                   "(height exaggerated 10x).", recon_cmd)
+        rows, cols = patches.shape
+        r0, c0 = int(rows * 0.18), int(cols * 0.2)
+        span = max(3, rows // 5)
+        crop = BezierPatches(shown.control[r0:r0 + span, c0:c0 + span])
+        pic = view.render(crop, ["iso"], (640, 480), net=True, samples=8,
+                          scalars=None, antialias=2, light=(-0.45, 0.5, 0.74))
+        rep.figure(pic, "inspection-bezier-net",
+                   f"Detail around the crack: {span} x {span} patches with their Bezier control "
+                   "net (seed 001's 'carcass') drawn over the ray-cast surface.", recon_cmd)
+        ctx.step("inspection: Bezier surface")
+    if "Inspection: photometric stereo" in ctx.unavailable:
+        return
+    with ctx.guard("Inspection: defect measures"):
+        from photometric.defects import measure_defects
+
+        found = measure_defects(height, pixel_size=pixel, p=res.p, q=res.q)
+        truth = scene["defects"]
+        rows_out, matched = [], []
+        for t in truth:
+            cr, cc = t["center_px"]
+            best = min(found, key=lambda d: np.hypot(d["center_px"][0] - cr, d["center_px"][1] - cc),
+                       default=None)
+            dist = (np.hypot(best["center_px"][0] - cr, best["center_px"][1] - cc) * pixel
+                    if best is not None else np.inf)
+            ok = best is not None and dist < 0.5 * max(t["length_mm"], t["width_mm"])
+            m = best if ok else None
+            matched.append({"kind": t["kind"], "truth": t, "measured": m, "center_offset_mm": dist})
+            rows_out.append([
+                t["kind"],
+                t["depth_mm"], m["max_depth_mm"] if m else "not found",
+                t["width_mm"], m["max_width_mm"] if m else "not found",
+                t["length_mm"], m["length_mm"] if m else "not found",
+                t["area_mm2"], m["area_mm2"] if m else "not found",
+            ])
+        nums["defects"] = [
+            {"kind": d["kind"], "depth_true_mm": d["truth"]["depth_mm"],
+             "depth_measured_mm": d["measured"]["max_depth_mm"] if d["measured"] else None,
+             "width_true_mm": d["truth"]["width_mm"],
+             "width_measured_mm": d["measured"]["max_width_mm"] if d["measured"] else None,
+             "length_true_mm": d["truth"]["length_mm"],
+             "length_measured_mm": d["measured"]["length_mm"] if d["measured"] else None,
+             "area_true_mm2": d["truth"]["area_mm2"],
+             "area_measured_mm2": d["measured"]["area_mm2"] if d["measured"] else None}
+            for d in matched
+        ]
+        nums["defects_found"] = len(found)
+        rep.table(["defect", "depth true (mm)", "depth measured (mm)", "width true (mm)",
+                   "width measured (mm)", "length true (mm)", "length measured (mm)",
+                   "area true (mm2)", "area measured (mm2)"], rows_out,
+                  caption=f"Defects measured on the reconstructed height (photometric.defects."
+                  f"measure_defects, {len(found)} region(s) found) against the scene's truth.",
+                  digits=3)
+        ctx.step("inspection: defects")
+    rep.table(["quantity", "value"], [
+        ["mean angular error of the normals (deg)", nums["normal_error_mean_deg"]],
+        ["median angular error (deg)", nums["normal_error_median_deg"]],
+        ["valid pixels (fraction)", nums["valid_fraction"]],
+        ["height RMS error (mm)", nums["height_rms_error_mm"]],
+        ["true height range (mm)", nums["height_range_true_mm"]],
+        ["Bezier patches", nums["bezier_patches"]],
+    ], caption="Inspection accuracy against the synthetic truth.")
+
+
+# ----------------------------------------------------------------------------- section 2
+
+
+def section_accuracy(ctx: Context) -> None:
+    """Derivative-error maps against light deviations and recommended tolerances."""
+    rep = ctx.report
+    rep.section("2. Accuracy study: light-direction deviations",
+                "How much do the reconstructed derivatives p = dz/dx, q = dz/dy suffer when the "
+                "real lights deviate from the nominal ones (seed 002a)? Exact error model "
+                "m = L^-1 L' n for the nominal triad (slant 45 deg, 120 deg apart), worst case "
+                "over all slopes |p|, |q| <= D.")
+    nums: dict = {}
+    ctx.numbers["accuracy"] = nums
+    with ctx.guard("Accuracy study"):
+        from photometric import errors
+
+        lights = errors.standard_triad(45.0)
+        d_range = 1.0
+        n_map = 21 if ctx.quick else 41
+        p, q = errors.derivative_square(d_range, 21 if ctx.quick else 41)
+        cmd = ctx.cmd("photometric", "errors", "--lights", "triad45", "--derivative-range",
+                      str(d_range), "--deviation-max", "5", "--grid", str(n_map), "--out",
+                      str(ctx.out / "accuracy"))
+        maps = []
+        for axis1, axis2, title in (
+            ((0, "slant"), (1, "slant"), "lights 1 and 2: slant deviations"),
+            ((0, "slant"), (0, "azimuth"), "light 1: slant and azimuth deviations"),
+        ):
+            em = errors.error_map(lights, p, q, axis1=axis1, axis2=axis2, deviation_max=5.0, n=n_map)
+            worst = np.maximum(em.max_dp, em.max_dq)
+            maps.append(im.plot_map(
+                worst, em.dev1_deg, em.dev2_deg,
+                xlabel=f"light {axis1[0] + 1} {axis1[1]} deviation (deg)",
+                ylabel=f"light {axis2[0] + 1} {axis2[1]} deviation (deg)",
+                title=f"max |dp|, |dq| over |p|,|q| <= {d_range:g}: {title}",
+                label="derivative error", cmap="magma", contours=(0.02, 0.05, 0.1)))
+            maps.append(im.plot_map(
+                em.max_angle_deg, em.dev1_deg, em.dev2_deg,
+                xlabel=f"light {axis1[0] + 1} {axis1[1]} deviation (deg)",
+                ylabel=f"light {axis2[0] + 1} {axis2[1]} deviation (deg)",
+                title=f"max normal angle error: {title}", label="deg", cmap="viridis",
+                contours=(1.0, 2.0, 5.0)))
+            key = f"{axis1[1]}{axis1[0] + 1}_{axis2[1]}{axis2[0] + 1}"
+            nums[f"max_derivative_error_at_5deg_{key}"] = float(worst.max())
+            nums[f"max_angle_error_at_5deg_{key}_deg"] = float(em.max_angle_deg.max())
+        ctx.step("accuracy: error maps")
+        rep.figure(im.montage(maps, cols=2), "accuracy-maps",
+                   "Worst-case derivative error (left) and normal angle error (right) against two "
+                   f"light deviations of +-5 deg, over all slopes |p|, |q| <= {d_range:g}; white "
+                   "lines are tolerance levels. Errors grow linearly with the deviation (about "
+                   "1 deg of normal per deg of light, Ray, Birk & Kelley 1983).", cmd)
+        table = errors.recommendation_table(lights, tolerances=TOLERANCES, ranges=RANGES,
+                                            n_grid=11 if ctx.quick else 21)
+        ctx.step("accuracy: tolerances")
+        nums["recommendation"] = table
+        rep.table(
+            ["derivative range D", "tolerance eps on p, q", "one light (deg)",
+             "a pair of lights (deg)", "all three lights (deg)", "one light, first order (deg)"],
+            [[r["derivative_range"], r["tolerance"], r["single_light_deg"], r["pair_deg"],
+              r["all_lights_deg"], r["single_light_first_order_deg"]] for r in table],
+            caption="Recommended operating limits: the largest angular deviation of the lights "
+            "(any direction) that keeps |dp|, |dq| <= eps for every slope with |p|, |q| <= D "
+            "(photometric.errors.recommendation_table; worst case over lights and directions).",
+            digits=3)
+        nums["condition_number"] = float(errors.condition_number(lights))
+        rep.paragraph(f"Condition number of the nominal triad: {nums['condition_number']:.3f} "
+                      f"(best, 1.0, at slant {errors.OPTIMAL_SLANT_DEG:.2f} deg).")
+
+
+# ----------------------------------------------------------------------------- section 3
+
+
+def section_real(ctx: Context) -> None:
+    """DiLiGenT bear: triad and all 14 images against ground truth and the baseline figures."""
+    rep = ctx.report
+    rep.section("3. Real captures: DiLiGenT bear",
+                "Real 16-bit captures with ground-truth normals (DiLiGenT, Shi et al. 2016/2019), "
+                "14 of the 96 images. Plain least squares, channels divided by the light "
+                "intensities and averaged to grey: published baseline 11.74 deg on this triad and "
+                "9.60 deg on the 14 images (8.39 deg with all 96 images).")
+    folder = ctx.shared / "diligent_bear"
+    nums: dict = {"folder": str(folder)}
+    ctx.numbers["real"] = nums
+    if not folder.is_dir():
+        reason = f"the real-data folder {folder} is absent (set WORKBENCH_SHARED_DATA)"
+        ctx.unavailable["Real captures"] = reason
+        rep.note(f"Real captures: not available: {reason}")
+        return
+    with ctx.guard("Real captures"):
+        from photometric.integrate import integrate
+        from photometric.io import read_folder
+        from photometric.stereo import solve
+        from surfaces import view
+
+        results = {}
+        for key, select in (("triad", "triad"), ("all14", None)):
+            data = read_folder(folder, select=select)
+            res = solve(data.images, data.lights, data.intensities, data.mask)
+            err = im.angular_error(res.normals, data.normal_gt, data.mask)
+            results[key] = (data, res, err)
+            nums[f"{key}_mean_error_deg"] = float(np.nanmean(err))
+            nums[f"{key}_median_error_deg"] = float(np.nanmedian(err))
+            nums[f"{key}_images"] = len(data.names)
+            ctx.step(f"bear: {key} solved")
+        triad, all14 = results["triad"][0], results["all14"][0]
+
+        def show(data, k):
+            img = data.images[k] / np.maximum(data.intensities[k], 1e-12)[None, None, :]
+            return im.to_uint8(img, vmax=float(np.percentile(img[data.mask], 99.5)))
+
+        step = 2 if ctx.quick else 1
+        cmd_triad = ctx.cmd("photometric", "reconstruct", str(folder), "--select", "triad",
+                            "--out", str(ctx.out / "bear_triad"))
+        cmd_all = ctx.cmd("photometric", "reconstruct", str(folder), "--out", str(ctx.out / "bear_all"))
+        rep.figure(im.montage([show(triad, k)[::step, ::step] for k in range(3)], cols=3,
+                              labels=list(triad.names)),
+                   "bear-triad-images",
+                   "The triad (lights about 40 deg slant, 120 deg apart), divided by the light "
+                   "intensities.", cmd_triad)
+        thumbs = [show(all14, k)[::4, ::4] for k in range(len(all14.names))]
+        rep.figure(im.montage(thumbs, cols=7, labels=list(all14.names)), "bear-all-images",
+                   "All 14 images (quarter size).", cmd_all)
+        gt = triad.normal_gt
+        tiles = [
+            im.label_image(im.normal_map(gt, triad.mask), "ground truth"),
+            im.label_image(im.normal_map(results["triad"][1].normals, triad.mask), "triad"),
+            im.label_image(im.normal_map(results["all14"][1].normals, all14.mask), "14 images"),
+        ]
+        rep.figure(im.montage([t[::step, ::step] for t in tiles], cols=3), "bear-normals",
+                   "Normal maps: ground truth, least squares on the triad and on all 14 images.",
+                   cmd_all)
+        vmax = 30.0
+        errs = [im.error_image(results[k][2][::step, ::step], triad.mask[::step, ::step], vmax=vmax,
+                               label="angle deg") for k in ("triad", "all14")]
+        rep.figure(im.montage(errs, cols=2, labels=[
+            f"triad: mean {nums['triad_mean_error_deg']:.2f} deg",
+            f"14 images: mean {nums['all14_mean_error_deg']:.2f} deg"]), "bear-errors",
+            "Angular error against the ground truth (colour bar clipped at 30 deg): shadows and "
+            "highlights break the Lambertian model where fewer lights see the surface.", cmd_all)
+        res = results["all14"][1]
+        height = integrate(res.p, res.q, "lsq", mask=all14.mask, pixel_size=1.0)
+        mesh = heightfield_mesh(height, 1.0, all14.mask, step=2 if ctx.quick else 1)
+        pic = view.render(mesh, ["iso", "top"], (900, 420) if ctx.quick else (1200, 560),
+                          light=(-0.3, 0.4, 0.87))
+        rep.figure(pic, "bear-surface",
+                   "Height integrated from the 14-image normals (masked least squares, pixel "
+                   "units), ray-cast.", cmd_all)
+        ctx.step("bear: figures")
+        rep.table(["light set", "images", "our mean error (deg)", "our median (deg)",
+                   "baseline mean (deg)", "difference (deg)"], [
+            ["triad", nums["triad_images"], nums["triad_mean_error_deg"],
+             nums["triad_median_error_deg"], BEAR_BASELINE_DEG["triad"],
+             nums["triad_mean_error_deg"] - BEAR_BASELINE_DEG["triad"]],
+            ["all 14", nums["all14_images"], nums["all14_mean_error_deg"],
+             nums["all14_median_error_deg"], BEAR_BASELINE_DEG["all14"],
+             nums["all14_mean_error_deg"] - BEAR_BASELINE_DEG["all14"]],
+            ["all 96 (published, not in this subset)", 96, "not computed (subset of 14 images)",
+             "not computed", BEAR_PUBLISHED_96_DEG, "n/a: different image set"],
+        ], caption="DiLiGenT bear: mean angular error inside the object mask.", digits=4)
+
+
+# ----------------------------------------------------------------------------- section 4
+
+
+def _contour_segments(path: Path) -> np.ndarray:
+    """(K, 2, 3) polyline segments of every contour in a contours.json file."""
+    data = json.loads(path.read_text())
+    segs = []
+    for c in data["contours"]:
+        pts = np.asarray(c["points"], float)
+        p3 = np.column_stack([pts, np.full(len(pts), float(c["z"]))])
+        segs.append(np.stack([p3, np.roll(p3, -1, axis=0)], axis=1))
+    return np.concatenate(segs)
+
+
+def section_ct(ctx: Context) -> None:
+    """Kidney phantom reconstructed from its contours: volume and surface distance vs truth."""
+    rep = ctx.report
+    rep.section("4. CT: surfaces from contour stacks",
+                "Seed 000: closed contours per slice -> adaptive control points (rays from the "
+                "centroid, fold handling) -> parabolic-blending curves -> one interpolating "
+                "surface across the slices (Bezier patches), capped; volume by the divergence "
+                "theorem.")
+    nums = ctx.numbers.setdefault("ct", {})
+    spacing = 4.0 if ctx.quick else 2.0
+    kid = ctx.out / "ct" / "kidney"
+    with ctx.guard("CT: kidney phantom"):
+        from datasets_synthetic.phantoms import make_phantom, write_phantom
+        from slices.pipeline import reconstruct
+        from surfaces import view
+        from surfaces.io import read_mesh
+
+        phantom = make_phantom("kidney")
+        truth = write_phantom(kid, phantom, spacing=spacing, pixel=0.8, fmt="json",
+                              n_points=48 if ctx.quick else 96, n_surface=4000 if ctx.quick else 20000)
+        ctx.step("ct: phantom written")
+        out = ctx.out / "ct" / "kidney_surface"
+        summary = reconstruct(kid / "contours.json", out, rays=32 if ctx.quick else 64,
+                              caps="flat", render=False, reference=False)
+        ctx.step("ct: kidney reconstructed")
+        mesh = read_mesh(out / "surface.ply")
+        pts = np.load(kid / "surface_points.npy")
+        dist = view.deviation(pts, mesh)
+        from scipy.spatial import cKDTree
+
+        _, nearest = cKDTree(pts).query(mesh.vertices)
+        vertex_dev = dist[nearest]
+        lim = float(np.percentile(np.abs(dist), 99))
+        nums["kidney"] = {
+            "spacing_mm": spacing,
+            "n_contours": truth["n_contours"],
+            "volume_true_mm3": truth["volume_mm3"],
+            "volume_between_end_planes_mm3": truth.get("volume_between_end_planes_mm3"),
+            "volume_reconstructed_mm3": summary["volume_mm3"],
+            "volume_error_percent": 100 * (summary["volume_mm3"] / truth["volume_mm3"] - 1),
+            "slab_volume_mm3": summary["slab_volume_mm3"],
+            "surface_distance_mean_mm": float(np.mean(np.abs(dist))),
+            "surface_distance_rms_mm": float(np.sqrt(np.mean(dist**2))),
+            "surface_distance_p95_mm": float(np.percentile(np.abs(dist), 95)),
+            "surface_distance_max_mm": float(np.max(np.abs(dist))),
+            "mesh_triangles": summary["mesh_triangles"],
+            "watertight": summary["mesh_watertight"],
+        }
+        k = nums["kidney"]
+        cmd_ph = ctx.cmd("synth", "phantom", "--shape", "kidney", "--spacing", str(spacing),
+                         "--pixel", "0.8", "--out", str(kid))
+        cmd_rec = ctx.cmd("slices", "reconstruct", str(kid / "contours.json"), "--out", str(out))
+        pic = view.render(mesh, ["iso", "front", "top", "side"], (1000, 760),
+                          scalars=vertex_dev, vmin=-lim, vmax=lim, cmap="coolwarm",
+                          colorbar_label="dev. mm", net=_contour_segments(kid / "contours.json"),
+                          net_color=(0.1, 0.1, 0.1), net_hidden=True)
+        rep.figure(pic, "ct-kidney",
+                   f"Kidney phantom (sections fold: the hilum is concave) reconstructed from "
+                   f"{k['n_contours']} contours {spacing:g} mm apart (black lines); colour = signed "
+                   "distance of the nearest true surface sample to the reconstruction (mm, "
+                   "positive outside).", f"{cmd_ph} && {cmd_rec}")
+        rep.table(["quantity", "value"], [
+            ["true volume (mm3)", k["volume_true_mm3"]],
+            ["reconstructed volume (mm3)", k["volume_reconstructed_mm3"]],
+            ["volume error (%)", k["volume_error_percent"]],
+            ["slab volume, areas x spacing (mm3)", k["slab_volume_mm3"]],
+            ["surface distance, mean |d| (mm)", k["surface_distance_mean_mm"]],
+            ["surface distance, RMS (mm)", k["surface_distance_rms_mm"]],
+            ["surface distance, 95th percentile (mm)", k["surface_distance_p95_mm"]],
+            ["surface distance, max (mm)", k["surface_distance_max_mm"]],
+            ["mesh triangles", k["mesh_triangles"]],
+            ["watertight", k["watertight"]],
+        ], caption="Kidney phantom: reconstruction against the exact solid (distance from "
+                   f"{len(pts)} true surface samples to the reconstructed surface).")
+
+
+def section_breast(ctx: Context) -> None:
+    """The breast structure set's Heart (and Lt Lung) against the reference volumes."""
+    rep = ctx.report
+    nums = ctx.numbers.setdefault("ct", {})
+    rtss = ctx.shared / "rtstruct_breast" / "rtss.dcm"
+    if not rtss.is_file():
+        reason = f"the real structure set {rtss} is absent (set WORKBENCH_SHARED_DATA)"
+        ctx.unavailable["CT: breast structure set"] = reason
+        rep.note(f"CT: breast structure set: not available: {reason}")
+        return
+    with ctx.guard("CT: breast structure set"):
+        from slices.pipeline import reconstruct
+        from surfaces import view
+        from surfaces.io import read_mesh
+        from surfaces.mesh import TriangleMesh, merge_meshes
+
+        rois = ["Heart"] if ctx.quick else ["Heart", "Lt Lung"]
+        rows, meshes, colors = [], [], []
+        palette = {"Heart": (0.85, 0.35, 0.35), "Lt Lung": (0.55, 0.7, 0.9)}
+        for roi in rois:
+            out = ctx.out / "ct" / roi.lower().replace(" ", "_")
+            s = reconstruct(rtss, out, roi=roi, caps="flat", render=False, reference=False,
+                            samples=2 if roi == "Lt Lung" else 3)
+            ctx.step(f"ct: {roi} reconstructed")
+            refs = HEART_REFERENCE_CC if roi == "Heart" else LUNG_REFERENCE_CC
+            nums[roi] = {"volume_cc": s["volume_ml"], "slab_volume_cc": s["slab_volume_ml"],
+                         "n_contours": s["n_contours"], "n_bodies": s["n_bodies"],
+                         "references_cc": refs}
+            for name, ref in refs.items():
+                rows.append([roi, s["n_contours"], s["volume_ml"], s["slab_volume_ml"], name, ref,
+                             100 * (s["volume_ml"] / ref - 1)])
+            m = read_mesh(out / "surface.ply")
+            meshes.append(TriangleMesh(m.vertices, m.triangles, m.vertex_normals, None))
+            colors.append(np.broadcast_to(palette[roi], m.vertices.shape))
+        if ctx.quick:
+            rep.note("--quick: only the Heart is reconstructed; the full run adds the Lt Lung "
+                     "(165 contours on 80 planes, with holes).")
+        merged = merge_meshes(meshes)
+        pic = view.render(merged, ["front", "iso"], (1000, 520), colors=np.concatenate(colors))
+        rep.figure(pic, "ct-breast",
+                   "Structures of the real breast RT structure set reconstructed from their "
+                   f"contours: {', '.join(rois)} (patient coordinates, mm).",
+                   ctx.cmd("slices", "reconstruct", str(rtss), "--roi", "Heart", "--out",
+                           str(ctx.out / "ct" / "heart")))
+        rep.table(["structure", "contours", "our volume (cc)", "our slab volume (cc)",
+                   "reference", "reference volume (cc)", "difference (%)"], rows,
+                  caption="Volumes of the same contours: ours (surface, divergence theorem; slab = "
+                  "contour areas x spacing) beside other systems' figures. Planning systems "
+                  "disagree among themselves by about 1-5 %, mostly at the end slices.", digits=5)
+
+
+# ----------------------------------------------------------------------------- driver
+
+
+SECTIONS = (section_inspection, section_accuracy, section_real, section_ct, section_breast)
+STEPS = 16
+
+
+def run_demo(out_dir: str | os.PathLike = "demo_out", quick: bool = False,
+             shared: str | os.PathLike | None = None, progress: bool = False) -> dict:
+    """Run every demo section and write ``report.html``, ``demo.json`` and the figures.
+
+    Parameters
+    ----------
+    out_dir : path-like
+        Output folder (created).
+    quick : bool
+        Reduced sizes (the CI smoke test): 128-pixel plate, coarser grids, Heart only.
+    shared : path-like, optional
+        Real-data folder; :func:`shared_data_dir` when omitted.
+    progress : bool
+        Show a tqdm progress bar (command line).
+
+    Returns
+    -------
+    dict
+        The ``demo.json`` content: ``report``, ``seconds``, ``quick``, ``unavailable``
+        (section -> reason), ``figures`` (file, caption, command) and every number
+        under its section name.
+    """
+    from tqdm import tqdm
+
+    out = Path(out_dir).resolve()
+    out.mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
+    report = Report("Surface-reconstruction workbench: demo report", out)
+    ctx = Context(out=out, quick=bool(quick),
+                  shared=Path(shared) if shared is not None else shared_data_dir(), report=report)
+    report.paragraph(
+        "Everything on this page was computed by one run of the demo on the machine named below "
+        "(no precomputed results): synthetic scenes with exact ground truth, the shared real data "
+        "(DiLiGenT bear, a breast RT structure set) when present, the photometric-stereo and CT "
+        "pipelines, and the one Bezier surface model both converge on. Pictures are ray-cast "
+        "headless with open3d's RaycastingScene.")
+    with tqdm(total=STEPS, desc="demo", unit="step", disable=not progress) as bar:
+        ctx.bar = bar
+        for section in SECTIONS:
+            section(ctx)
+        bar.update(max(0, STEPS - bar.n))
+    report.section("5. Figures and the commands that reproduce them",
+                   "Each figure's data comes from the command shown; the pictures themselves are "
+                   "drawn by the demo.")
+    report.table(["figure", "file", "what it shows", "command"],
+                 [[f, file, cap, f"`{cmd}`"] for f, file, cap, cmd in report.figure_index()])
+    if ctx.unavailable:
+        report.table(["section", "reason"], [[k, v] for k, v in ctx.unavailable.items()],
+                     caption="Sections that could not run.")
+    seconds = time.perf_counter() - t0
+    meta = (f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}; {platform.node()}, "
+            f"{os.cpu_count()} CPU(s), Python {platform.python_version()}; "
+            f"{'quick' if quick else 'full'} run, {seconds:.0f} s")
+    path = report.write("report.html", meta=meta)
+    summary = {
+        "report": str(path),
+        "seconds": seconds,
+        "quick": bool(quick),
+        "shared_data": str(ctx.shared),
+        "unavailable": ctx.unavailable,
+        "figures": [{"file": f.file, "caption": f.caption, "command": f.command}
+                    for f in report.figures],
+        **ctx.numbers,
+    }
+    _write_json(out / "demo.json", summary)
+    return summary
