@@ -201,8 +201,13 @@ def check_solid(mesh, name: str = "mesh") -> dict:
         An empty mesh is reported as not closed.
     """
     vertices, triangles = _mesh_arrays(mesh, name)
+    return _diagnose(vertices, triangles, name)
+
+
+def _diagnose(vertices: np.ndarray, triangles: np.ndarray, name: str, table=None) -> dict:
+    """:func:`check_solid` on validated arrays, reusing an :func:`_edge_table` when given."""
     info: dict = {"n_vertices": len(vertices), "n_triangles": len(triangles)}
-    directed, _, counts, _ = _edge_table(triangles, len(vertices))
+    directed, _, counts, _ = table if table is not None else _edge_table(triangles, len(vertices))
     info["boundary_edges"] = int(np.count_nonzero(counts == 1))
     info["nonmanifold_edges"] = int(np.count_nonzero(counts > 2))
     dkey = directed[:, 0] * np.int64(len(vertices)) + directed[:, 1]
@@ -566,18 +571,39 @@ def chain_edges(src: np.ndarray, dst: np.ndarray) -> tuple[list[np.ndarray], lis
 
 
 # --------------------------------------------------------------------------- engine
-def _to_manifold(vertices: np.ndarray, triangles: np.ndarray, centre: np.ndarray, name: str):
+def _to_manifold(vertices: np.ndarray, triangles: np.ndarray, centre: np.ndarray, name: str, hint: str):
+    """The input as a manifold3d solid, its original id (face provenance) and its volume.
+
+    manifold3d itself verifies that the mesh is an oriented 2-manifold while
+    building its half-edge structure, so the full :func:`check_solid` runs only
+    to explain a rejection; the outward orientation is checked here.
+    """
     import manifold3d
 
+    if len(triangles) == 0:
+        raise ValueError(f"{name}: has no triangles")
+    # an explicit original id tags every triangle of the results with its source (cheaper
+    # than Manifold.as_original(), which rebuilds the faces)
+    original_id = int(manifold3d.Manifold.reserve_ids(1))
     mesh = manifold3d.Mesh64(
         vert_properties=np.ascontiguousarray(vertices - centre, dtype=np.float64),
         tri_verts=np.ascontiguousarray(triangles, dtype=np.uint64),
+        run_index=np.array([0, triangles.size], dtype=np.uint64),
+        run_original_id=np.array([original_id], dtype=np.uint32),
     )
     solid = manifold3d.Manifold(mesh)
     status = solid.status()
     if status != manifold3d.Error.NoError:
-        raise ValueError(f"{name}: manifold3d rejected the mesh ({status.name})")
-    return solid.as_original()
+        problems = _diagnose(vertices, triangles, name)["problems"] or [
+            f"{name}: manifold3d rejected the mesh ({status.name})"
+        ]
+        raise ValueError("; ".join(problems) + hint)
+    volume = signed_volume(vertices, triangles)
+    if not volume > 0:
+        raise ValueError(
+            f"{name}: oriented inward (signed volume {volume:.6g} <= 0); normals must point outward" + hint
+        )
+    return solid, original_id, volume
 
 
 def _from_manifold(solid, centre: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -597,11 +623,11 @@ def _from_manifold(solid, centre: np.ndarray) -> tuple[np.ndarray, np.ndarray, n
     return vertices, tris, origin
 
 
-def _curves_between(vertices, triangles, from_a: np.ndarray) -> tuple[list[np.ndarray], list[bool]]:
+def _curves_between(vertices, triangles, from_a: np.ndarray, table) -> tuple[list[np.ndarray], list[bool]]:
     """Polylines along the edges where a triangle from A meets a triangle from B."""
     if len(triangles) == 0:
         return [], []
-    directed, edge_id, counts, _ = _edge_table(triangles, len(vertices))
+    directed, edge_id, counts, _ = table
     face_a = np.repeat(from_a, 3)
     n_edges = len(counts)
     a_count = np.bincount(edge_id, weights=face_a, minlength=n_edges)
@@ -671,13 +697,16 @@ class BooleanResult:
         }
 
 
+_REPAIR_HINT = "; pass repair=True (--repair) to fix it"
+
+
 def _prepare(mesh, name: str, repair: bool) -> tuple[np.ndarray, np.ndarray, dict]:
+    """Arrays of an input, repaired on request (checked later by :func:`_to_manifold`)."""
     if repair:
         fixed, report = repair_mesh(mesh, name)
         vertices, triangles = _mesh_arrays(fixed, name)
         return vertices, triangles, report
     vertices, triangles = _mesh_arrays(mesh, name)
-    _require_solid(vertices, triangles, name, "; pass repair=True (--repair) to fix it")
     return vertices, triangles, {}
 
 
@@ -728,8 +757,8 @@ def boolean(a, b, op: str = "union", *, repair: bool = False, names: Sequence[st
     lo = np.minimum(va.min(axis=0), vb.min(axis=0))
     hi = np.maximum(va.max(axis=0), vb.max(axis=0))
     centre = 0.5 * (lo + hi)
-    solid_a = _to_manifold(va, ta, centre, name_a)
-    solid_b = _to_manifold(vb, tb, centre, name_b)
+    solid_a, id_a, vol_a = _to_manifold(va, ta, centre, name_a, _REPAIR_HINT)
+    solid_b, _, vol_b = _to_manifold(vb, tb, centre, name_b, _REPAIR_HINT)
     result = {
         "union": solid_a + solid_b,
         "intersection": solid_a ^ solid_b,
@@ -738,15 +767,16 @@ def boolean(a, b, op: str = "union", *, repair: bool = False, names: Sequence[st
     vertices, triangles, origin = _from_manifold(result, centre)
     mesh = _make_mesh(vertices, triangles)
     vertices, triangles = mesh.vertices, mesh.triangles
-    info = check_solid(mesh, f"{op} result")
+    table = _edge_table(triangles, len(vertices))
+    info = _diagnose(vertices, triangles, f"{op} result", table)
     if len(triangles) and not (info["closed"] and info["oriented"]):
         raise RuntimeError("; ".join(info["problems"]))
-    curves, closed = _curves_between(vertices, triangles, origin == solid_a.original_id())
+    curves, closed = _curves_between(vertices, triangles, origin == id_a, table)
     return BooleanResult(
         mesh=mesh,
         op=op,
-        volume_a=signed_volume(va, ta),
-        volume_b=signed_volume(vb, tb),
+        volume_a=vol_a,
+        volume_b=vol_b,
         volume=info["signed_volume"],
         curves=tuple(curves),
         curves_closed=tuple(closed),
@@ -882,8 +912,11 @@ def compose(
     prepared = [_prepare(m, n, repair) for m, n in zip([base, *plus, *minus], [base_name, *plus_names, *minus_names])]
     all_v = np.vstack([p[0] for p in prepared])
     centre = 0.5 * (all_v.min(axis=0) + all_v.max(axis=0))
-    solids = [_to_manifold(v, t, centre, n) for (v, t, _), n in zip(prepared, [base_name, *plus_names, *minus_names])]
-    vols = [signed_volume(v, t) for v, t, _ in prepared]
+    built = [
+        _to_manifold(v, t, centre, n, _REPAIR_HINT)
+        for (v, t, _), n in zip(prepared, [base_name, *plus_names, *minus_names])
+    ]
+    solids, vols = [b[0] for b in built], [b[2] for b in built]
     grown = manifold3d.Manifold.batch_boolean(solids[: 1 + len(plus)], manifold3d.OpType.Add)
     result = grown
     if minus:
