@@ -31,8 +31,10 @@ Deviation models
 * a rotation of each light by an angle ``delta`` towards a direction ``phi``
   in its tangent plane (:func:`rotate_lights`): ``phi = 0`` is increasing
   slant, ``phi = 90`` increasing azimuth; ``delta`` is the true angle between
-  nominal and deviated light. The Monte Carlo study draws
-  ``delta ~ N(0, sigma^2)`` and ``phi ~ U[0, 360)`` independently per light.
+  nominal and deviated light. The Monte Carlo study gives each light an
+  isotropic Gaussian tangent deviation (components along ``e_s`` and ``e_a``
+  independent ``N(0, sigma^2 / 2)``): a uniformly random direction and an angle
+  whose RMS (and signed standard deviation) is ``sigma``.
 
 First order (derived for this module)
 -------------------------------------
@@ -511,8 +513,8 @@ def first_order_error(lights, deviations_deg, p, q) -> tuple[np.ndarray, np.ndar
 def first_order_covariance(lights, sigma_deg: float, p, q) -> np.ndarray:
     """First-order covariance of ``(dp, dq)`` for random isotropic light deviations.
 
-    Each light turns by ``delta ~ N(0, sigma^2)`` towards a uniform random tangent
-    direction, so its tangent displacement has covariance ``(sigma^2 / 2) I_2`` and
+    Each light's tangent displacement is isotropic Gaussian with covariance
+    ``(sigma^2 / 2) I_2`` (RMS angle ``sigma``, :func:`random_deviations`), so
     ``E[(n . dl_k)^2] = (sigma^2 / 2)(|n|^2 - (n . l_k)^2)``;
     ``Cov = sum_k (G c_k)(G c_k)^T (sigma^2 / 2)(|n|^2 - (n . l_k)^2)`` (= ``J Sigma J^T``).
 
@@ -521,7 +523,7 @@ def first_order_covariance(lights, sigma_deg: float, p, q) -> np.ndarray:
     lights : array_like, (N, 3)
         Nominal unit lights.
     sigma_deg : float
-        Standard deviation of the deviation angle, degrees.
+        RMS deviation angle of each light, degrees (model of :func:`random_deviations`).
     p, q : array_like
         Slopes, common shape ``S``.
 
@@ -552,7 +554,7 @@ def first_order_angle_rms(lights, sigma_deg: float, p, q) -> np.ndarray:
     lights : array_like, (N, 3)
         Nominal unit lights.
     sigma_deg : float
-        Standard deviation of the deviation angle, degrees.
+        RMS deviation angle of each light, degrees (model of :func:`random_deviations`).
     p, q : array_like
         Slopes, common shape ``S``.
 
@@ -1132,7 +1134,7 @@ class MonteCarloResult:
     Attributes
     ----------
     sigma_deg : float
-        Standard deviation of each light's deviation angle, degrees.
+        RMS deviation angle of each light, degrees.
     p, q : numpy.ndarray
         ``(K,)`` true slopes of the test normals.
     dp, dq, angle_deg : numpy.ndarray
@@ -1163,12 +1165,17 @@ class MonteCarloResult:
 def random_deviations(n_lights: int, sigma_deg: float, n_samples: int, seed=0) -> tuple[np.ndarray, np.ndarray]:
     """Random deviation angles and directions for the Monte Carlo model.
 
+    The tangent deviation ``(a, b)`` along ``(e_s, e_a)`` has independent components
+    ``N(0, sigma^2 / 2)``: the direction ``phi = atan2(b, a)`` is uniform and the angle
+    ``delta = hypot(a, b)`` is Rayleigh-distributed with RMS ``sigma``. The deviation is
+    then exactly Gaussian in the tangent plane, so the first-order errors are Gaussian.
+
     Parameters
     ----------
     n_lights : int
         Number of lights.
     sigma_deg : float
-        Standard deviation of the angle, degrees.
+        RMS deviation angle, degrees.
     n_samples : int
         Number of samples.
     seed : int or numpy.random.Generator
@@ -1177,22 +1184,21 @@ def random_deviations(n_lights: int, sigma_deg: float, n_samples: int, seed=0) -
     Returns
     -------
     angle_deg, direction_deg : numpy.ndarray
-        ``(n_samples, n_lights)``: ``delta ~ N(0, sigma^2)``, ``phi ~ U[0, 360)``.
+        ``(n_samples, n_lights)``: ``delta >= 0`` and ``phi`` in (-180, 180].
     """
     sigma = positive(sigma_deg, "sigma_deg", allow_zero=True)
     if int(n_samples) < 2:
         raise ValueError(f"n_samples: need at least 2 samples, got {n_samples}")
     rng = np.random.default_rng(seed)
-    angle = rng.normal(0.0, sigma, (int(n_samples), int(n_lights)))
-    direction = rng.uniform(0.0, 360.0, (int(n_samples), int(n_lights)))
-    return angle, direction
+    a, b = rng.normal(0.0, sigma / np.sqrt(2.0), (2, int(n_samples), int(n_lights)))
+    return np.hypot(a, b), np.degrees(np.arctan2(b, a))
 
 
 def monte_carlo(lights, sigma_deg: float, p, q, n_samples: int = 20000, seed=0) -> MonteCarloResult:
     """Monte Carlo distribution of the errors for randomly deviated lights.
 
-    Each light turns by ``delta ~ N(0, sigma^2)`` towards a uniformly random tangent
-    direction (:func:`rotate_lights`); the images are reconstructed with the nominal
+    Each light gets an isotropic Gaussian tangent deviation of RMS angle ``sigma``
+    (:func:`random_deviations`, :func:`rotate_lights`); the images are reconstructed with the nominal
     lights (exact model). Compared with :func:`first_order_covariance`.
 
     Parameters
@@ -1200,7 +1206,7 @@ def monte_carlo(lights, sigma_deg: float, p, q, n_samples: int = 20000, seed=0) 
     lights : array_like, (N, 3)
         Nominal unit lights.
     sigma_deg : float
-        Standard deviation of the deviation angle, degrees.
+        RMS deviation angle of each light, degrees (model of :func:`random_deviations`).
     p, q : array_like, (K,)
         Test slopes.
     n_samples : int
@@ -1254,7 +1260,7 @@ def exceedance_probability(
     lights : array_like, (N, 3)
         Nominal unit lights.
     sigmas_deg : array_like, (G,)
-        Standard deviations of the deviation angle, degrees.
+        RMS deviation angles, degrees.
     tolerance : float
         ``eps``.
     derivative_range : float

@@ -205,12 +205,13 @@ def analyse(
     report["error_maps"] = maps
 
     step("curves")
-    slopes = np.array([0.0, 0.5, 1.0, 2.0]) * D
-    curves = E.error_curves(L, slopes, 0, "slant", dmax, 2 * grid - 1)
+    slopes = np.array([0.0, 0.5, 1.0, 2.0]) * D * np.sqrt(2.0)  # p = q = 0, D/2, D, 2D
+    # gradients at 45 deg so that both p and q vary with the slope
+    curves = E.error_curves(L, slopes, 0, "slant", dmax, 2 * grid - 1, slope_direction_deg=45.0)
     report["error_curves"] = {
         "light": 1,
         "angle": "slant",
-        "slope_direction_deg": 0.0,
+        "slope_direction_deg": 45.0,
         "slopes": slopes.tolist(),
         "max_abs_dp": np.abs(curves["dp"]).max(axis=0).tolist(),
         "max_abs_dq": np.abs(curves["dq"]).max(axis=0).tolist(),
@@ -252,7 +253,8 @@ def analyse(
     exceed = E.exceedance_probability(L, sigmas, eps, D, n_samples=min(int(samples), 1000), n_grid=15, seed=seed)
     report["monte_carlo"] = {
         "sigma_deg": sigma,
-        "model": "each light turned by delta ~ N(0, sigma^2) towards a uniform random tangent direction",
+        "model": "each light turned towards a uniformly random tangent direction by a Rayleigh-distributed "
+                 "angle of RMS sigma (isotropic Gaussian tangent deviation, N(0, sigma^2 / 2) per axis)",
         "normals": [
             {
                 "p": float(test_p[i]),
@@ -353,7 +355,9 @@ def _plot_maps(report: dict, out: Path, plt) -> list[str]:
     names = []
     for i, m in enumerate(report["error_maps"]):
         dev = np.asarray(m["dev_deg"])
-        fig, axes = plt.subplots(2, 2, figsize=(10, 8.5), constrained_layout=True)
+        # fixed margins: constrained layout doubles the drawing time of these four-panel maps
+        fig, axes = plt.subplots(2, 2, figsize=(10.5, 8.5))
+        fig.subplots_adjust(left=0.08, right=0.95, bottom=0.07, top=0.91, wspace=0.45, hspace=0.32)
         for ax, key, title in zip(
             axes.ravel(),
             ("max_dp", "max_dq", "mean_dp", "mean_dq"),
@@ -389,7 +393,8 @@ def _plot_curves(report: dict, arrays: dict, out: Path, plt) -> str:
     colours = plt.cm.viridis(np.linspace(0, 0.85, c["slopes"].size))
     for ax, key, name in zip(axes, ("dp", "dq"), ("dp", "dq")):
         for i, s in enumerate(c["slopes"]):
-            ax.plot(c["deviation_deg"], c[key][:, i], color=colours[i], label=f"p = {s:g}, q = 0 (exact)")
+            g = s / np.sqrt(2.0)
+            ax.plot(c["deviation_deg"], c[key][:, i], color=colours[i], label=f"p = q = {g:.3g} (exact)")
             ax.plot(c["deviation_deg"], c[f"{key}_first_order"][:, i], "--", color=colours[i], lw=1)
         eps = report["inputs"]["tolerance"]
         ax.axhline(eps, color="r", lw=0.8, ls=":")
@@ -408,7 +413,8 @@ def _plot_curves(report: dict, arrays: dict, out: Path, plt) -> str:
 def _plot_mc(report: dict, arrays: dict, out: Path, plt) -> list[str]:
     mc = arrays["mc"]
     pick = [0, 4]  # flat and the corner (D, D)
-    fig, axes = plt.subplots(len(pick), 3, figsize=(13, 4 * len(pick)), constrained_layout=True)
+    fig, axes = plt.subplots(len(pick), 3, figsize=(14, 4 * len(pick)))
+    fig.subplots_adjust(left=0.06, right=0.98, bottom=0.08, top=0.9, wspace=0.3, hspace=0.38)
     for row, i in zip(axes, pick):
         for ax, j, name in zip(row[:2], (0, 1), ("dp", "dq")):
             data = (mc.dp if j == 0 else mc.dq)[:, i]
@@ -474,21 +480,26 @@ def _plot_crack(report: dict, arrays: dict, out: Path, plt) -> str:
     cases = report["crack_study"]["cases"]
     i = len(cases) - 1
     fig, axes = plt.subplots(1, 4, figsize=(17, 4.2), constrained_layout=True)
-    lim = float(np.nanmax(np.abs(cm["dp_predicted"][i]))) or 1.0
-    for ax, key, title in zip(axes[:2], ("dp_measured", "dp_predicted"),
-                              ("dp measured (render + solve)", "dp predicted (exact model)")):
+    # show the derivative the deviation spoils most
+    c = "dq" if np.nanmax(np.abs(cm["dq_predicted"][i])) > np.nanmax(np.abs(cm["dp_predicted"][i])) else "dp"
+    lim = max(float(np.nanmax(np.abs(cm[f"{k}_predicted"][i]))) for k in ("dp", "dq")) or 1.0
+    for ax, key, title in zip(axes[:2], (f"{c}_measured", f"{c}_predicted"),
+                              (f"{c} measured (render + solve)", f"{c} predicted (exact model)")):
         im = ax.imshow(cm[key][i], cmap="coolwarm", vmin=-lim, vmax=lim)
-        fig.colorbar(im, ax=ax).set_label("dp (slope error)")
+        fig.colorbar(im, ax=ax).set_label(f"{c} (slope error, dimensionless)")
         ax.set_title(title)
         ax.set_xlabel("column (pixel)")
         ax.set_ylabel("row (pixel)")
-    ok = np.isfinite(cm["dp_measured"][i])
     ax = axes[2]
-    ax.plot(cm["dp_predicted"][i][ok], cm["dp_measured"][i][ok], ".", ms=1, alpha=0.4)
-    ax.plot([-lim, lim], [-lim, lim], "r", lw=0.8)
-    ax.set_xlabel("predicted dp (slope error)")
-    ax.set_ylabel("measured dp (slope error)")
-    ax.set_title("measured against predicted")
+    for k, colour in (("dp", "C0"), ("dq", "C1")):
+        ok = np.isfinite(cm[f"{k}_measured"][i])
+        ax.plot(cm[f"{k}_predicted"][i][ok], cm[f"{k}_measured"][i][ok], ".", ms=2, alpha=0.5, color=colour,
+                label=k)
+    ax.plot([-lim, lim], [-lim, lim], "r", lw=0.8, label="measured = predicted")
+    ax.set_xlabel("predicted error (slope, dimensionless)")
+    ax.set_ylabel("measured error (slope, dimensionless)")
+    ax.set_title("measured against predicted (lit pixels)")
+    ax.legend(fontsize=7)
     ax = axes[3]
     dev = [c["deviations_deg"][0][0] for c in cases]
     ax.plot(dev, [c["depth_mm"] for c in cases], "o-", label="measured (plane fit)")

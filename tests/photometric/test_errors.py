@@ -201,6 +201,12 @@ def test_monte_carlo_converges_to_first_order(lights, sigma):
     )
     assert rel.max() < 0.05
     np.testing.assert_allclose(mc.angle_rms_deg, mc.predicted_angle_rms_deg, rtol=0.03)
+    # the tangent deviations are Gaussian, so for small sigma the errors are too (kurtosis 3)
+    z = (mc.dp - mc.dp.mean(0)) / mc.dp.std(0)
+    np.testing.assert_allclose(np.mean(z**4, axis=0), 3.0, atol=0.2)
+    # RMS deviation angle is sigma
+    angle, _ = E.random_deviations(3, sigma, 20000, seed=2)
+    assert np.sqrt(np.mean(angle**2)) == pytest.approx(sigma, rel=0.02)
     # the mean (a second-order effect) is small against the spread
     assert np.all(np.abs(mc.mean) < 0.1 * np.sqrt(np.diagonal(mc.predicted_covariance, axis1=1, axis2=2)))
 

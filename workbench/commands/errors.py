@@ -46,8 +46,8 @@ def register(subparsers) -> None:
     p.add_argument("--grid", type=int, default=41,
                    help="grid points per axis of the deviation maps and derivative square (default 41)")
     p.add_argument("--sigma", type=float, default=1.0,
-                   help="standard deviation of each light's random deviation in the Monte Carlo study, "
-                        "degrees (default 1)")
+                   help="RMS angle of each light's random deviation in the Monte Carlo study (isotropic "
+                        "Gaussian in the light's tangent plane), degrees (default 1)")
     p.add_argument("--samples", type=int, default=20000,
                    help="Monte Carlo samples (default 20000)")
     p.add_argument("--seed", type=int, default=0, help="random seed (Monte Carlo, crack scene; default 0)")
