@@ -229,10 +229,14 @@ def section_inspection(ctx: Context) -> None:
                "The plate's true height field, ray-cast with shadow rays (height exaggerated 10x; "
                "colour = true height in mm). Crack upper left, dent right, scratch at the bottom.",
                triad_cmd)
+    recon = ctx.out / "inspection" / "reconstruction"
+    recon_cmd = ctx.cmd("photometric", "reconstruct", str(folder), "--out", str(recon))
     with ctx.guard("Inspection: photometric stereo"):
-        from photometric.integrate import height_to_patches, integrate
+        from photometric.integrate import height_to_patches
         from photometric.io import read_folder
-        from photometric.stereo import solve
+        from photometric.pipeline import reconstruct
+        from surfaces.bezier import BezierPatches
+        from surfaces.io import read_mesh
 
         data = read_folder(folder)
         lights = np.asarray(scene["lights_nominal"], float)
@@ -244,108 +248,104 @@ def section_inspection(ctx: Context) -> None:
         rep.figure(im.montage(pics, cols=3, labels=labels), "inspection-images",
                    "The three rendered images (16-bit PNG, shown linearly); the shadows are cast "
                    "by the defects' walls.", triad_cmd)
-        res = solve(data.images, data.lights, data.intensities, data.mask)
-        ctx.step("inspection: photometric stereo")
-        err = im.angular_error(res.normals, data.normal_gt, res.valid)
+        summary = reconstruct(folder, recon)
+        ctx.step("inspection: photometric pipeline")
+        normals = np.load(recon / "normals.npy")
+        albedo = np.load(recon / "albedo.npy")
+        valid = np.load(recon / "valid.npy")
+        p, q = np.load(recon / "p.npy"), np.load(recon / "q.npy")
+        height = np.load(recon / "height.npy")
+        err = im.angular_error(normals, data.normal_gt, valid)
+        height = height - np.nanmean(height[valid])
+        herr = np.where(valid, height - (height_gt - np.mean(height_gt[valid])), np.nan)
         nums.update(normal_error_mean_deg=float(np.nanmean(err)),
                     normal_error_median_deg=float(np.nanmedian(err)),
-                    valid_fraction=float(res.valid.mean()))
-        height = integrate(res.p, res.q, "dct", mask=None, pixel_size=pixel)
-        height_true = height_gt - np.mean(height_gt)
-        height = height - np.nanmean(height)
-        herr = height - height_true
-        nums.update(height_rms_error_mm=float(np.sqrt(np.nanmean(herr**2))),
-                    height_range_true_mm=float(np.ptp(height_gt)))
-        ctx.step("inspection: integration")
-        recon_cmd = ctx.cmd("photometric", "reconstruct", str(folder), "--out",
-                            str(ctx.out / "inspection" / "reconstruction"))
+                    pipeline_mean_angular_error_deg=summary.get("mean_angular_error_deg"),
+                    pipeline_height_rmse_mm=summary.get("height_rmse_mm"),
+                    valid_fraction=float(valid.mean()),
+                    height_rms_error_mm=float(np.sqrt(np.nanmean(herr**2))),
+                    height_range_true_mm=float(np.ptp(height_gt)),
+                    pipeline_seconds=summary["timings_s"]["total"])
         tiles = [
-            im.label_image(im.albedo_image(res.albedo, res.valid), "albedo"),
-            im.label_image(im.normal_map(res.normals, res.valid), "normals (RGB = (n+1)/2)"),
+            im.label_image(im.albedo_image(albedo, valid), "albedo"),
+            im.label_image(im.normal_map(normals, valid), "normals (RGB = (n+1)/2)"),
             im.label_image(im.normal_map(data.normal_gt), "true normals"),
         ]
         rep.figure(im.montage(tiles, cols=3), "inspection-normals",
                    "Recovered albedo, recovered normal map and the true normal map "
                    "(x to R, y up to G, z towards the camera to B).", recon_cmd)
         rep.figure(im.montage([
-            im.error_image(err, res.valid, label="angle deg"),
-            im.height_image(height, label="height mm", cmap="cividis"),
-            im.error_image(np.abs(herr), label="|dz| mm", cmap="magma"),
+            im.error_image(err, valid, label="angle deg"),
+            im.height_image(height, valid, label="height mm", cmap="cividis"),
+            im.error_image(np.abs(herr), valid, label="|dz| mm", cmap="magma"),
         ], cols=3), "inspection-height",
             f"Angular error of the normals (mean {nums['normal_error_mean_deg']:.2f} deg), the "
             f"integrated height and its absolute error against the truth (RMS "
             f"{nums['height_rms_error_mm'] * 1000:.1f} um after removing the mean).", recon_cmd)
-        step = 4 if ctx.quick else 8
-        patches = height_to_patches(height, res.p, res.q, pixel_size=pixel, step=step)
-        nums["bezier_patches"] = int(patches.n_patches)
-        from surfaces.bezier import BezierPatches
-
-        shown = BezierPatches(patches.control * np.array([1.0, 1.0, 10.0]))
-        mesh_samples = 4
-        from surfaces.mesh import tessellate
-
-        mesh = tessellate(shown, samples=mesh_samples)
-        pic = view.render(mesh, ["iso"], vsize, scalars=mesh.vertices[:, 2] / 10.0,
-                          colorbar_label="height mm", cmap="cividis", antialias=1 if ctx.quick else 2,
-                          light=(-0.45, 0.5, 0.74))
+        mesh = read_mesh(recon / "surface.ply")
+        nums["mesh_triangles"] = int(mesh.n_triangles)
+        z_true = mesh.vertices[:, 2].copy()
+        mesh.vertices[:, 2] *= 10.0
+        pic = view.render(mesh, ["iso"], vsize, scalars=z_true, colorbar_label="height mm",
+                          cmap="cividis", antialias=1 if ctx.quick else 2, light=(-0.45, 0.5, 0.74))
+        step = int(summary["patch_step_px"])
         rep.figure(pic, "inspection-bezier",
                    f"The bicubic Coons/Bezier surface through the measured height "
-                   f"({patches.shape[0]} x {patches.shape[1]} patches, one grid point every "
-                   f"{step} pixels, tangents from the measured slopes), tessellated and ray-cast "
-                   "(height exaggerated 10x).", recon_cmd)
+                   f"({summary['patches'][0]} x {summary['patches'][1]} patches, one grid point "
+                   f"every {step} pixels, tangents from the measured slopes; surface.ply of the "
+                   "pipeline, tessellated), ray-cast with height exaggerated 10x.", recon_cmd)
+        patches = height_to_patches(height, p, q, pixel_size=pixel, step=step)
+        nums["bezier_patches"] = int(patches.n_patches)
+        shown = BezierPatches(patches.control * np.array([1.0, 1.0, 10.0]))
         rows, cols = patches.shape
         r0, c0 = int(rows * 0.18), int(cols * 0.2)
         span = max(3, rows // 5)
         crop = BezierPatches(shown.control[r0:r0 + span, c0:c0 + span])
-        pic = view.render(crop, ["iso"], (640, 480), net=True, samples=8,
-                          scalars=None, antialias=2, light=(-0.45, 0.5, 0.74))
+        pic = view.render(crop, ["iso"], (640, 480), net=True, samples=8, antialias=2,
+                          light=(-0.45, 0.5, 0.74))
         rep.figure(pic, "inspection-bezier-net",
-                   f"Detail around the crack: {span} x {span} patches with their Bezier control "
-                   "net (seed 001's 'carcass') drawn over the ray-cast surface.", recon_cmd)
+                   f"Detail around the crack: {span} x {span} of the patches with their Bezier "
+                   "control net (seed 001's 'carcass') drawn over the ray-cast surface (height "
+                   "exaggerated 10x).", recon_cmd)
         ctx.step("inspection: Bezier surface")
     if "Inspection: photometric stereo" in ctx.unavailable:
         return
-    with ctx.guard("Inspection: defect measures"):
-        from photometric.defects import measure_defects
-
-        found = measure_defects(height, pixel_size=pixel, p=res.p, q=res.q)
-        truth = scene["defects"]
-        rows_out, matched = [], []
-        for t in truth:
-            cr, cc = t["center_px"]
-            best = min(found, key=lambda d: np.hypot(d["center_px"][0] - cr, d["center_px"][1] - cc),
-                       default=None)
-            dist = (np.hypot(best["center_px"][0] - cr, best["center_px"][1] - cc) * pixel
-                    if best is not None else np.inf)
-            ok = best is not None and dist < 0.5 * max(t["length_mm"], t["width_mm"])
-            m = best if ok else None
-            matched.append({"kind": t["kind"], "truth": t, "measured": m, "center_offset_mm": dist})
-            rows_out.append([
-                t["kind"],
-                t["depth_mm"], m["max_depth_mm"] if m else "not found",
-                t["width_mm"], m["max_width_mm"] if m else "not found",
-                t["length_mm"], m["length_mm"] if m else "not found",
-                t["area_mm2"], m["area_mm2"] if m else "not found",
-            ])
-        nums["defects"] = [
-            {"kind": d["kind"], "depth_true_mm": d["truth"]["depth_mm"],
-             "depth_measured_mm": d["measured"]["max_depth_mm"] if d["measured"] else None,
-             "width_true_mm": d["truth"]["width_mm"],
-             "width_measured_mm": d["measured"]["max_width_mm"] if d["measured"] else None,
-             "length_true_mm": d["truth"]["length_mm"],
-             "length_measured_mm": d["measured"]["length_mm"] if d["measured"] else None,
-             "area_true_mm2": d["truth"]["area_mm2"],
-             "area_measured_mm2": d["measured"]["area_mm2"] if d["measured"] else None}
-            for d in matched
-        ]
-        nums["defects_found"] = len(found)
-        rep.table(["defect", "depth true (mm)", "depth measured (mm)", "width true (mm)",
-                   "width measured (mm)", "length true (mm)", "length measured (mm)",
-                   "area true (mm2)", "area measured (mm2)"], rows_out,
-                  caption=f"Defects measured on the reconstructed height (photometric.defects."
-                  f"measure_defects, {len(found)} region(s) found) against the scene's truth.",
-                  digits=3)
-        ctx.step("inspection: defects")
+    found = json.loads((recon / "defects.json").read_text())["defects"]
+    truth = scene["defects"]
+    rows_out, matched = [], []
+    for t in truth:
+        cr, cc = t["center_px"]
+        best = min(found, key=lambda d: np.hypot(d["center_px"][0] - cr, d["center_px"][1] - cc),
+                   default=None)
+        dist = (np.hypot(best["center_px"][0] - cr, best["center_px"][1] - cc) * pixel
+                if best is not None else np.inf)
+        m = best if best is not None and dist < 0.5 * max(t["length_mm"], t["width_mm"]) else None
+        matched.append({"kind": t["kind"], "truth": t, "measured": m})
+        rows_out.append([
+            t["kind"],
+            t["depth_mm"], m["max_depth_mm"] if m else "not found",
+            t["width_mm"], m["max_width_mm"] if m else "not found",
+            t["length_mm"], m["length_mm"] if m else "not found",
+            t["area_mm2"], m["area_mm2"] if m else "not found",
+        ])
+    nums["defects"] = [
+        {"kind": d["kind"], "depth_true_mm": d["truth"]["depth_mm"],
+         "depth_measured_mm": d["measured"]["max_depth_mm"] if d["measured"] else None,
+         "width_true_mm": d["truth"]["width_mm"],
+         "width_measured_mm": d["measured"]["max_width_mm"] if d["measured"] else None,
+         "length_true_mm": d["truth"]["length_mm"],
+         "length_measured_mm": d["measured"]["length_mm"] if d["measured"] else None,
+         "area_true_mm2": d["truth"]["area_mm2"],
+         "area_measured_mm2": d["measured"]["area_mm2"] if d["measured"] else None}
+        for d in matched
+    ]
+    nums["defects_found"] = len(found)
+    rep.table(["defect", "depth true (mm)", "depth measured (mm)", "width true (mm)",
+               "max width measured (mm)", "length true (mm)", "length measured (mm)",
+               "area true (mm2)", "area measured (mm2)"], rows_out,
+              caption=f"Defects measured by the pipeline (photometric.defects.measure_defects on "
+              f"the reconstructed height, {len(found)} region(s) found; defects.json) against "
+              "the scene's truth (scene.json).", digits=3)
     rep.table(["quantity", "value"], [
         ["mean angular error of the normals (deg)", nums["normal_error_mean_deg"]],
         ["median angular error (deg)", nums["normal_error_median_deg"]],
@@ -353,6 +353,8 @@ def section_inspection(ctx: Context) -> None:
         ["height RMS error (mm)", nums["height_rms_error_mm"]],
         ["true height range (mm)", nums["height_range_true_mm"]],
         ["Bezier patches", nums["bezier_patches"]],
+        ["mesh triangles (surface.ply)", nums["mesh_triangles"]],
+        ["pipeline time (s)", nums["pipeline_seconds"]],
     ], caption="Inspection accuracy against the synthetic truth.")
 
 
@@ -445,19 +447,22 @@ def section_real(ctx: Context) -> None:
         rep.note(f"Real captures: not available: {reason}")
         return
     with ctx.guard("Real captures"):
-        from photometric.integrate import integrate
         from photometric.io import read_folder
-        from photometric.stereo import solve
+        from photometric.pipeline import reconstruct
         from surfaces import view
+        from surfaces.io import read_mesh
 
         results = {}
         for key, select in (("triad", "triad"), ("all14", None)):
             data = read_folder(folder, select=select)
-            res = solve(data.images, data.lights, data.intensities, data.mask)
-            err = im.angular_error(res.normals, data.normal_gt, data.mask)
-            results[key] = (data, res, err)
+            dest = ctx.out / "real" / f"bear_{key}"
+            summary = reconstruct(folder, dest, select=select)
+            normals = np.load(dest / "normals.npy")
+            err = im.angular_error(normals, data.normal_gt, data.mask)
+            results[key] = (data, normals, err, dest)
             nums[f"{key}_mean_error_deg"] = float(np.nanmean(err))
             nums[f"{key}_median_error_deg"] = float(np.nanmedian(err))
+            nums[f"{key}_pipeline_mean_error_deg"] = summary.get("mean_angular_error_deg")
             nums[f"{key}_images"] = len(data.names)
             ctx.step(f"bear: {key} solved")
         triad, all14 = results["triad"][0], results["all14"][0]
@@ -467,9 +472,9 @@ def section_real(ctx: Context) -> None:
             return im.to_uint8(img, vmax=float(np.percentile(img[data.mask], 99.5)))
 
         step = 2 if ctx.quick else 1
-        cmd_triad = ctx.cmd("photometric", "reconstruct", str(folder), "--select", "triad",
-                            "--out", str(ctx.out / "bear_triad"))
-        cmd_all = ctx.cmd("photometric", "reconstruct", str(folder), "--out", str(ctx.out / "bear_all"))
+        cmd_triad = ctx.cmd("photometric", "reconstruct", str(folder), "--triad", "--out",
+                            str(results["triad"][3]))
+        cmd_all = ctx.cmd("photometric", "reconstruct", str(folder), "--out", str(results["all14"][3]))
         rep.figure(im.montage([show(triad, k)[::step, ::step] for k in range(3)], cols=3,
                               labels=list(triad.names)),
                    "bear-triad-images",
@@ -481,8 +486,8 @@ def section_real(ctx: Context) -> None:
         gt = triad.normal_gt
         tiles = [
             im.label_image(im.normal_map(gt, triad.mask), "ground truth"),
-            im.label_image(im.normal_map(results["triad"][1].normals, triad.mask), "triad"),
-            im.label_image(im.normal_map(results["all14"][1].normals, all14.mask), "14 images"),
+            im.label_image(im.normal_map(results["triad"][1], triad.mask), "triad"),
+            im.label_image(im.normal_map(results["all14"][1], all14.mask), "14 images"),
         ]
         rep.figure(im.montage([t[::step, ::step] for t in tiles], cols=3), "bear-normals",
                    "Normal maps: ground truth, least squares on the triad and on all 14 images.",
@@ -495,14 +500,12 @@ def section_real(ctx: Context) -> None:
             f"14 images: mean {nums['all14_mean_error_deg']:.2f} deg"]), "bear-errors",
             "Angular error against the ground truth (colour bar clipped at 30 deg): shadows and "
             "highlights break the Lambertian model where fewer lights see the surface.", cmd_all)
-        res = results["all14"][1]
-        height = integrate(res.p, res.q, "lsq", mask=all14.mask, pixel_size=1.0)
-        mesh = heightfield_mesh(height, 1.0, all14.mask, step=2 if ctx.quick else 1)
+        mesh = read_mesh(results["all14"][3] / "surface.ply")
         pic = view.render(mesh, ["iso", "top"], (900, 420) if ctx.quick else (1200, 560),
                           light=(-0.3, 0.4, 0.87))
         rep.figure(pic, "bear-surface",
-                   "Height integrated from the 14-image normals (masked least squares, pixel "
-                   "units), ray-cast.", cmd_all)
+                   "The pipeline's surface from the 14-image normals (height integrated, Bezier "
+                   "patches, tessellated inside the mask; pixel units), ray-cast.", cmd_all)
         ctx.step("bear: figures")
         rep.table(["light set", "images", "our mean error (deg)", "our median (deg)",
                    "baseline mean (deg)", "difference (deg)"], [
