@@ -1,0 +1,428 @@
+"""Planar contours: checks, orientation, and the seed's control-point parameters.
+
+Seed 000, section II. Rays are cast from the contour's centroid at equal angles;
+where a ray meets the contour is a support point with ``u_k = k / N1`` (eq. 1).
+Where the contour folds back (a ray crosses it several times) the polar angle
+``phi`` of the contour points about the centroid (eq. 2) turns; such turning
+points (eq. 3) get parameters spread evenly between the neighbouring support
+points (eq. 4), and every other point gets a chord-length parameter inside its
+sub-segment (eq. 5).
+
+Project decisions where the seed is silent:
+
+* The support point of a ray is the first point along the contour (counter-
+  clockwise) where the polar angle reaches the ray's angle as a new record.
+  Records increase with the angle, so support points follow the contour in
+  the order of their rays, also where a ray is tangent to the contour or meets
+  it several times, and the parameter increases monotonically.
+* Turning points are looked for only in segments that a ray crosses more than
+  once (the polar angle drops below the segment's starting ray), as the seed's
+  step 2 says; small wiggles that no ray crosses twice stay chord-length.
+* When the centroid lies outside the contour (strongly bent outlines) the
+  rays start from the interior point farthest from the outline instead.
+* The parameter of the first support point (ray at ``start_angle``, default
+  along +x) is 0 on every slice, so ``u`` corresponds across slices.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from surfaces.validate import as_array, positive
+
+
+def signed_area(points) -> float:
+    """Signed area of a closed polygon (shoelace formula).
+
+    Parameters
+    ----------
+    points : array_like, shape (n, 2)
+        Vertices in mm, not repeating the first at the end.
+
+    Returns
+    -------
+    float
+        Area in mm^2, positive when the vertices run counter-clockwise (seen from +z).
+    """
+    p = as_array(points, "points", shape=(None, 2))
+    x, y = p[:, 0], p[:, 1]
+    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
+
+
+def centroid(points) -> np.ndarray:
+    """Area centroid of a closed polygon.
+
+    Parameters
+    ----------
+    points : array_like, shape (n, 2)
+        Vertices in mm.
+
+    Returns
+    -------
+    numpy.ndarray, shape (2,)
+        Centroid in mm (the vertex mean for a degenerate zero-area polygon).
+    """
+    p = as_array(points, "points", shape=(None, 2))
+    q = np.roll(p, -1, axis=0)
+    cross = p[:, 0] * q[:, 1] - q[:, 0] * p[:, 1]
+    a = cross.sum() / 2.0
+    if abs(a) < 1e-12 * max(1.0, float(np.ptp(p, axis=0).max()) ** 2):
+        return p.mean(axis=0)
+    return ((p + q) * cross[:, None]).sum(axis=0) / (6.0 * a)
+
+
+def self_intersections(points) -> np.ndarray:
+    """Pairs of non-adjacent edges of a closed polygon that cross or touch.
+
+    Parameters
+    ----------
+    points : array_like, shape (n, 2)
+        Vertices in mm.
+
+    Returns
+    -------
+    numpy.ndarray, shape (K, 2) int64
+        Edge index pairs ``(i, j)``, ``i < j``; edge ``i`` runs from vertex ``i``
+        to vertex ``i + 1`` (wrapping).
+    """
+    p = as_array(points, "points", shape=(None, 2))
+    n = len(p)
+    a, b = p, np.roll(p, -1, axis=0)
+    ii, jj = _candidate_pairs(a, b)
+    if not len(ii):
+        return np.zeros((0, 2), np.int64)
+    d1, d2 = b[ii] - a[ii], b[jj] - a[jj]
+
+    def orient(o, d, q):
+        return d[:, 0] * (q[:, 1] - o[:, 1]) - d[:, 1] * (q[:, 0] - o[:, 0])
+
+    o1, o2 = orient(a[ii], d1, a[jj]), orient(a[ii], d1, b[jj])
+    o3, o4 = orient(a[jj], d2, a[ii]), orient(a[jj], d2, b[ii])
+    scale = 1e-12 * (np.abs(d1).sum(axis=1) * np.abs(d2).sum(axis=1) + 1e-300)
+    cross = (o1 * o2 <= scale) & (o3 * o4 <= scale)
+    # collinear but disjoint segments pass the sign test; keep only real overlaps
+    col = (np.abs(o1) <= scale) & (np.abs(o2) <= scale)
+    if np.any(col & cross):
+        t = np.einsum("ij,ij->i", d1, d1) + 1e-300
+        s0 = np.einsum("ij,ij->i", a[jj] - a[ii], d1) / t
+        s1 = np.einsum("ij,ij->i", b[jj] - a[ii], d1) / t
+        overlap = (np.maximum(s0, s1) >= 0) & (np.minimum(s0, s1) <= 1)
+        cross &= ~col | overlap
+    return np.stack([ii[cross], jj[cross]], axis=1)
+
+
+def _candidate_pairs(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Non-adjacent edge pairs whose bounding boxes share a cell of a uniform grid.
+
+    A spatial hash keeps the exact test to O(n) pairs for the dense contours of
+    CT data instead of all n^2 / 2.
+    """
+    n = len(a)
+    lo, hi = np.minimum(a, b), np.maximum(a, b)
+    length = np.linalg.norm(b - a, axis=1)
+    cell = max(2.0 * float(np.median(length)), 1e-9)
+    c_lo = np.floor((lo - lo.min(axis=0)) / cell).astype(np.int64)
+    c_hi = np.floor((hi - lo.min(axis=0)) / cell).astype(np.int64)
+    span = c_hi - c_lo + 1
+    count = span[:, 0] * span[:, 1]
+    edge = np.repeat(np.arange(n), count)
+    k = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
+    cx = c_lo[edge, 0] + k % span[edge, 0]
+    cy = c_lo[edge, 1] + k // span[edge, 0]
+    key = cx * (int(c_hi[:, 1].max()) + 1) + cy
+    order = np.argsort(key, kind="stable")
+    key, edge = key[order], edge[order]
+    start = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
+    size = np.diff(np.r_[start, len(key)])
+    g_start = np.repeat(start, size)
+    g_size = np.repeat(size, size)
+    total = int(g_size.sum())
+    if total > 50_000_000:
+        raise ValueError("points: contour too degenerate for the self-intersection test")
+    first = np.repeat(np.arange(len(key)), g_size)
+    partner = np.repeat(g_start, g_size) + (np.arange(total) - np.repeat(np.cumsum(g_size) - g_size, g_size))
+    i, j = edge[first], edge[partner]
+    gap = np.abs(i - j)
+    keep = (i < j) & (gap > 1) & (gap != n - 1)
+    i, j = i[keep], j[keep]
+    if not len(i):
+        return i, j
+    pair = np.unique(i * n + j)
+    i, j = pair // n, pair % n
+    box = np.all((lo[i] <= hi[j]) & (lo[j] <= hi[i]), axis=1)
+    return i[box], j[box]
+
+
+def clean_contour(points, name: str = "contour") -> np.ndarray:
+    """Validate a closed planar contour and orient it counter-clockwise.
+
+    Drops a repeated closing vertex and consecutive duplicates, then checks.
+
+    Parameters
+    ----------
+    points : array_like, shape (n, 2)
+        Vertices in mm.
+    name : str
+        Used in error messages (e.g. ``"ROI 'Heart' contour 12 at z=-30.0 mm"``).
+
+    Returns
+    -------
+    numpy.ndarray, shape (m, 2) float64
+        Counter-clockwise vertices (seen from +z), ``m >= 3``.
+
+    Raises
+    ------
+    ValueError
+        Fewer than 3 distinct points, zero area, or self-intersecting edges.
+    """
+    p = as_array(points, name, ndim=2)
+    if p.shape[1] != 2:
+        raise ValueError(f"{name}: expected (n, 2) x/y points, got shape {p.shape}")
+    if len(p) >= 2:
+        keep = np.any(p != np.roll(p, 1, axis=0), axis=1)
+        p = p[keep] if np.any(keep) else p[:1]
+    if len(p) < 3:
+        raise ValueError(f"{name}: needs at least 3 distinct points, got {len(p)}")
+    area = signed_area(p)
+    if abs(area) < 1e-12 * float(np.ptp(p, axis=0).max()) ** 2:
+        raise ValueError(f"{name}: has zero area (all points on one line)")
+    bad = self_intersections(p)
+    if len(bad):
+        i, j = bad[0]
+        raise ValueError(
+            f"{name}: is self-intersecting ({len(bad)} crossing edge pair(s), "
+            f"e.g. edges {i} and {j} near ({p[i, 0]:.2f}, {p[i, 1]:.2f}) mm)"
+        )
+    return p if area > 0 else p[::-1].copy()
+
+
+def points_in_polygon(points, polygon) -> np.ndarray:
+    """Crossing-number test of many points against one polygon.
+
+    Parameters
+    ----------
+    points : array_like, shape (N, 2)
+        Query points in mm.
+    polygon : array_like, shape (n, 2)
+        Closed polygon.
+
+    Returns
+    -------
+    numpy.ndarray, shape (N,) bool
+        True for points inside.
+    """
+    q = as_array(points, "points", shape=(None, 2))
+    p = as_array(polygon, "polygon", shape=(None, 2))
+    a, b = p, np.roll(p, -1, axis=0)
+    inside = np.zeros(len(q), dtype=bool)
+    block = max(1, 4_000_000 // max(len(p), 1))
+    for s in range(0, len(q), block):
+        x, y = q[s : s + block, 0:1], q[s : s + block, 1:2]
+        straddle = (a[None, :, 1] > y) != (b[None, :, 1] > y)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            xc = a[None, :, 0] + (y - a[None, :, 1]) * (b[None, :, 0] - a[None, :, 0]) / (
+                b[None, :, 1] - a[None, :, 1]
+            )
+        inside[s : s + block] = (np.count_nonzero(straddle & (x < xc), axis=1) % 2) == 1
+    return inside
+
+
+def interior_point(points) -> np.ndarray:
+    """The point inside a polygon farthest from its outline (raster approximation).
+
+    Parameters
+    ----------
+    points : array_like, shape (n, 2)
+        Closed polygon in mm.
+
+    Returns
+    -------
+    numpy.ndarray, shape (2,)
+        A point strictly inside, on a 256 x 256 raster of the bounding box.
+    """
+    import cv2
+
+    p = as_array(points, "points", shape=(None, 2))
+    lo, hi = p.min(axis=0), p.max(axis=0)
+    size = 256
+    scale = (size - 3) / max(float((hi - lo).max()), 1e-12)
+    pix = ((p - lo) * scale + 1.0) * 16.0
+    img = np.zeros((size, size), np.uint8)
+    cv2.fillPoly(img, [np.round(pix).astype(np.int32)], 1, lineType=cv2.LINE_8, shift=4)
+    dist = cv2.distanceTransform(img, cv2.DIST_L2, 5)
+    r, c = np.unravel_index(int(np.argmax(dist)), dist.shape)
+    return np.array([c, r], float) / scale - 1.0 / scale + lo
+
+
+@dataclass(frozen=True)
+class ContourParameters:
+    """A contour with the seed's control-point parameters.
+
+    Attributes
+    ----------
+    points : numpy.ndarray, shape (n, 2)
+        Counter-clockwise vertices in mm, starting with the first vertex at or
+        after support point 0.
+    u : numpy.ndarray, shape (n,)
+        Strictly increasing parameters in ``[0, 1)``.
+    center : numpy.ndarray, shape (2,)
+        Origin of the rays (centroid, or an interior point when the centroid is outside).
+    support : numpy.ndarray, shape (N1, 2)
+        Support points (ray intersections), ``support[k]`` has ``u = k / N1``.
+    turning : numpy.ndarray, shape (n,) bool
+        Turning points of eq. 3 that received eq. 4 parameters.
+    """
+
+    points: np.ndarray
+    u: np.ndarray
+    center: np.ndarray
+    support: np.ndarray
+    turning: np.ndarray
+
+
+def parameterize(points, n_rays: int = 64, start_angle: float = 0.0) -> ContourParameters:
+    """Seed 000 control-point parameters of one closed contour (eqs. 1-5).
+
+    Parameters
+    ----------
+    points : array_like, shape (n, 2)
+        Contour vertices in mm, counter-clockwise (see :func:`clean_contour`).
+    n_rays : int
+        Number of rays ``N1 >= 3`` (default 64).
+    start_angle : float
+        Direction of ray 0 in radians from +x (common to all slices).
+
+    Returns
+    -------
+    ContourParameters
+
+    Raises
+    ------
+    ValueError
+        Too few rays, or a contour that does not wind once around any interior point.
+    """
+    p = as_array(points, "points", shape=(None, 2))
+    n1 = int(n_rays)
+    if n1 < 3:
+        raise ValueError(f"n_rays: need at least 3 rays (seed 000, eq. 1), got {n_rays}")
+    n = len(p)
+    if n < 3:
+        raise ValueError(f"points: needs at least 3 points, got {n}")
+    center = centroid(p)
+    dphi = _angle_steps(p, center)
+    if abs(dphi.sum() - 2 * np.pi) > 1e-6:
+        center = interior_point(p)
+        dphi = _angle_steps(p, center)
+        if abs(dphi.sum() - 2 * np.pi) > 1e-6:
+            raise ValueError("points: contour does not wind once counter-clockwise around its interior")
+    rel = p - center
+    phi0 = float(np.arctan2(rel[0, 1], rel[0, 0]))
+    # polar angle (eq. 2), unwrapped along three periods of the closed contour
+    steps = np.concatenate([dphi, dphi, dphi])
+    phi = phi0 + np.concatenate([[0.0], np.cumsum(steps)])  # (3n + 1,)
+    record = np.maximum.accumulate(phi)
+    edge_len = np.linalg.norm(np.roll(p, -1, axis=0) - p, axis=1)
+    arc = np.concatenate([[0.0], np.cumsum(np.concatenate([edge_len, edge_len, edge_len]))])
+    total = arc[n]
+    # support points: the N1 ray levels after the record at the start of the second period,
+    # each where the polar angle first reaches it as a new record
+    delta = 2 * np.pi / n1
+    k_base = int(np.floor((record[n] - start_angle) / delta))
+    e = np.arange(n, 3 * n)
+    k_lo = np.maximum(np.floor((record[e] - start_angle) / delta).astype(np.int64), k_base)
+    k_hi = np.minimum(np.floor((phi[e + 1] - start_angle) / delta).astype(np.int64), k_base + n1)
+    count = np.maximum(k_hi - k_lo, 0)
+    edge = np.repeat(e, count)
+    level_k = np.repeat(k_lo + 1, count) + (np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count))
+    ang = start_angle + level_k * delta
+    direction = np.stack([np.cos(ang), np.sin(ang)], axis=1)
+    a_pt, b_pt = p[edge % n], p[(edge + 1) % n]
+    seg = b_pt - a_pt
+    num = (a_pt - center)[:, 0] * direction[:, 1] - (a_pt - center)[:, 1] * direction[:, 0]
+    den = seg[:, 0] * direction[:, 1] - seg[:, 1] * direction[:, 0]
+    t = np.clip(-num / np.where(den == 0, 1e-300, den), 0.0, 1.0)
+    s_arc = arc[edge] + t * edge_len[edge % n]
+    support_xy = a_pt + t[:, None] * seg
+    if len(s_arc) != n1:
+        raise ValueError(f"points: found {len(s_arc)} support points for {n1} rays")
+    first = int(np.flatnonzero(level_k % n1 == 0)[0])
+    order = np.roll(np.arange(n1), -first)
+    s0 = s_arc[first]
+    sigma = np.append((s_arc[order] - s0) % total, total)
+    sigma[0] = 0.0
+    support_xy = support_xy[order]
+    # vertex arc positions relative to support 0, in [0, total)
+    a_vert = (arc[:n] - (s0 - total)) % total
+    a_vert[np.isclose(a_vert, total, rtol=0, atol=1e-12 * total)] = 0.0
+    rot = np.argsort(a_vert, kind="stable")
+    pts, a_vert = p[rot], a_vert[rot]
+    # unwrapped polar angle of each vertex on the period that starts at support 0
+    periods = np.maximum(np.ceil((s0 - arc[n + rot]) / total - 1e-12), 0.0)
+    phi_v = phi[n + rot] + 2 * np.pi * periods
+    seg_of = np.clip(np.searchsorted(sigma, a_vert, side="right") - 1, 0, n1 - 1)
+    folded_vertex = phi_v < ang[first] + seg_of * delta - 1e-9
+    folded_seg = np.zeros(n1, dtype=bool)
+    folded_seg[seg_of[folded_vertex]] = True
+    # turning points (eq. 3): the polar angle changes direction at the vertex
+    d_in = phi_v - np.roll(phi_v, 1)
+    d_in[0] = phi_v[0] - (phi_v[-1] - 2 * np.pi)
+    d_out = np.roll(d_in, -1)
+    turning = (np.sign(d_in) * np.sign(d_out) < 0) & folded_seg[seg_of]
+    turning &= ~np.isclose(a_vert, sigma[seg_of], rtol=0, atol=1e-9 * total)
+    # eq. 4: turning points spread evenly inside their segment
+    t_idx = np.flatnonzero(turning)
+    t_seg = seg_of[t_idx]
+    n2 = np.bincount(t_seg, minlength=n1)
+    first_in_seg = np.cumsum(n2) - n2
+    rank = np.arange(len(t_idx)) - first_in_seg[t_seg] + 1
+    u_turn = (t_seg + rank / (n2[t_seg] + 1.0)) / n1
+    # eq. 5: chord length between consecutive anchors (support and turning points)
+    anchor_arc = np.concatenate([sigma, a_vert[t_idx]])
+    anchor_u = np.concatenate([np.arange(n1 + 1) / n1, u_turn])
+    o = np.argsort(anchor_arc, kind="stable")
+    u = np.interp(a_vert, anchor_arc[o], anchor_u[o])
+    u[t_idx] = u_turn
+    if np.any(np.diff(u) <= 0) or u[-1] >= 1.0:
+        raise ValueError("points: could not give the contour monotone parameters (degenerate outline)")
+    return ContourParameters(pts, u, center, support_xy, turning)
+
+
+def _angle_steps(p: np.ndarray, center: np.ndarray) -> np.ndarray:
+    """Signed polar-angle change along each edge (wrapped into (-pi, pi])."""
+    rel = p - center
+    ang = np.arctan2(rel[:, 1], rel[:, 0])
+    d = np.roll(ang, -1) - ang
+    return (d + np.pi) % (2 * np.pi) - np.pi
+
+
+def quantize(u, n_lattice: int) -> np.ndarray:
+    """Move parameters onto a common lattice ``j / M`` keeping them strictly increasing.
+
+    All slices' curves are then cubic on the same breakpoints, so the surface is
+    one tensor grid of bicubic patches that still passes through every point.
+
+    Parameters
+    ----------
+    u : array_like, shape (n,)
+        Strictly increasing parameters in ``[0, 1)``.
+    n_lattice : int
+        Lattice size ``M >= n``.
+
+    Returns
+    -------
+    numpy.ndarray, shape (n,) int64
+        Lattice indices, strictly increasing, in ``[0, M)``; each within one or
+        two lattice steps of ``u * M`` unless crowding forces more.
+    """
+    uu = as_array(u, "u", ndim=1)
+    m = int(positive(n_lattice, "n_lattice"))
+    n = len(uu)
+    if n > m:
+        raise ValueError(f"n_lattice: {m} lattice values cannot hold {n} distinct parameters")
+    i = np.arange(n)
+    target = np.minimum(np.round(uu * m).astype(np.int64), m - 1)
+    r = np.maximum.accumulate(target - i)
+    r = np.minimum(r, m - n)
+    return r + i

@@ -1,0 +1,601 @@
+"""Reading contour stacks: RT structure sets, CT series, mask stacks, contour JSON.
+
+Everything ends in a :class:`ContourStack`: planar closed contours in mm with
+the slice position ``z`` along the slice normal. Contours are validated here
+(at least 3 distinct points, no self-intersection, planar and axial), so the
+rest of the package can trust them.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from slices.control_points import clean_contour
+from surfaces.validate import as_array, positive
+
+#: Relative tolerance on slice spacing (a fraction of the spacing).
+SPACING_RTOL = 0.01
+
+
+@dataclass(frozen=True)
+class Contour:
+    """One closed planar contour.
+
+    Attributes
+    ----------
+    z : float
+        Slice position in mm.
+    points : numpy.ndarray, shape (n, 2)
+        Counter-clockwise x, y vertices in mm (seen from +z), ``n >= 3``.
+    """
+
+    z: float
+    points: np.ndarray
+
+
+@dataclass
+class ContourStack:
+    """The planar contours of one structure.
+
+    Attributes
+    ----------
+    contours : list of Contour
+        In increasing ``z``.
+    source : str
+        Kind of input (``"rtstruct"``, ``"ct"``, ``"mask"``, ``"json"``).
+    name : str
+        ROI or file name.
+    notes : list of str
+        What the reader did (resampling, segmentation, ...), for the summary.
+    """
+
+    contours: list[Contour]
+    source: str
+    name: str
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def planes(self) -> np.ndarray:
+        """Sorted distinct slice positions in mm, shape (P,)."""
+        return np.unique(np.round([c.z for c in self.contours], 6))
+
+
+def _contours_from_list(items, label: str) -> list[Contour]:
+    out = []
+    for i, (z, pts) in enumerate(items):
+        name = f"{label} contour {i} at z={z:.2f} mm"
+        out.append(Contour(float(z), clean_contour(pts, name)))
+    out.sort(key=lambda c: c.z)
+    return out
+
+
+# ------------------------------------------------------------------ RTSTRUCT
+def _read_dicom(path: Path):
+    import pydicom
+
+    try:
+        return pydicom.dcmread(str(path))
+    except Exception as exc:  # pydicom raises several unrelated types
+        raise ValueError(f"{path}: not a readable DICOM file ({exc})") from None
+
+
+_CONTOUR_DATA = 0x30060050
+_N_POINTS = 0x30060046
+
+
+def _contour_array(item) -> np.ndarray:
+    """ContourData of one contour item as a flat float64 array.
+
+    Parses the raw DS bytes directly; pydicom's per-value objects cost seconds
+    on structure sets with 10^5 points.
+    """
+    elem = item.get_item(_CONTOUR_DATA) if _CONTOUR_DATA in item else None
+    if elem is None:
+        return np.zeros(0)
+    raw = getattr(elem, "value", None)
+    if isinstance(raw, bytes | bytearray):
+        text = raw.decode("ascii", "replace").strip(" \x00")
+        if not text:
+            return np.zeros(0)
+        try:
+            return np.array(text.split("\\"), dtype=np.float64)
+        except ValueError:
+            pass
+    return np.asarray(item.ContourData, dtype=np.float64)
+
+
+def list_rois(path) -> list[dict]:
+    """ROIs of an RT Structure Set.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        RTSTRUCT file.
+
+    Returns
+    -------
+    list of dict
+        ``number`` (int), ``name`` (str), ``n_contours`` (int), ``n_planes`` (int),
+        ``max_points`` (int) per ROI, in file order.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no such RT structure set file")
+    ds = _read_dicom(path)
+    if "StructureSetROISequence" not in ds:
+        raise ValueError(f"{path}: not an RT Structure Set (no StructureSetROISequence)")
+    return _roi_table(ds)
+
+
+def _roi_table(ds) -> list[dict]:
+    contours = {}
+    for rc in ds.get("ROIContourSequence", []):
+        seq = rc.get("ContourSequence", [])
+        data = [_contour_array(c) for c in seq]
+        zs = {round(float(d[2]), 3) for d in data if len(d) >= 3}
+        npts = max((len(d) // 3 for d in data), default=0)
+        contours[int(rc.ReferencedROINumber)] = (len(seq), len(zs), npts)
+    out = []
+    for roi in ds.StructureSetROISequence:
+        n, planes, npts = contours.get(int(roi.ROINumber), (0, 0, 0))
+        out.append(
+            {"number": int(roi.ROINumber), "name": str(roi.ROIName), "n_contours": n,
+             "n_planes": planes, "max_points": npts}
+        )
+    return out
+
+
+def read_rtstruct(path, roi) -> ContourStack:
+    """Closed planar contours of one ROI of an RT Structure Set.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        RTSTRUCT file.
+    roi : str or int
+        ROI name (case-insensitive) or number.
+
+    Returns
+    -------
+    ContourStack
+        Contours in patient coordinates (mm), ``z`` the patient z of each plane.
+
+    Raises
+    ------
+    ValueError
+        Unknown ROI (the message lists the existing ones), an ROI without
+        contours, non-planar or non-axial contours, fewer than 3 points,
+        self-intersecting contours.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no such RT structure set file")
+    ds = _read_dicom(path)
+    if "StructureSetROISequence" not in ds:
+        raise ValueError(f"{path}: not an RT Structure Set (no StructureSetROISequence)")
+    rois = _roi_table(ds)
+    if roi is None:
+        raise ValueError(
+            f"{path}: choose an ROI with --roi; existing: " + ", ".join(r["name"] for r in rois)
+        )
+    key = str(roi).strip()
+    match = [r for r in rois if r["name"].lower() == key.lower()]
+    if not match and key.isdigit():
+        match = [r for r in rois if r["number"] == int(key)]
+    if not match:
+        names = ", ".join(f"{r['number']}: {r['name']}" for r in rois)
+        raise ValueError(f"{path}: no ROI named {roi!r}; existing ROIs are {names}")
+    number, name = match[0]["number"], match[0]["name"]
+    items = []
+    skipped = 0
+    for rc in ds.get("ROIContourSequence", []):
+        if int(rc.ReferencedROINumber) != number:
+            continue
+        for i, c in enumerate(rc.get("ContourSequence", [])):
+            kind = str(c.get("ContourGeometricType", "CLOSED_PLANAR"))
+            if kind != "CLOSED_PLANAR":
+                skipped += 1
+                continue
+            data = _contour_array(c)
+            if data.size % 3 or data.size < 9:
+                raise ValueError(
+                    f"ROI {name!r} contour {i}: needs at least 3 points, got {data.size // 3}"
+                )
+            xyz = data.reshape(-1, 3)
+            z = xyz[:, 2]
+            if np.ptp(z) > 1e-3:
+                raise ValueError(
+                    f"ROI {name!r} contour {i}: not in an axial plane (z spans "
+                    f"{z.min():.3f} to {z.max():.3f} mm); non-axial planes are not supported"
+                )
+            items.append((float(z.mean()), xyz[:, :2]))
+    if not items:
+        raise ValueError(f"{path}: ROI {name!r} has no CLOSED_PLANAR contours")
+    stack = ContourStack(_contours_from_list(items, f"ROI {name!r}"), "rtstruct", name)
+    if skipped:
+        stack.notes.append(f"skipped {skipped} contour(s) that are not CLOSED_PLANAR")
+    return stack
+
+
+# ------------------------------------------------------------------ volumes
+def _mask_from_values(values: np.ndarray, hu_min, hu_max, label: str) -> tuple[np.ndarray, str]:
+    if hu_min is not None or hu_max is not None:
+        lo = -np.inf if hu_min is None else float(hu_min)
+        hi = np.inf if hu_max is None else float(hu_max)
+        if lo > hi:
+            raise ValueError(f"--hu-min {lo} is above --hu-max {hi}")
+        return (values >= lo) & (values <= hi), f"window [{lo:g}, {hi:g}]"
+    uniq = np.unique(values[:: max(1, values.size // 1_000_000)])
+    if len(uniq) <= 2 or values.dtype == bool:
+        return values > 0, "non-zero voxels (mask input)"
+    raise ValueError(
+        f"{label}: values are not a binary mask ({len(uniq)}+ distinct values); "
+        "give an intensity window with --hu-min/--hu-max"
+    )
+
+
+def largest_component(mask) -> np.ndarray:
+    """Largest 26-connected component of a 3-D mask.
+
+    Parameters
+    ----------
+    mask : array_like, shape (Z, Y, X) bool
+
+    Returns
+    -------
+    numpy.ndarray, shape (Z, Y, X) bool
+    """
+    from scipy import ndimage
+
+    m = np.asarray(mask, dtype=bool)
+    labels, n = ndimage.label(m, structure=np.ones((3, 3, 3)))
+    if n == 0:
+        raise ValueError("mask: is empty (no voxel selected)")
+    sizes = np.bincount(labels.ravel())
+    sizes[0] = 0
+    return labels == int(np.argmax(sizes))
+
+
+def contours_from_mask(mask, z, spacing_yx, origin_yx=(0.0, 0.0), label: str = "mask") -> list[Contour]:
+    """Sub-pixel contours of every slice of a 3-D mask (scikit-image ``find_contours``).
+
+    Parameters
+    ----------
+    mask : array_like, shape (Z, Y, X) bool
+        Object voxels.
+    z : array_like, shape (Z,)
+        Slice positions in mm.
+    spacing_yx : (float, float)
+        Row and column spacing in mm.
+    origin_yx : (float, float)
+        Position of voxel (0, 0) in mm (y, x).
+    label : str
+        Name used in error messages.
+
+    Returns
+    -------
+    list of Contour
+        Outer contours and holes (their orientation is normalised later), in mm;
+        ``x = origin_x + column * dx``, ``y = origin_y + row * dy``.
+    """
+    from skimage.measure import find_contours
+
+    m = np.asarray(mask, dtype=bool)
+    zz = as_array(z, "z", shape=(m.shape[0],))
+    dy, dx = (positive(s, "spacing") for s in spacing_yx)
+    items = []
+    for k in range(m.shape[0]):
+        if not m[k].any():
+            continue
+        padded = np.pad(m[k].astype(np.float64), 1)
+        for c in find_contours(padded, 0.5):
+            rows, cols = c[:-1, 0] - 1.0, c[:-1, 1] - 1.0
+            if len(rows) < 3:
+                continue
+            pts = np.stack([origin_yx[1] + cols * dx, origin_yx[0] + rows * dy], axis=1)
+            items.append((float(zz[k]), pts))
+    if not items:
+        raise ValueError(f"{label}: no contour found")
+    return _contours_from_list(items, label)
+
+
+def _resample_volume(values: np.ndarray, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """Linear interpolation of a volume onto uniform slices with the median spacing."""
+    d = float(np.median(np.diff(z)))
+    n = int(np.floor((z[-1] - z[0]) / d + 1e-6)) + 1
+    zu = z[0] + d * np.arange(n)
+    k = np.clip(np.searchsorted(z, zu, side="right") - 1, 0, len(z) - 2)
+    w = ((zu - z[k]) / (z[k + 1] - z[k]))[:, None, None]
+    vals = values[k] * (1 - w) + values[k + 1] * w
+    return vals, zu, d
+
+
+def check_spacing(z, label: str, allow_gaps: bool = False) -> float:
+    """Slice spacing of sorted positions; error when it is not uniform.
+
+    Parameters
+    ----------
+    z : array_like, shape (P,)
+        Sorted distinct slice positions in mm.
+    label : str
+        Input name for the message.
+    allow_gaps : bool
+        Accept spacings that are whole multiples of the common spacing (missing
+        planes between separate bodies of a structure set).
+
+    Returns
+    -------
+    float
+        The spacing in mm (0 for a single slice).
+
+    Raises
+    ------
+    ValueError
+        When consecutive spacings differ by more than 1 % (names them, and
+        suggests ``--resample``).
+    """
+    zz = as_array(z, "z", ndim=1)
+    if len(zz) < 2:
+        return 0.0
+    d = np.diff(zz)
+    if np.any(d <= 0):
+        raise ValueError(f"{label}: two slices at the same position (z={zz[np.argmin(d)]:.3f} mm)")
+    ref = float(np.min(d)) if allow_gaps else float(np.median(d))
+    ratio = d / ref
+    step = np.maximum(np.round(ratio), 1.0) if allow_gaps else np.ones_like(ratio)
+    bad = np.flatnonzero(np.abs(ratio - step) > SPACING_RTOL)
+    if len(bad):
+        i = int(bad[0])
+        raise ValueError(
+            f"{label}: unequal slice spacing ({d[i]:.3f} mm between z={zz[i]:.3f} and "
+            f"z={zz[i + 1]:.3f} mm, {ref:.3f} mm elsewhere); use --resample to resample "
+            "onto uniform slices"
+        )
+    return ref
+
+
+def read_ct_series(folder, hu_min=None, hu_max=None, resample: bool = False) -> ContourStack:
+    """Segment a DICOM CT (or label) series and extract its contours.
+
+    Slices are sorted by their position along the slice normal
+    ``n = row_dir x col_dir`` from ImageOrientationPatient, ``s = n . IPP``
+    (never by file name or InstanceNumber); HU = pixel * RescaleSlope +
+    RescaleIntercept; the object is the largest connected component of the HU
+    window (or the non-zero voxels of a label series).
+
+    Parameters
+    ----------
+    folder : str or os.PathLike
+        Folder with the series' files.
+    hu_min, hu_max : float, optional
+        HU window.
+    resample : bool
+        Resample unequal slice spacing linearly instead of failing.
+
+    Returns
+    -------
+    ContourStack
+    """
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise NotADirectoryError(f"{folder}: not a folder of DICOM files")
+    import pydicom
+
+    slices = []
+    for f in sorted(p for p in folder.iterdir() if p.is_file()):
+        try:
+            ds = pydicom.dcmread(str(f))
+        except Exception:
+            continue
+        if "ImagePositionPatient" in ds and "PixelData" in ds:
+            slices.append(ds)
+    if not slices:
+        raise ValueError(f"{folder}: no DICOM image slices found")
+    iop = np.asarray(slices[0].ImageOrientationPatient, dtype=np.float64)
+    row_dir, col_dir = iop[:3], iop[3:]
+    normal = np.cross(row_dir, col_dir)
+    if abs(abs(normal[2]) - 1.0) > 1e-3 or abs(row_dir[2]) > 1e-3 or abs(col_dir[2]) > 1e-3:
+        raise ValueError(
+            f"{folder}: slices are not axial (ImageOrientationPatient {iop.round(4).tolist()}); "
+            "non-axial planes are not supported"
+        )
+    for ds in slices:
+        if np.abs(np.asarray(ds.ImageOrientationPatient, float) - iop).max() > 1e-4:
+            raise ValueError(f"{folder}: slices have different ImageOrientationPatient")
+    pos = np.array([float(np.dot(normal, np.asarray(ds.ImagePositionPatient, float))) for ds in slices])
+    order = np.argsort(pos)
+    slices = [slices[i] for i in order]
+    pos = pos[order]
+    z = np.array([float(ds.ImagePositionPatient[2]) for ds in slices])
+    values = np.stack(
+        [ds.pixel_array * float(ds.get("RescaleSlope", 1)) + float(ds.get("RescaleIntercept", 0))
+         for ds in slices]
+    ).astype(np.float64)
+    notes = [f"{len(slices)} CT slices sorted by position along the slice normal"]
+    sign = 1.0 if normal[2] > 0 else -1.0
+    if sign < 0:
+        values, z = values[::-1], z[::-1]
+    try:
+        check_spacing(z, str(folder))
+    except ValueError:
+        if not resample:
+            raise
+        values, z, d = _resample_volume(values, z)
+        notes.append(f"resampled to uniform {d:.3f} mm slices")
+    mask, how = _mask_from_values(values, hu_min, hu_max, str(folder))
+    mask = largest_component(mask)
+    notes.append(f"segmented by {how}, largest connected component")
+    ps = [float(s) for s in slices[0].PixelSpacing]  # row spacing, column spacing
+    ipp = np.asarray(slices[0].ImagePositionPatient, float)
+    # axial: x follows the row direction (columns), y the column direction (rows); flip the
+    # array where a direction points to -x / -y so that spacings stay positive
+    x0, y0 = ipp[0], ipp[1]
+    if row_dir[0] < 0:
+        mask = mask[:, :, ::-1]
+        x0 -= (mask.shape[2] - 1) * ps[1]
+    if col_dir[1] < 0:
+        mask = mask[:, ::-1, :]
+        y0 -= (mask.shape[1] - 1) * ps[0]
+    contours = contours_from_mask(mask, z, (ps[0], ps[1]), (y0, x0), str(folder))
+    return ContourStack(contours, "ct", folder.name, notes)
+
+
+def _read_image_stack(path: Path) -> np.ndarray:
+    import cv2
+
+    if path.is_dir():
+        files = sorted(p for p in path.iterdir() if p.suffix.lower() == ".png")
+        if not files:
+            raise ValueError(f"{path}: folder holds no PNG images")
+        images = [cv2.imread(str(f), cv2.IMREAD_UNCHANGED) for f in files]
+        if any(im is None for im in images):
+            raise ValueError(f"{path}: an image could not be read")
+        images = [im if im.ndim == 2 else im[..., 0] for im in images]
+        if len({im.shape for im in images}) != 1:
+            raise ValueError(f"{path}: images have different sizes")
+        return np.stack(images)
+    suffix = path.suffix.lower()
+    if suffix == ".npy":
+        arr = np.load(path, allow_pickle=False)
+        if arr.ndim != 3:
+            raise ValueError(f"{path}: expected a 3-D (Z, Y, X) array, got shape {arr.shape}")
+        return arr
+    if suffix in (".tif", ".tiff"):
+        ok, pages = cv2.imreadmulti(str(path), flags=cv2.IMREAD_UNCHANGED)
+        if not ok or not pages:
+            raise ValueError(f"{path}: not a readable multi-page TIFF")
+        return np.stack([p if p.ndim == 2 else p[..., 0] for p in pages])
+    raise ValueError(f"{path}: unknown stack format (use .npy, .tif or a folder of PNGs)")
+
+
+def parse_spacing(text) -> tuple[float, float, float]:
+    """Parse ``--spacing z,y,x`` (mm).
+
+    Parameters
+    ----------
+    text : str or sequence of 3 floats
+
+    Returns
+    -------
+    (float, float, float)
+    """
+    if isinstance(text, str):
+        parts = text.replace(" ", "").split(",")
+    else:
+        parts = list(text)
+    if len(parts) != 3:
+        raise ValueError(f"--spacing: expected z,y,x in mm, got {text!r}")
+    return tuple(positive(p, "--spacing") for p in parts)
+
+
+def read_mask_stack(path, spacing, hu_min=None, hu_max=None) -> ContourStack:
+    """Contours of a mask or image stack (``.npy``, multi-page ``.tif``, folder of PNGs).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The stack; slice ``k`` lies at ``z = k * dz``.
+    spacing : str or (float, float, float)
+        ``z, y, x`` voxel spacing in mm.
+    hu_min, hu_max : float, optional
+        Intensity window for grey images (binary masks need none).
+
+    Returns
+    -------
+    ContourStack
+    """
+    path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(f"{path}: no such mask stack")
+    if spacing is None:
+        raise ValueError(f"{path}: a mask stack needs --spacing z,y,x (mm)")
+    dz, dy, dx = parse_spacing(spacing)
+    values = _read_image_stack(path)
+    mask, how = _mask_from_values(values, hu_min, hu_max, str(path))
+    mask = largest_component(mask)
+    z = dz * np.arange(mask.shape[0])
+    contours = contours_from_mask(mask, z, (dy, dx), label=str(path))
+    return ContourStack(contours, "mask", path.name, [f"segmented by {how}, largest connected component"])
+
+
+def read_contour_json(path) -> ContourStack:
+    """Contours from ``{"units": "mm", "contours": [{"z": mm, "points": [[x, y], ...]}, ...]}``.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+
+    Returns
+    -------
+    ContourStack
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no such contour file")
+    try:
+        data = json.loads(path.read_text())
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"{path}: not valid JSON ({exc})") from None
+    if not isinstance(data, dict) or not isinstance(data.get("contours"), list):
+        raise ValueError(f"{path}: expected an object with a 'contours' list")
+    units = data.get("units", "mm")
+    if units != "mm":
+        raise ValueError(f"{path}: units must be 'mm', got {units!r}")
+    items = []
+    for i, c in enumerate(data["contours"]):
+        if not isinstance(c, dict) or "z" not in c or "points" not in c:
+            raise ValueError(f"{path}: contour {i} needs 'z' and 'points'")
+        pts = np.asarray(c["points"], dtype=np.float64)
+        if pts.ndim != 2 or pts.shape[1] not in (2, 3) or len(pts) < 3:
+            raise ValueError(
+                f"{path}: contour {i} at z={c['z']} needs at least 3 [x, y] points, got shape {pts.shape}"
+            )
+        if pts.shape[1] == 3 and np.ptp(pts[:, 2]) > 1e-3:
+            raise ValueError(f"{path}: contour {i} is not in an axial plane (its z values differ)")
+        items.append((float(c["z"]), pts[:, :2]))
+    if not items:
+        raise ValueError(f"{path}: holds no contours")
+    return ContourStack(_contours_from_list(items, path.name), "json", path.stem)
+
+
+def load(path, roi=None, hu_min=None, hu_max=None, spacing=None, resample: bool = False) -> ContourStack:
+    """Read any supported input into a :class:`ContourStack`.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        RTSTRUCT ``.dcm``, CT series folder, ``.npy``/``.tif``/PNG-folder mask
+        stack, or contour ``.json``.
+    roi : str or int, optional
+        ROI name or number (RTSTRUCT).
+    hu_min, hu_max : float, optional
+        Intensity window (CT series, grey image stacks).
+    spacing : str or (float, float, float), optional
+        ``z, y, x`` spacing in mm (mask stacks).
+    resample : bool
+        Resample unequal slice spacing instead of failing.
+
+    Returns
+    -------
+    ContourStack
+    """
+    path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(f"{path}: no such file or folder")
+    suffix = path.suffix.lower()
+    if suffix == ".json":
+        return read_contour_json(path)
+    if suffix in (".npy", ".tif", ".tiff"):
+        return read_mask_stack(path, spacing, hu_min, hu_max)
+    if path.is_dir():
+        if any(p.suffix.lower() == ".png" for p in path.iterdir()):
+            return read_mask_stack(path, spacing, hu_min, hu_max)
+        return read_ct_series(path, hu_min, hu_max, resample)
+    ds = _read_dicom(path)
+    if str(ds.get("Modality", "")) == "RTSTRUCT" or "StructureSetROISequence" in ds:
+        return read_rtstruct(path, roi)
+    raise ValueError(f"{path}: a single DICOM file must be an RT Structure Set (Modality RTSTRUCT)")

@@ -1,0 +1,432 @@
+"""Contour stack in, surface, volume, area and files out.
+
+:func:`reconstruct_contours` works on contours in memory (tests, benchmarks);
+:func:`reconstruct` reads any supported input, writes ``surface.ply``,
+``surface.stl``, ``patches.npz``, ``summary.json`` and ``render.png``, and
+returns the summary (the agreed interface used by the command line, the demo
+and batch jobs).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from slices import caps as capmod
+from slices.chaining import Body, chain, slab_volume
+from slices.io import Contour, check_spacing, load
+from slices.surface import lattice_size, patch_integrals, side_surface, slice_curves, tessellate_fast
+from surfaces.bezier import BezierPatches
+from surfaces.mesh import TriangleMesh, merge_meshes, weld
+from surfaces.validate import positive
+
+#: Vertices the written mesh aims at (the tessellation density adapts to it).
+MESH_BUDGET = 600_000
+
+
+@dataclass
+class BodySurface:
+    """One reconstructed body.
+
+    Attributes
+    ----------
+    body : Body
+        The chained contours.
+    patches : BezierPatches
+        Closed grid (side and cap columns; with ``caps="none"`` the cap columns
+        are still there so the patches enclose the volume between end planes).
+    side_columns : slice
+        Patch columns of the open side surface (with half-cap extrusions and domes).
+    mesh : TriangleMesh or None
+        Triangles, oriented outward of the solid (holes point into the hole).
+    volume_mm3 : float
+        Enclosed volume (positive, also for holes).
+    area_mm2 : float
+        Surface area (side plus caps).
+    max_deviation_mm : float
+        Largest distance between a control point and the surface at its parameters.
+    n_points : int
+        Control points used.
+    n_turning : int
+        Turning points that got eq. 4 parameters.
+    """
+
+    body: Body
+    patches: BezierPatches
+    side_columns: slice
+    mesh: TriangleMesh | None
+    volume_mm3: float
+    area_mm2: float
+    max_deviation_mm: float
+    n_points: int
+    n_turning: int
+    info: dict = field(default_factory=dict)
+
+
+def build_body(body: Body, spacing: float, method: str = "blending", rays: int = 64,
+               caps: str = "flat", lattice: float = 2.0, samples: int | None = 2,
+               mesh: bool = True) -> BodySurface | None:
+    """Surface, volume and area of one body (seed 000 sections II-III).
+
+    Parameters
+    ----------
+    body : Body
+        Contours on consecutive planes.
+    spacing : float
+        Slice spacing in mm.
+    method : {"blending", "coons", "bspline"}
+        Side-surface method (see :func:`slices.surface.side_surface`).
+    rays : int
+        Rays per contour (eq. 1).
+    caps : {"none", "flat", "half", "dome"}
+        End caps (see :mod:`slices.caps`).
+    lattice : float
+        Lattice values per point of the body's largest contour (``M = lattice * max n``).
+    samples : int, optional
+        Tessellation subdivisions per patch side (None: from :data:`MESH_BUDGET`).
+    mesh : bool
+        Build the triangle mesh.
+
+    Returns
+    -------
+    BodySurface or None
+        None for a single-contour body with ``caps`` none/flat (it has no thickness).
+    """
+    if caps not in capmod.CAP_KINDS:
+        raise ValueError(f"caps: must be one of {capmod.CAP_KINDS}, got {caps!r}")
+    z = body.z
+    k = len(z)
+    if k == 1 and caps in ("none", "flat"):
+        return None
+    d = positive(spacing, "spacing") if k > 1 or caps in ("half", "dome") else 1.0
+    m = lattice_size(max(len(c.points) for c in body.contours), lattice)
+    sc = slice_curves([c.points for c in body.contours], z, rays, m)
+    curves = sc.curves
+    centers = [np.append(p.center, zk) for p, zk in zip(sc.params, z)]
+    prepend = 0
+    stack = curves
+    if caps == "dome":
+        low = capmod.dome_rings(curves[0], centers[0], d / 2, upward=False)[::-1]
+        high = capmod.dome_rings(curves[-1], centers[-1], d / 2, upward=True)
+        stack = np.concatenate([low, curves, high])
+        prepend = len(low)
+    if len(stack) >= 2:
+        side, node_eval = side_surface(stack, method)
+        side_ctrl = side.control
+    else:
+        # one contour, half caps: a prism of one slice spacing, centred on the contour
+        side_ctrl = np.concatenate(
+            [capmod.prism_column(curves[0], -d / 2), capmod.prism_column(curves[0], d / 2)], axis=1
+        )
+        side = BezierPatches(side_ctrl, closed_u=True)
+
+        def node_eval(j, kk):
+            return side.evaluate(j, np.ones(len(j), np.int64), np.zeros(len(j)), np.zeros(len(j)))
+
+        prepend = 0
+    columns = [side_ctrl]
+    bottom, top = side_ctrl[:, 0, :, 0], side_ctrl[:, -1, :, 3]
+    flat_caps = []
+    if caps == "half" and len(stack) >= 2:
+        columns = [capmod.prism_column(bottom, -d / 2), side_ctrl, capmod.prism_column(top, d / 2)]
+        bottom = bottom.copy()
+        top = top.copy()
+        bottom[..., 2] -= d / 2
+        top[..., 2] += d / 2
+    if caps != "dome":
+        c_low = np.append(centers[0][:2], bottom[0, 0, 2])
+        c_high = np.append(centers[-1][:2], top[0, 0, 2])
+        side_ctrl_all = np.concatenate(columns, axis=1)
+        full = np.concatenate(
+            [capmod.fan_column(bottom, c_low, False), side_ctrl_all, capmod.fan_column(top, c_high, True)],
+            axis=1,
+        )
+        side_cols = slice(1, full.shape[1] - 1)
+        flat_caps = [(bottom, -1.0), (top, 1.0)]
+    else:
+        full = side_ctrl
+        side_cols = slice(0, full.shape[1])
+    patches = BezierPatches(full, closed_u=True)
+    side_patches = BezierPatches(full[:, side_cols], closed_u=True)
+    vol_pp, area_pp = patch_integrals(patches, per_patch=True)
+    volume, area = float(vol_pp.sum()), float(area_pp[:, side_cols].sum())
+    if caps != "none":
+        area += sum(abs(capmod.curve_area(c)) for c, _ in flat_caps)
+    # deviation at the control points, evaluated on the final surface
+    j = np.concatenate(sc.nodes)
+    kk = np.concatenate([np.full(len(n), i + prepend) for i, n in enumerate(sc.nodes)])
+    pts = np.concatenate(sc.points)
+    dev = float(np.max(np.linalg.norm(node_eval(j, kk) - pts, axis=1)))
+    tri_mesh = None
+    if mesh:
+        n_s = samples or max(1, min(6, int(np.sqrt(MESH_BUDGET / side_patches.n_patches))))
+        tri_mesh = tessellate_fast(side_patches, n_s)
+        if caps in ("flat", "half"):
+            # only vertices in the end planes can be shared with the caps
+            zv = tri_mesh.vertices[:, 2]
+            tol = 1e-7 * max(1.0, float(np.abs(tri_mesh.vertices).max()))
+            rim = np.flatnonzero((np.abs(zv - bottom[0, 0, 2]) < tol) | (np.abs(zv - top[0, 0, 2]) < tol))
+            n_side = tri_mesh.n_vertices
+            parts = [tri_mesh] + [capmod.planar_cap_mesh(c, n_s, s) for c, s in flat_caps]
+            merged = merge_meshes(parts)
+            tri_mesh = weld(merged, candidates=np.concatenate([rim, np.arange(n_side, merged.n_vertices)]))
+    if body.kind == "hole":
+        patches = patches.flipped()
+        if tri_mesh is not None:
+            tri_mesh = TriangleMesh(
+                tri_mesh.vertices, tri_mesh.triangles[:, ::-1].copy(),
+                None if tri_mesh.vertex_normals is None else -tri_mesh.vertex_normals,
+            )
+    return BodySurface(
+        body, patches, side_cols, tri_mesh, float(volume), float(area), dev,
+        int(len(pts)), int(sum(int(p.turning.sum()) for p in sc.params)),
+        {"n_lattice": int(curves.shape[1])},
+    )
+
+
+@dataclass
+class Reconstruction:
+    """All bodies of one structure.
+
+    Attributes
+    ----------
+    bodies : list of BodySurface
+    skipped : list of Body
+        Single-contour bodies left out (caps none/flat give them no thickness).
+    volume_mm3, area_mm2, slab_volume_mm3 : float
+    spacing : float
+    """
+
+    bodies: list
+    skipped: list
+    volume_mm3: float
+    area_mm2: float
+    slab_volume_mm3: float
+    spacing: float
+
+    @property
+    def mesh(self) -> TriangleMesh | None:
+        """All bodies' triangles in one mesh (None when no mesh was built)."""
+        meshes = [b.mesh for b in self.bodies if b.mesh is not None]
+        if not meshes:
+            return None
+        return meshes[0] if len(meshes) == 1 else merge_meshes(meshes)
+
+    @property
+    def max_deviation_mm(self) -> float:
+        """Largest control-point deviation over all bodies."""
+        return max((b.max_deviation_mm for b in self.bodies), default=0.0)
+
+
+def reconstruct_contours(contours: list[Contour], spacing: float | None = None, method: str = "blending",
+                         rays: int = 64, caps: str = "flat", lattice: float = 2.0,
+                         samples: int | None = 2, mesh: bool = True, progress=None) -> Reconstruction:
+    """Reconstruct a structure from validated contours in memory.
+
+    Parameters
+    ----------
+    contours : list of Contour
+        Counter-clockwise contours (see :func:`slices.control_points.clean_contour`).
+    spacing : float, optional
+        Slice spacing in mm; checked against the planes (taken from them when omitted).
+    method, rays, caps
+        See :func:`build_body`.
+    lattice : float
+        Lattice values per point of the largest contour (``M = lattice * max n``).
+    samples : int or None
+        Tessellation subdivisions per patch side; None adapts to :data:`MESH_BUDGET`.
+    mesh : bool
+        Build triangle meshes.
+    progress : callable, optional
+        Called with the number of finished bodies and the total.
+
+    Returns
+    -------
+    Reconstruction
+    """
+    if not contours:
+        raise ValueError("contours: no contours given")
+    planes = np.unique(np.round([c.z for c in contours], 6))
+    d = check_spacing(planes, "contours", allow_gaps=True)
+    if spacing is not None:
+        s = positive(spacing, "spacing")
+        if d and abs(s - d) > 0.01 * d:
+            raise ValueError(f"spacing: {s} mm given but the planes are {d} mm apart")
+        d = s
+    if d == 0:
+        raise ValueError("contours: a single plane has no slice spacing; give spacing")
+    bodies = chain(contours, d)
+    if samples is None:
+        # one tessellation density for all bodies, so the whole mesh meets the budget
+        est = sum(lattice_size(max(len(c.points) for c in b.contours), lattice) * (len(b.contours) + 5)
+                  for b in bodies)
+        samples = max(1, min(6, int(np.sqrt(MESH_BUDGET / max(est, 1)))))
+    built, skipped = [], []
+    for i, body in enumerate(bodies):
+        b = build_body(body, d, method, rays, caps, lattice, samples, mesh)
+        (skipped if b is None else built).append(body if b is None else b)
+        if progress is not None:
+            progress(i + 1, len(bodies))
+    sign = {"outer": 1.0, "hole": -1.0}
+    volume = sum(sign[b.body.kind] * b.volume_mm3 for b in built)
+    area = sum(b.area_mm2 for b in built)
+    return Reconstruction(built, skipped, float(volume), float(area), slab_volume(contours, d), d)
+
+
+def _chaining_text(rec: Reconstruction) -> list[dict]:
+    out = []
+    for b in rec.bodies:
+        z = b.body.z
+        out.append({
+            "kind": b.body.kind,
+            "z_min_mm": float(z.min()), "z_max_mm": float(z.max()),
+            "n_slices": int(len(z)),
+            "start": b.body.start, "stop": b.body.stop,
+            "volume_mm3": b.volume_mm3, "area_mm2": b.area_mm2,
+            "n_patches": int(b.patches.n_patches),
+            "n_control_points": b.n_points, "n_turning_points": b.n_turning,
+            "max_control_point_deviation_mm": b.max_deviation_mm,
+        })
+    for body in rec.skipped:
+        out.append({"kind": body.kind, "z_min_mm": float(body.z.min()), "z_max_mm": float(body.z.max()),
+                    "n_slices": 1, "start": body.start, "stop": body.stop,
+                    "skipped": "single contour: no thickness with caps none/flat"})
+    return out
+
+
+def _save_patches(rec: Reconstruction, path: Path) -> None:
+    """All bodies' patches in one ``.npz`` (``control`` of the largest body, plus per body)."""
+    from surfaces.io import atomic_path
+
+    arrays = {}
+    for i, b in enumerate(rec.bodies):
+        arrays[f"body{i}_control"] = b.patches.control
+    largest = max(rec.bodies, key=lambda b: b.patches.n_patches)
+    arrays["control"] = largest.patches.control
+    arrays["closed_u"] = np.array(True)
+    arrays["closed_v"] = np.array(False)
+    arrays["body_kind"] = np.array([b.body.kind for b in rec.bodies])
+    with atomic_path(path, suffix=".npz") as tmp:
+        with open(tmp, "wb") as fh:
+            np.savez_compressed(fh, **arrays)
+
+
+def _render(mesh: TriangleMesh, path: Path) -> None:
+    from surfaces.io import atomic_path
+    from surfaces.view import render, save_png
+
+    image = render(mesh, views=("iso", "front", "top", "side"), size=(1024, 768), colorbar=False)
+    with atomic_path(path, suffix=".png") as tmp:
+        save_png(tmp, image)
+
+
+def reconstruct(input_path, out_dir, roi=None, method: str = "blending", rays: int = 64,
+                caps: str = "flat", **options) -> dict:
+    """Read a contour input, reconstruct the surface, write every output file.
+
+    Parameters
+    ----------
+    input_path : str or os.PathLike
+        RTSTRUCT, CT folder, mask stack or contour JSON (see :func:`slices.io.load`).
+    out_dir : str or os.PathLike
+        Output folder (created).
+    roi : str or int, optional
+        ROI name or number for RTSTRUCT input.
+    method : {"blending", "coons", "bspline"}
+    rays : int
+        Rays per contour (seed 000, eq. 1; default 64).
+    caps : {"none", "flat", "half", "dome"}
+    **options
+        ``hu_min``, ``hu_max``, ``spacing`` (z,y,x for mask stacks), ``resample``,
+        ``lattice`` (default 2.0), ``samples``, ``render`` (default True),
+        ``reference`` (default True: smoothing B-spline comparison), ``progress``.
+
+    Returns
+    -------
+    dict
+        The content of ``summary.json``.
+    """
+    t0 = time.perf_counter()
+    known = {"hu_min", "hu_max", "spacing", "resample", "lattice", "samples", "render", "reference",
+             "progress"}
+    unknown = set(options) - known
+    if unknown:
+        raise ValueError(f"options: unknown {sorted(unknown)}")
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    stack = load(input_path, roi, options.get("hu_min"), options.get("hu_max"),
+                 options.get("spacing"), bool(options.get("resample", False)))
+    rec = reconstruct_contours(stack.contours, None, method, int(rays), caps,
+                               float(options.get("lattice", 2.0)), options.get("samples"),
+                               True, options.get("progress"))
+    if not rec.bodies:
+        raise ValueError(f"{input_path}: nothing to reconstruct (only single-contour bodies; try --caps half)")
+    t_surface = time.perf_counter() - t0
+    mesh = rec.mesh
+    from surfaces.io import write_mesh
+
+    write_mesh(mesh, out / "surface.ply")
+    write_mesh(mesh, out / "surface.stl")
+    _save_patches(rec, out / "patches.npz")
+    reference = None
+    if options.get("reference", True):
+        from slices.reference import compare
+
+        reference = compare(rec)
+    if options.get("render", True):
+        _render(mesh, out / "render.png")
+    n_out = sum(b.body.kind == "outer" for b in rec.bodies)
+    summary = {
+        "input": str(input_path),
+        "source": stack.source,
+        "roi": stack.name,
+        "method": method,
+        "caps": caps,
+        "rays": int(rays),
+        "volume_mm3": rec.volume_mm3,
+        "volume_ml": rec.volume_mm3 / 1000.0,
+        "area_mm2": rec.area_mm2,
+        "slab_volume_mm3": rec.slab_volume_mm3,
+        "slab_volume_ml": rec.slab_volume_mm3 / 1000.0,
+        "spacing_mm": rec.spacing,
+        "n_slices": int(len(np.unique(np.round([c.z for c in stack.contours], 6)))),
+        "n_contours": len(stack.contours),
+        "n_bodies": len(rec.bodies),
+        "n_outer_bodies": int(n_out),
+        "n_hole_bodies": int(len(rec.bodies) - n_out),
+        "n_patches": int(sum(b.patches.n_patches for b in rec.bodies)),
+        "n_control_points": int(sum(b.n_points for b in rec.bodies)),
+        "max_control_point_deviation_mm": rec.max_deviation_mm,
+        "mesh_vertices": int(mesh.n_vertices),
+        "mesh_triangles": int(mesh.n_triangles),
+        "mesh_watertight": bool(mesh.is_watertight()),
+        "bodies": _chaining_text(rec),
+        "chaining": _chaining_summary(rec),
+        "notes": list(stack.notes),
+        "surface_time_s": t_surface,
+    }
+    if reference is not None:
+        summary["reference_bspline"] = reference
+    summary["time_s"] = time.perf_counter() - t0
+    from surfaces.io import atomic_path
+
+    with atomic_path(out / "summary.json", suffix=".json") as tmp:
+        tmp.write_text(json.dumps(summary, indent=2))
+    return summary
+
+
+def _chaining_summary(rec: Reconstruction) -> str:
+    n_out = sum(b.body.kind == "outer" for b in rec.bodies)
+    n_hole = len(rec.bodies) - n_out
+    splits = sum(b.body.stop in ("branch", "merge") for b in rec.bodies)
+    text = (f"{len(rec.bodies)} body(ies) chained by overlap of contours on neighbouring planes: "
+            f"{n_out} outer, {n_hole} hole(s) (volume subtracted)")
+    if splits:
+        text += f"; {splits} chain(s) split at a branching or merging contour"
+    if rec.skipped:
+        text += f"; {len(rec.skipped)} single-contour body(ies) skipped (no thickness with these caps)"
+    return text

@@ -1,0 +1,320 @@
+"""From the contours of one body to one closed grid of bicubic Bezier patches.
+
+Seed 000, section III. Every contour gets the seed's parameters
+(:mod:`slices.control_points`), and every slice its closed parabolic-blending
+curve through all of its points. To make the curves of all slices cubic on
+the same breakpoints, the parameters are moved onto a common lattice
+``u_j = j / M`` (``M`` at least twice the largest point count; support points
+keep ``u_k = k / N1`` up to half a lattice step); each curve is then cut
+exactly at every lattice value. The curves are blended across slices
+(eqs. 13-19) into one closed-in-``u`` grid of patches that passes through
+every control point, or the lattice nodes are handed to Coons patches
+(seed 001) or to the B-spline interpolation of :mod:`surfaces.bspline`.
+Caps are extra patch columns (:mod:`slices.caps`).
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.util
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from slices.control_points import ContourParameters, parameterize, quantize
+from surfaces import blending
+from surfaces.bezier import BezierPatches
+from surfaces.validate import as_array, positive
+
+
+@dataclass(frozen=True)
+class SliceCurves:
+    """The slice curves of one body on a common lattice.
+
+    Attributes
+    ----------
+    curves : numpy.ndarray, shape (K, M, 4, 3)
+        Bezier points of each slice curve on the lattice intervals ``[j/M, (j+1)/M]``.
+    nodes : list of numpy.ndarray
+        Per slice, lattice index ``j`` of each control point, shape (n_k,) int64.
+    points : list of numpy.ndarray
+        Per slice, the control points in the same order, shape (n_k, 3) mm.
+    params : list of ContourParameters
+        The seed's parameters before they were moved onto the lattice.
+    """
+
+    curves: np.ndarray
+    nodes: list
+    points: list
+    params: list
+
+
+def lattice_size(max_points: int, factor: float = 2.0) -> int:
+    """Lattice size ``M`` for the common ``u`` breakpoints.
+
+    Parameters
+    ----------
+    max_points : int
+        Largest number of points of a contour.
+    factor : float
+        Lattice values per point of the largest contour (>= 1).
+
+    Returns
+    -------
+    int
+        ``ceil(factor * max_points)``, at least ``max_points`` and 4.
+    """
+    f = positive(factor, "lattice factor")
+    if f < 1:
+        raise ValueError(f"lattice factor: must be at least 1, got {factor}")
+    return max(4, int(max_points), int(np.ceil(f * max_points)))
+
+
+def slice_curves(contours, z, n_rays: int = 64, n_lattice: int | None = None,
+                 start_angle: float = 0.0) -> SliceCurves:
+    """Closed parabolic-blending curve of every slice, cut on a common lattice.
+
+    Parameters
+    ----------
+    contours : sequence of array_like, each shape (n_k, 2)
+        Counter-clockwise contours in mm, one per slice.
+    z : array_like, shape (K,)
+        Slice positions in mm.
+    n_rays : int
+        Rays per contour (seed 000, eq. 1).
+    n_lattice : int, optional
+        Lattice size ``M``; default :func:`lattice_size` of the largest contour.
+    start_angle : float
+        Direction of ray 0 (radians from +x), common to all slices.
+
+    Returns
+    -------
+    SliceCurves
+    """
+    zz = as_array(z, "z", shape=(len(contours),))
+    params: list[ContourParameters] = [parameterize(c, n_rays, start_angle) for c in contours]
+    m = n_lattice or lattice_size(max(len(p.u) for p in params))
+    curves, nodes, pts3 = [], [], []
+    for par, zk in zip(params, zz):
+        q = quantize(par.u, m)
+        p3 = np.column_stack([par.points, np.full(len(par.points), zk)])
+        ctrl, _ = blending.overhauser_curve(p3, q / m, closed=True)
+        # the curve's period is [q0/M, q0/M + 1]: cut it there, then roll to start at u = 0
+        breaks = (q[0] + np.arange(m + 1)) / m
+        knots = np.append(q, q[0] + m) / m
+        cut = blending.restrict_curve(ctrl, knots, breaks)
+        curves.append(np.roll(cut, q[0], axis=0))
+        nodes.append(q)
+        pts3.append(p3)
+    return SliceCurves(np.stack(curves), nodes, pts3, params)
+
+
+# ------------------------------------------------------------------ methods
+# Each method turns the curve stack (K, M, 4, 3) into side patches and a function that
+# evaluates the surface at lattice node j of slice k (to measure control-point deviation).
+NodeEval = Callable[[np.ndarray, np.ndarray], np.ndarray]
+
+
+def _corner_eval(patches: BezierPatches, n_slices: int) -> NodeEval:
+    def at(j: np.ndarray, k: np.ndarray) -> np.ndarray:
+        col = np.minimum(k, n_slices - 2)
+        v = (k > n_slices - 2).astype(np.float64)
+        return patches.evaluate(j, col, np.zeros(len(j)), v)
+
+    return at
+
+
+def _side_blending(curves: np.ndarray) -> tuple[BezierPatches, NodeEval]:
+    patches = blending.blend_curves(curves, closed_u=True)
+    return patches, _corner_eval(patches, len(curves))
+
+
+def _side_coons(curves: np.ndarray) -> tuple[BezierPatches, NodeEval]:
+    from surfaces import coons
+
+    nodes = curves[:, :, 0].transpose(1, 0, 2)  # (M, K, 3)
+    patches = coons.from_grid(nodes, closed_u=True)
+    return patches, _corner_eval(patches, len(curves))
+
+
+def _side_bspline(curves: np.ndarray) -> tuple[BezierPatches, NodeEval]:
+    bspline = importlib.import_module("surfaces.bspline")
+    nodes = curves[:, :, 0].transpose(1, 0, 2)
+    m, k = nodes.shape[:2]
+    surf = bspline.interpolate_surface(
+        nodes, degree=3, closed_u=True, params_u=np.arange(m) / m, params_v=np.arange(k) / max(k - 1, 1)
+    )
+
+    def at(j: np.ndarray, kk: np.ndarray) -> np.ndarray:
+        return np.asarray(surf.evaluate(surf.params_u[j], surf.params_v[kk]))
+
+    return surf.to_bezier(), at
+
+
+#: Surface methods over the slice curves; adding one is one line here.
+METHODS: dict[str, Callable[[np.ndarray], tuple[BezierPatches, NodeEval]]] = {
+    "blending": _side_blending,
+    "coons": _side_coons,
+    "bspline": _side_bspline,
+}
+
+
+def available_methods() -> list[str]:
+    """Names of the surface methods whose modules can be imported.
+
+    Returns
+    -------
+    list of str
+    """
+    out = []
+    for name in METHODS:
+        if name == "bspline" and importlib.util.find_spec("surfaces.bspline") is None:
+            continue
+        out.append(name)
+    return out
+
+
+def side_surface(curves, method: str = "blending") -> tuple[BezierPatches, NodeEval]:
+    """Side surface through a stack of slice curves.
+
+    Parameters
+    ----------
+    curves : array_like, shape (K, M, 4, 3)
+        Slice curves on a common lattice (``K >= 2``).
+    method : {"blending", "coons", "bspline"}
+        Seed 000 parabolic blending (exact through the curves), seed 001 Coons
+        patches over the lattice nodes, or B-spline interpolation of the nodes.
+
+    Returns
+    -------
+    patches : BezierPatches
+        ``M x (K - 1)`` patches (B-spline: one per knot span), closed in ``u``.
+    node_eval : callable
+        ``node_eval(j, k) -> (N, 3)``: the surface at lattice node ``j`` of slice ``k``.
+    """
+    c = as_array(curves, "curves", shape=(None, None, 4, 3))
+    if method not in METHODS or method not in available_methods():
+        raise ValueError(f"method: unknown or unavailable {method!r}; choose from {available_methods()}")
+    if len(c) < 2:
+        raise ValueError(f"curves: need at least 2 slices for a side surface, got {len(c)}")
+    return METHODS[method](c)
+
+
+# ------------------------------------------------------------------ fast grid evaluation
+def _bernstein(t: np.ndarray, derivative: int = 0) -> np.ndarray:
+    """Cubic Bernstein basis (or its first derivative) at ``t``: shape (len(t), 4)."""
+    s = 1.0 - t
+    if derivative == 0:
+        return np.stack([s**3, 3 * t * s**2, 3 * t**2 * s, t**3], axis=1)
+    return np.stack([-3 * s**2, 3 * s**2 - 6 * t * s, 6 * t * s - 3 * t**2, 3 * t**2], axis=1)
+
+
+def _contract(flat16: np.ndarray, bu: np.ndarray, bv: np.ndarray) -> np.ndarray:
+    """``sum_ab bu[i, a] bv[j, b] control[p, a, b, :]`` as one matrix product.
+
+    ``flat16`` is the control net laid out as (16, P * 3) (see :func:`_layout`);
+    returns shape (len(bu), len(bv), P, 3).
+    """
+    kron = (bu[:, None, :, None] * bv[None, :, None, :]).reshape(len(bu) * len(bv), 16)
+    return (kron @ flat16).reshape(len(bu), len(bv), -1, 3)
+
+
+def _layout(control: np.ndarray) -> np.ndarray:
+    """Control points (P, 4, 4, 3) as a (16, P * 3) matrix for :func:`_contract`."""
+    p = len(control)
+    return np.ascontiguousarray(control.reshape(p, 16, 3).transpose(1, 0, 2)).reshape(16, p * 3)
+
+
+def patch_integrals(patches: BezierPatches, order: int = 6, chunk: int = 20000,
+                    per_patch: bool = False) -> tuple:
+    """Enclosed volume and area of a patch grid by Gauss-Legendre quadrature.
+
+    The same integrals as :func:`surfaces.measure.volume` (divergence theorem,
+    ``V = 1/3 * integral S . (S_u x S_v) du dv``, exact for bicubic patches from
+    5 points per direction) and :func:`surfaces.measure.area`
+    (``integral |S_u x S_v| du dv``), written as matrix products so that grids of
+    10^5 patches take a fraction of a second.
+
+    Parameters
+    ----------
+    patches : BezierPatches
+        The surface.
+    order : int
+        Quadrature points per direction (at least 5).
+    chunk : int
+        Patches per block (bounds temporary memory).
+    per_patch : bool
+        Return the (R, C) arrays of every patch's contribution instead of the sums.
+
+    Returns
+    -------
+    volume : float or numpy.ndarray, shape (R, C)
+        mm^3, positive when ``S_u x S_v`` points outward.
+    area : float or numpy.ndarray, shape (R, C)
+        mm^2.
+    """
+    if int(order) < 5:
+        raise ValueError(f"order: need at least 5 points for an exact volume, got {order}")
+    x, w = np.polynomial.legendre.leggauss(int(order))
+    t, w = 0.5 * (x + 1.0), 0.5 * w
+    b0, b1 = _bernstein(t), _bernstein(t, 1)
+    ww = np.outer(w, w)[None]
+    ww = ww[0][:, :, None]
+    flat = patches.control.reshape(-1, 4, 4, 3)
+    vol, area = np.empty(len(flat)), np.empty(len(flat))
+    for s in range(0, len(flat), chunk):
+        c = _layout(flat[s : s + chunk])
+        pt, su, sv = _contract(c, b0, b0), _contract(c, b1, b0), _contract(c, b0, b1)
+        n = np.cross(su, sv)
+        vol[s : s + chunk] = np.sum(np.einsum("uvpx,uvpx->uvp", pt, n) * ww, axis=(0, 1)) / 3.0
+        area[s : s + chunk] = np.sum(np.sqrt(np.einsum("uvpx,uvpx->uvp", n, n)) * ww, axis=(0, 1))
+    if per_patch:
+        return vol.reshape(patches.shape), area.reshape(patches.shape)
+    return float(vol.sum()), float(area.sum())
+
+
+def tessellate_fast(patches: BezierPatches, samples: int = 2):
+    """Triangle mesh of a patch grid (same vertices and triangles as :func:`surfaces.mesh.tessellate`).
+
+    Evaluates the grid with matrix products; seams are shared by construction,
+    only collapsed rows (poles) are welded.
+
+    Parameters
+    ----------
+    patches : BezierPatches
+        The surface.
+    samples : int
+        Subdivisions per patch side (at least 1).
+
+    Returns
+    -------
+    surfaces.mesh.TriangleMesh
+        Vertex normals from ``S_u x S_v``, triangles oriented along it.
+    """
+    from surfaces.mesh import TriangleMesh, _grid_index, _grid_triangles, weld
+
+    n = int(samples)
+    if n < 1:
+        raise ValueError(f"samples: need at least 1 subdivision per patch side, got {samples}")
+    rows, cols = patches.shape
+    pi, a = _grid_index(rows, n, patches.closed_u)
+    pj, b = _grid_index(cols, n, patches.closed_v)
+    t = np.linspace(0.0, 1.0, n + 1)
+    b0, b1 = _bernstein(t), _bernstein(t, 1)
+    ctrl = _layout(patches.control.reshape(-1, 4, 4, 3))
+    shape = (n + 1, n + 1, rows, cols, 3)
+    pts = _contract(ctrl, b0, b0).reshape(shape)
+    nrm = np.cross(_contract(ctrl, b1, b0), _contract(ctrl, b0, b1)).reshape(shape)
+    PI, PJ = np.meshgrid(pi, pj, indexing="ij")
+    A, B = np.meshgrid(a, b, indexing="ij")
+    verts = pts[A, B, PI, PJ].reshape(-1, 3)
+    normals = nrm[A, B, PI, PJ].reshape(-1, 3)
+    length = np.linalg.norm(normals, axis=1, keepdims=True)
+    normals = np.divide(normals, length, out=np.zeros_like(normals), where=length > 0)
+    tri = _grid_triangles(len(pi), len(pj), patches.closed_u, patches.closed_v)
+    mesh = TriangleMesh(verts, tri, normals)
+    collapsed = np.flatnonzero(length[:, 0] <= 1e-12 * max(1.0, float(np.abs(verts).max())))
+    if len(collapsed):
+        mesh = weld(mesh, candidates=collapsed)
+    return mesh

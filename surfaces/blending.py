@@ -1,0 +1,357 @@
+"""Parabolic blending (Overhauser) curves and surfaces, converted exactly to Bezier form.
+
+Seed 000, eqs. 6-19. On the interval ``[u1, u2]`` between the two central
+points of four consecutive points ``P0..P3`` with parameters ``u0 < u1 < u2 < u3``::
+
+    C(u) = (u2 - u) / (u2 - u1) * Pa(u) + (u - u1) / (u2 - u1) * Pb(u)      (eq. 6)
+
+with ``Pa`` the parabola through ``(u0, P0), (u1, P1), (u2, P2)`` and ``Pb`` the
+parabola through ``(u1, P1), (u2, P2), (u3, P3)`` (eqs. 7-12). ``C`` is a cubic
+polynomial with ``C(u1) = P1``, ``C(u2) = P2``, ``C'(u1) = Pa'(u1)`` and
+``C'(u2) = Pb'(u2)`` (differentiate eq. 6: the blend terms cancel at the ends),
+so it is exactly the cubic Hermite segment with those end tangents, and its
+Bezier points are ``P1, P1 + h Pa'(u1) / 3, P2 - h Pb'(u2) / 3, P2`` with
+``h = u2 - u1``. The derivative of the parabola through three nodes at the
+middle node is the weighted mean of the two chord slopes::
+
+    Pa'(u1) = (P1 - P0) / h0 * h1 / (h0 + h1) + (P2 - P1) / h1 * h0 / (h0 + h1)
+
+For uniform parameters this is the Catmull-Rom curve; for the seed's
+non-uniform parameters it is Overhauser's construction (Barry-Goldman pyramid).
+At the ends of an open curve the only parabola is the one through the first
+(last) three points, so the end segment is that parabola itself.
+
+Across slices (eqs. 13-19) the same blending runs in ``v`` with uniform
+parameters, on whole curves instead of points: the surface between slices ``j``
+and ``j + 1`` is a linear combination of the curves ``j - 1 .. j + 2`` with
+cubic weights in ``v``, so when every curve is given as cubic Bezier segments
+on one common set of ``u`` breakpoints the surface is exactly a grid of bicubic
+Bezier patches (:func:`blend_curves`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from surfaces.bezier import BezierPatches
+from surfaces.validate import as_array
+
+
+def _parameters(points: np.ndarray, params, closed: bool) -> np.ndarray:
+    """Validated strictly increasing parameters; chord length when not given."""
+    n = len(points)
+    if params is None:
+        seg = np.linalg.norm(np.diff(points, axis=0), axis=1)
+        if closed:
+            seg = np.append(seg, np.linalg.norm(points[0] - points[-1]))
+        if np.any(seg <= 0):
+            raise ValueError("points: consecutive points coincide (zero chord length)")
+        t = np.concatenate([[0.0], np.cumsum(seg)])
+        return t / t[-1] if closed else t
+    t = as_array(params, "params", shape=(n,))
+    if np.any(np.diff(t) <= 0):
+        raise ValueError("params: must increase strictly")
+    if closed and not t[-1] - t[0] < 1.0:
+        raise ValueError("params: a closed curve needs parameters spanning less than one period")
+    return t
+
+
+def overhauser_tangents(points, params=None, closed: bool = False) -> np.ndarray:
+    """Tangents of the parabolic-blending curve at its points (seed 000, eqs. 7-12).
+
+    Parameters
+    ----------
+    points : array_like, shape (n, d)
+        Points in order along the curve (``n >= 3``; ``n >= 2`` when open).
+    params : array_like, shape (n,), optional
+        Strictly increasing parameters. For a closed curve they lie in one
+        period ``[t0, t0 + 1)`` and the curve returns to ``points[0]`` at
+        ``params[0] + 1``. Chord length when omitted.
+    closed : bool
+        Closed curve (indices wrap).
+
+    Returns
+    -------
+    numpy.ndarray, shape (n, d)
+        ``dC/du`` at every point: the derivative of the parabola through the
+        point and its two neighbours (one-sided parabola at open ends).
+    """
+    pts = as_array(points, "points", ndim=2)
+    n = len(pts)
+    if n < (3 if closed else 2):
+        raise ValueError(f"points: need at least {3 if closed else 2} points, got {n}")
+    t = _parameters(pts, params, closed)
+    if closed:
+        prev_p, next_p = np.roll(pts, 1, axis=0), np.roll(pts, -1, axis=0)
+        h0 = t - np.concatenate([[t[-1] - 1.0], t[:-1]])
+        h1 = np.concatenate([t[1:], [t[0] + 1.0]]) - t
+        return _middle_slope(prev_p, pts, next_p, h0, h1)
+    if n == 2:
+        slope = (pts[1] - pts[0]) / (t[1] - t[0])
+        return np.stack([slope, slope])
+    h = np.diff(t)
+    out = np.empty_like(pts)
+    out[1:-1] = _middle_slope(pts[:-2], pts[1:-1], pts[2:], h[:-1], h[1:])
+    # end tangents: derivative of the one parabola at its first / last node
+    d0, d1 = (pts[1] - pts[0]) / h[0], (pts[2] - pts[1]) / h[1]
+    out[0] = d0 - (d1 - d0) * h[0] / (h[0] + h[1])
+    e0, e1 = (pts[-2] - pts[-3]) / h[-2], (pts[-1] - pts[-2]) / h[-1]
+    out[-1] = e1 + (e1 - e0) * h[-1] / (h[-2] + h[-1])
+    return out
+
+
+def _middle_slope(p0, p1, p2, h0, h1) -> np.ndarray:
+    """Derivative at the middle node of the parabola through three nodes."""
+    h0 = np.asarray(h0)[:, None]
+    h1 = np.asarray(h1)[:, None]
+    return ((p1 - p0) / h0 * h1 + (p2 - p1) / h1 * h0) / (h0 + h1)
+
+
+def overhauser_curve(points, params=None, closed: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """Parabolic-blending curve through every point, as cubic Bezier segments.
+
+    Seed 000, eq. 6: each segment between consecutive points is the linear blend
+    of the two overlapping parabolas, a cubic that is converted exactly.
+
+    Parameters
+    ----------
+    points : array_like, shape (n, d)
+        Points along the curve, float64, any dimension ``d``.
+    params : array_like, shape (n,), optional
+        Strictly increasing parameters (chord length when omitted); see
+        :func:`overhauser_tangents` for closed curves.
+    closed : bool
+        Closed curve: ``n`` segments, the last from ``points[-1]`` back to ``points[0]``.
+
+    Returns
+    -------
+    control : numpy.ndarray, shape (S, 4, d)
+        Bezier points of the ``S`` segments (``S = n`` closed, ``n - 1`` open).
+    knots : numpy.ndarray, shape (S + 1,)
+        Parameter at the start of each segment and the end of the last.
+    """
+    pts = as_array(points, "points", ndim=2)
+    t = _parameters(pts, params, closed)
+    tan = overhauser_tangents(pts, t, closed)
+    if closed:
+        knots = np.append(t, t[0] + 1.0)
+        p_end, m_end = np.roll(pts, -1, axis=0), np.roll(tan, -1, axis=0)
+        p_start, m_start = pts, tan
+    else:
+        knots = t
+        p_start, m_start, p_end, m_end = pts[:-1], tan[:-1], pts[1:], tan[1:]
+    h = np.diff(knots)[:, None]
+    ctrl = np.stack([p_start, p_start + h * m_start / 3.0, p_end - h * m_end / 3.0, p_end], axis=1)
+    return ctrl, knots
+
+
+def evaluate_curve(control, knots, u, derivative: int = 0) -> np.ndarray:
+    """Points (or first derivatives) of a piecewise cubic Bezier curve.
+
+    Parameters
+    ----------
+    control : array_like, shape (S, 4, d)
+        Bezier segments, e.g. from :func:`overhauser_curve`.
+    knots : array_like, shape (S + 1,)
+        Strictly increasing segment breakpoints.
+    u : array_like, shape (N,)
+        Parameters in ``[knots[0], knots[-1]]``.
+    derivative : {0, 1}
+        0 for points, 1 for ``dC/du`` (per unit of ``u``, not of segment parameter).
+
+    Returns
+    -------
+    numpy.ndarray, shape (N, d)
+    """
+    ctrl = as_array(control, "control", ndim=3)
+    k = as_array(knots, "knots", shape=(len(ctrl) + 1,))
+    uu = as_array(u, "u", ndim=1)
+    if derivative not in (0, 1):
+        raise ValueError(f"derivative: must be 0 or 1, got {derivative!r}")
+    tol = 1e-12 * max(1.0, float(k[-1] - k[0]))
+    if len(uu) and (uu.min() < k[0] - tol or uu.max() > k[-1] + tol):
+        raise ValueError(f"u: outside the curve's parameter range [{k[0]}, {k[-1]}]")
+    seg = np.clip(np.searchsorted(k, uu, side="right") - 1, 0, len(ctrl) - 1)
+    h = k[seg + 1] - k[seg]
+    s = np.clip((uu - k[seg]) / h, 0.0, 1.0)[:, None]
+    c = ctrl[seg]
+    if derivative == 0:
+        return (
+            (1 - s) ** 3 * c[:, 0]
+            + 3 * s * (1 - s) ** 2 * c[:, 1]
+            + 3 * s**2 * (1 - s) * c[:, 2]
+            + s**3 * c[:, 3]
+        )
+    d = 3 * ((1 - s) ** 2 * (c[:, 1] - c[:, 0]) + 2 * s * (1 - s) * (c[:, 2] - c[:, 1])
+             + s**2 * (c[:, 3] - c[:, 2]))
+    return d / h[:, None]
+
+
+def restrict_curve(control, knots, breakpoints) -> np.ndarray:
+    """Exact Bezier segments of a piecewise cubic on a finer set of breakpoints.
+
+    Every interval ``[breakpoints[m], breakpoints[m + 1]]`` must lie inside one
+    segment of the curve (the breakpoints include all knots); there the curve is
+    one cubic, given exactly by its end points and end derivatives (Hermite form).
+
+    Parameters
+    ----------
+    control : array_like, shape (S, 4, d)
+        Bezier segments.
+    knots : array_like, shape (S + 1,)
+        Their breakpoints.
+    breakpoints : array_like, shape (M + 1,)
+        Strictly increasing, containing every knot, spanning ``[knots[0], knots[-1]]``.
+
+    Returns
+    -------
+    numpy.ndarray, shape (M, 4, d)
+        Bezier segments on the new breakpoints.
+    """
+    ctrl = as_array(control, "control", ndim=3)
+    k = as_array(knots, "knots", shape=(len(ctrl) + 1,))
+    b = as_array(breakpoints, "breakpoints", ndim=1, min_size=2)
+    if np.any(np.diff(b) <= 0):
+        raise ValueError("breakpoints: must increase strictly")
+    scale = max(1.0, float(k[-1] - k[0]))
+    pos = np.clip(np.searchsorted(b, k), 0, len(b) - 1)
+    if np.max(np.abs(b[pos] - k)) > 1e-12 * scale:
+        raise ValueError("breakpoints: must contain every knot of the curve")
+    # evaluate each interval's ends inside the segment that contains the interval's midpoint
+    mid = 0.5 * (b[:-1] + b[1:])
+    seg = np.clip(np.searchsorted(k, mid, side="right") - 1, 0, len(ctrl) - 1)
+    h = k[seg + 1] - k[seg]
+    c = ctrl[seg]
+    out = []
+    for end in (b[:-1], b[1:]):
+        s = ((end - k[seg]) / h)[:, None]
+        p = (
+            (1 - s) ** 3 * c[:, 0]
+            + 3 * s * (1 - s) ** 2 * c[:, 1]
+            + 3 * s**2 * (1 - s) * c[:, 2]
+            + s**3 * c[:, 3]
+        )
+        d = 3 * ((1 - s) ** 2 * (c[:, 1] - c[:, 0]) + 2 * s * (1 - s) * (c[:, 2] - c[:, 1])
+                 + s**2 * (c[:, 3] - c[:, 2])) / h[:, None]
+        out.append((p, d))
+    (p0, d0), (p1, d1) = out
+    w = np.diff(b)[:, None]
+    return np.stack([p0, p0 + w * d0 / 3.0, p1 - w * d1 / 3.0, p1], axis=1)
+
+
+def blend_weights(n_curves: int) -> np.ndarray:
+    """Bezier weights of the uniform parabolic blending across curves (seed 000, eqs. 13-19).
+
+    Parameters
+    ----------
+    n_curves : int
+        Number of curves (slices), at least 2.
+
+    Returns
+    -------
+    numpy.ndarray, shape (n_curves - 1, 4, n_curves)
+        ``W[j, b, k]``: Bezier point ``b`` (along ``v``) of the surface piece
+        between curves ``j`` and ``j + 1`` is ``sum_k W[j, b, k] * curve_k``.
+        With ``v = -1, 0, 1, 2`` at curves ``j - 1 .. j + 2`` the tangent at a
+        curve is ``(C_{j+1} - C_{j-1}) / 2``; at the first and last curve it is
+        the derivative of the one parabola there, ``(-3 C_0 + 4 C_1 - C_2) / 2``;
+        with two curves the surface is ruled.
+    """
+    n = int(n_curves)
+    if n < 2:
+        raise ValueError(f"n_curves: need at least 2 curves, got {n_curves}")
+    tangent = np.zeros((n, n))
+    if n == 2:
+        tangent[:, 0], tangent[:, 1] = -1.0, 1.0
+    else:
+        idx = np.arange(1, n - 1)
+        tangent[idx, idx + 1] = 0.5
+        tangent[idx, idx - 1] = -0.5
+        tangent[0, :3] = (-1.5, 2.0, -0.5)
+        tangent[-1, -3:] = (0.5, -2.0, 1.5)
+    eye = np.eye(n)
+    j = np.arange(n - 1)
+    return np.stack(
+        [eye[j], eye[j] + tangent[j] / 3.0, eye[j + 1] - tangent[j + 1] / 3.0, eye[j + 1]], axis=1
+    )
+
+
+def blend_curves(curves, closed_u: bool = True) -> BezierPatches:
+    """Surface through a stack of curves by uniform parabolic blending in ``v``.
+
+    Seed 000, eqs. 13-19: ``S(u, v) = (1 - v) Pc(v) + v Pd(v)`` between
+    neighbouring curves, ``Pc``/``Pd`` the parabolas through three consecutive
+    curves at the same ``u``. Because the blend is linear in the curves, Bezier
+    curves on common breakpoints give bicubic Bezier patches exactly.
+
+    Parameters
+    ----------
+    curves : array_like, shape (K, M, 4, 3)
+        ``K >= 2`` curves, each as ``M`` cubic Bezier segments on the same
+        ``u`` breakpoints (see :func:`restrict_curve`).
+    closed_u : bool
+        The curves are closed (segment ``M - 1`` ends where segment 0 starts).
+
+    Returns
+    -------
+    BezierPatches
+        ``M x (K - 1)`` patches; patch row ``i`` follows curve segment ``i``,
+        patch column ``j`` spans curves ``j`` to ``j + 1``.
+    """
+    c = as_array(curves, "curves", shape=(None, None, 4, 3))
+    if len(c) < 2:
+        raise ValueError(f"curves: need at least 2 curves, got {len(c)}")
+    k, m = c.shape[:2]
+    w = blend_weights(k)
+    # one matrix product over all curves (faster than einsum's batched path)
+    mixed = (w.reshape(-1, k) @ c.reshape(k, -1)).reshape(k - 1, 4, m, 4, 3)
+    control = np.ascontiguousarray(mixed.transpose(2, 0, 3, 1, 4))
+    return BezierPatches(control, closed_u=closed_u)
+
+
+def from_grid(points, u_params=None, closed_u: bool = False, closed_v: bool = False) -> BezierPatches:
+    """Parabolic-blending surface through every point of a grid (seed 000, eqs. 6-19).
+
+    Rows of the grid (axis 0 runs along ``u``) are first blended into curves in
+    ``u`` with the given (or chord-length, averaged over columns) parameters,
+    then the curves are blended uniformly in ``v``.
+
+    Parameters
+    ----------
+    points : array_like, shape (R, C, 3)
+        Grid points; ``points[:, j]`` is curve ``j``.
+    u_params : array_like, shape (R,), optional
+        Strictly increasing common ``u`` parameters (one period when
+        ``closed_u``); default averaged normalised chord length.
+    closed_u : bool
+        Close the ``u`` direction.
+    closed_v : bool
+        Close the ``v`` direction (blending wraps around the curves).
+
+    Returns
+    -------
+    BezierPatches
+        ``(R or R - 1) x (C or C - 1)`` patches through every grid point.
+    """
+    pts = as_array(points, "points", shape=(None, None, 3))
+    rows, cols = pts.shape[:2]
+    if rows < (3 if closed_u else 2) or cols < (3 if closed_v else 2):
+        raise ValueError(f"points: grid of {rows}x{cols} is too small")
+    if u_params is None:
+        seg = np.linalg.norm(np.diff(pts, axis=0), axis=2).mean(axis=1)
+        if closed_u:
+            seg = np.append(seg, np.linalg.norm(pts[0] - pts[-1], axis=1).mean())
+        if np.any(seg <= 0):
+            raise ValueError("points: coincident grid rows (zero chord length)")
+        t = np.concatenate([[0.0], np.cumsum(seg)])
+        u_params = t[:-1] / t[-1] if closed_u else t
+    # curves along u for every column at once: treat the column index as extra coordinates
+    flat = pts.reshape(rows, cols * 3)
+    ctrl, _ = overhauser_curve(flat, u_params, closed=closed_u)
+    curves = ctrl.reshape(len(ctrl), 4, cols, 3).transpose(2, 0, 1, 3)
+    if closed_v:
+        curves = np.concatenate([curves[-1:], curves, curves[:2]])
+        patches = blend_curves(curves, closed_u=closed_u)
+        control = patches.control[:, 1 : cols + 1]
+        return BezierPatches(control, closed_u=closed_u, closed_v=True)
+    return blend_curves(curves, closed_u=closed_u)
