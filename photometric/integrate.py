@@ -29,7 +29,8 @@ import numpy as np
 import scipy.fft as sfft
 import scipy.sparse as sp
 from scipy import ndimage
-from scipy.sparse.linalg import LinearOperator, cg
+from scipy.sparse.csgraph import connected_components
+from scipy.sparse.linalg import LinearOperator, cg, splu
 
 from surfaces.validate import as_array, positive
 
@@ -153,8 +154,8 @@ class _Multigrid:
     restricted to the active coarse nodes (rows renormalised, so constants are
     reproduced); coarse operators are Galerkin products ``P^T A P``; the smoother is
     damped Jacobi (symmetric, so the V-cycle is a valid CG preconditioner); the
-    coarsest level is solved with a dense pseudo-inverse (the Neumann problem is
-    singular: one constant per connected part).
+    coarsest level is solved by sparse LU with one unknown pinned per connected part
+    (the Neumann problem is singular: one constant per connected part).
     """
 
     def __init__(self, A: sp.csr_matrix, rows: np.ndarray, cols: np.ndarray, shape, *, omega=0.8,
@@ -170,7 +171,17 @@ class _Multigrid:
             A = (P.T @ A @ P).tocsr()
             self.P.append(P)
             self.A.append(A)
-        self.coarse_pinv = np.linalg.pinv(A.toarray(), hermitian=True)
+        # Coarsest level: a sparse LU with one unknown pinned per connected part (the
+        # Neumann matrix is singular). Zero-padding the reduced inverse keeps the
+        # preconditioner symmetric; dense LAPACK is avoided because its threads stall on
+        # a busy machine.
+        _, part = connected_components(A, directed=False)
+        _, first = np.unique(part, return_index=True)
+        keep = np.ones(A.shape[0], bool)
+        keep[first] = False
+        self.coarse_keep = np.flatnonzero(keep)
+        reduced = A[self.coarse_keep][:, self.coarse_keep].tocsc()
+        self.coarse_lu = splu(reduced) if reduced.shape[0] else None
 
     @staticmethod
     def _prolongation(rows, cols, shape):
@@ -199,7 +210,10 @@ class _Multigrid:
 
     def vcycle(self, r: np.ndarray, level: int = 0) -> np.ndarray:
         if level == len(self.P):
-            return self.coarse_pinv @ r
+            x = np.zeros_like(r)
+            if self.coarse_lu is not None:
+                x[self.coarse_keep] = self.coarse_lu.solve(r[self.coarse_keep])
+            return x
         A, dinv, w = self.A[level], self.dinv[level], self.omega
         x = w * dinv * r
         for _ in range(self.sweeps - 1):
