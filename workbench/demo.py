@@ -392,13 +392,13 @@ def section_accuracy(ctx: Context) -> None:
                 worst, em.dev1_deg, em.dev2_deg,
                 xlabel=f"light {axis1[0] + 1} {axis1[1]} deviation (deg)",
                 ylabel=f"light {axis2[0] + 1} {axis2[1]} deviation (deg)",
-                title=f"max |dp|, |dq| over |p|,|q| <= {d_range:g}: {title}",
+                title=f"max |dp|, |dq| over |p|, |q| <= {d_range:g}\n{title}",
                 label="derivative error", cmap="magma", contours=(0.02, 0.05, 0.1)))
             maps.append(im.plot_map(
                 em.max_angle_deg, em.dev1_deg, em.dev2_deg,
                 xlabel=f"light {axis1[0] + 1} {axis1[1]} deviation (deg)",
                 ylabel=f"light {axis2[0] + 1} {axis2[1]} deviation (deg)",
-                title=f"max normal angle error: {title}", label="deg", cmap="viridis",
+                title=f"max normal angle error\n{title}", label="deg", cmap="viridis",
                 contours=(1.0, 2.0, 5.0)))
             key = f"{axis1[1]}{axis1[0] + 1}_{axis2[1]}{axis2[0] + 1}"
             nums[f"max_derivative_error_at_5deg_{key}"] = float(worst.max())
@@ -665,7 +665,7 @@ def section_breast(ctx: Context) -> None:
 
 
 SECTIONS = (section_inspection, section_accuracy, section_real, section_ct, section_breast)
-STEPS = 16
+STEPS = 12  # ctx.step calls in a full run (one fewer with --quick: no Lt Lung)
 
 
 def run_demo(out_dir: str | os.PathLike = "demo_out", quick: bool = False,
@@ -704,11 +704,11 @@ def run_demo(out_dir: str | os.PathLike = "demo_out", quick: bool = False,
         "(DiLiGenT bear, a breast RT structure set) when present, the photometric-stereo and CT "
         "pipelines, and the one Bezier surface model both converge on. Pictures are ray-cast "
         "headless with open3d's RaycastingScene.")
-    with tqdm(total=STEPS, desc="demo", unit="step", disable=not progress) as bar:
+    with tqdm(total=STEPS - int(bool(quick)), desc="demo", unit="step", disable=not progress) as bar:
         ctx.bar = bar
         for section in SECTIONS:
             section(ctx)
-        bar.update(max(0, STEPS - bar.n))
+        bar.update(max(0, bar.total - bar.n))
     report.section("5. Figures and the commands that reproduce them",
                    "Each figure's data comes from the command shown; the pictures themselves are "
                    "drawn by the demo.")
