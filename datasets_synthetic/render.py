@@ -131,16 +131,26 @@ def _unit_lights(lights, name: str = "lights") -> np.ndarray:
     return lights / norm[:, None]
 
 
-def cast_shadow_mask(height, light, pixel_size: float, step: float = 0.25) -> np.ndarray:
+def cast_shadow_mask(
+    height, light, pixel_size: float, step: float = 0.25, method: str = "auto"
+) -> np.ndarray:
     """Pixels whose view of a distant light is blocked by the height field itself.
 
     Horizon test: pixel ``x0`` (height ``z0``) is in cast shadow when some point at
     image-plane distance ``t > 0`` towards the light rises above the light ray,
     ``z(x0 + t d) > z0 + t tan(e)``, with ``d`` the light's image-plane direction and
-    ``e`` its elevation. The ray is marched in steps of ``step`` pixels over whole
-    arrays at once (``scipy.ndimage.map_coordinates``, bilinear, i.e. exact for the
-    bilinear height-field surface up to the step), only as far as the height range
-    allows a blocker. Nothing outside the image casts a shadow.
+    ``e`` its elevation. The ray is marched in steps of ``step`` pixels for all
+    undecided pixels at once (``scipy.ndimage.map_coordinates``, bilinear, i.e. exact
+    for the bilinear height-field surface up to the step); a pixel drops out once it
+    is shadowed, its ray has risen above the highest point, or the ray has left the
+    image (nothing outside the image casts a shadow).
+
+    ``method="raycast"`` instead casts one ray per pixel centre towards the light
+    with open3d's ``RaycastingScene`` (Embree) over the height-field triangle mesh
+    (two triangles per cell), exact for that mesh up to float32 and a start offset
+    of 1e-3 pixel. The two agree on all but a few pixels per thousand at shadow
+    boundaries; "auto" marches short reaches (up to 64 steps) and ray-casts long ones,
+    where it is about ten times faster.
 
     Parameters
     ----------
@@ -152,6 +162,8 @@ def cast_shadow_mask(height, light, pixel_size: float, step: float = 0.25) -> np
         Pixel size in mm.
     step : float
         Marching step in pixels (default 0.25).
+    method : {"auto", "march", "raycast"}
+        Horizon marching, open3d ray casting, or the faster of the two for this reach.
 
     Returns
     -------
@@ -165,6 +177,8 @@ def cast_shadow_mask(height, light, pixel_size: float, step: float = 0.25) -> np
     lz = _unit_lights(light, "light")[0]
     ps = positive(pixel_size, "pixel_size")
     step = positive(step, "step")
+    if method not in ("auto", "march", "raycast"):
+        raise ValueError(f"method: expected 'auto', 'march' or 'raycast', got {method!r}")
     h, w = z.shape
     if lz[2] <= 0:
         return np.ones((h, w), bool)
@@ -174,16 +188,51 @@ def cast_shadow_mask(height, light, pixel_size: float, step: float = 0.25) -> np
         return np.zeros((h, w), bool)
     rise = ps * lz[2] / lxy  # ray height gained per pixel travelled towards the light
     reach = min(zrange / rise, float(np.hypot(h, w)))
-    drow, dcol = -lz[1] / lxy, lz[0] / lxy  # y up: moving towards +y lowers the row index
-    rows, cols = np.mgrid[0:h, 0:w].astype(np.float64)
+    if method == "raycast" or (method == "auto" and reach / step > 64):
+        return _raycast_shadow(z, lz, ps)
+    drow, dcol = -lz[1] / lxy, lz[0] / lxy
+    flat = z.ravel()
+    zmax = float(z.max())
     tol = 1e-9 * (1.0 + zrange)
-    low = float(z.min()) - 1e6 * (1.0 + zrange)
-    horizon = np.full((h, w), -np.inf)
+    shadow = np.zeros(h * w, bool)
+    # march only the pixels still undecided: not yet shadowed, ray still below the highest
+    # point, sample still inside the image (the image is convex, so it never comes back)
+    active = np.arange(h * w)
+    rows0 = (active // w).astype(np.float64)
+    cols0 = (active % w).astype(np.float64)
     for t in np.arange(step, reach + step, step):
-        zt = map_coordinates(z, [rows + t * drow, cols + t * dcol], order=1, mode="constant",
-                             cval=low, prefilter=False)
-        np.maximum(horizon, zt - t * rise, out=horizon)
-    return horizon > z + tol
+        r = rows0 + t * drow
+        c = cols0 + t * dcol
+        keep = ((flat[active] + t * rise < zmax) & (r >= 0) & (r <= h - 1) & (c >= 0) & (c <= w - 1))
+        active, r, c = active[keep], r[keep], c[keep]
+        rows0, cols0 = rows0[keep], cols0[keep]
+        if active.size == 0:
+            break
+        zt = map_coordinates(z, [r, c], order=1, mode="nearest", prefilter=False)
+        hit = zt - t * rise > flat[active] + tol
+        shadow[active[hit]] = True
+        active, rows0, cols0 = active[~hit], rows0[~hit], cols0[~hit]
+    return shadow.reshape(h, w)
+
+
+def _raycast_shadow(z: np.ndarray, light: np.ndarray, ps: float) -> np.ndarray:
+    """Cast shadows by open3d ray casting over the height-field mesh (see cast_shadow_mask)."""
+    import open3d as o3d
+
+    h, w = z.shape
+    rows, cols = np.mgrid[0:h, 0:w]
+    # the mesh in the image convention: x = col * ps, y = -row * ps (y up), z = height
+    verts = np.column_stack([cols.ravel() * ps, -rows.ravel() * ps, z.ravel()]).astype(np.float32)
+    idx = (rows * w + cols)[:-1, :-1].ravel()
+    tris = np.concatenate([np.column_stack([idx, idx + w, idx + 1]),
+                           np.column_stack([idx + 1, idx + w, idx + w + 1])]).astype(np.uint32)
+    scene = o3d.t.geometry.RaycastingScene()
+    scene.add_triangles(o3d.core.Tensor(verts), o3d.core.Tensor(tris))
+    direction = light.astype(np.float32)
+    origins = verts + np.float32(1e-3 * ps) * direction
+    rays = np.column_stack([origins, np.broadcast_to(direction, origins.shape)])
+    t_hit = scene.cast_rays(o3d.core.Tensor(np.ascontiguousarray(rays)))["t_hit"].numpy()
+    return np.isfinite(t_hit).reshape(h, w)
 
 
 def texture_albedo(size, low: float = 0.55, high: float = 0.9, scale_px: float = 12.0,
@@ -230,6 +279,7 @@ def render(
     bit_depth: int | None = None,
     seed: int | np.random.Generator = 0,
     shadow_step: float = 0.25,
+    cast_masks=None,
 ) -> np.ndarray:
     """Render Lambertian images ``I_k = albedo * e_k * max(0, n . l_k)`` (seed 002a).
 
@@ -262,6 +312,9 @@ def render(
         Noise seed.
     shadow_step : float
         Marching step of the cast-shadow test, pixels.
+    cast_masks : (N, H, W) array_like of bool, optional
+        Precomputed :func:`cast_shadow_mask` results for these lights (reused with
+        ``shadows="cast"`` instead of recomputing them).
 
     Returns
     -------
@@ -299,6 +352,8 @@ def render(
         spec = (positive(specular.get("ks", 0.5), "specular['ks']", allow_zero=True),
                 positive(specular.get("shininess", 20.0), "specular['shininess']"), view)
     rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
+    if cast_masks is not None:
+        cast_masks = as_array(cast_masks, "cast_masks", shape=(n_lights, h, w), dtype=bool)
 
     n = hf.normals
     out = np.empty((n_lights, h, w, 3) if rgb else (n_lights, h, w), np.float32)
@@ -311,7 +366,8 @@ def render(
             half /= np.linalg.norm(half)
             highlight = spec[0] * np.maximum(n @ half, 0.0) ** spec[1] * (ndotl > 0)
         if shadows == "cast":
-            lit = ~cast_shadow_mask(hf.height, L[k], hf.pixel_size, shadow_step)
+            lit = ~(cast_masks[k] if cast_masks is not None
+                    else cast_shadow_mask(hf.height, L[k], hf.pixel_size, shadow_step))
             diffuse = diffuse * lit
             highlight = highlight * lit
         if rgb:
@@ -523,14 +579,13 @@ def make_triad_folder(
     rng = np.random.default_rng(seed)
     images, shadow_fraction = [], []
     for k in tqdm(range(n), desc="render", unit="image", disable=not progress):
-        ek = e[k:k + 1]
-        img = render(hf, true[k:k + 1], ek, rho, shadows=shadows, specular=specular, noise=noise,
-                     shot_noise=shot_noise, bit_depth=bit_depth, seed=rng)[0]
+        cast = (cast_shadow_mask(hf.height, true[k], hf.pixel_size) if shadows == "cast"
+                else np.zeros(hf.shape, bool))
+        img = render(hf, true[k:k + 1], e[k:k + 1], rho, shadows=shadows, specular=specular,
+                     noise=noise, shot_noise=shot_noise, bit_depth=bit_depth, seed=rng,
+                     cast_masks=cast[None])[0]
         images.append(np.clip(img, 0.0, 1.0))
-        if shadows == "cast":
-            shadow_fraction.append(float(np.mean(cast_shadow_mask(hf.height, true[k], hf.pixel_size))))
-        else:
-            shadow_fraction.append(0.0)
+        shadow_fraction.append(float(np.mean(cast)))
     slant_nom, az_nom = slant_azimuth(nominal)
     content = {
         "scene": scene,

@@ -93,19 +93,25 @@ def _exact_shadow_row(hf, row, light):
     return np.max(z(xs) - t * tan_e, axis=1) > z(x0)
 
 
+@pytest.mark.parametrize("method", ["march", "raycast"])
 @pytest.mark.parametrize("slant", [50.0, 65.0])
-def test_tall_bump_shadows_the_pixels_behind_it(slant):
+def test_tall_bump_shadows_the_pixels_behind_it(slant, method):
+    if method == "raycast":
+        pytest.importorskip("open3d")
     hf = _bump()
     light = np.array([np.sin(np.radians(slant)), 0.0, np.cos(np.radians(slant))])  # from the right
-    mask = cast_shadow_mask(hf.height, light, hf.pixel_size)
+    mask = cast_shadow_mask(hf.height, light, hf.pixel_size, method=method)
     exact = _exact_shadow_row(hf, 48, light)
     # the shadow lies on the far side (left of the bump), none on the lit side
     assert mask[48, :40].any() and not mask[48, 56:].any()
     assert np.sum(mask[48] != exact) <= 1
-    finer = cast_shadow_mask(hf.height, light, hf.pixel_size, step=0.05)
+    finer = cast_shadow_mask(hf.height, light, hf.pixel_size, step=0.05, method="march")
     assert np.mean(finer != mask) < 0.002
     img = render(hf, light[None], shadows="cast")[0]
+    mask = cast_shadow_mask(hf.height, light, hf.pixel_size)
     assert np.all(img[mask] == 0) and np.all(img[~mask & (hf.normals @ light > 0.05)] > 0)
+    reused = render(hf, light[None], shadows="cast", cast_masks=mask[None])[0]
+    np.testing.assert_array_equal(reused, img)
 
 
 def test_shadow_of_a_light_from_the_top_falls_towards_the_bottom_rows():
@@ -133,7 +139,7 @@ def test_cast_shadows_agree_with_open3d_ray_casting():
     origins = verts + 1e-4 * light.astype(np.float32)
     rays = np.column_stack([origins, np.broadcast_to(light.astype(np.float32), origins.shape)])
     hit = np.isfinite(scene.cast_rays(o3d.core.Tensor(rays))["t_hit"].numpy()).reshape(h, w)
-    ours = cast_shadow_mask(hf.height, light, hf.pixel_size)
+    ours = cast_shadow_mask(hf.height, light, hf.pixel_size, method="march")
     lit_side = hf.normals @ light > 0.05  # attached shadows are shadows in both models
     assert ours.sum() > 50
     assert np.mean(ours[lit_side] != hit[lit_side]) < 0.01
@@ -144,6 +150,8 @@ def test_flat_and_overhead_cases_cast_no_shadow():
     assert not cast_shadow_mask(hf.height, [0.0, 0.0, 1.0], 0.1).any()
     assert not cast_shadow_mask(plane(32, 0.1).height, ring_lights(1, 80.0)[0], 0.1).any()
     assert cast_shadow_mask(hf.height, [1.0, 0.0, 0.0], 0.1).all()
+    with pytest.raises(ValueError, match="method"):
+        cast_shadow_mask(hf.height, [0.0, 0.0, 1.0], 0.1, method="magic")
 
 
 def test_noise_and_quantisation():
