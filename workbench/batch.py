@@ -97,15 +97,15 @@ class Job:
         absolute paths of the images in light order.
     options : dict
         Keyword options for the pipeline (paths among them are absolute).
-    roi : tuple of str or None
-        Slices jobs: the ROI name(s) to reconstruct; ``None`` lets the pipeline choose.
+    roi : str or None
+        Slices jobs on a structure set: the ROI name to reconstruct.
     """
 
     id: str
     kind: str
     input: str | tuple[str, ...]
     options: dict[str, Any] = field(default_factory=dict)
-    roi: tuple[str, ...] | None = None
+    roi: str | None = None
 
     def describe(self) -> str:
         """Return the input as one line (images joined with ``;``) for tables and records."""
@@ -168,7 +168,7 @@ class BatchReport:
 # --------------------------------------------------------------------------- manifests
 
 
-def load_jobs(source: str | os.PathLike, kind: str) -> list[Job]:
+def load_jobs(source: str | os.PathLike, kind: str, defaults: Mapping[str, Any] | None = None) -> list[Job]:
     """Read the jobs of a manifest file, or discover every job below a folder.
 
     Parameters
@@ -177,6 +177,8 @@ def load_jobs(source: str | os.PathLike, kind: str) -> list[Job]:
         A manifest (see :func:`read_manifest`) or a folder (see :func:`discover_jobs`).
     kind : {"photometric", "slices"}
         Job kind.
+    defaults : mapping, optional
+        Pipeline options for every job (a manifest row's own values take precedence).
 
     Returns
     -------
@@ -192,21 +194,22 @@ def load_jobs(source: str | os.PathLike, kind: str) -> list[Job]:
     """
     path = Path(source)
     if path.is_dir():
-        return discover_jobs(path, kind)
+        return discover_jobs(path, kind, defaults)
     if not path.exists():
         raise FileNotFoundError(f"manifest {path}: no such file or folder")
-    return read_manifest(path, kind)
+    return read_manifest(path, kind, defaults)
 
 
-def read_manifest(path: str | os.PathLike, kind: str) -> list[Job]:
+def read_manifest(path: str | os.PathLike, kind: str, defaults: Mapping[str, Any] | None = None) -> list[Job]:
     """Parse a CSV (header row) or JSON-lines manifest into jobs.
 
     Photometric rows name either ``input`` (a DiLiGenT-style folder) or
     ``images`` (a list, or paths separated by ``;``) with ``lights`` (and
     optionally ``intensities`` and ``mask``). Slices rows name ``input`` (an
-    RTSTRUCT file, a ``contours.json`` or a CT folder) and optionally ``roi``
-    (one name, a list, or names separated by ``;``); a CT folder takes the HU
-    window as ``hu_min``/``hu_max`` options. Every other column is a keyword
+    RTSTRUCT file, a ``contours.json`` or a CT folder) and, for a structure set,
+    ``roi`` (one name, a list, or names separated by ``;``: one job per name; when
+    absent, one job per ROI that has contours); a CT folder takes the HU window
+    as ``hu_min``/``hu_max`` options. Every other column is a keyword
     option of the pipeline (``integrator``, ``pixel_size``, ``method``,
     ``caps``, ``rays``, ...); in a CSV, numbers and ``true``/``false`` are
     converted and empty cells are left out. An ``id`` column is optional;
@@ -221,6 +224,8 @@ def read_manifest(path: str | os.PathLike, kind: str) -> list[Job]:
         JSON lines; any other name is JSON lines when its first character is ``{``.
     kind : {"photometric", "slices"}
         Job kind; an optional ``kind`` column must agree with it.
+    defaults : mapping, optional
+        Pipeline options for every job; a row's own values take precedence.
 
     Returns
     -------
@@ -246,18 +251,24 @@ def read_manifest(path: str | os.PathLike, kind: str) -> list[Job]:
     rows = _json_rows(text, path) if jsonl else _csv_rows(text, path)
     if not rows:
         raise ValueError(f"manifest {path}: no job rows")
-    jobs = [_job_from_row(row, kind, base, f"manifest {path} line {line}") for line, row in rows]
-    return _unique_ids(jobs, str(path))
+    jobs = [
+        job
+        for line, row in rows
+        for job in _jobs_from_row({**(defaults or {}), **row}, kind, base, f"manifest {path} line {line}")
+    ]
+    return _unique_ids(jobs)
 
 
-def discover_jobs(root: str | os.PathLike, kind: str) -> list[Job]:
+def discover_jobs(root: str | os.PathLike, kind: str, defaults: Mapping[str, Any] | None = None) -> list[Job]:
     """Find every job below a folder.
 
-    Photometric: every folder holding a ``light_directions.txt``. Slices: every
-    DICOM file whose Modality is RTSTRUCT (header read only, pixels never), and
-    every ``contours.json`` in a folder that holds no RTSTRUCT (a phantom folder
-    that carries both is one job, on its structure set). Hidden folders
-    (``.name``, e.g. unfinished batch folders) are not searched.
+    Photometric: every folder holding a ``light_directions.txt`` (DiLiGenT layout)
+    or a ``lights.npy`` (RobustPhotometricStereo layout). Slices: every
+    DICOM file whose Modality is RTSTRUCT (checked on the header alone), one job
+    per ROI that has contours (:func:`slices.io.list_rois`), and every
+    ``contours.json`` in a folder that holds no RTSTRUCT (a phantom folder that
+    carries both gives the structure set's jobs only). Hidden folders (``.name``,
+    e.g. unfinished batch folders) are not searched.
 
     Parameters
     ----------
@@ -265,11 +276,14 @@ def discover_jobs(root: str | os.PathLike, kind: str) -> list[Job]:
         Folder to search recursively.
     kind : {"photometric", "slices"}
         Job kind.
+    defaults : mapping, optional
+        Pipeline options for every job (checked like manifest options).
 
     Returns
     -------
     list of Job
-        Jobs sorted by path, ids derived from the path relative to ``root``.
+        Jobs sorted by path, ids derived from the path relative to ``root``
+        (and the ROI name for structure sets).
 
     Raises
     ------
@@ -284,25 +298,31 @@ def discover_jobs(root: str | os.PathLike, kind: str) -> list[Job]:
         raise NotADirectoryError(f"job folder {root}: not a folder")
     root = root.resolve()
     if kind == "photometric":
-        inputs = sorted(p.parent for p in _walk(root, "light_directions.txt"))
-        what = "folder with a light_directions.txt"
+        markers = [*_walk(root, "light_directions.txt"), *_walk(root, "lights.npy")]
+        inputs = sorted({p.parent for p in markers})
+        what = "folder with a light_directions.txt (or lights.npy)"
     else:
         structure_sets = sorted(p for p in _walk(root, "*.dcm") if _is_rtstruct(p))
         with_rtstruct = {p.parent for p in structure_sets}
-        contour_files = sorted(
-            p for p in _walk(root, "contours.json") if p.parent not in with_rtstruct
-        )
+        contour_files = sorted(p for p in _walk(root, "contours.json") if p.parent not in with_rtstruct)
         inputs = sorted(structure_sets + contour_files)
         what = "RTSTRUCT .dcm file or contours.json"
     if not inputs:
         raise ValueError(f"job folder {root}: no {what} found below it")
-    jobs = [Job(job_id(p, root), kind, str(p)) for p in inputs]
-    return _unique_ids(jobs, str(root))
+    options = dict(defaults or {})
+    wanted = _as_list(options.pop("roi"), f"job folder {root}", "roi") if "roi" in options else None
+    _check_options(kind, options, f"job folder {root}")
+    jobs = []
+    for p in inputs:
+        if p.suffix.lower() == ".dcm":
+            names = wanted or _rois_with_contours(p) or [None]
+            jobs += [Job(job_id(p, root, [n]), kind, str(p), dict(options), n) for n in names]
+        else:
+            jobs.append(Job(job_id(p, root), kind, str(p), dict(options)))
+    return _unique_ids(jobs)
 
 
-def job_id(
-    path: str | os.PathLike, base: str | os.PathLike | None = None, roi: Sequence[str] | None = None
-) -> str:
+def job_id(path: str | os.PathLike, base: str | os.PathLike | None = None, roi: Sequence[str] | None = None) -> str:
     """Derive a filesystem-safe job id from an input path.
 
     The path relative to ``base`` (when below it; else its last two parts),
@@ -335,12 +355,26 @@ def job_id(
     parts = list(rel.parts)
     if not parts:  # the base itself is the job folder
         parts = [p.resolve().name]
-    if p.suffix and not p.is_dir():
+    if p.is_file() or p.suffix.lower() in (".dcm", ".json"):
         parts[-1] = Path(parts[-1]).stem
     if roi:
         parts.extend(roi)
-    text = re.sub(r"[^A-Za-z0-9._+-]+", "_", "-".join(parts)).strip("._-+")
+    return _safe("-".join(parts))
+
+
+def _safe(text: str) -> str:
+    text = re.sub(r"[^A-Za-z0-9._+-]+", "_", text).strip("._-+")
     return (text or "job")[:120]
+
+
+def _rois_with_contours(path: Path) -> list[str]:
+    """ROI names with contours; empty when the file cannot be listed (the job then fails)."""
+    from slices.io import list_rois
+
+    try:
+        return [r["name"] for r in list_rois(path) if r["n_contours"] > 0]
+    except (ValueError, OSError):
+        return []
 
 
 def _walk(root: Path, pattern: str) -> Iterator[Path]:
@@ -377,11 +411,9 @@ def _csv_rows(text: str, path: Path) -> list[tuple[int, dict[str, Any]]]:
     rows = []
     for raw in reader:
         if None in raw:
-            raise ValueError(
-                f"manifest {path} line {reader.line_num}: more cells than header columns"
-            )
+            raise ValueError(f"manifest {path} line {reader.line_num}: more cells than header columns")
         row = {
-            name: _coerce(value.strip())
+            name: coerce_value(value.strip())
             for name, value in zip(header, raw.values())
             if value is not None and value.strip() != ""
         }
@@ -398,9 +430,7 @@ def _json_rows(text: str, path: Path) -> list[tuple[int, dict[str, Any]]]:
         try:
             row = json.loads(line)
         except json.JSONDecodeError as exc:
-            raise ValueError(
-                f"manifest {path} line {line_no}: not a JSON object ({exc.msg})"
-            ) from None
+            raise ValueError(f"manifest {path} line {line_no}: not a JSON object ({exc.msg})") from None
         if not isinstance(row, dict):
             raise ValueError(  # noqa: TRY004 - bad manifest content is a ValueError for the CLI
                 f"manifest {path} line {line_no}: expected a JSON object, got {type(row).__name__}"
@@ -409,8 +439,18 @@ def _json_rows(text: str, path: Path) -> list[tuple[int, dict[str, Any]]]:
     return rows
 
 
-def _coerce(value: str) -> Any:
-    """CSV cell -> bool, int, float or the string itself."""
+def coerce_value(value: str) -> Any:
+    """Convert a manifest cell or ``--option`` value: ``true``/``false``, int, float, else text.
+
+    Parameters
+    ----------
+    value : str
+        The text.
+
+    Returns
+    -------
+    bool, int, float or str
+    """
     low = value.lower()
     if low in ("true", "false"):
         return low == "true"
@@ -441,19 +481,17 @@ def _resolve(value: Any, base: Path, where: str, name: str) -> str:
     return str(p if p.is_absolute() else (base / p).resolve())
 
 
-def _job_from_row(row: dict[str, Any], kind: str, base: Path, where: str) -> Job:
+def _jobs_from_row(row: dict[str, Any], kind: str, base: Path, where: str) -> list[Job]:
     row = dict(row)
     row_kind = row.pop("kind", kind)
     if row_kind != kind:
         raise ValueError(f"{where}: kind {row_kind!r} in a {kind} batch")
     given_id = row.pop("id", None)
-    roi = None
+    rois: list[str | None] = [None]
     if kind == "photometric":
         folder, images = row.pop("input", None), row.pop("images", None)
         if (folder is None) == (images is None):
-            raise ValueError(
-                f"{where}: give either 'input' (a folder) or 'images' (+ 'lights'), not both or neither"
-            )
+            raise ValueError(f"{where}: give either 'input' (a folder) or 'images' (+ 'lights'), not both or neither")
         if images is not None:
             if "lights" not in row:
                 raise ValueError(f"{where}: 'images' needs a 'lights' file")
@@ -466,28 +504,31 @@ def _job_from_row(row: dict[str, Any], kind: str, base: Path, where: str) -> Job
             id_path = Path(source)
     else:
         if "input" not in row:
-            raise ValueError(
-                f"{where}: missing 'input' (structure set, contours.json or CT folder)"
-            )
+            raise ValueError(f"{where}: missing 'input' (structure set, contours.json or CT folder)")
         source = _resolve(row.pop("input"), base, where, "input")
         id_path = Path(source)
         if "roi" in row:
-            roi = tuple(_as_list(row.pop("roi"), where, "roi"))
+            rois = list(_as_list(row.pop("roi"), where, "roi"))
+        elif source.lower().endswith(".dcm") and Path(source).is_file():
+            rois = _rois_with_contours(Path(source)) or [None]
     options = {
         name: _resolve(value, base, where, name) if name in _PATH_OPTIONS[kind] else value
         for name, value in row.items()
     }
     _check_options(kind, options, where)
-    if given_id is not None:
-        ident = str(given_id)
-        if not _ID_PATTERN.match(ident) or ident in _RESERVED_IDS:
-            raise ValueError(
-                f"{where}: id {ident!r} is not a safe folder name (letters, digits, . _ + -; "
-                f"not {', '.join(sorted(_RESERVED_IDS))})"
-            )
-    else:
-        ident = job_id(id_path, base, roi)
-    return Job(ident, kind, source, options, roi)
+    if given_id is not None and not (_ID_PATTERN.match(str(given_id)) and str(given_id) not in _RESERVED_IDS):
+        raise ValueError(
+            f"{where}: id {given_id!r} is not a safe folder name (letters, digits, . _ + -; "
+            f"not {', '.join(sorted(_RESERVED_IDS))})"
+        )
+    jobs = []
+    for roi in rois:
+        if given_id is None:
+            ident = job_id(id_path, base, [roi] if roi else None)
+        else:  # several ROIs of one row share its id as a prefix
+            ident = str(given_id) if len(rois) == 1 else f"{given_id}-{_safe(str(roi))}"
+        jobs.append(Job(ident, kind, source, dict(options), roi))
+    return jobs
 
 
 def _check_options(kind: str, options: Mapping[str, Any], where: str) -> None:
@@ -495,16 +536,15 @@ def _check_options(kind: str, options: Mapping[str, Any], where: str) -> None:
     params = inspect.signature(_pipeline(kind)).parameters
     if any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params.values()):
         return
-    fixed = {"roi"} if kind == "slices" else set()
     names = list(params)[2:]  # the input and the output folder come first
-    unknown = sorted(set(options) - set(names) - fixed)
+    unknown = sorted(set(options) - set(names))
     if unknown:
         raise ValueError(
             f"{where}: unknown option(s) {', '.join(unknown)}; the {kind} pipeline takes {', '.join(names)}"
         )
 
 
-def _unique_ids(jobs: list[Job], where: str) -> list[Job]:
+def _unique_ids(jobs: list[Job]) -> list[Job]:
     seen: dict[str, int] = {}
     explicit = [job.id for job in jobs]
     out = []
@@ -517,9 +557,7 @@ def _unique_ids(jobs: list[Job], where: str) -> list[Job]:
             seen[job.id] = n
             ident = f"{job.id}-{n}"
         seen.setdefault(ident, 1)
-        out.append(
-            job if ident == job.id else Job(ident, job.kind, job.input, job.options, job.roi)
-        )
+        out.append(job if ident == job.id else Job(ident, job.kind, job.input, job.options, job.roi))
     return out
 
 
@@ -547,10 +585,17 @@ def run_photometric(job: Job, out_dir: Path) -> dict:
     Returns
     -------
     dict
-        The pipeline's summary (the content of its ``summary.json``).
+        The pipeline's summary (the content of its ``summary.json``), with
+        ``max_depth_mm``, the depth of the deepest defect in its ``defects.json``
+        (0.0 when there is none), when the summary lacks it.
     """
     source = list(job.input) if isinstance(job.input, tuple) else job.input
-    return _pipeline("photometric")(source, out_dir, **job.options)
+    summary = dict(_pipeline("photometric")(source, out_dir, **job.options))
+    if "max_depth_mm" not in summary:
+        # the pipeline lists its defects in defects.json; the row reports the deepest
+        defects = json.loads((Path(out_dir) / "defects.json").read_text())["defects"]
+        summary["max_depth_mm"] = max((float(d["max_depth_mm"]) for d in defects), default=0.0)
+    return summary
 
 
 def run_slices(job: Job, out_dir: Path) -> dict:
@@ -568,10 +613,7 @@ def run_slices(job: Job, out_dir: Path) -> dict:
     dict
         The pipeline's summary (the content of its ``summary.json``).
     """
-    roi: str | list[str] | None = None
-    if job.roi:
-        roi = job.roi[0] if len(job.roi) == 1 else list(job.roi)
-    return _pipeline("slices")(job.input, out_dir, roi=roi, **job.options)
+    return _pipeline("slices")(job.input, out_dir, roi=job.roi, **job.options)
 
 
 #: the job runner table: kind -> callable(job, out_dir) -> summary dict
@@ -633,9 +675,7 @@ def is_complete(folder: str | os.PathLike) -> bool:
     return (Path(folder) / COMPLETE_MARKER).is_file()
 
 
-def execute_job(
-    job: Job, out: str | os.PathLike, runner: Callable[[Job, Path], dict] | None = None
-) -> dict[str, Any]:
+def execute_job(job: Job, out: str | os.PathLike, runner: Callable[[Job, Path], dict] | None = None) -> dict[str, Any]:
     """Run one job into ``OUT/<id>`` atomically; the body of one Dask task.
 
     The runner writes into ``OUT/.tmp-<id>-<uuid>``; the ``_COMPLETE`` marker is
@@ -666,9 +706,7 @@ def execute_job(
         tmp.mkdir(parents=True)
         summary = runner(job, tmp)
         if not isinstance(summary, Mapping):
-            raise TypeError(
-                f"the {job.kind} pipeline returned {type(summary).__name__}, not a summary dict"
-            )
+            raise TypeError(f"the {job.kind} pipeline returned {type(summary).__name__}, not a summary dict")
         elapsed = time.perf_counter() - start
         row = _row(job, "ok", "", elapsed, key_figures(job.kind, summary))
         marker = {
@@ -712,9 +750,7 @@ def one_line_error(exc: BaseException, limit: int = 300) -> str:
     return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
-def _row(
-    job: Job, status: str, error: str, time_s: float, figures: Mapping[str, Any]
-) -> dict[str, Any]:
+def _row(job: Job, status: str, error: str, time_s: float, figures: Mapping[str, Any]) -> dict[str, Any]:
     row: dict[str, Any] = {name: "" for name in RESULT_COLUMNS}
     row.update(
         id=job.id,
@@ -765,9 +801,7 @@ def plan(jobs: Sequence[Job], out: str | os.PathLike, retry_failed: bool = False
         if is_complete(folder):
             done_kind = _marker_kind(folder)
             if done_kind != job.kind:
-                raise ValueError(
-                    f"job {job.id}: {folder} holds a finished {done_kind} job, not {job.kind}"
-                )
+                raise ValueError(f"job {job.id}: {folder} holds a finished {done_kind} job, not {job.kind}")
             complete.append(job)
         elif (out / FAILED_DIR / f"{job.id}.json").is_file():
             (to_run if retry_failed else failed_before).append(job)
@@ -777,17 +811,15 @@ def plan(jobs: Sequence[Job], out: str | os.PathLike, retry_failed: bool = False
 
 
 @contextmanager
-def connect(
-    scheduler: str = "local", workers: int | None = None, threads_per_worker: int = 1
-) -> Iterator[Any]:
+def connect(scheduler: str = "local", workers: int | None = None, threads_per_worker: int = 1) -> Iterator[Any]:
     """Open a Dask client: a new local cluster, or a running scheduler.
 
     Parameters
     ----------
     scheduler : str
         ``"local"``: a :class:`distributed.LocalCluster` of ``workers`` processes
-        with ``threads_per_worker`` threads each (dashboard on a free port when
-        bokeh is installed), closed on exit. ``"tcp://HOST:PORT"``: connect to a
+        with ``threads_per_worker`` threads each (HTTP service and, when bokeh is
+        installed, the dashboard on a free port), closed on exit. ``"tcp://HOST:PORT"``: connect to a
         running scheduler (``dask scheduler``); its workers are used as they are
         and ``workers`` is ignored.
     workers : int, optional
@@ -809,15 +841,14 @@ def connect(
 
     n_threads = int(positive(threads_per_worker, "threads_per_worker"))
     if scheduler == "local":
-        n_workers = int(
-            positive(workers if workers is not None else (os.cpu_count() or 1), "workers")
-        )
-        dashboard = ":0" if importlib.util.find_spec("bokeh") is not None else None
+        n_workers = int(positive(workers if workers is not None else (os.cpu_count() or 1), "workers"))
+        # a free port: without bokeh the scheduler still serves HTTP (health, metrics), and
+        # the default 8787 clashes with any other cluster on the machine
         cluster = LocalCluster(
             n_workers=n_workers,
             threads_per_worker=n_threads,
             processes=True,
-            dashboard_address=dashboard,
+            dashboard_address=":0",
         )
         try:
             client = Client(cluster)
@@ -843,8 +874,8 @@ def connect(
 def dashboard_link(client: Any) -> str | None:
     """Return the dashboard address of a client's scheduler, or ``None`` when it has none.
 
-    A local cluster has a dashboard only when bokeh is installed; for a remote
-    scheduler the address its HTTP service advertises is returned.
+    The scheduler serves its dashboard only when bokeh is installed where it
+    runs (checked there); without bokeh its HTTP port has no dashboard.
 
     Parameters
     ----------
@@ -854,11 +885,15 @@ def dashboard_link(client: Any) -> str | None:
     -------
     str or None
     """
-    cluster = getattr(client, "cluster", None)
-    if cluster is not None and importlib.util.find_spec("bokeh") is None:
-        return None
     services = client.scheduler_info().get("services", {})
-    return client.dashboard_link if "dashboard" in services else None
+    if "dashboard" not in services or not client.run_on_scheduler(_has_bokeh):
+        return None
+    return client.dashboard_link
+
+
+def _has_bokeh() -> bool:
+    """Whether bokeh is importable (run on the scheduler: the dashboard needs it there)."""
+    return importlib.util.find_spec("bokeh") is not None
 
 
 def run_batch(
@@ -973,9 +1008,7 @@ def _submit_and_gather(
     _write_results(results, previous.values())  # one header, current columns
     try:
         with open(results, "a", newline="", encoding="utf-8") as fh:
-            writer = csv.DictWriter(
-                fh, fieldnames=RESULT_COLUMNS, extrasaction="ignore", lineterminator="\n"
-            )
+            writer = csv.DictWriter(fh, fieldnames=RESULT_COLUMNS, extrasaction="ignore", lineterminator="\n")
             for fut in as_completed(futures):
                 job = by_key[fut.key]
                 try:
@@ -1055,9 +1088,7 @@ def read_results(path: str | os.PathLike) -> dict[str, dict[str, str]]:
 
 def _write_results(path: Path, rows) -> None:
     buffer = io.StringIO()
-    writer = csv.DictWriter(
-        buffer, fieldnames=RESULT_COLUMNS, extrasaction="ignore", lineterminator="\n"
-    )
+    writer = csv.DictWriter(buffer, fieldnames=RESULT_COLUMNS, extrasaction="ignore", lineterminator="\n")
     writer.writeheader()
     writer.writerows(rows)
     _write_text_atomic(path, buffer.getvalue())

@@ -62,9 +62,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
             type=Path,
             help="CSV or JSON-lines manifest (one job per row), or a folder: every job below it",
         )
-        parser.add_argument(
-            "--out", required=True, type=Path, help="batch output folder (created when missing)"
-        )
+        parser.add_argument("--out", required=True, type=Path, help="batch output folder (created when missing)")
         parser.add_argument(
             "--scheduler",
             default="local",
@@ -85,6 +83,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
             help="threads per local worker process (default 1)",
         )
         parser.add_argument(
+            "--option",
+            action="append",
+            default=[],
+            metavar="KEY=VALUE",
+            help="pipeline option for every job, e.g. render=false (repeatable; a manifest "
+            "column of the same name wins)",
+        )
+        parser.add_argument(
             "--retry-failed",
             action="store_true",
             help="run only the jobs that failed before (those with OUT/failed/<id>.json)",
@@ -99,21 +105,27 @@ def _runner(kind: str):
     return run
 
 
+def _options(items: list[str]) -> dict:
+    options = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        if not sep or not key.strip():
+            raise ValueError(f"--option: expected KEY=VALUE, got {item!r}")
+        options[key.strip()] = batch.coerce_value(value.strip())
+    return options
+
+
 def _run(kind: str, args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
-    jobs = batch.load_jobs(args.manifest, kind)
+    jobs = batch.load_jobs(args.manifest, kind, _options(args.option))
     out = args.out.resolve()
     steps = batch.plan(jobs, out, args.retry_failed)
     print(
         f"{len(jobs)} {kind} job(s): {len(steps.to_run)} to run, {len(steps.complete)} complete "
         f"(skipped), {len(steps.failed_before)} failed before"
         + (" (use --retry-failed)" if steps.failed_before else "")
-        + (
-            f", {len(steps.pending)} never run (left for a run without --retry-failed)"
-            if steps.pending
-            else ""
-        )
+        + (f", {len(steps.pending)} never run (left for a run without --retry-failed)" if steps.pending else "")
     )
     dashboard = None
     if steps.to_run:
@@ -123,9 +135,7 @@ def _run(kind: str, args: argparse.Namespace) -> int:
             print(f"scheduler {client.scheduler.address} with {n_workers} worker(s)")
             if dashboard:
                 print(f"dashboard: {dashboard}")
-            with tqdm(
-                total=len(steps.to_run), unit="job", file=sys.stderr, dynamic_ncols=True
-            ) as bar:
+            with tqdm(total=len(steps.to_run), unit="job", file=sys.stderr, dynamic_ncols=True) as bar:
                 counts = {"ok": 0, "failed": 0}
 
                 def progress(row: dict) -> None:
@@ -140,9 +150,7 @@ def _run(kind: str, args: argparse.Namespace) -> int:
                     )
                     bar.update(1)
 
-                report = batch.run_batch(
-                    jobs, out, client, retry_failed=args.retry_failed, progress=progress
-                )
+                report = batch.run_batch(jobs, out, client, retry_failed=args.retry_failed, progress=progress)
     else:
         report = batch.run_batch(jobs, out, retry_failed=args.retry_failed)
     path = batch.write_report(
