@@ -1580,5 +1580,5 @@ def crack_study(
         "depth_nominal_mm": depth_nominal,
         "lit_fraction": float(lit.mean()),
         "cases": cases,
-        "maps": {"p_true": hf.p, "lit": lit, **{k: np.stack(v) for k, v in maps.items()}},
+        "maps": {"p_true": hf.p, "q_true": hf.q, "lit": lit, **{k: np.stack(v) for k, v in maps.items()}},
     }

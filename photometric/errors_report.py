@@ -185,23 +185,7 @@ def analyse(
         for a1, a2 in MAP_AXES:
             if max(a1[0], a2[0]) >= N:
                 continue
-            m = E.error_map(L, sp_, sq_, a1, a2, dmax, grid)
-            entry = {
-                "derivatives": set_name,
-                "axis1": list(m.axis1),
-                "axis2": list(m.axis2),
-                "n_normals": m.n_normals,
-                "max_abs_dp": float(m.max_dp.max()),
-                "max_abs_dq": float(m.max_dq.max()),
-                "max_angle_deg": float(m.max_angle_deg.max()),
-                "fraction_within_tolerance": float(np.mean(np.maximum(m.max_dp, m.max_dq) <= eps)),
-                "dev_deg": m.dev1_deg.tolist(),
-                "max_dp": m.max_dp.tolist(),
-                "max_dq": m.max_dq.tolist(),
-                "mean_dp": m.mean_dp.tolist(),
-                "mean_dq": m.mean_dq.tolist(),
-            }
-            maps.append(entry)
+            maps.append(_map_entry(E.error_map(L, sp_, sq_, a1, a2, dmax, grid), set_name, eps))
     report["error_maps"] = maps
 
     step("curves")
@@ -310,9 +294,33 @@ def analyse(
                 devs.append(dev)
             cs = E.crack_study(L, np.stack(devs), size=crack_size, seed=seed)
             arrays["crack"] = cs.pop("maps")
+            # the paper's error map over the crack's own derivatives
+            m = E.error_map(L, arrays["crack"]["p_true"], arrays["crack"]["q_true"], (0, "slant"), (1, "slant"),
+                            dmax, grid)
+            cs["error_map_max_abs_dp"] = float(m.max_dp.max())
+            cs["error_map_max_abs_dq"] = float(m.max_dq.max())
+            report["error_maps"].append(_map_entry(m, "crack", eps))
             report["crack_study"] = cs
     report["_arrays"] = arrays
     return report
+
+
+def _map_entry(m: E.ErrorMap, derivatives: str, eps: float) -> dict:
+    return {
+        "derivatives": derivatives,
+        "axis1": list(m.axis1),
+        "axis2": list(m.axis2),
+        "n_normals": m.n_normals,
+        "max_abs_dp": float(m.max_dp.max()),
+        "max_abs_dq": float(m.max_dq.max()),
+        "max_angle_deg": float(m.max_angle_deg.max()),
+        "fraction_within_tolerance": float(np.mean(np.maximum(m.max_dp, m.max_dq) <= eps)),
+        "dev_deg": m.dev1_deg.tolist(),
+        "max_dp": m.max_dp.tolist(),
+        "max_dq": m.max_dq.tolist(),
+        "mean_dp": m.mean_dp.tolist(),
+        "mean_dq": m.mean_dq.tolist(),
+    }
 
 
 def _pairs(n: int):
@@ -376,8 +384,8 @@ def _plot_maps(report: dict, out: Path, plt) -> list[str]:
             ax.set_ylabel(_label(m["axis2"]))
             ax.set_title(title)
             ax.set_aspect("equal")
-        where = ("|p|, |q| <= %g" % report["inputs"]["derivative_range"]) if m["derivatives"] == "square" \
-            else "the given surface"
+        where = {"square": "|p|, |q| <= %g" % report["inputs"]["derivative_range"],
+                 "surface": "the given surface", "crack": "the crack scene"}[m["derivatives"]]
         fig.suptitle(f"Derivative error over two light deviations, normals over {where}")
         (k1, a1), (k2, a2) = m["axis1"], m["axis2"]
         name = f"map_{i + 1}_{m['derivatives']}_L{k1 + 1}{a1}_L{k2 + 1}{a2}.png"
@@ -535,7 +543,9 @@ def _fmt(x, digits: int = 3) -> str:
         return "-"
     if isinstance(x, dict):
         s = _fmt(x.get("value"), digits)
-        return f">= {s}" if x.get("saturated") and (x.get("value") or 0) > 0 else s
+        if x.get("saturated"):
+            return f">= {s}" if (x.get("value") or 0) > 0 else "0 (a flat surface already exceeds eps)"
+        return s
     return f"{x:.{digits}g}"
 
 
