@@ -223,6 +223,23 @@ def test_torus_closed_forms_and_signed_distance():
     np.testing.assert_allclose(ring.signed_distance([[20, 0, 0], [30, 0, 0], [0, 0, 0]]), [-5, 5, 15])
 
 
+@pytest.mark.parametrize("shape", ["ring", "lobes", "tilted_cylinder"])
+def test_signed_distance_against_a_dense_surface_sample(shape):
+    from scipy.spatial import cKDTree
+
+    ph = make_phantom(shape)
+    surface = ph.surface_points(200000, seed=1)
+    lower, upper = ph.bounds
+    pts = lower - 3 + np.random.default_rng(2).random((2000, 3)) * (upper - lower + 6)
+    sd = ph.signed_distance(pts)
+    np.testing.assert_array_equal(sd <= 0, ph.inside(pts))
+    nearest = cKDTree(surface).query(pts)[0]
+    # the sample spacing is ~0.3 mm: the sample's distance is never smaller, and close
+    assert np.all(nearest >= np.abs(sd) - 1e-9)
+    assert np.all(nearest - np.abs(sd) < 0.5)
+    assert np.mean(nearest - np.abs(sd)) < 0.15
+
+
 def test_contour_noise_is_reproducible_and_of_the_stated_size():
     ph = make_phantom("ellipsoid")
     clean = ph.contours(5.0, n_points=200, seed=4)
