@@ -152,8 +152,9 @@ def write_ct_series(
     zs = np.concatenate([planes[0] - spacing * np.arange(k, 0, -1), planes,
                          planes[-1] + spacing * np.arange(1, k + 1)])
     lower, upper = phantom.bounds
-    x0 = np.floor((lower[0] - margin) / pixel) * pixel
-    y0 = np.floor((lower[1] - margin) / pixel) * pixel
+    # whole multiples of the pixel size, rounded so that the decimal strings stay short
+    x0 = round(float(np.floor((lower[0] - margin) / pixel) * pixel), 9)
+    y0 = round(float(np.floor((lower[1] - margin) / pixel) * pixel), 9)
     cols = int(np.ceil((upper[0] + margin - x0) / pixel)) + 1
     rows = int(np.ceil((upper[1] + margin - y0) / pixel)) + 1
     ss = int(supersample)
