@@ -378,7 +378,12 @@ def section_accuracy(ctx: Context) -> None:
         d_range = 1.0
         n_map = 21 if ctx.quick else 41
         p, q = errors.derivative_square(d_range, 21 if ctx.quick else 41)
-        cmd = ctx.cmd("photometric", "errors", "--lights", "triad45", "--derivative-range",
+        from surfaces.view import write_bytes_atomic
+
+        lights_file = ctx.out / "accuracy" / "lights.txt"
+        rows_txt = "\n".join(" ".join(f"{v:.12f}" for v in row) for row in lights)
+        write_bytes_atomic(lights_file, (rows_txt + "\n").encode())
+        cmd = ctx.cmd("photometric", "errors", "--lights", str(lights_file), "--derivative-range",
                       str(d_range), "--deviation-max", "5", "--grid", str(n_map), "--out",
                       str(ctx.out / "accuracy"))
         maps = []
