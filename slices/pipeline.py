@@ -25,7 +25,7 @@ from surfaces.mesh import TriangleMesh, merge_meshes, weld
 from surfaces.validate import positive
 
 #: Vertices the written mesh aims at (the tessellation density adapts to it).
-MESH_BUDGET = 600_000
+MESH_BUDGET = 250_000
 
 
 @dataclass
@@ -42,7 +42,11 @@ class BodySurface:
     side_columns : slice
         Patch columns of the open side surface (with half-cap extrusions and domes).
     mesh : TriangleMesh or None
-        Triangles, oriented outward of the solid (holes point into the hole).
+        Triangles, oriented outward of the solid (holes point into the hole);
+        caps welded to the side, watertight when capped.
+    display_mesh : TriangleMesh or None
+        The same triangles with the caps' vertices kept apart, so flat caps
+        shade with their own normals.
     volume_mm3 : float
         Enclosed volume (positive, also for holes).
     area_mm2 : float
@@ -59,6 +63,7 @@ class BodySurface:
     patches: BezierPatches
     side_columns: slice
     mesh: TriangleMesh | None
+    display_mesh: TriangleMesh | None
     volume_mm3: float
     area_mm2: float
     max_deviation_mm: float
@@ -94,78 +99,82 @@ def build_body(body: Body, spacing: float, method: str = "blending", rays: int =
     Returns
     -------
     BodySurface or None
-        None for a single-contour body with ``caps`` none/flat (it has no thickness).
+        None for a single-contour body with caps none/flat at both ends (no thickness).
+        Ends where the chain splits (branching or merging contours) always get
+        half caps, so neighbouring bodies meet half-way between the planes.
     """
     if caps not in capmod.CAP_KINDS:
         raise ValueError(f"caps: must be one of {capmod.CAP_KINDS}, got {caps!r}")
     z = body.z
-    k = len(z)
-    if k == 1 and caps in ("none", "flat"):
+    # at a branching or merging end the body meets its neighbours half-way between the planes
+    low_kind = caps if body.start == "end" else "half"
+    high_kind = caps if body.stop == "end" else "half"
+    thin = ("none", "flat")
+    if len(z) == 1 and low_kind in thin and high_kind in thin:
         return None
-    d = positive(spacing, "spacing") if k > 1 or caps in ("half", "dome") else 1.0
+    d = positive(spacing, "spacing")
     m = lattice_size(max(len(c.points) for c in body.contours), lattice)
     sc = slice_curves([c.points for c in body.contours], z, rays, m)
     curves = sc.curves
     centers = [np.append(p.center, zk) for p, zk in zip(sc.params, z)]
-    prepend = 0
-    stack = curves
-    if caps == "dome":
-        low = capmod.dome_rings(curves[0], centers[0], d / 2, upward=False)[::-1]
-        high = capmod.dome_rings(curves[-1], centers[-1], d / 2, upward=True)
-        stack = np.concatenate([low, curves, high])
-        prepend = len(low)
+    low_rings = high_rings = np.zeros((0,) + curves.shape[1:])
+    if low_kind == "dome":
+        low_rings = capmod.dome_rings(curves[0], centers[0], d / 2, upward=False)[::-1]
+    if high_kind == "dome":
+        high_rings = capmod.dome_rings(curves[-1], centers[-1], d / 2, upward=True)
+    stack = np.concatenate([low_rings, curves, high_rings])
+    prepend = len(low_rings)
     if len(stack) >= 2:
         side, node_eval = side_surface(stack, method)
-        side_ctrl = side.control
+        columns = [side.control]
+        bottom, top = side.control[:, 0, :, 0], side.control[:, -1, :, 3]
     else:
-        # one contour, half caps: a prism of one slice spacing, centred on the contour
-        side_ctrl = np.concatenate(
-            [capmod.prism_column(curves[0], -d / 2), capmod.prism_column(curves[0], d / 2)], axis=1
-        )
-        side = BezierPatches(side_ctrl, closed_u=True)
+        columns = []
+        bottom = top = curves[0]
 
         def node_eval(j, kk):
-            return side.evaluate(j, np.ones(len(j), np.int64), np.zeros(len(j)), np.zeros(len(j)))
+            return curves[0][j, 0]
 
-        prepend = 0
-    columns = [side_ctrl]
-    bottom, top = side_ctrl[:, 0, :, 0], side_ctrl[:, -1, :, 3]
-    flat_caps = []
-    if caps == "half" and len(stack) >= 2:
-        columns = [capmod.prism_column(bottom, -d / 2), side_ctrl, capmod.prism_column(top, d / 2)]
+    if low_kind == "half":
+        columns.insert(0, capmod.prism_column(bottom, -d / 2))
         bottom = bottom.copy()
-        top = top.copy()
         bottom[..., 2] -= d / 2
+    if high_kind == "half":
+        columns.append(capmod.prism_column(top, d / 2))
+        top = top.copy()
         top[..., 2] += d / 2
-    if caps != "dome":
+    side_ctrl = np.concatenate(columns, axis=1)
+    full_cols = [side_ctrl]
+    flat_caps = []
+    first = 0
+    if low_kind != "dome":
         c_low = np.append(centers[0][:2], bottom[0, 0, 2])
+        full_cols.insert(0, capmod.fan_column(bottom, c_low, False))
+        first = 1
+        if low_kind != "none":
+            flat_caps.append((bottom, -1.0))
+    if high_kind != "dome":
         c_high = np.append(centers[-1][:2], top[0, 0, 2])
-        side_ctrl_all = np.concatenate(columns, axis=1)
-        full = np.concatenate(
-            [capmod.fan_column(bottom, c_low, False), side_ctrl_all, capmod.fan_column(top, c_high, True)],
-            axis=1,
-        )
-        side_cols = slice(1, full.shape[1] - 1)
-        flat_caps = [(bottom, -1.0), (top, 1.0)]
-    else:
-        full = side_ctrl
-        side_cols = slice(0, full.shape[1])
+        full_cols.append(capmod.fan_column(top, c_high, True))
+        if high_kind != "none":
+            flat_caps.append((top, 1.0))
+    full = np.concatenate(full_cols, axis=1)
+    side_cols = slice(first, first + side_ctrl.shape[1])
     patches = BezierPatches(full, closed_u=True)
     side_patches = BezierPatches(full[:, side_cols], closed_u=True)
     vol_pp, area_pp = patch_integrals(patches, per_patch=True)
     volume, area = float(vol_pp.sum()), float(area_pp[:, side_cols].sum())
-    if caps != "none":
-        area += sum(abs(capmod.curve_area(c)) for c, _ in flat_caps)
+    area += sum(abs(capmod.curve_area(c)) for c, _ in flat_caps)
     # deviation at the control points, evaluated on the final surface
     j = np.concatenate(sc.nodes)
     kk = np.concatenate([np.full(len(n), i + prepend) for i, n in enumerate(sc.nodes)])
     pts = np.concatenate(sc.points)
     dev = float(np.max(np.linalg.norm(node_eval(j, kk) - pts, axis=1)))
-    tri_mesh = None
+    tri_mesh = display = None
     if mesh:
         n_s = samples or max(1, min(6, int(np.sqrt(MESH_BUDGET / side_patches.n_patches))))
-        tri_mesh = tessellate_fast(side_patches, n_s)
-        if caps in ("flat", "half"):
+        tri_mesh = display = tessellate_fast(side_patches, n_s)
+        if flat_caps:
             # only vertices in the end planes can be shared with the caps
             zv = tri_mesh.vertices[:, 2]
             tol = 1e-7 * max(1.0, float(np.abs(tri_mesh.vertices).max()))
@@ -173,19 +182,24 @@ def build_body(body: Body, spacing: float, method: str = "blending", rays: int =
             n_side = tri_mesh.n_vertices
             parts = [tri_mesh] + [capmod.planar_cap_mesh(c, n_s, s) for c, s in flat_caps]
             merged = merge_meshes(parts)
+            # the unwelded copy keeps the caps' own +-z normals for shading
+            display = merged
             tri_mesh = weld(merged, candidates=np.concatenate([rim, np.arange(n_side, merged.n_vertices)]))
     if body.kind == "hole":
         patches = patches.flipped()
         if tri_mesh is not None:
-            tri_mesh = TriangleMesh(
-                tri_mesh.vertices, tri_mesh.triangles[:, ::-1].copy(),
-                None if tri_mesh.vertex_normals is None else -tri_mesh.vertex_normals,
-            )
+            tri_mesh, display = _flip(tri_mesh), _flip(display)
     return BodySurface(
-        body, patches, side_cols, tri_mesh, float(volume), float(area), dev,
+        body, patches, side_cols, tri_mesh, display, float(volume), float(area), dev,
         int(len(pts)), int(sum(int(p.turning.sum()) for p in sc.params)),
         {"n_lattice": int(curves.shape[1])},
     )
+
+
+def _flip(mesh: TriangleMesh) -> TriangleMesh:
+    """The same triangles with the opposite orientation."""
+    normals = None if mesh.vertex_normals is None else -mesh.vertex_normals
+    return TriangleMesh(mesh.vertices, mesh.triangles[:, ::-1].copy(), normals)
 
 
 @dataclass
@@ -212,6 +226,14 @@ class Reconstruction:
     def mesh(self) -> TriangleMesh | None:
         """All bodies' triangles in one mesh (None when no mesh was built)."""
         meshes = [b.mesh for b in self.bodies if b.mesh is not None]
+        if not meshes:
+            return None
+        return meshes[0] if len(meshes) == 1 else merge_meshes(meshes)
+
+    @property
+    def display_mesh(self) -> TriangleMesh | None:
+        """All bodies' display meshes (caps shaded with their own normals)."""
+        meshes = [b.display_mesh for b in self.bodies if b.display_mesh is not None]
         if not meshes:
             return None
         return meshes[0] if len(meshes) == 1 else merge_meshes(meshes)
@@ -312,7 +334,7 @@ def _save_patches(rec: Reconstruction, path: Path) -> None:
     arrays["body_kind"] = np.array([b.body.kind for b in rec.bodies])
     with atomic_path(path, suffix=".npz") as tmp:
         with open(tmp, "wb") as fh:
-            np.savez_compressed(fh, **arrays)
+            np.savez(fh, **arrays)
 
 
 def _render(mesh: TriangleMesh, path: Path) -> None:
@@ -367,18 +389,24 @@ def reconstruct(input_path, out_dir, roi=None, method: str = "blending", rays: i
         raise ValueError(f"{input_path}: nothing to reconstruct (only single-contour bodies; try --caps half)")
     t_surface = time.perf_counter() - t0
     mesh = rec.mesh
+    t_write = time.perf_counter()
     from surfaces.io import write_mesh
 
     write_mesh(mesh, out / "surface.ply")
     write_mesh(mesh, out / "surface.stl")
     _save_patches(rec, out / "patches.npz")
+    t_write = time.perf_counter() - t_write
     reference = None
+    t_ref = time.perf_counter()
     if options.get("reference", True):
         from slices.reference import compare
 
         reference = compare(rec)
+    t_ref = time.perf_counter() - t_ref
+    t_render = time.perf_counter()
     if options.get("render", True):
-        _render(mesh, out / "render.png")
+        _render(rec.display_mesh, out / "render.png")
+    t_render = time.perf_counter() - t_render
     n_out = sum(b.body.kind == "outer" for b in rec.bodies)
     summary = {
         "input": str(input_path),
@@ -408,6 +436,9 @@ def reconstruct(input_path, out_dir, roi=None, method: str = "blending", rays: i
         "chaining": _chaining_summary(rec),
         "notes": list(stack.notes),
         "surface_time_s": t_surface,
+        "write_time_s": t_write,
+        "reference_time_s": t_ref,
+        "render_time_s": t_render,
     }
     if reference is not None:
         summary["reference_bspline"] = reference

@@ -226,7 +226,16 @@ def _layout(control: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(control.reshape(p, 16, 3).transpose(1, 0, 2)).reshape(16, p * 3)
 
 
-def patch_integrals(patches: BezierPatches, order: int = 6, chunk: int = 20000,
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Cross product over the last axis (faster than ``np.cross`` on large arrays)."""
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    out[..., 0] = a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1]
+    out[..., 1] = a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2]
+    out[..., 2] = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+    return out
+
+
+def patch_integrals(patches: BezierPatches, order: int = 5, chunk: int = 20000,
                     per_patch: bool = False) -> tuple:
     """Enclosed volume and area of a patch grid by Gauss-Legendre quadrature.
 
@@ -241,7 +250,8 @@ def patch_integrals(patches: BezierPatches, order: int = 6, chunk: int = 20000,
     patches : BezierPatches
         The surface.
     order : int
-        Quadrature points per direction (at least 5).
+        Quadrature points per direction (at least 5; 5 makes the volume exact
+        and the area accurate to ~1e-8 relative on smooth CT surfaces).
     chunk : int
         Patches per block (bounds temporary memory).
     per_patch : bool
@@ -266,7 +276,7 @@ def patch_integrals(patches: BezierPatches, order: int = 6, chunk: int = 20000,
     for s in range(0, len(flat), chunk):
         c = _layout(flat[s : s + chunk])
         pt, su, sv = _contract(c, b0, b0), _contract(c, b1, b0), _contract(c, b0, b1)
-        n = np.cross(su, sv)
+        n = _cross(su, sv)
         vol[s : s + chunk] = np.sum(np.einsum("uvpx,uvpx->uvp", pt, n) * ww, axis=(0, 1)) / 3.0
         area[s : s + chunk] = np.sum(np.sqrt(np.einsum("uvpx,uvpx->uvp", n, n)) * ww, axis=(0, 1))
     if per_patch:
@@ -305,7 +315,7 @@ def tessellate_fast(patches: BezierPatches, samples: int = 2):
     ctrl = _layout(patches.control.reshape(-1, 4, 4, 3))
     shape = (n + 1, n + 1, rows, cols, 3)
     pts = _contract(ctrl, b0, b0).reshape(shape)
-    nrm = np.cross(_contract(ctrl, b1, b0), _contract(ctrl, b0, b1)).reshape(shape)
+    nrm = _cross(_contract(ctrl, b1, b0), _contract(ctrl, b0, b1)).reshape(shape)
     PI, PJ = np.meshgrid(pi, pj, indexing="ij")
     A, B = np.meshgrid(a, b, indexing="ij")
     verts = pts[A, B, PI, PJ].reshape(-1, 3)

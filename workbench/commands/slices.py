@@ -1,0 +1,118 @@
+"""``workbench slices reconstruct`` and ``workbench slices rois``: contour stacks to one surface."""
+
+from __future__ import annotations
+
+import argparse
+
+#: Methods offered on the command line (B-spline only when its module is there).
+_METHODS = ("blending", "coons", "bspline")
+
+
+def register(sub) -> None:
+    """Add ``reconstruct`` and ``rois`` to the ``slices`` group.
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+        The group's sub-parser collection.
+    """
+    p = sub.add_parser(
+        "reconstruct",
+        help="planar contours (RTSTRUCT, CT series, mask stack, contour JSON) to one "
+        "interpolating surface with volume and area",
+        description="Seed 000: the seed's control-point parameters per contour (rays from the "
+        "centroid, fold handling), a closed parabolic-blending curve per slice and parabolic "
+        "blending across slices into one grid of bicubic Bezier patches through every control "
+        "point. Several contours per plane are chained into bodies by overlap; holes are "
+        "subtracted. Writes surface.ply, surface.stl, patches.npz, summary.json and render.png.",
+    )
+    p.add_argument("input", metavar="INPUT",
+                   help="RTSTRUCT .dcm, CT series folder, mask stack (.npy, multi-page .tif, "
+                   "folder of PNGs) or contour .json")
+    p.add_argument("--roi", default=None, metavar="NAME",
+                   help="ROI name (case-insensitive) or number of an RT structure set")
+    p.add_argument("--method", default="blending", choices=_METHODS,
+                   help="side surface: blending (seed 000 parabolic blending, default), coons "
+                   "(seed 001 Coons patches over the lattice nodes), bspline (interpolating "
+                   "cubic B-spline over the lattice nodes)")
+    p.add_argument("--rays", type=int, default=64,
+                   help="rays from each contour's centroid (seed 000 eq. 1, N1 >= 3; default 64)")
+    p.add_argument("--caps", default="flat", choices=("none", "flat", "half", "dome"),
+                   help="end caps: none (open surface), flat (in the end contour planes; "
+                   "default), half (half a slice beyond, as planning systems count), dome "
+                   "(smooth closure)")
+    p.add_argument("--out", default="slices_out", help="output folder (default slices_out)")
+    p.add_argument("--hu-min", type=float, default=None,
+                   help="CT series / grey stacks: lower HU (intensity) of the object window")
+    p.add_argument("--hu-max", type=float, default=None,
+                   help="CT series / grey stacks: upper HU (intensity) of the object window")
+    p.add_argument("--spacing", default=None, metavar="Z,Y,X",
+                   help="mask stacks: voxel spacing in mm, e.g. 2.5,0.8,0.8")
+    p.add_argument("--resample", action="store_true",
+                   help="resample a CT series with unequal slice spacing onto uniform slices "
+                   "instead of failing")
+    p.add_argument("--lattice", type=float, default=2.0,
+                   help="common u lattice values per point of the largest contour (default 2)")
+    p.add_argument("--no-render", action="store_true", help="skip render.png")
+    p.set_defaults(func=_reconstruct)
+
+    r = sub.add_parser("rois", help="list the ROIs of an RT structure set",
+                       description="List ROI numbers, names, contour and plane counts.")
+    r.add_argument("file", metavar="FILE", help="RTSTRUCT .dcm")
+    r.add_argument("--json", default=None, metavar="OUT",
+                   help="also write the table to this JSON file")
+    r.set_defaults(func=_rois)
+
+
+def _reconstruct(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from slices.pipeline import reconstruct
+    from slices.surface import available_methods
+
+    if args.method not in available_methods():
+        raise ValueError(f"--method: {args.method!r} is not available here; "
+                         f"choose from {available_methods()}")
+    with tqdm(desc="bodies", unit="body", leave=False) as bar:
+
+        def progress(done: int, total: int) -> None:
+            bar.total = total
+            bar.n = done
+            bar.refresh()
+
+        summary = reconstruct(
+            args.input, args.out, roi=args.roi, method=args.method, rays=args.rays, caps=args.caps,
+            hu_min=args.hu_min, hu_max=args.hu_max, spacing=args.spacing, resample=args.resample,
+            lattice=args.lattice, render=not args.no_render, samples=None, progress=progress,
+        )
+    ref = summary.get("reference_bspline", {})
+    print(f"{summary['roi']}: {summary['n_contours']} contours on {summary['n_slices']} planes, "
+          f"{summary['n_bodies']} bodies ({summary['chaining']})")
+    print(f"volume {summary['volume_mm3']:.1f} mm^3 = {summary['volume_ml']:.3f} ml "
+          f"(slab {summary['slab_volume_mm3'] / 1000:.3f} ml), area {summary['area_mm2']:.1f} mm^2, "
+          f"{summary['n_patches']} patches")
+    dev_ref = ref.get("max_control_point_deviation_mm")
+    print(f"max control-point deviation {summary['max_control_point_deviation_mm']:.2e} mm"
+          + (f" (smoothing B-spline reference: {dev_ref:.3f} mm)" if dev_ref is not None else ""))
+    print(f"wrote {args.out}/surface.ply, surface.stl, patches.npz, summary.json"
+          + ("" if args.no_render else ", render.png") + f" in {summary['time_s']:.2f} s")
+    return 0
+
+
+def _rois(args: argparse.Namespace) -> int:
+    import json
+    from pathlib import Path
+
+    from slices.io import list_rois
+
+    rois = list_rois(args.file)
+    if args.json:
+        from surfaces.io import atomic_path
+
+        with atomic_path(Path(args.json), suffix=".json") as tmp:
+            tmp.write_text(json.dumps(rois, indent=2))
+    print(f"{'number':>6}  {'name':<24} {'contours':>8} {'planes':>6} {'max points':>10}")
+    for r in rois:
+        print(f"{r['number']:>6}  {r['name']:<24} {r['n_contours']:>8} {r['n_planes']:>6} "
+              f"{r['max_points']:>10}")
+    return 0
