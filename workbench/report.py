@@ -206,7 +206,13 @@ def _format_cell(cell, digits: int, where: str) -> tuple[str, bool]:
     if isinstance(cell, (float, np.floating)):
         if not math.isfinite(float(cell)):
             raise ValueError(f"{where}: non-finite number {cell!r}")
-        return f"{float(cell):.{digits}g}", True
+        x = float(cell)
+        if x == 0 or not 1e-3 <= abs(x) < 1e12:
+            return f"{x:.{digits}g}", True
+        # fixed-point with ``digits`` significant digits (never fewer than all integer digits)
+        decimals = max(0, digits - 1 - math.floor(math.log10(abs(x))))
+        text = f"{x:.{decimals}f}"
+        return (text.rstrip("0").rstrip(".") if "." in text else text), True
     text = str(cell)
     if not text.strip():
         raise ValueError(f"{where}: empty cell; say why the value is missing instead")
