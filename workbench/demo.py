@@ -590,7 +590,8 @@ def section_ct(ctx: Context) -> None:
         k = nums["kidney"]
         cmd_ph = ctx.cmd("synth", "phantom", "--shape", "kidney", "--spacing", str(spacing),
                          "--pixel", "0.8", "--out", str(kid))
-        cmd_rec = ctx.cmd("slices", "reconstruct", str(kid / "contours.json"), "--out", str(out))
+        cmd_rec = ctx.cmd("slices", "reconstruct", str(kid / "contours.json"), "--rays",
+                          "32" if ctx.quick else "64", "--out", str(out))
         pic = view.render(mesh, ["iso", "front", "top", "side"], (1000, 760),
                           scalars=vertex_dev, vmin=-lim, vmax=lim, cmap="coolwarm",
                           colorbar_label="dev. mm", net=_contour_segments(kid / "contours.json"),
@@ -657,8 +658,10 @@ def section_breast(ctx: Context) -> None:
         rep.figure(pic, "ct-breast",
                    "Structures of the real breast RT structure set reconstructed from their "
                    f"contours: {', '.join(rois)} (patient coordinates, mm).",
-                   ctx.cmd("slices", "reconstruct", str(rtss), "--roi", "Heart", "--out",
-                           str(ctx.out / "ct" / "heart")))
+                   " && ".join(ctx.cmd("slices", "reconstruct", str(rtss), "--roi",
+                                       f"'{roi}'" if " " in roi else roi, "--out",
+                                       str(ctx.out / "ct" / roi.lower().replace(" ", "_")))
+                               for roi in rois))
         rep.table(["structure", "contours", "our volume (cc)", "our slab volume (cc)",
                    "reference", "reference volume (cc)", "difference (%)"], rows,
                   caption="Volumes of the same contours: ours (surface, divergence theorem; slab = "

@@ -320,3 +320,25 @@ def test_hidden_net_lines(sphere):
         assert np.any(img != plain) == visible
         img = view.render(sphere, cam, (200, 200), net=seg, net_hidden=False, net_color=(1, 0, 0))
         assert np.any(img != plain)
+
+
+def test_view_command_opens_window_with_display(tmp_path, monkeypatch):
+    """With DISPLAY set, ``workbench view`` hands meshes and control nets to open3d's viewer."""
+    import open3d.visualization as vis
+
+    from surfaces.bezier import BezierPatches
+    from surfaces.io import save_patches
+    from workbench.cli import main
+
+    u = np.linspace(0.0, 3.0, 4)
+    grid = np.stack(np.meshgrid(u, u, indexing="ij"), axis=-1)
+    ctrl = np.concatenate([grid, 0.2 * np.sin(grid[..., :1] + grid[..., 1:])], axis=-1)
+    save_patches(BezierPatches(ctrl[None, None]), tmp_path / "p.npz")
+    shown = []
+    monkeypatch.setenv("DISPLAY", ":0")
+    monkeypatch.setattr(vis, "draw_geometries", lambda geoms, **kw: shown.extend(geoms))
+    assert main(["view", str(tmp_path / "p.npz"), "--net"]) == 0
+    kinds = sorted(type(g).__name__ for g in shown)
+    assert kinds == ["LineSet", "TriangleMesh"]
+    mesh = next(g for g in shown if type(g).__name__ == "TriangleMesh")
+    assert mesh.has_vertex_normals() and mesh.has_vertex_colors()
