@@ -511,8 +511,8 @@ def _jobs_from_row(row: dict[str, Any], kind: str, base: Path, where: str) -> li
             rois = list(_as_list(row.pop("roi"), where, "roi"))
         elif source.lower().endswith(".dcm") and Path(source).is_file():
             rois = _rois_with_contours(Path(source)) or [None]
-    options = {
-        name: _resolve(value, base, where, name) if name in _PATH_OPTIONS[kind] else value
+    options = {  # a path option may also be a number (a scalar intensity)
+        name: _resolve(value, base, where, name) if name in _PATH_OPTIONS[kind] and isinstance(value, str) else value
         for name, value in row.items()
     }
     _check_options(kind, options, where)
@@ -965,6 +965,8 @@ def run_batch(
                     wall = _submit_and_gather(own, steps.to_run, out, runners, finished, progress)
             else:
                 wall = _submit_and_gather(client, steps.to_run, out, runners, finished, progress)
+            # every task has ended: a folder left by a worker that died mid-job is garbage now
+            _remove_stale_tmp(out)
     n_failed = sum(row["status"] == "failed" for row in finished)
     return BatchReport(
         n_jobs=len(jobs),

@@ -252,6 +252,42 @@ def test_missing_manifest(tmp_path):
         batch.load_jobs(tmp_path / "nope.csv", "slices")
 
 
+def test_images_manifest_matches_folder_job(tmp_path):
+    """A job given as images + lights gives the figures of the same data given as a folder."""
+    (folder,) = _make_triads(tmp_path / "data", 1)
+    names = (folder / "filenames.txt").read_text().split()
+    manifest = tmp_path / "jobs.csv"
+    rel = folder.relative_to(tmp_path)
+    manifest.write_text(
+        "id,images,lights,intensities,mask,pixel_size\n"
+        f"by_images,{';'.join(str(rel / n) for n in names)},{rel}/light_directions.txt,"
+        f"{rel}/light_intensities.txt,{rel}/mask.png,0.05\n"
+    )
+    (by_images,) = batch.load_jobs(manifest, "photometric")
+    (by_folder,) = batch.discover_jobs(folder, "photometric")
+    assert by_images.input == tuple(str(folder / n) for n in names)
+    assert by_images.options["lights"] == str(folder / "light_directions.txt")
+    out = tmp_path / "out"
+    out.mkdir()
+    rows = [batch.execute_job(job, out) for job in (by_images, by_folder)]
+    assert [r["status"] for r in rows] == ["ok", "ok"], rows
+    for key in batch.FIGURES["photometric"]:
+        assert float(rows[0][key]) == pytest.approx(float(rows[1][key]), rel=1e-6), key
+    assert sorted(p.name for p in out.iterdir()) == sorted([by_images.id, by_folder.id])
+
+
+def test_failing_job_leaves_nothing(tmp_path):
+    (folder,) = _make_triads(tmp_path / "data", 1)
+    (folder / "002.png").write_bytes(b"\x89PNG truncated")
+    (job,) = batch.discover_jobs(folder, "photometric")
+    out = tmp_path / "out"
+    out.mkdir()
+    row = batch.execute_job(job, out)
+    assert row["status"] == "failed" and "002.png" in row["error"] and "\n" not in row["error"]
+    assert "Traceback" in row["traceback"]
+    assert list(out.iterdir()) == []
+
+
 # --------------------------------------------------------------------------- discovery and ids
 
 
