@@ -638,7 +638,7 @@ def section_breast(ctx: Context) -> None:
         for roi in rois:
             out = ctx.out / "ct" / roi.lower().replace(" ", "_")
             s = reconstruct(rtss, out, roi=roi, caps="flat", render=False, reference=False,
-                            samples=2 if roi == "Lt Lung" else 3)
+                            rays=32 if ctx.quick else 64, samples=2 if roi == "Lt Lung" else 3)
             ctx.step(f"ct: {roi} reconstructed")
             refs = HEART_REFERENCE_CC if roi == "Heart" else LUNG_REFERENCE_CC
             nums[roi] = {"volume_cc": s["volume_ml"], "slab_volume_cc": s["slab_volume_ml"],
@@ -659,7 +659,8 @@ def section_breast(ctx: Context) -> None:
                    "Structures of the real breast RT structure set reconstructed from their "
                    f"contours: {', '.join(rois)} (patient coordinates, mm).",
                    " && ".join(ctx.cmd("slices", "reconstruct", str(rtss), "--roi",
-                                       f"'{roi}'" if " " in roi else roi, "--out",
+                                       f"'{roi}'" if " " in roi else roi, "--rays",
+                                       "32" if ctx.quick else "64", "--out",
                                        str(ctx.out / "ct" / roi.lower().replace(" ", "_")))
                                for roi in rois))
         rep.table(["structure", "contours", "our volume (cc)", "our slab volume (cc)",
