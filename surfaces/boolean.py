@@ -46,6 +46,7 @@ from surfaces.validate import as_array, positive
 OPS: tuple[str, ...] = ("union", "intersection", "difference")
 FILTERS: tuple[str, ...] = ("taubin", "laplacian", "none")
 PATCH_SAMPLES = 8  # subdivisions per patch side when a BezierPatches model is given instead of a mesh
+FLAT_SHELL = 1e-13  # result shells enclosing less than this times (input bounding-box diagonal)^3 are sheets
 
 
 # --------------------------------------------------------------------------- helpers
@@ -625,6 +626,33 @@ def _from_manifold(solid, centre: np.ndarray) -> tuple[np.ndarray, np.ndarray, n
     return vertices, tris, origin
 
 
+def _drop_flat_shells(vertices: np.ndarray, triangles: np.ndarray, origin: np.ndarray, scale: float):
+    """Remove closed shells that enclose no volume; returns (triangles, origin, number removed).
+
+    Where faces of A and B touch with partial overlap, manifold3d can return the
+    touching patch as a closed double-sided sheet: a valid oriented 2-manifold
+    with zero volume, not part of the solid. Shells enclosing at most
+    ``FLAT_SHELL * scale**3`` are dropped (per-shell volumes by one bincount).
+    """
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    if len(triangles) == 0:
+        return triangles, origin, 0
+    n_v = len(vertices)
+    e = _directed_edges(triangles)
+    _, label = connected_components(coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(n_v, n_v)))
+    shell = label[triangles[:, 0]]
+    p = vertices - 0.5 * (vertices.min(axis=0) + vertices.max(axis=0))
+    contrib = np.einsum("ij,ij->i", p[triangles[:, 0]], np.cross(p[triangles[:, 1]], p[triangles[:, 2]])) / 6.0
+    volume = np.bincount(shell, weights=contrib)
+    flat = np.abs(volume) <= FLAT_SHELL * scale**3
+    if not np.any(flat[shell]):
+        return triangles, origin, 0
+    keep = ~flat[shell]
+    return triangles[keep], origin[keep], int(np.count_nonzero(flat & (np.bincount(shell) > 0)))
+
+
 def _curves_between(vertices, triangles, from_a: np.ndarray, table) -> tuple[list[np.ndarray], list[bool]]:
     """Polylines along the edges where a triangle from A meets a triangle from B."""
     if len(triangles) == 0:
@@ -695,6 +723,7 @@ class BooleanResult:
             "curve_points": [len(c) for c in self.curves],
             "curve_lengths": lengths,
             "curves_closed": list(self.curves_closed),
+            "flat_shells_removed": self.check.get("flat_shells_removed", 0),
             "repairs": self.repairs,
         }
 
@@ -767,10 +796,13 @@ def boolean(a, b, op: str = "union", *, repair: bool = False, names: Sequence[st
         "difference": solid_a - solid_b,
     }[op]
     vertices, triangles, origin = _from_manifold(result, centre)
+    scale = float(np.linalg.norm(hi - lo))
+    triangles, origin, n_flat = _drop_flat_shells(vertices, triangles, origin, scale)
     mesh = _make_mesh(vertices, triangles)
     vertices, triangles = mesh.vertices, mesh.triangles
     table = _edge_table(triangles, len(vertices))
     info = _diagnose(vertices, triangles, f"{op} result", table)
+    info["flat_shells_removed"] = n_flat
     if len(triangles) and not (info["closed"] and info["oriented"]):
         raise RuntimeError("; ".join(info["problems"]))
     curves, closed = _curves_between(vertices, triangles, origin == id_a, table)
@@ -923,7 +955,9 @@ def compose(
     result = grown
     if minus:
         result = manifold3d.Manifold.batch_boolean([grown, *solids[1 + len(plus) :]], manifold3d.OpType.Subtract)
-    vertices, triangles, _ = _from_manifold(result, centre)
+    vertices, triangles, origin = _from_manifold(result, centre)
+    scale = float(np.linalg.norm(all_v.max(axis=0) - all_v.min(axis=0)))
+    triangles, _, n_flat = _drop_flat_shells(vertices, triangles, origin, scale)
     mesh = _make_mesh(vertices, triangles)
     info = check_solid(mesh, "composition")
     if len(mesh.triangles) and not (info["closed"] and info["oriented"]):
@@ -939,6 +973,7 @@ def compose(
         "removed_volume": signed_volume(gv, gt) - volume,
         "n_triangles": len(mesh.triangles),
         "watertight": bool(info["closed"] or len(mesh.triangles) == 0),
+        "flat_shells_removed": n_flat,
         "repairs": {n: p[2] for n, p in zip([base_name, *plus_names, *minus_names], prepared)} if repair else {},
     }
     return mesh, summary

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from surfaces import boolean as bl
 from surfaces.coons import from_grid
@@ -440,3 +442,40 @@ def test_reconstructed_tumour_bed_inside_its_block(shared_data, tmp_path):
     assert summary["removed_volume"] == pytest.approx(res["intersection"].volume, rel=1e-9)
     # the bed pokes through the block's wall in one place: one closed intersection curve
     assert res["difference"].curves_closed == (True,)
+
+
+# ----------------------------------------------------------------------------- property test
+_corner = st.tuples(*[st.integers(0, 4)] * 3)
+
+
+@settings(max_examples=40, deadline=None)
+@given(_corner, _corner, _corner, _corner)
+def test_random_grid_boxes_exact(p, q, r, s):
+    """Boxes on a coarse integer grid: touching, coplanar, shared edges and corners are frequent."""
+    lo1, hi1 = np.minimum(p, q), np.maximum(p, q) + 1
+    lo2, hi2 = np.minimum(r, s), np.maximum(r, s) + 1
+    res = all_ops(box(lo1, hi1), box(lo2, hi2))
+    inter = overlap_box_volume(lo1, hi1, lo2, hi2)
+    va, vb = float(np.prod(hi1 - lo1)), float(np.prod(hi2 - lo2))
+    assert res["intersection"].volume == pytest.approx(inter, rel=1e-12, abs=1e-12)
+    assert res["union"].volume == pytest.approx(va + vb - inter, rel=1e-12)
+    assert res["difference"].volume == pytest.approx(va - inter, rel=1e-12, abs=1e-12)
+    assert_identities(res)
+
+
+@settings(max_examples=30, deadline=None)
+@given(_corner, _corner, _corner, _corner, st.integers(0, 2**32 - 1))
+def test_random_grid_boxes_rotated(p, q, r, s, seed):
+    """The same boxes under a common random rotation: the coincidences hold only up to rounding."""
+    from scipy.spatial.transform import Rotation
+
+    rot = Rotation.random(random_state=seed).as_matrix()
+    lo1, hi1 = np.minimum(p, q), np.maximum(p, q) + 1
+    lo2, hi2 = np.minimum(r, s), np.maximum(r, s) + 1
+    a, b = box(lo1, hi1), box(lo2, hi2)
+    res = all_ops(TriangleMesh(a.vertices @ rot.T, a.triangles), TriangleMesh(b.vertices @ rot.T, b.triangles))
+    inter = overlap_box_volume(lo1, hi1, lo2, hi2)
+    va, vb = float(np.prod(hi1 - lo1)), float(np.prod(hi2 - lo2))
+    assert res["intersection"].volume == pytest.approx(inter, rel=1e-9, abs=1e-9)
+    assert res["union"].volume == pytest.approx(va + vb - inter, rel=1e-9)
+    assert_identities(res)
