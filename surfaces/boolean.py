@@ -676,7 +676,9 @@ class BooleanResult:
     ----------
     mesh : TriangleMesh
         Closed, consistently and outward oriented result (may be empty, e.g.
-        the intersection of disjoint solids).
+        the intersection of disjoint solids or of solids that only touch;
+        zero-volume sheets left where faces touch are removed and counted in
+        ``check["flat_shells_removed"]``).
     op : str
         ``"union"``, ``"intersection"`` or ``"difference"`` (A minus B).
     volume_a, volume_b, volume : float
@@ -932,7 +934,8 @@ def compose(
     summary : dict
         ``volume_base``, ``volumes_minus``, ``volumes_plus`` (lists),
         ``volume`` (result), ``removed_volume`` (volume of base u plus minus
-        the result), ``names``, ``repairs``, ``n_triangles``, ``watertight``.
+        the result), ``names``, ``repairs``, ``n_triangles``, ``watertight``,
+        ``flat_shells_removed``.
     """
     import manifold3d
 
