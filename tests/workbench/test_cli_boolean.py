@@ -120,3 +120,24 @@ def test_missing_file(tmp_path, capsys):
         ]
     )
     assert code == 2 and "no such mesh file" in capsys.readouterr().err
+
+
+def test_patch_files_as_input(tmp_path):
+    from surfaces.coons import from_grid
+    from surfaces.io import save_patches
+    from surfaces.measure import volume
+
+    th = np.linspace(0, np.pi, 9)
+    ph = np.linspace(0, 2 * np.pi, 12, endpoint=False)
+    tt, pp = np.meshgrid(th, ph, indexing="ij")
+    unit = np.stack([np.sin(tt) * np.cos(pp), np.sin(tt) * np.sin(pp), np.cos(tt)], -1)
+    pa = from_grid(unit * 10.0, closed_v=True)
+    a, b = tmp_path / "a.npz", tmp_path / "b.ply"
+    save_patches(pa, a)
+    write_mesh(box([0, 0, 0], [20, 20, 20]), b)
+    out = tmp_path / "quarter.ply"
+    assert main(["surfaces", "boolean", str(a), str(b), "--op", "intersection", "--out", str(out)]) == 0
+    summary = json.loads(out.with_suffix(".json").read_text())
+    # one octant of the sphere, from the tessellation (8 x 8 per patch) of the patch model
+    assert summary["volume"] == pytest.approx(volume(pa) / 8, rel=5e-3)
+    assert summary["volume"] == pytest.approx(summary["volume_a"] / 8, rel=1e-9)

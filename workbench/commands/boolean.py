@@ -32,8 +32,8 @@ def register(subparsers) -> None:
         "meshes (PLY/OBJ/STL). Writes the result mesh and a JSON summary with the volumes "
         "(same name as --out, suffix .json).",
     )
-    p.add_argument("a", type=Path, help="first closed mesh A (.ply, .obj or .stl)")
-    p.add_argument("b", type=Path, help="second closed mesh B (.ply, .obj or .stl)")
+    p.add_argument("a", type=Path, help="first closed solid A: mesh (.ply, .obj, .stl) or patch file (.npz)")
+    p.add_argument("b", type=Path, help="second closed solid B: mesh (.ply, .obj, .stl) or patch file (.npz)")
     p.add_argument("--op", choices=OPS, required=True, help="operation; difference is A minus B")
     p.add_argument("--out", type=Path, required=True, help="result mesh (.ply, .obj or .stl)")
     p.add_argument(
@@ -70,6 +70,17 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
+def _read_solid(path: Path):
+    """A mesh file, or a closed patch model (.npz, tessellated by ``surfaces.boolean``)."""
+    from surfaces.io import load_patches, read_mesh
+
+    if path.suffix.lower() == ".npz":
+        if not path.is_file():
+            raise FileNotFoundError(f"{path}: no such patch file")
+        return load_patches(path)
+    return read_mesh(path)
+
+
 def _write_json(path: Path, data: dict) -> None:
     from surfaces.io import atomic_path
 
@@ -91,14 +102,14 @@ def run(args: argparse.Namespace) -> int:
         0 on success.
     """
     from surfaces.boolean import boolean, loop_smooth, mesh_volume
-    from surfaces.io import MESH_FORMATS, read_mesh, write_mesh
+    from surfaces.io import MESH_FORMATS, write_mesh
 
     if args.out.suffix.lower() not in MESH_FORMATS:
         raise ValueError(f"--out: unsupported mesh format {args.out.suffix!r}; use {', '.join(MESH_FORMATS)}")
     if args.smooth < 0 or args.filter_iterations < 0:
         raise ValueError("--smooth, --filter-iterations: must be >= 0")
-    a = read_mesh(args.a)
-    b = read_mesh(args.b)
+    a = _read_solid(args.a)
+    b = _read_solid(args.b)
     result = boolean(a, b, args.op, repair=args.repair, names=(str(args.a), str(args.b)))
     mesh = result.mesh
     summary = {"a": str(args.a), "b": str(args.b), "out": str(args.out), **result.summary()}
