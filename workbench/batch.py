@@ -268,7 +268,8 @@ def discover_jobs(root: str | os.PathLike, kind: str, defaults: Mapping[str, Any
     per ROI that has contours (:func:`slices.io.list_rois`), and every
     ``contours.json`` in a folder that holds no RTSTRUCT (a phantom folder that
     carries both gives the structure set's jobs only). Hidden folders (``.name``,
-    e.g. unfinished batch folders) are not searched.
+    e.g. unfinished batch folders) and finished batch job folders (holding a
+    ``_COMPLETE`` marker, e.g. when OUT lies below ``root``) are not searched.
 
     Parameters
     ----------
@@ -378,10 +379,18 @@ def _rois_with_contours(path: Path) -> list[str]:
 
 
 def _walk(root: Path, pattern: str) -> Iterator[Path]:
+    """Files matching ``pattern`` below ``root``, outside hidden folders and finished job folders.
+
+    A batch's OUT may lie inside the folder it searches: its job folders (they hold
+    the ``_COMPLETE`` marker) and unfinished ones (hidden ``.tmp-``) are not inputs.
+    """
     for path in root.rglob(pattern):
         rel = path.relative_to(root).parts
-        if not any(part.startswith(".") for part in rel[:-1]) and path.is_file():
-            yield path
+        if any(part.startswith(".") for part in rel[:-1]) or not path.is_file():
+            continue
+        if any((root.joinpath(*rel[:i]) / COMPLETE_MARKER).is_file() for i in range(1, len(rel))):
+            continue
+        yield path
 
 
 def _is_rtstruct(path: Path) -> bool:

@@ -292,9 +292,10 @@ def test_failing_job_leaves_nothing(tmp_path):
 
 
 def test_discover_photometric_folders(tmp_path):
-    for rel in ("a/t1", "a/t2", "b", ".tmp-x-123/t3", "c/nested/deep"):
+    for rel in ("a/t1", "a/t2", "b", ".tmp-x-123/t3", "c/nested/deep", "out/a-t1/copy"):
         (tmp_path / rel).mkdir(parents=True)
         (tmp_path / rel / "light_directions.txt").write_text("0 0 1\n")
+    (tmp_path / "out" / "a-t1" / batch.COMPLETE_MARKER).write_text("{}")  # a finished job folder
     (tmp_path / "empty").mkdir()
     jobs = batch.discover_jobs(tmp_path, "photometric")
     assert [j.id for j in jobs] == ["a-t1", "a-t2", "b", "c-nested-deep"]
@@ -373,3 +374,21 @@ def test_one_line_error():
     err = batch.one_line_error(ValueError("lights: bad\nsecond line"))
     assert err == "ValueError: lights: bad"
     assert len(batch.one_line_error(RuntimeError("x" * 1000))) == 300
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["slices", "{tmp}/missing.csv"], "no such file or folder"),
+        (["photometric", "{tmp}/data", "--option", "render"], "expected KEY=VALUE"),
+        (["photometric", "{tmp}/data", "--scheduler", "localhost:8786"], "expected 'local' or tcp://HOST:PORT"),
+        (["photometric", "{tmp}/data", "--workers", "0"], "workers: must be a finite positive"),
+    ],
+)
+def test_cli_bad_input_is_one_line_and_exit_2(tmp_path, capsys, args, message):
+    (tmp_path / "data" / "t").mkdir(parents=True)
+    (tmp_path / "data" / "t" / "light_directions.txt").write_text("0 0 1\n")
+    argv = ["batch", *(a.format(tmp=tmp_path) for a in args), "--out", str(tmp_path / "out")]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert message in err and len(err.splitlines()) == 1
