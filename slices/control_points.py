@@ -88,7 +88,6 @@ def self_intersections(points) -> np.ndarray:
         to vertex ``i + 1`` (wrapping).
     """
     p = as_array(points, "points", shape=(None, 2))
-    n = len(p)
     a, b = p, np.roll(p, -1, axis=0)
     ii, jj = _candidate_pairs(a, b)
     if not len(ii):
@@ -186,7 +185,9 @@ def clean_contour(points, name: str = "contour") -> np.ndarray:
     if len(p) < 3:
         raise ValueError(f"{name}: needs at least 3 distinct points, got {len(p)}")
     area = signed_area(p)
-    if abs(area) < 1e-12 * float(np.ptp(p, axis=0).max()) ** 2:
+    extent = float(np.ptp(p, axis=0).max())
+    d, e = p[1:] - p[0], p[-1] - p[0]
+    if extent == 0 or np.all(np.abs(d[:, 0] * e[1] - d[:, 1] * e[0]) <= 1e-12 * extent**2):
         raise ValueError(f"{name}: has zero area (all points on one line)")
     bad = self_intersections(p)
     if len(bad):

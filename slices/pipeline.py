@@ -74,7 +74,7 @@ class BodySurface:
 
 def build_body(body: Body, spacing: float, method: str = "blending", rays: int = 64,
                caps: str = "flat", lattice: float = 2.0, samples: int | None = 2,
-               mesh: bool = True) -> BodySurface | None:
+               mesh: bool = True, correspondence: str = "seed") -> BodySurface | None:
     """Surface, volume and area of one body (seed 000 sections II-III).
 
     Parameters
@@ -95,6 +95,8 @@ def build_body(body: Body, spacing: float, method: str = "blending", rays: int =
         Tessellation subdivisions per patch side (None: from :data:`MESH_BUDGET`).
     mesh : bool
         Build the triangle mesh.
+    correspondence : {"seed", "arc"}
+        ``u`` that links the slices (see :func:`slices.surface.slice_curves`).
 
     Returns
     -------
@@ -114,7 +116,7 @@ def build_body(body: Body, spacing: float, method: str = "blending", rays: int =
         return None
     d = positive(spacing, "spacing")
     m = lattice_size(max(len(c.points) for c in body.contours), lattice)
-    sc = slice_curves([c.points for c in body.contours], z, rays, m)
+    sc = slice_curves([c.points for c in body.contours], z, rays, m, correspondence=correspondence)
     curves = sc.curves
     centers = [np.append(p.center, zk) for p, zk in zip(sc.params, z)]
     low_rings = high_rings = np.zeros((0,) + curves.shape[1:])
@@ -246,7 +248,8 @@ class Reconstruction:
 
 def reconstruct_contours(contours: list[Contour], spacing: float | None = None, method: str = "blending",
                          rays: int = 64, caps: str = "flat", lattice: float = 2.0,
-                         samples: int | None = 2, mesh: bool = True, progress=None) -> Reconstruction:
+                         samples: int | None = 2, mesh: bool = True, progress=None,
+                         correspondence: str = "seed") -> Reconstruction:
     """Reconstruct a structure from validated contours in memory.
 
     Parameters
@@ -265,6 +268,8 @@ def reconstruct_contours(contours: list[Contour], spacing: float | None = None, 
         Build triangle meshes.
     progress : callable, optional
         Called with the number of finished bodies and the total.
+    correspondence : {"seed", "arc"}
+        ``u`` that links the slices (see :func:`slices.surface.slice_curves`).
 
     Returns
     -------
@@ -289,7 +294,7 @@ def reconstruct_contours(contours: list[Contour], spacing: float | None = None, 
         samples = max(1, min(6, int(np.sqrt(MESH_BUDGET / max(est, 1)))))
     built, skipped = [], []
     for i, body in enumerate(bodies):
-        b = build_body(body, d, method, rays, caps, lattice, samples, mesh)
+        b = build_body(body, d, method, rays, caps, lattice, samples, mesh, correspondence)
         (skipped if b is None else built).append(body if b is None else b)
         if progress is not None:
             progress(i + 1, len(bodies))
@@ -364,7 +369,8 @@ def reconstruct(input_path, out_dir, roi=None, method: str = "blending", rays: i
     caps : {"none", "flat", "half", "dome"}
     **options
         ``hu_min``, ``hu_max``, ``spacing`` (z,y,x for mask stacks), ``resample``,
-        ``lattice`` (default 2.0), ``samples``, ``render`` (default True),
+        ``lattice`` (default 2.0), ``samples``, ``correspondence`` ("seed" or "arc"),
+        ``render`` (default True),
         ``reference`` (default True: smoothing B-spline comparison), ``progress``.
 
     Returns
@@ -374,7 +380,7 @@ def reconstruct(input_path, out_dir, roi=None, method: str = "blending", rays: i
     """
     t0 = time.perf_counter()
     known = {"hu_min", "hu_max", "spacing", "resample", "lattice", "samples", "render", "reference",
-             "progress"}
+             "progress", "correspondence"}
     unknown = set(options) - known
     if unknown:
         raise ValueError(f"options: unknown {sorted(unknown)}")
@@ -384,7 +390,7 @@ def reconstruct(input_path, out_dir, roi=None, method: str = "blending", rays: i
                  options.get("spacing"), bool(options.get("resample", False)))
     rec = reconstruct_contours(stack.contours, None, method, int(rays), caps,
                                float(options.get("lattice", 2.0)), options.get("samples"),
-                               True, options.get("progress"))
+                               True, options.get("progress"), options.get("correspondence", "seed"))
     if not rec.bodies:
         raise ValueError(f"{input_path}: nothing to reconstruct (only single-contour bodies; try --caps half)")
     t_surface = time.perf_counter() - t0
@@ -415,6 +421,7 @@ def reconstruct(input_path, out_dir, roi=None, method: str = "blending", rays: i
         "method": method,
         "caps": caps,
         "rays": int(rays),
+        "correspondence": options.get("correspondence", "seed"),
         "volume_mm3": rec.volume_mm3,
         "volume_ml": rec.volume_mm3 / 1000.0,
         "area_mm2": rec.area_mm2,

@@ -71,8 +71,20 @@ def lattice_size(max_points: int, factor: float = 2.0) -> int:
     return max(4, int(max_points), int(np.ceil(f * max_points)))
 
 
+def _geometry_parameters(points: np.ndarray, kind: str) -> np.ndarray:
+    """Parameters that shape the curve between points: seed, chord length or centripetal."""
+    seg = np.linalg.norm(np.roll(points, -1, axis=0) - points, axis=1)
+    if kind == "centripetal":
+        seg = np.sqrt(seg)
+    elif kind != "chord":
+        raise ValueError(f"geometry: must be 'chord' or 'centripetal', got {kind!r}")
+    t = np.concatenate([[0.0], np.cumsum(seg)])
+    return t[:-1] / t[-1]
+
+
 def slice_curves(contours, z, n_rays: int = 64, n_lattice: int | None = None,
-                 start_angle: float = 0.0) -> SliceCurves:
+                 start_angle: float = 0.0, geometry: str = "centripetal",
+                 correspondence: str = "seed") -> SliceCurves:
     """Closed parabolic-blending curve of every slice, cut on a common lattice.
 
     Parameters
@@ -87,6 +99,16 @@ def slice_curves(contours, z, n_rays: int = 64, n_lattice: int | None = None,
         Lattice size ``M``; default :func:`lattice_size` of the largest contour.
     start_angle : float
         Direction of ray 0 (radians from +x), common to all slices.
+    geometry : {"centripetal", "chord"}
+        Parameters that shape each slice's parabolic-blending curve between its
+        points (eqs. 6-12). The seed's ``u`` of eqs. 1-5 can crowd many points
+        into a short parameter range where a contour folds, which makes the
+        blended parabolas overshoot; the curve is therefore built on
+        centripetal (default) or chord-length parameters and reparameterised
+        piecewise linearly onto ``u``, so every point still sits at its ``u``.
+    correspondence : {"seed", "arc"}
+        Which ``u`` links the slices: the seed's parameters (eqs. 1-5, default)
+        or normalised arc length from support point 0.
 
     Returns
     -------
@@ -97,12 +119,24 @@ def slice_curves(contours, z, n_rays: int = 64, n_lattice: int | None = None,
     m = n_lattice or lattice_size(max(len(p.u) for p in params))
     curves, nodes, pts3 = [], [], []
     for par, zk in zip(params, zz):
-        q = quantize(par.u, m)
+        if correspondence == "seed":
+            u = par.u
+        elif correspondence != "arc":
+            raise ValueError(f"correspondence: must be 'seed' or 'arc', got {correspondence!r}")
+        else:
+            # arc length from support point 0 (the same ray on every slice)
+            seg = np.linalg.norm(np.diff(np.vstack([par.support[:1], par.points, par.support[:1]]), axis=0), axis=1)
+            cum = np.cumsum(seg)
+            u = cum[:-1] / cum[-1]
+        q = quantize(u, m)
         p3 = np.column_stack([par.points, np.full(len(par.points), zk)])
-        ctrl, _ = blending.overhauser_curve(p3, q / m, closed=True)
-        # the curve's period is [q0/M, q0/M + 1]: cut it there, then roll to start at u = 0
-        breaks = (q[0] + np.arange(m + 1)) / m
-        knots = np.append(q, q[0] + m) / m
+        t = _geometry_parameters(par.points, geometry)
+        ctrl, knots = blending.overhauser_curve(p3, t, closed=True)
+        # lattice value j/M sits at t(j/M), t piecewise linear through (q_i/M, t_i): on every
+        # lattice interval the curve is one cubic piece, cut exactly (Bezier points do not
+        # depend on the affine parameter of the interval); the period starts at u = q0/M
+        u_nodes = np.append(q, q[0] + m)
+        breaks = np.interp(q[0] + np.arange(m + 1), u_nodes, knots)
         cut = blending.restrict_curve(ctrl, knots, breaks)
         curves.append(np.roll(cut, q[0], axis=0))
         nodes.append(q)

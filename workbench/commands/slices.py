@@ -53,6 +53,9 @@ def register(sub) -> None:
                    "instead of failing")
     p.add_argument("--lattice", type=float, default=2.0,
                    help="common u lattice values per point of the largest contour (default 2)")
+    p.add_argument("--correspondence", default="seed", choices=("seed", "arc"),
+                   help="u that links the slices: seed (eqs. 1-5: rays, turning points, chord "
+                   "length; default) or arc (normalised arc length from the first ray)")
     p.add_argument("--no-render", action="store_true", help="skip render.png")
     p.set_defaults(func=_reconstruct)
 
@@ -84,6 +87,7 @@ def _reconstruct(args: argparse.Namespace) -> int:
             args.input, args.out, roi=args.roi, method=args.method, rays=args.rays, caps=args.caps,
             hu_min=args.hu_min, hu_max=args.hu_max, spacing=args.spacing, resample=args.resample,
             lattice=args.lattice, render=not args.no_render, samples=None, progress=progress,
+            correspondence=args.correspondence,
         )
     ref = summary.get("reference_bspline", {})
     print(f"{summary['roi']}: {summary['n_contours']} contours on {summary['n_slices']} planes, "

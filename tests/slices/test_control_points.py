@@ -1,0 +1,132 @@
+"""Seed 000 control-point parameters (eqs. 1-5), contour checks and orientation."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from slices import control_points as cp
+
+
+def _ellipse(n, a=30.0, b=20.0, phase=0.0, center=(0.0, 0.0)):
+    t = np.linspace(0, 2 * np.pi, n, endpoint=False) + phase
+    return np.stack([center[0] + a * np.cos(t), center[1] + b * np.sin(t)], 1)
+
+
+def _folded(n=240):
+    """A 'C' outline: thick arc, opening at +x; the centroid lies inside the opening."""
+    ang = np.linspace(0.5, 2 * np.pi - 0.5, n // 2)
+    outer = np.stack([40 * np.cos(ang), 40 * np.sin(ang)], 1)
+    inner = np.stack([22 * np.cos(ang[::-1]), 22 * np.sin(ang[::-1])], 1)
+    return np.vstack([outer, inner])
+
+
+def _spiral_fold(n=400):
+    """A star-like outline with a fold: one arm bends back over a ray (non-star-shaped)."""
+    t = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    r = 30 + 8 * np.sin(3 * t)
+    theta = t + 0.5 * np.sin(3 * t)  # the polar angle runs backwards on part of each lobe
+    return np.stack([r * np.cos(theta), r * np.sin(theta)], 1)
+
+
+@pytest.mark.parametrize("n_rays", [3, 16, 64])
+@pytest.mark.parametrize("shape", ["ellipse", "c", "fold"])
+def test_parameters_monotone_and_start_at_ray0(n_rays, shape):
+    pts = {"ellipse": _ellipse(90, center=(5, -3)), "c": _folded(), "fold": _spiral_fold()}[shape]
+    pts = cp.clean_contour(pts)
+    par = cp.parameterize(pts, n_rays)
+    assert np.all(np.diff(par.u) > 0) and par.u[0] >= 0 and par.u[-1] < 1
+    assert len(par.support) == n_rays
+    # support point 0 lies on the ray along +x from the ray origin
+    d = par.support[0] - par.center
+    assert abs(d[1]) < 1e-9 * np.linalg.norm(d) + 1e-9 and d[0] > 0
+    # every point is one of the input points, order kept (rotated)
+    k = int(np.flatnonzero(np.all(pts == par.points[0], axis=1))[0])
+    np.testing.assert_array_equal(par.points, np.roll(pts, -k, axis=0))
+
+
+def test_points_on_rays_get_k_over_n1():
+    # eq. 1: vertices exactly on the rays of a regular polygon get u_k = k / N1
+    n1 = 12
+    ang = 2 * np.pi * np.arange(n1) / n1
+    pts = np.stack([np.cos(ang), np.sin(ang)], 1) * 10
+    par = cp.parameterize(pts, n1)
+    np.testing.assert_allclose(par.u, np.arange(n1) / n1, atol=1e-12)
+
+
+def test_chord_length_inside_segments():
+    # eq. 5: points between two support points split the parameter by arc length
+    n1 = 4
+    pts = np.array([[10, 0], [10, 5], [10, 10], [0, 10], [-10, 10], [-10, 0], [-10, -10], [0, -10], [10, -10]], float)
+    par = cp.parameterize(pts, n1)
+    # (10, 5) lies a quarter of the arc length from (10, 0) to (0, 10) -> u = 0.25 / 4 * ... check ratio
+    u = dict(zip(map(tuple, par.points), par.u))
+    seg = np.array([0, 5, 10, 20])  # arc length from (10,0): (10,5), (10,10), (0,10)
+    np.testing.assert_allclose([u[(10.0, 5.0)], u[(10.0, 10.0)]], seg[1:3] / seg[3] * 0.25)
+
+
+def test_turning_points_in_folds_get_even_parameters():
+    par = cp.parameterize(cp.clean_contour(_spiral_fold()), 64)
+    assert par.turning.sum() > 0 and par.turning.sum() % 2 == 0
+    # eq. 4: inside a segment the turning points split [u_k, u_k+1] evenly
+    seg = np.floor(par.u[par.turning] * 64 + 1e-9).astype(int)
+    for s in np.unique(seg):
+        ut = np.sort(par.u[par.turning][seg == s])
+        frac = ut * 64 - s
+        np.testing.assert_allclose(frac, np.arange(1, len(ut) + 1) / (len(ut) + 1), atol=1e-9)
+
+
+def test_tangent_ray_keeps_monotone():
+    # a vertex exactly on ray 1 where the contour touches the ray and turns back
+    pts = np.array([[10, 0], [8, 8], [7.0, 7.0], [0, 10], [-10, 0], [0, -10]], float)
+    par = cp.parameterize(cp.clean_contour(pts), 8)
+    assert np.all(np.diff(par.u) > 0)
+
+
+def test_centroid_outside_uses_interior_point():
+    pts = cp.clean_contour(_folded())
+    assert not cp.points_in_polygon(cp.centroid(pts)[None], pts)[0]
+    par = cp.parameterize(pts, 32)
+    assert cp.points_in_polygon(par.center[None], pts)[0]
+
+
+def test_quantize_keeps_order():
+    u = np.array([0.0, 1e-4, 2e-4, 0.3, 0.3001, 0.9999])
+    q = cp.quantize(u, 10)
+    assert np.all(np.diff(q) > 0) and q.min() >= 0 and q.max() < 10
+    with pytest.raises(ValueError, match="cannot hold"):
+        cp.quantize(np.linspace(0, 0.9, 11), 10)
+
+
+def test_clean_contour_orients_and_checks():
+    cw = _ellipse(20)[::-1]
+    out = cp.clean_contour(np.vstack([cw, cw[:1]]))  # repeated closing point dropped
+    assert len(out) == 20 and cp.signed_area(out) > 0
+    with pytest.raises(ValueError, match="at least 3"):
+        cp.clean_contour([[0, 0], [1, 1], [1, 1]])
+    with pytest.raises(ValueError, match="self-intersecting"):
+        cp.clean_contour([[0, 0], [10, 10], [10, 0], [0, 10]])
+    with pytest.raises(ValueError, match="zero area"):
+        cp.clean_contour([[0, 0], [1, 1], [2, 2]])
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_self_intersections_match_brute_force(seed):
+    rng = np.random.default_rng(seed)
+    n = 25
+    pts = rng.uniform(0, 10, (n, 2))
+    got = {tuple(p) for p in cp.self_intersections(pts)}
+    a, b = pts, np.roll(pts, -1, axis=0)
+
+    def orient(p, q, r):
+        return np.sign((q[0] - p[0]) * (r[1] - p[1]) - (q[1] - p[1]) * (r[0] - p[0]))
+
+    want = set()
+    for i in range(n):
+        for j in range(i + 2, n):
+            if i == 0 and j == n - 1:
+                continue
+            if (orient(a[i], b[i], a[j]) != orient(a[i], b[i], b[j])
+                    and orient(a[j], b[j], a[i]) != orient(a[j], b[j], b[i])):
+                want.add((i, j))
+    assert got == want
