@@ -240,7 +240,7 @@ def section_inspection(ctx: Context) -> None:
 
         data = read_folder(folder)
         lights = np.asarray(scene["lights_nominal"], float)
-        pics = [im.to_uint8(img, vmax=1.0) for img in data.images]
+        pics = [im.enlarge(im.to_uint8(img, vmax=1.0)) for img in data.images]
         slants = np.degrees(np.arccos(np.clip(lights[:, 2], -1, 1)))
         azim = np.degrees(np.arctan2(lights[:, 1], lights[:, 0]))
         labels = [f"light {k + 1}: slant {s:.0f}, azimuth {a:.0f} deg"
@@ -267,9 +267,9 @@ def section_inspection(ctx: Context) -> None:
                     height_range_true_mm=float(np.ptp(height_gt)),
                     pipeline_seconds=summary["timings_s"]["total"])
         tiles = [
-            im.label_image(im.albedo_image(albedo, valid), "albedo"),
-            im.label_image(im.normal_map(normals, valid), "normals (RGB = (n+1)/2)"),
-            im.label_image(im.normal_map(data.normal_gt), "true normals"),
+            im.label_image(im.enlarge(im.albedo_image(albedo, valid)), "albedo"),
+            im.label_image(im.enlarge(im.normal_map(normals, valid)), "normals, RGB = (n+1)/2"),
+            im.label_image(im.enlarge(im.normal_map(data.normal_gt)), "true normals"),
         ]
         rep.figure(im.montage(tiles, cols=3), "inspection-normals",
                    "Recovered albedo, recovered normal map and the true normal map "

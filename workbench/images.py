@@ -270,6 +270,28 @@ def angular_error(normals: np.ndarray, reference: np.ndarray, mask: np.ndarray |
     return np.where(ok, np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))), np.nan)
 
 
+def enlarge(image: np.ndarray, min_height: int = 256) -> np.ndarray:
+    """Enlarge a small picture by an integer factor (nearest neighbour) to at least ``min_height``.
+
+    Parameters
+    ----------
+    image : (H, W[, 3]) array
+        Picture.
+    min_height : int
+        Required height in pixels; pictures at least this tall are returned as they are.
+
+    Returns
+    -------
+    (k H, k W[, 3]) array
+        With ``k = ceil(min_height / H)`` (1 when ``H >= min_height``).
+    """
+    img = np.asarray(image)
+    if img.ndim not in (2, 3) or img.shape[0] == 0:
+        raise ValueError(f"image: expected (H, W) or (H, W, 3), got {img.shape}")
+    k = max(1, int(np.ceil(int(min_height) / img.shape[0])))
+    return img if k == 1 else np.repeat(np.repeat(img, k, axis=0), k, axis=1)
+
+
 def label_image(image: np.ndarray, text: str, scale: float = 0.5) -> np.ndarray:
     """Copy of an RGB picture with ``text`` on a light band at its top left.
 

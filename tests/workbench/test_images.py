@@ -117,3 +117,11 @@ def test_to_uint8_and_write(tmp_path):
 def test_bad_input(call, match):
     with pytest.raises(ValueError, match=match):
         call()
+
+
+@pytest.mark.parametrize("shape,k", [((10, 7, 3), 26), ((300, 20), 1), ((128, 5), 2)])
+def test_enlarge_integer_factor(shape, k):
+    img = (np.arange(np.prod(shape)) % 251).astype(np.uint8).reshape(shape)
+    out = images.enlarge(img, 256)
+    assert out.shape[:2] == (shape[0] * k, shape[1] * k)
+    assert np.array_equal(out[::k, ::k], img)
