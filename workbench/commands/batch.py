@@ -127,12 +127,13 @@ def _run(kind: str, args: argparse.Namespace) -> int:
         + (" (use --retry-failed)" if steps.failed_before else "")
         + (f", {len(steps.pending)} never run (left for a run without --retry-failed)" if steps.pending else "")
     )
-    dashboard = None
+    dashboard, n_workers, address = None, 0, None
     if steps.to_run:
         with batch.connect(args.scheduler, args.workers, args.threads_per_worker) as client:
             dashboard = batch.dashboard_link(client)
             n_workers = len(client.scheduler_info().get("workers", {}))
-            print(f"scheduler {client.scheduler.address} with {n_workers} worker(s)")
+            address = client.scheduler.address
+            print(f"scheduler {address} with {n_workers} worker(s)")
             if dashboard:
                 print(f"dashboard: {dashboard}")
             with tqdm(total=len(steps.to_run), unit="job", file=sys.stderr, dynamic_ncols=True) as bar:
@@ -157,8 +158,12 @@ def _run(kind: str, args: argparse.Namespace) -> int:
         report,
         out,
         kind,
+        complete_before=len(steps.complete),
+        failed_before=len(steps.failed_before),
+        never_run=len(steps.pending),
         scheduler=args.scheduler,
-        workers=args.workers,
+        scheduler_address=address,
+        n_workers=n_workers,
         threads_per_worker=args.threads_per_worker,
         retry_failed=args.retry_failed,
         dashboard=dashboard,
