@@ -170,14 +170,21 @@ def quick_demo(tmp_path_factory):
     return out, code, time.perf_counter() - start
 
 
-def test_quick_demo_report(quick_demo, shared_data):
+REAL_DATA_SECTIONS = {"Real captures", "CT: breast structure set"}
+
+
+def test_quick_demo_report(quick_demo):
+    """The report is complete and self-contained; only real-data sections may be missing."""
+    from workbench.demo import shared_data_dir
+
     out, code, seconds = quick_demo
     assert code == 0
     summary = json.loads((out / "demo.json").read_text())
-    # every section ran: a package that has not landed fails here, loudly
-    assert summary["unavailable"] == {}
+    # a package that has not landed fails here, loudly
+    missing = set(summary["unavailable"])
+    assert missing == (set() if shared_data_dir().is_dir() else REAL_DATA_SECTIONS)
     parsed = check_report(out / "report.html")
-    assert len(parsed.images) == len(summary["figures"]) >= 12
+    assert len(parsed.images) == len(summary["figures"]) >= (9 if missing else 15)
     for fig in summary["figures"]:
         assert (out / fig["file"]).is_file() and fig["command"].startswith("workbench ")
     # the figure index (section 5) lists every figure with its command
@@ -190,12 +197,20 @@ def test_quick_demo_report(quick_demo, shared_data):
     for d in insp["defects"]:
         assert d["depth_measured_mm"] == pytest.approx(d["depth_true_mm"], rel=0.35)
     assert summary["accuracy"]["recommendation"]
+    for case in summary["accuracy"]["crack_study"]["cases"]:
+        assert case["max_abs_diff_measured_predicted"] < 1e-3
+    kidney = summary["ct"]["kidney"]
+    assert abs(kidney["volume_error_percent"]) < 5.0
+    assert kidney["surface_distance_mean_mm"] < 1.0
+    assert seconds < 180
+
+
+def test_quick_demo_real_data(quick_demo, shared_data):
+    """With ../shared: the bear baselines are reproduced and the Heart volume is in range."""
+    out, code, _ = quick_demo
+    summary = json.loads((out / "demo.json").read_text())
     real = summary["real"]
     # plain least squares reproduces the published subset baselines (11.74 / 9.60 deg)
     assert real["triad_mean_error_deg"] == pytest.approx(11.74, abs=0.3)
     assert real["all14_mean_error_deg"] == pytest.approx(9.60, abs=0.3)
-    kidney = summary["ct"]["kidney"]
-    assert abs(kidney["volume_error_percent"]) < 5.0
-    assert kidney["surface_distance_mean_mm"] < 1.0
     assert summary["ct"]["Heart"]["volume_cc"] == pytest.approx(437.46, rel=0.05)
-    assert seconds < 180
