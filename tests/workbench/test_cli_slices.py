@@ -1,0 +1,63 @@
+"""``workbench slices reconstruct`` and ``workbench slices rois`` end to end."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from datasets_synthetic.phantoms import make_phantom
+from workbench.cli import main
+
+
+@pytest.fixture(scope="module")
+def contour_json(tmp_path_factory):
+    ph = make_phantom("ellipsoid", a=12.0, b=9.0, c=10.0)
+    path = tmp_path_factory.mktemp("in") / "contours.json"
+    cs = ph.contours(2.0, n_points=40)
+    path.write_text(json.dumps({"units": "mm", "contours": [
+        {"z": c["z"], "points": c["points"].tolist()} for c in cs]}))
+    return path, ph.truth(2.0)
+
+
+@pytest.mark.parametrize("caps", ["flat", "half"])
+def test_reconstruct_writes_outputs(contour_json, tmp_path, caps, capsys):
+    path, truth = contour_json
+    out = tmp_path / "out"
+    code = main(["slices", "reconstruct", str(path), "--caps", caps, "--rays", "32", "--out", str(out)])
+    assert code == 0
+    for name in ("surface.ply", "surface.stl", "patches.npz", "summary.json", "render.png"):
+        assert (out / name).is_file(), name
+    summary = json.loads((out / "summary.json").read_text())
+    for key in ("volume_mm3", "volume_ml", "area_mm2", "slab_volume_mm3", "n_slices", "n_contours",
+                "n_bodies", "n_patches", "max_control_point_deviation_mm", "time_s"):
+        assert key in summary, key
+    assert summary["max_control_point_deviation_mm"] < 1e-6
+    assert summary["mesh_watertight"]
+    exact = truth["volume_between_end_planes_mm3"]
+    if caps == "flat":
+        assert abs(summary["volume_mm3"] / exact - 1) < 5e-3
+    assert summary["reference_bspline"]["max_control_point_deviation_mm"] > 1e-3
+    printed = capsys.readouterr().out
+    assert f"{summary['volume_ml']:.3f} ml" in printed
+    with np.load(out / "patches.npz") as data:
+        assert data["control"].shape[2:] == (4, 4, 3)
+
+
+def test_methods_and_bad_input(contour_json, tmp_path, capsys):
+    path, _ = contour_json
+    assert main(["slices", "reconstruct", str(path), "--method", "coons", "--no-render",
+                 "--out", str(tmp_path / "c")]) == 0
+    assert main(["slices", "reconstruct", str(tmp_path / "missing.json"), "--out", str(tmp_path)]) == 2
+    assert "no such" in capsys.readouterr().err
+
+
+def test_rois_and_unknown_roi(shared_data, tmp_path, capsys):
+    rtss = shared_data / "rtstruct_breast" / "rtss.dcm"
+    assert main(["slices", "rois", str(rtss), "--json", str(tmp_path / "rois.json")]) == 0
+    out = capsys.readouterr().out
+    assert "Heart" in out and "Lt Lung" in out
+    assert json.loads((tmp_path / "rois.json").read_text())[4]["name"] == "Heart"
+    assert main(["slices", "reconstruct", str(rtss), "--roi", "Liver", "--out", str(tmp_path)]) == 2
+    assert "Heart" in capsys.readouterr().err
