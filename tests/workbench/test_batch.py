@@ -86,10 +86,20 @@ def _state(out: Path) -> dict[str, object]:
 
 @pytest.fixture(scope="module")
 def cluster():
-    """One local cluster of two worker processes, shared through its tcp:// address."""
+    """One local cluster of two worker processes, shared through its tcp:// address.
+
+    A task whose worker dies is not retried on another (allowed_failures=0), so that the
+    worker-death test costs one worker restart.
+    """
     from distributed import LocalCluster
 
-    local = LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0")
+    local = LocalCluster(
+        n_workers=2,
+        threads_per_worker=1,
+        processes=True,
+        dashboard_address=":0",
+        scheduler_kwargs={"allowed_failures": 0},
+    )
     yield local.scheduler_address
     local.close()
 
@@ -392,3 +402,24 @@ def test_cli_bad_input_is_one_line_and_exit_2(tmp_path, capsys, args, message):
     assert main(argv) == 2
     err = capsys.readouterr().err.strip()
     assert message in err and len(err.splitlines()) == 1
+
+
+def _dying_runner(job: batch.Job, out_dir: Path) -> dict:
+    """Fault injection: the worker process dies in the middle of the job."""
+    (out_dir / "half_written.npy").write_bytes(b"\0" * 64)
+    os._exit(3)
+
+
+def test_worker_death_is_a_recorded_failure(cluster, tmp_path):
+    from distributed import Client
+
+    out = tmp_path / "out"
+    job = batch.Job("dies", "photometric", str(tmp_path))
+    with Client(cluster) as client:
+        report = batch.run_batch([job], out, client, runners={"photometric": _dying_runner})
+    assert (report.ran, report.failed) == (1, 1)
+    (row,) = report.rows
+    assert row["status"] == "failed" and row["error"].startswith("task: KilledWorker")
+    assert json.loads((out / batch.FAILED_DIR / "dies.json").read_text())["error"] == row["error"]
+    # the dead worker's temporary folder is gone, no job folder exists
+    assert sorted(p.name for p in out.iterdir()) == [batch.FAILED_DIR, batch.RESULTS_NAME]
