@@ -44,7 +44,9 @@ def _gradients(p, q, mask, pixel_size):
     if min(pp.shape) < 2:
         raise ValueError(f"p: the gradient field must be at least 2x2, got {pp.shape}")
     h = positive(pixel_size, "pixel_size")
-    m = np.ones(pp.shape, bool) if mask is None else as_array(mask, "mask", shape=pp.shape, dtype=bool)
+    if mask is None:
+        return pp * h, qq * -h, np.ones(pp.shape, bool)
+    m = as_array(mask, "mask", shape=pp.shape, dtype=bool)
     if not m.any():
         raise ValueError("mask: no pixel is selected")
     zc = np.where(m, pp * h, 0.0)
@@ -69,6 +71,9 @@ def _edge_rhs(zc: np.ndarray, zr: np.ndarray, m: np.ndarray | None = None):
 
 def _zero_mean(z: np.ndarray, m: np.ndarray) -> np.ndarray:
     """Zero mean per 4-connected part of the domain; NaN outside it."""
+    if m.all():
+        z -= z.mean()
+        return z
     labels, n = ndimage.label(m)
     if n == 1:
         z = z - z[m].mean()
@@ -133,18 +138,52 @@ def dct_poisson(p, q, mask=None, pixel_size: float = 1.0, dtype=np.float64) -> n
         free-boundary grid Laplacian, eigenvalues ``4 sin^2(pi k / 2H) + 4 sin^2(pi l / 2W)``
         on the DCT-II basis. Zero mean over the domain, NaN outside it.
     """
-    zc, zr, m = _gradients(p, q, mask, pixel_size)
-    height, width = zc.shape
-    _, _, rhs = _edge_rhs(zc, zr)
-    lam = (4.0 * np.sin(np.pi * np.arange(height) / (2 * height)) ** 2)[:, None] + (
-        4.0 * np.sin(np.pi * np.arange(width) / (2 * width)) ** 2
-    )[None, :]
+    pp = as_array(p, "p", ndim=2)
+    qq = as_array(q, "q", shape=pp.shape)
+    if min(pp.shape) < 2:
+        raise ValueError(f"p: the gradient field must be at least 2x2, got {pp.shape}")
+    h = positive(pixel_size, "pixel_size")
+    if mask is None:
+        m = np.ones(pp.shape, bool)
+    else:
+        m = as_array(mask, "mask", shape=pp.shape, dtype=bool)
+        if not m.any():
+            raise ValueError("mask: no pixel is selected")
+        pp, qq = np.where(m, pp, 0.0), np.where(m, qq, 0.0)
+    height, width = pp.shape
+    rhs = _divergence(pp, qq, dtype)
+    # A^T b = (h / 2) * rhs (zc = p h, zr = -q h, trapezoidal edges): fold h / 2 into the
+    # eigenvalues, which are separable, so no extra pass over the image is needed.
+    scale = 2.0 / h
+    lam_r = scale * 4.0 * np.sin(np.pi * np.arange(height) / (2 * height)) ** 2
+    lam_c = scale * 4.0 * np.sin(np.pi * np.arange(width) / (2 * width)) ** 2
+    coef = sfft.dctn(rhs, type=2, norm="ortho", workers=-1, overwrite_x=True)
+    del rhs
+    lam = lam_r.astype(dtype)[:, None] + lam_c.astype(dtype)[None, :]
     lam[0, 0] = 1.0
-    coef = sfft.dctn(rhs.astype(dtype, copy=False), type=2, norm="ortho", workers=-1)
-    coef /= lam.astype(dtype, copy=False)
+    coef /= lam
+    del lam
     coef[0, 0] = 0.0
-    z = sfft.idctn(coef, type=2, norm="ortho", workers=-1).astype(np.float64, copy=False)
-    return _zero_mean(z, m)
+    z = sfft.idctn(coef, type=2, norm="ortho", workers=-1, overwrite_x=True)
+    return _zero_mean(z.astype(np.float64, copy=False), m)
+
+
+def _divergence(p: np.ndarray, q: np.ndarray, dtype) -> np.ndarray:
+    """``2 A^T b / h`` on the full grid from the dimensionless slopes, in ``dtype``.
+
+    Inside it is the central difference ``p[j-1] - p[j+1]`` along rows plus
+    ``q[i+1] - q[i-1]`` along columns (``dz/drow = -q h``); the first/last row and column
+    keep the one-sided sums of the free boundary.
+    """
+    rhs = np.empty(p.shape, dtype)
+    np.subtract(p[:, :-2], p[:, 2:], out=rhs[:, 1:-1])
+    np.add(p[:, 0], p[:, 1], out=rhs[:, 0])
+    np.negative(rhs[:, 0], out=rhs[:, 0])
+    np.add(p[:, -2], p[:, -1], out=rhs[:, -1])
+    rhs[1:-1] += q[2:] - q[:-2]
+    rhs[0] += q[0] + q[1]
+    rhs[-1] -= q[-2] + q[-1]
+    return rhs
 
 
 class _Multigrid:

@@ -255,12 +255,12 @@ def solve(
         ok.reshape(-1)[idx] = ok_m & (rho.reshape(-1)[idx] > 0)
         del X, G
 
-    # Normalise in place; rho == 0 only where `ok` is already False.
-    inv = np.divide(1.0, rho, out=np.zeros_like(rho), where=rho > 0)
+    # Normalise in place (multi-threaded OpenCV passes). Where rho == 0 the reciprocal is
+    # inf and the products NaN; those pixels are blanked right after.
+    inv = cv2.divide(1.0, rho)
     for gi in g:
         cv2.multiply(gi, inv, dst=gi)
     del inv
-    ok &= g[2] > 0
     # No solution: a flat normal and zero albedo, so downstream sums stay finite.
     blank = rho <= 0 if m is None else (rho <= 0) | ~m
     if blank.any():
@@ -268,10 +268,13 @@ def solve(
         g[0][blank] = 0.0
         g[1][blank] = 0.0
         rho[blank] = 0.0
-    p = np.divide(g[0], g[2], out=np.zeros_like(g[0]), where=ok)
-    np.negative(p, out=p)
-    q = np.divide(g[1], g[2], out=np.zeros_like(g[1]), where=ok)
-    np.negative(q, out=q)
+    ok &= g[2] > 0
+    p = cv2.divide(g[0], g[2], scale=-1.0)
+    q = cv2.divide(g[1], g[2], scale=-1.0)
+    if not ok.all():
+        bad = ~ok
+        p[bad] = 0.0
+        q[bad] = 0.0
     normals = cv2.merge(g)
     del g
 
