@@ -58,7 +58,7 @@ class StereoResult:
 
 
 def _check_images(images) -> np.ndarray:
-    """Images as float32 (N, H, W) or (N, H, W, 3), finiteness checked cheaply."""
+    """Images as float32 (N, H, W) or (N, H, W, 3); finiteness is checked after the solve."""
     arr = as_array(images, "images", ndim=(3, 4), dtype=np.float32, finite=False)
     if arr.ndim == 4 and arr.shape[3] not in (1, 3):
         raise ValueError(f"images: expected 1 or 3 channels, got shape {arr.shape}")
@@ -66,16 +66,19 @@ def _check_images(images) -> np.ndarray:
         arr = arr[..., 0]
     if min(arr.shape[1:3]) < 1:
         raise ValueError(f"images: empty image size {arr.shape[1:3]}")
-    # A NaN or inf anywhere makes the sum non-finite; one reduction instead of a full
-    # boolean temporary as large as the input.
-    if not np.isfinite(np.sum(arr, dtype=np.float32)):
-        bad = int(arr.size - np.count_nonzero(np.isfinite(arr)))
+    return np.ascontiguousarray(arr)
+
+
+def _check_finite(rho: np.ndarray, imgs: np.ndarray) -> None:
+    """A NaN or inf in any image reaches ``rho`` (``0 * nan`` is NaN), whose sum is a third of
+    the work of summing the input; count the bad input values only when it fails."""
+    if not np.isfinite(np.sum(rho, dtype=np.float32)):
+        bad = int(imgs.size - np.count_nonzero(np.isfinite(imgs)))
         raise ValueError(
             f"images: contains {bad} NaN or infinite value(s)"
             if bad
-            else "images: values too large (sum overflows float32)"
+            else "images: values too large (the albedo overflows float32)"
         )
-    return np.ascontiguousarray(arr)
 
 
 def _combine(weights: np.ndarray, planes: list[np.ndarray]) -> np.ndarray:
@@ -207,6 +210,7 @@ def solve(
     M = np.linalg.inv(L) if n_img == 3 else np.linalg.pinv(L)
     g = [_combine(M[i], planes) for i in range(3)]
     rho = cv2.magnitude(cv2.magnitude(g[0], g[1]), g[2])
+    _check_finite(rho, imgs)
     ok = rho > 0
     if m is not None:
         ok &= m
@@ -262,7 +266,10 @@ def solve(
         cv2.multiply(gi, inv, dst=gi)
     del inv
     # No solution: a flat normal and zero albedo, so downstream sums stay finite.
-    blank = rho <= 0 if m is None else (rho <= 0) | ~m
+    if idx is None and m is None:
+        blank = ~ok  # fast path: ok is exactly rho > 0
+    else:
+        blank = rho <= 0 if m is None else (rho <= 0) | ~m
     if blank.any():
         g[2][blank] = 1.0
         g[0][blank] = 0.0
