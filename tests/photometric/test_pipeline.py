@@ -113,3 +113,13 @@ def test_cli_images_form(plate_folder, tmp_path):
 def test_cli_bad_input_exit_2(args, capsys):
     assert main(args) == 2
     assert "error" in capsys.readouterr().err
+
+
+def test_previews_readable(plate_folder, tmp_path):
+    reconstruct(plate_folder, tmp_path / "p", step=16)
+    for name in ("normals.png", "albedo.png", "height.png"):
+        img = cv2.imread(str(tmp_path / "p" / name), cv2.IMREAD_UNCHANGED)
+        assert img is not None and img.shape[:2] == (128, 128) and img.dtype == np.uint8
+    normals = cv2.imread(str(tmp_path / "p" / "normals.png"))[..., ::-1].astype(float)
+    # a flat plate faces the camera: blue (z) near 255, red/green near the middle
+    assert np.median(normals[..., 2]) > 250 and abs(np.median(normals[..., 0]) - 127.5) < 2
