@@ -209,7 +209,8 @@ def solve(
     planes = _grey_planes(imgs, intens)
     M = np.linalg.inv(L) if n_img == 3 else np.linalg.pinv(L)
     g = [_combine(M[i], planes) for i in range(3)]
-    rho = cv2.magnitude(cv2.magnitude(g[0], g[1]), g[2])
+    scratch = cv2.magnitude(g[0], g[1])
+    rho = cv2.magnitude(scratch, g[2])
     _check_finite(rho, imgs)
     ok = rho > 0
     if m is not None:
@@ -255,16 +256,18 @@ def solve(
             residual.reshape(-1)[idx] = np.sqrt((err * err).sum(axis=0) / count)
         for i in range(3):
             g[i].reshape(-1)[idx] = G[i]
-        rho = cv2.magnitude(cv2.magnitude(g[0], g[1]), g[2])
+        cv2.magnitude(g[0], g[1], scratch)
+        rho = cv2.magnitude(scratch, g[2])
         ok.reshape(-1)[idx] = ok_m & (rho.reshape(-1)[idx] > 0)
         del X, G
 
-    # Normalise in place (multi-threaded OpenCV passes). Where rho == 0 the reciprocal is
-    # inf and the products NaN; those pixels are blanked right after.
-    inv = cv2.divide(1.0, rho)
+    # Normalise in place (multi-threaded OpenCV passes, buffers reused: fewer fresh pages).
+    # Where rho == 0 the reciprocal is inf and the products NaN; those pixels are blanked
+    # right after.
+    inv = cv2.divide(1.0, rho, dst=scratch)
     for gi in g:
         cv2.multiply(gi, inv, dst=gi)
-    del inv
+    del inv, scratch
     # No solution: a flat normal and zero albedo, so downstream sums stay finite.
     if idx is None and m is None:
         blank = ~ok  # fast path: ok is exactly rho > 0
@@ -276,14 +279,15 @@ def solve(
         g[1][blank] = 0.0
         rho[blank] = 0.0
     ok &= g[2] > 0
-    p = cv2.divide(g[0], g[2], scale=-1.0)
-    q = cv2.divide(g[1], g[2], scale=-1.0)
+    normals = cv2.merge(g)
+    # p and q overwrite the x and y planes, which the merge has copied.
+    p = cv2.divide(g[0], g[2], dst=g[0], scale=-1.0)
+    q = cv2.divide(g[1], g[2], dst=g[1], scale=-1.0)
+    del g
     if not ok.all():
         bad = ~ok
         p[bad] = 0.0
         q[bad] = 0.0
-    normals = cv2.merge(g)
-    del g
 
     albedo = rho
     if imgs.ndim == 4:
