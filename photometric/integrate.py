@@ -25,7 +25,10 @@ outside the mask.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
+from numpy.typing import DTypeLike
 import scipy.fft as sfft
 import scipy.sparse as sp
 from scipy import ndimage
@@ -33,6 +36,9 @@ from scipy.sparse.csgraph import connected_components
 from scipy.sparse.linalg import LinearOperator, cg, splu
 
 from surfaces.validate import as_array, positive
+
+if TYPE_CHECKING:
+    from surfaces.bezier import BezierPatches
 
 METHODS = ("dct", "fc", "lsq")
 
@@ -115,7 +121,9 @@ def frankot_chellappa(p, q, mask=None, pixel_size: float = 1.0) -> np.ndarray:
     return _zero_mean(sfft.irfft2(Z, s=(height, width), workers=-1), m)
 
 
-def dct_poisson(p, q, mask=None, pixel_size: float = 1.0, dtype=np.float64) -> np.ndarray:
+def dct_poisson(
+    p, q, mask=None, pixel_size: float = 1.0, dtype: DTypeLike = np.float64
+) -> np.ndarray:
     """DCT-based Poisson integration with free (Neumann) boundary (Simchony et al. 1990).
 
     Parameters
@@ -354,7 +362,9 @@ def _fill_nearest(values: np.ndarray, good: np.ndarray) -> np.ndarray:
     return values[idx[0], idx[1]]
 
 
-def height_to_patches(height, p, q, pixel_size: float = 1.0, step: int = 8, twist="fd"):
+def height_to_patches(
+    height, p, q, pixel_size: float = 1.0, step: int = 8, twist: str = "fd"
+) -> BezierPatches:
     """Bicubic Coons patches through a decimated height field, tangents from ``p`` and ``q``.
 
     Parameters
