@@ -398,7 +398,39 @@ def _angle_steps(p: np.ndarray, center: np.ndarray) -> np.ndarray:
     return (d + np.pi) % (2 * np.pi) - np.pi
 
 
-def quantize(u, n_lattice: int) -> np.ndarray:
+def lattice_values(u_list, n_lattice: int) -> np.ndarray:
+    """Common lattice of ``u`` values, denser where the slices' parameters crowd.
+
+    Half of the values are uniform (``j / M'``), half are quantiles of all slices'
+    parameters pooled, so that the seed's parameters, which pack many points
+    into short ranges where a contour folds (eq. 4), keep their order and
+    their correspondence across slices when moved onto the lattice.
+
+    Parameters
+    ----------
+    u_list : sequence of numpy.ndarray
+        Parameters in ``[0, 1)`` of every slice.
+    n_lattice : int
+        Requested size ``M``.
+
+    Returns
+    -------
+    numpy.ndarray, shape (M',) float64
+        Strictly increasing values in ``[0, 1)``, ``M' <= M`` (equal values merged),
+        at least as many as the longest slice has points.
+    """
+    m = int(positive(n_lattice, "n_lattice"))
+    pooled = np.sort(np.concatenate([as_array(u, "u", ndim=1) for u in u_list]))
+    half = m // 2
+    quant = np.quantile(pooled, (np.arange(half) + 0.5) / half)
+    values = np.unique(np.concatenate([np.arange(m - half) / (m - half), quant]))
+    need = max(len(u) for u in u_list)
+    if len(values) < need:
+        values = np.arange(m) / m
+    return values
+
+
+def quantize(u, n_lattice: int, values=None) -> np.ndarray:
     """Move parameters onto a common lattice ``j / M`` keeping them strictly increasing.
 
     All slices' curves are then cubic on the same breakpoints, so the surface is
@@ -410,12 +442,16 @@ def quantize(u, n_lattice: int) -> np.ndarray:
         Strictly increasing parameters in ``[0, 1)``.
     n_lattice : int
         Lattice size ``M >= n``.
+    values : array_like, shape (M,), optional
+        Strictly increasing lattice values in ``[0, 1)`` (see :func:`lattice_values`);
+        uniform ``j / M`` when omitted.
 
     Returns
     -------
     numpy.ndarray, shape (n,) int64
-        Lattice indices, strictly increasing, in ``[0, M)``; each within one or
-        two lattice steps of ``u * M`` unless crowding forces more.
+        Lattice indices, strictly increasing, in ``[0, M)``; the nearest lattice
+        values where they are free, otherwise the increasing sequence closest to
+        them in the least-squares sense.
     """
     uu = as_array(u, "u", ndim=1)
     m = int(positive(n_lattice, "n_lattice"))
@@ -423,7 +459,17 @@ def quantize(u, n_lattice: int) -> np.ndarray:
     if n > m:
         raise ValueError(f"n_lattice: {m} lattice values cannot hold {n} distinct parameters")
     i = np.arange(n)
-    target = np.minimum(np.round(uu * m).astype(np.int64), m - 1)
-    r = np.maximum.accumulate(target - i)
-    r = np.minimum(r, m - n)
+    if values is None:
+        target = np.minimum(np.round(uu * m).astype(np.int64), m - 1)
+    else:
+        lv = as_array(values, "values", shape=(m,))
+        hi = np.clip(np.searchsorted(lv, uu), 1, m - 1)
+        target = np.where(np.abs(lv[hi - 1] - uu) <= np.abs(lv[hi] - uu), hi - 1, hi)
+        target = np.where(uu > lv[-1] + 0.5 * (1.0 + lv[0] - lv[-1]), m - 1, target)
+    # strictly increasing indices closest (least squares) to the targets: isotonic
+    # regression of target - i (pool adjacent violators), rounded and clipped
+    from scipy.optimize import isotonic_regression
+
+    r = np.round(isotonic_regression((target - i).astype(np.float64)).x).astype(np.int64)
+    r = np.clip(r, 0, m - n)
     return r + i

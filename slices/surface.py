@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from slices.control_points import ContourParameters, parameterize, quantize
+from slices.control_points import ContourParameters, lattice_values, parameterize, quantize
 from surfaces import blending
 from surfaces.bezier import BezierPatches
 from surfaces.validate import as_array, positive
@@ -84,7 +84,7 @@ def _geometry_parameters(points: np.ndarray, kind: str) -> np.ndarray:
 
 def slice_curves(contours, z, n_rays: int = 64, n_lattice: int | None = None,
                  start_angle: float = 0.0, geometry: str = "centripetal",
-                 correspondence: str = "seed") -> SliceCurves:
+                 correspondence: str = "seed", lattice_mode: str = "uniform") -> SliceCurves:
     """Closed parabolic-blending curve of every slice, cut on a common lattice.
 
     Parameters
@@ -109,6 +109,10 @@ def slice_curves(contours, z, n_rays: int = 64, n_lattice: int | None = None,
     correspondence : {"seed", "arc"}
         Which ``u`` links the slices: the seed's parameters (eqs. 1-5, default)
         or normalised arc length from support point 0.
+    lattice_mode : {"uniform", "adaptive"}
+        Common lattice ``j / M`` (default) or one denser where the pooled
+        parameters crowd (:func:`slices.control_points.lattice_values`; better
+        with many points per contour, >= ~200, on folded outlines).
 
     Returns
     -------
@@ -117,24 +121,30 @@ def slice_curves(contours, z, n_rays: int = 64, n_lattice: int | None = None,
     zz = as_array(z, "z", shape=(len(contours),))
     params: list[ContourParameters] = [parameterize(c, n_rays, start_angle) for c in contours]
     m = n_lattice or lattice_size(max(len(p.u) for p in params))
+    if correspondence == "seed":
+        us = [p.u for p in params]
+    elif correspondence == "arc":
+        # arc length from support point 0 (the same ray on every slice)
+        us = []
+        for par in params:
+            closed = np.vstack([par.support[:1], par.points, par.support[:1]])
+            cum = np.cumsum(np.linalg.norm(np.diff(closed, axis=0), axis=1))
+            us.append(cum[:-1] / cum[-1])
+    else:
+        raise ValueError(f"correspondence: must be 'seed' or 'arc', got {correspondence!r}")
+    if lattice_mode not in ("uniform", "adaptive"):
+        raise ValueError(f"lattice_mode: must be 'uniform' or 'adaptive', got {lattice_mode!r}")
+    values = lattice_values(us, m) if lattice_mode == "adaptive" else np.arange(m) / m
+    m = len(values)
     curves, nodes, pts3 = [], [], []
-    for par, zk in zip(params, zz):
-        if correspondence == "seed":
-            u = par.u
-        elif correspondence != "arc":
-            raise ValueError(f"correspondence: must be 'seed' or 'arc', got {correspondence!r}")
-        else:
-            # arc length from support point 0 (the same ray on every slice)
-            seg = np.linalg.norm(np.diff(np.vstack([par.support[:1], par.points, par.support[:1]]), axis=0), axis=1)
-            cum = np.cumsum(seg)
-            u = cum[:-1] / cum[-1]
-        q = quantize(u, m)
+    for par, zk, u in zip(params, zz, us):
+        q = quantize(u, m, values)
         p3 = np.column_stack([par.points, np.full(len(par.points), zk)])
         t = _geometry_parameters(par.points, geometry)
         ctrl, knots = blending.overhauser_curve(p3, t, closed=True)
-        # lattice value j/M sits at t(j/M), t piecewise linear through (q_i/M, t_i): on every
-        # lattice interval the curve is one cubic piece, cut exactly (Bezier points do not
-        # depend on the affine parameter of the interval); the period starts at u = q0/M
+        # lattice node j sits at t(j), t piecewise linear through (q_i, t_i): on every lattice
+        # interval the curve is one cubic piece, cut exactly (Bezier points do not depend on
+        # the affine parameter of the interval); the period starts at node q0
         u_nodes = np.append(q, q[0] + m)
         breaks = np.interp(q[0] + np.arange(m + 1), u_nodes, knots)
         cut = blending.restrict_curve(ctrl, knots, breaks)
