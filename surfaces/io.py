@@ -20,6 +20,10 @@ from surfaces.mesh import TriangleMesh, tessellate, weld
 
 MESH_FORMATS = (".ply", ".obj", ".stl")
 
+# the process umask, read once (os.umask can only be read by setting it)
+_UMASK = os.umask(0)
+os.umask(_UMASK)
+
 
 @contextmanager
 def atomic_path(path, suffix: str | None = None):
@@ -45,6 +49,8 @@ def atomic_path(path, suffix: str | None = None):
     os.close(fd)
     try:
         yield Path(tmp)
+        # mkstemp makes owner-only files; results are meant to be shared like any new file
+        os.chmod(tmp, 0o666 & ~_UMASK)
         os.replace(tmp, target)
     except BaseException:
         if os.path.exists(tmp):

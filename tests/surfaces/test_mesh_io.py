@@ -87,3 +87,13 @@ def test_merge_meshes_offsets_indices():
     b = TriangleMesh(np.eye(3) + 1, np.array([[0, 1, 2]]))
     m = merge_meshes([a, b])
     assert m.n_vertices == 6 and m.triangles[1].tolist() == [3, 4, 5]
+
+
+def test_written_files_have_ordinary_permissions(tmp_path):
+    import os
+
+    mesh = TriangleMesh(np.eye(3), np.array([[0, 1, 2]]))
+    path = write_mesh(mesh, tmp_path / "a.ply")
+    umask = os.umask(0)
+    os.umask(umask)
+    assert path.stat().st_mode & 0o777 == 0o666 & ~umask
