@@ -281,7 +281,7 @@ class RenderResult:
 
 
 def _unit(v: np.ndarray) -> np.ndarray:
-    n = np.linalg.norm(v, axis=-1, keepdims=True)
+    n = np.sqrt(np.einsum("...i,...i->...", v, v))[..., None]
     return v / np.where(n > 0, n, 1.0)
 
 
@@ -624,8 +624,8 @@ class _Scene:
             o3d.core.Tensor(np.ascontiguousarray(vertices, np.float32)),
             o3d.core.Tensor(np.ascontiguousarray(triangles, np.uint32)),
         )
-        lo, hi = vertices.min(axis=0), vertices.max(axis=0)
-        self.diagonal = float(np.linalg.norm(hi - lo)) or 1.0
+        self.bounds = np.stack([vertices.min(axis=0), vertices.max(axis=0)])
+        self.diagonal = float(np.linalg.norm(self.bounds[1] - self.bounds[0])) or 1.0
 
     def cast(self, rays: np.ndarray) -> dict[str, np.ndarray]:
         out = self.scene.cast_rays(self.o3d.core.Tensor(rays.reshape(-1, 6)))
@@ -967,7 +967,7 @@ def render(
     tile_w, tile_h = area_w // n_cols, height // n_rows
     if min(tile_w, tile_h) < 8:
         raise ValueError(f"size: {width}x{height} is too small for {len(views)} views")
-    bounds = np.stack([scene.vertices.min(axis=0), scene.vertices.max(axis=0)])
+    bounds = scene.bounds
     # framing the vertices (a strided subset of at most ~20k) is tighter than the box corners
     frame = scene.vertices[:: max(1, len(scene.vertices) // 20000)]
     extremes = scene.vertices[np.concatenate([scene.vertices.argmin(0), scene.vertices.argmax(0)])]
