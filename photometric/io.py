@@ -7,8 +7,9 @@ and ``triad.txt`` (three of the file names). The RobustPhotometricStereo layout
 (``imageNNN.npy`` files, ``lights.npy`` whose row NNN is image NNN's light,
 ``gt_normal.npy``) is read too; its lights are in the same frame as DiLiGenT's (checked on
 the shared ``rps_bunny``: of the eight axis-sign choices only the identity makes least
-squares reproduce ``gt_normal``, to 3e-6 deg median; flipping y gives about 35 deg). Images are 8/16-bit PNG/TIFF (read with OpenCV
-``IMREAD_UNCHANGED``, so 16 bits survive, and converted BGR -> RGB) or ``.npy``.
+squares reproduce ``gt_normal``, to 3e-6 deg median; flipping y gives about 35 deg).
+Images are 8/16-bit PNG/TIFF (read with OpenCV ``IMREAD_UNCHANGED``, so 16 bits survive,
+and converted BGR -> RGB) or ``.npy``.
 """
 
 from __future__ import annotations
