@@ -220,7 +220,7 @@ def _normal_equations(zc, zr, m):
     rows, cols = np.nonzero(m)
     index = np.full(m.shape, -1, np.int64)
     index[rows, cols] = np.arange(rows.size)
-    _, _, rhs = _edge_rhs(np.where(m, zc, 0.0), np.where(m, zr, 0.0), m)
+    rhs = _edge_rhs(np.where(m, zc, 0.0), np.where(m, zr, 0.0), m)
     ec = m[:, :-1] & m[:, 1:]
     er = m[:-1, :] & m[1:, :]
     a = np.concatenate([index[:, :-1][ec], index[:-1, :][er]])

@@ -60,19 +60,16 @@ def _gradients(p, q, mask, pixel_size):
     return zc, zr, m
 
 
-def _edge_rhs(zc: np.ndarray, zr: np.ndarray, m: np.ndarray | None = None):
-    """Measured differences on grid edges (trapezoidal) and ``A^T b`` on the grid."""
-    bc = 0.5 * (zc[:, :-1] + zc[:, 1:])
-    br = 0.5 * (zr[:-1, :] + zr[1:, :])
-    if m is not None:
-        bc = np.where(m[:, :-1] & m[:, 1:], bc, 0.0)
-        br = np.where(m[:-1, :] & m[1:, :], br, 0.0)
+def _edge_rhs(zc: np.ndarray, zr: np.ndarray, m: np.ndarray) -> np.ndarray:
+    """``A^T b`` on the grid: trapezoidal differences on the edges joining two domain pixels."""
+    bc = np.where(m[:, :-1] & m[:, 1:], 0.5 * (zc[:, :-1] + zc[:, 1:]), 0.0)
+    br = np.where(m[:-1, :] & m[1:, :], 0.5 * (zr[:-1, :] + zr[1:, :]), 0.0)
     rhs = np.zeros(zc.shape)
     rhs[:, 1:] += bc
     rhs[:, :-1] -= bc
     rhs[1:, :] += br
     rhs[:-1, :] -= br
-    return bc, br, rhs
+    return rhs
 
 
 def _zero_mean(z: np.ndarray, m: np.ndarray) -> np.ndarray:
@@ -301,7 +298,7 @@ def least_squares(
     rows, cols = np.nonzero(m)
     index = np.full(m.shape, -1, np.int64)
     index[rows, cols] = np.arange(rows.size)
-    bc, br, rhs_grid = _edge_rhs(zc, zr, m)
+    rhs_grid = _edge_rhs(zc, zr, m)
     # Laplacian of the domain graph: degree on the diagonal, -1 per edge.
     ec = m[:, :-1] & m[:, 1:]
     er = m[:-1, :] & m[1:, :]
