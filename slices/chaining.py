@@ -109,15 +109,18 @@ def overlaps(a: np.ndarray, b: np.ndarray) -> bool:
     return bool(np.any(masks[0] & masks[1]))
 
 
-def chain(contours: list[Contour], spacing: float) -> list[Body]:
+def chain(contours: list[Contour], spacing: float | None) -> list[Body]:
     """Group contours into bodies (see module docstring).
 
     Parameters
     ----------
     contours : list of Contour
         All contours of one structure, counter-clockwise.
-    spacing : float
-        Slice spacing in mm (neighbouring planes are this far apart).
+    spacing : float or None
+        Slice spacing in mm (neighbouring planes are this far apart; a larger
+        gap separates bodies and is an error where contours overlap across it).
+        None: every pair of consecutive planes are neighbours (unequally spaced
+        stacks).
 
     Returns
     -------
@@ -129,13 +132,19 @@ def chain(contours: list[Contour], spacing: float) -> list[Body]:
     z = np.array([c.z for c in contours])
     succ: list[list[int]] = [[] for _ in range(n)]
     pred: list[list[int]] = [[] for _ in range(n)]
-    tol = 0.01 * spacing if spacing > 0 else 1e-6
     planes = np.unique(np.round(z, 6))
     for p0, p1 in zip(planes[:-1], planes[1:]):
-        if abs((p1 - p0) - spacing) > tol:
-            continue
         lower = np.flatnonzero(np.round(z, 6) == p0)
         upper = np.flatnonzero(np.round(z, 6) == p1)
+        if spacing is not None and abs((p1 - p0) - spacing) > 0.01 * spacing:
+            # missing planes are fine between separate bodies, not inside one
+            if any(overlaps(contours[i].points, contours[j].points) for i in lower for j in upper):
+                raise ValueError(
+                    f"contours: unequal slice spacing, no plane between z={p0:.3f} and z={p1:.3f} mm "
+                    f"({spacing:.3f} mm elsewhere) although the structure continues across; use "
+                    "--resample to blend at the true slice positions"
+                )
+            continue
         for i in lower:
             for j in upper:
                 if hole[i] == hole[j] and overlaps(contours[i].points, contours[j].points):
@@ -163,7 +172,7 @@ def chain(contours: list[Contour], spacing: float) -> list[Body]:
     return bodies
 
 
-def slab_volume(contours: list[Contour], spacing: float) -> float:
+def slab_volume(contours: list[Contour], spacing: float | None) -> float:
     """Volume as treatment-planning systems count it.
 
     Per plane, outer contour areas minus hole areas, times the slice spacing;
@@ -173,8 +182,10 @@ def slab_volume(contours: list[Contour], spacing: float) -> float:
     Parameters
     ----------
     contours : list of Contour
-    spacing : float
-        Slice spacing in mm.
+    spacing : float or None
+        Slice spacing in mm; None for unequally spaced planes (then the
+        trapezoid rule over the actual plane positions, which is the same
+        count for equal spacing).
 
     Returns
     -------
@@ -187,6 +198,10 @@ def slab_volume(contours: list[Contour], spacing: float) -> float:
     area = np.zeros(len(planes))
     for c, h, zz in zip(contours, hole, z):
         area[np.searchsorted(planes, zz)] += (-1.0 if h else 1.0) * abs(signed_area(c.points))
+    if spacing is None:
+        if len(planes) < 2:
+            return 0.0
+        return float(np.sum((area[1:] + area[:-1]) / 2 * np.diff(planes)))
     weight = np.ones(len(planes))
     weight[[0, -1]] = 0.5
     return float(np.sum(area * weight) * spacing)

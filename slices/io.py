@@ -353,7 +353,7 @@ def check_spacing(z, label: str, allow_gaps: bool = False) -> float:
         raise ValueError(
             f"{label}: unequal slice spacing ({d[i]:.3f} mm between z={zz[i]:.3f} and "
             f"z={zz[i + 1]:.3f} mm, {ref:.3f} mm elsewhere); use --resample to resample "
-            "onto uniform slices"
+            "images onto uniform slices, or to blend contours at their true positions"
         )
     return ref
 

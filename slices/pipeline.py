@@ -115,6 +115,9 @@ def build_body(body: Body, spacing: float, method: str = "blending", rays: int =
     if len(z) == 1 and low_kind in thin and high_kind in thin:
         return None
     d = positive(spacing, "spacing")
+    if len(z) > 1 and np.any(np.abs(np.diff(z) - d) > 0.01 * d):
+        # unequally spaced planes (accepted with resample): caps use the median interval
+        d = float(np.median(np.diff(z)))
     m = lattice_size(max(len(c.points) for c in body.contours), lattice)
     sc = slice_curves([c.points for c in body.contours], z, rays, m, correspondence=correspondence)
     curves = sc.curves
@@ -127,7 +130,7 @@ def build_body(body: Body, spacing: float, method: str = "blending", rays: int =
     stack = np.concatenate([low_rings, curves, high_rings])
     prepend = len(low_rings)
     if len(stack) >= 2:
-        side, node_eval = side_surface(stack, method)
+        side, node_eval = side_surface(stack, method, v=stack[:, 0, 0, 2])
         columns = [side.control]
         bottom, top = side.control[:, 0, :, 0], side.control[:, -1, :, 3]
     else:
@@ -249,7 +252,7 @@ class Reconstruction:
 def reconstruct_contours(contours: list[Contour], spacing: float | None = None, method: str = "blending",
                          rays: int = 64, caps: str = "flat", lattice: float = 2.0,
                          samples: int | None = 2, mesh: bool = True, progress=None,
-                         correspondence: str = "seed") -> Reconstruction:
+                         correspondence: str = "seed", irregular: bool = False) -> Reconstruction:
     """Reconstruct a structure from validated contours in memory.
 
     Parameters
@@ -270,6 +273,10 @@ def reconstruct_contours(contours: list[Contour], spacing: float | None = None, 
         Called with the number of finished bodies and the total.
     correspondence : {"seed", "arc"}
         ``u`` that links the slices (see :func:`slices.surface.slice_curves`).
+    irregular : bool
+        Accept unequally spaced planes: consecutive planes are neighbours and
+        the blending in ``v`` uses the slice positions (non-uniform parabolas)
+        instead of failing.
 
     Returns
     -------
@@ -278,15 +285,18 @@ def reconstruct_contours(contours: list[Contour], spacing: float | None = None, 
     if not contours:
         raise ValueError("contours: no contours given")
     planes = np.unique(np.round([c.z for c in contours], 6))
-    d = check_spacing(planes, "contours", allow_gaps=True)
-    if spacing is not None:
+    if irregular and len(planes) > 1:
+        d = float(np.median(np.diff(planes)))
+    else:
+        d = check_spacing(planes, "contours", allow_gaps=True)
+    if spacing is not None and not irregular:
         s = positive(spacing, "spacing")
         if d and abs(s - d) > 0.01 * d:
             raise ValueError(f"spacing: {s} mm given but the planes are {d} mm apart")
         d = s
     if d == 0:
         raise ValueError("contours: a single plane has no slice spacing; give spacing")
-    bodies = chain(contours, d)
+    bodies = chain(contours, None if irregular else d)
     if samples is None:
         # one tessellation density for all bodies, so the whole mesh meets the budget
         est = sum(lattice_size(max(len(c.points) for c in b.contours), lattice) * (len(b.contours) + 5)
@@ -301,7 +311,8 @@ def reconstruct_contours(contours: list[Contour], spacing: float | None = None, 
     sign = {"outer": 1.0, "hole": -1.0}
     volume = sum(sign[b.body.kind] * b.volume_mm3 for b in built)
     area = sum(b.area_mm2 for b in built)
-    return Reconstruction(built, skipped, float(volume), float(area), slab_volume(contours, d), d)
+    slab = slab_volume(contours, None if irregular else d)
+    return Reconstruction(built, skipped, float(volume), float(area), slab, d)
 
 
 def _chaining_text(rec: Reconstruction) -> list[dict]:
@@ -390,7 +401,9 @@ def reconstruct(input_path, out_dir, roi=None, method: str = "blending", rays: i
                  options.get("spacing"), bool(options.get("resample", False)))
     rec = reconstruct_contours(stack.contours, None, method, int(rays), caps,
                                float(options.get("lattice", 2.0)), options.get("samples"),
-                               True, options.get("progress"), options.get("correspondence", "seed"))
+                               True, options.get("progress"), options.get("correspondence", "seed"),
+                               irregular=bool(options.get("resample", False))
+                               and stack.source in ("rtstruct", "json"))
     if not rec.bodies:
         raise ValueError(f"{input_path}: nothing to reconstruct (only single-contour bodies; try --caps half)")
     t_surface = time.perf_counter() - t0

@@ -169,25 +169,25 @@ def _corner_eval(patches: BezierPatches, n_slices: int) -> NodeEval:
     return at
 
 
-def _side_blending(curves: np.ndarray) -> tuple[BezierPatches, NodeEval]:
-    patches = blending.blend_curves(curves, closed_u=True)
+def _side_blending(curves: np.ndarray, v: np.ndarray) -> tuple[BezierPatches, NodeEval]:
+    patches = blending.blend_curves(curves, closed_u=True, params=v)
     return patches, _corner_eval(patches, len(curves))
 
 
-def _side_coons(curves: np.ndarray) -> tuple[BezierPatches, NodeEval]:
+def _side_coons(curves: np.ndarray, v: np.ndarray) -> tuple[BezierPatches, NodeEval]:
     from surfaces import coons
 
-    nodes = curves[:, :, 0].transpose(1, 0, 2)  # (M, K, 3)
+    nodes = curves[:, :, 0].transpose(1, 0, 2)  # (M, K, 3); chord-length tangents follow v
     patches = coons.from_grid(nodes, closed_u=True)
     return patches, _corner_eval(patches, len(curves))
 
 
-def _side_bspline(curves: np.ndarray) -> tuple[BezierPatches, NodeEval]:
+def _side_bspline(curves: np.ndarray, v: np.ndarray) -> tuple[BezierPatches, NodeEval]:
     bspline = importlib.import_module("surfaces.bspline")
     nodes = curves[:, :, 0].transpose(1, 0, 2)
-    m, k = nodes.shape[:2]
+    m = nodes.shape[0]
     surf = bspline.interpolate_surface(
-        nodes, degree=3, closed_u=True, params_u=np.arange(m) / m, params_v=np.arange(k) / max(k - 1, 1)
+        nodes, degree=3, closed_u=True, params_u=np.arange(m) / m, params_v=(v - v[0]) / (v[-1] - v[0])
     )
 
     def at(j: np.ndarray, kk: np.ndarray) -> np.ndarray:
@@ -197,7 +197,7 @@ def _side_bspline(curves: np.ndarray) -> tuple[BezierPatches, NodeEval]:
 
 
 #: Surface methods over the slice curves; adding one is one line here.
-METHODS: dict[str, Callable[[np.ndarray], tuple[BezierPatches, NodeEval]]] = {
+METHODS: dict[str, Callable[[np.ndarray, np.ndarray], tuple[BezierPatches, NodeEval]]] = {
     "blending": _side_blending,
     "coons": _side_coons,
     "bspline": _side_bspline,
@@ -219,7 +219,7 @@ def available_methods() -> list[str]:
     return out
 
 
-def side_surface(curves, method: str = "blending") -> tuple[BezierPatches, NodeEval]:
+def side_surface(curves, method: str = "blending", v=None) -> tuple[BezierPatches, NodeEval]:
     """Side surface through a stack of slice curves.
 
     Parameters
@@ -229,6 +229,9 @@ def side_surface(curves, method: str = "blending") -> tuple[BezierPatches, NodeE
     method : {"blending", "coons", "bspline"}
         Seed 000 parabolic blending (exact through the curves), seed 001 Coons
         patches over the lattice nodes, or B-spline interpolation of the nodes.
+    v : array_like, shape (K,), optional
+        Slice positions (strictly increasing); uniform when omitted. Unequal
+        positions give the non-uniform parabolas in ``v``.
 
     Returns
     -------
@@ -242,7 +245,10 @@ def side_surface(curves, method: str = "blending") -> tuple[BezierPatches, NodeE
         raise ValueError(f"method: unknown or unavailable {method!r}; choose from {available_methods()}")
     if len(c) < 2:
         raise ValueError(f"curves: need at least 2 slices for a side surface, got {len(c)}")
-    return METHODS[method](c)
+    vv = np.arange(len(c), dtype=np.float64) if v is None else as_array(v, "v", shape=(len(c),))
+    if np.any(np.diff(vv) <= 0):
+        raise ValueError("v: slice positions must increase strictly")
+    return METHODS[method](c, vv)
 
 
 # ------------------------------------------------------------------ fast grid evaluation

@@ -239,13 +239,18 @@ def restrict_curve(control, knots, breakpoints) -> np.ndarray:
     return np.stack([p0, p0 + w * d0 / 3.0, p1 - w * d1 / 3.0, p1], axis=1)
 
 
-def blend_weights(n_curves: int) -> np.ndarray:
+def blend_weights(n_curves: int, params=None) -> np.ndarray:
     """Bezier weights of the uniform parabolic blending across curves (seed 000, eqs. 13-19).
 
     Parameters
     ----------
     n_curves : int
         Number of curves (slices), at least 2.
+    params : array_like, shape (n_curves,), optional
+        Strictly increasing ``v`` of the curves (e.g. slice positions in mm) for
+        unequally spaced slices; uniform when omitted (the seed's case). Tangents
+        are then those of the non-uniform parabolas (as in ``u``), per unit of
+        each piece's own parameter.
 
     Returns
     -------
@@ -260,6 +265,19 @@ def blend_weights(n_curves: int) -> np.ndarray:
     n = int(n_curves)
     if n < 2:
         raise ValueError(f"n_curves: need at least 2 curves, got {n_curves}")
+    if params is not None:
+        v = as_array(params, "params", shape=(n,))
+        if np.any(np.diff(v) <= 0):
+            raise ValueError("params: must increase strictly")
+        # tangent rows (dC/dv) are the Overhauser tangents of the identity "points"
+        tangent = overhauser_tangents(np.eye(n), v, closed=False)
+        h = np.diff(v)[:, None]
+        eye = np.eye(n)
+        j = np.arange(n - 1)
+        return np.stack(
+            [eye[j], eye[j] + h * tangent[j] / 3.0, eye[j + 1] - h * tangent[j + 1] / 3.0, eye[j + 1]],
+            axis=1,
+        )
     tangent = np.zeros((n, n))
     if n == 2:
         tangent[:, 0], tangent[:, 1] = -1.0, 1.0
@@ -276,7 +294,7 @@ def blend_weights(n_curves: int) -> np.ndarray:
     )
 
 
-def blend_curves(curves, closed_u: bool = True) -> BezierPatches:
+def blend_curves(curves, closed_u: bool = True, params=None) -> BezierPatches:
     """Surface through a stack of curves by uniform parabolic blending in ``v``.
 
     Seed 000, eqs. 13-19: ``S(u, v) = (1 - v) Pc(v) + v Pd(v)`` between
@@ -291,6 +309,8 @@ def blend_curves(curves, closed_u: bool = True) -> BezierPatches:
         ``u`` breakpoints (see :func:`restrict_curve`).
     closed_u : bool
         The curves are closed (segment ``M - 1`` ends where segment 0 starts).
+    params : array_like, shape (K,), optional
+        ``v`` of the curves for unequal spacing (see :func:`blend_weights`).
 
     Returns
     -------
@@ -302,7 +322,7 @@ def blend_curves(curves, closed_u: bool = True) -> BezierPatches:
     if len(c) < 2:
         raise ValueError(f"curves: need at least 2 curves, got {len(c)}")
     k, m = c.shape[:2]
-    w = blend_weights(k)
+    w = blend_weights(k, params)
     # one matrix product over all curves (faster than einsum's batched path)
     mixed = (w.reshape(-1, k) @ c.reshape(k, -1)).reshape(k - 1, 4, m, 4, 3)
     control = np.ascontiguousarray(mixed.transpose(2, 0, 3, 1, 4))

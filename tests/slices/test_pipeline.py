@@ -165,3 +165,19 @@ def test_breast_heart_volume_within_planning_systems(shared_data):
     assert rec.max_deviation_mm < 1e-6
     flat = reconstruct_contours(stack.contours, caps="flat", mesh=False)
     assert flat.volume_mm3 < rec.volume_mm3
+
+
+def test_unequal_spacing_accepted_when_asked(ellipsoid):
+    _, conts, truth = ellipsoid
+    # drop every third plane: unequal spacing (2.5 and 5 mm)
+    planes = sorted({c.z for c in conts})
+    keep = {z for i, z in enumerate(planes) if i % 3 != 1 or i in (0, len(planes) - 1)}
+    sparse = [c for c in conts if c.z in keep]
+    with pytest.raises(ValueError, match="unequal slice spacing|resample"):
+        reconstruct_contours(sparse, mesh=False)
+    rec = reconstruct_contours(sparse, irregular=True, samples=2)
+    assert rec.max_deviation_mm < 1e-6 and rec.mesh.is_watertight()
+    exact = truth["volume_between_end_planes_mm3"]
+    # fewer planes: still closer to the truth than the slab (trapezoid) count
+    assert abs(rec.volume_mm3 / exact - 1) < abs(rec.slab_volume_mm3 / exact - 1)
+    assert abs(rec.volume_mm3 / exact - 1) < 1.5e-2

@@ -49,8 +49,9 @@ def register(sub) -> None:
     p.add_argument("--spacing", default=None, metavar="Z,Y,X",
                    help="mask stacks: voxel spacing in mm, e.g. 2.5,0.8,0.8")
     p.add_argument("--resample", action="store_true",
-                   help="resample a CT series with unequal slice spacing onto uniform slices "
-                   "instead of failing")
+                   help="unequal slice spacing: resample a CT series / image stack onto uniform "
+                   "slices, or blend contour inputs (RTSTRUCT, JSON) with non-uniform parabolas "
+                   "at the true slice positions, instead of failing")
     p.add_argument("--lattice", type=float, default=2.0,
                    help="common u lattice values per point of the largest contour (default 2)")
     p.add_argument("--correspondence", default="seed", choices=("seed", "arc"),
