@@ -6,8 +6,11 @@ turns the height field into numbers an inspector uses:
 1. remove what is not the defect: a robust plane or smooth polynomial background
    (iterative refit excluding points beyond ``3 sigma`` of the residual, ``sigma``
    from the median absolute deviation);
-2. segment by depth with hysteresis: a region must reach the detection threshold
-   somewhere and extends while deeper than the (lower) extent threshold;
+2. segment: by depth with hysteresis (a region must reach the detection threshold
+   somewhere and extends while deeper than the lower extent threshold), or, when the
+   measured slopes ``p, q`` are given, by where the slope departs from the background's
+   (sharper: integration spreads each slope kink over a few pixels of height), keeping
+   the footprints that reach the detection depth;
 3. measure each connected region (scikit-image ``regionprops``) in physical units.
 
 Directions follow :data:`photometric.lights.CONVENTION` (x right, y up).
@@ -162,6 +165,7 @@ def measure_defects(
     if not inspect.any():
         raise ValueError("height: no finite pixel to inspect")
     if background == "none":
+        bg = np.zeros_like(z)  # flat: the slopes' background is zero
         residual = z - np.nanmedian(z[inspect])
         sigma = _MAD_TO_SIGMA * float(np.median(np.abs(residual[inspect])))
     elif background in ("plane", "smooth"):
@@ -178,8 +182,7 @@ def measure_defects(
         footprint = _slope_footprint(
             as_array(p, "p", shape=z.shape, finite=False),
             as_array(q, "q", shape=z.shape, finite=False),
-            z - residual if background != "none" else np.zeros_like(z),
-            inspect, h, slope_threshold,
+            bg, inspect, h, slope_threshold,
         )
 
     signs = {"depression": (-1.0,), "bump": (1.0,), "both": (-1.0, 1.0)}[polarity]
