@@ -28,10 +28,14 @@ _MAD_TO_SIGMA = 1.4826
 _MAX_FIT_POINTS = 250_000
 
 
+def _scaled(rows: np.ndarray, cols: np.ndarray, shape) -> tuple[np.ndarray, np.ndarray]:
+    """x (right) and y (up) scaled to [-1, 1] over the image."""
+    return 2.0 * cols / max(shape[1] - 1, 1) - 1.0, 1.0 - 2.0 * rows / max(shape[0] - 1, 1)
+
+
 def _design(rows: np.ndarray, cols: np.ndarray, shape, degree: int) -> np.ndarray:
     """Monomials ``x^a y^b`` (a + b <= degree) in coordinates scaled to [-1, 1]."""
-    x = 2.0 * cols / max(shape[1] - 1, 1) - 1.0
-    y = 1.0 - 2.0 * rows / max(shape[0] - 1, 1)
+    x, y = _scaled(rows, cols, shape)
     terms = [x**a * y ** (d - a) for d in range(degree + 1) for a in range(d + 1)]
     return np.stack(terms, axis=1)
 
@@ -89,8 +93,15 @@ def fit_background(
         if new.sum() < 3 * n_terms or np.array_equal(new, use):
             break
         use = new
-    all_rows, all_cols = np.indices(z.shape)
-    background = (_design(all_rows.ravel(), all_cols.ravel(), z.shape, deg) @ coef).reshape(z.shape)
+    # Evaluate term by term as outer products: no (H * W, terms) design matrix in memory.
+    x, _ = _scaled(0.0, np.arange(z.shape[1], dtype=float), z.shape)
+    _, y = _scaled(np.arange(z.shape[0], dtype=float), 0.0, z.shape)
+    background = np.zeros(z.shape)
+    k = 0
+    for d in range(deg + 1):
+        for a in range(d + 1):
+            background += coef[k] * np.outer(y ** (d - a), x**a)
+            k += 1
     return background, sigma
 
 
