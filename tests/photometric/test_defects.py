@@ -18,7 +18,8 @@ def _check(found, truths, keys=(("max_depth_mm", "depth_mm"), ("mean_width_mm", 
     for truth in truths:
         got = _match(found, truth)
         for mine, theirs in keys:
-            assert abs(got[mine] - truth[theirs]) <= 0.10 * truth[theirs], (truth["kind"], mine, got[mine], truth[theirs])
+            error = abs(got[mine] - truth[theirs])
+            assert error <= 0.10 * truth[theirs], (truth["kind"], mine, got[mine], truth[theirs])
 
 
 @pytest.mark.parametrize("tilt", [(0.0, 0.0), (0.05, -0.03)])
