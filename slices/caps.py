@@ -167,8 +167,9 @@ def planar_cap_mesh(curve, samples: int, outward_z: float) -> TriangleMesh:
     Returns
     -------
     TriangleMesh
-        Boundary vertices at ``u = j + a / samples`` (the tessellation's), triangles
-        of a constrained triangulation of the boundary polygon.
+        Boundary vertices at ``u = j + a / samples`` (the tessellation's); a fan
+        from one centre vertex when the outline is star-shaped about its vertex
+        mean, else a constrained triangulation of the boundary polygon.
     """
     import manifold3d
 
@@ -177,11 +178,23 @@ def planar_cap_mesh(curve, samples: int, outward_z: float) -> TriangleMesh:
     ring = _bezier_points(c, s).reshape(-1, 3)
     xy = ring[:, :2]
     area = 0.5 * float(np.dot(xy[:, 0], np.roll(xy[:, 1], -1)) - np.dot(xy[:, 1], np.roll(xy[:, 0], -1)))
-    tri = np.asarray(manifold3d.triangulate([xy if area > 0 else xy[::-1]]), dtype=np.int64)
-    if area <= 0:
-        tri = len(xy) - 1 - tri
+    n = len(xy)
+    center = xy.mean(axis=0)
+    rel = xy - center
+    ang = np.arctan2(rel[:, 1], rel[:, 0])
+    turn = (ang - np.roll(ang, 1) + np.pi) % (2 * np.pi) - np.pi
+    if np.all(turn * np.sign(area) > 0) and abs(turn.sum()) > np.pi:
+        # star-shaped about the vertex mean: a fan from an extra centre vertex
+        ring = np.vstack([ring, np.append(center, ring[0, 2])])
+        i = np.arange(n)
+        tri = np.stack([np.full(n, n), i, (i + 1) % n], axis=1)
+    else:
+        tri = np.asarray(manifold3d.triangulate([xy if area > 0 else xy[::-1]]), dtype=np.int64)
+        if area <= 0:
+            tri = n - 1 - tri
     if len(tri) == 0:
         raise ValueError("cap: the end contour could not be triangulated")
+    xy = ring[:, :2]
     # manifold3d returns counter-clockwise triangles (normal +z); bottom caps face -z
     corners = xy[tri]
     e1, e2 = corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]
