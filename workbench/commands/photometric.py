@@ -110,10 +110,12 @@ def _reconstruct(args: argparse.Namespace) -> int:
     )
     if "mean_angular_error_deg" in summary:
         print(f"mean angular error vs normal_gt: {summary['mean_angular_error_deg']:.3f} deg")
+    # Without a pixel size the heights are in pixel units, not mm.
+    unit = "px" if summary["pixel_size_source"].startswith("default") else "mm"
     if "height_rmse_mm" in summary:
-        print(f"height RMSE vs height_gt: {summary['height_rmse_mm']:.4g} mm")
+        print(f"height RMSE vs height_gt: {summary['height_rmse_mm']:.4g} {unit}")
     print(
-        f"height range {summary['height_range_mm']:.4g} mm ({summary['integrator']}), "
+        f"height range {summary['height_range_mm']:.4g} {unit} ({summary['integrator']}), "
         f"{summary['patches'][0]} x {summary['patches'][1]} patches, "
         f"{summary['mesh']['triangles']} triangles, {summary['n_defects']} defect(s)"
     )
