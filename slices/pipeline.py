@@ -354,12 +354,34 @@ def _save_patches(rec: Reconstruction, path: Path) -> None:
 
 
 def _render(mesh: TriangleMesh, path: Path) -> None:
+    """Ray-cast picture with :mod:`surfaces.view`; a matplotlib view when that is missing."""
     from surfaces.io import atomic_path
-    from surfaces.view import render, save_png
 
-    image = render(mesh, views=("iso", "front", "top", "side"), size=(1024, 768), colorbar=False)
+    try:
+        from surfaces.view import render, save_png
+    except ImportError:
+        render = None
     with atomic_path(path, suffix=".png") as tmp:
-        save_png(tmp, image)
+        if render is not None:
+            image = render(mesh, views=("iso", "front", "top", "side"), size=(1024, 768), colorbar=False)
+            save_png(tmp, image)
+            return
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
+        step = max(1, mesh.n_triangles // 60000)
+        tri = mesh.triangles[::step]
+        fig = plt.figure(figsize=(8, 6), dpi=100)
+        ax = fig.add_subplot(projection="3d")
+        v = mesh.vertices
+        ax.plot_trisurf(v[:, 0], v[:, 1], v[:, 2], triangles=tri, color="0.75", linewidth=0)
+        ax.set_xlabel("x (mm)")
+        ax.set_ylabel("y (mm)")
+        ax.set_zlabel("z (mm)")
+        fig.savefig(tmp, format="png")
+        plt.close(fig)
 
 
 def reconstruct(input_path, out_dir, roi=None, method: str = "blending", rays: int = 64,
