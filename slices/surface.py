@@ -109,10 +109,15 @@ def slice_curves(contours, z, n_rays: int = 64, n_lattice: int | None = None,
     correspondence : {"seed", "arc"}
         Which ``u`` links the slices: the seed's parameters (eqs. 1-5, default)
         or normalised arc length from support point 0.
-    lattice_mode : {"uniform", "adaptive"}
-        Common lattice ``j / M`` (default) or one denser where the pooled
-        parameters crowd (:func:`slices.control_points.lattice_values`; better
-        with many points per contour, >= ~200, on folded outlines).
+    lattice_mode : {"uniform", "adaptive", "union"}
+        Common lattice ``j / M`` (default), one denser where the pooled
+        parameters crowd (:func:`slices.control_points.lattice_values`), or the
+        union of all slices' parameters (no quantisation at all; ``M`` = all
+        points of the body). The last two follow the seed's parameters more
+        closely and win with many points per contour (>= ~200); with fewer
+        points the turning points of folded outlines (eqs. 3-4) differ from
+        slice to slice and the uniform lattice's quantisation is the better
+        regulariser (see benchmarks/results/slices.md).
 
     Returns
     -------
@@ -132,9 +137,12 @@ def slice_curves(contours, z, n_rays: int = 64, n_lattice: int | None = None,
             us.append(cum[:-1] / cum[-1])
     else:
         raise ValueError(f"correspondence: must be 'seed' or 'arc', got {correspondence!r}")
-    if lattice_mode not in ("uniform", "adaptive"):
+    if lattice_mode not in ("uniform", "adaptive", "union"):
         raise ValueError(f"lattice_mode: must be 'uniform' or 'adaptive', got {lattice_mode!r}")
-    values = lattice_values(us, m) if lattice_mode == "adaptive" else np.arange(m) / m
+    if lattice_mode == "union":
+        values = np.unique(np.concatenate(us))
+    else:
+        values = lattice_values(us, m) if lattice_mode == "adaptive" else np.arange(m) / m
     m = len(values)
     curves, nodes, pts3 = [], [], []
     for par, zk, u in zip(params, zz, us):
