@@ -56,6 +56,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import optimize
 
+from photometric.lights import condition_number  # noqa: F401  (part of this module's API)
 from surfaces.validate import as_array, positive
 
 OPTIMAL_SLANT_DEG: float = math.degrees(math.atan(math.sqrt(2.0)))
@@ -1293,23 +1294,6 @@ def exceedance_probability(
 
 
 # ----------------------------------------------------------------------------- configuration
-
-
-def condition_number(lights) -> float:
-    """Condition number ``sigma_max / sigma_min`` of the light matrix.
-
-    Parameters
-    ----------
-    lights : array_like, (N, 3)
-        Unit lights.
-
-    Returns
-    -------
-    float
-    """
-    L = _unit_lights(lights, "lights", nominal=True)
-    sv = np.linalg.svd(L, compute_uv=False)
-    return float(sv[0] / sv[-1])
 
 
 def ring_conditioning(slants_deg, n: int = 3) -> dict[str, np.ndarray]:

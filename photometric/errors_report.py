@@ -10,14 +10,13 @@ from __future__ import annotations
 
 import importlib.util
 import json
-import os
-import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
 from photometric import errors as E
+from surfaces.io import atomic_write_bytes
 from surfaces.validate import as_array, positive
 
 MAP_AXES: tuple[tuple[tuple[int, str], tuple[int, str]], ...] = (
@@ -330,27 +329,12 @@ def _pairs(n: int):
 # ----------------------------------------------------------------------------- writing
 
 
-def _atomic_write(path: Path, data: bytes) -> None:
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # mkstemp creates 0600; give the usual permissions
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-
-
 def _save_figure(fig, path: Path) -> None:
     import io
 
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=90)
-    _atomic_write(path, buf.getvalue())
+    atomic_write_bytes(path, buf.getvalue())
 
 
 def _label(axis) -> str:
@@ -732,6 +716,6 @@ def write_report(report: dict, out_dir) -> dict[str, str]:
         pictures["crack"] = _plot_crack(report, arrays, out, plt)
     public = {k: v for k, v in report.items() if k != "_arrays"}
     public["plots"] = [p for v in pictures.values() for p in (v if isinstance(v, list) else [v])]
-    _atomic_write(out / "report.json", json.dumps(public, indent=1).encode())
-    _atomic_write(out / "report.md", _markdown(report, pictures).encode())
+    atomic_write_bytes(out / "report.json", json.dumps(public, indent=1).encode())
+    atomic_write_bytes(out / "report.md", _markdown(report, pictures).encode())
     return {"json": "report.json", "markdown": "report.md", "plots": public["plots"]}

@@ -8,6 +8,7 @@ complete. Reading and the open3d conversion import open3d inside the function.
 
 from __future__ import annotations
 
+import json
 import os
 import tempfile
 from contextlib import contextmanager
@@ -56,6 +57,80 @@ def atomic_path(path, suffix: str | None = None):
         if os.path.exists(tmp):
             os.unlink(tmp)
         raise
+
+
+def atomic_write_bytes(path, data: bytes) -> Path:
+    """Write ``data`` to ``path`` atomically (temporary file beside it, then rename).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Destination file; its folder must exist.
+    data : bytes
+        File content.
+
+    Returns
+    -------
+    pathlib.Path
+        The destination path.
+    """
+    with atomic_path(path) as tmp:
+        tmp.write_bytes(data)
+    return Path(path)
+
+
+def atomic_write_text(path, text: str) -> Path:
+    """Write UTF-8 ``text`` to ``path`` atomically (see :func:`atomic_write_bytes`)."""
+    return atomic_write_bytes(path, text.encode("utf-8"))
+
+
+def jsonable(value):
+    """``value`` with numpy scalars and arrays turned into plain Python (lists, floats, ints, bools).
+
+    Parameters
+    ----------
+    value : object
+        Nested dicts, lists, tuples, numpy arrays and scalars.
+
+    Returns
+    -------
+    object
+        The same structure, serialisable by :mod:`json`.
+    """
+    if isinstance(value, dict):
+        return {str(k): jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [jsonable(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return jsonable(value.tolist())
+    if isinstance(value, Path):
+        return str(value)
+    if isinstance(value, np.bool_):
+        return bool(value)
+    if isinstance(value, np.integer):
+        return int(value)
+    if isinstance(value, np.floating):
+        return float(value)
+    return value
+
+
+def write_json(path, content, indent: int = 2) -> Path:
+    """Write ``content`` as indented JSON atomically; numpy values become plain Python.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Destination file.
+    content : dict or list
+        JSON-serialisable content (numpy values and paths allowed).
+    indent : int
+        Indentation of the JSON text.
+
+    Returns
+    -------
+    pathlib.Path
+    """
+    return atomic_write_text(path, json.dumps(jsonable(content), indent=indent) + "\n")
 
 
 def _as_mesh(obj, samples: int = 8) -> TriangleMesh:

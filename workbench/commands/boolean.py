@@ -9,10 +9,11 @@ smoothing of the result (``--smooth N``).
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
 import numpy as np
+
+from surfaces.io import write_json
 
 
 def register(subparsers) -> None:
@@ -81,13 +82,6 @@ def _read_solid(path: Path):
     return read_mesh(path)
 
 
-def _write_json(path: Path, data: dict) -> None:
-    from surfaces.io import atomic_path
-
-    with atomic_path(path) as tmp:
-        tmp.write_text(json.dumps(data, indent=2) + "\n")
-
-
 def run(args: argparse.Namespace) -> int:
     """Run the set operation and write the mesh, the summary and optionally the curves.
 
@@ -130,7 +124,7 @@ def run(args: argparse.Namespace) -> int:
     else:
         write_mesh(mesh, args.out)
     if args.curves is not None:
-        _write_json(
+        write_json(
             args.curves,
             {
                 "units": "as the input meshes",
@@ -142,7 +136,7 @@ def run(args: argparse.Namespace) -> int:
         )
         summary["curves_file"] = str(args.curves)
     summary["summary_file"] = str(json_path)
-    _write_json(json_path, summary)
+    write_json(json_path, summary)
     print(
         f"{args.op}: volume A {result.volume_a:.6g}, B {result.volume_b:.6g}, "
         f"result {result.volume:.6g}; {summary['n_triangles']} triangles, "

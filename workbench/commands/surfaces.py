@@ -9,6 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
+from surfaces.io import write_json
+
 
 def register(sub) -> None:
     """Add ``coons``, ``info`` and ``convert`` to the ``surfaces`` group.
@@ -119,7 +121,7 @@ def _coons(args: argparse.Namespace) -> int:
     summary["time_s"] = time.perf_counter() - t0
     write_mesh(mesh, out)
     save_patches(patches, out.with_suffix(".npz"))
-    _write_json(out.with_suffix(".json"), summary)
+    write_json(out.with_suffix(".json"), summary)
     print(
         f"{patches.n_patches} patches, {mesh.n_triangles} triangles, area {summary['area']:.6g}"
         f"{', watertight' if summary['watertight'] else ''}; wrote {out}, {out.with_suffix('.npz')}, "
@@ -149,7 +151,7 @@ def _info(args: argparse.Namespace) -> int:
     else:
         summary = {"file": args.file, **_mesh_summary(obj)}
     if args.json_out:
-        _write_json(Path(args.json_out), summary)
+        write_json(Path(args.json_out), summary)
     print(json.dumps(summary, indent=2))
     return 0
 
@@ -161,10 +163,3 @@ def _convert(args: argparse.Namespace) -> int:
     path = write_mesh(obj, args.out, samples=args.samples)
     print(f"wrote {path}")
     return 0
-
-
-def _write_json(path: Path, data: dict) -> None:
-    from surfaces.io import atomic_path
-
-    with atomic_path(path) as tmp:
-        tmp.write_text(json.dumps(data, indent=2) + "\n")
