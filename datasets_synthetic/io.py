@@ -9,32 +9,10 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-import numpy as np
 
-from surfaces.io import atomic_write_bytes, atomic_write_text, write_json
+from surfaces.io import atomic_write_bytes, atomic_write_text, save_npy, write_json
 
 __all__ = ["atomic_write_bytes", "atomic_write_text", "write_json", "save_npy", "ensure_dir"]
-
-
-def save_npy(path: str | os.PathLike, array: np.ndarray) -> Path:
-    """Save one array as ``.npy`` atomically.
-
-    Parameters
-    ----------
-    path : str or path-like
-        Destination file (``.npy``).
-    array : numpy.ndarray
-        The array, saved with its dtype.
-
-    Returns
-    -------
-    pathlib.Path
-    """
-    import io
-
-    buf = io.BytesIO()
-    np.save(buf, np.asarray(array), allow_pickle=False)
-    return atomic_write_bytes(path, buf.getvalue())
 
 
 def ensure_dir(path: str | os.PathLike, name: str = "out_dir") -> Path:

@@ -23,22 +23,11 @@ import numpy as np
 
 from photometric.io import PhotometricData, read_folder, read_images, read_mask
 from photometric.lights import as_intensities, condition_number, load_intensities, load_lights, validate_lights
-from surfaces.io import atomic_path
+from surfaces.io import save_npy, write_json
 from surfaces.validate import as_array, positive
 
 #: Patches per image side aimed at when ``step`` is not given.
 TARGET_PATCHES = 64
-
-
-def _save_npy(path: Path, array: np.ndarray) -> None:
-    with atomic_path(path) as tmp:
-        with open(tmp, "wb") as fh:
-            np.save(fh, array)
-
-
-def _save_json(path: Path, data: dict) -> None:
-    with atomic_path(path) as tmp:
-        tmp.write_text(json.dumps(data, indent=2) + "\n")
 
 
 def _load_input(source, lights, intensities, mask, select) -> tuple[PhotometricData, dict]:
@@ -249,18 +238,18 @@ def reconstruct(
 
     say("write")
     t0 = time.perf_counter()
-    _save_npy(out / "normals.npy", res.normals)
-    _save_npy(out / "albedo.npy", res.albedo)
-    _save_npy(out / "p.npy", res.p)
-    _save_npy(out / "q.npy", res.q)
-    _save_npy(out / "valid.npy", res.valid)
-    _save_npy(out / "height.npy", height)
+    save_npy(out / "normals.npy", res.normals)
+    save_npy(out / "albedo.npy", res.albedo)
+    save_npy(out / "p.npy", res.p)
+    save_npy(out / "q.npy", res.q)
+    save_npy(out / "valid.npy", res.valid)
+    save_npy(out / "height.npy", height)
     write_png(out / "normals.png", normals_rgb(res.normals, res.valid))
     write_png(out / "albedo.png", scaled(res.albedo, data.mask))
     import cv2
 
     write_png(out / "height.png", scaled(height, res.valid, colormap=cv2.COLORMAP_VIRIDIS))
-    _save_json(
+    write_json(
         out / "defects.json",
         {"units": "mm", "pixel_size_mm": h, "background": background, "defects": defects},
     )
@@ -302,5 +291,5 @@ def reconstruct(
         v = res.valid & np.isfinite(height)
         diff = (height[v] - height[v].mean()) - (height_gt[v] - height_gt[v].mean())
         summary["height_rmse_mm"] = float(np.sqrt(np.mean(diff**2)))
-    _save_json(out / "summary.json", summary)
+    write_json(out / "summary.json", summary)
     return summary

@@ -133,6 +133,26 @@ def write_json(path, content, indent: int = 2) -> Path:
     return atomic_write_text(path, json.dumps(jsonable(content), indent=indent) + "\n")
 
 
+def save_npy(path, array) -> Path:
+    """Save one array as ``.npy`` atomically (no pickles).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Destination file.
+    array : array_like
+        The array, saved with its dtype.
+
+    Returns
+    -------
+    pathlib.Path
+    """
+    with atomic_path(path, suffix=".npy") as tmp:
+        with open(tmp, "wb") as fh:
+            np.save(fh, np.asarray(array), allow_pickle=False)
+    return Path(path)
+
+
 def _as_mesh(obj, samples: int = 8) -> TriangleMesh:
     if isinstance(obj, TriangleMesh):
         return obj
