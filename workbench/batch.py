@@ -966,14 +966,15 @@ def run_batch(
         _remove_stale_tmp(out)
         steps = plan(jobs, out, retry_failed)
         skipped = len(jobs) - len(steps.to_run)
+        previous = _healed_results(out, steps)
         finished: list[dict[str, Any]] = []
         wall = 0.0
         if steps.to_run:
             if client is None:
                 with connect(scheduler, workers, threads_per_worker) as own:
-                    wall = _submit_and_gather(own, steps.to_run, out, runners, finished, progress)
+                    wall = _submit_and_gather(own, steps.to_run, out, runners, previous, finished, progress)
             else:
-                wall = _submit_and_gather(client, steps.to_run, out, runners, finished, progress)
+                wall = _submit_and_gather(client, steps.to_run, out, runners, previous, finished, progress)
             # every task has ended: a folder left by a worker that died mid-job is garbage now
             _remove_stale_tmp(out)
     n_failed = sum(row["status"] == "failed" for row in finished)
@@ -994,10 +995,15 @@ def _submit_and_gather(
     jobs: Sequence[Job],
     out: Path,
     runners: Mapping[str, Callable[[Job, Path], dict]],
+    previous: Mapping[str, dict[str, str]],
     finished: list[dict[str, Any]],
     progress: Callable[[dict[str, Any]], None] | None,
 ) -> float:
-    """Submit one task per job, record each row as it finishes; return the wall time in s."""
+    """Submit one task per job, record each row as it finishes; return the wall time in s.
+
+    ``previous`` holds the rows already in results.csv (by id); the file is
+    rewritten at the end with them and the new rows.
+    """
     from distributed import as_completed
 
     start = time.perf_counter()
@@ -1015,8 +1021,6 @@ def _submit_and_gather(
     ]
     by_key = {fut.key: job for fut, job in zip(futures, jobs)}
     results = out / RESULTS_NAME
-    previous = read_results(results)
-    _write_results(results, previous.values())  # one header, current columns
     try:
         with open(results, "a", newline="", encoding="utf-8") as fh:
             writer = csv.DictWriter(fh, fieldnames=RESULT_COLUMNS, extrasaction="ignore", lineterminator="\n")
@@ -1043,6 +1047,40 @@ def _submit_and_gather(
             merged[row["id"]] = row  # a retried job keeps its place, with its new row
         _write_results(results, merged.values())
     return time.perf_counter() - start
+
+
+def _healed_results(out: Path, steps: Plan) -> dict[str, dict[str, str]]:
+    """Rows of results.csv, completed from the job folders and failure records.
+
+    A row cut short by a crash is dropped; a finished job without a row gets its
+    row back from its ``_COMPLETE`` marker, a failed one from ``failed/<id>.json``.
+    The file is rewritten (atomically, one header, current columns) only when
+    something changed or jobs are about to be appended, so a rerun with nothing to
+    do leaves it untouched.
+    """
+    results = out / RESULTS_NAME
+    rows = read_results(results)
+    kept = {k: r for k, r in rows.items() if r["status"] in ("ok", "failed") and r["kind"] in KINDS}
+    changed = len(kept) != len(rows)
+    for job in steps.complete:
+        if job.id not in kept:
+            try:
+                marker = json.loads((out / job.id / COMPLETE_MARKER).read_text())["row"]
+            except (ValueError, KeyError, OSError):
+                continue
+            kept[job.id] = {name: str(marker.get(name, "")) for name in RESULT_COLUMNS}
+            changed = True
+    for job in steps.failed_before:
+        if job.id not in kept:
+            try:
+                record = json.loads((out / FAILED_DIR / f"{job.id}.json").read_text())
+            except (ValueError, OSError):
+                continue
+            kept[job.id] = _row(job, "failed", str(record.get("error", "")), float(record.get("time_s", 0.0)), {})
+            changed = True
+    if changed or steps.to_run or not results.is_file():
+        _write_results(results, kept.values())
+    return kept
 
 
 def _record(out: Path, job: Job, row: Mapping[str, Any]) -> None:

@@ -177,6 +177,15 @@ def test_batch_end_to_end(data, cluster, tmp_path, capsys):
         summary = json.loads((out / "batch_photometric.json").read_text())
         assert (summary["ran"], summary["skipped"]) == (0, N_TRIADS)
 
+        # results.csv cut short by a crash: a rerun rebuilds the missing rows from the job
+        # folders' _COMPLETE markers and the failure records, and runs nothing
+        lines = (out / batch.RESULTS_NAME).read_text().splitlines(keepends=True)
+        (out / batch.RESULTS_NAME).write_text("".join(lines[:4]) + lines[4][:12])
+        assert main(["batch", "photometric", str(root / "triads"), "--out", str(out)]) == 0
+        assert main(["batch", "slices", str(root / "phantoms"), "--out", str(out)]) == 0
+        assert {r["id"]: r for r in _rows(out)} == {r["id"]: r for r in rows}
+        assert not list(out.glob(f"{batch.TMP_PREFIX}*"))
+
         # --retry-failed reruns only the failed job; fixed, it succeeds
         (bad / "light_directions.txt").write_bytes(original)
         capsys.readouterr()
