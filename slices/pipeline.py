@@ -74,7 +74,8 @@ class BodySurface:
 
 def build_body(body: Body, spacing: float, method: str = "blending", rays: int = 64,
                caps: str = "flat", lattice: float = 2.0, samples: int | None = 2,
-               mesh: bool = True, correspondence: str = "seed") -> BodySurface | None:
+               mesh: bool = True, correspondence: str = "seed",
+               lattice_mode: str = "uniform") -> BodySurface | None:
     """Surface, volume and area of one body (seed 000 sections II-III).
 
     Parameters
@@ -97,6 +98,8 @@ def build_body(body: Body, spacing: float, method: str = "blending", rays: int =
         Build the triangle mesh.
     correspondence : {"seed", "arc"}
         ``u`` that links the slices (see :func:`slices.surface.slice_curves`).
+    lattice_mode : {"uniform", "adaptive", "union"}
+        Common ``u`` lattice (see :func:`slices.surface.slice_curves`).
 
     Returns
     -------
@@ -119,7 +122,8 @@ def build_body(body: Body, spacing: float, method: str = "blending", rays: int =
         # unequally spaced planes (accepted with resample): caps use the median interval
         d = float(np.median(np.diff(z)))
     m = lattice_size(max(len(c.points) for c in body.contours), lattice)
-    sc = slice_curves([c.points for c in body.contours], z, rays, m, correspondence=correspondence)
+    sc = slice_curves([c.points for c in body.contours], z, rays, m, correspondence=correspondence,
+                      lattice_mode=lattice_mode)
     curves = sc.curves
     centers = [np.append(p.center, zk) for p, zk in zip(sc.params, z)]
     low_rings = high_rings = np.zeros((0,) + curves.shape[1:])
@@ -252,7 +256,8 @@ class Reconstruction:
 def reconstruct_contours(contours: list[Contour], spacing: float | None = None, method: str = "blending",
                          rays: int = 64, caps: str = "flat", lattice: float = 2.0,
                          samples: int | None = 2, mesh: bool = True, progress=None,
-                         correspondence: str = "seed", irregular: bool = False) -> Reconstruction:
+                         correspondence: str = "seed", irregular: bool = False,
+                         lattice_mode: str = "uniform") -> Reconstruction:
     """Reconstruct a structure from validated contours in memory.
 
     Parameters
@@ -277,6 +282,8 @@ def reconstruct_contours(contours: list[Contour], spacing: float | None = None, 
         Accept unequally spaced planes: consecutive planes are neighbours and
         the blending in ``v`` uses the slice positions (non-uniform parabolas)
         instead of failing.
+    lattice_mode : {"uniform", "adaptive", "union"}
+        Common ``u`` lattice (see :func:`slices.surface.slice_curves`).
 
     Returns
     -------
@@ -304,7 +311,7 @@ def reconstruct_contours(contours: list[Contour], spacing: float | None = None, 
         samples = max(1, min(6, int(np.sqrt(MESH_BUDGET / max(est, 1)))))
     built, skipped = [], []
     for i, body in enumerate(bodies):
-        b = build_body(body, d, method, rays, caps, lattice, samples, mesh, correspondence)
+        b = build_body(body, d, method, rays, caps, lattice, samples, mesh, correspondence, lattice_mode)
         (skipped if b is None else built).append(body if b is None else b)
         if progress is not None:
             progress(i + 1, len(bodies))
