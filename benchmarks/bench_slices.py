@@ -161,8 +161,8 @@ def accuracy_rows():
             for corr in ("seed", "arc"):
                 t = time.perf_counter()
                 rec = reconstruct_contours(conts, caps="flat", samples=4, correspondence=corr)
+                m, _ = rec.solid_mesh()
                 el = time.perf_counter() - t
-                m = rec.mesh
                 results[f"ours ({corr})"] = (rec.volume_mm3, *distances(m.vertices, m.triangles, pts, tree, z0, z1), el)
             for name, fn in (("marching cubes", marching_cubes_mask), ("shape-based", shape_based)):
                 t = time.perf_counter()

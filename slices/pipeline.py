@@ -233,11 +233,33 @@ class Reconstruction:
 
     @property
     def mesh(self) -> TriangleMesh | None:
-        """All bodies' triangles in one mesh (None when no mesh was built)."""
+        """All bodies' triangles concatenated in one mesh (None when no mesh was built).
+
+        Bodies that meet half-way between planes at a branching keep their
+        caps there (internal walls); see :meth:`solid_mesh`.
+        """
         meshes = [b.mesh for b in self.bodies if b.mesh is not None]
         if not meshes:
             return None
         return meshes[0] if len(meshes) == 1 else merge_meshes(meshes)
+
+    def solid_mesh(self) -> tuple[TriangleMesh | None, bool]:
+        """One solid: manifold3d union of the outer bodies minus the holes.
+
+        Returns
+        -------
+        mesh : TriangleMesh or None
+            Without internal walls; the concatenated :attr:`mesh` when the
+            union fails (or there is only one body).
+        union : bool
+            Whether the union was made.
+        """
+        meshes = [b.mesh for b in self.bodies if b.mesh is not None]
+        if len(meshes) > 1:
+            solid = _solid_union(self.bodies)
+            if solid is not None:
+                return solid, True
+        return self.mesh, False
 
     @property
     def display_mesh(self) -> TriangleMesh | None:
@@ -320,6 +342,42 @@ def reconstruct_contours(contours: list[Contour], spacing: float | None = None, 
     area = sum(b.area_mm2 for b in built)
     slab = slab_volume(contours, None if irregular else d)
     return Reconstruction(built, skipped, float(volume), float(area), slab, d)
+
+
+def _solid_union(bodies) -> TriangleMesh | None:
+    """Union of the outer bodies' meshes minus the holes (manifold3d); None when it fails."""
+    import manifold3d
+
+    closed = [b for b in bodies if b.mesh is not None and b.mesh.is_watertight()]
+    if len(closed) != len(bodies):
+        return None
+    centre = np.mean([b.mesh.vertices.mean(axis=0) for b in closed], axis=0)
+
+    def solid(mesh: TriangleMesh, outward: bool):
+        tri = mesh.triangles if outward else mesh.triangles[:, ::-1]
+        m = manifold3d.Manifold(manifold3d.Mesh64(
+            vert_properties=np.ascontiguousarray(mesh.vertices - centre, dtype=np.float64),
+            tri_verts=np.ascontiguousarray(tri, dtype=np.uint64)))
+        return m if m.status() == manifold3d.Error.NoError else None
+
+    outer = [solid(b.mesh, True) for b in closed if b.body.kind == "outer"]
+    holes = [solid(b.mesh, False) for b in closed if b.body.kind == "hole"]
+    if not outer or any(m is None for m in outer + holes):
+        return None
+    result = manifold3d.Manifold.batch_boolean(outer, manifold3d.OpType.Add) if len(outer) > 1 else outer[0]
+    if holes:
+        result = manifold3d.Manifold.batch_boolean([result] + holes, manifold3d.OpType.Subtract)
+    if result.status() != manifold3d.Error.NoError or result.is_empty():
+        return None
+    out = result.to_mesh64()
+    verts = np.asarray(out.vert_properties, dtype=np.float64)[:, :3] + centre
+    tri = np.asarray(out.tri_verts, dtype=np.int64).reshape(-1, 3)
+    merge_from = np.asarray(out.merge_from_vert, dtype=np.int64)
+    if len(merge_from):
+        remap = np.arange(len(verts))
+        remap[merge_from] = np.asarray(out.merge_to_vert, dtype=np.int64)
+        tri = remap[tri]
+    return TriangleMesh(verts, tri)
 
 
 def _chaining_text(rec: Reconstruction) -> list[dict]:
@@ -410,6 +468,8 @@ def reconstruct(input_path, out_dir, roi=None, method: str = "blending", rays: i
     **options
         ``hu_min``, ``hu_max``, ``spacing`` (z,y,x for mask stacks), ``resample``,
         ``lattice`` (default 2.0), ``samples``, ``correspondence`` ("seed" or "arc"),
+        ``union`` (default True: several bodies written as one solid, see
+        :meth:`Reconstruction.solid_mesh`),
         ``render`` (default True),
         ``reference`` (default True: smoothing B-spline comparison), ``progress``.
 
@@ -420,7 +480,7 @@ def reconstruct(input_path, out_dir, roi=None, method: str = "blending", rays: i
     """
     t0 = time.perf_counter()
     known = {"hu_min", "hu_max", "spacing", "resample", "lattice", "samples", "render", "reference",
-             "progress", "correspondence"}
+             "progress", "correspondence", "union"}
     unknown = set(options) - known
     if unknown:
         raise ValueError(f"options: unknown {sorted(unknown)}")
@@ -436,7 +496,10 @@ def reconstruct(input_path, out_dir, roi=None, method: str = "blending", rays: i
     if not rec.bodies:
         raise ValueError(f"{input_path}: nothing to reconstruct (only single-contour bodies; try --caps half)")
     t_surface = time.perf_counter() - t0
-    mesh = rec.mesh
+    if options.get("union", True):
+        mesh, union = rec.solid_mesh()
+    else:
+        mesh, union = rec.mesh, False
     t_write = time.perf_counter()
     from surfaces.io import write_mesh
 
@@ -481,6 +544,7 @@ def reconstruct(input_path, out_dir, roi=None, method: str = "blending", rays: i
         "mesh_vertices": int(mesh.n_vertices),
         "mesh_triangles": int(mesh.n_triangles),
         "mesh_watertight": bool(mesh.is_watertight()),
+        "mesh_union": union,
         "bodies": _chaining_text(rec),
         "chaining": _chaining_summary(rec),
         "notes": list(stack.notes),

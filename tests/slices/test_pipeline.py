@@ -181,3 +181,15 @@ def test_unequal_spacing_accepted_when_asked(ellipsoid):
     # fewer planes: still closer to the truth than the slab (trapezoid) count
     assert abs(rec.volume_mm3 / exact - 1) < abs(rec.slab_volume_mm3 / exact - 1)
     assert abs(rec.volume_mm3 / exact - 1) < 1.5e-2
+
+
+def test_branching_solid_has_no_internal_walls():
+    conts = [Contour(0.0, _circle(0, 0, 10, 64)), Contour(2.0, _circle(0, 0, 10, 64)),
+             Contour(4.0, _circle(-5, 0, 4, 64)), Contour(4.0, _circle(5, 0, 4, 64)),
+             Contour(6.0, _circle(-5, 0, 4, 64)), Contour(6.0, _circle(5, 0, 4, 64))]
+    rec = reconstruct_contours(conts, caps="flat", samples=2)
+    solid, union = rec.solid_mesh()
+    assert union and solid.is_watertight()
+    # the internal caps at the branching plane are gone: less area, same volume
+    assert solid.surface_area() < rec.mesh.surface_area()
+    assert solid.signed_volume() == pytest.approx(rec.mesh.signed_volume(), rel=1e-6)
