@@ -28,7 +28,6 @@ works for every view.
 from __future__ import annotations
 
 import os
-import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -1034,39 +1033,8 @@ def save_png(path: str | os.PathLike, image: np.ndarray) -> Path:
     ok, data = cv2.imencode(".png", np.ascontiguousarray(img))
     if not ok:
         raise ValueError(f"image: PNG encoding failed for shape {img.shape}")
-    return write_bytes_atomic(path, data.tobytes())
+    from surfaces.io import atomic_write_bytes
 
-
-def write_bytes_atomic(path: str | os.PathLike, data: bytes) -> Path:
-    """Write bytes to a file atomically (temporary name in the same folder, then rename).
-
-    The file gets the usual permissions (``0o666`` minus the umask), not the
-    private ``0o600`` of a temporary file.
-
-    Parameters
-    ----------
-    path : path-like
-        Output file; its folder is created when missing.
-    data : bytes
-        Content.
-
-    Returns
-    -------
-    pathlib.Path
-        The written file.
-    """
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
-    umask = os.umask(0)
-    os.umask(umask)
-    fd, tmp = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-        os.chmod(tmp, 0o666 & ~umask)
-        os.replace(tmp, out)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-    return out
+    return atomic_write_bytes(out, data.tobytes())

@@ -129,22 +129,6 @@ def _command_exists(words: list[str]) -> bool:
     return all(o in parser._option_string_actions for o in options)
 
 
-def _write_json(path: Path, data: dict) -> None:
-    from surfaces.view import write_bytes_atomic
-
-    write_bytes_atomic(path, (json.dumps(data, indent=2, default=_jsonable) + "\n").encode())
-
-
-def _jsonable(value):
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    if isinstance(value, (np.floating, np.integer, np.bool_)):
-        return value.item()
-    if isinstance(value, Path):
-        return str(value)
-    raise TypeError(f"not JSON serialisable: {type(value).__name__}")
-
-
 def heightfield_mesh(height: np.ndarray, pixel_size: float, mask: np.ndarray | None = None,
                      exaggeration: float = 1.0, step: int = 1):
     """Triangle mesh of a height field (x = col h, y = -row h, z = exaggeration * height).
@@ -378,11 +362,12 @@ def section_accuracy(ctx: Context) -> None:
         d_range = 1.0
         n_map = 21 if ctx.quick else 41
         p, q = errors.derivative_square(d_range, 21 if ctx.quick else 41)
-        from surfaces.view import write_bytes_atomic
+        from surfaces.io import atomic_write_text
 
         lights_file = ctx.out / "accuracy" / "lights.txt"
-        rows_txt = "\n".join(" ".join(f"{v:.12f}" for v in row) for row in lights)
-        write_bytes_atomic(lights_file, (rows_txt + "\n").encode())
+        lights_file.parent.mkdir(parents=True, exist_ok=True)
+        atomic_write_text(lights_file, "".join(" ".join(f"{v:.12f}" for v in row) + "\n"
+                                               for row in lights))
         cmd = ctx.cmd("photometric", "errors", "--lights", str(lights_file), "--derivative-range",
                       str(d_range), "--deviation-max", "5", "--grid", str(n_map), "--out",
                       str(ctx.out / "accuracy"))
@@ -773,5 +758,7 @@ def run_demo(out_dir: str | os.PathLike = "demo_out", quick: bool = False,
                     for f in report.figures],
         **ctx.numbers,
     }
-    _write_json(out / "demo.json", summary)
+    from surfaces.io import write_json
+
+    write_json(out / "demo.json", summary)
     return summary

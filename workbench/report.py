@@ -189,9 +189,9 @@ class Report:
             f"<title>{html.escape(self.title)}</title><style>{CSS}</style></head><body>"
             f"<h1>{html.escape(self.title)}</h1>{meta_html}\n{body}\n</body></html>\n"
         )
-        from surfaces.view import write_bytes_atomic
+        from surfaces.io import atomic_write_text
 
-        out = write_bytes_atomic(self.out_dir / name, page.encode("utf-8"))
+        out = atomic_write_text(self.out_dir / name, page)
         return out
 
 

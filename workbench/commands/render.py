@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import time
 from pathlib import Path
@@ -49,9 +48,11 @@ def parse_vector(text: str, name: str) -> np.ndarray:
 
 def write_json(path: str | os.PathLike, data: dict) -> Path:
     """Write ``data`` as indented JSON, atomically."""
-    from surfaces.view import write_bytes_atomic
+    from surfaces.io import write_json as _write
 
-    return write_bytes_atomic(path, (json.dumps(data, indent=2) + "\n").encode())
+    out = Path(path)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    return _write(out, data)
 
 
 def picture(args: argparse.Namespace, geometry, *, colors=None) -> tuple[np.ndarray, dict]:
