@@ -1,17 +1,19 @@
 """Throughput of ``workbench batch`` on 1 and 2 local Dask workers against a plain loop.
 
 The same jobs (synthetic image triads, optionally CT phantom structure sets)
-run three ways in one process run:
+run four ways in one process run, in interleaved rounds:
 
-1. a plain sequential loop calling the library pipeline directly
+1. a plain sequential loop calling the library pipelines directly
    (``photometric.pipeline.reconstruct`` / ``slices.pipeline.reconstruct``),
-2. :func:`workbench.batch.run_batch` on a ``LocalCluster`` of 1 worker process,
-3. the same on 2 worker processes.
+2. the same loop in a fresh process with the thread limits a Dask worker gets
+   (OMP/MKL/OpenBLAS threads = 1),
+3. :func:`workbench.batch.run_batch` on a ``LocalCluster`` of 1 worker process,
+4. the same on 2 worker processes.
 
-Throughput is jobs per minute of wall time. The clusters are started and the
-pipelines imported on every worker before the clock starts (the loop imports
-them before its clock too), so the figures compare steady-state throughput;
-cluster start times are listed separately. The scaling ratio is
+Throughput is jobs per minute of wall time, best round of each way. Cluster
+start and one warm-up job of each kind per process (the pipelines import
+lazily) come before the clock starts, so the figures compare steady-state
+throughput; cluster start times are listed separately. The scaling ratio is
 ``jobs/min (2 workers) / jobs/min (1 worker)``. Writes
 ``benchmarks/results/batch.md`` and prints it.
 
@@ -124,7 +126,7 @@ def main() -> None:
         root = Path(tmp)
         jobs = make_jobs(root / "data", args.triads, args.size, args.phantoms)
         n = len(jobs)
-        # rounds interleave the three ways, so that a change of machine load hits all of them
+        # rounds interleave the four ways, so that a change of machine load hits all of them
         for r in range(args.repeat):
             wall, job_time = sequential(jobs, root / f"seq{r}")
             walls["seq"].append(wall)
@@ -146,7 +148,7 @@ def main() -> None:
         "",
         f"{n} jobs ({args.triads} synthetic triads {args.size}x{args.size} through "
         f"photometric.pipeline.reconstruct, {args.phantoms} phantom RTSTRUCTs through "
-        f"slices.pipeline.reconstruct with {SLICES_OPTIONS}), the same jobs three ways in one run, "
+        f"slices.pipeline.reconstruct with {SLICES_OPTIONS}), the same jobs four ways in one run, "
         f"{args.repeat} interleaved round(s), best wall time of each way. "
         f"Machine: {os.cpu_count()} CPUs shared with other work (load average before the run "
         f"{load_before:.1f}, after {os.getloadavg()[0]:.1f}), Python {platform.python_version()}.",
