@@ -27,6 +27,10 @@ from surfaces.validate import positive
 #: Vertices the written mesh aims at (the tessellation density adapts to it).
 MESH_BUDGET = 250_000
 
+#: Above this many triangles ``union="auto"`` concatenates the bodies instead of
+#: uniting them (manifold3d needs several seconds for large multi-body structures).
+UNION_LIMIT = 200_000
+
 
 @dataclass
 class BodySurface:
@@ -468,7 +472,8 @@ def reconstruct(input_path, out_dir, roi=None, method: str = "blending", rays: i
     **options
         ``hu_min``, ``hu_max``, ``spacing`` (z,y,x for mask stacks), ``resample``,
         ``lattice`` (default 2.0), ``samples``, ``correspondence`` ("seed" or "arc"),
-        ``union`` (default True: several bodies written as one solid, see
+        ``union`` ("auto" (default: united up to :data:`UNION_LIMIT` triangles),
+        "yes" or "no": several bodies written as one solid, see
         :meth:`Reconstruction.solid_mesh`),
         ``render`` (default True),
         ``reference`` (default True: smoothing B-spline comparison), ``progress``.
@@ -496,10 +501,17 @@ def reconstruct(input_path, out_dir, roi=None, method: str = "blending", rays: i
     if not rec.bodies:
         raise ValueError(f"{input_path}: nothing to reconstruct (only single-contour bodies; try --caps half)")
     t_surface = time.perf_counter() - t0
-    if options.get("union", True):
+    mode = options.get("union", "auto")
+    if mode not in ("auto", "yes", "no", True, False):
+        raise ValueError(f"union: must be 'auto', 'yes' or 'no', got {mode!r}")
+    n_tri = sum(b.mesh.n_triangles for b in rec.bodies if b.mesh is not None)
+    if mode in ("yes", True) or (mode == "auto" and n_tri <= UNION_LIMIT):
         mesh, union = rec.solid_mesh()
     else:
         mesh, union = rec.mesh, False
+        if len(rec.bodies) > 1:
+            stack.notes.append(f"bodies' meshes concatenated, not united ({n_tri} triangles; "
+                               "--union yes forces the union)")
     t_write = time.perf_counter()
     from surfaces.io import write_mesh
 

@@ -57,9 +57,10 @@ def register(sub) -> None:
     p.add_argument("--correspondence", default="seed", choices=("seed", "arc"),
                    help="u that links the slices: seed (eqs. 1-5: rays, turning points, chord "
                    "length; default) or arc (normalised arc length from the first ray)")
-    p.add_argument("--no-union", action="store_true",
-                   help="write several bodies' meshes side by side instead of one solid "
-                   "(manifold3d union of the bodies minus the holes; faster on big structures)")
+    p.add_argument("--union", default="auto", choices=("auto", "yes", "no"),
+                   help="several bodies: write one solid (manifold3d union of the bodies minus "
+                   "the holes) or their meshes side by side; auto (default) unites up to 200k "
+                   "triangles")
     p.add_argument("--no-render", action="store_true", help="skip render.png")
     p.set_defaults(func=_reconstruct)
 
@@ -91,7 +92,7 @@ def _reconstruct(args: argparse.Namespace) -> int:
             args.input, args.out, roi=args.roi, method=args.method, rays=args.rays, caps=args.caps,
             hu_min=args.hu_min, hu_max=args.hu_max, spacing=args.spacing, resample=args.resample,
             lattice=args.lattice, render=not args.no_render, samples=None, progress=progress,
-            correspondence=args.correspondence, union=not args.no_union,
+            correspondence=args.correspondence, union=args.union,
         )
     ref = summary.get("reference_bspline", {})
     print(f"{summary['roi']}: {summary['n_contours']} contours on {summary['n_slices']} planes, "
