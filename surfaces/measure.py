@@ -18,10 +18,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from surfaces.bezier import BezierPatches, bernstein
+from surfaces.bezier import BezierPatches, bernstein, tensor_evaluate
 
 #: Patches per chunk, to bound temporary memory on very large grids.
-_PATCH_CHUNK = 4096
+_PATCH_CHUNK = 16384
 
 
 def _gauss(order: int) -> tuple[np.ndarray, np.ndarray]:
@@ -42,10 +42,10 @@ def _integrate(patches: BezierPatches, order: int, integrand) -> float:
     total = 0.0
     for start in range(0, len(flat), _PATCH_CHUNK):
         ctrl = flat[start : start + _PATCH_CHUNK]
-        s = np.einsum("ua,pabx,vb->puvx", b0, ctrl, b0, optimize=True)
-        su = np.einsum("ua,pabx,vb->puvx", b1, ctrl, b0, optimize=True)
-        sv = np.einsum("ua,pabx,vb->puvx", b0, ctrl, b1, optimize=True)
-        total += float(np.einsum("puv,uv->", integrand(s, np.cross(su, sv)), ww))
+        s = tensor_evaluate(ctrl, b0, b0)
+        su = tensor_evaluate(ctrl, b1, b0)
+        sv = tensor_evaluate(ctrl, b0, b1)
+        total += float((integrand(s, np.cross(su, sv)) * ww).sum())
     return total
 
 

@@ -252,8 +252,17 @@ def tessellate(patches: BezierPatches, samples: int = 8, weld_seams: bool = True
     tri = _grid_triangles(len(pi), len(pj), patches.closed_u, patches.closed_v)
     mesh = TriangleMesh(verts, tri, normals)
     if weld_seams:
-        on_seam = ((A % n) == 0) | ((B % n) == 0)
-        mesh = weld(mesh, candidates=np.flatnonzero(on_seam.ravel()))
+        # Seams inside the grid are shared by construction; only the grid's open
+        # outer edges and collapsed rows (poles: S_u x S_v = 0) can coincide.
+        edge = np.zeros(A.shape, dtype=bool)
+        if not patches.closed_u:
+            edge[[0, -1], :] = True
+        if not patches.closed_v:
+            edge[:, [0, -1]] = True
+        collapsed = np.linalg.norm(np.cross(dus, dvs), axis=1) <= 1e-10 * np.maximum(
+            np.linalg.norm(dus, axis=1) * np.linalg.norm(dvs, axis=1), 1e-300
+        )
+        mesh = weld(mesh, candidates=np.flatnonzero(edge.ravel() | collapsed))
     return mesh
 
 
