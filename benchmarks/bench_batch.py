@@ -1,14 +1,17 @@
 """Throughput of ``workbench batch`` on 1 and 2 local Dask workers against a plain loop.
 
 The same jobs (synthetic image triads, optionally CT phantom structure sets)
-run four ways in one process run, in interleaved rounds:
+run five ways in one process run, in interleaved rounds:
 
 1. a plain sequential loop calling the library pipelines directly
    (``photometric.pipeline.reconstruct`` / ``slices.pipeline.reconstruct``),
 2. the same loop in a fresh process with the thread limits a Dask worker gets
    (OMP/MKL/OpenBLAS threads = 1),
-3. :func:`workbench.batch.run_batch` on a ``LocalCluster`` of 1 worker process,
-4. the same on 2 worker processes.
+3. :func:`workbench.batch.run_batch` on a plain ``LocalCluster`` of 1 worker whose
+   environment is distributed's default (``MALLOC_TRIM_THRESHOLD_`` set),
+4. the same through :func:`workbench.batch.connect` (what ``workbench batch`` uses:
+   glibc's adaptive malloc kept), 1 worker process,
+5. the same on 2 worker processes.
 
 Throughput is jobs per minute of wall time, best round of each way. Cluster
 start and one warm-up job of each kind per process (the pipelines import
@@ -98,11 +101,26 @@ def sequential_one_thread(jobs: list[batch.Job], out: Path) -> tuple[float, floa
                 os.environ[name] = value
 
 
-def on_dask(jobs: list[batch.Job], out: Path, workers: int) -> tuple[float, float, float]:
-    """Start a local cluster, warm its workers, run the batch; (start s, wall s, sum of job times s)."""
+def on_dask(jobs: list[batch.Job], out: Path, workers: int, nanny_defaults: bool = False) -> tuple[float, float, float]:
+    """Start a local cluster, warm its workers, run the batch; (start s, wall s, sum of job times s).
+
+    ``nanny_defaults``: a plain ``LocalCluster`` whose workers get distributed's default
+    environment (MALLOC_TRIM_THRESHOLD_ set), instead of :func:`workbench.batch.connect`'s.
+    """
+    from contextlib import ExitStack
+
+    from distributed import Client, LocalCluster
+
     t0 = time.perf_counter()
-    with batch.connect("local", workers) as client:
-        client.run(warm_up, jobs, str(out.parent / f"warm{workers}"))
+    with ExitStack() as stack:
+        if nanny_defaults:
+            cluster = stack.enter_context(
+                LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0")
+            )
+            client = stack.enter_context(Client(cluster))
+        else:
+            client = stack.enter_context(batch.connect("local", workers))
+        client.run(warm_up, jobs, str(out.parent / f"warm-{out.name}"))
         started = time.perf_counter() - t0
         report = batch.run_batch(jobs, out, client)
     if report.failed:
@@ -119,14 +137,14 @@ def main() -> None:
     args = parser.parse_args()
 
     load_before = os.getloadavg()[0]
-    walls: dict[str, list[float]] = {"seq": [], "seq1": [], "1": [], "2": []}
-    job_times: dict[str, list[float]] = {"seq": [], "seq1": [], "1": [], "2": []}
-    starts: dict[str, list[float]] = {"1": [], "2": []}
+    walls: dict[str, list[float]] = {"seq": [], "seq1": [], "1d": [], "1": [], "2": []}
+    job_times: dict[str, list[float]] = {k: [] for k in walls}
+    starts: dict[str, list[float]] = {"1d": [], "1": [], "2": []}
     with tempfile.TemporaryDirectory(prefix="bench_batch_") as tmp:
         root = Path(tmp)
         jobs = make_jobs(root / "data", args.triads, args.size, args.phantoms)
         n = len(jobs)
-        # rounds interleave the four ways, so that a change of machine load hits all of them
+        # rounds interleave the five ways, so that a change of machine load hits all of them
         for r in range(args.repeat):
             wall, job_time = sequential(jobs, root / f"seq{r}")
             walls["seq"].append(wall)
@@ -134,8 +152,10 @@ def main() -> None:
             wall, job_time = sequential_one_thread(jobs, root / f"seq1_{r}")
             walls["seq1"].append(wall)
             job_times["seq1"].append(job_time)
-            for workers in ("1", "2"):
-                start, wall, job_time = on_dask(jobs, root / f"dask{workers}_{r}", int(workers))
+            for workers in ("1d", "1", "2"):
+                start, wall, job_time = on_dask(
+                    jobs, root / f"dask{workers}_{r}", int(workers[0]), nanny_defaults=workers == "1d"
+                )
                 walls[workers].append(wall)
                 job_times[workers].append(job_time)
                 starts[workers].append(start)
@@ -148,7 +168,7 @@ def main() -> None:
         "",
         f"{n} jobs ({args.triads} synthetic triads {args.size}x{args.size} through "
         f"photometric.pipeline.reconstruct, {args.phantoms} phantom RTSTRUCTs through "
-        f"slices.pipeline.reconstruct with {SLICES_OPTIONS}), the same jobs four ways in one run, "
+        f"slices.pipeline.reconstruct with {SLICES_OPTIONS}), the same jobs five ways in one run, "
         f"{args.repeat} interleaved round(s), best wall time of each way. "
         f"Machine: {os.cpu_count()} CPUs shared with other work (load average before the run "
         f"{load_before:.1f}, after {os.getloadavg()[0]:.1f}), Python {platform.python_version()}.",
@@ -160,12 +180,13 @@ def main() -> None:
     for key, label in (
         ("seq", "plain sequential loop"),
         ("seq1", "plain sequential loop, worker thread limits"),
+        ("1d", "LocalCluster, distributed's default worker environment"),
         ("1", "workbench batch, LocalCluster"),
         ("2", "workbench batch, LocalCluster"),
     ):
         rate = 60.0 * n / best[key]
         start = f"{min(starts[key]):.1f}" if key in starts else "-"
-        workers = "-" if key.startswith("seq") else key
+        workers = "-" if key.startswith("seq") else key[0]
         all_rounds = ", ".join(f"{w:.1f}" for w in walls[key])
         lines.append(
             f"| {label} | {workers} | {start} | {best[key]:.2f} | {all_rounds} "
@@ -195,7 +216,10 @@ def main() -> None:
         "included in the Dask runs and absent from the plain loop. Dask's nanny starts each "
         "worker with OMP/MKL/OpenBLAS threads = 1; the first plain loop keeps the libraries' "
         "default threading, as a user's script would, the second runs in a fresh process with "
-        "the workers' limits, which separates Dask's own overhead from the threading.",
+        "the workers' limits, which separates Dask's own overhead from the threading. "
+        "distributed's nanny also sets MALLOC_TRIM_THRESHOLD_=65536 for its workers, which pins "
+        "glibc's mmap threshold so that every large numpy temporary is a fresh mmap; "
+        "workbench.batch.connect starts its local workers without it (third row against fourth).",
     ]
     text = "\n".join(lines) + "\n"
     RESULTS.parent.mkdir(parents=True, exist_ok=True)

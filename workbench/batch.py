@@ -846,19 +846,25 @@ def connect(scheduler: str = "local", workers: int | None = None, threads_per_wo
         On a malformed scheduler address, bad counts, or when the scheduler
         cannot be reached.
     """
+    import dask
     from distributed import Client, LocalCluster
 
     n_threads = int(positive(threads_per_worker, "threads_per_worker"))
     if scheduler == "local":
         n_workers = int(positive(workers if workers is not None else (os.cpu_count() or 1), "workers"))
-        # a free port: without bokeh the scheduler still serves HTTP (health, metrics), and
-        # the default 8787 clashes with any other cluster on the machine
-        cluster = LocalCluster(
-            n_workers=n_workers,
-            threads_per_worker=n_threads,
-            processes=True,
-            dashboard_address=":0",
-        )
+        # distributed's nanny gives its workers MALLOC_TRIM_THRESHOLD_=65536, which pins
+        # glibc's mmap threshold: every large numpy temporary of a pipeline becomes a fresh
+        # mmap, and jobs ran 1.3-1.9x slower than in a plain process (bench_batch.py). Batch
+        # jobs free their memory when they end, so the workers keep glibc's adaptive default.
+        with dask.config.set({"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}):
+            # a free port: without bokeh the scheduler still serves HTTP (health, metrics),
+            # and the default 8787 clashes with any other cluster on the machine
+            cluster = LocalCluster(
+                n_workers=n_workers,
+                threads_per_worker=n_threads,
+                processes=True,
+                dashboard_address=":0",
+            )
         try:
             client = Client(cluster)
             try:
