@@ -671,10 +671,12 @@ def section_breast(ctx: Context) -> None:
             rep.note("--quick: only the Heart is reconstructed; the full run adds the Lt Lung "
                      "(165 contours on 80 planes, with holes).")
         merged = merge_meshes(meshes)
-        pic = view.render(merged, ["front", "iso"], (1000, 520), colors=np.concatenate(colors))
+        pic = view.render(merged, ["front", "left"], (1000, 520), colors=np.concatenate(colors))
         rep.figure(pic, "ct-breast",
                    "Structures of the real breast RT structure set reconstructed from their "
-                   f"contours: {', '.join(rois)} (patient coordinates, mm).",
+                   f"contours: {' and '.join(rois)} (red: Heart, blue: Lt Lung; DICOM patient "
+                   "coordinates, x towards the patient's left, so 'front' is the anterior view "
+                   "and 'left' looks from the patient's right).",
                    " && ".join(ctx.cmd("slices", "reconstruct", str(rtss), "--roi",
                                        f"'{roi}'" if " " in roi else roi, "--rays",
                                        "32" if ctx.quick else "64", "--out",
