@@ -854,8 +854,9 @@ def connect(scheduler: str = "local", workers: int | None = None, threads_per_wo
         n_workers = int(positive(workers if workers is not None else (os.cpu_count() or 1), "workers"))
         # distributed's nanny gives its workers MALLOC_TRIM_THRESHOLD_=65536, which pins
         # glibc's mmap threshold: every large numpy temporary of a pipeline becomes a fresh
-        # mmap, and jobs ran 1.3-1.9x slower than in a plain process (bench_batch.py). Batch
-        # jobs free their memory when they end, so the workers keep glibc's adaptive default.
+        # mmap. In a plain process with it set, 10 triads of 512x512 took 9.5-9.7 s instead
+        # of 5.0-5.6 s in 2 of 3 rounds (noisy shared machine; bench_batch.py compares both
+        # clusters). Batch jobs free their memory when they end, so keep glibc's default.
         with dask.config.set({"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}):
             # a free port: without bokeh the scheduler still serves HTTP (health, metrics),
             # and the default 8787 clashes with any other cluster on the machine
