@@ -9,7 +9,6 @@ and batch jobs).
 
 from __future__ import annotations
 
-import json
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -453,6 +452,123 @@ def _render(mesh: TriangleMesh, path: Path) -> None:
         plt.close(fig)
 
 
+def _load_and_build(input_path, roi, method: str, rays: int, caps: str, options: dict):
+    """Read one ROI (or the whole input) and reconstruct it: ``(stack, reconstruction)``."""
+    stack = load(input_path, roi, options.get("hu_min"), options.get("hu_max"),
+                 options.get("spacing"), bool(options.get("resample", False)))
+    rec = reconstruct_contours(stack.contours, None, method, int(rays), caps,
+                               float(options.get("lattice", 2.0)), options.get("samples"),
+                               True, options.get("progress"), options.get("correspondence", "seed"),
+                               irregular=bool(options.get("resample", False))
+                               and stack.source in ("rtstruct", "json"))
+    if not rec.bodies:
+        raise ValueError(f"{input_path}: nothing to reconstruct in {stack.name!r} "
+                         "(only single-contour bodies; try --caps half)")
+    return stack, rec
+
+
+def _roi_solid(stack, rec: Reconstruction) -> TriangleMesh:
+    """One closed solid of a structure for set operations (bodies united, holes subtracted)."""
+    mesh, united = rec.solid_mesh()
+    if len(rec.bodies) > 1 and not united:
+        raise ValueError(f"{stack.name}: its {len(rec.bodies)} bodies could not be united into one solid "
+                         "for the composition")
+    return mesh
+
+
+def compose_rois(input_path, base_stack, base_rec: Reconstruction, minus=(), plus=(), repair: bool = False,
+                 method: str = "blending", rays: int = 64, caps: str = "flat",
+                 **options) -> tuple[TriangleMesh, dict]:
+    """Structure-set composition ``(base u plus...) - (minus...)`` of reconstructed ROIs (issue 9).
+
+    Every named ROI is reconstructed with the same options as the base; each
+    structure becomes one solid (its bodies united, holes subtracted, see
+    :meth:`Reconstruction.solid_mesh`) and :func:`surfaces.boolean.compose`
+    (manifold3d) combines the triangle meshes.
+
+    Parameters
+    ----------
+    input_path : str or os.PathLike
+        The structure set (or other input) the ROIs come from.
+    base_stack : ContourStack
+        The base ROI's contours (for its name).
+    base_rec : Reconstruction
+        The base ROI's reconstruction.
+    minus, plus : sequence of str or int
+        ROI names or numbers subtracted from / added to the base (added first).
+    repair : bool
+        Repair every mesh before the set operations (see :func:`surfaces.boolean.repair_mesh`).
+    method, rays, caps, **options
+        As for :func:`reconstruct`.
+
+    Returns
+    -------
+    mesh : TriangleMesh
+        The composed solid (closed, outward oriented; possibly empty).
+    composition : dict
+        ``operation`` (text), ``base``/``minus``/``plus`` entries with ``roi``,
+        ``volume_mm3``/``volume_ml`` (patch model), ``mesh_volume_mm3`` (the
+        triangles that entered the set operation), ``n_bodies``; and
+        ``result_volume_mm3``/``_ml``, ``removed_volume_mm3`` (of base u plus),
+        ``added_volume_mm3`` (plus beyond the base), ``area_mm2`` (result
+        triangles), ``watertight``, ``oriented``, ``n_triangles``, ``repairs``, ``time_s``. Volumes are
+        those of the triangle meshes (inscribed in the patch surfaces).
+    """
+    from surfaces import boolean
+
+    t0 = time.perf_counter()
+    minus, plus = list(minus or ()), list(plus or ())
+    if not minus and not plus:
+        raise ValueError("composition: give at least one ROI to subtract (--minus) or add (--plus)")
+
+    def entry(stack, rec, mesh):
+        return {"roi": stack.name, "volume_mm3": rec.volume_mm3, "volume_ml": rec.volume_mm3 / 1000.0,
+                "mesh_volume_mm3": mesh.signed_volume(), "mesh_volume_ml": mesh.signed_volume() / 1000.0,
+                "n_bodies": len(rec.bodies)}
+
+    base_mesh = _roi_solid(base_stack, base_rec)
+    entries = {"minus": [], "plus": []}
+    meshes = {"minus": [], "plus": []}
+    for kind, rois in (("plus", plus), ("minus", minus)):
+        for roi in rois:
+            stack, rec = _load_and_build(input_path, roi, method, rays, caps, options)
+            mesh = _roi_solid(stack, rec)
+            meshes[kind].append(mesh)
+            entries[kind].append(entry(stack, rec, mesh))
+    names = {"base": base_stack.name, "minus": [e["roi"] for e in entries["minus"]],
+             "plus": [e["roi"] for e in entries["plus"]]}
+    mesh, summ = boolean.compose(base_mesh, minus=meshes["minus"], plus=meshes["plus"], repair=bool(repair),
+                                 names=names)
+    text = " + ".join([repr(base_stack.name)] + [repr(n) for n in names["plus"]])
+    if names["minus"]:
+        text = (f"({text})" if names["plus"] else text) + " - " + " - ".join(repr(n) for n in names["minus"])
+    volume = float(summ["volume"])
+    grown = volume + float(summ["removed_volume"])
+    composition = {
+        "operation": text,
+        "engine": "manifold3d via surfaces.boolean.compose",
+        "base": entry(base_stack, base_rec, base_mesh),
+        "minus": entries["minus"],
+        "plus": entries["plus"],
+        "result_volume_mm3": volume,
+        "result_volume_ml": volume / 1000.0,
+        "removed_volume_mm3": float(summ["removed_volume"]),
+        "removed_volume_ml": float(summ["removed_volume"]) / 1000.0,
+        "added_volume_mm3": grown - float(summ["volume_base"]),
+        "added_volume_ml": (grown - float(summ["volume_base"])) / 1000.0,
+        "area_mm2": mesh.surface_area(),
+        "watertight": bool(summ["watertight"]),
+        "oriented": bool(mesh.is_oriented()),
+        "n_triangles": int(summ["n_triangles"]),
+        "flat_shells_removed": int(summ["flat_shells_removed"]),
+        "repairs": summ["repairs"],
+        "volume_note": "result, removed and added volumes are those of the triangle meshes (inscribed in "
+                       "the patch surfaces, so slightly below the patch-model volumes)",
+        "time_s": time.perf_counter() - t0,
+    }
+    return mesh, composition
+
+
 def reconstruct(input_path, out_dir, roi=None, method: str = "blending", rays: int = 64,
                 caps: str = "flat", **options) -> dict:
     """Read a contour input, reconstruct the surface, write every output file.
@@ -475,37 +591,43 @@ def reconstruct(input_path, out_dir, roi=None, method: str = "blending", rays: i
         ``union`` ("auto" (default: united up to :data:`UNION_LIMIT` triangles),
         "yes" or "no": several bodies written as one solid, see
         :meth:`Reconstruction.solid_mesh`),
+        ``minus``, ``plus`` (lists of ROI names or numbers: the written solid is
+        ``(roi u plus...) - (minus...)``, see :func:`compose_rois`), ``repair``
+        (repair the meshes before composing),
         ``render`` (default True),
         ``reference`` (default True: smoothing B-spline comparison), ``progress``.
 
     Returns
     -------
     dict
-        The content of ``summary.json``.
+        The content of ``summary.json``. With a composition, ``volume_mm3``,
+        ``volume_ml`` and ``area_mm2`` are the composed solid's
+        (``volume_source`` says which), the base ROI's own figures are under
+        ``composition.base``.
     """
     t0 = time.perf_counter()
     known = {"hu_min", "hu_max", "spacing", "resample", "lattice", "samples", "render", "reference",
-             "progress", "correspondence", "union"}
+             "progress", "correspondence", "union", "minus", "plus", "repair"}
     unknown = set(options) - known
     if unknown:
         raise ValueError(f"options: unknown {sorted(unknown)}")
+    if caps == "none" and (options.get("minus") or options.get("plus")):
+        raise ValueError("caps: set operations need closed solids; use --caps flat, half or dome, not none")
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    stack = load(input_path, roi, options.get("hu_min"), options.get("hu_max"),
-                 options.get("spacing"), bool(options.get("resample", False)))
-    rec = reconstruct_contours(stack.contours, None, method, int(rays), caps,
-                               float(options.get("lattice", 2.0)), options.get("samples"),
-                               True, options.get("progress"), options.get("correspondence", "seed"),
-                               irregular=bool(options.get("resample", False))
-                               and stack.source in ("rtstruct", "json"))
-    if not rec.bodies:
-        raise ValueError(f"{input_path}: nothing to reconstruct (only single-contour bodies; try --caps half)")
+    stack, rec = _load_and_build(input_path, roi, method, rays, caps, options)
     t_surface = time.perf_counter() - t0
     mode = options.get("union", "auto")
     if mode not in ("auto", "yes", "no", True, False):
         raise ValueError(f"union: must be 'auto', 'yes' or 'no', got {mode!r}")
+    composition = None
     n_tri = sum(b.mesh.n_triangles for b in rec.bodies if b.mesh is not None)
-    if mode in ("yes", True) or (mode == "auto" and n_tri <= UNION_LIMIT):
+    if options.get("minus") or options.get("plus"):
+        mesh, composition = compose_rois(
+            input_path, stack, rec, options.get("minus"), options.get("plus"), bool(options.get("repair", False)),
+            method, rays, caps, **{k: v for k, v in options.items() if k not in ("minus", "plus", "repair")})
+        union = len(rec.bodies) > 1
+    elif mode in ("yes", True) or (mode == "auto" and n_tri <= UNION_LIMIT):
         mesh, union = rec.solid_mesh()
     else:
         mesh, union = rec.mesh, False
@@ -528,9 +650,11 @@ def reconstruct(input_path, out_dir, roi=None, method: str = "blending", rays: i
     t_ref = time.perf_counter() - t_ref
     t_render = time.perf_counter()
     if options.get("render", True):
-        _render(rec.display_mesh, out / "render.png")
+        _render(rec.display_mesh if composition is None else mesh, out / "render.png")
     t_render = time.perf_counter() - t_render
     n_out = sum(b.body.kind == "outer" for b in rec.bodies)
+    volume = rec.volume_mm3 if composition is None else composition["result_volume_mm3"]
+    area = rec.area_mm2 if composition is None else composition["area_mm2"]
     summary = {
         "input": str(input_path),
         "source": stack.source,
@@ -539,9 +663,10 @@ def reconstruct(input_path, out_dir, roi=None, method: str = "blending", rays: i
         "caps": caps,
         "rays": int(rays),
         "correspondence": options.get("correspondence", "seed"),
-        "volume_mm3": rec.volume_mm3,
-        "volume_ml": rec.volume_mm3 / 1000.0,
-        "area_mm2": rec.area_mm2,
+        "volume_mm3": volume,
+        "volume_ml": volume / 1000.0,
+        "area_mm2": area,
+        "volume_source": "patches" if composition is None else "composition",
         "slab_volume_mm3": rec.slab_volume_mm3,
         "slab_volume_ml": rec.slab_volume_mm3 / 1000.0,
         "spacing_mm": rec.spacing,
@@ -556,6 +681,7 @@ def reconstruct(input_path, out_dir, roi=None, method: str = "blending", rays: i
         "mesh_vertices": int(mesh.n_vertices),
         "mesh_triangles": int(mesh.n_triangles),
         "mesh_watertight": bool(mesh.is_watertight()),
+        "mesh_oriented": bool(mesh.is_oriented()),
         "mesh_union": union,
         "bodies": _chaining_text(rec),
         "chaining": _chaining_summary(rec),
@@ -565,13 +691,18 @@ def reconstruct(input_path, out_dir, roi=None, method: str = "blending", rays: i
         "reference_time_s": t_ref,
         "render_time_s": t_render,
     }
+    if composition is not None:
+        summary["composition"] = composition
+        summary["notes"].append(
+            f"surface.ply/.stl, volume_mm3, volume_ml and area_mm2 are the composition {composition['operation']} "
+            "(triangle meshes); slab volume, counts, chaining and patches.npz are the base ROI's")
     if reference is not None:
         summary["reference_bspline"] = reference
     summary["time_s"] = time.perf_counter() - t0
-    from surfaces.io import atomic_path
+    from surfaces.io import jsonable, write_json
 
-    with atomic_path(out / "summary.json", suffix=".json") as tmp:
-        tmp.write_text(json.dumps(summary, indent=2))
+    summary = jsonable(summary)
+    write_json(out / "summary.json", summary)
     return summary
 
 

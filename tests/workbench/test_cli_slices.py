@@ -61,3 +61,34 @@ def test_rois_and_unknown_roi(shared_data, tmp_path, capsys):
     assert json.loads((tmp_path / "rois.json").read_text())[4]["name"] == "Heart"
     assert main(["slices", "reconstruct", str(rtss), "--roi", "Liver", "--out", str(tmp_path)]) == 2
     assert "Heart" in capsys.readouterr().err
+
+
+def test_reconstruct_minus_composes(shared_data, tmp_path, capsys):
+    """``--roi Breast --minus Nodes --minus "Tumor Bed"``: the written solid is the difference."""
+    from surfaces import boolean
+    from surfaces.io import read_mesh
+
+    rtss = shared_data / "rtstruct_breast" / "rtss.dcm"
+    out = tmp_path / "comp"
+    code = main(["slices", "reconstruct", str(rtss), "--roi", "Breast", "--minus", "Nodes", "--minus", "Tumor Bed",
+                 "--caps", "half", "--no-render", "--out", str(out)])
+    assert code == 0
+    summary = json.loads((out / "summary.json").read_text())
+    comp = summary["composition"]
+    assert summary["volume_source"] == "composition"
+    assert [e["roi"] for e in comp["minus"]] == ["Nodes", "Tumor Bed"] and comp["base"]["roi"] == "Breast"
+    assert summary["volume_mm3"] == pytest.approx(comp["result_volume_mm3"])
+    assert summary["volume_ml"] == pytest.approx(comp["result_volume_ml"])
+    # the base ROI's own patch volume is kept beside the composed one
+    assert comp["base"]["volume_ml"] == pytest.approx(comp["base"]["volume_mm3"] / 1000)
+    assert 0 < comp["removed_volume_mm3"] < sum(e["mesh_volume_mm3"] for e in comp["minus"])
+    assert comp["result_volume_mm3"] == pytest.approx(comp["base"]["mesh_volume_mm3"] - comp["removed_volume_mm3"],
+                                                      rel=1e-9)
+    assert comp["watertight"] and summary["mesh_watertight"] and summary["mesh_oriented"]
+    mesh = read_mesh(out / "surface.ply")
+    assert mesh.is_watertight() and mesh.is_oriented()
+    assert mesh.signed_volume() == pytest.approx(summary["volume_mm3"], rel=1e-5)  # float32 PLY
+    info = boolean.check_solid(mesh)
+    assert info["solid"], info["problems"]
+    printed = capsys.readouterr().out
+    assert "composition" in printed and f"{comp['result_volume_ml']:.3f} ml" in printed

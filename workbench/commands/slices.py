@@ -61,6 +61,14 @@ def register(sub) -> None:
                    help="several bodies: write one solid (manifold3d union of the bodies minus "
                    "the holes) or their meshes side by side; auto (default) unites up to 200k "
                    "triangles")
+    p.add_argument("--minus", action="append", default=[], metavar="NAME",
+                   help="structure sets: subtract this ROI (reconstructed with the same options) from "
+                   "--roi; repeatable. The written surface and volume_mm3 are the composed solid's")
+    p.add_argument("--plus", action="append", default=[], metavar="NAME",
+                   help="structure sets: add (unite) this ROI to --roi before any --minus; repeatable")
+    p.add_argument("--repair", action="store_true",
+                   help="with --minus/--plus: repair each mesh (weld, orient, fill small holes) before "
+                   "the set operations; what was repaired goes into summary.json")
     p.add_argument("--no-render", action="store_true", help="skip render.png")
     p.set_defaults(func=_reconstruct)
 
@@ -92,7 +100,8 @@ def _reconstruct(args: argparse.Namespace) -> int:
             args.input, args.out, roi=args.roi, method=args.method, rays=args.rays, caps=args.caps,
             hu_min=args.hu_min, hu_max=args.hu_max, spacing=args.spacing, resample=args.resample,
             lattice=args.lattice, render=not args.no_render, samples=None, progress=progress,
-            correspondence=args.correspondence, union=args.union,
+            correspondence=args.correspondence, union=args.union, minus=args.minus, plus=args.plus,
+            repair=args.repair,
         )
     ref = summary.get("reference_bspline", {})
     print(f"{summary['roi']}: {summary['n_contours']} contours on {summary['n_slices']} planes, "
@@ -103,6 +112,12 @@ def _reconstruct(args: argparse.Namespace) -> int:
     dev_ref = ref.get("max_control_point_deviation_mm")
     print(f"max control-point deviation {summary['max_control_point_deviation_mm']:.2e} mm"
           + (f" (smoothing B-spline reference: {dev_ref:.3f} mm)" if dev_ref is not None else ""))
+    comp = summary.get("composition")
+    if comp is not None:
+        parts = ", ".join(f"{e['roi']} {e['volume_ml']:.3f} ml" for e in [comp["base"], *comp["plus"], *comp["minus"]])
+        print(f"composition {comp['operation']}: {comp['result_volume_ml']:.3f} ml "
+              f"(removed {comp['removed_volume_ml']:.3f} ml, added {comp['added_volume_ml']:.3f} ml; "
+              f"ROIs {parts}), watertight {comp['watertight']}")
     print(f"wrote {args.out}/surface.ply, surface.stl, patches.npz, summary.json"
           + ("" if args.no_render else ", render.png") + f" in {summary['time_s']:.2f} s")
     return 0
