@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from surfaces.bezier import BezierPatches, bernstein, tensor_evaluate
+from surfaces.bezier import BezierPatches, bernstein, control_matrix, cross, tensor_evaluate
 
 #: Patches per chunk, to bound temporary memory on very large grids.
 _PATCH_CHUNK = 16384
@@ -37,15 +37,14 @@ def _integrate(patches: BezierPatches, order: int, integrand) -> float:
         raise ValueError(f"patches: expected BezierPatches, got {type(patches).__name__}")
     t, w = _gauss(order)
     b0, b1 = bernstein(t), bernstein(t, 1)
-    ww = np.outer(w, w)
+    ww = np.outer(w, w)[:, :, None]
     flat = patches.control.reshape(-1, 4, 4, 3)
     total = 0.0
     for start in range(0, len(flat), _PATCH_CHUNK):
-        ctrl = flat[start : start + _PATCH_CHUNK]
-        s = tensor_evaluate(ctrl, b0, b0)
-        su = tensor_evaluate(ctrl, b1, b0)
-        sv = tensor_evaluate(ctrl, b0, b1)
-        total += float((integrand(s, np.cross(su, sv)) * ww).sum())
+        matrix = control_matrix(flat[start : start + _PATCH_CHUNK])
+        s = tensor_evaluate(matrix, b0, b0)  # (order, order, P, 3)
+        normal = cross(tensor_evaluate(matrix, b1, b0), tensor_evaluate(matrix, b0, b1))
+        total += float((integrand(s, normal) * ww).sum())
     return total
 
 
@@ -67,10 +66,10 @@ def area(patches: BezierPatches, order: int = 8, return_error: bool = False):
         Area in squared model units (mm^2 for CT surfaces), and optionally the
         error estimate.
     """
-    value = _integrate(patches, order, lambda s, n: np.linalg.norm(n, axis=-1))
+    value = _integrate(patches, order, lambda s, n: np.sqrt(np.einsum("...x,...x->...", n, n)))
     if not return_error:
         return value
-    finer = _integrate(patches, order + 4, lambda s, n: np.linalg.norm(n, axis=-1))
+    finer = _integrate(patches, order + 4, lambda s, n: np.sqrt(np.einsum("...x,...x->...", n, n)))
     return value, abs(finer - value)
 
 

@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from surfaces.bezier import BezierPatches
+from surfaces.bezier import BezierPatches, bernstein, control_matrix, cross, tensor_evaluate
 from surfaces.validate import as_array
 
 
@@ -169,6 +169,7 @@ def weld(mesh: TriangleMesh, tolerance: float | None = None, candidates=None) ->
         tolerance = 1e-9 * max(diag, 1e-300)
     idx = np.arange(n) if candidates is None else np.unique(np.asarray(candidates, dtype=np.int64))
     pairs = cKDTree(verts[idx]).query_pairs(tolerance, output_type="ndarray")
+    tri = mesh.triangles
     if len(pairs):
         a, b = idx[pairs[:, 0]], idx[pairs[:, 1]]
         graph = coo_matrix((np.ones(len(a)), (a, b)), shape=(n, n))
@@ -176,11 +177,10 @@ def weld(mesh: TriangleMesh, tolerance: float | None = None, candidates=None) ->
         # representative of each component: its smallest vertex index
         rep = np.full(labels.max() + 1, n, dtype=np.int64)
         np.minimum.at(rep, labels, np.arange(n))
-        remap = rep[labels]
-    else:
-        remap = np.arange(n)
-    tri = remap[mesh.triangles]
+        tri = rep[labels][tri]
     keep = (tri[:, 0] != tri[:, 1]) & (tri[:, 1] != tri[:, 2]) & (tri[:, 2] != tri[:, 0])
+    if len(pairs) == 0 and keep.all() and candidates is not None:
+        return mesh  # nothing to merge (the common case of an open or flagged-closed grid)
     tri = tri[keep]
     used = np.zeros(n, dtype=bool)
     used[tri.ravel()] = True
@@ -242,10 +242,15 @@ def tessellate(patches: BezierPatches, samples: int = 8, weld_seams: bool = True
     pj, b = _grid_index(cols, n, patches.closed_v)
     PI, PJ = np.meshgrid(pi, pj, indexing="ij")
     A, B = np.meshgrid(a, b, indexing="ij")
-    pts, du, dv = patches.evaluate_grid(n + 1, n + 1, order=1)
-    verts = pts[PI, PJ, A, B].reshape(-1, 3)
-    dus = du[PI, PJ, A, B].reshape(-1, 3)
-    dvs = dv[PI, PJ, A, B].reshape(-1, 3)
+    # grid-first layout (n+1, n+1, R, C, 3): one matrix product per quantity
+    t = np.linspace(0.0, 1.0, n + 1)
+    b0, b1 = bernstein(t), bernstein(t, 1)
+    matrix = control_matrix(patches.control.reshape(-1, 4, 4, 3))
+    shape = (n + 1, n + 1, rows, cols, 3)
+    index = (A, B, PI, PJ)
+    verts = tensor_evaluate(matrix, b0, b0).reshape(shape)[index].reshape(-1, 3)
+    dus = tensor_evaluate(matrix, b1, b0).reshape(shape)[index].reshape(-1, 3)
+    dvs = tensor_evaluate(matrix, b0, b1).reshape(shape)[index].reshape(-1, 3)
     normals = patches._unit_normals(
         PI.ravel(), PJ.ravel(), (A / n).ravel(), (B / n).ravel(), dus, dvs
     )
@@ -259,7 +264,7 @@ def tessellate(patches: BezierPatches, samples: int = 8, weld_seams: bool = True
             edge[[0, -1], :] = True
         if not patches.closed_v:
             edge[:, [0, -1]] = True
-        collapsed = np.linalg.norm(np.cross(dus, dvs), axis=1) <= 1e-10 * np.maximum(
+        collapsed = np.linalg.norm(cross(dus, dvs), axis=1) <= 1e-10 * np.maximum(
             np.linalg.norm(dus, axis=1) * np.linalg.norm(dvs, axis=1), 1e-300
         )
         mesh = weld(mesh, candidates=np.flatnonzero(edge.ravel() | collapsed))
