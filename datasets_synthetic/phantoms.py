@@ -33,6 +33,9 @@ from surfaces.validate import as_array, positive
 Curve = Callable[[np.ndarray], np.ndarray]
 SHAPES = ("ellipsoid", "kidney", "ring", "lobes", "tilted_cylinder")
 
+#: Sections smaller than this fraction of the largest section are not emitted as contours.
+MIN_SECTION_FRACTION = 1e-6
+
 
 def polygon_area(points) -> float:
     """Signed shoelace area of a closed polygon (positive when counter-clockwise).
@@ -214,9 +217,39 @@ class Phantom(ABC):
         j = np.arange(np.floor((lo - zc) / h) - 1, np.ceil((hi - zc) / h) + 2)
         z = zc + j * h
         z = z[(z > lo + 1e-9 * h) & (z < hi - 1e-9 * h)]
+        z = z[~self._sliver(z)]
         if len(z) == 0:
             raise ValueError(f"spacing_mm: {h} mm leaves no slice plane inside z {lo}..{hi} mm")
         return z
+
+    def _sliver(self, z: np.ndarray) -> np.ndarray:
+        """Planes whose exact section is too thin to give a simple polygon (area below
+        :data:`MIN_SECTION_FRACTION` of the solid's largest section)."""
+        if len(z) == 0:
+            return np.zeros(0, dtype=bool)
+        lo, hi = self.z_range
+        largest = float(np.max(self.section_area_mm2(np.linspace(lo, hi, 257)[1:-1])))
+        return self.section_area_mm2(np.asarray(z, dtype=np.float64)) < MIN_SECTION_FRACTION * largest
+
+    def skipped_planes(self, spacing_mm: float, offset_mm: float = 0.0) -> np.ndarray:
+        """Planes of the grid inside the z range that :meth:`plane_positions` leaves out (sliver sections).
+
+        Parameters
+        ----------
+        spacing_mm, offset_mm : float
+            As for :meth:`plane_positions`.
+
+        Returns
+        -------
+        (S,) float64 array, mm; usually empty.
+        """
+        h = positive(spacing_mm, "spacing_mm")
+        lo, hi = self.z_range
+        zc = float(self.center[2]) + float(offset_mm)
+        j = np.arange(np.floor((lo - zc) / h) - 1, np.ceil((hi - zc) / h) + 2)
+        z = zc + j * h
+        z = z[(z > lo + 1e-9 * h) & (z < hi - 1e-9 * h)]
+        return z[self._sliver(z)]
 
     def contours(
         self, spacing_mm: float, n_points: int = 64, noise_mm: float = 0.0, seed: int = 0,
@@ -296,6 +329,10 @@ class Phantom(ABC):
             "offset_mm": float(offset_mm),
             "z_range_mm": list(self.z_range),
             "planes_mm": planes.tolist(),
+            "skipped_planes_mm": self.skipped_planes(spacing_mm, offset_mm).tolist(),
+            "skipped_planes_rule": f"planes inside the z range whose exact section area is below "
+                                   f"{MIN_SECTION_FRACTION:g} of the largest section are not emitted "
+                                   "(no simple polygon); volumes between end planes use the emitted planes",
             "section_areas_mm2": self.section_area_mm2(planes).tolist(),
             "methods": dict(self.methods),
         }
@@ -933,11 +970,23 @@ class TiltedCylinder(Phantom):
         dz = z - self.center[2]
         st, ct = np.sin(self.tilt), np.cos(self.tilt)
         cx, cy = self.center[0], self.center[1]
+        r = self.r
+        lo, hi = max(lo, -r), min(hi, r)
+        # The section {u^2 + v^2 <= r^2, lo <= u <= hi} is convex: its outline is traced by rays from
+        # an inside point p = (u0, 0), each ending at the circle or at a chord u = lo / u = hi,
+        # whichever comes first (clipping the circle's u instead would leave zero-width spikes
+        # along a chord that cuts beyond the axis, a polygon that retraces itself).
+        u0 = 0.5 * (lo + hi)
 
         def curve(t):
             w = 2.0 * np.pi * np.asarray(t, dtype=np.float64)
-            u = np.clip(self.r * np.cos(w), lo, hi)
-            v = self.r * np.sin(w)
+            du, dv = np.cos(w), np.sin(w)
+            # circle: |p + s d| = r  ->  s = -u0 du + sqrt((u0 du)^2 - (u0^2 - r^2))
+            s = -u0 * du + np.sqrt(np.maximum((u0 * du) ** 2 - (u0 * u0 - r * r), 0.0))
+            with np.errstate(divide="ignore", invalid="ignore"):
+                to_chord = np.where(du > 0, (hi - u0) / du, np.where(du < 0, (lo - u0) / du, np.inf))
+            s = np.minimum(s, to_chord)
+            u, v = u0 + s * du, s * dv
             return np.column_stack([cx + (u + dz * st) / ct, cy + v])
 
         return [curve]

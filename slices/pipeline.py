@@ -634,6 +634,11 @@ def reconstruct(input_path, out_dir, roi=None, method: str = "blending", rays: i
         if len(rec.bodies) > 1:
             stack.notes.append(f"bodies' meshes concatenated, not united ({n_tri} triangles; "
                                "--union yes forces the union)")
+    if caps != "none" and not (mesh.is_watertight() and mesh.is_oriented() and mesh.signed_volume() > 0):
+        # never expected (tests check every capped breast ROI); said loudly rather than written silently
+        stack.notes.append("WARNING: the capped mesh is not a closed, consistently and outward oriented solid "
+                           f"(watertight {mesh.is_watertight()}, oriented {mesh.is_oriented()}, "
+                           f"signed volume {mesh.signed_volume():.6g} mm^3)")
     t_write = time.perf_counter()
     from surfaces.io import write_mesh
 
