@@ -195,12 +195,15 @@ def planar_cap_mesh(curve, samples: int, outward_z: float) -> TriangleMesh:
     if len(tri) == 0:
         raise ValueError("cap: the end contour could not be triangulated")
     xy = ring[:, :2]
-    # manifold3d returns counter-clockwise triangles (normal +z); bottom caps face -z
+    # Both triangulations are consistently oriented as a whole; decide the orientation of all
+    # triangles at once from their total signed area. Deciding per triangle would flip the
+    # (near-)degenerate slivers a straight run of the outline can give the wrong way round, and
+    # their edges would then disagree with the neighbouring triangles.
     corners = xy[tri]
     e1, e2 = corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]
-    up = (e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]) > 0
-    flip = up if outward_z < 0 else ~up
-    tri[flip] = tri[flip][:, ::-1]
+    up = float(np.sum(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])) > 0
+    if up != (outward_z > 0):
+        tri = tri[:, ::-1].copy()
     normal = np.zeros_like(ring)
     normal[:, 2] = 1.0 if outward_z > 0 else -1.0
     return TriangleMesh(ring, tri, normal)

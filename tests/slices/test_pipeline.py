@@ -193,3 +193,27 @@ def test_branching_solid_has_no_internal_walls():
     # the internal caps at the branching plane are gone: less area, same volume
     assert solid.surface_area() < rec.mesh.surface_area()
     assert solid.signed_volume() == pytest.approx(rec.mesh.signed_volume(), rel=1e-6)
+
+
+@pytest.mark.parametrize("outward", [1.0, -1.0])
+@pytest.mark.parametrize("outline", ["star", "u_shape"])
+@pytest.mark.parametrize("clockwise", [False, True])
+def test_flat_cap_triangles_face_outward_consistently(outward, outline, clockwise):
+    from slices.caps import planar_cap_mesh
+
+    if outline == "star":
+        corners = _circle(1.0, -2.0, 8.0, 12)
+    else:  # not star-shaped about its vertex mean: constrained triangulation
+        corners = np.array([(0, 0), (10, 0), (10, 10), (7, 10), (7, 3), (3, 3), (3, 10), (0, 10)], float)
+    if clockwise:
+        corners = corners[::-1]
+    # straight Bezier segments between the corners (collinear control points), in the plane z = 5
+    a, b = corners, np.roll(corners, -1, axis=0)
+    w = np.arange(4) / 3.0
+    curve = a[:, None, :] + w[None, :, None] * (b - a)[:, None, :]
+    curve = np.concatenate([curve, np.full(curve.shape[:2] + (1,), 5.0)], axis=2)
+    cap = planar_cap_mesh(curve, 3, outward)
+    assert cap.is_oriented()
+    nz = cap.face_normals(normalize=False)[:, 2]
+    assert np.all(np.sign(nz[np.abs(nz) > 1e-12]) == outward)
+    assert 0.5 * abs(nz.sum()) == pytest.approx(abs(curve_area(curve)), rel=1e-12)
