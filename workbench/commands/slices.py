@@ -69,6 +69,9 @@ def register(sub) -> None:
     p.add_argument("--repair", action="store_true",
                    help="with --minus/--plus: repair each mesh (weld, orient, fill small holes) before "
                    "the set operations; what was repaired goes into summary.json")
+    p.add_argument("--samples", type=int, default=None, metavar="N",
+                   help="tessellation subdivisions per patch side (default: adapted so that the mesh "
+                   "has about 250,000 vertices)")
     p.add_argument("--no-render", action="store_true", help="skip render.png")
     p.set_defaults(func=_reconstruct)
 
@@ -86,6 +89,8 @@ def _reconstruct(args: argparse.Namespace) -> int:
     from slices.pipeline import reconstruct
     from slices.surface import available_methods
 
+    if args.samples is not None and args.samples < 1:
+        raise ValueError(f"--samples: need at least 1 subdivision per patch side, got {args.samples}")
     if args.method not in available_methods():
         raise ValueError(f"--method: {args.method!r} is not available here; "
                          f"choose from {available_methods()}")
@@ -99,7 +104,7 @@ def _reconstruct(args: argparse.Namespace) -> int:
         summary = reconstruct(
             args.input, args.out, roi=args.roi, method=args.method, rays=args.rays, caps=args.caps,
             hu_min=args.hu_min, hu_max=args.hu_max, spacing=args.spacing, resample=args.resample,
-            lattice=args.lattice, render=not args.no_render, samples=None, progress=progress,
+            lattice=args.lattice, render=not args.no_render, samples=args.samples, progress=progress,
             correspondence=args.correspondence, union=args.union, minus=args.minus, plus=args.plus,
             repair=args.repair,
         )
