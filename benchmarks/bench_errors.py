@@ -26,21 +26,15 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from common import best_of  # noqa: E402
 
 from photometric import errors as E  # noqa: E402
 from photometric.stereo import solve  # noqa: E402
 
 OUT = Path(__file__).resolve().parent / "results" / "errors.md"
 BEAR = Path(__file__).resolve().parents[2] / "shared" / "data" / "diligent_bear" / "light_directions.txt"
-
-
-def best_of(fn, repeat=3):
-    times = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        out = fn()
-        times.append(time.perf_counter() - t0)
-    return min(times), out
 
 
 def bench_map(L, n_dev=21, n_normals=41, dmax=5.0):

@@ -19,21 +19,15 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from common import best_of  # noqa: E402
 
 from surfaces.coons import from_grid  # noqa: E402
 from surfaces.mesh import tessellate  # noqa: E402
 
 N_POINTS = 1_000_000
 GEOMDL_SAMPLE = 5_000
-
-
-def best_of(fn, repeat=3):
-    times = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        out = fn()
-        times.append(time.perf_counter() - t0)
-    return min(times), out
 
 
 def surface_100x100():
