@@ -543,7 +543,9 @@ def compose_rois(input_path, base_stack, base_rec: Reconstruction, minus=(), plu
     if names["minus"]:
         text = (f"({text})" if names["plus"] else text) + " - " + " - ".join(repr(n) for n in names["minus"])
     volume = float(summ["volume"])
-    grown = volume + float(summ["removed_volume"])
+    # base u plus as the engine built it (without --plus it is the base, added nothing by definition;
+    # the engine's copy can differ from the input mesh in the last digits)
+    grown = volume + float(summ["removed_volume"]) if plus else float(summ["volume_base"])
     composition = {
         "operation": text,
         "engine": "manifold3d via surfaces.boolean.compose",
