@@ -18,9 +18,10 @@ import numpy as np
 from slices import caps as capmod
 from slices.chaining import Body, chain, slab_volume
 from slices.io import Contour, check_spacing, load
-from slices.surface import lattice_size, patch_integrals, side_surface, slice_curves, tessellate_fast
+from slices.surface import lattice_size, side_surface, slice_curves
+from surfaces import measure
 from surfaces.bezier import BezierPatches
-from surfaces.mesh import TriangleMesh, merge_meshes, weld
+from surfaces.mesh import TriangleMesh, merge_meshes, tessellate, weld
 from surfaces.validate import positive
 
 #: Vertices the written mesh aims at (the tessellation density adapts to it).
@@ -174,7 +175,7 @@ def build_body(body: Body, spacing: float, method: str = "blending", rays: int =
     side_cols = slice(first, first + side_ctrl.shape[1])
     patches = BezierPatches(full, closed_u=True)
     side_patches = BezierPatches(full[:, side_cols], closed_u=True)
-    vol_pp, area_pp = patch_integrals(patches, per_patch=True)
+    vol_pp, area_pp = measure.integrals(patches, per_patch=True)
     volume, area = float(vol_pp.sum()), float(area_pp[:, side_cols].sum())
     area += sum(abs(capmod.curve_area(c)) for c, _ in flat_caps)
     # deviation at the control points, evaluated on the final surface
@@ -185,7 +186,7 @@ def build_body(body: Body, spacing: float, method: str = "blending", rays: int =
     tri_mesh = display = None
     if mesh:
         n_s = samples or max(1, min(6, int(np.sqrt(MESH_BUDGET / side_patches.n_patches))))
-        tri_mesh = display = tessellate_fast(side_patches, n_s)
+        tri_mesh = display = tessellate(side_patches, n_s)
         if flat_caps:
             # only vertices in the end planes can be shared with the caps
             zv = tri_mesh.vertices[:, 2]

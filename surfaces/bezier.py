@@ -132,12 +132,6 @@ def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return out
 
 
-def _unit(vectors: np.ndarray) -> np.ndarray:
-    norm = np.linalg.norm(vectors, axis=-1, keepdims=True)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(norm > 0, vectors / np.where(norm > 0, norm, 1.0), 0.0)
-
-
 @dataclass(frozen=True)
 class BezierPatches:
     """A grid of bicubic Bezier patches, the shared surface model.
@@ -310,11 +304,12 @@ class BezierPatches:
         d = self.derivatives(pi, pj, u, v, order=1)
         return self._unit_normals(pi, pj, np.asarray(u, float), np.asarray(v, float), d.du, d.dv)
 
-    def _unit_normals(self, pi, pj, u, v, du, dv) -> np.ndarray:
+    def _unit_normals(self, pi, pj, u, v, du, dv, return_degenerate: bool = False):
         normal = cross(du, dv)
-        length = np.linalg.norm(normal, axis=-1)
-        scale = np.linalg.norm(du, axis=-1) * np.linalg.norm(dv, axis=-1)
-        degenerate = length <= 1e-10 * np.maximum(scale, 1e-300)
+        length2 = np.einsum("...x,...x->...", normal, normal)
+        scale2 = np.einsum("...x,...x->...", du, du) * np.einsum("...x,...x->...", dv, dv)
+        # |du x dv| <= 1e-10 |du| |dv|: a pole or a collapsed edge
+        degenerate = length2 <= 1e-20 * np.maximum(scale2, 1e-300)
         if np.any(degenerate):
             # step towards the patch centre: at a pole the limit normal is the
             # normal of the nearby regular points
@@ -329,7 +324,10 @@ class BezierPatches:
                 if np.all(np.linalg.norm(alt, axis=-1) > 0):
                     break
             normal[degenerate] = alt
-        return _unit(normal)
+            length2[degenerate] = np.einsum("...x,...x->...", alt, alt)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            unit = normal / np.sqrt(np.where(length2 > 0, length2, 1.0))[..., None]
+        return (unit, degenerate) if return_degenerate else unit
 
     def evaluate_grid(self, n_u: int, n_v: int, order: int = 0):
         """Evaluate every patch on a regular ``n_u x n_v`` parameter grid.

@@ -32,23 +32,46 @@ def _gauss(order: int) -> tuple[np.ndarray, np.ndarray]:
     return 0.5 * (x + 1.0), 0.5 * w
 
 
-def _integrate(patches: BezierPatches, order: int, integrand) -> float:
+def _per_patch(patches: BezierPatches, order: int, integrands) -> list[np.ndarray]:
+    """Integrate each ``integrand(points, normal)`` over every patch; one array (P,) per integrand.
+
+    ``normal`` is the unnormalised ``S_u x S_v``; points and normals come from one
+    evaluation of all patches at the quadrature nodes (grid-first layout).
+    """
     if not isinstance(patches, BezierPatches):
         raise ValueError(f"patches: expected BezierPatches, got {type(patches).__name__}")
     t, w = _gauss(order)
     b0, b1 = bernstein(t), bernstein(t, 1)
     ww = np.outer(w, w)[:, :, None]
     flat = patches.control.reshape(-1, 4, 4, 3)
-    total = 0.0
+    out = [np.empty(len(flat)) for _ in integrands]
     for start in range(0, len(flat), _PATCH_CHUNK):
-        matrix = control_matrix(flat[start : start + _PATCH_CHUNK])
+        sl = slice(start, start + _PATCH_CHUNK)
+        matrix = control_matrix(flat[sl])
         s = tensor_evaluate(matrix, b0, b0)  # (order, order, P, 3)
         normal = cross(tensor_evaluate(matrix, b1, b0), tensor_evaluate(matrix, b0, b1))
-        total += float((integrand(s, normal) * ww).sum())
-    return total
+        for arr, integrand in zip(out, integrands):
+            arr[sl] = (integrand(s, normal) * ww).sum(axis=(0, 1))
+    return out
 
 
-def area(patches: BezierPatches, order: int = 8, return_error: bool = False):
+def _dot(a, b):
+    return np.einsum("...x,...x->...", a, b)
+
+
+def _area_density(s, n):
+    return np.sqrt(_dot(n, n))
+
+
+def _volume_density(s, n):
+    return _dot(s, n) / 3.0
+
+
+def _result(values: np.ndarray, patches: BezierPatches, per_patch: bool):
+    return values.reshape(patches.shape) if per_patch else float(values.sum())
+
+
+def area(patches: BezierPatches, order: int = 8, return_error: bool = False, per_patch: bool = False):
     """Surface area by Gauss-Legendre quadrature over every patch.
 
     Parameters
@@ -59,21 +82,22 @@ def area(patches: BezierPatches, order: int = 8, return_error: bool = False):
         Quadrature points per direction and patch (default 8).
     return_error : bool
         Also return ``|A(order) - A(order + 4)|`` as an error estimate.
+    per_patch : bool
+        Return the ``(R, C)`` array of every patch's area instead of the sum.
 
     Returns
     -------
-    float or (float, float)
-        Area in squared model units (mm^2 for CT surfaces), and optionally the
-        error estimate.
+    float or numpy.ndarray, and optionally the error estimate
+        Area in squared model units (mm^2 for CT surfaces).
     """
-    value = _integrate(patches, order, lambda s, n: np.sqrt(np.einsum("...x,...x->...", n, n)))
+    (value,) = _per_patch(patches, order, [_area_density])
     if not return_error:
-        return value
-    finer = _integrate(patches, order + 4, lambda s, n: np.sqrt(np.einsum("...x,...x->...", n, n)))
-    return value, abs(finer - value)
+        return _result(value, patches, per_patch)
+    (finer,) = _per_patch(patches, order + 4, [_area_density])
+    return _result(value, patches, per_patch), _result(np.abs(finer - value), patches, per_patch)
 
 
-def volume(patches: BezierPatches, order: int = 5) -> float:
+def volume(patches: BezierPatches, order: int = 5, per_patch: bool = False):
     """Enclosed volume by the divergence theorem, integrated over the patches.
 
     Parameters
@@ -83,14 +107,39 @@ def volume(patches: BezierPatches, order: int = 5) -> float:
         as further flux terms).
     order : int
         Quadrature points per direction (5 is exact for bicubic patches).
+    per_patch : bool
+        Return the ``(R, C)`` array of every patch's flux contribution instead of the sum.
 
     Returns
     -------
-    float
+    float or numpy.ndarray
         ``1/3 * flux of x`` through the surface, in cubed model units; positive
         when ``S_u x S_v`` points outward.
     """
-    return _integrate(patches, order, lambda s, n: np.einsum("...x,...x->...", s, n)) / 3.0
+    (value,) = _per_patch(patches, order, [_volume_density])
+    return _result(value, patches, per_patch)
+
+
+def integrals(patches: BezierPatches, order: int = 5, per_patch: bool = False):
+    """Volume and area in one pass (one evaluation of the patches).
+
+    Parameters
+    ----------
+    patches : BezierPatches
+        The surface.
+    order : int
+        Quadrature points per direction (5: exact volume, area to about 1e-8
+        relative on smooth surfaces).
+    per_patch : bool
+        Return ``(R, C)`` arrays instead of sums.
+
+    Returns
+    -------
+    volume, area : float or numpy.ndarray
+        As :func:`volume` and :func:`area`.
+    """
+    vol, ar = _per_patch(patches, order, [_volume_density, _area_density])
+    return _result(vol, patches, per_patch), _result(ar, patches, per_patch)
 
 
 def flux_z(patches: BezierPatches, order: int = 5) -> float:
@@ -112,4 +161,5 @@ def flux_z(patches: BezierPatches, order: int = 5) -> float:
     float
         ``int z n_z dA`` in cubed model units.
     """
-    return _integrate(patches, order, lambda s, n: s[..., 2] * n[..., 2])
+    (value,) = _per_patch(patches, order, [lambda s, n: s[..., 2] * n[..., 2]])
+    return float(value.sum())

@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from surfaces.bezier import BezierPatches, bernstein, control_matrix, cross, tensor_evaluate
+from surfaces.bezier import BezierPatches, bernstein, control_matrix, tensor_evaluate
 from surfaces.validate import as_array
 
 
@@ -251,8 +251,8 @@ def tessellate(patches: BezierPatches, samples: int = 8, weld_seams: bool = True
     verts = tensor_evaluate(matrix, b0, b0).reshape(shape)[index].reshape(-1, 3)
     dus = tensor_evaluate(matrix, b1, b0).reshape(shape)[index].reshape(-1, 3)
     dvs = tensor_evaluate(matrix, b0, b1).reshape(shape)[index].reshape(-1, 3)
-    normals = patches._unit_normals(
-        PI.ravel(), PJ.ravel(), (A / n).ravel(), (B / n).ravel(), dus, dvs
+    normals, collapsed = patches._unit_normals(
+        PI.ravel(), PJ.ravel(), (A / n).ravel(), (B / n).ravel(), dus, dvs, return_degenerate=True
     )
     tri = _grid_triangles(len(pi), len(pj), patches.closed_u, patches.closed_v)
     mesh = TriangleMesh(verts, tri, normals)
@@ -264,9 +264,6 @@ def tessellate(patches: BezierPatches, samples: int = 8, weld_seams: bool = True
             edge[[0, -1], :] = True
         if not patches.closed_v:
             edge[:, [0, -1]] = True
-        collapsed = np.linalg.norm(cross(dus, dvs), axis=1) <= 1e-10 * np.maximum(
-            np.linalg.norm(dus, axis=1) * np.linalg.norm(dvs, axis=1), 1e-300
-        )
         mesh = weld(mesh, candidates=np.flatnonzero(edge.ravel() | collapsed))
     return mesh
 

@@ -11,7 +11,7 @@ from slices.chaining import chain, slab_volume
 from slices.control_points import clean_contour
 from slices.io import Contour
 from slices.pipeline import build_body, reconstruct_contours
-from slices.surface import patch_integrals, slice_curves
+from slices.surface import slice_curves
 from surfaces import measure
 
 
@@ -56,11 +56,11 @@ def test_every_point_lies_on_its_slice_curve(ellipsoid):
         np.testing.assert_allclose(np.roll(curve[:, 0], -1, axis=0), curve[:, 3], atol=1e-9)
 
 
-def test_integrals_match_shared_measure(ellipsoid):
+def test_one_pass_integrals_match_volume_and_area(ellipsoid):
     _, conts, _ = ellipsoid
     rec = reconstruct_contours(conts[:6], caps="flat", mesh=False)
     patches = rec.bodies[0].patches
-    vol, area = patch_integrals(patches, order=6)
+    vol, area = measure.integrals(patches, order=6)
     assert vol == pytest.approx(measure.volume(patches), rel=1e-12)
     assert area == pytest.approx(measure.area(patches, order=6), rel=1e-12)
 
