@@ -35,9 +35,16 @@ def _names(argv: list[str]) -> list[str]:
     return sorted(wanted, key=lambda n: ORDER.index(n) if n in ORDER else len(ORDER))
 
 
+def _nest(text: str) -> str:
+    """Demote a result file's headings so that its title is a level-2 heading of the README."""
+    if not text.startswith("# "):
+        return text
+    return "\n".join("#" + line if line.startswith("#") else line for line in text.splitlines())
+
+
 def rebuild_readme() -> Path:
     """Write ``benchmarks/README.md`` from the result files, in a fixed order."""
-    results = {p.stem: p.read_text().strip() for p in (HERE / "results").glob("*.md")}
+    results = {p.stem: _nest(p.read_text().strip()) for p in (HERE / "results").glob("*.md")}
     ordered = sorted(results, key=lambda n: ORDER.index(n) if n in ORDER else len(ORDER))
     text = HEADER + "\n" + "\n\n".join(results[n] for n in ordered) + "\n"
     out = HERE / "README.md"
