@@ -1,9 +1,10 @@
-"""Files and open3d conversion for the shared surface model.
+"""Files for the shared surface model.
 
 Meshes are written with numpy alone (binary little-endian PLY with vertex
 normals and colours, Wavefront OBJ with normals, binary STL with facet
 normals), atomically: into a temporary file beside the target, renamed when
-complete. Reading and the open3d conversion import open3d inside the function.
+complete. Reading imports open3d inside the function; the open3d conversion for
+viewing is :func:`surfaces.view.to_open3d`.
 """
 
 from __future__ import annotations
@@ -271,39 +272,6 @@ def read_mesh(path) -> TriangleMesh:
     if path.suffix.lower() == ".stl":
         mesh = weld(mesh)
     return mesh
-
-
-def to_open3d(obj, colors=None, samples: int = 8):
-    """Convert a mesh or a patch model to an ``open3d.geometry.TriangleMesh``.
-
-    Parameters
-    ----------
-    obj : TriangleMesh or BezierPatches
-        What to convert; patches are tessellated with ``samples`` subdivisions.
-    colors : array_like, shape (V, 3) or (3,), optional
-        Vertex colours in [0, 1] (overrides the mesh's own).
-    samples : int
-        Subdivisions per patch side when ``obj`` is a patch model.
-
-    Returns
-    -------
-    open3d.geometry.TriangleMesh
-        With the patch (or stored) vertex normals.
-    """
-    import open3d as o3d
-
-    mesh = _as_mesh(obj, samples)
-    out = o3d.geometry.TriangleMesh(
-        o3d.utility.Vector3dVector(mesh.vertices), o3d.utility.Vector3iVector(mesh.triangles.astype(np.int32))
-    )
-    if mesh.vertex_normals is not None:
-        out.vertex_normals = o3d.utility.Vector3dVector(mesh.vertex_normals)
-    else:
-        out.compute_vertex_normals()
-    col = mesh.vertex_colors if colors is None else np.broadcast_to(np.asarray(colors, float), mesh.vertices.shape)
-    if col is not None:
-        out.vertex_colors = o3d.utility.Vector3dVector(np.ascontiguousarray(col, dtype=np.float64))
-    return out
 
 
 def save_patches(patches: BezierPatches, path) -> Path:

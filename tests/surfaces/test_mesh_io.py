@@ -5,7 +5,8 @@ import pytest
 
 from surfaces.bezier import BezierPatches
 from surfaces.coons import from_grid
-from surfaces.io import load_patches, read_mesh, save_patches, to_open3d, write_mesh
+from surfaces.io import load_patches, read_mesh, save_patches, write_mesh
+from surfaces.view import to_open3d
 from surfaces.measure import area, flux_z, volume
 from surfaces.mesh import TriangleMesh, merge_meshes, tessellate
 
@@ -73,7 +74,8 @@ def test_triangle_mesh_validation():
 
 def test_open3d_conversion_and_patch_files(tmp_path):
     patches = from_grid(_torus(), closed_u=True, closed_v=True)
-    o3 = to_open3d(patches, samples=2, colors=[0.2, 0.4, 0.6])
+    n_vertices = tessellate(patches, 2).n_vertices
+    o3 = to_open3d(patches, samples=2, colors=np.tile([0.2, 0.4, 0.6], (n_vertices, 1)))
     assert o3.is_watertight()
     assert len(o3.vertex_normals) == len(o3.vertices)
     path = save_patches(patches, tmp_path / "p.npz")
