@@ -56,6 +56,19 @@ class PhotometricData:
     names: tuple[str, ...]
 
 
+def _read_array(path, name: str) -> np.ndarray:
+    """A ``.npy`` array or an image file read by OpenCV with all its bits (BGR order)."""
+    p = Path(path)
+    if not p.is_file():
+        raise FileNotFoundError(f"{name}: file {p} does not exist")
+    if p.suffix.lower() == ".npy":
+        return np.load(p, allow_pickle=False)
+    arr = cv2.imread(str(p), cv2.IMREAD_UNCHANGED)
+    if arr is None:
+        raise ValueError(f"{name}: OpenCV cannot read {p}")
+    return arr
+
+
 def read_image(path) -> np.ndarray:
     """Read one image as float32 in [0, 1] (integer types scaled by their maximum).
 
@@ -70,16 +83,9 @@ def read_image(path) -> np.ndarray:
     numpy.ndarray, shape (H, W) or (H, W, 3), float32
     """
     p = Path(path)
-    if not p.is_file():
-        raise FileNotFoundError(f"image: file {p} does not exist")
-    if p.suffix.lower() == ".npy":
-        arr = np.load(p, allow_pickle=False)
-    else:
-        arr = cv2.imread(str(p), cv2.IMREAD_UNCHANGED)
-        if arr is None:
-            raise ValueError(f"image: OpenCV cannot read {p}")
-        if arr.ndim == 3:
-            arr = arr[..., :3][..., ::-1]
+    arr = _read_array(p, "image")
+    if arr.ndim == 3 and p.suffix.lower() != ".npy":
+        arr = arr[..., :3][..., ::-1]  # OpenCV's BGR(A) to RGB
     if arr.ndim == 3 and arr.shape[2] == 1:
         arr = arr[..., 0]
     if arr.ndim not in (2, 3) or (arr.ndim == 3 and arr.shape[2] != 3):
@@ -132,14 +138,7 @@ def read_mask(path, shape: tuple[int, int] | None = None) -> np.ndarray:
     numpy.ndarray, shape (H, W), bool
     """
     p = Path(path)
-    if not p.is_file():
-        raise FileNotFoundError(f"mask: file {p} does not exist")
-    if p.suffix.lower() == ".npy":
-        arr = np.load(p, allow_pickle=False)
-    else:
-        arr = cv2.imread(str(p), cv2.IMREAD_UNCHANGED)
-        if arr is None:
-            raise ValueError(f"mask: OpenCV cannot read {p}")
+    arr = _read_array(p, "mask")
     if arr.ndim == 3:
         arr = arr.max(axis=2)
     mask = np.asarray(arr) > 0
