@@ -43,21 +43,27 @@ if TYPE_CHECKING:
 METHODS = ("dct", "fc", "lsq")
 
 
-def _gradients(p, q, mask, pixel_size):
-    """Validated float64 grid derivatives ``(dz/dcol, dz/drow)`` and the domain mask."""
+def _validated(p, q, mask, pixel_size):
+    """Checked ``p``, ``q`` (float64, at least 2x2), the domain mask (all True when None) and ``h``."""
     pp = as_array(p, "p", ndim=2)
     qq = as_array(q, "q", shape=pp.shape)
     if min(pp.shape) < 2:
         raise ValueError(f"p: the gradient field must be at least 2x2, got {pp.shape}")
     h = positive(pixel_size, "pixel_size")
     if mask is None:
-        return pp * h, qq * -h, np.ones(pp.shape, bool)
+        return pp, qq, np.ones(pp.shape, bool), h
     m = as_array(mask, "mask", shape=pp.shape, dtype=bool)
     if not m.any():
         raise ValueError("mask: no pixel is selected")
-    zc = np.where(m, pp * h, 0.0)
-    zr = np.where(m, -qq * h, 0.0)
-    return zc, zr, m
+    return pp, qq, m, h
+
+
+def _gradients(p, q, mask, pixel_size):
+    """Validated float64 grid derivatives ``(dz/dcol, dz/drow)`` and the domain mask."""
+    pp, qq, m, h = _validated(p, q, mask, pixel_size)
+    if mask is None:
+        return pp * h, qq * -h, m
+    return np.where(m, pp * h, 0.0), np.where(m, -qq * h, 0.0), m
 
 
 def _edge_rhs(zc: np.ndarray, zr: np.ndarray, m: np.ndarray) -> np.ndarray:
@@ -143,17 +149,8 @@ def dct_poisson(
         free-boundary grid Laplacian, eigenvalues ``4 sin^2(pi k / 2H) + 4 sin^2(pi l / 2W)``
         on the DCT-II basis. Zero mean over the domain, NaN outside it.
     """
-    pp = as_array(p, "p", ndim=2)
-    qq = as_array(q, "q", shape=pp.shape)
-    if min(pp.shape) < 2:
-        raise ValueError(f"p: the gradient field must be at least 2x2, got {pp.shape}")
-    h = positive(pixel_size, "pixel_size")
-    if mask is None:
-        m = np.ones(pp.shape, bool)
-    else:
-        m = as_array(mask, "mask", shape=pp.shape, dtype=bool)
-        if not m.any():
-            raise ValueError("mask: no pixel is selected")
+    pp, qq, m, h = _validated(p, q, mask, pixel_size)
+    if mask is not None:
         pp, qq = np.where(m, pp, 0.0), np.where(m, qq, 0.0)
     height, width = pp.shape
     rhs = _divergence(pp, qq, dtype)
