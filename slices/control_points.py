@@ -311,43 +311,10 @@ def parameterize(points, n_rays: int = 64, start_angle: float = 0.0) -> ContourP
     n = len(p)
     if n < 3:
         raise ValueError(f"points: needs at least 3 points, got {n}")
-    center = centroid(p)
-    dphi = _angle_steps(p, center)
-    if abs(dphi.sum() - 2 * np.pi) > 1e-6:
-        center = interior_point(p)
-        dphi = _angle_steps(p, center)
-        if abs(dphi.sum() - 2 * np.pi) > 1e-6:
-            raise ValueError("points: contour does not wind once counter-clockwise around its interior")
-    rel = p - center
-    phi0 = float(np.arctan2(rel[0, 1], rel[0, 0]))
-    # polar angle (eq. 2), unwrapped along three periods of the closed contour
-    steps = np.concatenate([dphi, dphi, dphi])
-    phi = phi0 + np.concatenate([[0.0], np.cumsum(steps)])  # (3n + 1,)
-    record = np.maximum.accumulate(phi)
-    edge_len = np.linalg.norm(np.roll(p, -1, axis=0) - p, axis=1)
-    arc = np.concatenate([[0.0], np.cumsum(np.concatenate([edge_len, edge_len, edge_len]))])
+    center, phi, arc = _polar(p)
     total = arc[n]
-    # support points: the N1 ray levels after the record at the start of the second period,
-    # each where the polar angle first reaches it as a new record
     delta = 2 * np.pi / n1
-    k_base = int(np.floor((record[n] - start_angle) / delta))
-    e = np.arange(n, 3 * n)
-    k_lo = np.maximum(np.floor((record[e] - start_angle) / delta).astype(np.int64), k_base)
-    k_hi = np.minimum(np.floor((phi[e + 1] - start_angle) / delta).astype(np.int64), k_base + n1)
-    count = np.maximum(k_hi - k_lo, 0)
-    edge = np.repeat(e, count)
-    level_k = np.repeat(k_lo + 1, count) + (np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count))
-    ang = start_angle + level_k * delta
-    direction = np.stack([np.cos(ang), np.sin(ang)], axis=1)
-    a_pt, b_pt = p[edge % n], p[(edge + 1) % n]
-    seg = b_pt - a_pt
-    num = (a_pt - center)[:, 0] * direction[:, 1] - (a_pt - center)[:, 1] * direction[:, 0]
-    den = seg[:, 0] * direction[:, 1] - seg[:, 1] * direction[:, 0]
-    t = np.clip(-num / np.where(den == 0, 1e-300, den), 0.0, 1.0)
-    s_arc = arc[edge] + t * edge_len[edge % n]
-    support_xy = a_pt + t[:, None] * seg
-    if len(s_arc) != n1:
-        raise ValueError(f"points: found {len(s_arc)} support points for {n1} rays")
+    s_arc, support_xy, level_k, ang = _support_crossings(p, center, phi, arc, n1, start_angle)
     first = int(np.flatnonzero(level_k % n1 == 0)[0])
     order = np.roll(np.arange(n1), -first)
     s0 = s_arc[first]
@@ -363,7 +330,8 @@ def parameterize(points, n_rays: int = 64, start_angle: float = 0.0) -> ContourP
     periods = np.maximum(np.ceil((s0 - arc[n + rot]) / total - 1e-12), 0.0)
     phi_v = phi[n + rot] + 2 * np.pi * periods
     seg_of = np.clip(np.searchsorted(sigma, a_vert, side="right") - 1, 0, n1 - 1)
-    folded_vertex = phi_v < ang[first] + seg_of * delta - 1e-9
+    seg_lo = ang[first] + seg_of * delta
+    folded_vertex = (phi_v < seg_lo - 1e-9) | (phi_v > seg_lo + delta + 1e-9)
     folded_seg = np.zeros(n1, dtype=bool)
     folded_seg[seg_of[folded_vertex]] = True
     # turning points (eq. 3): the polar angle changes direction at the vertex
@@ -388,6 +356,147 @@ def parameterize(points, n_rays: int = 64, start_angle: float = 0.0) -> ContourP
     if np.any(np.diff(u) <= 0) or u[-1] >= 1.0:
         raise ValueError("points: could not give the contour monotone parameters (degenerate outline)")
     return ContourParameters(pts, u, center, support_xy, turning)
+
+
+def _polar(p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Ray origin, unwrapped polar angle (eq. 2) and arc length over three periods.
+
+    Returns ``center`` (2,), ``phi`` (3n + 1,) and ``arc`` (3n + 1,): vertex ``i``
+    of period ``r`` is entry ``r n + i``.
+    """
+    center = centroid(p)
+    dphi = _angle_steps(p, center)
+    if abs(dphi.sum() - 2 * np.pi) > 1e-6:
+        center = interior_point(p)
+        dphi = _angle_steps(p, center)
+        if abs(dphi.sum() - 2 * np.pi) > 1e-6:
+            raise ValueError("points: contour does not wind once counter-clockwise around its interior")
+    rel = p - center
+    phi0 = float(np.arctan2(rel[0, 1], rel[0, 0]))
+    phi = phi0 + np.concatenate([[0.0], np.cumsum(np.concatenate([dphi, dphi, dphi]))])
+    edge_len = np.linalg.norm(np.roll(p, -1, axis=0) - p, axis=1)
+    arc = np.concatenate([[0.0], np.cumsum(np.concatenate([edge_len, edge_len, edge_len]))])
+    return center, phi, arc
+
+
+def _support_crossings(p, center, phi, arc, n1, start_angle):
+    """Support points of ``n1`` rays: the outermost crossing of each ray with the contour.
+
+    A ray from inside a counter-clockwise contour crosses it alternately going
+    out (the polar angle increasing along the contour) and coming back in; the
+    support point is where the ray leaves the contour for the last time, its
+    crossing farthest from the origin. Should those crossings not follow the
+    contour in the order of their rays (possible for spiral-like outlines),
+    every ray takes its first outgoing crossing along the contour instead (the
+    first time the polar angle reaches the ray's angle as a new record), which
+    always does.
+
+    Returns the arc positions (unwrapped, increasing in the order of the rays,
+    starting with the first ray after the polar-angle record at the start of
+    the second period), their points, the rays' levels and angles.
+    """
+    n = len(p)
+    record = np.maximum.accumulate(phi)
+    edge_len = np.diff(arc[: n + 1])
+    delta = 2 * np.pi / n1
+    k_base = int(np.floor((record[n] - start_angle) / delta))
+    e = np.arange(n, 3 * n)
+    # every outgoing crossing of the N1 ray levels after the record at the start of the second period
+    k_lo = np.maximum(np.floor((phi[e] - start_angle) / delta).astype(np.int64), k_base)
+    k_hi = np.minimum(np.floor((phi[e + 1] - start_angle) / delta).astype(np.int64), k_base + n1)
+    count = np.maximum(k_hi - k_lo, 0)
+    edge = np.repeat(e, count)
+    level_k = np.repeat(k_lo + 1, count) + (np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count))
+    ang = start_angle + level_k * delta
+    direction = np.stack([np.cos(ang), np.sin(ang)], axis=1)
+    a_pt, b_pt = p[edge % n], p[(edge + 1) % n]
+    seg = b_pt - a_pt
+    num = (a_pt - center)[:, 0] * direction[:, 1] - (a_pt - center)[:, 1] * direction[:, 0]
+    den = seg[:, 0] * direction[:, 1] - seg[:, 1] * direction[:, 0]
+    t = np.clip(-num / np.where(den == 0, 1e-300, den), 0.0, 1.0)
+    s_all = arc[edge] + t * edge_len[edge % n]
+    xy_all = a_pt + t[:, None] * seg
+    radius = np.einsum("ij,ij->i", xy_all - center, direction)
+    by_level = np.lexsort((s_all, level_k))  # crossings of each level in contour order
+    lv = level_k[by_level]
+    starts = np.flatnonzero(np.r_[True, lv[1:] != lv[:-1]])
+    if len(starts) != n1:
+        raise ValueError(f"points: found support points for {len(starts)} of {n1} rays")
+    first = by_level[starts]
+    outer = np.lexsort((-radius, level_k))[starts]
+    pick = outer
+    s_pick = s_all[pick]
+    if np.any(np.diff(s_pick) <= 0) or s_pick[-1] - s_pick[0] >= arc[n]:
+        pick = first
+    return s_all[pick], xy_all[pick], level_k[pick], ang[pick]
+
+
+def ray_supports(points, n_rays: int, start_angle: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """Support points of the seed's rays (eq. 1) and their positions along the contour.
+
+    Parameters
+    ----------
+    points : array_like, shape (n, 2)
+        Counter-clockwise contour vertices in mm.
+    n_rays : int
+        Number of rays (>= 3); ray ``k`` points at ``start_angle + 2 pi k / n_rays``.
+    start_angle : float
+        Direction of ray 0, radians from +x.
+
+    Returns
+    -------
+    fraction : numpy.ndarray, shape (n_rays,)
+        Arc length from vertex 0 to the support point of ray ``k``, as a fraction
+        of the perimeter, in ``[0, 1)``.
+    xy : numpy.ndarray, shape (n_rays, 2)
+        The support points in mm.
+    """
+    p = as_array(points, "points", shape=(None, 2))
+    n1 = int(n_rays)
+    if n1 < 3 or len(p) < 3:
+        raise ValueError(f"n_rays/points: need at least 3 rays and 3 points, got {n_rays} and {len(p)}")
+    center, phi, arc = _polar(p)
+    s_arc, xy, level_k, _ = _support_crossings(p, center, phi, arc, n1, start_angle)
+    order = np.argsort(level_k % n1)
+    return (s_arc[order] % arc[len(p)]) / arc[len(p)], xy[order]
+
+
+def choose_start_angle(contours, n_rays: int = 64, candidates: int = 8) -> float:
+    """Direction of ray 0, common to a stack of slices, that keeps support points steady.
+
+    Where a contour folds, the support point of a ray that passes close to the
+    tip of the fold jumps between the near and the far side of the fold from
+    one slice to the next (the ray's first crossing appears or disappears), and
+    with it the correspondence of ``u`` across slices. The seed fixes the rays'
+    spacing (eq. 1), not their rotation; this picks, out of ``candidates``
+    rotations evenly spread over one ray spacing, the one whose support points
+    move least along the contours from slice to slice: for every pair of
+    neighbouring slices the largest shift of a support point (fraction of the
+    perimeter, after removing the median shift of all rays), summed over the pairs.
+
+    Parameters
+    ----------
+    contours : sequence of array_like, each shape (n_k, 2)
+        Counter-clockwise contours of consecutive slices, mm.
+    n_rays : int
+        Rays per contour (eq. 1).
+    candidates : int
+        Rotations tried (``>= 1``); ray 0 at ``2 pi o / (candidates n_rays)``.
+
+    Returns
+    -------
+    float
+        Start angle in radians, in ``[0, 2 pi / n_rays)``; 0 for a single slice.
+    """
+    r = int(positive(candidates, "candidates"))
+    n1 = int(n_rays)
+    if len(contours) < 2 or r == 1:
+        return 0.0
+    frac = np.stack([ray_supports(c, n1 * r)[0] for c in contours]).reshape(len(contours), n1, r)
+    shift = (np.diff(frac, axis=0) + 0.5) % 1.0 - 0.5  # (K-1, N1, R)
+    shift -= np.median(shift, axis=1, keepdims=True)
+    cost = np.abs(shift).max(axis=1).sum(axis=0)  # (R,)
+    return float(2 * np.pi * int(np.argmin(cost)) / (n1 * r))
 
 
 def _angle_steps(p: np.ndarray, center: np.ndarray) -> np.ndarray:
@@ -426,6 +535,49 @@ def lattice_values(u_list, n_lattice: int) -> np.ndarray:
     values = np.unique(np.concatenate([np.arange(m - half) / (m - half), quant]))
     need = max(len(u) for u in u_list)
     if len(values) < need:
+        values = np.arange(m) / m
+    return values
+
+
+def balanced_lattice_values(u_list, arc_list, n_lattice: int) -> np.ndarray:
+    """Common lattice of ``u`` values spaced evenly in mean arc length.
+
+    The seed's parameters pack a whole fold of a contour into one ray segment
+    (eq. 4), so ``u`` runs much faster along the contour there than elsewhere.
+    A lattice uniform in ``u`` then has too few values in such a segment, and
+    moving the points onto it shifts them (and the correspondence between
+    slices) by many points. Here the lattice values are equally spaced in the
+    mean over all slices of the normalised arc length as a function of ``u``,
+    so every lattice interval covers about ``1 / M`` of every contour.
+
+    Parameters
+    ----------
+    u_list : sequence of numpy.ndarray
+        Per slice, strictly increasing parameters in ``[0, 1)`` of its points.
+    arc_list : sequence of numpy.ndarray
+        Per slice, the same points' arc length from ``u = 0`` as a fraction of
+        the perimeter, increasing in ``[0, 1)``.
+    n_lattice : int
+        Requested size ``M``.
+
+    Returns
+    -------
+    numpy.ndarray, shape (M',) float64
+        Strictly increasing values in ``[0, 1)`` starting at 0, ``M' <= M``
+        (equal values merged); uniform ``j / M`` if fewer than the longest
+        slice's point count would remain.
+    """
+    m = int(positive(n_lattice, "n_lattice"))
+    if len(u_list) != len(arc_list) or not len(u_list):
+        raise ValueError("u_list, arc_list: need the same, non-zero number of slices")
+    grid = np.unique(np.concatenate([[0.0, 1.0], *[as_array(u, "u", ndim=1) for u in u_list]]))
+    mean = np.zeros_like(grid)
+    for u, a in zip(u_list, arc_list):
+        mean += np.interp(grid, np.concatenate([[0.0], u, [1.0]]), np.concatenate([[0.0], a, [1.0]]))
+    mean /= len(u_list)
+    values = np.unique(np.interp(np.arange(m) / m, mean, grid))
+    values = values[values < 1.0]
+    if len(values) < max(len(u) for u in u_list):
         values = np.arange(m) / m
     return values
 

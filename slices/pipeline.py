@@ -79,7 +79,7 @@ class BodySurface:
 def build_body(body: Body, spacing: float, method: str = "blending", rays: int = 64,
                caps: str = "flat", lattice: float = 2.0, samples: int | None = 2,
                mesh: bool = True, correspondence: str = "seed",
-               lattice_mode: str = "uniform") -> BodySurface | None:
+               lattice_mode: str = "balanced", start_angle: float | None = None) -> BodySurface | None:
     """Surface, volume and area of one body (seed 000 sections II-III).
 
     Parameters
@@ -102,8 +102,11 @@ def build_body(body: Body, spacing: float, method: str = "blending", rays: int =
         Build the triangle mesh.
     correspondence : {"seed", "arc"}
         ``u`` that links the slices (see :func:`slices.surface.slice_curves`).
-    lattice_mode : {"uniform", "adaptive", "union"}
+    lattice_mode : {"balanced", "uniform", "adaptive", "union"}
         Common ``u`` lattice (see :func:`slices.surface.slice_curves`).
+    start_angle : float, optional
+        Direction of ray 0 in radians from +x; by default chosen per body
+        (:func:`slices.control_points.choose_start_angle`).
 
     Returns
     -------
@@ -126,8 +129,8 @@ def build_body(body: Body, spacing: float, method: str = "blending", rays: int =
         # unequally spaced planes (accepted with resample): caps use the median interval
         d = float(np.median(np.diff(z)))
     m = lattice_size(max(len(c.points) for c in body.contours), lattice)
-    sc = slice_curves([c.points for c in body.contours], z, rays, m, correspondence=correspondence,
-                      lattice_mode=lattice_mode)
+    sc = slice_curves([c.points for c in body.contours], z, rays, m, start_angle=start_angle,
+                      correspondence=correspondence, lattice_mode=lattice_mode)
     curves = sc.curves
     centers = [np.append(p.center, zk) for p, zk in zip(sc.params, z)]
     low_rings = high_rings = np.zeros((0,) + curves.shape[1:])
@@ -205,7 +208,7 @@ def build_body(body: Body, spacing: float, method: str = "blending", rays: int =
     return BodySurface(
         body, patches, side_cols, tri_mesh, display, float(volume), float(area), dev,
         int(len(pts)), int(sum(int(p.turning.sum()) for p in sc.params)),
-        {"n_lattice": int(curves.shape[1])},
+        {"n_lattice": int(curves.shape[1]), "ray_start_deg": float(np.degrees(sc.start_angle))},
     )
 
 
@@ -283,7 +286,7 @@ def reconstruct_contours(contours: list[Contour], spacing: float | None = None, 
                          rays: int = 64, caps: str = "flat", lattice: float = 2.0,
                          samples: int | None = 2, mesh: bool = True, progress=None,
                          correspondence: str = "seed", irregular: bool = False,
-                         lattice_mode: str = "uniform") -> Reconstruction:
+                         lattice_mode: str = "balanced", start_angle: float | None = None) -> Reconstruction:
     """Reconstruct a structure from validated contours in memory.
 
     Parameters
@@ -308,8 +311,11 @@ def reconstruct_contours(contours: list[Contour], spacing: float | None = None, 
         Accept unequally spaced planes: consecutive planes are neighbours and
         the blending in ``v`` uses the slice positions (non-uniform parabolas)
         instead of failing.
-    lattice_mode : {"uniform", "adaptive", "union"}
+    lattice_mode : {"balanced", "uniform", "adaptive", "union"}
         Common ``u`` lattice (see :func:`slices.surface.slice_curves`).
+    start_angle : float, optional
+        Direction of ray 0 in radians from +x for every body; by default each
+        body's own (:func:`slices.control_points.choose_start_angle`).
 
     Returns
     -------
@@ -337,7 +343,8 @@ def reconstruct_contours(contours: list[Contour], spacing: float | None = None, 
         samples = max(1, min(6, int(np.sqrt(MESH_BUDGET / max(est, 1)))))
     built, skipped = [], []
     for i, body in enumerate(bodies):
-        b = build_body(body, d, method, rays, caps, lattice, samples, mesh, correspondence, lattice_mode)
+        b = build_body(body, d, method, rays, caps, lattice, samples, mesh, correspondence, lattice_mode,
+                       start_angle)
         (skipped if b is None else built).append(body if b is None else b)
         if progress is not None:
             progress(i + 1, len(bodies))
@@ -356,16 +363,27 @@ def _solid_union(bodies) -> TriangleMesh | None:
     if len(closed) != len(bodies):
         return None
     centre = np.mean([b.mesh.vertices.mean(axis=0) for b in closed], axis=0)
+    extent = max(float(np.ptp(b.mesh.vertices, axis=0).max()) for b in closed)
 
-    def solid(mesh: TriangleMesh, outward: bool):
+    def solid(b: BodySurface, outward: bool):
+        mesh = b.mesh
+        verts = mesh.vertices - centre
+        # bodies that meet at a branching plane only touch there (coplanar half caps); a tiny
+        # overlap lets the union remove the shared caps instead of keeping them as inner walls
+        eps = 1e-8 * extent
+        z = verts[:, 2]
+        for why, plane, step in ((b.body.start, z.min(), -eps), (b.body.stop, z.max(), eps)):
+            if why != "end":
+                verts = verts.copy()
+                verts[np.abs(z - plane) <= 1e-9 * extent, 2] += step
         tri = mesh.triangles if outward else mesh.triangles[:, ::-1]
         m = manifold3d.Manifold(manifold3d.Mesh64(
-            vert_properties=np.ascontiguousarray(mesh.vertices - centre, dtype=np.float64),
+            vert_properties=np.ascontiguousarray(verts, dtype=np.float64),
             tri_verts=np.ascontiguousarray(tri, dtype=np.uint64)))
         return m if m.status() == manifold3d.Error.NoError else None
 
-    outer = [solid(b.mesh, True) for b in closed if b.body.kind == "outer"]
-    holes = [solid(b.mesh, False) for b in closed if b.body.kind == "hole"]
+    outer = [solid(b, True) for b in closed if b.body.kind == "outer"]
+    holes = [solid(b, False) for b in closed if b.body.kind == "hole"]
     if not outer or any(m is None for m in outer + holes):
         return None
     result = manifold3d.Manifold.batch_boolean(outer, manifold3d.OpType.Add) if len(outer) > 1 else outer[0]
@@ -397,6 +415,7 @@ def _chaining_text(rec: Reconstruction) -> list[dict]:
             "n_patches": int(b.patches.n_patches),
             "n_control_points": b.n_points, "n_turning_points": b.n_turning,
             "max_control_point_deviation_mm": b.max_deviation_mm,
+            "ray_start_deg": b.info.get("ray_start_deg"),
         })
     for body in rec.skipped:
         out.append({"kind": body.kind, "z_min_mm": float(body.z.min()), "z_max_mm": float(body.z.max()),
@@ -453,6 +472,19 @@ def _render(mesh: TriangleMesh, path: Path) -> None:
         plt.close(fig)
 
 
+def _start_angle(value) -> float | None:
+    """``ray_start`` option (degrees or "auto"/None) as radians or None."""
+    if value is None or (isinstance(value, str) and value.strip().lower() == "auto"):
+        return None
+    try:
+        deg = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"ray_start: must be an angle in degrees or 'auto', got {value!r}") from None
+    if not np.isfinite(deg):
+        raise ValueError(f"ray_start: must be finite, got {value!r}")
+    return float(np.radians(deg))
+
+
 def _load_and_build(input_path, roi, method: str, rays: int, caps: str, options: dict):
     """Read one ROI (or the whole input) and reconstruct it: ``(stack, reconstruction)``."""
     stack = load(input_path, roi, options.get("hu_min"), options.get("hu_max"),
@@ -461,7 +493,8 @@ def _load_and_build(input_path, roi, method: str, rays: int, caps: str, options:
                                float(options.get("lattice", 2.0)), options.get("samples"),
                                True, options.get("progress"), options.get("correspondence", "seed"),
                                irregular=bool(options.get("resample", False))
-                               and stack.source in ("rtstruct", "json"))
+                               and stack.source in ("rtstruct", "json"),
+                               start_angle=_start_angle(options.get("ray_start")))
     if not rec.bodies:
         raise ValueError(f"{input_path}: nothing to reconstruct in {stack.name!r} "
                          "(only single-contour bodies; try --caps half)")
@@ -591,6 +624,8 @@ def reconstruct(input_path, out_dir, roi=None, method: str = "blending", rays: i
     **options
         ``hu_min``, ``hu_max``, ``spacing`` (z,y,x for mask stacks), ``resample``,
         ``lattice`` (default 2.0), ``samples``, ``correspondence`` ("seed" or "arc"),
+        ``ray_start`` (direction of ray 0 in degrees from +x for every body, or
+        "auto" (default): per body the rotation that keeps support points steadiest),
         ``union`` ("auto" (default: united up to :data:`UNION_LIMIT` triangles),
         "yes" or "no": several bodies written as one solid, see
         :meth:`Reconstruction.solid_mesh`),
@@ -610,10 +645,11 @@ def reconstruct(input_path, out_dir, roi=None, method: str = "blending", rays: i
     """
     t0 = time.perf_counter()
     known = {"hu_min", "hu_max", "spacing", "resample", "lattice", "samples", "render", "reference",
-             "progress", "correspondence", "union", "minus", "plus", "repair"}
+             "progress", "correspondence", "union", "minus", "plus", "repair", "ray_start"}
     unknown = set(options) - known
     if unknown:
         raise ValueError(f"options: unknown {sorted(unknown)}")
+    _start_angle(options.get("ray_start"))  # fail before any work
     if caps == "none" and (options.get("minus") or options.get("plus")):
         raise ValueError("caps: set operations need closed solids; use --caps flat, half or dome, not none")
     out = Path(out_dir)
@@ -671,6 +707,7 @@ def reconstruct(input_path, out_dir, roi=None, method: str = "blending", rays: i
         "caps": caps,
         "rays": int(rays),
         "correspondence": options.get("correspondence", "seed"),
+        "ray_start": options.get("ray_start") or "auto",
         "volume_mm3": volume,
         "volume_ml": volume / 1000.0,
         "area_mm2": area,

@@ -3,10 +3,13 @@
 Seed 000, section III. Every contour gets the seed's parameters
 (:mod:`slices.control_points`), and every slice its closed parabolic-blending
 curve through all of its points. To make the curves of all slices cubic on
-the same breakpoints, the parameters are moved onto a common lattice
-``u_j = j / M`` (``M`` at least twice the largest point count; support points
-keep ``u_k = k / N1`` up to half a lattice step); each curve is then cut
-exactly at every lattice value. The curves are blended across slices
+the same breakpoints, the parameters are moved onto a common lattice of
+``M`` values (at least twice the largest point count), spaced evenly in the
+slices' mean arc length so that folds, which the seed packs into one ray
+segment, get enough values; support points keep ``u_k = k / N1`` up to half
+a lattice step. Each curve is then cut exactly at every lattice value. The
+rays' common rotation is chosen so that support points do not jump across a
+fold from one slice to the next. The curves are blended across slices
 (eqs. 13-19) into one closed-in-``u`` grid of patches that passes through
 every control point, or the lattice nodes are handed to Coons patches
 (seed 001) or to the B-spline interpolation of :mod:`surfaces.bspline`.
@@ -22,7 +25,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from slices.control_points import ContourParameters, lattice_values, parameterize, quantize
+from slices.control_points import (
+    ContourParameters,
+    balanced_lattice_values,
+    choose_start_angle,
+    lattice_values,
+    parameterize,
+    quantize,
+)
 from surfaces import blending
 from surfaces.bezier import BezierPatches
 from surfaces.validate import as_array, positive
@@ -42,12 +52,15 @@ class SliceCurves:
         Per slice, the control points in the same order, shape (n_k, 3) mm.
     params : list of ContourParameters
         The seed's parameters before they were moved onto the lattice.
+    start_angle : float
+        Direction of ray 0 in radians from +x, common to all slices.
     """
 
     curves: np.ndarray
     nodes: list
     points: list
     params: list
+    start_angle: float = 0.0
 
 
 def lattice_size(max_points: int, factor: float = 2.0) -> int:
@@ -83,8 +96,8 @@ def _geometry_parameters(points: np.ndarray, kind: str) -> np.ndarray:
 
 
 def slice_curves(contours, z, n_rays: int = 64, n_lattice: int | None = None,
-                 start_angle: float = 0.0, geometry: str = "centripetal",
-                 correspondence: str = "seed", lattice_mode: str = "uniform") -> SliceCurves:
+                 start_angle: float | None = None, geometry: str = "centripetal",
+                 correspondence: str = "seed", lattice_mode: str = "balanced") -> SliceCurves:
     """Closed parabolic-blending curve of every slice, cut on a common lattice.
 
     Parameters
@@ -97,8 +110,10 @@ def slice_curves(contours, z, n_rays: int = 64, n_lattice: int | None = None,
         Rays per contour (seed 000, eq. 1).
     n_lattice : int, optional
         Lattice size ``M``; default :func:`lattice_size` of the largest contour.
-    start_angle : float
-        Direction of ray 0 (radians from +x), common to all slices.
+    start_angle : float, optional
+        Direction of ray 0 (radians from +x), common to all slices; by default
+        the rotation of the rays that keeps the support points steadiest from
+        slice to slice (:func:`slices.control_points.choose_start_angle`).
     geometry : {"centripetal", "chord"}
         Parameters that shape each slice's parabolic-blending curve between its
         points (eqs. 6-12). The seed's ``u`` of eqs. 1-5 can crowd many points
@@ -109,38 +124,40 @@ def slice_curves(contours, z, n_rays: int = 64, n_lattice: int | None = None,
     correspondence : {"seed", "arc"}
         Which ``u`` links the slices: the seed's parameters (eqs. 1-5, default)
         or normalised arc length from support point 0.
-    lattice_mode : {"uniform", "adaptive", "union"}
-        Common lattice ``j / M`` (default), one denser where the pooled
-        parameters crowd (:func:`slices.control_points.lattice_values`), or the
-        union of all slices' parameters (no quantisation at all; ``M`` = all
-        points of the body). The last two follow the seed's parameters more
-        closely and win with many points per contour (>= ~200); with fewer
-        points the turning points of folded outlines (eqs. 3-4) differ from
-        slice to slice and the uniform lattice's quantisation is the better
-        regulariser (see benchmarks/results/slices.md).
+    lattice_mode : {"balanced", "uniform", "adaptive", "union"}
+        Common lattice: ``balanced`` (default) spaces the values evenly in the
+        slices' mean arc length as a function of ``u``
+        (:func:`slices.control_points.balanced_lattice_values`), so a fold that
+        the seed packs into one ray segment gets as many values as its length
+        needs; ``uniform`` is ``j / M``; ``adaptive`` is half uniform, half
+        quantiles of the pooled parameters; ``union`` takes every slice's
+        parameters (no quantisation at all; ``M`` = all points of the body,
+        which grows with the number of slices squared in patches).
 
     Returns
     -------
     SliceCurves
     """
     zz = as_array(z, "z", shape=(len(contours),))
+    if correspondence not in ("seed", "arc"):
+        raise ValueError(f"correspondence: must be 'seed' or 'arc', got {correspondence!r}")
+    if lattice_mode not in ("balanced", "uniform", "adaptive", "union"):
+        raise ValueError(f"lattice_mode: must be 'balanced', 'uniform', 'adaptive' or 'union', got {lattice_mode!r}")
+    if start_angle is None:
+        start_angle = choose_start_angle(contours, n_rays)
     params: list[ContourParameters] = [parameterize(c, n_rays, start_angle) for c in contours]
     m = n_lattice or lattice_size(max(len(p.u) for p in params))
-    if correspondence == "seed":
-        us = [p.u for p in params]
-    elif correspondence == "arc":
-        # arc length from support point 0 (the same ray on every slice)
-        us = []
-        for par in params:
-            closed = np.vstack([par.support[:1], par.points, par.support[:1]])
-            cum = np.cumsum(np.linalg.norm(np.diff(closed, axis=0), axis=1))
-            us.append(cum[:-1] / cum[-1])
-    else:
-        raise ValueError(f"correspondence: must be 'seed' or 'arc', got {correspondence!r}")
-    if lattice_mode not in ("uniform", "adaptive", "union"):
-        raise ValueError(f"lattice_mode: must be 'uniform' or 'adaptive', got {lattice_mode!r}")
+    # arc length from support point 0 (the same ray on every slice), fraction of the perimeter
+    arcs = []
+    for par in params:
+        closed = np.vstack([par.support[:1], par.points, par.support[:1]])
+        cum = np.cumsum(np.linalg.norm(np.diff(closed, axis=0), axis=1))
+        arcs.append(cum[:-1] / cum[-1])
+    us = [p.u for p in params] if correspondence == "seed" else arcs
     if lattice_mode == "union":
         values = np.unique(np.concatenate(us))
+    elif lattice_mode == "balanced":
+        values = balanced_lattice_values(us, arcs, m)
     else:
         values = lattice_values(us, m) if lattice_mode == "adaptive" else np.arange(m) / m
     m = len(values)
@@ -159,7 +176,7 @@ def slice_curves(contours, z, n_rays: int = 64, n_lattice: int | None = None,
         curves.append(np.roll(cut, q[0], axis=0))
         nodes.append(q)
         pts3.append(p3)
-    return SliceCurves(np.stack(curves), nodes, pts3, params)
+    return SliceCurves(np.stack(curves), nodes, pts3, params, float(start_angle))
 
 
 # ------------------------------------------------------------------ methods

@@ -105,8 +105,11 @@ class TriangleMesh:
         counts : numpy.ndarray, shape (E,)
             Number of triangles sharing each edge.
         """
-        e = np.sort(self._directed_edges(), axis=1)
-        return np.unique(e, axis=0, return_counts=True)
+        e = np.sort(self._directed_edges(), axis=1).astype(np.int64)
+        n = np.int64(max(self.n_vertices, 1))
+        # one int64 key per edge: a 1-D unique is many times faster than unique(axis=0)
+        keys, counts = np.unique(e[:, 0] * n + e[:, 1], return_counts=True)
+        return np.stack([keys // n, keys % n], axis=1), counts
 
     def is_watertight(self) -> bool:
         """True when every edge is shared by exactly two triangles."""
@@ -117,8 +120,9 @@ class TriangleMesh:
 
     def is_oriented(self) -> bool:
         """True when no directed edge appears twice (neighbours agree on orientation)."""
-        e = self._directed_edges()
-        return len(np.unique(e, axis=0)) == len(e)
+        e = self._directed_edges().astype(np.int64)
+        keys = e[:, 0] * np.int64(max(self.n_vertices, 1)) + e[:, 1]
+        return len(np.unique(keys)) == len(keys)
 
     def boundary_edges(self) -> np.ndarray:
         """Undirected edges used by exactly one triangle, shape (B, 2)."""

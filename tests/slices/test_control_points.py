@@ -130,3 +130,67 @@ def test_self_intersections_match_brute_force(seed):
                     and orient(a[j], b[j], a[i]) != orient(a[j], b[j], b[i])):
                 want.add((i, j))
     assert got == want
+
+
+def _kidney_like(n=400):
+    """A bean bent almost into a ring (kidney phantom outline): rays cross its arms three times."""
+    from datasets_synthetic.phantoms import make_phantom
+
+    return make_phantom("kidney").outline(np.arange(n) / n)[0]
+
+
+def test_support_point_is_the_outermost_crossing():
+    pts = cp.clean_contour(_kidney_like())
+    par = cp.parameterize(pts, 64)
+    frac, xy = cp.ray_supports(pts, 64)
+    np.testing.assert_allclose(xy, par.support, atol=1e-9)
+    # brute force: every crossing of every ray with the polygon, the farthest one wins
+    a, b = pts, np.roll(pts, -1, axis=0)
+    for k in range(64):
+        d = np.array([np.cos(2 * np.pi * k / 64), np.sin(2 * np.pi * k / 64)])
+        o = par.center
+        num = (a - o)[:, 0] * d[1] - (a - o)[:, 1] * d[0]
+        den = (b - a)[:, 0] * d[1] - (b - a)[:, 1] * d[0]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = -num / den
+        hit = (t >= 0) & (t <= 1)
+        r = np.einsum("ij,j->i", a[hit] + t[hit, None] * (b - a)[hit] - o, d)
+        assert np.linalg.norm(xy[k] - o) == pytest.approx(r.max(), abs=1e-9)
+    # the supports still follow the contour in the order of the rays
+    assert np.all(np.diff(np.unwrap(2 * np.pi * frac) - 2 * np.pi * frac[0]) > 0)
+
+
+def test_balanced_lattice_is_even_in_arc_length():
+    pts = cp.clean_contour(_kidney_like(300))
+    par = cp.parameterize(pts, 64)
+    closed = np.vstack([par.support[:1], par.points, par.support[:1]])
+    cum = np.cumsum(np.linalg.norm(np.diff(closed, axis=0), axis=1))
+    arc = cum[:-1] / cum[-1]
+    m = 600
+    values = cp.balanced_lattice_values([par.u], [arc], m)
+    assert len(values) == m and values[0] == 0 and np.all(np.diff(values) > 0) and values[-1] < 1
+    s = np.interp(values, np.r_[0.0, par.u, 1.0], np.r_[0.0, arc, 1.0])
+    np.testing.assert_allclose(np.diff(s), 1.0 / m, atol=1e-9)
+    # a folded outline packs its arms into few ray segments: uniform j / M would not be even
+    s_uniform = np.interp(np.arange(m) / m, np.r_[0.0, par.u, 1.0], np.r_[0.0, arc, 1.0])
+    assert np.diff(s_uniform).max() > 5.0 / m
+
+
+def test_start_angle_keeps_supports_steady_across_slices():
+    from datasets_synthetic.phantoms import make_phantom
+
+    cs = make_phantom("kidney").contours(2.5, n_points=64, seed=1)
+    conts = [cp.clean_contour(c["points"]) for c in cs]
+    angle = cp.choose_start_angle(conts, 64)
+    assert 0 <= angle < 2 * np.pi / 64
+
+    def worst_shift(a):
+        frac = np.stack([cp.ray_supports(c, 64, a)[0] for c in conts])
+        shift = (np.diff(frac, axis=0) + 0.5) % 1.0 - 0.5
+        return np.abs(shift - np.median(shift, axis=1, keepdims=True)).max()
+
+    # no support point moves by more than 5 % of the perimeter between neighbouring slices,
+    # while some rotations let a ray graze an arm's tip and its support jump across the fold
+    assert worst_shift(angle) < 0.05
+    assert max(worst_shift(2 * np.pi * o / (8 * 64)) for o in range(8)) > 0.1
+    assert cp.choose_start_angle(conts[:1], 64) == 0.0

@@ -57,6 +57,10 @@ def register(sub) -> None:
     p.add_argument("--correspondence", default="seed", choices=("seed", "arc"),
                    help="u that links the slices: seed (eqs. 1-5: rays, turning points, chord "
                    "length; default) or arc (normalised arc length from the first ray)")
+    p.add_argument("--ray-start", default="auto", metavar="DEG|auto",
+                   help="direction of ray 0 in degrees from +x, common to all slices of a body; auto "
+                   "(default) rotates the rays (within one ray spacing) so that support points do not "
+                   "jump across folds from slice to slice")
     p.add_argument("--union", default="auto", choices=("auto", "yes", "no"),
                    help="several bodies: write one solid (manifold3d union of the bodies minus "
                    "the holes) or their meshes side by side; auto (default) unites up to 200k "
@@ -106,7 +110,7 @@ def _reconstruct(args: argparse.Namespace) -> int:
             hu_min=args.hu_min, hu_max=args.hu_max, spacing=args.spacing, resample=args.resample,
             lattice=args.lattice, render=not args.no_render, samples=args.samples, progress=progress,
             correspondence=args.correspondence, union=args.union, minus=args.minus, plus=args.plus,
-            repair=args.repair,
+            repair=args.repair, ray_start=args.ray_start,
         )
     ref = summary.get("reference_bspline", {})
     print(f"{summary['roi']}: {summary['n_contours']} contours on {summary['n_slices']} planes, "
