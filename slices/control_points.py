@@ -10,18 +10,30 @@ sub-segment (eq. 5).
 
 Project decisions where the seed is silent:
 
-* The support point of a ray is the first point along the contour (counter-
-  clockwise) where the polar angle reaches the ray's angle as a new record.
-  Records increase with the angle, so support points follow the contour in
-  the order of their rays, also where a ray is tangent to the contour or meets
-  it several times, and the parameter increases monotonically.
+* The support point of a ray is its outermost crossing with the contour,
+  where the ray leaves the outline for the last time. A ray crosses a fold
+  when its angle lies between the fold's two turning points. A turning point
+  near the ray origin (a kidney's hilum can reach the centroid) has a polar
+  angle that swings by degrees with the sampling of the contour; one far out
+  (the tip of an arm) has a steady angle. Which crossing is outermost usually
+  changes only where a ray passes the far turning point, whereas the first
+  crossing along the contour changes at either, and then jumps across the
+  whole fold from one slice to the next. Should the outermost crossings not
+  follow the contour in the order of the rays (spiral-like outlines), the
+  first crossings are used, which always do. The parameter increases
+  monotonically also where a ray is tangent to the contour.
+* The rays of one body share their rotation: :func:`choose_start_angle`
+  tries eight rotations within one ray spacing and keeps the one whose
+  support points move least along the contours from slice to slice, so that
+  no ray grazes an arm's tip (the seed fixes the spacing of the rays, eq. 1,
+  not their rotation).
 * Turning points are looked for only in segments that a ray crosses more than
-  once (the polar angle drops below the segment's starting ray), as the seed's
-  step 2 says; small wiggles that no ray crosses twice stay chord-length.
+  once (the polar angle leaves the segment's range of ray angles), as the
+  seed's step 2 says; small wiggles that no ray crosses twice stay chord-length.
 * When the centroid lies outside the contour (strongly bent outlines) the
   rays start from the interior point farthest from the outline instead.
-* The parameter of the first support point (ray at ``start_angle``, default
-  along +x) is 0 on every slice, so ``u`` corresponds across slices.
+* The parameter of the first support point (ray at ``start_angle``) is 0 on
+  every slice, so ``u`` corresponds across slices.
 """
 
 from __future__ import annotations
