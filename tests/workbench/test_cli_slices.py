@@ -96,3 +96,20 @@ def test_reconstruct_minus_composes(shared_data, tmp_path, capsys):
     assert info["solid"], info["problems"]
     printed = capsys.readouterr().out
     assert "composition" in printed and f"{comp['result_volume_ml']:.3f} ml" in printed
+
+
+def test_ray_start_option(contour_json, tmp_path, capsys):
+    path, _ = contour_json
+    out = tmp_path / "r"
+    assert main(["slices", "reconstruct", str(path), "--ray-start", "2.5", "--no-render", "--out", str(out)]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["ray_start"] == "2.5"
+    assert summary["bodies"][0]["ray_start_deg"] == pytest.approx(2.5)
+    auto = tmp_path / "a"
+    assert main(["slices", "reconstruct", str(path), "--no-render", "--out", str(auto)]) == 0
+    summary = json.loads((auto / "summary.json").read_text())
+    assert summary["ray_start"] == "auto" and 0 <= summary["bodies"][0]["ray_start_deg"] < 360 / 64
+    capsys.readouterr()
+    bad = tmp_path / "bad"
+    assert main(["slices", "reconstruct", str(path), "--ray-start", "north", "--out", str(bad)]) == 2
+    assert "ray_start" in capsys.readouterr().err and not bad.exists()
