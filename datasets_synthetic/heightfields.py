@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from surfaces.grid import image_shape, pixel_grid
 from surfaces.validate import as_array, positive
 
 CONVENTION = (
@@ -75,65 +76,6 @@ class HeightField:
         return self.height.shape
 
 
-def _shape(size) -> tuple[int, int]:
-    dims = np.atleast_1d(np.asarray(size))
-    if dims.ndim != 1 or len(dims) not in (1, 2):
-        raise ValueError(f"size: expected an int or (H, W), got {size!r}")
-    if len(dims) == 1:
-        dims = np.repeat(dims, 2)
-    if not np.all(np.isfinite(dims.astype(float))) or np.any(dims.astype(float) % 1 != 0):
-        raise ValueError(f"size: expected whole numbers of pixels, got {size!r}")
-    h, w = int(dims[0]), int(dims[1])
-    if h < 2 or w < 2:
-        raise ValueError(f"size: need at least 2 x 2 pixels, got {size!r}")
-    return h, w
-
-
-def pixel_grid(size, pixel_size: float) -> tuple[np.ndarray, np.ndarray]:
-    """Coordinates of the pixel centres in mm, following :data:`CONVENTION`.
-
-    Parameters
-    ----------
-    size : int or (H, W)
-        Image size in pixels.
-    pixel_size : float
-        Pixel size in mm.
-
-    Returns
-    -------
-    x, y : (H, W) float64 arrays
-        x grows with the column index, y decreases with the row index (y up).
-    """
-    h, w = _shape(size)
-    ps = positive(pixel_size, "pixel_size")
-    x = (np.arange(w, dtype=np.float64) - (w - 1) / 2.0) * ps
-    y = ((h - 1) / 2.0 - np.arange(h, dtype=np.float64)) * ps
-    return np.broadcast_to(x[None, :], (h, w)).copy(), np.broadcast_to(y[:, None], (h, w)).copy()
-
-
-def xy_to_pixel(x, y, size, pixel_size: float) -> tuple[np.ndarray, np.ndarray]:
-    """Convert mm coordinates to fractional (row, col) pixel indices (inverse of :func:`pixel_grid`).
-
-    Parameters
-    ----------
-    x, y : array_like
-        Coordinates in mm.
-    size : int or (H, W)
-        Image size in pixels.
-    pixel_size : float
-        Pixel size in mm.
-
-    Returns
-    -------
-    row, col : float64 arrays
-    """
-    h, w = _shape(size)
-    ps = positive(pixel_size, "pixel_size")
-    x = as_array(x, "x")
-    y = as_array(y, "y")
-    return (h - 1) / 2.0 - y / ps, x / ps + (w - 1) / 2.0
-
-
 def normals_from_slopes(p, q) -> np.ndarray:
     """Unit normals ``n = (-p, -q, 1) / sqrt(1 + p^2 + q^2)``.
 
@@ -169,7 +111,7 @@ def _make(height, p, q, mask, defects, pixel_size, name, params) -> HeightField:
 
 
 def _center_mm(center_px, size, pixel_size) -> tuple[float, float]:
-    h, w = _shape(size)
+    h, w = image_shape(size)
     if center_px is None:
         return 0.0, 0.0
     c = as_array(center_px, "center_px", shape=(2,))
@@ -177,7 +119,7 @@ def _center_mm(center_px, size, pixel_size) -> tuple[float, float]:
 
 
 def _defect_record(kind, depth, width, length, area, volume, cx, cy, axis_deg, size, ps) -> dict:
-    h, w = _shape(size)
+    h, w = image_shape(size)
     row = (h - 1) / 2.0 - cy / ps
     col = cx / ps + (w - 1) / 2.0
     return {
@@ -210,7 +152,7 @@ def _capsule(x, y, cx, cy, axis_deg, half_segment):
 
 
 def _groove(kind, size, pixel_size, depth_mm, width_mm, length_mm, center_px, axis_deg):
-    h, w = _shape(size)
+    h, w = image_shape(size)
     ps = positive(pixel_size, "pixel_size")
     depth = positive(depth_mm, "depth_mm")
     width = positive(width_mm, "width_mm")
@@ -298,7 +240,7 @@ def u_scratch(
 
 
 def _dent(size, pixel_size, depth_mm, width_mm, center_px):
-    h, w = _shape(size)
+    h, w = image_shape(size)
     ps = positive(pixel_size, "pixel_size")
     depth = positive(depth_mm, "depth_mm")
     width = positive(width_mm, "width_mm")
@@ -369,7 +311,7 @@ def plane(size=256, pixel_size: float = 0.05, z0: float = 0.0) -> HeightField:
     -------
     HeightField
     """
-    h, w = _shape(size)
+    h, w = image_shape(size)
     positive(pixel_size, "pixel_size")
     zero = np.zeros((h, w))
     return _make(zero + float(z0), zero.copy(), zero.copy(), np.zeros((h, w), bool), [],
@@ -430,7 +372,7 @@ def sphere_cap(
         ``params`` holds R, h and the rim radius ``a = sqrt(2 R h - h^2)``;
         ``defect_mask`` marks the cap's footprint (no defect records).
     """
-    h_px, w_px = _shape(size)
+    h_px, w_px = image_shape(size)
     ps = positive(pixel_size, "pixel_size")
     radius = positive(radius_mm, "radius_mm") if radius_mm is not None else 0.45 * min(h_px, w_px) * ps
     cap = positive(height_mm, "height_mm") if height_mm is not None else 0.8 * radius
@@ -478,7 +420,7 @@ def gaussian_bumps(
     HeightField
         ``params["bumps"]`` lists the bumps; no defect records.
     """
-    h, w = _shape(size)
+    h, w = image_shape(size)
     ps = positive(pixel_size, "pixel_size")
     rng = np.random.default_rng(seed)
     side = min(h, w) * ps
@@ -546,7 +488,7 @@ def vase(size=256, pixel_size: float = 0.05, height_mm: float | None = None) -> 
     HeightField
         ``defect_mask`` marks the vase's support ``|u| < f(v)``; no defect records.
     """
-    h, w = _shape(size)
+    h, w = image_shape(size)
     ps = positive(pixel_size, "pixel_size")
     side = min(h, w) * ps
     top = positive(height_mm, "height_mm") if height_mm is not None else 0.15 * side
@@ -597,7 +539,7 @@ def inspection_plate(
         Three defect records: crack, dent, scratch (in this order); depths are
         measured from the (tilted) plate.
     """
-    h, w = _shape(size)
+    h, w = image_shape(size)
     if min(h, w) < 32:
         raise ValueError(f"size: the inspection plate needs at least 32 pixels, got {size!r}")
     ps = positive(pixel_size, "pixel_size")
@@ -650,7 +592,7 @@ def make_scene(name: str, size: int = 256, pixel_size: float = 0.05, seed: int =
     -------
     HeightField
     """
-    h, w = _shape(size)
+    h, w = image_shape(size)
     ps = positive(pixel_size, "pixel_size")
     s = min(h, w) * ps
     if name == "plane":

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from datasets_synthetic.heightfields import CONVENTION, HeightField, make_scene
+from surfaces.io import png_bytes
 from datasets_synthetic.io import atomic_write_bytes, atomic_write_text, ensure_dir, save_npy, write_json
 from surfaces.validate import as_array, positive
 
@@ -256,9 +257,9 @@ def texture_albedo(size, low: float = 0.55, high: float = 0.9, scale_px: float =
     """
     from scipy.ndimage import gaussian_filter
 
-    from datasets_synthetic.heightfields import _shape
+    from surfaces.grid import image_shape
 
-    h, w = _shape(size)
+    h, w = image_shape(size)
     if not (0.0 < low < high <= 1.0):
         raise ValueError(f"low, high: need 0 < low < high <= 1, got {low}, {high}")
     g = gaussian_filter(np.random.default_rng(seed).standard_normal((h, w)),
@@ -389,17 +390,6 @@ def render(
     return out
 
 
-def _png_bytes(image: np.ndarray) -> bytes:
-    import cv2
-
-    if image.ndim == 3:
-        image = image[..., ::-1]  # OpenCV writes BGR
-    ok, buf = cv2.imencode(".png", np.ascontiguousarray(image))
-    if not ok:
-        raise ValueError("image: OpenCV could not encode it as PNG")
-    return buf.tobytes()
-
-
 def write_diligent_folder(
     out_dir: str | os.PathLike,
     images,
@@ -462,8 +452,8 @@ def write_diligent_folder(
     hgt = as_array(height_gt, "height_gt", shape=(h, w))
     names = [f"{k + 1:03d}.png" for k in range(n)]
     for name, img in zip(names, imgs):
-        atomic_write_bytes(out / name, _png_bytes(np.round(img * 65535.0).astype(np.uint16)))
-    atomic_write_bytes(out / "mask.png", _png_bytes(m.astype(np.uint8) * 255))
+        atomic_write_bytes(out / name, png_bytes(np.round(img * 65535.0).astype(np.uint16)))
+    atomic_write_bytes(out / "mask.png", png_bytes(m.astype(np.uint8) * 255))
     atomic_write_text(out / "filenames.txt", "".join(f"{s}\n" for s in names))
     atomic_write_text(out / "light_directions.txt",
                       "".join(f"{a:.10f} {b:.10f} {c:.10f}\n" for a, b, c in lights))

@@ -178,7 +178,8 @@ def reconstruct(
     """
     from photometric.defects import measure_defects
     from photometric.integrate import METHODS, height_to_patches, integrate
-    from photometric.preview import normals_rgb, scaled, write_png
+    from photometric.preview import normals_rgb, scaled
+    from surfaces.io import write_png
     from photometric.stereo import angular_error_deg, solve
     from surfaces.io import write_mesh
 

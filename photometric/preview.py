@@ -6,38 +6,11 @@ tiny preview writers; ``workbench.images`` has the annotated figures.
 
 from __future__ import annotations
 
-from pathlib import Path
 
 import cv2
 import numpy as np
 
-from surfaces.io import atomic_path
 from surfaces.validate import as_array
-
-
-def write_png(path, image: np.ndarray) -> Path:
-    """Write an 8-bit RGB or grey image atomically.
-
-    Parameters
-    ----------
-    path : str or Path
-        Target ``.png`` file (its folder must exist).
-    image : numpy.ndarray, shape (H, W) or (H, W, 3), uint8
-        RGB order.
-
-    Returns
-    -------
-    pathlib.Path
-    """
-    img = np.asarray(image)
-    if img.dtype != np.uint8 or img.ndim not in (2, 3):
-        raise ValueError(f"image: expected uint8 (H, W) or (H, W, 3), got {img.dtype} {img.shape}")
-    ok, buf = cv2.imencode(".png", img[..., ::-1] if img.ndim == 3 else img)
-    if not ok:
-        raise ValueError(f"image: OpenCV could not encode {path}")
-    with atomic_path(path) as tmp:
-        tmp.write_bytes(buf.tobytes())
-    return Path(path)
 
 
 def normals_rgb(normals, mask=None) -> np.ndarray:

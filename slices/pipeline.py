@@ -446,13 +446,14 @@ def _render(mesh: TriangleMesh, path: Path) -> None:
     from surfaces.io import atomic_path
 
     try:
-        from surfaces.view import render, save_png
+        from surfaces.io import write_png
+        from surfaces.view import render
     except ImportError:
         render = None
     with atomic_path(path, suffix=".png") as tmp:
         if render is not None:
             image = render(mesh, views=("iso", "front", "top", "side"), size=(1024, 768), colorbar=False)
-            save_png(tmp, image)
+            write_png(tmp, image)
             return
         import matplotlib
 

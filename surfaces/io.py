@@ -134,6 +134,69 @@ def write_json(path, content, indent: int = 2) -> Path:
     return atomic_write_text(path, json.dumps(jsonable(content), indent=indent) + "\n")
 
 
+def png_bytes(image) -> bytes:
+    """Encode an RGB or grey picture as PNG bytes (8 or 16 bits per channel).
+
+    Parameters
+    ----------
+    image : (H, W) or (H, W, 3) uint8 or uint16 array
+        Grey or RGB picture (RGB order; converted to OpenCV's BGR order here).
+
+    Returns
+    -------
+    bytes
+        The PNG file content.
+
+    Raises
+    ------
+    ValueError
+        Another dtype or shape, or an encoding failure.
+    """
+    import cv2
+
+    img = np.asarray(image)
+    if img.dtype not in (np.uint8, np.uint16):
+        raise ValueError(f"image: expected uint8 or uint16 pixels, got {img.dtype}")
+    if img.ndim == 3 and img.shape[2] == 3:
+        img = img[..., ::-1]
+    elif img.ndim != 2:
+        raise ValueError(f"image: expected shape (H, W) or (H, W, 3), got {img.shape}")
+    ok, data = cv2.imencode(".png", np.ascontiguousarray(img))
+    if not ok:
+        raise ValueError(f"image: PNG encoding failed for shape {img.shape}")
+    return data.tobytes()
+
+
+def write_png(path, image) -> Path:
+    """Write an RGB or grey picture as PNG, atomically; the one PNG writer of the workbench.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Output file; its folder is created when missing.
+    image : (H, W) or (H, W, 3) uint8 or uint16 array
+        Grey or RGB picture (RGB channel order).
+
+    Returns
+    -------
+    pathlib.Path
+        The written file.
+
+    Examples
+    --------
+    >>> import tempfile, cv2
+    >>> folder = tempfile.mkdtemp()
+    >>> img = np.zeros((2, 3, 3), np.uint8); img[..., 0] = 255
+    >>> path = write_png(Path(folder) / "red.png", img)
+    >>> cv2.imread(str(path))[0, 0].tolist()  # OpenCV reads BGR
+    [0, 0, 255]
+    """
+    data = png_bytes(image)
+    out = Path(path)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    return atomic_write_bytes(out, data)
+
+
 def save_npy(path, array) -> Path:
     """Save one array as ``.npy`` atomically (no pickles).
 

@@ -27,10 +27,8 @@ works for every view.
 
 from __future__ import annotations
 
-import os
 from collections.abc import Sequence
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
@@ -1004,37 +1002,3 @@ def render(
         picture[:, area_w:] = colorbar_image(height, *vrange, opts["cmap"], colorbar_label, bar_w,
                                              opts["background"])
     return picture
-
-
-def save_png(path: str | os.PathLike, image: np.ndarray) -> Path:
-    """Write an RGB or grey picture as PNG, atomically.
-
-    Parameters
-    ----------
-    path : path-like
-        Output file; its folder is created when missing.
-    image : (H, W, 3) or (H, W) uint8 or uint16 array
-        RGB (converted to OpenCV's BGR order) or grey picture.
-
-    Returns
-    -------
-    pathlib.Path
-        The written file.
-    """
-    import cv2
-
-    img = np.asarray(image)
-    if img.dtype not in (np.uint8, np.uint16):
-        raise ValueError(f"image: expected uint8 or uint16 pixels, got {img.dtype}")
-    if img.ndim == 3 and img.shape[2] == 3:
-        img = img[..., ::-1]
-    elif img.ndim != 2:
-        raise ValueError(f"image: expected shape (H, W) or (H, W, 3), got {img.shape}")
-    ok, data = cv2.imencode(".png", np.ascontiguousarray(img))
-    if not ok:
-        raise ValueError(f"image: PNG encoding failed for shape {img.shape}")
-    from surfaces.io import atomic_write_bytes
-
-    out = Path(path)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    return atomic_write_bytes(out, data.tobytes())

@@ -1,7 +1,7 @@
 """Pictures of photometric results: normal maps, albedo, height and error maps with colour bars.
 
 All functions take numpy arrays and return RGB ``uint8`` pictures of shape
-``(H, W', 3)`` (``W' > W`` when a colour bar is appended); :func:`write_png`
+``(H, W', 3)`` (``W' > W`` when a colour bar is appended); :func:`surfaces.io.write_png`
 saves them atomically. Normal maps use the usual encoding
 ``RGB = 255 * (n + 1) / 2`` with the image convention of the data (DiLiGenT:
 x right, y up, z towards the camera), so a surface facing the camera is
@@ -10,33 +10,11 @@ x right, y up, z towards the camera), so a surface facing the camera is
 
 from __future__ import annotations
 
-import os
 from collections.abc import Sequence
-from pathlib import Path
 
 import numpy as np
 
 from surfaces.validate import as_array, positive
-
-
-def write_png(path: str | os.PathLike, image: np.ndarray) -> Path:
-    """Write an RGB (or grey) ``uint8``/``uint16`` picture as PNG, atomically.
-
-    Parameters
-    ----------
-    path : path-like
-        Output file (folders are created).
-    image : (H, W, 3) or (H, W) uint8 or uint16
-        The picture, RGB channel order.
-
-    Returns
-    -------
-    pathlib.Path
-        The written file.
-    """
-    from surfaces.view import save_png
-
-    return save_png(path, image)
 
 
 def _mask(mask, shape: tuple[int, int]) -> np.ndarray:

@@ -106,7 +106,7 @@ class Report:
         """
         import cv2
 
-        from surfaces.view import save_png
+        from surfaces.io import write_png
 
         if not re.fullmatch(r"[A-Za-z0-9_\-]+", name):
             raise ValueError(f"name: use letters, digits, '-' and '_' only, got {name!r}")
@@ -114,7 +114,7 @@ class Report:
             raise ValueError(f"name: figure {name!r} already exists in this report")
         if not command.strip():
             raise ValueError(f"command: figure {name!r} needs the command that reproduces it")
-        path = save_png(self.out_dir / "figures" / f"{name}.png", np.asarray(image))
+        path = write_png(self.out_dir / "figures" / f"{name}.png", np.asarray(image))
         data = path.read_bytes()
         if cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED) is None:
             raise ValueError(f"image: figure {name!r} did not encode as PNG")

@@ -6,17 +6,16 @@ import numpy as np
 import pytest
 
 from datasets_synthetic import heightfields as hfm
+from surfaces.grid import pixel_grid, xy_to_pixel
 from datasets_synthetic.heightfields import (
     CONVENTION,
     SCENES,
     inspection_plate,
     make_scene,
-    pixel_grid,
     spherical_dent,
     tilted_plane,
     u_scratch,
     v_crack,
-    xy_to_pixel,
 )
 
 

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from surfaces import view
+from surfaces.io import write_png
 
 o3d = pytest.importorskip("open3d")
 
@@ -265,12 +266,12 @@ def test_save_png_roundtrip(tmp_path):
 
     img = np.zeros((10, 12, 3), np.uint8)
     img[..., 0] = 200
-    path = view.save_png(tmp_path / "sub" / "a.png", img)
+    path = write_png(tmp_path / "sub" / "a.png", img)
     back = cv2.imread(str(path))
     assert back.shape == (10, 12, 3) and back[0, 0, 2] == 200 and back[0, 0, 0] == 0
     assert [p.name for p in path.parent.iterdir()] == ["a.png"]
     with pytest.raises(ValueError, match="dtype|uint8"):
-        view.save_png(tmp_path / "b.png", img.astype(float))
+        write_png(tmp_path / "b.png", img.astype(float))
 
 
 def test_render_and_view_commands(tmp_path, sphere, capsys, monkeypatch):

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from surfaces.io import write_png
 from workbench import images
 
 
@@ -101,7 +102,7 @@ def test_to_uint8_and_write(tmp_path):
     img = np.random.default_rng(0).random((16, 16)).astype(np.float32)
     out = images.to_uint8(img, vmax=1.0)
     assert out.shape == (16, 16, 3) and abs(int(out[3, 3, 0]) - round(255 * img[3, 3])) <= 1
-    path = images.write_png(tmp_path / "x.png", out)
+    path = write_png(tmp_path / "x.png", out)
     assert np.array_equal(cv2.imread(str(path))[..., ::-1], out)
 
 

@@ -161,11 +161,11 @@ def add_picture_options(p: argparse.ArgumentParser, *, default_views: str = "iso
 
 def run(args: argparse.Namespace) -> int:
     """Render FILE to ``--out`` and write the numbers to a JSON file beside it."""
-    from surfaces.view import save_png
+    from surfaces.io import write_png
 
     geometry = load_geometry(args.file)
     img, summary = picture(args, geometry)
-    out = save_png(args.out, img)
+    out = write_png(args.out, img)
     summary = {"file": str(args.file), "out": str(out), **summary}
     json_path = write_json(args.json or out.with_suffix(".json"), summary)
     extra = ""

@@ -34,7 +34,7 @@ def run(args: argparse.Namespace) -> int:
     """Show the files, or render them to ``--png``."""
     models = [load_geometry(f) for f in args.files]
     if args.png:
-        from surfaces.view import save_png
+        from surfaces.io import write_png
 
         if len(models) == 1:
             img, summary = picture(args, models[0])
@@ -43,7 +43,7 @@ def run(args: argparse.Namespace) -> int:
                 raise ValueError("--net/--colour: render one file at a time to use them")
             mesh, colors = _merged(models, args.samples)
             img, summary = picture(args, mesh, colors=colors)
-        out = save_png(args.png, img)
+        out = write_png(args.png, img)
         json_path = write_json(out.with_suffix(".json"),
                                {"files": [str(f) for f in args.files], "out": str(out), **summary})
         print(f"wrote {out} ({img.shape[1]}x{img.shape[0]}, {summary['triangles']} triangles); "
