@@ -139,7 +139,8 @@ def _pair(category: str, i: int, rng: np.random.Generator):
 # ----------------------------------------------------------------------------- evaluation
 def _volume_and_solid(v, t, weld: bool = False):
     """(signed volume, closed and oriented); ``weld`` merges exactly coincident vertices first."""
-    from surfaces.boolean import _Arrays, check_solid
+    from surfaces.mesh import TriangleMesh
+    from surfaces.repair import check_solid
 
     if len(t) == 0:
         return 0.0, True
@@ -147,13 +148,13 @@ def _volume_and_solid(v, t, weld: bool = False):
     if weld:
         v, inverse = np.unique(v, axis=0, return_inverse=True)
         t = inverse.ravel()[t]
-    info = check_solid(_Arrays(v, t), "result")
+    info = check_solid(TriangleMesh(v, t), "result")
     return info["signed_volume"], bool(info["closed"] and info["oriented"])
 
 
 def _judge(va, ta, vb, tb, results):
     """Per-pair verdict from three results {op: (vertices, triangles) or str error}."""
-    from surfaces.boolean import signed_volume
+    from surfaces.mesh import signed_volume
 
     vol_a, vol_b = signed_volume(va, ta), signed_volume(vb, tb)
     out = {"returned": 0, "watertight": 0, "welded": 0, "ok": False, "errors": []}
@@ -289,7 +290,8 @@ def _precision_rows() -> list[str]:
     """Identity residual through manifold3d's float32 Mesh (raw coordinates) vs our Mesh64 path."""
     import manifold3d
 
-    from surfaces.boolean import OPS, boolean, signed_volume
+    from surfaces.boolean import OPS, boolean
+    from surfaces.mesh import signed_volume
     from surfaces.mesh import TriangleMesh
 
     rows = []

@@ -1,4 +1,9 @@
-"""Triangle meshes from the shared patch model.
+"""Triangle meshes: the indexed mesh type, its volume and normals, welding, and tessellation.
+
+:class:`TriangleMesh` is what every mesh-like input becomes (:func:`as_mesh`:
+patch models, open3d meshes, ``(vertices, triangles)`` pairs), so volumes
+(:func:`signed_volume`, centred, float64), normals (:func:`vertex_normals`)
+and welding (:func:`weld`) are written once for the whole workbench.
 
 Tessellation samples every patch on a regular grid in one vectorised call,
 lays the samples on one global vertex grid so that neighbouring patches share
@@ -15,7 +20,108 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from surfaces.bezier import BezierPatches, bernstein, control_matrix, tensor_evaluate
+from surfaces.topology import directed_edges, edge_keys
 from surfaces.validate import as_array
+from surfaces.vectors import cross, unit
+
+__all__ = [
+    "TriangleMesh",
+    "as_mesh",
+    "signed_volume",
+    "vertex_normals",
+    "weld",
+    "weld_map",
+    "compact",
+    "tessellate",
+    "merge_meshes",
+]
+
+#: Subdivisions per patch side when a patch model stands in for a mesh (:func:`as_mesh`).
+PATCH_SAMPLES = 8
+
+
+def _face_vectors(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """``(b - a) x (c - a)`` per triangle, shape (T, 3): the normal scaled by twice the area."""
+    a, b, c = vertices[triangles[:, 0]], vertices[triangles[:, 1]], vertices[triangles[:, 2]]
+    return cross(b - a, c - a)
+
+
+def _volume_terms(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """Signed volume of the tetrahedron (centre, triangle) per triangle, centre = bounding-box centre."""
+    p = vertices - 0.5 * (vertices.min(axis=0) + vertices.max(axis=0))
+    return np.einsum("ij,ij->i", p[triangles[:, 0]], cross(p[triangles[:, 1]], p[triangles[:, 2]])) / 6.0
+
+
+def signed_volume(vertices, triangles, per_triangle: bool = False):
+    """Signed volume enclosed by a closed triangle mesh (divergence theorem, float64).
+
+    ``V = (1/6) sum_t (p0 - c) . ((p1 - c) x (p2 - c))`` with ``c`` the centre
+    of the bounding box: exact for a closed mesh and independent of ``c``, which is
+    subtracted only to avoid cancellation far from the origin (the triangle
+    form of the (1/3) S . (Su x Sv) integral of :func:`surfaces.measure.volume`).
+
+    Parameters
+    ----------
+    vertices : (V, 3) array_like of float
+        Vertex positions, any length unit.
+    triangles : (T, 3) array_like of int
+        Vertex indices per triangle.
+    per_triangle : bool, optional
+        Return every triangle's term (T,) instead of the sum (e.g. to sum per shell).
+
+    Returns
+    -------
+    float or (T,) float64
+        Volume in the cube of the vertex unit (mm^3 for CT): positive when the
+        triangles are ordered counter-clockwise seen from outside.
+
+    Examples
+    --------
+    The octahedron ``|x| + |y| + |z| <= 1`` (volume 4/3), a million units from the origin:
+
+    >>> v = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], float)
+    >>> t = [[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]]
+    >>> signed_volume(v + 1e6, t)
+    1.3333333333333333
+    """
+    v = as_array(vertices, "vertices", shape=(None, 3))
+    t = as_array(triangles, "triangles", shape=(None, 3), dtype=np.int64)
+    if len(t) and (t.min() < 0 or t.max() >= len(v)):
+        raise ValueError(f"triangles: vertex indices must lie in [0, {len(v) - 1}]")
+    terms = _volume_terms(v, t) if len(t) else np.zeros(0)
+    return terms if per_triangle else float(terms.sum())
+
+
+def vertex_normals(vertices, triangles) -> np.ndarray:
+    """Area-weighted vertex normals of a triangle mesh.
+
+    Parameters
+    ----------
+    vertices : (V, 3) array_like
+        Vertex positions.
+    triangles : (T, 3) array_like of int
+        Vertex indices, counter-clockwise seen from the front.
+
+    Returns
+    -------
+    (V, 3) float64
+        Unit normals (sum of the adjacent face cross products, which weights
+        each face by twice its area); zero for unused vertices.
+
+    Examples
+    --------
+    >>> vertex_normals([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]]).tolist()
+    [[0.0, 0.0, 1.0], [0.0, 0.0, 1.0], [0.0, 0.0, 1.0]]
+    """
+    v = as_array(vertices, "vertices", shape=(None, 3))
+    t = as_array(triangles, "triangles", shape=(None, 3), dtype=np.int64)
+    face = _face_vectors(v, t)
+    # bincount sums the face vectors per vertex far faster than np.add.at
+    idx = t.ravel()
+    normals = np.stack(
+        [np.bincount(idx, np.repeat(face[:, c], 3), minlength=len(v)) for c in range(3)], axis=1
+    )
+    return unit(normals)
 
 
 @dataclass
@@ -71,29 +177,20 @@ class TriangleMesh:
 
     def face_normals(self, normalize: bool = True) -> np.ndarray:
         """Triangle normals ``(b - a) x (c - a)``, shape (T, 3); unit when ``normalize``."""
-        c = self.triangle_corners()
-        n = np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0])
-        if not normalize:
-            return n
-        length = np.linalg.norm(n, axis=1, keepdims=True)
-        return n / np.where(length > 0, length, 1.0)
+        n = _face_vectors(self.vertices, self.triangles)
+        return unit(n) if normalize else n
 
     def surface_area(self) -> float:
         """Sum of triangle areas (same units as the vertices, squared)."""
         return float(0.5 * np.linalg.norm(self.face_normals(normalize=False), axis=1).sum())
 
     def signed_volume(self) -> float:
-        """Enclosed volume by the divergence theorem over the triangles.
+        """Enclosed volume by the divergence theorem over the triangles, see :func:`signed_volume`.
 
         Positive when the triangles are counter-clockwise seen from outside.
         Meaningful only for a closed mesh.
         """
-        c = self.triangle_corners()
-        return float(np.einsum("ij,ij->i", c[:, 0], np.cross(c[:, 1], c[:, 2])).sum() / 6.0)
-
-    def _directed_edges(self) -> np.ndarray:
-        t = self.triangles
-        return np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]])
+        return float(_volume_terms(self.vertices, self.triangles).sum()) if self.n_triangles else 0.0
 
     def edge_counts(self) -> tuple[np.ndarray, np.ndarray]:
         """Undirected edges and how many triangles use each.
@@ -105,10 +202,8 @@ class TriangleMesh:
         counts : numpy.ndarray, shape (E,)
             Number of triangles sharing each edge.
         """
-        e = np.sort(self._directed_edges(), axis=1).astype(np.int64)
         n = np.int64(max(self.n_vertices, 1))
-        # one int64 key per edge: a 1-D unique is many times faster than unique(axis=0)
-        keys, counts = np.unique(e[:, 0] * n + e[:, 1], return_counts=True)
+        keys, counts = np.unique(edge_keys(directed_edges(self.triangles), n), return_counts=True)
         return np.stack([keys // n, keys % n], axis=1), counts
 
     def is_watertight(self) -> bool:
@@ -120,8 +215,7 @@ class TriangleMesh:
 
     def is_oriented(self) -> bool:
         """True when no directed edge appears twice (neighbours agree on orientation)."""
-        e = self._directed_edges().astype(np.int64)
-        keys = e[:, 0] * np.int64(max(self.n_vertices, 1)) + e[:, 1]
+        keys = edge_keys(directed_edges(self.triangles), self.n_vertices, directed=True)
         return len(np.unique(keys)) == len(keys)
 
     def boundary_edges(self) -> np.ndarray:
@@ -138,6 +232,77 @@ class TriangleMesh:
             None if self.vertex_colors is None else self.vertex_colors.copy(),
             dict(self.metadata),
         )
+
+
+def weld_map(points: np.ndarray, tolerance: float, candidates=None) -> np.ndarray:
+    """The point each point merges into: the smallest index of its cluster of close points.
+
+    Clusters are the connected components of the pairs closer than ``tolerance``
+    (so chains of close points merge even when their ends are farther apart).
+
+    Parameters
+    ----------
+    points : (N, 3) float array
+        Positions.
+    tolerance : float
+        Distance under which two points merge.
+    candidates : array_like of int, optional
+        Only these indices may merge (the others map to themselves).
+
+    Returns
+    -------
+    (N,) int64
+        Representative index of every point (``rep[i] <= i``).
+
+    Examples
+    --------
+    >>> weld_map(np.array([[0.0, 0, 0], [1, 0, 0], [0, 0, 1e-12]]), 1e-9).tolist()
+    [0, 1, 0]
+    """
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    from scipy.spatial import cKDTree
+
+    n = len(points)
+    idx = np.arange(n) if candidates is None else np.unique(np.asarray(candidates, dtype=np.int64))
+    pairs = cKDTree(points[idx]).query_pairs(tolerance, output_type="ndarray")
+    if len(pairs) == 0:
+        return np.arange(n, dtype=np.int64)
+    a, b = idx[pairs[:, 0]], idx[pairs[:, 1]]
+    _, labels = connected_components(coo_matrix((np.ones(len(a)), (a, b)), shape=(n, n)), directed=False)
+    rep = np.full(labels.max() + 1, n, dtype=np.int64)
+    np.minimum.at(rep, labels, np.arange(n))
+    return rep[labels]
+
+
+def compact(mesh: TriangleMesh) -> TriangleMesh:
+    """The mesh without the vertices that no triangle uses (indices renumbered in order).
+
+    Parameters
+    ----------
+    mesh : TriangleMesh
+        Input mesh (not modified).
+
+    Returns
+    -------
+    TriangleMesh
+        Same triangles; normals, colours and metadata kept for the used vertices.
+
+    Examples
+    --------
+    >>> compact(TriangleMesh(np.eye(4, 3), [[1, 2, 3]])).triangles.tolist()
+    [[0, 1, 2]]
+    """
+    used = np.zeros(mesh.n_vertices, dtype=bool)
+    used[mesh.triangles.ravel()] = True
+    new_index = np.cumsum(used) - 1
+    return TriangleMesh(
+        mesh.vertices[used],
+        new_index[mesh.triangles].reshape(-1, 3),
+        None if mesh.vertex_normals is None else mesh.vertex_normals[used],
+        None if mesh.vertex_colors is None else mesh.vertex_colors[used],
+        dict(mesh.metadata),
+    )
 
 
 def weld(mesh: TriangleMesh, tolerance: float | None = None, candidates=None) -> TriangleMesh:
@@ -160,42 +325,73 @@ def weld(mesh: TriangleMesh, tolerance: float | None = None, candidates=None) ->
         Mesh without duplicate vertices, degenerate (repeated-index) triangles
         or unreferenced vertices.
     """
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-    from scipy.spatial import cKDTree
-
     verts = mesh.vertices
-    n = len(verts)
-    if n == 0:
+    if len(verts) == 0:
         return mesh.copy()
     if tolerance is None:
         diag = float(np.linalg.norm(verts.max(axis=0) - verts.min(axis=0)))
         tolerance = 1e-9 * max(diag, 1e-300)
-    idx = np.arange(n) if candidates is None else np.unique(np.asarray(candidates, dtype=np.int64))
-    pairs = cKDTree(verts[idx]).query_pairs(tolerance, output_type="ndarray")
-    tri = mesh.triangles
-    if len(pairs):
-        a, b = idx[pairs[:, 0]], idx[pairs[:, 1]]
-        graph = coo_matrix((np.ones(len(a)), (a, b)), shape=(n, n))
-        _, labels = connected_components(graph, directed=False)
-        # representative of each component: its smallest vertex index
-        rep = np.full(labels.max() + 1, n, dtype=np.int64)
-        np.minimum.at(rep, labels, np.arange(n))
-        tri = rep[labels][tri]
+    rep = weld_map(verts, tolerance, candidates)
+    merged = np.any(rep != np.arange(len(verts)))
+    tri = rep[mesh.triangles] if merged else mesh.triangles
     keep = (tri[:, 0] != tri[:, 1]) & (tri[:, 1] != tri[:, 2]) & (tri[:, 2] != tri[:, 0])
-    if len(pairs) == 0 and keep.all() and candidates is not None:
+    if not merged and keep.all() and candidates is not None:
         return mesh  # nothing to merge (the common case of an open or flagged-closed grid)
-    tri = tri[keep]
-    used = np.zeros(n, dtype=bool)
-    used[tri.ravel()] = True
-    new_index = np.cumsum(used) - 1
-    return TriangleMesh(
-        verts[used],
-        new_index[tri],
-        None if mesh.vertex_normals is None else mesh.vertex_normals[used],
-        None if mesh.vertex_colors is None else mesh.vertex_colors[used],
-        dict(mesh.metadata),
+    return compact(
+        TriangleMesh(verts, tri[keep], mesh.vertex_normals, mesh.vertex_colors, dict(mesh.metadata))
     )
+
+
+def as_mesh(geometry, name: str = "geometry", samples: int = PATCH_SAMPLES) -> TriangleMesh:
+    """Any mesh-like input as a validated :class:`TriangleMesh`.
+
+    Parameters
+    ----------
+    geometry : TriangleMesh, BezierPatches, open3d TriangleMesh or (vertices, triangles)
+        A :class:`TriangleMesh` is returned as it is; patches are tessellated
+        (``samples`` subdivisions per patch side, normals from the patches);
+        any object with ``vertices`` and ``triangles`` (an open3d mesh) keeps its
+        vertex normals and colours when it has one per vertex.
+    name : str, optional
+        Name of the input in error messages.
+    samples : int, optional
+        Tessellation density for patches.
+
+    Returns
+    -------
+    TriangleMesh
+
+    Raises
+    ------
+    ValueError
+        Another kind of input, or arrays of the wrong shape, non-finite
+        vertices or triangle indices out of range (naming ``name``).
+
+    Examples
+    --------
+    >>> as_mesh(([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]])).n_triangles
+    1
+    """
+    if isinstance(geometry, TriangleMesh):
+        return geometry
+    if isinstance(geometry, BezierPatches):
+        return tessellate(geometry, samples)
+    if hasattr(geometry, "vertices") and hasattr(geometry, "triangles"):
+        verts = np.asarray(geometry.vertices)
+        extra = [getattr(geometry, key, None) for key in ("vertex_normals", "vertex_colors")]
+        extra = [None if x is None or len(x) != len(verts) else np.asarray(x) for x in extra]
+        parts = (verts, np.asarray(geometry.triangles), *extra)
+    elif isinstance(geometry, tuple) and len(geometry) == 2:
+        parts = (np.asarray(geometry[0]), np.asarray(geometry[1]))
+    else:
+        raise ValueError(
+            f"{name}: expected a TriangleMesh, BezierPatches, open3d TriangleMesh or a "
+            f"(vertices, triangles) tuple, got {type(geometry).__name__}"
+        )
+    try:
+        return TriangleMesh(*parts)
+    except ValueError as exc:
+        raise ValueError(f"{name}.{exc}") from None
 
 
 def _grid_index(n_patches: int, n: int, closed: bool) -> tuple[np.ndarray, np.ndarray]:

@@ -1,4 +1,4 @@
-"""Tests of surfaces.boolean: set operations, checks, repair, curves, smoothing, composition.
+"""Tests of surfaces.boolean: set operations, input refusal, curves, composition.
 
 References: exact volumes of axis-aligned boxes and their overlaps, the
 inclusion-exclusion identity vol(A u B) + vol(A n B) = vol(A) + vol(B), the
@@ -15,62 +15,12 @@ from hypothesis import strategies as st
 
 from surfaces import boolean as bl
 from surfaces.coons import from_grid
-from surfaces.mesh import TriangleMesh, tessellate
+from surfaces.mesh import TriangleMesh
+from surfaces.repair import check_solid
+from surfaces.topology import directed_edges
+from tests.surfaces._shapes import bezier_ellipsoid, box, icosphere
 
 REL = 1e-6
-
-
-def box(lo, hi) -> TriangleMesh:
-    """Outward oriented box mesh (12 triangles)."""
-    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
-    corners = np.array([[(hi if (k >> a) & 1 else lo)[a] for a in range(3)] for k in range(8)])
-    tris = np.array(
-        [
-            [0, 2, 1], [1, 2, 3], [4, 5, 6], [5, 7, 6], [0, 1, 4], [1, 5, 4],
-            [2, 6, 3], [3, 6, 7], [0, 4, 2], [2, 4, 6], [1, 3, 5], [3, 7, 5],
-        ]
-    )  # fmt: skip
-    return TriangleMesh(corners, tris)
-
-
-def icosphere(radius=1.0, centre=(0.0, 0.0, 0.0), level=3) -> TriangleMesh:
-    """Subdivided icosahedron, outward oriented."""
-    t = (1 + 5**0.5) / 2
-    v = np.array(
-        [[-1, t, 0], [1, t, 0], [-1, -t, 0], [1, -t, 0], [0, -1, t], [0, 1, t],
-         [0, -1, -t], [0, 1, -t], [t, 0, -1], [t, 0, 1], [-t, 0, -1], [-t, 0, 1]], float
-    )  # fmt: skip
-    f = np.array(
-        [[0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9], [5, 11, 4],
-         [11, 10, 2], [10, 7, 6], [7, 1, 8], [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8],
-         [3, 8, 9], [4, 9, 5], [2, 4, 11], [6, 2, 10], [8, 6, 7], [9, 8, 1]]
-    )  # fmt: skip
-    v /= np.linalg.norm(v, axis=1, keepdims=True)
-    for _ in range(level):
-        e = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
-        uniq, inv = np.unique(e, axis=0, return_inverse=True)
-        mid = v[uniq].mean(axis=1)
-        mid /= np.linalg.norm(mid, axis=1, keepdims=True)
-        m = len(v) + inv.ravel().reshape(3, -1).T  # midpoints of edges 01, 12, 20
-        v = np.vstack([v, mid])
-        f = np.concatenate(
-            [
-                np.column_stack([f[:, 0], m[:, 0], m[:, 2]]),
-                np.column_stack([f[:, 1], m[:, 1], m[:, 0]]),
-                np.column_stack([f[:, 2], m[:, 2], m[:, 1]]),
-                m,
-            ]
-        )
-    return TriangleMesh(v * radius + np.asarray(centre, float), f)
-
-
-def bezier_ellipsoid(axes, centre, n_u=9, n_v=12, samples=4) -> TriangleMesh:
-    """Tessellated bicubic Coons/Bezier ellipsoid of the shared patch model."""
-    th = np.linspace(0, np.pi, n_u)
-    ph = np.linspace(0, 2 * np.pi, n_v, endpoint=False)
-    tt, pp = np.meshgrid(th, ph, indexing="ij")
-    pts = np.stack([np.sin(tt) * np.cos(pp), np.sin(tt) * np.sin(pp), np.cos(tt)], -1)
-    return tessellate(from_grid(pts * axes + centre, closed_v=True), samples=samples)
 
 
 def all_ops(a, b, **kw):
@@ -86,7 +36,7 @@ def assert_identities(res):
         assert r.summary()["watertight"] and r.summary()["oriented"]
         if len(r.mesh.triangles):
             assert r.check["solid"]
-            assert r.volume == pytest.approx(bl.mesh_volume(r.mesh), rel=1e-12)
+            assert r.volume == pytest.approx(r.mesh.signed_volume(), rel=1e-12)
 
 
 PAIRS = {
@@ -166,7 +116,7 @@ def test_curve_lies_on_both_boxes():
             # on a box surface the largest normalised coordinate is exactly 1
             assert np.allclose(np.max(np.abs(pts - c) / h, axis=1), 1.0, atol=1e-12)
         # consecutive points are joined by result edges (ordered polyline)
-        edges = set(map(tuple, np.sort(bl._directed_edges(r.mesh.triangles), axis=1)))
+        edges = set(map(tuple, np.sort(directed_edges(r.mesh.triangles), axis=1)))
         idx = {tuple(p): i for i, p in enumerate(r.mesh.vertices)}
         ring = [idx[tuple(p)] for p in pts]
         assert all(tuple(sorted(e)) in edges for e in zip(ring, ring[1:] + ring[:1]))
@@ -199,21 +149,6 @@ def test_disjoint_intersection_is_empty():
 
 
 # ----------------------------------------------------------------------------- input checks
-def test_check_solid_reports_defects():
-    m = icosphere(level=2)
-    assert bl.check_solid(m)["solid"]
-    holed = TriangleMesh(m.vertices, m.triangles[1:])
-    info = bl.check_solid(holed, "holed")
-    assert not info["closed"] and info["boundary_edges"] == 3
-    inward = TriangleMesh(m.vertices, m.triangles[:, ::-1])
-    info = bl.check_solid(inward, "inward")
-    assert info["closed"] and info["oriented"] and not info["outward"]
-    flipped = m.triangles.copy()
-    flipped[0] = flipped[0, ::-1]
-    info = bl.check_solid(TriangleMesh(m.vertices, flipped), "flip")
-    assert info["misoriented_edges"] == 3
-
-
 @pytest.mark.parametrize(
     "make, pattern",
     [
@@ -244,118 +179,9 @@ def test_bad_arguments():
         bl.boolean(m, m, "xor")
     with pytest.raises(ValueError, match="B: expected a TriangleMesh"):
         bl.boolean(m, np.zeros((3, 3)), "union")
-    with pytest.raises(ValueError, match="filter: must be one of"):
-        bl.loop_smooth(m, 1, filter="bilateral")
 
 
-# ----------------------------------------------------------------------------- repair
-def soup(m):
-    return TriangleMesh(m.vertices[m.triangles].reshape(-1, 3), np.arange(3 * len(m.triangles)).reshape(-1, 3))
-
-
-@pytest.mark.parametrize("defect", ["soup", "flipped", "inward", "holes", "degenerate_duplicate"])
-def test_repair_restores_the_solid(defect):
-    m = icosphere(level=3)
-    v0 = bl.mesh_volume(m)
-    rng = np.random.default_rng(1)
-    t = m.triangles.copy()
-    if defect == "soup":
-        broken, key = soup(m), "welded_vertices"
-    elif defect == "flipped":
-        f = rng.random(len(t)) < 0.3
-        t[f] = t[f][:, ::-1]
-        broken, key = TriangleMesh(m.vertices, t), "flipped_triangles"
-    elif defect == "inward":
-        broken, key = TriangleMesh(m.vertices, t[:, ::-1]), "flipped_shells"
-    elif defect == "holes":
-        broken, key = TriangleMesh(m.vertices, np.delete(t, [3, 200, 600], axis=0)), "filled_holes"
-    else:
-        extra = np.array([[0, 0, 5], [7, 8, 7]])
-        broken, key = TriangleMesh(m.vertices, np.vstack([t, t[:4], extra])), "removed_duplicate_triangles"
-    assert not bl.check_solid(broken)["solid"]
-    fixed, report = bl.repair_mesh(broken, "X")
-    assert report[key] > 0 and report["repaired"]
-    assert bl.check_solid(fixed)["solid"]
-    # filling three one-triangle holes by fans over their corners gives back the same volume
-    assert bl.mesh_volume(fixed) == pytest.approx(v0, rel=1e-12)
-    res = all_ops(broken, icosphere(1.0, (0.7, 0.1, 0.0)), repair=True)
-    assert res["union"].repairs["A"][key] > 0
-    assert_identities(res)
-
-
-def test_repair_keeps_a_cavity_inward():
-    outer, inner = icosphere(2.0, level=2), icosphere(1.0, level=2)
-    both = TriangleMesh(
-        np.vstack([outer.vertices, inner.vertices]),
-        np.vstack([outer.triangles, inner.triangles + len(outer.vertices)]),  # inner wrongly outward
-    )
-    fixed, report = bl.repair_mesh(both, "hollow")
-    assert report["flipped_shells"] == 1
-    assert bl.mesh_volume(fixed) == pytest.approx(bl.mesh_volume(outer) - bl.mesh_volume(inner))
-
-
-def test_repair_refuses_what_it_cannot_fix():
-    m = icosphere(level=3)
-    big_hole = m.triangles[m.vertices[m.triangles].mean(axis=1)[:, 2] < 0.5]
-    with pytest.raises(ValueError, match="holey: not closed.*after repair"):
-        bl.repair_mesh(TriangleMesh(m.vertices, big_hole), "holey", max_hole_edges=8)
-
-
-# ----------------------------------------------------------------------------- chaining
-def test_chain_edges_cycles_and_paths():
-    rng = np.random.default_rng(0)
-    cyc1 = np.arange(0, 50)
-    cyc2 = np.arange(100, 107)
-    path = np.arange(200, 230)
-    src = np.concatenate([cyc1, cyc2, path[:-1]])
-    dst = np.concatenate([np.roll(cyc1, -1), np.roll(cyc2, -1), path[1:]])
-    perm = rng.permutation(len(src))
-    chains, closed = bl.chain_edges(src[perm], dst[perm])
-    got = sorted(((int(c.min()), len(c), cl) for c, cl in zip(chains, closed)))
-    assert got == [(0, 50, True), (100, 7, True), (200, 30, False)]
-    for c, cl in zip(chains, closed):
-        step = np.diff(np.append(c, c[0]) if cl else c)
-        if c.min() == 0:
-            assert np.all((step == 1) | (step == -49))
-        if c.min() == 200:
-            assert np.all(step == 1)
-
-
-def test_chain_edges_figure_eight_vertex():
-    # two triangles' loops through the shared vertex 0: degree 4 there, still closed chains
-    src = np.array([0, 1, 2, 0, 3, 4])
-    dst = np.array([1, 2, 0, 3, 4, 0])
-    chains, closed = bl.chain_edges(src, dst)
-    assert all(closed) and sum(len(c) for c in chains) == 6
-
-
-# ----------------------------------------------------------------------------- smoothing, composition
-@pytest.mark.parametrize("iterations, filt", [(1, "taubin"), (2, "none"), (1, "laplacian")])
-def test_loop_smooth_keeps_closed(iterations, filt):
-    r = bl.boolean(icosphere(1, (0, 0, 0), 3), icosphere(1, (0.8, 0.2, 0), 3), "union")
-    s = bl.loop_smooth(r.mesh, iterations, filter=filt, filter_iterations=5)
-    assert bl.check_solid(s)["solid"]
-    assert len(s.triangles) == len(r.mesh.triangles) * 4**iterations
-    # Loop subdivision approximates: it rounds the crease inward, keeping most of the volume
-    assert 0.95 * r.volume < bl.mesh_volume(s) < r.volume
-
-
-def max_dihedral_deg(mesh):
-    directed, edge_id, counts, _ = bl._edge_table(mesh.triangles, len(mesh.vertices))
-    order = np.argsort(edge_id, kind="stable")
-    faces = (order // 3).reshape(-1, 2)
-    n = mesh.face_normals()
-    return np.degrees(np.arccos(np.clip(np.sum(n[faces[:, 0]] * n[faces[:, 1]], axis=1), -1, 1))).max()
-
-
-def test_loop_smooth_flattens_the_crease():
-    r = bl.boolean(box([0, 0, 0], [1, 1, 1]), icosphere(0.8, (1, 1, 1), 3), "difference")
-    assert max_dihedral_deg(r.mesh) >= 89.9  # the box's right-angled edges
-    # every Loop step opens the sharpest crease further (measured 78, 48, 34 degrees)
-    angles = [max_dihedral_deg(bl.loop_smooth(r.mesh, k, filter="none")) for k in (1, 2, 3)]
-    assert 89.9 > angles[0] > angles[1] > angles[2] and angles[2] < 40
-
-
+# ----------------------------------------------------------------------------- composition
 def test_compose_matches_pairwise_operations():
     organ = icosphere(3.0, level=3)
     bed = icosphere(1.0, (2.0, 0, 0), level=3)
@@ -365,7 +191,7 @@ def test_compose_matches_pairwise_operations():
     )
     step = bl.boolean(bl.boolean(organ, lobe, "union").mesh, bed, "difference")
     assert summary["volume"] == pytest.approx(step.volume, rel=1e-9)
-    assert bl.check_solid(mesh)["solid"]
+    assert check_solid(mesh)["solid"]
     assert summary["names"] == {"base": "Lung", "minus": ["Bed"], "plus": ["Lobe"]}
     inter = bl.boolean(bl.boolean(organ, lobe, "union").mesh, bed, "intersection").volume
     assert summary["removed_volume"] == pytest.approx(inter, rel=1e-9)
@@ -392,8 +218,8 @@ def kidney_mesh(step=1.0):
 
 def test_kidney_phantom_minus_tumour_bed():
     kidney, k = kidney_mesh()
-    assert bl.check_solid(k, "kidney")["solid"]
-    assert bl.mesh_volume(k) == pytest.approx(kidney.volume_mm3, rel=0.01)
+    assert check_solid(k, "kidney")["solid"]
+    assert k.signed_volume() == pytest.approx(kidney.volume_mm3, rel=0.01)
     bed = icosphere(9.0, (-8.0, 0.0, 12.0), level=3)  # on the concave hilum side
     lobe = bezier_ellipsoid([10.0, 14.0, 20.0], [6.0, 4.0, -25.0], samples=3)
     for other in (bed, lobe):
@@ -401,8 +227,8 @@ def test_kidney_phantom_minus_tumour_bed():
     mesh, summary = bl.compose(k, minus=[bed], plus=[lobe])
     inter = bl.boolean(bl.boolean(k, lobe, "union").mesh, bed, "intersection").volume
     assert summary["removed_volume"] == pytest.approx(inter, rel=1e-9)
-    assert 0 < inter < bl.mesh_volume(bed)
-    assert bl.check_solid(mesh)["solid"]
+    assert 0 < inter < bed.signed_volume()
+    assert check_solid(mesh)["solid"]
 
 
 def test_patch_models_are_accepted_directly():

@@ -7,9 +7,9 @@ import json
 import numpy as np
 import pytest
 
-from surfaces import boolean as bl
 from surfaces.io import read_mesh, write_mesh
 from surfaces.mesh import TriangleMesh
+from surfaces.repair import check_solid
 from tests.surfaces.test_boolean import box, icosphere
 from workbench.cli import main
 
@@ -33,8 +33,8 @@ def test_writes_mesh_and_summary(pair, tmp_path, op, capsys):
         assert key in summary
     assert summary["op"] == op and summary["watertight"] and summary["n_curves"] == 1
     mesh = read_mesh(out)
-    assert bl.check_solid(mesh)["solid"]
-    assert bl.mesh_volume(mesh) == pytest.approx(summary["volume"], rel=1e-6)
+    assert check_solid(mesh)["solid"]
+    assert mesh.signed_volume() == pytest.approx(summary["volume"], rel=1e-6)
     printed = capsys.readouterr().out
     assert f"{summary['volume']:.6g}" in printed
 
@@ -59,8 +59,8 @@ def test_smooth_and_curves(pair, tmp_path):
     summary = json.loads(out.with_suffix(".json").read_text())
     smoothed = read_mesh(out)
     assert len(smoothed.triangles) == 4 * summary["n_triangles"]
-    assert bl.check_solid(smoothed)["solid"]
-    assert summary["smooth"]["volume_smoothed"] == pytest.approx(bl.mesh_volume(smoothed), rel=1e-6)
+    assert check_solid(smoothed)["solid"]
+    assert summary["smooth"]["volume_smoothed"] == pytest.approx(smoothed.signed_volume(), rel=1e-6)
     lines = json.loads(curves.read_text())["curves"]
     assert len(lines) == 1 and lines[0]["closed"] and np.asarray(lines[0]["points"]).shape[1] == 3
 

@@ -24,7 +24,8 @@ def register(subparsers) -> None:
     subparsers : argparse._SubParsersAction
         The ``surfaces`` group's sub-parsers.
     """
-    from surfaces.boolean import FILTERS, OPS
+    from surfaces.boolean import OPS
+    from surfaces.smooth import FILTERS
 
     p = subparsers.add_parser(
         "boolean",
@@ -95,7 +96,8 @@ def run(args: argparse.Namespace) -> int:
     int
         0 on success.
     """
-    from surfaces.boolean import boolean, loop_smooth, mesh_volume
+    from surfaces.boolean import boolean
+    from surfaces.smooth import loop_smooth
     from surfaces.io import MESH_FORMATS, write_mesh
 
     if args.out.suffix.lower() not in MESH_FORMATS:
@@ -113,7 +115,7 @@ def run(args: argparse.Namespace) -> int:
             "iterations": args.smooth,
             "filter": args.filter,
             "filter_iterations": args.filter_iterations,
-            "volume_smoothed": mesh_volume(mesh),
+            "volume_smoothed": mesh.signed_volume(),
             "n_triangles": len(mesh.triangles),
         }
     json_path = args.out.with_suffix(".json")
