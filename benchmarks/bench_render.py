@@ -25,7 +25,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from common import best_of  # noqa: E402
 
-from surfaces import view  # noqa: E402
+from surfaces.render import render  # noqa: E402
 
 SIZE = (1024, 768)
 OUT = Path(__file__).resolve().parent / "results" / "render.md"
@@ -75,8 +75,8 @@ def main() -> str:
         mesh = sphere(res) if kind == "sphere" else bezier_surface()
         n_tri = len(mesh.triangles)
         # best of 5: the machine is shared, the minimum is the least disturbed run
-        t_plain, img = best_of(lambda m=mesh: view.render(m, "iso", SIZE), repeat=5)
-        t_shadow, _ = best_of(lambda m=mesh: view.render(m, "iso", SIZE, shadows=True), repeat=5)
+        t_plain, img = best_of(lambda m=mesh: render(m, "iso", SIZE), repeat=5)
+        t_shadow, _ = best_of(lambda m=mesh: render(m, "iso", SIZE, shadows=True), repeat=5)
         assert img.std() > 10, "blank picture"
         # matplotlib is slow on the largest meshes: one run there
         t_mpl, _ = best_of(lambda m=mesh: trisurf(m), repeat=1 if n_tri > 300_000 else 3)

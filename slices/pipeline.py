@@ -442,12 +442,12 @@ def _save_patches(rec: Reconstruction, path: Path) -> None:
 
 
 def _render(mesh: TriangleMesh, path: Path) -> None:
-    """Ray-cast picture with :mod:`surfaces.view`; a matplotlib view when that is missing."""
+    """Ray-cast picture with :mod:`surfaces.render`; a matplotlib view when that is missing."""
     from surfaces.io import atomic_path
 
     try:
         from surfaces.io import write_png
-        from surfaces.view import render
+        from surfaces.render import render
     except ImportError:
         render = None
     with atomic_path(path, suffix=".png") as tmp:

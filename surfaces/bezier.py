@@ -26,6 +26,7 @@ from typing import NamedTuple
 import numpy as np
 
 from surfaces.validate import as_array
+from surfaces.vectors import cross, dot
 
 #: Points per chunk in :meth:`BezierPatches.derivatives`; keeps the gathered
 #: control points (chunk x 48 doubles) close to the CPU caches.
@@ -112,24 +113,6 @@ def tensor_evaluate(matrix, bu, bv) -> np.ndarray:
     """
     weights = (bu[:, None, :, None] * bv[None, :, None, :]).reshape(len(bu) * len(bv), 16)
     return (weights @ matrix).reshape(len(bu), len(bv), -1, 3)
-
-
-def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Cross product over the last axis, component-wise (faster than ``np.cross`` on big arrays).
-
-    Parameters
-    ----------
-    a, b : numpy.ndarray, shape (..., 3)
-
-    Returns
-    -------
-    numpy.ndarray, shape (..., 3)
-    """
-    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
-    out[..., 0] = a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1]
-    out[..., 1] = a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2]
-    out[..., 2] = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
-    return out
 
 
 @dataclass(frozen=True)
@@ -306,8 +289,8 @@ class BezierPatches:
 
     def _unit_normals(self, pi, pj, u, v, du, dv, return_degenerate: bool = False):
         normal = cross(du, dv)
-        length2 = np.einsum("...x,...x->...", normal, normal)
-        scale2 = np.einsum("...x,...x->...", du, du) * np.einsum("...x,...x->...", dv, dv)
+        length2 = dot(normal, normal)
+        scale2 = dot(du, du) * dot(dv, dv)
         # |du x dv| <= 1e-10 |du| |dv|: a pole or a collapsed edge
         degenerate = length2 <= 1e-20 * np.maximum(scale2, 1e-300)
         if np.any(degenerate):
@@ -324,7 +307,7 @@ class BezierPatches:
                 if np.all(np.linalg.norm(alt, axis=-1) > 0):
                     break
             normal[degenerate] = alt
-            length2[degenerate] = np.einsum("...x,...x->...", alt, alt)
+            length2[degenerate] = dot(alt, alt)
         with np.errstate(invalid="ignore", divide="ignore"):
             unit = normal / np.sqrt(np.where(length2 > 0, length2, 1.0))[..., None]
         return (unit, degenerate) if return_degenerate else unit
@@ -440,3 +423,29 @@ class BezierPatches:
             Patch rows and the ``a`` index reversed, so ``S_u x S_v`` flips.
         """
         return BezierPatches(self.control[::-1, :, ::-1], self.closed_u, self.closed_v)
+
+
+def control_net_segments(patches) -> np.ndarray:
+    """Line segments of the Bezier control net (seed 001's "carcass").
+
+    Parameters
+    ----------
+    patches : BezierPatches or array_like
+        Patch model, or its ``control`` array of shape (R, C, 4, 4, 3).
+
+    Returns
+    -------
+    (K, 2, 3) float64
+        Segment end points: for every patch, the 4 control polygons along u and
+        the 4 along v (3 segments each), K = 24 R C. Edges shared by two patches
+        appear twice.
+
+    Examples
+    --------
+    >>> control_net_segments(np.zeros((2, 3, 4, 4, 3))).shape
+    (144, 2, 3)
+    """
+    ctrl = as_array(getattr(patches, "control", patches), "patches.control", shape=(None, None, 4, 4, 3))
+    along_u = np.stack([ctrl[:, :, :-1, :], ctrl[:, :, 1:, :]], axis=-2)
+    along_v = np.stack([ctrl[:, :, :, :-1], ctrl[:, :, :, 1:]], axis=-2)
+    return np.concatenate([along_u.reshape(-1, 2, 3), along_v.reshape(-1, 2, 3)])

@@ -4,7 +4,7 @@ Meshes are written with numpy alone (binary little-endian PLY with vertex
 normals and colours, Wavefront OBJ with normals, binary STL with facet
 normals), atomically: into a temporary file beside the target, renamed when
 complete. Reading imports open3d inside the function; the open3d conversion for
-viewing is :func:`surfaces.view.to_open3d`.
+viewing is :func:`surfaces.convert.to_open3d`.
 """
 
 from __future__ import annotations

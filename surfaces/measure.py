@@ -18,7 +18,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from surfaces.bezier import BezierPatches, bernstein, control_matrix, cross, tensor_evaluate
+from surfaces.bezier import BezierPatches, bernstein, control_matrix, tensor_evaluate
+from surfaces.vectors import cross, dot
 
 #: Patches per chunk, to bound temporary memory on very large grids.
 _PATCH_CHUNK = 16384
@@ -55,16 +56,12 @@ def _per_patch(patches: BezierPatches, order: int, integrands) -> list[np.ndarra
     return out
 
 
-def _dot(a, b):
-    return np.einsum("...x,...x->...", a, b)
-
-
 def _area_density(s, n):
-    return np.sqrt(_dot(n, n))
+    return np.sqrt(dot(n, n))
 
 
 def _volume_density(s, n):
-    return _dot(s, n) / 3.0
+    return dot(s, n) / 3.0
 
 
 def _result(values: np.ndarray, patches: BezierPatches, per_patch: bool):

@@ -379,7 +379,9 @@ def as_mesh(geometry, name: str = "geometry", samples: int = PATCH_SAMPLES) -> T
     if hasattr(geometry, "vertices") and hasattr(geometry, "triangles"):
         verts = np.asarray(geometry.vertices)
         extra = [getattr(geometry, key, None) for key in ("vertex_normals", "vertex_colors")]
-        extra = [None if x is None or len(x) != len(verts) else np.asarray(x) for x in extra]
+        # normals or colours that do not fit (missing, one per face, NaN) are left out, not refused
+        extra = [np.asarray(x) if x is not None and len(x) == len(verts) else None for x in extra]
+        extra = [x if x is not None and np.all(np.isfinite(x)) else None for x in extra]
         parts = (verts, np.asarray(geometry.triangles), *extra)
     elif isinstance(geometry, tuple) and len(geometry) == 2:
         parts = (np.asarray(geometry[0]), np.asarray(geometry[1]))

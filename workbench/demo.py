@@ -179,7 +179,7 @@ def heightfield_mesh(height: np.ndarray, pixel_size: float, mask: np.ndarray | N
 
 def section_inspection(ctx: Context) -> None:
     """Synthetic plate: triad render, photometric stereo, height, Bezier surface, defects."""
-    from surfaces import view
+    from surfaces.render import render
 
     rep = ctx.report
     rep.section("1. Inspection: a plate with a crack, a dent and a scratch",
@@ -206,7 +206,7 @@ def section_inspection(ctx: Context) -> None:
     height_gt = np.load(folder / "height_gt.npy")
     truth_mesh = heightfield_mesh(height_gt, pixel, exaggeration=10.0, step=1 if ctx.quick else 2)
     vsize = (800, 400) if ctx.quick else (1200, 560)
-    pic = view.render(truth_mesh, ["iso", "top"], vsize, scalars=truth_mesh.vertices[:, 2] / 10.0,
+    pic = render(truth_mesh, ["iso", "top"], vsize, scalars=truth_mesh.vertices[:, 2] / 10.0,
                       colorbar_label="height mm", cmap="cividis", shadows=True,
                       light=(-0.45, 0.5, 0.74))
     rep.figure(pic, "inspection-truth",
@@ -270,7 +270,7 @@ def section_inspection(ctx: Context) -> None:
         nums["mesh_triangles"] = int(mesh.n_triangles)
         z_true = mesh.vertices[:, 2].copy()
         mesh.vertices[:, 2] *= 10.0
-        pic = view.render(mesh, ["iso"], vsize, scalars=z_true, colorbar_label="height mm",
+        pic = render(mesh, ["iso"], vsize, scalars=z_true, colorbar_label="height mm",
                           cmap="cividis", antialias=1 if ctx.quick else 2, light=(-0.45, 0.5, 0.74))
         step = int(summary["patch_step_px"])
         rep.figure(pic, "inspection-bezier",
@@ -285,7 +285,7 @@ def section_inspection(ctx: Context) -> None:
         r0, c0 = int(rows * 0.18), int(cols * 0.2)
         span = max(3, rows // 5)
         crop = BezierPatches(shown.control[r0:r0 + span, c0:c0 + span])
-        pic = view.render(crop, ["iso"], (640, 480), net=True, samples=8, antialias=2,
+        pic = render(crop, ["iso"], (640, 480), net=True, samples=8, antialias=2,
                           light=(-0.45, 0.5, 0.74))
         rep.figure(pic, "inspection-bezier-net",
                    f"Detail around the crack: {span} x {span} of the patches with their Bezier "
@@ -471,7 +471,7 @@ def section_real(ctx: Context) -> None:
     with ctx.guard("Real captures"):
         from photometric.io import read_folder
         from photometric.pipeline import reconstruct
-        from surfaces import view
+        from surfaces.render import render
         from surfaces.io import read_mesh
 
         results = {}
@@ -523,7 +523,7 @@ def section_real(ctx: Context) -> None:
             "Angular error against the ground truth (colour bar clipped at 30 deg): shadows and "
             "highlights break the Lambertian model where fewer lights see the surface.", cmd_all)
         mesh = read_mesh(results["all14"][3] / "surface.ply")
-        pic = view.render(mesh, ["iso", "top"], (900, 420) if ctx.quick else (1200, 560),
+        pic = render(mesh, ["iso", "top"], (900, 420) if ctx.quick else (1200, 560),
                           light=(-0.3, 0.4, 0.87))
         rep.figure(pic, "bear-surface",
                    "The pipeline's surface from the 14-image normals (height integrated, Bezier "
@@ -570,7 +570,8 @@ def section_ct(ctx: Context) -> None:
     with ctx.guard("CT: kidney phantom"):
         from datasets_synthetic.phantoms import make_phantom, write_phantom
         from slices.pipeline import reconstruct
-        from surfaces import view
+        from surfaces.distance import deviation
+        from surfaces.render import render
         from surfaces.io import read_mesh
 
         phantom = make_phantom("kidney")
@@ -583,7 +584,7 @@ def section_ct(ctx: Context) -> None:
         ctx.step("ct: kidney reconstructed")
         mesh = read_mesh(out / "surface.ply")
         pts = np.load(kid / "surface_points.npy")
-        dist = view.deviation(pts, mesh)
+        dist = deviation(pts, mesh)
         from scipy.spatial import cKDTree
 
         _, nearest = cKDTree(pts).query(mesh.vertices)
@@ -609,7 +610,7 @@ def section_ct(ctx: Context) -> None:
                          "--pixel", "0.8", "--out", str(kid))
         cmd_rec = ctx.cmd("slices", "reconstruct", str(kid / "contours.json"), "--rays",
                           "32" if ctx.quick else "64", "--out", str(out))
-        pic = view.render(mesh, ["iso", "front", "top", "side"], (1000, 760),
+        pic = render(mesh, ["iso", "front", "top", "side"], (1000, 760),
                           scalars=vertex_dev, vmin=-lim, vmax=lim, cmap="coolwarm",
                           colorbar_label="dev. mm", net=_contour_segments(kid / "contours.json"),
                           net_color=(0.1, 0.1, 0.1), net_hidden=True)
@@ -645,7 +646,7 @@ def section_breast(ctx: Context) -> None:
         return
     with ctx.guard("CT: breast structure set"):
         from slices.pipeline import reconstruct
-        from surfaces import view
+        from surfaces.render import render
         from surfaces.io import read_mesh
         from surfaces.mesh import TriangleMesh, merge_meshes
 
@@ -671,7 +672,7 @@ def section_breast(ctx: Context) -> None:
             rep.note("--quick: only the Heart is reconstructed; the full run adds the Lt Lung "
                      "(165 contours on 80 planes, with holes).")
         merged = merge_meshes(meshes)
-        pic = view.render(merged, ["front", "left"], (1000, 520), colors=np.concatenate(colors))
+        pic = render(merged, ["front", "left"], (1000, 520), colors=np.concatenate(colors))
         rep.figure(pic, "ct-breast",
                    "Structures of the real breast RT structure set reconstructed from their "
                    f"contours: {' and '.join(rois)} (red: Heart, blue: Lt Lung; DICOM patient "

@@ -147,7 +147,7 @@ def scalar_image(
     (H', W', 3) uint8
         The picture; ``H' = k H`` for the enlargement factor ``k``.
     """
-    from surfaces.view import apply_colormap, colorbar_image, scalar_range
+    from surfaces.colormap import apply_colormap, colorbar_image, scalar_range
 
     vals = as_array(values, "values", ndim=2, finite=False)
     m = _mask(mask, vals.shape) & np.isfinite(vals)
@@ -388,7 +388,7 @@ def plot_map(
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    from surfaces.view import scalar_range
+    from surfaces.colormap import scalar_range
 
     v = as_array(values, "values", ndim=2, finite=False)
     xs = as_array(x, "x", shape=(v.shape[1],))

@@ -57,15 +57,18 @@ def write_json(path: str | os.PathLike, data: dict) -> Path:
 
 def picture(args: argparse.Namespace, geometry, *, colors=None) -> tuple[np.ndarray, dict]:
     """Render ``geometry`` as the parsed options ask; returns the RGB picture and summary numbers."""
-    from surfaces import view
+    from surfaces.camera import Camera
+    from surfaces.colormap import scalar_range
+    from surfaces.distance import deviation
     from surfaces.mesh import tessellate
+    from surfaces.render import parse_size, render
 
     mesh = tessellate(geometry, samples=args.samples) if hasattr(geometry, "control") else geometry
     verts = np.asarray(mesh.vertices)
     summary: dict = {
         "vertices": int(len(verts)),
         "triangles": int(len(mesh.triangles)),
-        "size": list(view._parse_size(args.size)),
+        "size": list(parse_size(args.size)),
         "colour": args.colour,
     }
     scalars, label = None, ""
@@ -74,7 +77,7 @@ def picture(args: argparse.Namespace, geometry, *, colors=None) -> tuple[np.ndar
     elif args.colour == "deviation":
         if not args.reference:
             raise ValueError("--colour deviation: give the reference surface with --reference FILE")
-        scalars = view.deviation(verts, load_geometry(args.reference))
+        scalars = deviation(verts, load_geometry(args.reference))
         label = "deviation"
         summary.update(
             reference=str(args.reference),
@@ -83,7 +86,7 @@ def picture(args: argparse.Namespace, geometry, *, colors=None) -> tuple[np.ndar
             deviation_max_abs=float(np.max(np.abs(scalars))),
         )
     if scalars is not None:
-        lo, hi = view.scalar_range(scalars, args.vmin, args.vmax)
+        lo, hi = scalar_range(scalars, args.vmin, args.vmax)
         if args.colour == "deviation" and args.vmin is None and args.vmax is None:
             # a symmetric range keeps zero deviation at the colour map's centre
             lo, hi = -max(abs(lo), abs(hi)), max(abs(lo), abs(hi))
@@ -94,7 +97,7 @@ def picture(args: argparse.Namespace, geometry, *, colors=None) -> tuple[np.ndar
         if not (args.eye and args.target):
             raise ValueError("--eye/--target: give both for an explicit camera")
         cams = [
-            view.Camera(
+            Camera(
                 parse_vector(args.eye, "--eye"),
                 parse_vector(args.target, "--target"),
                 parse_vector(args.up, "--up"),
@@ -109,7 +112,7 @@ def picture(args: argparse.Namespace, geometry, *, colors=None) -> tuple[np.ndar
         summary["views"] = cams
     cmap = args.cmap or ("coolwarm" if args.colour == "deviation" else "viridis")
     start = time.perf_counter()
-    img = view.render(
+    img = render(
         geometry if args.net else mesh,
         cams,
         args.size,

@@ -55,7 +55,7 @@ def run(args: argparse.Namespace) -> int:
         return 1
     import open3d as o3d
 
-    from surfaces.view import control_net_lineset, to_open3d
+    from surfaces.convert import control_net_lineset, to_open3d
 
     shown = []
     for k, model in enumerate(models):

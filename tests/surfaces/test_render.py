@@ -1,26 +1,17 @@
-"""Ray-cast rendering and open3d conversion (surfaces.view) against closed forms."""
+"""Ray-cast rendering (surfaces.render) against closed forms."""
 
 from __future__ import annotations
 
 import numpy as np
+import open3d as o3d
 import pytest
 
-from surfaces import view
-from surfaces.io import write_png
-
-o3d = pytest.importorskip("open3d")
+from surfaces.camera import Camera
+from surfaces.render import DEFAULT_COLOR, parse_size, render, render_view
 
 
-@pytest.fixture(scope="module")
-def sphere():
-    """Unit sphere at the origin, about 20k triangles, exact vertex normals."""
-    mesh = o3d.geometry.TriangleMesh.create_sphere(1.0, resolution=100)
-    verts = np.asarray(mesh.vertices)
-    return verts, np.asarray(mesh.triangles)
-
-
-def _top_camera(height: float = 3.0) -> view.Camera:
-    return view.Camera(eye=(0, 0, 5), target=(0, 0, 0), up=(0, 1, 0), fov_deg=None, ortho_height=height)
+def _top_camera(height: float = 3.0) -> Camera:
+    return Camera(eye=(0, 0, 5), target=(0, 0, 0), up=(0, 1, 0), fov_deg=None, ortho_height=height)
 
 
 def _pixel_of(point_xy, size, height):
@@ -34,7 +25,7 @@ def _pixel_of(point_xy, size, height):
 def test_highlight_at_half_vector(sphere, light):
     """Specular only: the brightest pixel is where the normal equals the half vector."""
     size = (301, 301)
-    res = view.render_view(sphere, _top_camera(), size, light=light, ambient=0.0, diffuse=0.0,
+    res = render_view(sphere, _top_camera(), size, light=light, ambient=0.0, diffuse=0.0,
                            specular=1.0, shininess=400.0)
     lum = np.where(res.hit, res.image.sum(axis=2), -1.0)
     row, col = np.unravel_index(np.argmax(lum), lum.shape)
@@ -49,7 +40,7 @@ def test_highlight_at_half_vector(sphere, light):
 def test_lambert_peak_at_light(sphere, light):
     """Diffuse only: the brightest pixel is where the normal equals the light direction."""
     size = (301, 301)
-    res = view.render_view(sphere, _top_camera(), size, light=light, ambient=0.0, diffuse=1.0,
+    res = render_view(sphere, _top_camera(), size, light=light, ambient=0.0, diffuse=1.0,
                            specular=0.0)
     lum = np.where(res.hit, res.image.sum(axis=2), -1.0)
     l_unit = np.asarray(light) / np.linalg.norm(light)
@@ -61,14 +52,14 @@ def test_lambert_peak_at_light(sphere, light):
     # Lambert: the lit value equals n.l with interpolated normals
     inside = res.hit & (res.image[..., 0] > 0)
     cosine = res.normal[inside] @ l_unit
-    shade = res.image[inside][:, 0] / view.DEFAULT_COLOR[0]
+    shade = res.image[inside][:, 0] / DEFAULT_COLOR[0]
     assert np.allclose(shade, np.clip(cosine, 0, 1), atol=2e-2)
 
 
 @pytest.mark.parametrize("ortho_height,size", [(3.0, (320, 240)), (2.5, (200, 200)), (4.0, (400, 300))])
 def test_orthographic_silhouette_radius(sphere, ortho_height, size):
     """The silhouette of a unit sphere has radius H / ortho_height pixels (area pi r^2)."""
-    res = view.render_view(sphere, _top_camera(ortho_height), size)
+    res = render_view(sphere, _top_camera(ortho_height), size)
     r_px = size[1] / ortho_height
     area_radius = np.sqrt(res.hit.sum() / np.pi)
     # a 100-segment polygonal sphere is inscribed: its silhouette is at most 0.1 % smaller
@@ -81,8 +72,8 @@ def test_orthographic_silhouette_radius(sphere, ortho_height, size):
 def test_perspective_silhouette_radius(sphere, distance, fov):
     """Pinhole camera: silhouette radius = (H/2) tan(asin(1/d)) / tan(fov/2) pixels."""
     size = (300, 300)
-    cam = view.Camera(eye=(0, 0, distance), target=(0, 0, 0), up=(0, 1, 0), fov_deg=fov)
-    res = view.render_view(sphere, cam, size)
+    cam = Camera(eye=(0, 0, distance), target=(0, 0, 0), up=(0, 1, 0), fov_deg=fov)
+    res = render_view(sphere, cam, size)
     want = size[1] / 2 * np.tan(np.arcsin(1 / distance)) / np.tan(np.radians(fov) / 2)
     got = np.sqrt(res.hit.sum() / np.pi)
     assert abs(got - want) / want < 1e-2
@@ -91,10 +82,10 @@ def test_perspective_silhouette_radius(sphere, distance, fov):
 
 def test_projection_matches_rays(sphere):
     """Camera.project sends the hit points back to their own pixel centres."""
-    for cam in (_top_camera(), view.Camera((3, -4, 2), (0, 0, 0), (0, 0, 1), fov_deg=35.0)):
+    for cam in (_top_camera(), Camera((3, -4, 2), (0, 0, 0), (0, 0, 1), fov_deg=35.0)):
         size = (64, 48)
         rays = cam.rays(*size).reshape(-1, 6).astype(float)
-        res = view.render_view(sphere, cam, size)
+        res = render_view(sphere, cam, size)
         flat = res.hit.ravel()
         pts = rays[flat, :3] + rays[flat, 3:] * res.depth.ravel()[flat, None]
         px, depth = cam.project(pts, *size)
@@ -110,9 +101,9 @@ def test_shadow_of_sphere_on_plane():
     floor = o3d.geometry.TriangleMesh.create_box(12, 8, 0.01).translate((-8, -4, -0.01))
     scene = ball + floor
     light = np.array([1.0, 0.0, 1.0]) / np.sqrt(2)
-    cam = view.Camera((-0.5, 0, 10), (-0.5, 0, 0), (0, 1, 0), None, 8.0)
+    cam = Camera((-0.5, 0, 10), (-0.5, 0, 0), (0, 1, 0), None, 8.0)
     size = (600, 400)
-    res = view.render_view((np.asarray(scene.vertices), np.asarray(scene.triangles)), cam, size,
+    res = render_view((np.asarray(scene.vertices), np.asarray(scene.triangles)), cam, size,
                            light=light, shadows=True)
     scale = size[1] / 8.0
     on_floor = res.hit & (res.depth > 9.9)
@@ -124,7 +115,7 @@ def test_shadow_of_sphere_on_plane():
     assert abs(cx + 3.0) < 0.05
     lit_floor = on_floor & ~res.shadow
     assert res.image[res.shadow & on_floor].mean() < 0.5 * res.image[lit_floor].mean()
-    plain = view.render_view((np.asarray(scene.vertices), np.asarray(scene.triangles)), cam, size,
+    plain = render_view((np.asarray(scene.vertices), np.asarray(scene.triangles)), cam, size,
                              light=light, shadows=False)
     assert not plain.shadow.any()
 
@@ -134,7 +125,7 @@ def test_tiled_views_not_blank(sphere, views):
     """Every tile of a multi-view picture shows the object, shaded (not one flat colour)."""
     size = (480, 360)
     scalars = sphere[0][:, 2]
-    img = view.render(sphere, views, size, scalars=scalars, colorbar_label="z")
+    img = render(sphere, views, size, scalars=scalars, colorbar_label="z")
     assert img.shape == (360, 480, 3) and img.dtype == np.uint8
     n_cols = int(np.ceil(np.sqrt(len(views))))
     n_rows = int(np.ceil(len(views) / n_cols))
@@ -150,66 +141,17 @@ def test_tiled_views_not_blank(sphere, views):
     assert len(np.unique(bar.reshape(-1, 3), axis=0)) > 50
 
 
-def test_colormap_and_colorbar_ends():
-    """The colour map reaches matplotlib's end colours; the bar runs top=vmax to bottom=vmin."""
-    import matplotlib
-
-    rgb = view.apply_colormap(np.array([0.0, 5.0, 10.0, np.nan]), "viridis", 0.0, 10.0)
-    cm = matplotlib.colormaps["viridis"]
-    assert np.allclose(rgb[0], cm(0.0)[:3], atol=1e-6) and np.allclose(rgb[2], cm(1.0)[:3], atol=1e-6)
-    assert np.allclose(rgb[3], 0.6)
-    bar = view.colorbar_image(300, -1.0, 2.0, "viridis", "mm")
-    column = bar[:, 15].astype(float) / 255
-    inside = np.nonzero(np.abs(column - np.asarray(cm(1.0)[:3])).sum(axis=1) < 0.03)[0]
-    bottom = np.nonzero(np.abs(column - np.asarray(cm(0.0)[:3])).sum(axis=1) < 0.03)[0]
-    assert inside.size and bottom.size and inside.mean() < bottom.mean()
-
-
 def test_net_overlay_draws_segments(sphere):
     """Given world segments are drawn where the camera projects them."""
     seg = np.array([[[-1.2, 0.0, 1.5], [1.2, 0.0, 1.5]]])
     cam = _top_camera()
-    plain = view.render(sphere, cam, (300, 300))
-    lined = view.render(sphere, cam, (300, 300), net=seg, net_color=(1.0, 0.0, 0.0))
+    plain = render(sphere, cam, (300, 300))
+    lined = render(sphere, cam, (300, 300), net=seg, net_color=(1.0, 0.0, 0.0))
     changed = np.any(plain != lined, axis=2)
     rows, cols = np.nonzero(changed)
     assert abs(rows.mean() - 149.5) < 1.5
     assert cols.min() < 40 and cols.max() > 260
     assert lined[150, 150, 0] > 200 and lined[150, 150, 1] < 60
-
-
-def test_control_net_segments_and_lineset():
-    """24 segments per patch; the line set has the same points."""
-    rng = np.random.default_rng(0)
-    ctrl = rng.normal(size=(2, 3, 4, 4, 3))
-    seg = view.control_net_segments(ctrl)
-    assert seg.shape == (24 * 6, 2, 3)
-    assert np.allclose(seg[0], ctrl[0, 0, :2, 0])
-    lines = view.control_net_lineset(ctrl, color=(1, 0, 0))
-    assert len(lines.lines) == len(seg)
-    assert np.allclose(np.asarray(lines.points), seg.reshape(-1, 3))
-
-
-def test_to_open3d_colours_and_normals(sphere):
-    verts, tris = sphere
-    mesh = view.to_open3d(sphere, scalars=verts[:, 2], cmap="coolwarm")
-    assert len(mesh.triangles) == len(tris)
-    normals = np.asarray(mesh.vertex_normals)
-    assert np.allclose(np.einsum("ij,ij->i", normals, verts), 1.0, atol=2e-3)
-    colors = np.asarray(mesh.vertex_colors)
-    assert colors.shape == verts.shape and np.ptp(colors) > 0.5
-    with pytest.raises(ValueError, match="scalars"):
-        view.to_open3d(sphere, scalars=verts[:10, 2])
-
-
-def test_deviation_signed(sphere):
-    """Points 0.1 outside / inside the unit sphere are at +0.1 / -0.1 (tessellation tolerance)."""
-    rng = np.random.default_rng(1)
-    d = rng.normal(size=(200, 3))
-    d /= np.linalg.norm(d, axis=1, keepdims=True)
-    out = view.deviation(1.1 * d, sphere)
-    inn = view.deviation(0.9 * d, sphere)
-    assert np.allclose(out, 0.1, atol=2e-3) and np.allclose(inn, -0.1, atol=2e-3)
 
 
 def test_patches_render_with_net():
@@ -220,8 +162,8 @@ def test_patches_render_with_net():
     grid = np.stack(np.meshgrid(u, u, indexing="ij"), axis=-1)
     ctrl = np.concatenate([grid, 0.2 * np.sin(grid[..., :1] + grid[..., 1:])], axis=-1)
     patches = BezierPatches(ctrl[None, None])
-    plain = view.render(patches, "iso", (200, 150))
-    netted = view.render(patches, "iso", (200, 150), net=True)
+    plain = render(patches, "iso", (200, 150))
+    netted = render(patches, "iso", (200, 150), net=True)
     assert np.any(plain < 250) and np.count_nonzero(np.any(plain != netted, axis=2)) > 200
 
 
@@ -238,40 +180,20 @@ def test_patches_render_with_net():
 )
 def test_bad_input(sphere, kwargs, match):
     with pytest.raises(ValueError, match=match):
-        view.render(sphere, **kwargs)
+        render(sphere, **kwargs)
 
 
-def test_bad_camera():
-    with pytest.raises(ValueError, match="coincide"):
-        view.Camera((0, 0, 0), (0, 0, 0), (0, 1, 0))
-    with pytest.raises(ValueError, match="parallel"):
-        view.Camera((0, 0, 1), (0, 0, 0), (0, 0, 1))
-    with pytest.raises(ValueError, match="fov"):
-        view.Camera((0, 0, 1), (0, 0, 0), (0, 1, 0), fov_deg=200)
-
-
-def test_fit_camera_frames_box():
-    box = np.array([[-1.0, -2.0, 0.0], [3.0, 1.0, 0.5]])
-    corners = np.array(np.meshgrid(*box.T, indexing="ij")).reshape(3, -1).T
-    for name in view.STANDARD_VIEWS:
-        for fov in (None, 30.0):
-            cam = view.fit_camera(box, name, 4 / 3, fov_deg=fov)
-            px, depth = cam.project(corners, 400, 300)
-            assert np.all(depth > 0)
-            assert np.all((px >= 0) & (px <= [400, 300]))
-
-
-def test_save_png_roundtrip(tmp_path):
-    import cv2
-
-    img = np.zeros((10, 12, 3), np.uint8)
-    img[..., 0] = 200
-    path = write_png(tmp_path / "sub" / "a.png", img)
-    back = cv2.imread(str(path))
-    assert back.shape == (10, 12, 3) and back[0, 0, 2] == 200 and back[0, 0, 0] == 0
-    assert [p.name for p in path.parent.iterdir()] == ["a.png"]
-    with pytest.raises(ValueError, match="dtype|uint8"):
-        write_png(tmp_path / "b.png", img.astype(float))
+def test_hidden_net_lines(sphere):
+    """With net_hidden, a segment behind the sphere disappears; one in front stays."""
+    cam = _top_camera()
+    behind = np.array([[[-0.5, 0.0, -1.5], [0.5, 0.0, -1.5]]])
+    front = np.array([[[-0.5, 0.0, 1.5], [0.5, 0.0, 1.5]]])
+    plain = render(sphere, cam, (200, 200))
+    for seg, visible in ((behind, False), (front, True)):
+        img = render(sphere, cam, (200, 200), net=seg, net_hidden=True, net_color=(1, 0, 0))
+        assert np.any(img != plain) == visible
+        img = render(sphere, cam, (200, 200), net=seg, net_hidden=False, net_color=(1, 0, 0))
+        assert np.any(img != plain)
 
 
 def test_render_and_view_commands(tmp_path, sphere, capsys, monkeypatch):
@@ -310,19 +232,6 @@ def test_render_and_view_commands(tmp_path, sphere, capsys, monkeypatch):
     assert cv2.imread(str(tmp_path / "both.png")).shape == (150, 200, 3)
 
 
-def test_hidden_net_lines(sphere):
-    """With net_hidden, a segment behind the sphere disappears; one in front stays."""
-    cam = _top_camera()
-    behind = np.array([[[-0.5, 0.0, -1.5], [0.5, 0.0, -1.5]]])
-    front = np.array([[[-0.5, 0.0, 1.5], [0.5, 0.0, 1.5]]])
-    plain = view.render(sphere, cam, (200, 200))
-    for seg, visible in ((behind, False), (front, True)):
-        img = view.render(sphere, cam, (200, 200), net=seg, net_hidden=True, net_color=(1, 0, 0))
-        assert np.any(img != plain) == visible
-        img = view.render(sphere, cam, (200, 200), net=seg, net_hidden=False, net_color=(1, 0, 0))
-        assert np.any(img != plain)
-
-
 def test_view_command_opens_window_with_display(tmp_path, monkeypatch):
     """With DISPLAY set, ``workbench view`` hands meshes and control nets to open3d's viewer."""
     import open3d.visualization as vis
@@ -343,3 +252,10 @@ def test_view_command_opens_window_with_display(tmp_path, monkeypatch):
     assert kinds == ["LineSet", "TriangleMesh"]
     mesh = next(g for g in shown if type(g).__name__ == "TriangleMesh")
     assert mesh.has_vertex_normals() and mesh.has_vertex_colors()
+
+
+def test_parse_size():
+    assert parse_size("640x480") == (640, 480) and parse_size((32, 16)) == (32, 16)
+    for bad in ("640", "axb", (4, 100)):
+        with pytest.raises(ValueError, match="size"):
+            parse_size(bad)
