@@ -12,6 +12,9 @@ Both integrate over the patches themselves, not over a triangle mesh:
   integrand is a polynomial of degree 8 in each parameter, so the 5-point rule
   (exact to degree 9) is exact up to rounding. The sign is positive when
   ``S_u x S_v`` points out of the enclosed region.
+* a tube (closed around, open at its ends, e.g. a swept pipe) gets the flux
+  through cone caps over its end curves (:func:`cap_flux`), so that
+  :func:`area_and_volume` reports the volume of the solid it bounds.
 """
 
 from __future__ import annotations
@@ -160,3 +163,73 @@ def flux_z(patches: BezierPatches, order: int = 5) -> float:
     """
     (value,) = _per_patch(patches, order, [lambda s, n: s[..., 2] * n[..., 2]])
     return float(value.sum())
+
+
+def _vector_area(segments: np.ndarray) -> np.ndarray:
+    """``1/2 closed-integral x cross dx`` of closed piecewise-cubic Bezier curves (S, 4, 3)."""
+    t, w = _gauss(3)  # the integrand has degree 5: three Gauss points are exact
+    x = np.einsum("ta,sak->stk", bernstein(t), segments)
+    dx = np.einsum("ta,sak->stk", bernstein(t, 1), segments)
+    return 0.5 * np.einsum("t,stk->k", w, cross(x, dx))
+
+
+def cap_flux(patches: BezierPatches) -> float:
+    """Flux ``int x . n dA`` through cone caps closing the v-ends of a tube (closed in u).
+
+    The cap of an end curve is the cone from its control-point centroid ``c``;
+    its flux is ``c . A`` with ``A`` the curve's vector area, exact for planar ends
+    (any cap with that boundary gives the same flux up to the volume between caps).
+    Oriented to continue the patches' ``S_u x S_v`` orientation.
+
+    Parameters
+    ----------
+    patches : BezierPatches
+        A tube: closed in u, open in v.
+
+    Returns
+    -------
+    float
+        Sum of both caps' fluxes in cubed model units (divide by 3 for their
+        volume contribution).
+    """
+    if not patches.closed_u or patches.closed_v:
+        raise ValueError("patches: caps close a surface that is closed in u and open in v")
+    start = patches.control[:, 0, :, 0]  # (R, 4, 3): v = 0 boundary, u increasing
+    end = patches.control[:, -1, :, 3]
+    c0, c1 = start.reshape(-1, 3).mean(0), end.reshape(-1, 3).mean(0)
+    return float(-np.dot(c0, _vector_area(start)) + np.dot(c1, _vector_area(end)))
+
+
+def area_and_volume(patches: BezierPatches) -> dict:
+    """Area and enclosed volume of a surface, closing the open ends of a tube by caps.
+
+    Volume: the divergence theorem over the patches (:func:`volume`) plus
+    :func:`cap_flux` / 3 for a tube open at its ends; ``None`` when the surface does
+    not bound a solid (open in u and not closed off by poles, e.g. a helicoid).
+
+    Parameters
+    ----------
+    patches : BezierPatches
+        The surface (e.g. a kinematic surface's ``to_bezier()``).
+
+    Returns
+    -------
+    dict
+        ``area`` (model units^2), ``volume`` (units^3, absolute) or None,
+        ``volume_method`` (str), ``orientation`` ("outward"/"inward"/None: of ``S_u x S_v``).
+    """
+    out = {"area": float(area(patches)), "volume": None, "volume_method": None, "orientation": None}
+    c = patches.control
+    poles = all(np.ptp(e.reshape(-1, 3), axis=0).max() <= 1e-12 * max(1.0, np.abs(c).max())
+                for e in (c[0, :, 0], c[-1, :, 3]))
+    if patches.closed_u and patches.closed_v:
+        signed, method = volume(patches), "divergence theorem (closed surface)"
+    elif patches.closed_u:
+        signed, method = volume(patches) + cap_flux(patches) / 3.0, "divergence theorem + end caps"
+    elif patches.closed_v and poles:
+        signed, method = volume(patches), "divergence theorem (closed by poles)"
+    else:
+        return out
+    out.update(volume=abs(float(signed)), volume_method=method,
+               orientation="outward" if signed >= 0 else "inward")
+    return out

@@ -8,9 +8,11 @@ import pytest
 from surfaces import kinematic as K
 from surfaces.bezier import BezierPatches
 from surfaces.bspline import interpolate_curve
+from surfaces.curves import ParametricCurve, circle, line
+from surfaces.measure import area_and_volume
+from tests.surfaces.test_frames import _curvy_path
 
 
-# ------------------------------------------------------------------ cylinder: circle along a line
 @pytest.mark.parametrize("frame", ["fixed", "rmf"])
 @pytest.mark.parametrize(
     "start, end", [([0, 0, 0], [0, 0, 4.0]), ([1, 2, 3], [3, -1, 6]), ([0, 0, 0], [5, 0, 0])]
@@ -18,7 +20,7 @@ from surfaces.bspline import interpolate_curve
 def test_circle_along_line_is_cylinder(frame, start, end):
     r = 1.5
     h = float(np.linalg.norm(np.subtract(end, start)))
-    surface = K.sweep(K.circle(r), K.line(start, end), frame=frame)
+    surface = K.sweep(circle(r), line(start, end), frame=frame)
     # every point is at distance r from the axis
     rng = np.random.default_rng(0)
     u, v = rng.uniform(0, 1, (2, 200))
@@ -29,34 +31,23 @@ def test_circle_along_line_is_cylinder(frame, start, end):
     np.testing.assert_allclose(np.linalg.norm(radial, axis=1), r, rtol=1e-12)
     patches = surface.to_bezier(32, 6)
     assert isinstance(patches, BezierPatches) and patches.closed_u and not patches.closed_v
-    m = K.measure(patches)
+    m = area_and_volume(patches)
     np.testing.assert_allclose(m["area"], 2 * np.pi * r * h, rtol=1e-5)
     np.testing.assert_allclose(m["volume"], np.pi * r * r * h, rtol=1e-5)
     assert m["orientation"] == "outward"
 
 
-def test_cylinder_lateral_flux_alone():
-    """Without caps, the lateral flux of a z-axis cylinder is (2/3) pi r^2 h."""
-    from surfaces.measure import volume
-
-    r, h = 2.0, 3.0
-    patches = K.sweep(K.circle(r), K.line([0, 0, 0], [0, 0, h])).to_bezier(32, 6)
-    np.testing.assert_allclose(volume(patches), 2 / 3 * np.pi * r * r * h, rtol=1e-5)
-    np.testing.assert_allclose(K.cap_flux(patches) / 3, np.pi * r * r * h / 3, rtol=1e-5)
-
-
 def test_frenet_on_straight_line_is_refused():
     with pytest.raises(ValueError, match="Frenet frame is undefined"):
-        K.sweep(K.circle(1.0), K.line([0, 0, 0], [0, 0, 1]), frame="frenet").evaluate([0.5], [0.5])
+        K.sweep(circle(1.0), line([0, 0, 0], [0, 0, 1]), frame="frenet").evaluate([0.5], [0.5])
 
 
-# ------------------------------------------------------------------ Pappus
 @pytest.mark.parametrize("big, small", [(3.0, 1.0), (2.0, 0.5)])
 def test_torus_obeys_pappus(big, small):
-    surface = K.revolve(K.circle(small, center=(big, 0.0)))
+    surface = K.revolve(circle(small, center=(big, 0.0)))
     patches = surface.to_bezier(32, 48)
     assert patches.closed_u and patches.closed_v
-    m = K.measure(patches)
+    m = area_and_volume(patches)
     np.testing.assert_allclose(m["area"], 2 * np.pi * big * 2 * np.pi * small, rtol=1e-5)
     np.testing.assert_allclose(m["volume"], 2 * np.pi * big * np.pi * small**2, rtol=1e-5)
 
@@ -64,11 +55,11 @@ def test_torus_obeys_pappus(big, small):
 def test_open_profile_revolution_area_obeys_pappus():
     """A slanted segment revolved: a frustum, area 2 pi * centroid radius * length."""
     a, b = np.array([1.0, 0.0]), np.array([2.5, 2.0])
-    patches = K.revolve(K.line(a, b)).to_bezier(8, 48)
+    patches = K.revolve(line(a, b)).to_bezier(8, 48)
     length = np.linalg.norm(b - a)
-    np.testing.assert_allclose(K.measure(patches)["area"], 2 * np.pi * (a[0] + b[0]) / 2 * length,
+    np.testing.assert_allclose(area_and_volume(patches)["area"], 2 * np.pi * (a[0] + b[0]) / 2 * length,
                                rtol=1e-5)
-    assert K.measure(patches)["volume"] is None
+    assert area_and_volume(patches)["volume"] is None
 
 
 def test_bspline_profile_revolution_obeys_pappus():
@@ -85,7 +76,7 @@ def test_bspline_profile_revolution_obeys_pappus():
     # centroid radius of the curve (for the area) and of the region (for the volume)
     rc_curve = (xy[:, 0] * speed).sum() * dt / length
     rc_region = (xy[:, 0] ** 2 * d[:, 1]).sum() * dt / 2 / area2d
-    m = K.measure(K.revolve(profile).to_bezier(40, 48))
+    m = area_and_volume(K.revolve(profile).to_bezier(40, 48))
     np.testing.assert_allclose(m["area"], 2 * np.pi * rc_curve * length, rtol=1e-5)
     np.testing.assert_allclose(m["volume"], 2 * np.pi * rc_region * abs(area2d), rtol=1e-5)
 
@@ -93,16 +84,15 @@ def test_bspline_profile_revolution_obeys_pappus():
 def test_sphere_by_revolution_closed_by_poles():
     """Half circle from pole to pole revolved: a sphere (rows collapse to poles)."""
     r = 1.3
-    half = K.ParametricCurve(
+    half = ParametricCurve(
         lambda t: np.stack([r * np.sin(np.pi * t), -r * np.cos(np.pi * t)], axis=1)
     )
-    m = K.measure(K.revolve(half).to_bezier(24, 32))
+    m = area_and_volume(K.revolve(half).to_bezier(24, 32))
     np.testing.assert_allclose(m["area"], 4 * np.pi * r * r, rtol=1e-5)
     np.testing.assert_allclose(m["volume"], 4 / 3 * np.pi * r**3, rtol=1e-5)
     assert m["volume_method"].endswith("poles)")
 
 
-# ------------------------------------------------------------------ helical surfaces
 @pytest.mark.parametrize("pitch, turns", [(1.0, 2.0), (0.3, 1.5)])
 def test_helicoid_points_on_closed_form(pitch, turns):
     inner, outer = 0.5, 2.0
@@ -128,14 +118,14 @@ def test_helicoid_area_closed_form():
         return 0.5 * (r * np.hypot(r, c) + c * c * np.arcsinh(r / c))
 
     expected = 2 * np.pi * turns * (primitive(outer) - primitive(inner))
-    area = K.measure(K.helicoid(inner, outer, pitch, turns).to_bezier(8, 24))["area"]
+    area = area_and_volume(K.helicoid(inner, outer, pitch, turns).to_bezier(8, 24))["area"]
     np.testing.assert_allclose(area, expected, rtol=1e-5)
 
 
 def test_coil_spring_tube_formulas():
     radius, pitch, turns, wire = 2.0, 1.0, 3.0, 0.3
     length = turns * np.hypot(2 * np.pi * radius, pitch)
-    m = K.measure(K.coil_spring(radius, pitch, turns, wire).to_bezier(24, 96))
+    m = area_and_volume(K.coil_spring(radius, pitch, turns, wire).to_bezier(24, 96))
     np.testing.assert_allclose(m["area"], 2 * np.pi * wire * length, rtol=1e-4)
     np.testing.assert_allclose(m["volume"], np.pi * wire**2 * length, rtol=1e-4)
 
@@ -157,49 +147,6 @@ def test_screw_thread_profile_radii():
     np.testing.assert_allclose(x1 - x0, [[0, 0, pitch]], atol=1e-12)
 
 
-# ------------------------------------------------------------------ frames
-def _curvy_path():
-    pts = np.array([[0, 0, 0], [1, 0, 0.5], [2, 1, 1], [3, 1, 2], [3, 2, 3], [2, 3, 3.5]], float)
-    return interpolate_curve(pts)
-
-
-def test_rmf_is_rotation_minimising():
-    """The RMF normal's derivative has no component along the binormal (Bishop frame)."""
-    path = _curvy_path()
-    v = np.linspace(0.05, 0.95, 50)
-    h = 1e-5
-    t, n, b = K.frames(path, v, "rmf")
-    _, n2, _ = K.frames(path, v + h, "rmf")
-    _, n1, _ = K.frames(path, v - h, "rmf")
-    dn = (n2 - n1) / (2 * h)
-    assert np.max(np.abs(np.sum(dn * b, axis=1))) < 1e-5 * np.max(np.linalg.norm(dn, axis=1))
-    np.testing.assert_allclose(np.cross(t, n), b, atol=1e-12)
-    np.testing.assert_allclose(np.sum(t * n, axis=1), 0, atol=1e-12)
-
-
-@pytest.mark.parametrize("radius, pitch, turns", [(2.0, 1.0, 1.0), (1.0, 3.0, 0.8)])
-def test_rmf_of_helix_turns_against_frenet_by_torsion(radius, pitch, turns):
-    """On a helix the RMF normal turns away from the Frenet normal by int tau ds."""
-    c = pitch / (2 * np.pi)
-    v = np.linspace(0, 1, 21)
-    curve = K.helix(radius, pitch, turns)
-    _, n_rmf, _ = K.frames(curve, v, "rmf")
-    _, n_frenet, _ = K.frames(curve, v, "frenet")
-    expected = c / np.hypot(radius, c) * 2 * np.pi * turns * v  # tau * arc length
-    got = np.arccos(np.clip(np.sum(n_rmf * n_frenet, axis=1), -1, 1))
-    np.testing.assert_allclose(got, expected, atol=1e-7)
-
-
-def test_frenet_frame_of_helix():
-    v = np.linspace(0, 1, 11)
-    t, n, b = K.frames(K.helix(2.0, 1.0, 1.0), v, "frenet")
-    # the principal normal of a helix points at the axis
-    pts = K.helix(2.0, 1.0, 1.0).evaluate(v)
-    towards_axis = -pts[:, :2] / np.linalg.norm(pts[:, :2], axis=1, keepdims=True)
-    np.testing.assert_allclose(n[:, :2], towards_axis, atol=1e-12)
-    np.testing.assert_allclose(n[:, 2], 0, atol=1e-12)
-
-
 def test_closed_directrix_rmf_closes():
     """Pipe around a non-planar closed curve: the corrected RMF closes, C0 seam in v."""
     phi = np.linspace(0, 2 * np.pi, 12, endpoint=False)
@@ -212,17 +159,16 @@ def test_closed_directrix_rmf_closes():
                                atol=1e-9)
     patches = surface.to_bezier(16, 48)
     assert patches.closed_u and patches.closed_v
-    assert K.measure(patches)["volume_method"].startswith("divergence theorem (closed")
+    assert area_and_volume(patches)["volume_method"].startswith("divergence theorem (closed")
 
 
 def test_scale_and_twist_laws():
-    surface = K.sweep(K.line([0.5, 0], [1.0, 0]), K.line([0, 0, 0], [0, 0, 2]), frame="fixed",
+    surface = K.sweep(line([0.5, 0], [1.0, 0]), line([0, 0, 0], [0, 0, 2]), frame="fixed",
                       scale=(1.0, 2.0), twist=np.pi / 2, up=[1, 0, 0])
     x = surface.evaluate([1.0, 1.0], [0.0, 1.0])
     np.testing.assert_allclose(x, [[1, 0, 0], [0, 2, 2]], atol=1e-12)
 
 
-# ------------------------------------------------------------------ deformation
 def _signed_curvature(curve, u):
     d1, d2 = curve.derivative(u, 1), curve.derivative(u, 2)
     return (d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]) / np.linalg.norm(d1, axis=1) ** 3
@@ -271,53 +217,13 @@ def test_moving_directrix_control_points_moves_surface_locally():
 
 def test_deform_needs_bspline():
     with pytest.raises(ValueError, match="not a B-spline"):
-        K.pipe(K.line([0, 0, 0], [0, 0, 1]), 0.1).deform(directrix_control=np.zeros((2, 3)))
+        K.pipe(line([0, 0, 0], [0, 0, 1]), 0.1).deform(directrix_control=np.zeros((2, 3)))
 
 
-# ------------------------------------------------------------------ callables and files
 def test_callable_generatrix_uses_finite_differences():
-    ellipse = K.ParametricCurve(
+    ellipse = ParametricCurve(
         lambda t: np.stack([2 * np.cos(2 * np.pi * t), np.sin(2 * np.pi * t)], axis=1), closed=True
     )
-    surface = K.sweep(ellipse, K.line([0, 0, 0], [0, 0, 1.0]))
-    m = K.measure(surface.to_bezier(48, 6))
+    surface = K.sweep(ellipse, line([0, 0, 0], [0, 0, 1.0]))
+    m = area_and_volume(surface.to_bezier(48, 6))
     np.testing.assert_allclose(m["volume"], np.pi * 2 * 1 * 1.0, rtol=1e-5)
-
-
-@pytest.mark.parametrize(
-    "spec",
-    [
-        {"type": "circle", "radius": 1.0},
-        {"type": "line", "start": [0, 0, 0], "end": [1, 1, 1]},
-        {"type": "helix", "radius": 1.0, "pitch": 0.5, "turns": 2},
-        {"points": [[0, 0, 0], [1, 0, 0], [2, 1, 0], [3, 1, 1]], "degree": 3},
-        {"points": [[1, 0], [0, 1], [-1, 0], [0, -1]], "closed": True, "degree": 2},
-        {"type": "bspline", "control": [[0, 0], [1, 1], [2, 0]], "knots": [0, 0, 0, 1, 1, 1],
-         "degree": 2},
-    ],
-)
-def test_load_curve_formats(spec, tmp_path):
-    path = tmp_path / "c.json"
-    path.write_text(__import__("json").dumps(spec))
-    curve = K.load_curve(path)
-    pts = curve.evaluate(np.linspace(0, 1, 5))
-    assert pts.shape[0] == 5 and np.all(np.isfinite(pts))
-
-
-@pytest.mark.parametrize(
-    "spec, message",
-    [
-        ({"type": "spiral"}, "unknown curve type"),
-        ({"type": "circle"}, "needs the field 'radius'"),
-        ({"type": "circle", "radius": -1}, "radius"),
-        ({"type": "bspline", "control": [[0, 0], [1, 1], [2, 0]], "knots": [0, 1]}, "knots"),
-    ],
-)
-def test_load_curve_errors(spec, message):
-    with pytest.raises(ValueError, match=message):
-        K.load_curve(spec)
-
-
-def test_load_curve_missing_file(tmp_path):
-    with pytest.raises(FileNotFoundError):
-        K.load_curve(tmp_path / "none.json")

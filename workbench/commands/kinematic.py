@@ -94,10 +94,11 @@ def _check_out(path: str) -> Path:
 
 def _sweep(args: argparse.Namespace) -> int:
     from surfaces import kinematic
+    from surfaces.curves import load_curve
 
     out = _check_out(args.out)
-    generatrix = kinematic.load_curve(args.generatrix)
-    directrix = kinematic.load_curve(args.directrix)
+    generatrix = load_curve(args.generatrix)
+    directrix = load_curve(args.directrix)
     scale = None
     if args.scale:
         if len(args.scale) > 2:
@@ -146,8 +147,8 @@ def _helix(args: argparse.Namespace) -> int:
 
 
 def _finish(surface, args: argparse.Namespace, out: Path, info: dict, samples_v: int) -> int:
-    from surfaces import kinematic
     from surfaces.io import atomic_path, save_patches, write_mesh
+    from surfaces.measure import area_and_volume
     from surfaces.mesh import tessellate
 
     t0 = time.perf_counter()
@@ -160,7 +161,7 @@ def _finish(surface, args: argparse.Namespace, out: Path, info: dict, samples_v:
         "patch_cols": patches.shape[1],
         "closed_u": patches.closed_u,
         "closed_v": patches.closed_v,
-        **kinematic.measure(patches),
+        **area_and_volume(patches),
         "n_vertices": mesh.n_vertices,
         "n_triangles": mesh.n_triangles,
         "watertight": mesh.is_watertight(),
