@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from surfaces.bezier import BezierPatches
+from surfaces.bezier import BezierPatches, bernstein
 from surfaces.validate import as_array
 
 
@@ -173,18 +173,14 @@ def evaluate_curve(control, knots, u, derivative: int = 0) -> np.ndarray:
         raise ValueError(f"u: outside the curve's parameter range [{k[0]}, {k[-1]}]")
     seg = np.clip(np.searchsorted(k, uu, side="right") - 1, 0, len(ctrl) - 1)
     h = k[seg + 1] - k[seg]
-    s = np.clip((uu - k[seg]) / h, 0.0, 1.0)[:, None]
-    c = ctrl[seg]
-    if derivative == 0:
-        return (
-            (1 - s) ** 3 * c[:, 0]
-            + 3 * s * (1 - s) ** 2 * c[:, 1]
-            + 3 * s**2 * (1 - s) * c[:, 2]
-            + s**3 * c[:, 3]
-        )
-    d = 3 * ((1 - s) ** 2 * (c[:, 1] - c[:, 0]) + 2 * s * (1 - s) * (c[:, 2] - c[:, 1])
-             + s**2 * (c[:, 3] - c[:, 2]))
-    return d / h[:, None]
+    s = np.clip((uu - k[seg]) / h, 0.0, 1.0)
+    return _segment_values(ctrl[seg], s, h, derivative)
+
+
+def _segment_values(c: np.ndarray, s: np.ndarray, h: np.ndarray, derivative: int) -> np.ndarray:
+    """Points (0) or ``d/du`` (1) of cubic Bezier segments ``c`` (N, 4, d) at local ``s`` (N,), lengths ``h``."""
+    value = np.einsum("na,nad->nd", bernstein(s, derivative), c)
+    return value / h[:, None] if derivative else value
 
 
 def restrict_curve(control, knots, breakpoints) -> np.ndarray:
@@ -222,19 +218,9 @@ def restrict_curve(control, knots, breakpoints) -> np.ndarray:
     seg = np.clip(np.searchsorted(k, mid, side="right") - 1, 0, len(ctrl) - 1)
     h = k[seg + 1] - k[seg]
     c = ctrl[seg]
-    out = []
-    for end in (b[:-1], b[1:]):
-        s = ((end - k[seg]) / h)[:, None]
-        p = (
-            (1 - s) ** 3 * c[:, 0]
-            + 3 * s * (1 - s) ** 2 * c[:, 1]
-            + 3 * s**2 * (1 - s) * c[:, 2]
-            + s**3 * c[:, 3]
-        )
-        d = 3 * ((1 - s) ** 2 * (c[:, 1] - c[:, 0]) + 2 * s * (1 - s) * (c[:, 2] - c[:, 1])
-                 + s**2 * (c[:, 3] - c[:, 2])) / h[:, None]
-        out.append((p, d))
-    (p0, d0), (p1, d1) = out
+    s0, s1 = (b[:-1] - k[seg]) / h, (b[1:] - k[seg]) / h
+    p0, d0 = _segment_values(c, s0, h, 0), _segment_values(c, s0, h, 1)
+    p1, d1 = _segment_values(c, s1, h, 0), _segment_values(c, s1, h, 1)
     w = np.diff(b)[:, None]
     return np.stack([p0, p0 + w * d0 / 3.0, p1 - w * d1 / 3.0, p1], axis=1)
 

@@ -2,7 +2,7 @@
 
 A curve through points ``Q_0 .. Q_n`` gets parameters ``u_k`` (uniform, chord
 length or centripetal; The NURBS Book eqs. 9.3-9.6), a clamped knot vector by
-averaging (eq. 9.8) and control points from the collocation system
+averaging (eq. 9.8), both from :mod:`surfaces.knots`, and control points from the collocation system
 ``sum_i N_{i,p}(u_k) P_i = Q_k`` (eq. 9.7), solved once for every coordinate
 (and every row of a surface) as one sparse system with many right-hand sides.
 
@@ -34,7 +34,7 @@ Conventions
   them. A collapsed row (all its points equal: a pole) is allowed.
 
 Conversion to the shared model (:class:`surfaces.bezier.BezierPatches`) is
-exact: every knot span becomes one Bezier piece whose control points are the
+exact (:func:`surfaces.knots.bezier_pieces`): every knot span becomes one Bezier piece whose control points are the
 blossom values ``f(t_s, .., t_s, t_{s+1}, .., t_{s+1})`` (the result of
 inserting every interior knot up to multiplicity ``p``, The NURBS Book
 Algorithm A5.6). Degree 3 maps directly; degree 2 is elevated exactly to 3;
@@ -53,119 +53,30 @@ import scipy.sparse
 import scipy.sparse.linalg
 from scipy.interpolate import BSpline, NdBSpline
 
-from surfaces.validate import as_array
+from surfaces.knots import (
+    bezier_pieces,
+    check_degree,
+    cubic_pieces,
+    data_parameters,
+    interpolation_knots,
+    span_parameters,
+    to_knot_domain,
+)
+from surfaces.validate import as_array, drop_closing_repeat
 
 if TYPE_CHECKING:
     from surfaces.bezier import BezierPatches
 
-METHODS = ("uniform", "chord", "centripetal")
-# relative size under which a parameter step counts as zero (coincident points)
-_ZERO_STEP = 1e-12
+__all__ = [
+    "BSplineCurve",
+    "BSplineSurface",
+    "interpolate_curve",
+    "interpolate_surface",
+    "interpolate_surface_patches",
+]
 
 
-# ----------------------------------------------------------------------------- parameters, knots
-def _check_degree(degree, name: str = "degree") -> int:
-    if isinstance(degree, bool) or not isinstance(degree, (int, np.integer)):
-        raise ValueError(f"{name}: expected an integer from 2 to 5, got {degree!r}")
-    if not 2 <= int(degree) <= 5:
-        raise ValueError(f"{name}: expected an integer from 2 to 5, got {degree}")
-    return int(degree)
-
-
-def _check_method(method: str) -> str:
-    if method not in METHODS:
-        raise ValueError(f"method: expected one of {', '.join(METHODS)}, got {method!r}")
-    return method
-
-
-def _line_parameters(lines: np.ndarray, method: str, closed: bool) -> np.ndarray:
-    """Average per-line parameters (The NURBS Book eqs. 9.4-9.6, Algorithm A9.3).
-
-    ``lines`` has shape ``(L, N, d)``: ``L`` polylines of ``N`` points each.
-    Returns ``N`` parameters in ``[0, 1]`` (``[0, 1)`` when closed, the last
-    point's successor being the first point at parameter 1).
-    """
-    n = lines.shape[1]
-    if method == "uniform":
-        steps = np.ones((1, n if closed else n - 1))
-    else:
-        seg = np.diff(np.concatenate([lines, lines[:, :1]], axis=1) if closed else lines, axis=1)
-        steps = np.linalg.norm(seg, axis=2)
-        if method == "centripetal":
-            steps = np.sqrt(steps)
-    total = steps.sum(axis=1)
-    scale = max(float(np.max(np.abs(lines))), 1.0) if lines.size else 1.0
-    # a line of zero length (a pole) carries no parameter information: leave it out
-    keep = total > _ZERO_STEP * scale
-    if not np.any(keep):
-        raise ValueError("points: every line has zero length (all points coincide)")
-    cum = np.cumsum(steps[keep], axis=1) / total[keep, None]
-    params = np.concatenate([[0.0], cum.mean(axis=0)])
-    params = params[:n]
-    if not closed:
-        params[-1] = 1.0
-    return params
-
-
-def _check_params(params: np.ndarray, closed: bool, what: str) -> None:
-    step = np.diff(np.append(params, 1.0) if closed else params)
-    bad = np.flatnonzero(step <= _ZERO_STEP)
-    if bad.size:
-        k = int(bad[0])
-        nxt = (k + 1) % params.size
-        raise ValueError(
-            f"points: {what} {k} and {nxt} coincide (zero parameter step); "
-            "remove repeated points or pass distinct data"
-        )
-
-
-def averaged_knots(params: np.ndarray, degree: int) -> np.ndarray:
-    """Clamped knot vector by averaging parameters (The NURBS Book eq. 9.8).
-
-    Parameters
-    ----------
-    params : (N,) array_like of float
-        Strictly increasing parameters in ``[0, 1]``, ``params[0] = 0``, ``params[-1] = 1``.
-    degree : int
-        Degree ``p`` (2 to 5); needs ``N >= p + 1``.
-
-    Returns
-    -------
-    numpy.ndarray
-        ``(N + p + 1,)`` float64 knots: ``p + 1`` zeros, ``u_{j+p} = (1/p) sum_{i=j}^{j+p-1}
-        params_i`` for ``j = 1 .. N - p - 1``, ``p + 1`` ones.
-    """
-    p = _check_degree(degree)
-    u = as_array(params, "params", ndim=1, min_size=p + 1)
-    n = u.size - 1
-    inner = np.convolve(u[1:n], np.ones(p) / p, mode="valid") if n > p else np.empty(0)
-    return np.concatenate([np.zeros(p + 1), inner, np.ones(p + 1)])
-
-
-def periodic_knots(params: np.ndarray, degree: int) -> np.ndarray:
-    """Knot vector of a periodic (closed) B-spline through ``N`` data parameters.
-
-    Parameters
-    ----------
-    params : (N,) array_like of float
-        Strictly increasing parameters in ``[0, 1)``, period 1, ``params[0] = 0``.
-    degree : int
-        Degree ``p`` (2 to 5); needs ``N >= p + 1``.
-
-    Returns
-    -------
-    numpy.ndarray
-        ``(N + 2p + 1,)`` float64 knots of the unwrapped spline with ``N + p``
-        control points (the last ``p`` repeat the first ``p``). Period knots
-        ``tau_k`` are the parameters (odd ``p``) or the midpoints
-        ``(u_{k-1} + u_k) / 2`` (even ``p``); the domain is ``[tau_0, tau_0 + 1]``.
-    """
-    p = _check_degree(degree)
-    u = as_array(params, "params", ndim=1, min_size=p + 1)
-    tau = u.copy() if p % 2 else 0.5 * (np.concatenate([[u[-1] - 1.0], u[:-1]]) + u)
-    return np.concatenate([tau[u.size - p :] - 1.0, tau, tau[: p + 1] + 1.0])
-
-
+# ----------------------------------------------------------------------------- collocation
 class _Collocation:
     """Factorised (N, N) collocation matrix of eq. 9.7, solved for many right-hand sides.
 
@@ -176,7 +87,7 @@ class _Collocation:
 
     def __init__(self, params: np.ndarray, knots: np.ndarray, degree: int, closed: bool):
         n = params.size
-        x = _wrap(params, knots, degree) if closed else params
+        x = to_knot_domain(params, knots, degree) if closed else params
         dm = BSpline.design_matrix(x, knots, degree).tocoo()
         self.degree = degree
         self.lu = None
@@ -203,12 +114,6 @@ class _Collocation:
         return out.reshape(rhs.shape)
 
 
-def _wrap(u: np.ndarray, knots: np.ndarray, degree: int) -> np.ndarray:
-    """Map periodic parameters (period 1) into the knot domain ``[t_p, t_p + 1]``."""
-    start = knots[degree]
-    return start + np.mod(u - start, 1.0)
-
-
 def _unwrap_control(control: np.ndarray, degree: int, axis: int) -> np.ndarray:
     """Append the first ``p`` control points along ``axis`` (periodic unwrapping)."""
     head = np.take(control, np.arange(degree), axis=axis)
@@ -223,64 +128,6 @@ def _domain_u(u, name: str, closed: bool) -> np.ndarray:
             raise ValueError(f"{name}: parameters of an open direction must lie in [0, 1]")
         arr = np.clip(arr, 0.0, 1.0)
     return arr
-
-
-# ----------------------------------------------------------------------------- Bezier extraction
-def _bezier_extract(knots: np.ndarray, degree: int, control: np.ndarray) -> np.ndarray:
-    """Bezier control points of every non-empty knot span in the domain.
-
-    ``control`` has shape ``(n, ...)`` (full, unwrapped). Returns ``(S, p + 1, ...)``:
-    piece ``s`` control point ``a`` is the blossom ``f(t_s^(p-a), t_{s+1}^a)``
-    (equal to knot insertion up to multiplicity ``p``, The NURBS Book A5.6),
-    computed by de Boor's recursion with one blossom argument per level,
-    vectorised over spans, Bezier indices and trailing dimensions.
-    """
-    p = degree
-    n = control.shape[0]
-    spans = np.arange(p, n)
-    spans = spans[knots[spans + 1] > knots[spans]]
-    a = np.arange(p + 1)
-    rest = control.shape[1:]
-    # local control points d[s, a, i] = P_{s-p+i}, copied for every Bezier index a
-    local = control[spans[:, None] + np.arange(-p, 1)[None, :]]  # (S, p+1, ...)
-    d = np.broadcast_to(local[:, None], (spans.size, p + 1, p + 1, *rest)).copy()
-    extra = (1,) * len(rest)
-    for r in range(1, p + 1):
-        # blossom argument of level r: t_{s+1} for the first a levels, t_s after
-        x = np.where(r <= a[None, :], knots[spans + 1][:, None], knots[spans][:, None])
-        for i in range(p, r - 1, -1):
-            j = spans - p + i
-            lo = knots[j][:, None]
-            hi = knots[j + p + 1 - r][:, None]
-            alpha = ((x - lo) / (hi - lo)).reshape(spans.size, p + 1, *extra)
-            d[:, :, i] = (1.0 - alpha) * d[:, :, i - 1] + alpha * d[:, :, i]
-    return d[:, :, p]
-
-
-def _elevate_to_cubic(pieces: np.ndarray, axis: int) -> np.ndarray:
-    """Exact degree elevation of quadratic Bezier pieces along ``axis`` (size 3 -> 4)."""
-    b = np.moveaxis(pieces, axis, 0)
-    out = np.stack([b[0], b[0] / 3.0 + 2.0 * b[1] / 3.0, 2.0 * b[1] / 3.0 + b[2] / 3.0, b[2]])
-    return np.moveaxis(out, 0, axis)
-
-
-def _cubic_pieces(knots: np.ndarray, degree: int, control: np.ndarray) -> np.ndarray:
-    if degree not in (2, 3):
-        raise ValueError(
-            f"degree: conversion to bicubic Bezier patches is exact only for degree 2 "
-            f"(elevated) or 3, got degree {degree}; interpolate with degree=3"
-        )
-    pieces = _bezier_extract(knots, degree, control)
-    return _elevate_to_cubic(pieces, 1) if degree == 2 else pieces
-
-
-def _span_parameters(knots: np.ndarray, degree: int, x: np.ndarray):
-    """Piece index and local parameter in [0, 1] of knot-domain parameters ``x``."""
-    n = knots.size - degree - 1
-    breaks = np.unique(knots[degree : n + 1])
-    idx = np.clip(np.searchsorted(breaks, x, side="right") - 1, 0, breaks.size - 2)
-    local = (x - breaks[idx]) / (breaks[idx + 1] - breaks[idx])
-    return idx, np.clip(local, 0.0, 1.0)
 
 
 # ----------------------------------------------------------------------------- curves
@@ -329,7 +176,7 @@ class BSplineCurve:
         """Points at parameters ``u`` (``(M,)`` in ``[0, 1]``, periodic if closed) -> ``(M, d)``."""
         x = _domain_u(u, "u", self.closed)
         if self.closed:
-            x = _wrap(x, self.knots, self.degree)
+            x = to_knot_domain(x, self.knots, self.degree)
         return self._spline()(x)
 
     def derivative(self, u, order: int = 1) -> np.ndarray:
@@ -338,7 +185,7 @@ class BSplineCurve:
             raise ValueError(f"order: expected 0 to {self.degree}, got {order}")
         x = _domain_u(u, "u", self.closed)
         if self.closed:
-            x = _wrap(x, self.knots, self.degree)
+            x = to_knot_domain(x, self.knots, self.degree)
         return self._spline()(x, nu=int(order))
 
     def with_control(self, control) -> BSplineCurve:
@@ -354,7 +201,7 @@ class BSplineCurve:
 
     def bezier_segments(self) -> np.ndarray:
         """Exact Bezier pieces of the curve, ``(S, p + 1, d)`` (knot insertion)."""
-        return _bezier_extract(self.knots, self.degree, self.full_control)
+        return bezier_pieces(self.knots, self.degree, self.full_control)
 
 
 def interpolate_curve(
@@ -391,37 +238,16 @@ def interpolate_curve(
     ValueError
         Bad shape, too few points, repeated consecutive points (zero chord), bad degree.
     """
-    p = _check_degree(degree)
-    _check_method(method)
+    p = check_degree(degree)
     q = as_array(points, "points", ndim=2)
-    if closed and q.shape[0] > 2 and np.allclose(q[-1], q[0], rtol=0.0, atol=1e-12 * _scale(q)):
-        q = q[:-1]
+    if closed:
+        q = drop_closing_repeat(q, 0)
     if q.shape[0] < p + 1:
         raise ValueError(f"points: degree {p} needs at least {p + 1} points, got {q.shape[0]}")
-    if params is None:
-        u = _line_parameters(q[None], method, closed)
-    else:
-        u = _explicit_params(params, q.shape[0], closed, "params")
-    _check_params(u, closed, "points")
-    knots = periodic_knots(u, p) if closed else averaged_knots(u, p)
+    u = data_parameters(q[None], method, closed, params, "params", "points")
+    knots = interpolation_knots(u, p, closed)
     control = _Collocation(u, knots, p, closed).solve(q)
     return BSplineCurve(p, knots, control, u, bool(closed))
-
-
-def _scale(q: np.ndarray) -> float:
-    return max(float(np.max(np.abs(q))), 1.0)
-
-
-def _explicit_params(params, n: int, closed: bool, name: str) -> np.ndarray:
-    u = as_array(params, name, shape=(n,))
-    if closed:
-        if u[0] != 0.0 or u[-1] >= 1.0:
-            raise ValueError(f"{name}: closed parameters must start at 0 and stay below 1")
-    elif u[0] != 0.0 or u[-1] != 1.0:
-        raise ValueError(f"{name}: open parameters must run from 0 to 1")
-    if np.any(np.diff(u) <= 0):
-        raise ValueError(f"{name}: must be strictly increasing")
-    return u
 
 
 # ----------------------------------------------------------------------------- surfaces
@@ -469,9 +295,9 @@ class BSplineSurface:
         if x.shape != y.shape:
             raise ValueError(f"u, v: expected equal shapes, got {x.shape} and {y.shape}")
         if self.closed_u:
-            x = _wrap(x, self.knots_u, self.degree_u)
+            x = to_knot_domain(x, self.knots_u, self.degree_u)
         if self.closed_v:
-            y = _wrap(y, self.knots_v, self.degree_v)
+            y = to_knot_domain(y, self.knots_v, self.degree_v)
         return np.stack([x, y], axis=1)
 
     def evaluate(self, u, v) -> np.ndarray:
@@ -526,8 +352,8 @@ class BSplineSurface:
             ``[0, 1]`` such that ``to_bezier().evaluate(pi, pj, s, t) == evaluate(u, v)``.
         """
         xi = self._domain(u, v)
-        pi, s = _span_parameters(self.knots_u, self.degree_u, xi[:, 0])
-        pj, t = _span_parameters(self.knots_v, self.degree_v, xi[:, 1])
+        pi, s = span_parameters(self.knots_u, self.degree_u, xi[:, 0])
+        pj, t = span_parameters(self.knots_v, self.degree_v, xi[:, 1])
         return pi, pj, s, t
 
     def bezier_control(self) -> np.ndarray:
@@ -543,8 +369,8 @@ class BSplineSurface:
         ValueError
             When a degree is not 2 or 3 (no exact bicubic representation).
         """
-        c = _cubic_pieces(self.knots_u, self.degree_u, self.full_control)  # (Su, 4, nv, 3)
-        c = _cubic_pieces(self.knots_v, self.degree_v, np.moveaxis(c, 2, 0))  # (Sv, 4, Su, 4, 3)
+        c = cubic_pieces(self.knots_u, self.degree_u, self.full_control)  # (Su, 4, nv, 3)
+        c = cubic_pieces(self.knots_v, self.degree_v, np.moveaxis(c, 2, 0))  # (Sv, 4, Su, 4, 3)
         c = np.ascontiguousarray(c.transpose(2, 0, 3, 1, 4))
         # shared seams must be identical, not equal up to rounding
         c[1:, :, 0] = c[:-1, :, 3]
@@ -601,32 +427,22 @@ def interpolate_surface(
         Bad shape, too few rows/columns for the degree, coincident rows or columns.
     """
     pu, pv = (degree, degree) if not isinstance(degree, (tuple, list)) else tuple(degree)
-    pu, pv = _check_degree(pu, "degree_u"), _check_degree(pv, "degree_v")
-    _check_method(method)
+    pu, pv = check_degree(pu, "degree_u"), check_degree(pv, "degree_v")
     q = as_array(points, "points", shape=(None, None, 3))
-    atol = 1e-12 * _scale(q)
-    if closed_u and q.shape[0] > 2 and np.allclose(q[-1], q[0], rtol=0.0, atol=atol):
-        q = q[:-1]
-    if closed_v and q.shape[1] > 2 and np.allclose(q[:, -1], q[:, 0], rtol=0.0, atol=atol):
-        q = q[:, :-1]
+    if closed_u:
+        q = drop_closing_repeat(q, 0)
+    if closed_v:
+        q = drop_closing_repeat(q, 1)
     r, c = q.shape[:2]
     if r < pu + 1 or c < pv + 1:
         raise ValueError(
             f"points: degrees ({pu}, {pv}) need at least {pu + 1} x {pv + 1} grid points, "
             f"got {r} x {c}"
         )
-    if params_u is None:
-        u = _line_parameters(q.transpose(1, 0, 2), method, closed_u)
-    else:
-        u = _explicit_params(params_u, r, closed_u, "params_u")
-    if params_v is None:
-        v = _line_parameters(q, method, closed_v)
-    else:
-        v = _explicit_params(params_v, c, closed_v, "params_v")
-    _check_params(u, closed_u, "rows")
-    _check_params(v, closed_v, "columns")
-    ku = periodic_knots(u, pu) if closed_u else averaged_knots(u, pu)
-    kv = periodic_knots(v, pv) if closed_v else averaged_knots(v, pv)
+    u = data_parameters(q.transpose(1, 0, 2), method, closed_u, params_u, "params_u", "rows")
+    v = data_parameters(q, method, closed_v, params_v, "params_v", "columns")
+    ku = interpolation_knots(u, pu, closed_u)
+    kv = interpolation_knots(v, pv, closed_v)
     # stage 1: along u for every column at once; stage 2: along v for every row of controls
     stage1 = _Collocation(u, ku, pu, closed_u).solve(q)
     control = _Collocation(v, kv, pv, closed_v).solve(stage1.transpose(1, 0, 2))

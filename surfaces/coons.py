@@ -29,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 
 from surfaces.bezier import BezierPatches
-from surfaces.validate import as_array
+from surfaces.validate import as_array, drop_closing_repeat
 
 #: Hermite basis in power form, rows act on [P0, P1, P0', P1'] (seed 001).
 N_C = np.array([[2.0, -2.0, 1.0, 1.0], [-3.0, 3.0, -2.0, -1.0], [0.0, 0.0, 1.0, 0.0], [1.0, 0.0, 0.0, 0.0]])
@@ -120,16 +120,6 @@ def _safe_spacing(h: np.ndarray) -> np.ndarray:
     return np.maximum(h, floor)
 
 
-def _drop_repeated_end(points: np.ndarray, axis: int) -> np.ndarray:
-    """In a closed direction, accept a grid whose last row repeats the first."""
-    first = _take(points, axis, slice(0, 1))
-    last = _take(points, axis, slice(-1, None))
-    scale = max(float(np.max(np.abs(points))), 1.0)
-    if points.shape[axis] > 2 and np.max(np.abs(first - last)) <= 1e-12 * scale:
-        return _take(points, axis, slice(0, -1))
-    return points
-
-
 def from_grid(
     points,
     pu=None,
@@ -176,9 +166,9 @@ def from_grid(
         raise ValueError(f"points: expected shape (R, C, 3), got {pts.shape}")
     full_rows, full_cols = pts.shape[:2]
     if closed_u:
-        pts = _drop_repeated_end(pts, 0)
+        pts = drop_closing_repeat(pts, 0)
     if closed_v:
-        pts = _drop_repeated_end(pts, 1)
+        pts = drop_closing_repeat(pts, 1)
     rows, cols = pts.shape[:2]
     if rows < 2 or cols < 2:
         raise ValueError(f"points: need at least 2x2 grid points, got {rows}x{cols}")
@@ -208,35 +198,35 @@ def from_grid(
     j1 = (j0 + 1) % cols
     I0, J0 = np.meshgrid(i0, j0, indexing="ij")
     I1, J1 = np.meshgrid(i1, j1, indexing="ij")
+
+    def corners(values):
+        """Values at the patch corners (u, v) = (0, 0), (0, 1), (1, 0), (1, 1)."""
+        return values[I0, J0], values[I0, J1], values[I1, J0], values[I1, J1]
+
     su0 = hu[I0, J0][..., None]  # chord of the u-edge at v = 0
     su1 = hu[I0, J1][..., None]  # chord of the u-edge at v = 1
     sv0 = hv[I0, J0][..., None]  # chord of the v-edge at u = 0
     sv1 = hv[I1, J0][..., None]  # chord of the v-edge at u = 1
+    # estimated derivatives per unit chord become tangents per unit of patch parameter
+    su = (su0, su1, su0, su1)
+    sv = (sv0, sv0, sv1, sv1)
 
     if "pu" in given:
-        g = given["pu"]
-        pu00, pu01, pu10, pu11 = g[I0, J0], g[I0, J1], g[I1, J0], g[I1, J1]
+        pu00, pu01, pu10, pu11 = corners(given["pu"])
     else:
-        pu00, pu10 = mu[I0, J0] * su0, mu[I1, J0] * su0
-        pu01, pu11 = mu[I0, J1] * su1, mu[I1, J1] * su1
+        pu00, pu01, pu10, pu11 = (m * s for m, s in zip(corners(mu), su))
     if "pv" in given:
-        g = given["pv"]
-        pv00, pv01, pv10, pv11 = g[I0, J0], g[I0, J1], g[I1, J0], g[I1, J1]
+        pv00, pv01, pv10, pv11 = corners(given["pv"])
     else:
-        pv00, pv01 = mv[I0, J0] * sv0, mv[I0, J1] * sv0
-        pv10, pv11 = mv[I1, J0] * sv1, mv[I1, J1] * sv1
+        pv00, pv01, pv10, pv11 = (m * s for m, s in zip(corners(mv), sv))
     if "twist" in given:
-        g = given["twist"]
-        t00, t01, t10, t11 = g[I0, J0], g[I0, J1], g[I1, J0], g[I1, J1]
+        t00, t01, t10, t11 = corners(given["twist"])
     elif muv is not None:
-        t00 = muv[I0, J0] * su0 * sv0
-        t01 = muv[I0, J1] * su1 * sv0
-        t10 = muv[I1, J0] * su0 * sv1
-        t11 = muv[I1, J1] * su1 * sv1
+        t00, t01, t10, t11 = (m * a * b for m, a, b in zip(corners(muv), su, sv))
     else:
         t00 = t01 = t10 = t11 = np.zeros_like(pu00)
 
-    p00, p01, p10, p11 = pts[I0, J0], pts[I0, J1], pts[I1, J0], pts[I1, J1]
+    p00, p01, p10, p11 = corners(pts)
     geometry = np.stack(
         [
             np.stack([p00, p01, pv00, pv01], axis=-2),

@@ -102,3 +102,38 @@ def positive(value: float, name: str, *, allow_zero: bool = False) -> float:
         kind = "non-negative" if allow_zero else "positive"
         raise ValueError(f"{name}: must be a finite {kind} number, got {value!r}")
     return x
+
+
+def drop_closing_repeat(points: np.ndarray, axis: int = 0) -> np.ndarray:
+    """Data of a closed direction without a last row that repeats the first.
+
+    A closed (periodic) direction is given without repeating its first point,
+    row or column at the end; a repeated one (equal within ``1e-12`` of the
+    largest coordinate, at least 1) is dropped here, so that both spellings work.
+
+    Parameters
+    ----------
+    points : array
+        Data points, the closed direction along ``axis``.
+    axis : int
+        The closed direction.
+
+    Returns
+    -------
+    array
+        ``points``, or a view without its last entry along ``axis``.
+
+    Examples
+    --------
+    >>> drop_closing_repeat(np.array([[0.0, 0], [1, 0], [0, 1], [0, 0]])).shape
+    (3, 2)
+    """
+    n = points.shape[axis]
+    if n <= 2:
+        return points
+    first = np.take(points, [0], axis=axis)
+    last = np.take(points, [n - 1], axis=axis)
+    scale = max(float(np.max(np.abs(points))), 1.0)
+    if np.max(np.abs(first - last)) <= 1e-12 * scale:
+        return np.take(points, np.arange(n - 1), axis=axis)
+    return points

@@ -10,6 +10,7 @@ from scipy.interpolate import BSpline, make_interp_spline
 
 from surfaces import bspline
 from surfaces.bezier import BezierPatches, bernstein
+from surfaces.knots import METHODS
 
 EXAMPLE_9_1 = np.array([(0, 0), (3, 4), (-1, 4), (-4, 0), (-4, -3)], dtype=float)
 
@@ -59,7 +60,7 @@ def test_nurbs_book_example_9_1_centripetal():
 
 # ------------------------------------------------------------------ curves
 @pytest.mark.parametrize("degree", [2, 3, 4, 5])
-@pytest.mark.parametrize("method", bspline.METHODS)
+@pytest.mark.parametrize("method", METHODS)
 @pytest.mark.parametrize("closed", [False, True])
 def test_curve_passes_through_points(degree, method, closed):
     rng = np.random.default_rng(degree)
@@ -167,7 +168,7 @@ def test_closed_surface_matches_scipy_periodic():
 
 # ------------------------------------------------------------------ surfaces: exactness
 @pytest.mark.parametrize("degree", [2, 3, 4, 5])
-@pytest.mark.parametrize("method", bspline.METHODS)
+@pytest.mark.parametrize("method", METHODS)
 @pytest.mark.parametrize("closed", [(False, False), (True, False), (True, True)])
 def test_surface_passes_through_every_point(degree, method, closed):
     q = _torus(12, 10) if closed[1] else (_tube(12, 8) if closed[0] else _grid(9, 8))
@@ -317,7 +318,7 @@ def test_parameters_outside_domain_raise():
 @given(
     n=st.integers(6, 30),
     degree=st.integers(2, 5),
-    method=st.sampled_from(bspline.METHODS),
+    method=st.sampled_from(METHODS),
     seed=st.integers(0, 2**31 - 1),
 )
 def test_knot_vector_properties(n, degree, method, seed):
