@@ -243,6 +243,19 @@ def boolean(a, b, op: str = "union", *, repair: bool = False, names: Sequence[st
     RuntimeError
         When the engine's result fails the closed-and-oriented check (not
         expected: manifold3d guarantees manifold output).
+
+    Examples
+    --------
+    A tetrahedron (volume 1/6) inside a larger one (volume 27/6):
+
+    >>> v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
+    >>> t = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+    >>> small, big = TriangleMesh(v, t), TriangleMesh(3 * v - 0.5, t)
+    >>> result = boolean(big, small, "difference")
+    >>> round(result.volume, 12), round(result.volume_a - result.volume_b, 12)
+    (4.333333333333, 4.333333333333)
+    >>> len(boolean(big, small, "intersection").curves)  # the surfaces do not cross
+    0
     """
     if op not in OPS:
         raise ValueError(f"op: must be one of {', '.join(OPS)}, got {op!r}")

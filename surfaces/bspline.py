@@ -237,6 +237,19 @@ def interpolate_curve(
     ------
     ValueError
         Bad shape, too few points, repeated consecutive points (zero chord), bad degree.
+
+    Examples
+    --------
+    The NURBS Book, Example 9.1: chords 5, 4, 5, 3 give the parameters ``(0, 5, 9, 14, 17) / 17``
+    and the averaged knots ``(0, 0, 0, 0, 28/51, 1, 1, 1, 1)``.
+
+    >>> curve = interpolate_curve([[0, 0], [3, 4], [-1, 4], [-4, 0], [-4, -3]], degree=3)
+    >>> (curve.params * 17).round(12).tolist()
+    [0.0, 5.0, 9.0, 14.0, 17.0]
+    >>> (curve.knots * 51).round(12).tolist()
+    [0.0, 0.0, 0.0, 0.0, 28.0, 51.0, 51.0, 51.0, 51.0]
+    >>> bool(np.allclose(curve.evaluate(curve.params), [[0, 0], [3, 4], [-1, 4], [-4, 0], [-4, -3]]))
+    True
     """
     p = check_degree(degree)
     q = as_array(points, "points", ndim=2)
@@ -425,6 +438,15 @@ def interpolate_surface(
     ------
     ValueError
         Bad shape, too few rows/columns for the degree, coincident rows or columns.
+
+    Examples
+    --------
+    A bicubic surface reproduces a bicubic function exactly (here ``z = x y^2``).
+
+    >>> x, y = np.meshgrid(np.linspace(0, 1, 5), np.linspace(0, 1, 6), indexing="ij")
+    >>> surf = interpolate_surface(np.stack([x, y, x * y**2], axis=-1), method="uniform")
+    >>> surf.evaluate([0.3], [0.7]).round(12).tolist()
+    [[0.3, 0.7, 0.147]]
     """
     pu, pv = (degree, degree) if not isinstance(degree, (tuple, list)) else tuple(degree)
     pu, pv = check_degree(pu, "degree_u"), check_degree(pv, "degree_v")

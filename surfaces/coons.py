@@ -160,6 +160,17 @@ def from_grid(
     ValueError
         On a wrong shape, NaN/inf, fewer than 2x2 points, or tangents/twists of
         the wrong shape.
+
+    Examples
+    --------
+    A flat 3 x 3 grid of unit spacing: 2 x 2 patches, the 2 x 2 square exactly.
+
+    >>> x, y = np.meshgrid([0.0, 1.0, 2.0], [0.0, 1.0, 2.0], indexing="ij")
+    >>> patches = from_grid(np.stack([x, y, np.zeros_like(x)], axis=-1))
+    >>> patches.shape
+    (2, 2)
+    >>> patches.evaluate_global([1.5], [0.5]).tolist()
+    [[1.5, 0.5, 0.0]]
     """
     pts = as_array(points, "points")
     if pts.ndim != 3 or pts.shape[-1] != 3:

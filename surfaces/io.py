@@ -285,6 +285,16 @@ def write_mesh(mesh, path, samples: int = 8) -> Path:
     -------
     pathlib.Path
         The written path.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from surfaces.mesh import TriangleMesh
+    >>> square = TriangleMesh([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], [[0, 1, 2], [0, 2, 3]])
+    >>> path = write_mesh(square, Path(tempfile.mkdtemp()) / "square.ply")
+    >>> back = read_mesh(path)
+    >>> back.n_triangles, back.surface_area()
+    (2, 1.0)
     """
     path = Path(path)
     suffix = path.suffix.lower()
@@ -316,6 +326,16 @@ def read_mesh(path) -> TriangleMesh:
     -------
     TriangleMesh
         With vertex normals and colours when the file has them.
+
+    Examples
+    --------
+    STL stores every corner of every triangle; reading welds them again.
+
+    >>> import tempfile
+    >>> from surfaces.mesh import TriangleMesh
+    >>> square = TriangleMesh([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], [[0, 1, 2], [0, 2, 3]])
+    >>> read_mesh(write_mesh(square, Path(tempfile.mkdtemp()) / "square.stl")).n_vertices
+    4
     """
     path = Path(path)
     if not path.is_file():

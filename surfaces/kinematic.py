@@ -266,6 +266,20 @@ def sweep(
     -------
     KinematicSurface
         Evaluate exactly with ``evaluate``; ``to_bezier(n_u, n_v)`` gives the shared model.
+
+    Examples
+    --------
+    A circle of radius 1 along a segment of length 2: a cylinder (area ``4 pi``,
+    volume ``2 pi`` with its end caps).
+
+    >>> from surfaces.curves import circle, line
+    >>> from surfaces.measure import area_and_volume
+    >>> tube = sweep(circle(1.0), line([0, 0, 0], [0, 0, 2]))
+    >>> tube.evaluate([0.0], [0.5]).round(12).tolist()
+    [[1.0, 0.0, 1.0]]
+    >>> m = area_and_volume(tube.to_bezier(32, 4))
+    >>> round(m["area"] / np.pi, 4), round(m["volume"] / np.pi, 4)
+    (4.0, 2.0)
     """
     return KinematicSurface(generatrix, directrix, frame, "normal", scale, twist, up)
 

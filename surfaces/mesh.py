@@ -433,6 +433,18 @@ def tessellate(patches: BezierPatches, samples: int = 8, weld_seams: bool = True
     TriangleMesh
         Vertices on the surface, vertex normals from the patches, triangles
         counter-clockwise about ``S_u x S_v``.
+
+    Examples
+    --------
+    One flat patch, 4 subdivisions per side: a 5 x 5 vertex grid, 32 triangles.
+
+    >>> from surfaces.coons import from_grid
+    >>> x, y = np.meshgrid([0.0, 1.0], [0.0, 1.0], indexing="ij")
+    >>> mesh = tessellate(from_grid(np.stack([x, y, np.zeros_like(x)], axis=-1)), samples=4)
+    >>> mesh.n_vertices, mesh.n_triangles, mesh.surface_area()
+    (25, 32, 1.0)
+    >>> mesh.vertex_normals[0].tolist()  # S_u x S_v
+    [0.0, 0.0, 1.0]
     """
     if not isinstance(patches, BezierPatches):
         raise ValueError(f"patches: expected BezierPatches, got {type(patches).__name__}")
