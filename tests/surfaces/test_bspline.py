@@ -252,14 +252,26 @@ def test_collapsed_row_pole_works():
 
 
 def test_pole_that_breaks_geomdl_is_handled():
-    """geomdl divides by the zero chord length of the pole row; we leave that row out."""
+    """geomdl divides by the zero chord length of the pole row; we leave that row out.
+
+    The result must still be the two-stage interpolant: scipy's ``make_interp_spline``
+    with the same parameters and knots gives the same control net, and the surface
+    passes through every grid point, the pole included.
+    """
     from geomdl import fitting
 
     q = _hemisphere(7, 9)
     with pytest.raises(ZeroDivisionError):
         fitting.interpolate_surface(q.reshape(-1, 3).tolist(), 7, 9, 3, 3)
     surf = bspline.interpolate_surface(q)
-    assert np.all(np.isfinite(surf.control))
+    stage1 = make_interp_spline(surf.params_u, q, k=3, t=surf.knots_u, axis=0).c
+    stage2 = make_interp_spline(surf.params_v, stage1, k=3, t=surf.knots_v, axis=1).c  # (C, R, 3)
+    np.testing.assert_allclose(surf.control, stage2.transpose(1, 0, 2), atol=1e-12)
+    np.testing.assert_allclose(surf.evaluate_grid(surf.params_u, surf.params_v), q, atol=1e-12)
+    # the u parameters average the chord lengths of every column; v skips the pole row
+    chords = np.linalg.norm(np.diff(q, axis=0), axis=2)
+    expected_u = np.concatenate([[0.0], (np.cumsum(chords, axis=0) / chords.sum(0)).mean(axis=1)])
+    np.testing.assert_allclose(surf.params_u, expected_u, atol=1e-14)
 
 
 def test_collapsed_row_matches_pole_free_averaging():
