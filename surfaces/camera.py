@@ -195,6 +195,13 @@ def fit_camera(
     -------
     Camera
         The fitted camera: the box's eight corners project inside the image.
+
+    Examples
+    --------
+    >>> cam = fit_camera(np.array([[0.0, 0.0, 0.0], [2.0, 1.0, 1.0]]), "top", 4 / 3)
+    >>> pixels, depth = cam.project(np.array([[1.0, 0.5, 1.0]]), 400, 300)
+    >>> pixels.round(6).tolist()  # the box centre lands in the picture centre
+    [[200.0, 150.0]]
     """
     box = as_array(bounds, "bounds", shape=(2, 3))
     positive(aspect, "aspect")

@@ -400,6 +400,16 @@ def render(
     -------
     (height, width, 3) uint8
         RGB picture.
+
+    Examples
+    --------
+    >>> from surfaces.mesh import TriangleMesh
+    >>> square = TriangleMesh([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], [[0, 1, 2], [0, 2, 3]])
+    >>> picture = render(square, "top", (64, 48))
+    >>> picture.shape, picture.dtype.name
+    ((48, 64, 3), 'uint8')
+    >>> bool((picture[24, 32] < 255).any()), picture[0, 0].tolist()  # the square, on white
+    (True, [255, 255, 255])
     """
     import cv2
 
