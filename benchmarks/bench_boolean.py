@@ -291,8 +291,7 @@ def _precision_rows() -> list[str]:
     import manifold3d
 
     from surfaces.boolean import OPS, boolean
-    from surfaces.mesh import signed_volume
-    from surfaces.mesh import TriangleMesh
+    from surfaces.mesh import TriangleMesh, signed_volume
 
     rows = []
     for label, centre in (
