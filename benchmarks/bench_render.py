@@ -1,7 +1,7 @@
 """Benchmark of headless ray-cast rendering (issue 8) against matplotlib's plot_trisurf.
 
 Renders spheres of about 10k, 100k and 1M triangles, and a tessellated Bezier
-surface, at 1024x768 with ``surfaces.view.render`` (one view; Embree BVH build,
+surface, at 1024x768 with ``surfaces.render.render`` (one view; Embree BVH build,
 one ray per pixel, Phong-interpolated vertex normals, Blinn-Phong), with and
 without shadow rays, and draws the same meshes with matplotlib's
 ``plot_trisurf`` (Agg, 1024x768; painter's algorithm with flat shading, the

@@ -532,7 +532,7 @@ def compose_rois(input_path, base_stack, base_rec: Reconstruction, minus=(), plu
     minus, plus : sequence of str or int
         ROI names or numbers subtracted from / added to the base (added first).
     repair : bool
-        Repair every mesh before the set operations (see :func:`surfaces.boolean.repair_mesh`).
+        Repair every mesh before the set operations (see :func:`surfaces.repair.repair_mesh`).
     method, rays, caps, **options
         As for :func:`reconstruct`.
 

@@ -221,7 +221,7 @@ def thread_profile(minor_radius: float, depth: float, pitch: float) -> Parametri
 
     ``r(t) = minor_radius + depth (1 - cos 2 pi t) / 2``, ``z(t) = pitch * t``: root at
     ``t = 0, 1``, crest (``minor_radius + depth``) at ``t = 1/2``. Swept helically with
-    the same pitch (:func:`screw_thread`) the profile joins itself from turn to turn.
+    the same pitch (:func:`surfaces.kinematic.screw_thread`) the profile joins itself from turn to turn.
     """
     r0, h, p = positive(minor_radius, "minor_radius"), positive(depth, "depth"), float(pitch)
     w = 2 * np.pi

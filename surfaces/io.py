@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from surfaces.bezier import BezierPatches
-from surfaces.mesh import TriangleMesh, tessellate, weld
+from surfaces.mesh import PATCH_SAMPLES, TriangleMesh, as_mesh, weld
 
 MESH_FORMATS = (".ply", ".obj", ".stl")
 
@@ -217,14 +217,6 @@ def save_npy(path, array) -> Path:
     return Path(path)
 
 
-def _as_mesh(obj, samples: int = 8) -> TriangleMesh:
-    if isinstance(obj, TriangleMesh):
-        return obj
-    if isinstance(obj, BezierPatches):
-        return tessellate(obj, samples)
-    raise ValueError(f"mesh: expected TriangleMesh or BezierPatches, got {type(obj).__name__}")
-
-
 def _ply_bytes(mesh: TriangleMesh) -> bytes:
     fields = [("x", "<f4"), ("y", "<f4"), ("z", "<f4")]
     if mesh.vertex_normals is not None:
@@ -269,13 +261,14 @@ def _stl_bytes(mesh: TriangleMesh) -> bytes:
     return header + np.uint32(mesh.n_triangles).tobytes() + rec.tobytes()
 
 
-def write_mesh(mesh, path, samples: int = 8) -> Path:
+def write_mesh(mesh, path, samples: int = PATCH_SAMPLES) -> Path:
     """Write a mesh (or a tessellated patch model) to PLY, OBJ or STL.
 
     Parameters
     ----------
-    mesh : TriangleMesh or BezierPatches
-        What to write; patches are tessellated with ``samples`` subdivisions.
+    mesh : TriangleMesh, BezierPatches or mesh-like
+        What to write; patches are tessellated with ``samples`` subdivisions
+        (any input of :func:`surfaces.mesh.as_mesh`).
     path : str or os.PathLike
         Output file; the format follows the suffix (.ply, .obj, .stl).
     samples : int
@@ -300,7 +293,7 @@ def write_mesh(mesh, path, samples: int = 8) -> Path:
     suffix = path.suffix.lower()
     if suffix not in MESH_FORMATS:
         raise ValueError(f"path: unsupported mesh format {path.suffix!r}; use one of {', '.join(MESH_FORMATS)}")
-    mesh = _as_mesh(mesh, samples)
+    mesh = as_mesh(mesh, "mesh", samples)
     with atomic_path(path) as tmp:
         if suffix == ".ply":
             tmp.write_bytes(_ply_bytes(mesh))

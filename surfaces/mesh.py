@@ -36,7 +36,8 @@ __all__ = [
     "merge_meshes",
 ]
 
-#: Subdivisions per patch side when a patch model stands in for a mesh (:func:`as_mesh`).
+#: Default subdivisions per patch side wherever a patch model is tessellated (:func:`tessellate`,
+#: :func:`as_mesh`, and through it files, pictures and set operations).
 PATCH_SAMPLES = 8
 
 
@@ -414,7 +415,7 @@ def _grid_triangles(rows: int, cols: int, closed_u: bool, closed_v: bool) -> np.
     return np.concatenate([np.stack([a, b, c], -1).reshape(-1, 3), np.stack([a, c, d], -1).reshape(-1, 3)])
 
 
-def tessellate(patches: BezierPatches, samples: int = 8, weld_seams: bool = True) -> TriangleMesh:
+def tessellate(patches: BezierPatches, samples: int = PATCH_SAMPLES, weld_seams: bool = True) -> TriangleMesh:
     """Triangle mesh of a patch grid with shared seam vertices.
 
     Parameters

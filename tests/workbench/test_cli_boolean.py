@@ -10,7 +10,7 @@ import pytest
 from surfaces.io import read_mesh, write_mesh
 from surfaces.mesh import TriangleMesh
 from surfaces.repair import check_solid
-from tests.surfaces.test_boolean import box, icosphere
+from tests.surfaces._shapes import box, icosphere
 from workbench.cli import main
 
 

@@ -68,8 +68,8 @@ def test_reconstruct_minus_composes(shared_data, tmp_path, capsys):
 
     The bed pokes out of the block in one place; the nodes lie apart from both (removes nothing).
     """
-    from surfaces import boolean
     from surfaces.io import read_mesh
+    from surfaces.repair import check_solid
 
     rtss = shared_data / "rtstruct_breast" / "rtss.dcm"
     out = tmp_path / "comp"
@@ -92,7 +92,7 @@ def test_reconstruct_minus_composes(shared_data, tmp_path, capsys):
     mesh = read_mesh(out / "surface.ply")
     assert mesh.is_watertight() and mesh.is_oriented()
     assert mesh.signed_volume() == pytest.approx(summary["volume_mm3"], rel=1e-5)  # float32 PLY
-    info = boolean.check_solid(mesh)
+    info = check_solid(mesh)
     assert info["solid"], info["problems"]
     printed = capsys.readouterr().out
     assert "composition" in printed and f"{comp['result_volume_ml']:.3f} ml" in printed
