@@ -214,6 +214,20 @@ def periodic_knots(params: np.ndarray, degree: int) -> np.ndarray:
 def interpolation_knots(params: np.ndarray, degree: int, closed: bool) -> np.ndarray:
     """:func:`periodic_knots` for a closed direction, :func:`averaged_knots` for an open one.
 
+    Parameters
+    ----------
+    params : (N,) float array
+        Data parameters from :func:`data_parameters`.
+    degree : int
+        Degree ``p`` (2 to 5).
+    closed : bool
+        Periodic direction.
+
+    Returns
+    -------
+    float64 array
+        ``(N + 2p + 1,)`` periodic or ``(N + p + 1,)`` clamped knots.
+
     Examples
     --------
     >>> interpolation_knots(np.array([0.0, 0.25, 0.5, 1.0]), 2, False).tolist()

@@ -102,7 +102,19 @@ def check_solid(mesh, name: str = "mesh", *, edges: EdgeTable | None = None) -> 
 
 
 def inward_problem(name: str, volume: float) -> str:
-    """The message for a closed, oriented mesh whose normals point inward."""
+    """The problem message for a closed, oriented mesh whose normals point inward.
+
+    Parameters
+    ----------
+    name : str
+        Name of the mesh.
+    volume : float
+        Its signed volume (not positive).
+
+    Returns
+    -------
+    str
+    """
     return f"{name}: oriented inward (signed volume {volume:.6g} <= 0); normals must point outward"
 
 
