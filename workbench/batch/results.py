@@ -132,16 +132,17 @@ def is_complete(folder: str | os.PathLike) -> bool:
 
 
 def marker_kind(folder: str | os.PathLike) -> str:
-    """Return the job kind recorded in a folder's ``_COMPLETE`` marker (``"unknown"`` if unreadable).
+    """Return the job kind that a finished job folder's ``_COMPLETE`` marker records.
 
     Parameters
     ----------
     folder : path
-        ``OUT/<id>``.
+        A job folder ``OUT/<id>``; :func:`workbench.batch.driver.plan` checks it against the job.
 
     Returns
     -------
     str
+        ``"photometric"`` or ``"slices"``; ``"unknown"`` when the marker is missing or unreadable.
     """
     try:
         return json.loads((Path(folder) / COMPLETE_MARKER).read_text())["row"]["kind"]
