@@ -5,13 +5,17 @@ STAMP   := $(VENV)/.installed
 SYSLIBS := libusb-1.0-0 libgl1 libgomp1
 OUT     ?= demo_out
 
-.PHONY: demo test bench syslibs clean
+.PHONY: demo test test-fast bench syslibs clean
 
 demo: $(STAMP)
 	$(VENV)/bin/workbench demo --out $(OUT)
 
 test: $(STAMP)
 	$(PY) -m pytest -q -n 2 tests
+
+# while working: the suite without the tests marked slow (pyproject.toml lists the marker)
+test-fast: $(STAMP)
+	$(PY) -m pytest -q -n 2 -m "not slow" tests
 
 bench: $(STAMP)
 	$(PY) benchmarks/run_all.py

@@ -32,9 +32,9 @@ import tempfile
 import time
 from pathlib import Path
 
-from workbench import batch
+from common import Table, write_results
 
-RESULTS = Path(__file__).resolve().parent / "results" / "batch.md"
+from workbench import batch
 PHANTOM_SHAPES = ("ellipsoid", "kidney", "ring", "lobes")
 # the 4-view picture and the smoothing-spline comparison are extras of a single run
 SLICES_OPTIONS = {"render": False, "reference": False}
@@ -163,20 +163,7 @@ def main() -> None:
     best = {k: min(v) for k, v in walls.items()}
     best_round = {k: v.index(best[k]) for k, v in walls.items()}
     seq_jpm = 60.0 * n / best["seq"]
-    lines = [
-        "# workbench batch: throughput",
-        "",
-        f"{n} jobs ({args.triads} synthetic triads {args.size}x{args.size} through "
-        f"photometric.pipeline.reconstruct, {args.phantoms} phantom RTSTRUCTs through "
-        f"slices.pipeline.reconstruct with {SLICES_OPTIONS}), the same jobs five ways in one run, "
-        f"{args.repeat} interleaved round(s), best wall time of each way. "
-        f"Machine: {os.cpu_count()} CPUs shared with other work (load average before the run "
-        f"{load_before:.1f}, after {os.getloadavg()[0]:.1f}), Python {platform.python_version()}.",
-        "",
-        "| run | workers | cluster start s | wall s (best) | wall s (all rounds) | sum of job times s "
-        "| jobs/min | vs sequential |",
-        "|---|---:|---:|---:|---|---:|---:|---:|",
-    ]
+    rows = []
     for key, label in (
         ("seq", "plain sequential loop"),
         ("seq1", "plain sequential loop, worker thread limits"),
@@ -185,29 +172,42 @@ def main() -> None:
         ("2", "workbench batch, LocalCluster"),
     ):
         rate = 60.0 * n / best[key]
-        start = f"{min(starts[key]):.1f}" if key in starts else "-"
-        workers = "-" if key.startswith("seq") else key[0]
-        all_rounds = ", ".join(f"{w:.1f}" for w in walls[key])
-        lines.append(
-            f"| {label} | {workers} | {start} | {best[key]:.2f} | {all_rounds} "
-            f"| {job_times[key][best_round[key]]:.1f} | {rate:.1f} | {rate / seq_jpm:.2f} |"
-        )
+        rows.append([
+            label,
+            "-" if key.startswith("seq") else key[0],
+            f"{min(starts[key]):.1f}" if key in starts else "-",
+            f"{best[key]:.2f}",
+            ", ".join(f"{w:.1f}" for w in walls[key]),
+            f"{job_times[key][best_round[key]]:.1f}",
+            f"{rate:.1f}",
+            f"{rate / seq_jpm:.2f}",
+        ])
+    table = Table(
+        ["run", "workers", "cluster start s", "wall s (best)", "wall s (all rounds)", "sum of job times s",
+         "jobs/min", "vs sequential"],
+        rows,
+        align="lrrrlrrr",
+    )
     scaling = best["1"] / best["2"]
     vs_loop = best["seq1"] / best["2"]
     job_sum = {k: job_times[k][best_round[k]] for k in walls}
     overhead_ms = 1000.0 * (best["1"] - job_sum["1"]) / n
     slowdown = job_sum["2"] / job_sum["1"]
-    lines += [
-        "",
+    text = write_results("batch", "workbench batch: throughput", [
+        f"{n} jobs ({args.triads} synthetic triads {args.size}x{args.size} through "
+        f"photometric.pipeline.reconstruct, {args.phantoms} phantom RTSTRUCTs through "
+        f"slices.pipeline.reconstruct with {SLICES_OPTIONS}), the same jobs five ways in one run, "
+        f"{args.repeat} interleaved round(s), best wall time of each way. "
+        f"Machine: {os.cpu_count()} CPUs shared with other work (load average before the run "
+        f"{load_before:.1f}, after {os.getloadavg()[0]:.1f}), Python {platform.python_version()}.",
+        table,
         f"Scaling ratio (jobs/min on 2 workers / on 1 worker): **{scaling:.2f}** (2.00 is perfect on 2 free cores); "
         f"2 workers against the plain loop under the same thread limits: **{vs_loop:.2f}**.",
-        "",
         f"Where the time goes: Dask's own cost per job (wall on 1 worker minus the jobs' own "
         f"times, over {n} jobs) is {overhead_ms:.0f} ms; with 2 workers each job takes "
         f"{slowdown:.2f}x as long as with 1 (1.00 when both cores are free for us: above that, "
         "the two workers compete with each other and with the machine's other load, which caps "
         "the scaling ratio at about 2 / that factor).",
-        "",
         "Cluster start and a warm-up job of each kind on every worker (the pipelines import "
         "lazily) are excluded from the wall times (start listed apart); the plain loop runs "
         "the same warm-up first. 'Sum of job times' adds the time each job spent in its "
@@ -220,12 +220,7 @@ def main() -> None:
         "distributed's nanny also sets MALLOC_TRIM_THRESHOLD_=65536 for its workers, which pins "
         "glibc's mmap threshold so that every large numpy temporary is a fresh mmap; "
         "workbench.batch.connect starts its local workers without it (third row against fourth).",
-    ]
-    text = "\n".join(lines) + "\n"
-    RESULTS.parent.mkdir(parents=True, exist_ok=True)
-    tmp_path = RESULTS.with_name(f".{RESULTS.name}.tmp")
-    tmp_path.write_text(text)
-    os.replace(tmp_path, RESULTS)
+    ])
     print(text)
 
 

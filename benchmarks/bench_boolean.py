@@ -31,11 +31,9 @@ import multiprocessing as mp
 import os
 import platform
 import time
-from pathlib import Path
 
 import numpy as np
-
-RESULTS = Path(__file__).resolve().parent / "results" / "boolean.md"
+from common import Table, write_results
 CATEGORIES = (
     "general",
     "touching faces",
@@ -286,7 +284,7 @@ def _sphere(n_tri: int, centre):
     return np.asarray(m.vertices) + centre, np.asarray(m.triangles, np.int64)
 
 
-def _precision_rows() -> list[str]:
+def _precision_rows() -> list[list[str]]:
     """Identity residual through manifold3d's float32 Mesh (raw coordinates) vs our Mesh64 path."""
     import manifold3d
 
@@ -313,7 +311,7 @@ def _precision_rows() -> list[str]:
                 signed_volume(np.asarray(m.vert_properties, np.float64)[:, :3], np.asarray(m.tri_verts, np.int64))
             )
         f32 = abs(sum(vol32) - ref) / ref
-        rows.append(f"| {label} | {ours:.1e} | {f32:.1e} |")
+        rows.append([label, f"{ours:.1e}", f"{f32:.1e}"])
     return rows
 
 
@@ -388,24 +386,8 @@ def main() -> int:
         return sum(r[key] for r in rows), 3 * len(rows)
 
     columns = {"ours": ("returned", "watertight", "ok"), "open3d": ("returned", "watertight", "welded", "ok")}
-    lines = [
-        "## Set operations (`surfaces.boolean`, manifold3d) vs open3d boolean_*",
-        "",
-        f"Command: `.venv/bin/python benchmarks/bench_boolean.py --pairs {args.pairs} --timeout {args.timeout:g}` "
-        f"(seed {args.seed}; {platform.machine()}, {os.cpu_count()} cores shared with other work).",
-        "",
-        f"Robustness: {args.pairs} random pairs, union + intersection + difference each. "
-        "*returned*: operations that gave a mesh (open3d: no exception, crash or timeout); "
-        "*watertight*: results that are closed and consistently oriented as returned; "
-        "*welded*: watertight as returned or after merging exactly coincident vertices (open3d "
-        "duplicates the vertices along the intersection curve); *pairs ok*: all three results watertight "
-        "(welded) and inclusion-exclusion of the volumes holds to 1e-6 relative.",
-        "",
-        "| category | pairs | ours returned | ours watertight | ours pairs ok "
-        "| open3d returned | open3d watertight | open3d welded | open3d pairs ok |",
-        "|---|---:|---:|---:|---:|---:|---:|---:|---:|",
-    ]
     tot = {lib: {key: [0, 0] for key in keys} for lib, keys in columns.items()}
+    robustness = []
     for cat in CATEGORIES:
         cells = []
         for lib, keys in columns.items():
@@ -414,56 +396,65 @@ def main() -> int:
                 tot[lib][key][0] += n
                 tot[lib][key][1] += d
                 cells.append(f"{n}/{d}")
-        lines.append(f"| {cat} | {len(per_cat[cat]['ours'])} | " + " | ".join(cells) + " |")
+        robustness.append([cat, len(per_cat[cat]["ours"]), *cells])
     cells = []
     for lib, keys in columns.items():
         for key in keys:
             n, d = tot[lib][key]
             cells.append(f"**{n}/{d} ({100 * n / max(d, 1):.0f} %)**")
-    lines.append(f"| all | {args.pairs} | " + " | ".join(cells) + " |")
-    lines += [
-        "",
+    robustness.append(["all", args.pairs, *cells])
+    totals = (
         f"Total time for all pairs: ours {t_ours:.2f} s, open3d {t_o3d:.2f} s "
         f"(ratio {t_o3d / max(t_ours, 1e-9):.0f}x). open3d worker crashes (segmentation faults): "
-        f"{pool.crashes}, timeouts: {pool.timeouts}.",
-    ]
-    if errors:
-        lines.append(
-            "open3d failed operations by kind: " + ", ".join(f"{k} ({v})" for k, v in sorted(errors.items())) + "."
-        )
-    o3d_cell = (
-        f"> {args.speed_timeout:g} (timeout) | - | - | - | > {args.speed_timeout / ours_speed:.0f}x |"
-        if speed_timeout
-        else f"{o3d_speed:.3f} | - | {len(o3d_res[1]):,} | {o3d_solid[0]} / {o3d_solid[1]} | "
-        f"{o3d_speed / ours_speed:.1f}x |"
+        f"{pool.crashes}, timeouts: {pool.timeouts}."
     )
-    lines += [
-        "",
+    if errors:
+        totals += (
+            "\nopen3d failed operations by kind: " + ", ".join(f"{k} ({v})" for k, v in sorted(errors.items())) + "."
+        )
+    o3d_row = (
+        ["open3d `boolean_union`", f"> {args.speed_timeout:g} (timeout)", "-", "-", "-",
+         f"> {args.speed_timeout / ours_speed:.0f}x"]
+        if speed_timeout
+        else ["open3d `boolean_union`", f"{o3d_speed:.3f}", "-", f"{len(o3d_res[1]):,}",
+              f"{o3d_solid[0]} / {o3d_solid[1]}", f"{o3d_speed / ours_speed:.1f}x"]
+    )
+    text = write_results("boolean", "Set operations (`surfaces.boolean`, manifold3d) vs open3d boolean_*", [
+        f"Command: `.venv/bin/python benchmarks/bench_boolean.py --pairs {args.pairs} --timeout {args.timeout:g}` "
+        f"(seed {args.seed}; {platform.machine()}, {os.cpu_count()} cores shared with other work).",
+        f"Robustness: {args.pairs} random pairs, union + intersection + difference each. "
+        "*returned*: operations that gave a mesh (open3d: no exception, crash or timeout); "
+        "*watertight*: results that are closed and consistently oriented as returned; "
+        "*welded*: watertight as returned or after merging exactly coincident vertices (open3d "
+        "duplicates the vertices along the intersection curve); *pairs ok*: all three results watertight "
+        "(welded) and inclusion-exclusion of the volumes holds to 1e-6 relative.",
+        Table(
+            ["category", "pairs", "ours returned", "ours watertight", "ours pairs ok", "open3d returned",
+             "open3d watertight", "open3d welded", "open3d pairs ok"],
+            robustness,
+            align="lrrrrrrrr",
+        ),
+        totals,
         f"Speed: union of two {len(ta):,}-triangle spheres (radius 1, offset 0.62), best of 5. "
         f"The machine's load average was {load:.1f} on {os.cpu_count()} cores during the timing, "
         "so wall times are inflated; the CPU time of our process is given too.",
-        "",
-        "| | wall s | CPU s | result triangles | watertight (as returned / welded) | ratio (wall) |",
-        "|---|---:|---:|---:|---:|---:|",
-        f"| ours (`surfaces.boolean.union`: input checks, manifold3d, output check, curve) | {ours_speed:.3f} | "
-        f"{ours_cpu:.3f} | {len(res.mesh.triangles):,} | {res.summary()['watertight']} | 1 |",
-        f"| manifold3d alone (Mesh64 in, union, Mesh64 out) | {engine_speed:.3f} | {min(engine_cpu):.3f} | - | - | "
-        f"{engine_speed / ours_speed:.2f}x |",
-        "| open3d `boolean_union` | " + o3d_cell,
-        "",
+        Table(
+            ["", "wall s", "CPU s", "result triangles", "watertight (as returned / welded)", "ratio (wall)"],
+            [
+                ["ours (`surfaces.boolean.union`: input checks, manifold3d, output check, curve)",
+                 f"{ours_speed:.3f}", f"{ours_cpu:.3f}", f"{len(res.mesh.triangles):,}",
+                 res.summary()["watertight"], "1"],
+                ["manifold3d alone (Mesh64 in, union, Mesh64 out)", f"{engine_speed:.3f}", f"{min(engine_cpu):.3f}",
+                 "-", "-", f"{engine_speed / ours_speed:.2f}x"],
+                o3d_row,
+            ],
+            align="lrrrrr",
+        ),
         "Precision: relative residual of vol(A u B) + vol(A n B) - vol(A) - vol(B) for two 10 mm "
         "spheres (20,000 triangles each), through our float64 path (Mesh64, centred) and "
         "through manifold3d's float32 `Mesh` with the raw coordinates.",
-        "",
-        "| position | ours (float64, centred) | float32 Mesh, raw coordinates |",
-        "|---|---:|---:|",
-        *precision,
-    ]
-    text = "\n".join(lines) + "\n"
-    RESULTS.parent.mkdir(parents=True, exist_ok=True)
-    tmp = RESULTS.with_name(f".{RESULTS.name}.tmp")
-    tmp.write_text(text)
-    os.replace(tmp, RESULTS)
+        Table(["position", "ours (float64, centred)", "float32 Mesh, raw coordinates"], precision, align="lrr"),
+    ])
     print(text)
     return 0
 

@@ -19,13 +19,11 @@ import argparse
 import os
 import platform
 import time
-from pathlib import Path
 
 import numpy as np
+from common import Table, best_of, write_results
 
 from surfaces import bspline
-
-RESULTS = Path(__file__).resolve().parent / "results" / "bspline.md"
 
 
 def _grid(n: int) -> np.ndarray:
@@ -35,15 +33,6 @@ def _grid(n: int) -> np.ndarray:
     gx, gy = np.meshgrid(x, y, indexing="ij")
     z = np.sin(gx / 4.0) * np.cos(gy / 5.0) + 0.05 * rng.standard_normal(gx.shape)
     return np.stack([gx, gy, z], axis=-1)
-
-
-def _best(func, repeats: int) -> tuple[float, object]:
-    best, out = np.inf, None
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        out = func()
-        best = min(best, time.perf_counter() - t0)
-    return best, out
 
 
 def main() -> int:
@@ -67,9 +56,9 @@ def main() -> int:
     n_sub = min(args.geomdl_points or args.points, args.points)
     sub = uv[:n_sub]
 
-    t_fit, surf = _best(lambda: bspline.interpolate_surface(q, degree=3), args.repeats)
-    t_eval, ours = _best(lambda: surf.evaluate(uv[:, 0], uv[:, 1]), args.repeats)
-    t_bez, _ = _best(surf.to_bezier, args.repeats)
+    t_fit, surf = best_of(lambda: bspline.interpolate_surface(q, degree=3), args.repeats)
+    t_eval, ours = best_of(lambda: surf.evaluate(uv[:, 0], uv[:, 1]), args.repeats)
+    t_bez, _ = best_of(surf.to_bezier, args.repeats)
 
     flat = q.reshape(-1, 3).tolist()
     t0 = time.perf_counter()
@@ -92,36 +81,27 @@ def main() -> int:
     else:
         how = "geomdl evaluated every point."
         g_cell = f"{g_eval:.2f}"
-    lines = [
-        "# B-spline surface interpolation: surfaces.bspline vs geomdl",
-        "",
+    table = Table(
+        ["step", "surfaces.bspline (s)", "geomdl (s)", "speed-up"],
+        [
+            [f"interpolate {args.grid}x{args.grid}", f"{t_fit:.4f}", f"{g_fit:.3f}", f"{g_fit / t_fit:.0f}x"],
+            [f"evaluate {args.points:,} points", f"{t_eval:.4f}", g_cell, f"{g_eval / t_eval:.0f}x"],
+            ["**total**", f"**{total_ours:.4f}**", f"**{total_geomdl:.2f}**", f"**{total_geomdl / total_ours:.0f}x**"],
+            [f"exact conversion to {surf.to_bezier().shape} Bezier patches", f"{t_bez:.4f}", "n/a", ""],
+        ],
+        align="lrrr",
+    )
+    text = write_results("bspline", "B-spline surface interpolation: surfaces.bspline vs geomdl", [
         f"{args.grid} x {args.grid} grid, bicubic, chord-length parameters, averaged knots; "
         f"{args.points:,} random (u, v) evaluations, same points for both. Ours: best of "
         f"{args.repeats}; geomdl: one run. {how}",
-        "",
-        "| step | surfaces.bspline (s) | geomdl (s) | speed-up |",
-        "|---|---:|---:|---:|",
-        f"| interpolate {args.grid}x{args.grid} | {t_fit:.4f} | {g_fit:.3f} | "
-        f"{g_fit / t_fit:.0f}x |",
-        f"| evaluate {args.points:,} points | {t_eval:.4f} | {g_cell} | {g_eval / t_eval:.0f}x |",
-        f"| **total** | **{total_ours:.4f}** | **{total_geomdl:.2f}** | "
-        f"**{total_geomdl / total_ours:.0f}x** |",
-        f"| exact conversion to {surf.to_bezier().shape} Bezier patches | {t_bez:.4f} | n/a | |",
-        "",
+        table,
         "Largest coordinate difference between the two surfaces at the points geomdl "
         f"evaluated: {diff:.2e}.",
-        "",
         f"Machine: {platform.machine()}, {os.cpu_count()} logical CPUs (shared, timings noisy), "
         f"Python {platform.python_version()}, numpy {np.__version__}.",
-        "",
         "Command: `.venv/bin/python benchmarks/bench_bspline.py`",
-        "",
-    ]
-    text = "\n".join(lines)
-    RESULTS.parent.mkdir(parents=True, exist_ok=True)
-    tmp = RESULTS.with_name(RESULTS.name + ".tmp")
-    tmp.write_text(text)
-    os.replace(tmp, RESULTS)
+    ])
     print(text)
     return 0
 

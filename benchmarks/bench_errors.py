@@ -28,12 +28,11 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from common import best_of  # noqa: E402
+from common import Table, best_of, write_results  # noqa: E402
 
 from photometric import errors as E  # noqa: E402
 from photometric.stereo import solve  # noqa: E402
 
-OUT = Path(__file__).resolve().parent / "results" / "errors.md"
 BEAR = Path(__file__).resolve().parents[2] / "shared" / "data" / "diligent_bear" / "light_directions.txt"
 
 
@@ -114,52 +113,43 @@ def first_order_accuracy(L):
 
 def main() -> str:
     L45 = E.standard_triad(45.0)
-    lines = [
-        "# Light-deviation error analysis (photometric.errors)",
-        "",
+    speed = []
+    t1, t2, diff, evals = bench_map(L45)
+    speed.append([f"error map 21x21 deviations x 41x41 normals ({evals / 1e6:.2f} M normals)", f"{t1:.3f}",
+                  "render + photometric.stereo.solve per deviation", f"{t2:.3f}", f"{t2 / t1:.0f}x",
+                  f"max diff {diff:.1e} (float32 images)"])
+    t1, t2, diff = bench_mc(L45)
+    speed.append(["Monte Carlo, 20000 samples x 6 normals", f"{t1:.3f}", "Python loop, np.linalg.solve per sample",
+                  f"{t2:.3f}", f"{t2 / t1:.0f}x", f"max diff {diff:.1e}"])
+    t1, t2, ours, scan = bench_tolerance(L45)
+    speed.append(["tolerance inversion (light 1 slant, eps 0.05, D 1)", f"{t1:.3f}", "dense scan, 0.001 deg steps",
+                  f"{t2:.3f}", f"{t2 / t1:.0f}x", f"{ours:.5f} deg vs {scan:.3f} deg"])
+    parts = [
         "Standard triad at 45 deg slant (azimuths 90, 210, 330 deg) unless stated. Best of 3 runs, shared "
         "2-core machine.",
-        "",
-        "| task | ours (s) | peer | peer (s) | ratio | agreement |",
-        "|---|---|---|---|---|---|",
+        Table(["task", "ours (s)", "peer", "peer (s)", "ratio", "agreement"], speed),
+        "## First-order model against the exact error (worst relative difference over |p|, |q| <= 1, "
+        "any light, slant or azimuth)",
+        Table(["deviation (deg)", "relative difference"], [[f"{d:g}", f"{100 * r:.2f} %"]
+                                                           for d, r in first_order_accuracy(L45)]),
+        "## Operating limits: largest deviation (deg, any direction) for |dp|, |dq| <= eps over |p|, |q| <= D",
     ]
-    t1, t2, diff, evals = bench_map(L45)
-    lines.append(f"| error map 21x21 deviations x 41x41 normals ({evals / 1e6:.2f} M normals) | {t1:.3f} | "
-                 f"render + photometric.stereo.solve per deviation | {t2:.3f} | {t2 / t1:.0f}x | "
-                 f"max diff {diff:.1e} (float32 images) |")
-    t1, t2, diff = bench_mc(L45)
-    lines.append(f"| Monte Carlo, 20000 samples x 6 normals | {t1:.3f} | Python loop, np.linalg.solve per sample | "
-                 f"{t2:.3f} | {t2 / t1:.0f}x | max diff {diff:.1e} |")
-    t1, t2, ours, scan = bench_tolerance(L45)
-    lines.append(f"| tolerance inversion (light 1 slant, eps 0.05, D 1) | {t1:.3f} | dense scan, 0.001 deg steps | "
-                 f"{t2:.3f} | {t2 / t1:.0f}x | {ours:.5f} deg vs {scan:.3f} deg |")
-    lines += ["", "## First-order model against the exact error (worst relative difference over |p|, |q| <= 1, "
-              "any light, slant or azimuth)", "", "| deviation (deg) | relative difference |", "|---|---|"]
-    for d, r in first_order_accuracy(L45):
-        lines.append(f"| {d:g} | {100 * r:.2f} % |")
     triads = [("standard triad, slant 45 deg", L45),
               (f"standard triad, slant {E.OPTIMAL_SLANT_DEG:.2f} deg (optimal conditioning)",
                E.standard_triad(E.OPTIMAL_SLANT_DEG))]
     if BEAR.is_file():
         triads.append(("DiLiGenT bear triad (images 090, 048, 033)", np.loadtxt(BEAR)[:3]))
-    lines += ["", "## Operating limits: largest deviation (deg, any direction) for |dp|, |dq| <= eps over "
-              "|p|, |q| <= D", ""]
     for name, L in triads:
         t0 = time.perf_counter()
         rows = E.recommendation_table(L, tolerances=(0.02, 0.05, 0.1), ranges=(0.5, 1.0, 2.0), n_grid=21)
         dt = time.perf_counter() - t0
-        lines += [f"### {name} (condition number {E.condition_number(L):.3f}; table in {dt:.2f} s)", "",
-                  "| D | eps | one light | two lights | all three |", "|---|---|---|---|---|"]
-        for r in rows:
-            lines.append(f"| {r['derivative_range']:g} | {r['tolerance']:g} | {r['single_light_deg']:.3f} | "
-                         f"{r['pair_deg']:.3f} | {r['all_lights_deg']:.3f} |")
-        lines.append("")
-    text = "\n".join(lines) + "\n"
-    OUT.parent.mkdir(parents=True, exist_ok=True)
-    tmp = OUT.with_name(f".{OUT.name}.tmp")
-    tmp.write_text(text)
-    tmp.replace(OUT)
-    return text
+        parts += [
+            f"### {name} (condition number {E.condition_number(L):.3f}; table in {dt:.2f} s)",
+            Table(["D", "eps", "one light", "two lights", "all three"],
+                  [[f"{r['derivative_range']:g}", f"{r['tolerance']:g}", f"{r['single_light_deg']:.3f}",
+                    f"{r['pair_deg']:.3f}", f"{r['all_lights_deg']:.3f}"] for r in rows]),
+        ]
+    return write_results("errors", "Light-deviation error analysis (photometric.errors)", parts)
 
 
 if __name__ == "__main__":

@@ -29,6 +29,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from common import Table, results_markdown, write_results  # noqa: E402
+
 from datasets_synthetic.heightfields import make_scene  # noqa: E402
 from datasets_synthetic.render import render, ring_lights  # noqa: E402
 from photometric.integrate import dct_poisson, integrate, least_squares  # noqa: E402
@@ -37,10 +39,9 @@ from photometric.lights import condition_number  # noqa: E402
 from photometric.stereo import angular_error_deg, solve  # noqa: E402
 
 SHARED = Path(os.environ.get("WORKBENCH_SHARED_DATA", ROOT.parent / "shared" / "data"))
-OUT = ROOT / "benchmarks" / "results" / "photometric.md"
 
 
-def best_of(func, repeat: int) -> tuple[float, float]:
+def best_and_median(func, repeat: int) -> tuple[float, float]:
     """(best, median) wall time of ``repeat`` calls, seconds."""
     times = []
     for _ in range(repeat):
@@ -84,12 +85,12 @@ def _rss_kb(field: str) -> int:
     return -1
 
 
-def bench_solve(size: int, repeat: int, lstsq_pixels: int) -> list[str]:
+def bench_solve(size: int, repeat: int, lstsq_pixels: int) -> list:
     lights = ring_lights(3, 45.0)
     images = triad_images(size, lights)
     n_pix = size * size
     solve(images[:, :64, :64], lights)  # warm-up (OpenCV thread pool, imports)
-    best, med = best_of(lambda: solve(images, lights), repeat)
+    best, med = best_and_median(lambda: solve(images, lights), repeat)
 
     rng = np.random.default_rng(0)
     pick = rng.choice(n_pix, lstsq_pixels, replace=False)
@@ -106,7 +107,7 @@ def bench_solve(size: int, repeat: int, lstsq_pixels: int) -> list[str]:
         rho = np.linalg.norm(g, axis=0)
         return g / np.maximum(rho, 1e-12), rho
 
-    vec_best, _ = best_of(one_call, max(1, repeat // 2))
+    vec_best, _ = best_and_median(one_call, max(1, repeat // 2))
 
     in_bytes = images.nbytes
     tracemalloc.start()
@@ -123,57 +124,46 @@ def bench_solve(size: int, repeat: int, lstsq_pixels: int) -> list[str]:
         del res
     ok = best < 0.25
     return [
-        f"### Normals and albedo, {size} x {size} float32 triad ({in_bytes / 2**20:.0f} MiB input)",
-        "",
-        "| method | time | ratio to `solve` |",
-        "|---|---|---|",
-        f"| `photometric.stereo.solve` (normals, albedo, p, q, validity) | best {best:.3f} s, "
-        f"median {med:.3f} s of {repeat} | 1 |",
-        f"| per-pixel `numpy.linalg.lstsq` (timed on {lstsq_pixels} random pixels: "
-        f"{per_pixel * 1e6:.1f} us/pixel, extrapolated linearly to {n_pix} pixels) | "
-        f"{lstsq_total:.1f} s | {lstsq_total / best:.0f} x slower |",
-        f"| one vectorised `numpy.linalg.lstsq` over all pixels + normalisation (float32) | "
-        f"{vec_best:.3f} s | {vec_best / best:.1f} x |",
-        "",
+        f"## Normals and albedo, {size} x {size} float32 triad ({in_bytes / 2**20:.0f} MiB input)",
+        Table(["method", "time", "ratio to `solve`"], [
+            ["`photometric.stereo.solve` (normals, albedo, p, q, validity)",
+             f"best {best:.3f} s, median {med:.3f} s of {repeat}", "1"],
+            [f"per-pixel `numpy.linalg.lstsq` (timed on {lstsq_pixels} random pixels: "
+             f"{per_pixel * 1e6:.1f} us/pixel, extrapolated linearly to {n_pix} pixels)",
+             f"{lstsq_total:.1f} s", f"{lstsq_total / best:.0f} x slower"],
+            ["one vectorised `numpy.linalg.lstsq` over all pixels + normalisation (float32)",
+             f"{vec_best:.3f} s", f"{vec_best / best:.1f} x"],
+        ]),
         f"Target: under 0.25 s: {'met' if ok else 'NOT met'} (best of {repeat}; the machine has "
         "2 cores shared with other jobs, so the median is noisy). Ratio to per-pixel lstsq: "
-        f"{lstsq_total / best:.0f} (target >= 25).",
+        f"{lstsq_total / best:.0f} (target >= 25).\n"
         f"Peak memory during `solve`: tracemalloc {peak / 2**20:.0f} MiB = "
         f"{peak / in_bytes:.2f} x input (outputs included: normals 3, albedo 1, p 1, q 1, "
         f"valid 0.25 planes); peak RSS increase {rss_note}. Target: under 4 x input.",
-        "",
     ]
 
 
-def bench_integration(size_dct: int, size_lsq: int, size_peer: int, repeat: int) -> list[str]:
+def bench_integration(size_dct: int, size_lsq: int, size_peer: int, repeat: int) -> list:
     import scipy.sparse as sp
     from scipy.sparse.linalg import cg, spsolve
 
     big = make_scene("sphere", size_dct, 0.05)
-    b64, m64 = best_of(lambda: dct_poisson(big.p, big.q, pixel_size=0.05), repeat)
-    b32, m32 = best_of(lambda: dct_poisson(big.p, big.q, pixel_size=0.05, dtype=np.float32), repeat)
-    bfc, _ = best_of(lambda: integrate(big.p, big.q, "fc", pixel_size=0.05), repeat)
+    b64, m64 = best_and_median(lambda: dct_poisson(big.p, big.q, pixel_size=0.05), repeat)
+    b32, m32 = best_and_median(lambda: dct_poisson(big.p, big.q, pixel_size=0.05, dtype=np.float32), repeat)
+    bfc, _ = best_and_median(lambda: integrate(big.p, big.q, "fc", pixel_size=0.05), repeat)
     big = None  # free the 4096 x 4096 scene before the next ones
 
     hf = make_scene("vase", size_lsq, 0.05)
-    rows, cols = np.indices(hf.p.shape)
-    r = size_lsq / 2
-    mask = ((rows - r) ** 2 + (cols - r) ** 2 < (0.48 * size_lsq) ** 2) & ~(
-        (rows - 0.3 * size_lsq) ** 2 + (cols - 0.6 * size_lsq) ** 2 < (0.05 * size_lsq) ** 2
-    )
-    blsq, mlsq = best_of(lambda: least_squares(hf.p, hf.q, mask, 0.05), max(1, repeat // 2))
+    mask = _disc_with_hole(size_lsq)
+    blsq, mlsq = best_and_median(lambda: least_squares(hf.p, hf.q, mask, 0.05), max(1, repeat // 2))
     z = least_squares(hf.p, hf.q, mask, 0.05)
     ref = hf.height - hf.height[mask].mean()
     rmse = float(np.sqrt(np.mean((z[mask] - ref[mask]) ** 2)) / np.ptp(ref[mask]))
 
     # Peers on the same normal equations at a size the direct solver handles.
     hp = make_scene("vase", size_peer, 0.05)
-    rows, cols = np.indices(hp.p.shape)
-    r = size_peer / 2
-    mp = ((rows - r) ** 2 + (cols - r) ** 2 < (0.48 * size_peer) ** 2) & ~(
-        (rows - 0.3 * size_peer) ** 2 + (cols - 0.6 * size_peer) ** 2 < (0.05 * size_peer) ** 2
-    )
-    ours_small, _ = best_of(lambda: least_squares(hp.p, hp.q, mp, 0.05), max(1, repeat // 2))
+    mp = _disc_with_hole(size_peer)
+    ours_small, _ = best_and_median(lambda: least_squares(hp.p, hp.q, mp, 0.05), max(1, repeat // 2))
     A, rhs = _normal_equations(hp.p * 0.05, -hp.q * 0.05, mp)
     # pin the first unknown (one connected part) so the direct solver sees a regular matrix
     A1 = A[1:, 1:].tocsc()
@@ -188,27 +178,33 @@ def bench_integration(size_dct: int, size_lsq: int, size_peer: int, repeat: int)
                  callback=lambda _x: iters.__setitem__(0, iters[0] + 1))
     t_jac = time.perf_counter() - t
     return [
-        "### Integration",
-        "",
-        "| task | time | note |",
-        "|---|---|---|",
-        f"| DCT (Simchony) {size_dct} x {size_dct}, float64 transforms | best {b64:.2f} s, median "
-        f"{m64:.2f} s | target < 1.5 s: {'met' if b64 < 1.5 else 'NOT met'} |",
-        f"| DCT {size_dct} x {size_dct}, float32 transforms (`dtype=np.float32`) | best {b32:.2f} s, "
-        f"median {m32:.2f} s | {b64 / b32:.1f} x faster than float64 |",
-        f"| Frankot-Chellappa {size_dct} x {size_dct} (rfft2) | best {bfc:.2f} s | |",
-        f"| masked LSQ {size_lsq} x {size_lsq} ({int(mask.sum())} unknowns, disc with a hole), "
-        f"multigrid-CG | best {blsq:.2f} s, median {mlsq:.2f} s | target < 5 s: "
-        f"{'met' if blsq < 5 else 'NOT met'}; RMSE {100 * rmse:.4f} % of depth range |",
-        f"| masked LSQ {size_peer} x {size_peer} ({int(mp.sum())} unknowns), ours | {ours_small:.2f} s "
-        "| 1 |",
-        f"| same system, `scipy.sparse.linalg.spsolve` (SuperLU, direct) | {t_direct:.2f} s | "
-        f"{t_direct / ours_small:.1f} x ours |",
-        f"| same system, `scipy.sparse.linalg.cg` with Jacobi preconditioner, rtol 1e-9 | "
-        f"{t_jac:.2f} s ({iters[0]} iterations{'' if info == 0 else ', not converged'}) | "
-        f"{t_jac / ours_small:.1f} x ours |",
-        "",
+        "## Integration",
+        Table(["task", "time", "note"], [
+            [f"DCT (Simchony) {size_dct} x {size_dct}, float64 transforms", f"best {b64:.2f} s, median {m64:.2f} s",
+             f"target < 1.5 s: {'met' if b64 < 1.5 else 'NOT met'}"],
+            [f"DCT {size_dct} x {size_dct}, float32 transforms (`dtype=np.float32`)",
+             f"best {b32:.2f} s, median {m32:.2f} s", f"{b64 / b32:.1f} x faster than float64"],
+            [f"Frankot-Chellappa {size_dct} x {size_dct} (rfft2)", f"best {bfc:.2f} s", ""],
+            [f"masked LSQ {size_lsq} x {size_lsq} ({int(mask.sum())} unknowns, disc with a hole), multigrid-CG",
+             f"best {blsq:.2f} s, median {mlsq:.2f} s",
+             f"target < 5 s: {'met' if blsq < 5 else 'NOT met'}; RMSE {100 * rmse:.4f} % of depth range"],
+            [f"masked LSQ {size_peer} x {size_peer} ({int(mp.sum())} unknowns), ours", f"{ours_small:.2f} s", "1"],
+            ["same system, `scipy.sparse.linalg.spsolve` (SuperLU, direct)", f"{t_direct:.2f} s",
+             f"{t_direct / ours_small:.1f} x ours"],
+            ["same system, `scipy.sparse.linalg.cg` with Jacobi preconditioner, rtol 1e-9",
+             f"{t_jac:.2f} s ({iters[0]} iterations{'' if info == 0 else ', not converged'})",
+             f"{t_jac / ours_small:.1f} x ours"],
+        ]),
     ]
+
+
+def _disc_with_hole(size: int) -> np.ndarray:
+    """(size, size) bool mask: a centred disc of radius 0.48 size with a small hole off centre."""
+    rows, cols = np.indices((size, size))
+    r = size / 2
+    return ((rows - r) ** 2 + (cols - r) ** 2 < (0.48 * size) ** 2) & ~(
+        (rows - 0.3 * size) ** 2 + (cols - 0.6 * size) ** 2 < (0.05 * size) ** 2
+    )
 
 
 def _normal_equations(zc, zr, m):
@@ -235,8 +231,8 @@ def _normal_equations(zc, zr, m):
     return A, rhs[rows, cols]
 
 
-def accuracy(size_int: int) -> list[str]:
-    lines = ["### Accuracy", "", "| case | figure | reference / target |", "|---|---|---|"]
+def accuracy(size_int: int) -> list:
+    rows = []
     bear = SHARED / "diligent_bear"
     if bear.is_dir():
         for label, select, kw, ref in [
@@ -256,8 +252,8 @@ def accuracy(size_int: int) -> list[str]:
                 valid = res.valid[d.mask]
                 extra = (f"; on the {100 * valid.mean():.1f} % valid pixels "
                          f"{angular_error_deg(res.normals, d.normal_gt, d.mask & res.valid).mean():.2f} deg")
-            lines.append(f"| {label} (cond {condition_number(d.lights):.2f}) | mean angular error "
-                         f"{err.mean():.3f} deg{extra} | {ref} |")
+            rows.append([f"{label} (cond {condition_number(d.lights):.2f})",
+                         f"mean angular error {err.mean():.3f} deg{extra}", ref])
     bunny = SHARED / "rps_bunny"
     if bunny.is_dir():
         for select in ("triad", None):
@@ -267,11 +263,13 @@ def accuracy(size_int: int) -> list[str]:
             lit = d.mask & (shade >= 0.1).all(axis=2)
             lit0 = d.mask & (d.images.mean(axis=3) > 0).all(axis=0)
             e = angular_error_deg(res.normals, d.normal_gt)
-            lines.append(
-                f"| rps_bunny, {len(d.names)} images, plain LS | {e[lit].mean():.4f} deg on lit pixels "
-                f"(n.l >= 0.1 for every light, {lit.sum()} px); {e[lit0].mean():.4f} deg on all "
-                f"pixels with I > 0 in every image; median {np.median(e[lit]):.1e} deg | < 0.05 deg |"
-            )
+            rows.append([
+                f"rps_bunny, {len(d.names)} images, plain LS",
+                f"{e[lit].mean():.4f} deg on lit pixels (n.l >= 0.1 for every light, {lit.sum()} px); "
+                f"{e[lit0].mean():.4f} deg on all pixels with I > 0 in every image; "
+                f"median {np.median(e[lit]):.1e} deg",
+                "< 0.05 deg",
+            ])
     for n_lights in (3, 6):
         hf = make_scene("sphere", 256, 0.05)
         lights = ring_lights(n_lights, 35.0)
@@ -279,11 +277,9 @@ def accuracy(size_int: int) -> list[str]:
         lit = (np.einsum("hwc,kc->hwk", hf.normals, lights) > 0).all(axis=2)
         res = solve(imgs, lights, mask=lit)
         e = angular_error_deg(res.normals, hf.normals, lit)
-        lines.append(f"| rendered sphere cap 256 px, {n_lights} lights, no noise/shadows | max "
-                     f"{e.max():.5f} deg, mean {e.mean():.1e} deg | < 0.01 deg |")
-    lines += ["", f"Integrator RMSE on exact slopes, {size_int} x {size_int} (percent of the depth "
-              "range; the plate has slope kinks at every defect rim):", "",
-              "| surface | dct | lsq | fc |", "|---|---|---|---|"]
+        rows.append([f"rendered sphere cap 256 px, {n_lights} lights, no noise/shadows",
+                     f"max {e.max():.5f} deg, mean {e.mean():.1e} deg", "< 0.01 deg"])
+    rmse = []
     for name in ("sphere", "vase", "plate"):
         hf = make_scene(name, size_int, 0.05)
         ref = hf.height - hf.height.mean()
@@ -291,9 +287,14 @@ def accuracy(size_int: int) -> list[str]:
         for method in ("dct", "lsq", "fc"):
             z = integrate(hf.p, hf.q, method, pixel_size=0.05)
             cells.append(f"{100 * np.sqrt(np.mean((z - ref) ** 2)) / np.ptp(ref):.4f} %")
-        lines.append(f"| {name} | " + " | ".join(cells) + " |")
-    lines.append("")
-    return lines
+        rmse.append([name, *cells])
+    return [
+        "## Accuracy",
+        Table(["case", "figure", "reference / target"], rows),
+        f"Integrator RMSE on exact slopes, {size_int} x {size_int} (percent of the depth "
+        "range; the plate has slope kinks at every defect rim):",
+        Table(["surface", "dct", "lsq", "fc"], rmse),
+    ]
 
 
 def main(argv=None) -> int:
@@ -304,19 +305,16 @@ def main(argv=None) -> int:
         sizes = dict(solve=512, dct=512, lsq=256, peer=128, integ=128, repeat=2, lstsq=2000)
     else:
         sizes = dict(solve=4096, dct=4096, lsq=1024, peer=512, integ=512, repeat=5, lstsq=20000)
-    lines = ["## Photometric stereo (`photometric`)", "",
-             f"Command: `.venv/bin/python benchmarks/bench_photometric.py{' --quick' if args.quick else ''}` "
-             f"({os.cpu_count()} cores, shared; numpy {np.__version__}).", ""]
-    lines += bench_solve(sizes["solve"], sizes["repeat"], sizes["lstsq"])
-    lines += bench_integration(sizes["dct"], sizes["lsq"], sizes["peer"], sizes["repeat"])
-    lines += accuracy(sizes["integ"])
-    text = "\n".join(lines)
-    if not args.quick:
-        from surfaces.io import atomic_path
-
-        OUT.parent.mkdir(parents=True, exist_ok=True)
-        with atomic_path(OUT) as tmp:
-            tmp.write_text(text)
+    title = "Photometric stereo (`photometric`)"
+    parts = [
+        f"Command: `.venv/bin/python benchmarks/bench_photometric.py{' --quick' if args.quick else ''}` "
+        f"({os.cpu_count()} cores, shared; numpy {np.__version__}).",
+        *bench_solve(sizes["solve"], sizes["repeat"], sizes["lstsq"]),
+        *bench_integration(sizes["dct"], sizes["lsq"], sizes["peer"], sizes["repeat"]),
+        *accuracy(sizes["integ"]),
+    ]
+    # a quick run is a smoke test: its sizes are not the published figures
+    text = results_markdown(title, parts) if args.quick else write_results("photometric", title, parts)
     print(text)
     return 0
 

@@ -23,12 +23,11 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from common import best_of  # noqa: E402
+from common import Table, best_of, write_results  # noqa: E402
 
 from surfaces.render import render  # noqa: E402
 
 SIZE = (1024, 768)
-OUT = Path(__file__).resolve().parent / "results" / "render.md"
 
 
 def sphere(resolution: int):
@@ -83,26 +82,20 @@ def main() -> str:
         name = f"sphere, {n_tri:,} triangles" if kind == "sphere" else (
             f"Bezier 100x100 patches tessellated 8x8, {n_tri:,} triangles")
         rows.append((name, n_tri, t_plain, t_shadow, t_mpl))
-    lines = [
-        "## Ray-cast rendering (issue 8)",
-        "",
+    big = next(r for r in rows if r[0].startswith("sphere") and r[1] > 900_000)
+    small = min(rows, key=lambda r: r[1])
+    return write_results("render", "Ray-cast rendering (issue 8)", [
         "`.venv/bin/python benchmarks/bench_render.py`",
-        "",
         f"One iso view at {SIZE[0]}x{SIZE[1]} (786,432 primary rays), best of 5 (matplotlib: best "
-        "of 3, one run above 300k triangles); `surfaces.view.render` "
+        "of 3, one run above 300k triangles); `surfaces.render.render` "
         "includes the Embree BVH build, the cast, Phong-interpolated Blinn-Phong shading and PNG-ready "
         "uint8 output. The peer is matplotlib `plot_trisurf` (Agg, same size, flat shading, "
         "painter's algorithm) drawing the same mesh.",
-        "",
-        "| mesh | ray cast (s) | with shadow rays (s) | matplotlib plot_trisurf (s) | speed-up |",
-        "|---|---|---|---|---|",
-    ]
-    for name, _, t_plain, t_shadow, t_mpl in rows:
-        lines.append(f"| {name} | {t_plain:.3f} | {t_shadow:.3f} | {t_mpl:.2f} | {t_mpl / t_plain:.1f}x |")
-    big = next(r for r in rows if r[0].startswith("sphere") and r[1] > 900_000)
-    small = min(rows, key=lambda r: r[1])
-    lines += [
-        "",
+        Table(
+            ["mesh", "ray cast (s)", "with shadow rays (s)", "matplotlib plot_trisurf (s)", "speed-up"],
+            [[name, f"{t_plain:.3f}", f"{t_shadow:.3f}", f"{t_mpl:.2f}", f"{t_mpl / t_plain:.1f}x"]
+             for name, _, t_plain, t_shadow, t_mpl in rows],
+        ),
         f"Target: a 1,000,000-triangle mesh at 1024x768 in under 1 s: {big[2]:.3f} s for "
         f"{big[1]:,} triangles ({'met' if big[2] < 1.0 else 'NOT met'}). "
         f"{big[1] / small[1]:.0f}x more triangles cost {big[2] / small[2]:.1f}x the time "
@@ -110,13 +103,7 @@ def main() -> str:
         f"Machine load average at the end of the run: {os.getloadavg()[0]:.1f} on "
         f"{os.cpu_count()} cores (other jobs share the machine; wall times grow with the load, "
         "the ratios much less).",
-    ]
-    text = "\n".join(lines) + "\n"
-    OUT.parent.mkdir(parents=True, exist_ok=True)
-    tmp = OUT.with_suffix(".md.tmp")
-    tmp.write_text(text)
-    tmp.replace(OUT)
-    return text
+    ])
 
 
 if __name__ == "__main__":

@@ -21,7 +21,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from common import best_of  # noqa: E402
+from common import Table, best_of, write_results  # noqa: E402
 
 from surfaces.coons import from_grid  # noqa: E402
 from surfaces.mesh import tessellate  # noqa: E402
@@ -92,21 +92,13 @@ def main() -> str:
             "1x",
         ),
     ]
-    lines = [
-        "| task (100x100-patch bicubic surface) | time (s) | speed-up vs geomdl |",
-        "|---|---|---|",
-        *[f"| {a} | {b} | {c} |" for a, b, c in rows],
-        "",
-        f"Largest difference between geomdl and our points: {agree:.2e} (same surface).",
+    return write_results("surfaces", "Surface model (issue 2)", [
+        "`.venv/bin/python benchmarks/bench_surfaces.py`",
+        Table(["task (100x100-patch bicubic surface)", "time (s)", "speed-up vs geomdl"], rows),
+        f"Largest difference between geomdl and our points: {agree:.2e} (same surface).\n"
         "Targets: 1,000,000 points in under 0.5 s; at least 50x faster than geomdl.",
-    ]
-    table = "\n".join(lines)
-    out = Path(__file__).resolve().parent / "results" / "surfaces.md"
-    out.parent.mkdir(exist_ok=True)
-    out.write_text("## Surface model (issue 2)\n\n`.venv/bin/python benchmarks/bench_surfaces.py`\n\n" + table + "\n")
-    print(table)
-    return table
+    ])
 
 
 if __name__ == "__main__":
-    main()
+    print(main())

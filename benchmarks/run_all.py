@@ -14,6 +14,8 @@ import sys
 import time
 from pathlib import Path
 
+from surfaces.io import atomic_write_text
+
 HERE = Path(__file__).resolve().parent
 ORDER = ["surfaces", "bspline", "photometric", "errors", "slices", "render", "boolean", "batch"]
 
@@ -47,9 +49,7 @@ def rebuild_readme() -> Path:
     results = {p.stem: _nest(p.read_text().strip()) for p in (HERE / "results").glob("*.md")}
     ordered = sorted(results, key=lambda n: ORDER.index(n) if n in ORDER else len(ORDER))
     text = HEADER + "\n" + "\n\n".join(results[n] for n in ordered) + "\n"
-    out = HERE / "README.md"
-    out.write_text(text)
-    return out
+    return atomic_write_text(HERE / "README.md", text)
 
 
 def main(argv: list[str]) -> int:

@@ -3,6 +3,10 @@
 Real public data lives in ``../shared/data`` beside the repository (CI has it;
 a user's clone does not). Tests that need it take the ``shared_data`` fixture,
 which skips them with a clear reason when the folder is absent.
+
+Every test runs in a fresh temporary working directory, so that a command's
+default output folder (``photometric_out``, ``slices_out``, ``demo_out``, ...)
+or a file an example writes never lands in the repository.
 """
 
 from __future__ import annotations
@@ -22,3 +26,9 @@ def shared_data() -> Path:
     if not SHARED_DATA.is_dir():
         pytest.skip(f"real data folder {SHARED_DATA} is absent (it lies beside the repository in CI)")
     return SHARED_DATA
+
+
+@pytest.fixture(autouse=True)
+def _fresh_working_directory(tmp_path_factory, monkeypatch) -> None:
+    """Run the test in its own empty working directory (not the test's ``tmp_path``, which stays empty)."""
+    monkeypatch.chdir(tmp_path_factory.mktemp("cwd"))

@@ -1,1 +1,25 @@
-"""Command line, end-to-end demo, reports and batch runs of the surface-reconstruction workbench."""
+"""Command line, end-to-end demo, reports and batch runs of the surface-reconstruction workbench.
+
+What users call from Python: :func:`main` (the ``workbench`` console script)
+and :func:`build_parser`; :class:`Report` (the self-contained HTML report);
+the batch API (:func:`load_jobs`, :func:`plan`, :func:`run_batch`,
+:func:`write_report`, :class:`Job`). Importing :mod:`workbench` stays light:
+dask, open3d and matplotlib are imported only where they are used.
+"""
+
+from workbench.batch import BatchReport, Job, Plan, load_jobs, plan, run_batch, write_report
+from workbench.cli import build_parser, main
+from workbench.report import Report
+
+__all__ = [
+    "BatchReport",
+    "Job",
+    "Plan",
+    "Report",
+    "build_parser",
+    "load_jobs",
+    "main",
+    "plan",
+    "run_batch",
+    "write_report",
+]

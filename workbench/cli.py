@@ -53,16 +53,6 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {message}\n")
 
 
-def _load(module_name: str):
-    """Import a command module; ``None`` when that module does not exist yet."""
-    try:
-        return importlib.import_module(module_name)
-    except ModuleNotFoundError as exc:
-        if exc.name == module_name:
-            return None
-        raise
-
-
 def build_parser() -> argparse.ArgumentParser:
     """Build the full ``workbench`` argument parser.
 
@@ -70,6 +60,12 @@ def build_parser() -> argparse.ArgumentParser:
     -------
     argparse.ArgumentParser
         Parser with one sub-parser per group and per top-level command.
+
+    Examples
+    --------
+    >>> args = build_parser().parse_args(["surfaces", "info", "part.npz"])
+    >>> args.command, args.subcommand, args.file
+    ('surfaces', 'info', 'part.npz')
     """
     parser = _Parser(
         prog="workbench",
@@ -82,13 +78,9 @@ def build_parser() -> argparse.ArgumentParser:
         sub = group.add_subparsers(dest="subcommand", metavar="SUBCOMMAND", parser_class=_Parser)
         group.set_defaults(func=_group_help(group))
         for module_name in modules:
-            module = _load(module_name)
-            if module is not None:
-                module.register(sub)
+            importlib.import_module(module_name).register(sub)
     for module_name in TOP_LEVEL:
-        module = _load(module_name)
-        if module is not None:
-            module.register(top)
+        importlib.import_module(module_name).register(top)
     return parser
 
 
@@ -111,7 +103,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     Returns
     -------
     int
-        Exit code: 0 on success, 2 on bad input or usage.
+        Exit code: 0 on success, 2 on bad input or usage (one line on stderr,
+        ``workbench: error: ...``), 130 when interrupted.
+
+    Examples
+    --------
+    >>> main(["surfaces", "info", "no_such_part.npz"])  # stderr: workbench: error: no_such_part.npz: ...
+    2
     """
     parser = build_parser()
     args = parser.parse_args(argv)

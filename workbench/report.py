@@ -57,6 +57,17 @@ class Report:
         Page title.
     out_dir : path-like
         Folder of ``report.html``; figures go to ``out_dir/figures``.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     report = Report("Inspection plate", folder)
+    ...     report.section("Defects", "Measured depths against the scene's truth.")
+    ...     report.table(["defect", "depth (mm)", "found"], [["crack", 0.028812, True], ["dent", 0.05, False]])
+    ...     page = report.write(meta="run of today").read_text()
+    >>> page.count("<tr>"), '<td class="num">0.02881</td><td>yes</td>' in page
+    (3, True)
     """
 
     title: str

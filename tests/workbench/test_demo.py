@@ -173,6 +173,7 @@ def quick_demo(tmp_path_factory):
 REAL_DATA_SECTIONS = {"Real captures", "CT: breast structure set"}
 
 
+@pytest.mark.slow
 def test_quick_demo_report(quick_demo):
     """The report is complete and self-contained; only real-data sections may be missing."""
     from workbench.demo import shared_data_dir
@@ -205,6 +206,7 @@ def test_quick_demo_report(quick_demo):
     assert seconds < 180
 
 
+@pytest.mark.slow
 def test_quick_demo_real_data(quick_demo, shared_data):
     """With ../shared: the bear baselines are reproduced and the Heart volume is in range."""
     out, code, _ = quick_demo

@@ -14,6 +14,7 @@ import sys
 from pathlib import Path
 
 from workbench import batch
+from workbench.commands.common import add_command
 
 _DESCRIPTIONS = {
     "photometric": (
@@ -42,16 +43,12 @@ _EPILOG = (
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    """Add ``photometric`` and ``slices`` to the ``batch`` group.
-
-    Parameters
-    ----------
-    subparsers : argparse._SubParsersAction
-        The sub-parser collection of the ``batch`` group.
-    """
+    """Add ``photometric`` and ``slices`` to the ``batch`` group (see :mod:`workbench.commands`)."""
     for kind in batch.KINDS:
-        parser = subparsers.add_parser(
+        parser = add_command(
+            subparsers,
             kind,
+            _runner(kind),
             help=f"run many {kind} jobs (manifest or folder) on a Dask cluster",
             description=_DESCRIPTIONS[kind],
             epilog=_EPILOG,
@@ -95,7 +92,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
             action="store_true",
             help="run only the jobs that failed before (those with OUT/failed/<id>.json)",
         )
-        parser.set_defaults(func=_runner(kind))
 
 
 def _runner(kind: str):

@@ -13,22 +13,18 @@ from pathlib import Path
 
 import numpy as np
 
-from surfaces.io import write_json
+from workbench.commands.common import add_command, mesh_out, read_model, write_summary
 
 
 def register(subparsers) -> None:
-    """Add the ``boolean`` sub-command to the ``surfaces`` group.
-
-    Parameters
-    ----------
-    subparsers : argparse._SubParsersAction
-        The ``surfaces`` group's sub-parsers.
-    """
+    """Add ``boolean`` to the ``surfaces`` group (see :mod:`workbench.commands`)."""
     from surfaces.boolean import OPS
     from surfaces.smooth import FILTERS
 
-    p = subparsers.add_parser(
+    p = add_command(
+        subparsers,
         "boolean",
+        run,
         help="union / intersection / difference of two closed meshes (manifold3d)",
         description="Set operation on two solids bounded by closed, outward oriented triangle "
         "meshes (PLY/OBJ/STL). Writes the result mesh and a JSON summary with the volumes "
@@ -69,18 +65,6 @@ def register(subparsers) -> None:
         default=None,
         help="also write the intersection curve polylines to this JSON file",
     )
-    p.set_defaults(func=run)
-
-
-def _read_solid(path: Path):
-    """A mesh file, or a closed patch model (.npz, tessellated by ``surfaces.boolean``)."""
-    from surfaces.io import load_patches, read_mesh
-
-    if path.suffix.lower() == ".npz":
-        if not path.is_file():
-            raise FileNotFoundError(f"{path}: no such patch file")
-        return load_patches(path)
-    return read_mesh(path)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -97,15 +81,14 @@ def run(args: argparse.Namespace) -> int:
         0 on success.
     """
     from surfaces.boolean import boolean
+    from surfaces.io import write_mesh
     from surfaces.smooth import loop_smooth
-    from surfaces.io import MESH_FORMATS, write_mesh
 
-    if args.out.suffix.lower() not in MESH_FORMATS:
-        raise ValueError(f"--out: unsupported mesh format {args.out.suffix!r}; use {', '.join(MESH_FORMATS)}")
+    mesh_out(args.out)
     if args.smooth < 0 or args.filter_iterations < 0:
         raise ValueError("--smooth, --filter-iterations: must be >= 0")
-    a = _read_solid(args.a)
-    b = _read_solid(args.b)
+    a = read_model(args.a)
+    b = read_model(args.b)
     result = boolean(a, b, args.op, repair=args.repair, names=(str(args.a), str(args.b)))
     mesh = result.mesh
     summary = {"a": str(args.a), "b": str(args.b), "out": str(args.out), **result.summary()}
@@ -126,7 +109,7 @@ def run(args: argparse.Namespace) -> int:
     else:
         write_mesh(mesh, args.out)
     if args.curves is not None:
-        write_json(
+        write_summary(
             args.curves,
             {
                 "units": "as the input meshes",
@@ -138,7 +121,7 @@ def run(args: argparse.Namespace) -> int:
         )
         summary["curves_file"] = str(args.curves)
     summary["summary_file"] = str(json_path)
-    write_json(json_path, summary)
+    write_summary(json_path, summary)
     print(
         f"{args.op}: volume A {result.volume_a:.6g}, B {result.volume_b:.6g}, "
         f"result {result.volume:.6g}; {summary['n_triangles']} triangles, "

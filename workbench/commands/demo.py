@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 
+from workbench.commands.common import add_command
+
 
 def run(args: argparse.Namespace) -> int:
     """Run the demo, print a short summary (all numbers are in DIR/demo.json)."""
@@ -33,9 +35,11 @@ def run(args: argparse.Namespace) -> int:
 
 
 def register(subparsers) -> None:
-    """Add the top-level ``demo`` command."""
-    p = subparsers.add_parser(
+    """Add the top-level ``demo`` command (see :mod:`workbench.commands`)."""
+    p = add_command(
+        subparsers,
         "demo",
+        run,
         help="run the end-to-end demo and write DIR/report.html",
         description="Run every part of the workbench on synthetic scenes with exact truth and on "
         "the shared real data (when present), and write a self-contained HTML report with every "
@@ -46,4 +50,3 @@ def register(subparsers) -> None:
                    help="reduced sizes (the CI smoke test; well under a minute)")
     p.add_argument("--shared-data", default=None,
                    help="real-data folder (default $WORKBENCH_SHARED_DATA or ../shared/data)")
-    p.set_defaults(func=run)

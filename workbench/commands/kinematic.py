@@ -9,24 +9,19 @@ JSON summary (same name, ``.json``; or ``--summary``) holding every printed numb
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import time
 from pathlib import Path
 
-MESH_SUFFIXES = (".ply", ".obj", ".stl")
+from workbench.commands.common import add_command, mesh_out, write_summary
 
 
 def register(sub) -> None:
-    """Add ``sweep`` and ``helix`` to the ``surfaces`` group.
-
-    Parameters
-    ----------
-    sub : argparse._SubParsersAction
-        The group's sub-parser collection.
-    """
-    p = sub.add_parser(
+    """Add ``sweep`` and ``helix`` to the ``surfaces`` group (see :mod:`workbench.commands`)."""
+    p = add_command(
+        sub,
         "sweep",
+        _sweep,
         help="kinematic surface: a generatrix curve swept along a directrix curve (JSON curves)",
         description="Sweep a generatrix (cross-section in the directrix's normal plane, "
         "2D (a, b) -> a N + b B, or 3D local) along a directrix with a fixed, Frenet or "
@@ -48,10 +43,11 @@ def register(sub) -> None:
     p.add_argument("--up", type=float, nargs=3, metavar=("X", "Y", "Z"),
                    help="direction of the first normal N at the start (fixed and rmf frames)")
     _common(p, samples_u=32, samples_v=64)
-    p.set_defaults(func=_sweep)
 
-    p = sub.add_parser(
+    p = add_command(
+        sub,
         "helix",
+        _helix,
         help="helical surfaces: coil spring (circle profile) or screw thread (thread profile)",
         description="Helical kinematic surfaces about the z axis. --profile circle: a wire of "
         "radius --wire-radius swept along the helix (coil spring, rotation-minimising frame). "
@@ -68,7 +64,6 @@ def register(sub) -> None:
                    help="wire radius of the coil (default: min(radius, pitch) / 5)")
     p.add_argument("--depth", type=float, help="thread depth (default: 0.3 * pitch)")
     _common(p, samples_u=24, samples_v=None)
-    p.set_defaults(func=_helix)
 
 
 def _common(p: argparse.ArgumentParser, samples_u: int, samples_v: int | None) -> None:
@@ -83,20 +78,11 @@ def _common(p: argparse.ArgumentParser, samples_u: int, samples_v: int | None) -
     p.add_argument("--summary", help="JSON summary path (default: --out with suffix .json)")
 
 
-def _check_out(path: str) -> Path:
-    out = Path(path)
-    if out.suffix.lower() not in MESH_SUFFIXES:
-        raise ValueError(f"--out: unsupported mesh format {out.suffix!r}; use .ply, .obj or .stl")
-    if not out.parent.is_dir():
-        raise FileNotFoundError(f"--out: folder {out.parent} does not exist")
-    return out
-
-
 def _sweep(args: argparse.Namespace) -> int:
     from surfaces import kinematic
     from surfaces.curves import load_curve
 
-    out = _check_out(args.out)
+    out = mesh_out(args.out)
     generatrix = load_curve(args.generatrix)
     directrix = load_curve(args.directrix)
     scale = None
@@ -122,7 +108,7 @@ def _sweep(args: argparse.Namespace) -> int:
 def _helix(args: argparse.Namespace) -> int:
     from surfaces import kinematic
 
-    out = _check_out(args.out)
+    out = mesh_out(args.out)
     info = {"command": "helix", "profile": args.profile, "radius": args.radius,
             "pitch": args.pitch, "turns": args.turns}
     if args.profile == "circle":
@@ -147,7 +133,7 @@ def _helix(args: argparse.Namespace) -> int:
 
 
 def _finish(surface, args: argparse.Namespace, out: Path, info: dict, samples_v: int) -> int:
-    from surfaces.io import atomic_path, save_patches, write_mesh
+    from surfaces.io import save_patches, write_mesh
     from surfaces.measure import area_and_volume
     from surfaces.mesh import tessellate
 
@@ -171,8 +157,7 @@ def _finish(surface, args: argparse.Namespace, out: Path, info: dict, samples_v:
     npz = save_patches(patches, out.with_suffix(".npz"))
     json_path = Path(args.summary) if args.summary else out.with_suffix(".json")
     summary.update(out=str(out), patches_file=str(npz), summary_file=str(json_path))
-    with atomic_path(json_path) as tmp:
-        tmp.write_text(json.dumps(summary, indent=2) + "\n")
+    write_summary(json_path, summary)
     volume = summary["volume"]
     print(
         f"{patches.shape[0]}x{patches.shape[1]} patches, {mesh.n_triangles} triangles, "

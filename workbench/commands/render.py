@@ -3,56 +3,11 @@
 from __future__ import annotations
 
 import argparse
-import os
 import time
-from pathlib import Path
 
 import numpy as np
 
-PATCH_SUFFIXES = (".npz",)
-
-
-def load_geometry(path: str | os.PathLike):
-    """Read a patch model (``.npz``) or a triangle mesh (``.ply``, ``.obj``, ``.stl``).
-
-    Parameters
-    ----------
-    path : path-like
-        Input file.
-
-    Returns
-    -------
-    BezierPatches or TriangleMesh
-        The model as stored.
-    """
-    from surfaces.io import load_patches, read_mesh
-
-    p = Path(path)
-    if not p.exists():
-        raise FileNotFoundError(f"{p}: no such file")
-    if p.suffix.lower() in PATCH_SUFFIXES:
-        return load_patches(p)
-    return read_mesh(p)
-
-
-def parse_vector(text: str, name: str) -> np.ndarray:
-    """Parse ``"x,y,z"`` into a (3,) float64 array (ValueError naming ``name`` otherwise)."""
-    try:
-        values = [float(v) for v in text.split(",")]
-    except ValueError:
-        raise ValueError(f"{name}: expected three numbers 'x,y,z', got {text!r}") from None
-    if len(values) != 3 or not np.all(np.isfinite(values)):
-        raise ValueError(f"{name}: expected three finite numbers 'x,y,z', got {text!r}")
-    return np.asarray(values)
-
-
-def write_json(path: str | os.PathLike, data: dict) -> Path:
-    """Write ``data`` as indented JSON, atomically."""
-    from surfaces.io import write_json as _write
-
-    out = Path(path)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    return _write(out, data)
+from workbench.commands.common import add_command, parse_vector, read_model, write_summary
 
 
 def picture(args: argparse.Namespace, geometry, *, colors=None) -> tuple[np.ndarray, dict]:
@@ -77,7 +32,7 @@ def picture(args: argparse.Namespace, geometry, *, colors=None) -> tuple[np.ndar
     elif args.colour == "deviation":
         if not args.reference:
             raise ValueError("--colour deviation: give the reference surface with --reference FILE")
-        scalars = deviation(verts, load_geometry(args.reference))
+        scalars = deviation(verts, read_model(args.reference))
         label = "deviation"
         summary.update(
             reference=str(args.reference),
@@ -166,11 +121,11 @@ def run(args: argparse.Namespace) -> int:
     """Render FILE to ``--out`` and write the numbers to a JSON file beside it."""
     from surfaces.io import write_png
 
-    geometry = load_geometry(args.file)
+    geometry = read_model(args.file)
     img, summary = picture(args, geometry)
     out = write_png(args.out, img)
     summary = {"file": str(args.file), "out": str(out), **summary}
-    json_path = write_json(args.json or out.with_suffix(".json"), summary)
+    json_path = write_summary(args.json or out.with_suffix(".json"), summary)
     extra = ""
     if "deviation_rms" in summary:
         extra = (f", deviation rms {summary['deviation_rms']:.4g}, "
@@ -181,9 +136,11 @@ def run(args: argparse.Namespace) -> int:
 
 
 def register(subparsers) -> None:
-    """Add ``render`` to the ``surfaces`` group."""
-    p = subparsers.add_parser(
+    """Add ``render`` to the ``surfaces`` group (see :mod:`workbench.commands`)."""
+    p = add_command(
+        subparsers,
         "render",
+        run,
         help="ray-cast a mesh or patch model to PNG (headless, no GPU)",
         description="Ray-cast a mesh (.ply/.obj/.stl) or patch model (.npz) with open3d's "
         "RaycastingScene: Lambert + Blinn-Phong shading, optional shadows, control net and "
@@ -193,4 +150,3 @@ def register(subparsers) -> None:
     p.add_argument("--out", required=True, help="output PNG")
     p.add_argument("--json", help="summary JSON (default: the PNG's name with .json)")
     add_picture_options(p)
-    p.set_defaults(func=run)

@@ -5,23 +5,16 @@ from __future__ import annotations
 import argparse
 import json
 import time
-from pathlib import Path
 
-import numpy as np
-
-from surfaces.io import write_json
+from workbench.commands.common import add_command, load_npy, mesh_out, read_model, write_summary
 
 
 def register(sub) -> None:
-    """Add ``coons``, ``info`` and ``convert`` to the ``surfaces`` group.
-
-    Parameters
-    ----------
-    sub : argparse._SubParsersAction
-        The group's sub-parser collection.
-    """
-    p = sub.add_parser(
+    """Add ``coons``, ``info`` and ``convert`` to the ``surfaces`` group (see :mod:`workbench.commands`)."""
+    p = add_command(
+        sub,
         "coons",
+        _coons,
         help="bicubic Coons patches through a grid of points (.npy (R, C, 3)), as Bezier patches and a mesh",
         description="Build bicubic Coons patches through every point of a grid (seed 001), convert them "
         "to Bezier form, tessellate and measure them. Writes the mesh, the patches (.npz) and a JSON summary.",
@@ -35,37 +28,28 @@ def register(sub) -> None:
     p.add_argument("--uniform", action="store_true", help="uniform instead of chord-length tangent scaling")
     p.add_argument("--samples", type=int, default=8, help="subdivisions per patch side in the mesh (default 8)")
     p.add_argument("--out", required=True, help="mesh file to write (.ply, .obj or .stl)")
-    p.set_defaults(func=_coons)
 
-    p = sub.add_parser(
+    p = add_command(
+        sub,
         "info",
+        _info,
         help="measure a patch file (.npz) or mesh (.ply/.obj/.stl): size, area, volume, watertightness",
         description="Print a JSON summary of a patch model or mesh. Patch models are measured by "
         "quadrature over the patches, meshes over their triangles.",
     )
     p.add_argument("file", help="patches .npz (from `workbench surfaces coons` or `slices`) or a mesh file")
     p.add_argument("--json", dest="json_out", help="also write the summary to this JSON file")
-    p.set_defaults(func=_info)
 
-    p = sub.add_parser(
+    p = add_command(
+        sub,
         "convert",
+        _convert,
         help="convert between mesh formats, or tessellate a patch file into a mesh",
         description="Read a mesh (.ply/.obj/.stl) or patches (.npz) and write a mesh in the format of --out.",
     )
     p.add_argument("file", help="input mesh or patches .npz")
     p.add_argument("--out", required=True, help="output mesh (.ply, .obj or .stl)")
     p.add_argument("--samples", type=int, default=8, help="subdivisions per patch side for patch input")
-    p.set_defaults(func=_convert)
-
-
-def _load_npy(path: str, name: str) -> np.ndarray:
-    p = Path(path)
-    if not p.is_file():
-        raise FileNotFoundError(f"{name}: {p} does not exist")
-    try:
-        return np.load(p, allow_pickle=False)
-    except (OSError, ValueError) as exc:
-        raise ValueError(f"{name}: {p} is not a readable .npy file ({exc})") from None
 
 
 def _mesh_summary(mesh) -> dict:
@@ -104,15 +88,11 @@ def _coons(args: argparse.Namespace) -> int:
     from surfaces.mesh import tessellate
 
     t0 = time.perf_counter()
-    grid = _load_npy(args.grid, "grid")
-    pu = _load_npy(args.pu, "--pu") if args.pu else None
-    pv = _load_npy(args.pv, "--pv") if args.pv else None
-    twist = args.twist if args.twist in ("zero", "fd") else _load_npy(args.twist, "--twist")
-    out = Path(args.out)
-    if out.suffix.lower() not in (".ply", ".obj", ".stl"):
-        raise ValueError(f"--out: unsupported mesh format {out.suffix!r}; use .ply, .obj or .stl")
-    if not out.parent.is_dir():
-        raise FileNotFoundError(f"--out: folder {out.parent} does not exist")
+    grid = load_npy(args.grid, "grid")
+    pu = load_npy(args.pu, "--pu") if args.pu else None
+    pv = load_npy(args.pv, "--pv") if args.pv else None
+    twist = args.twist if args.twist in ("zero", "fd") else load_npy(args.twist, "--twist")
+    out = mesh_out(args.out)
     patches = from_grid(
         grid, pu, pv, twist, closed_u=args.closed_u, closed_v=args.closed_v, chord_length=not args.uniform
     )
@@ -121,7 +101,7 @@ def _coons(args: argparse.Namespace) -> int:
     summary["time_s"] = time.perf_counter() - t0
     write_mesh(mesh, out)
     save_patches(patches, out.with_suffix(".npz"))
-    write_json(out.with_suffix(".json"), summary)
+    write_summary(out.with_suffix(".json"), summary)
     print(
         f"{patches.n_patches} patches, {mesh.n_triangles} triangles, area {summary['area']:.6g}"
         f"{', watertight' if summary['watertight'] else ''}; wrote {out}, {out.with_suffix('.npz')}, "
@@ -130,28 +110,17 @@ def _coons(args: argparse.Namespace) -> int:
     return 0
 
 
-def _read_any(path: str, samples: int = 8):
-    from surfaces.io import load_patches, read_mesh
-
-    p = Path(path)
-    if not p.exists():
-        raise FileNotFoundError(f"{p}: no such file")
-    if p.suffix.lower() == ".npz":
-        return load_patches(p)
-    return read_mesh(p)
-
-
 def _info(args: argparse.Namespace) -> int:
     from surfaces.bezier import BezierPatches
     from surfaces.mesh import tessellate
 
-    obj = _read_any(args.file)
+    obj = read_model(args.file)
     if isinstance(obj, BezierPatches):
         summary = {"file": args.file, **_patch_summary(obj), **_mesh_summary(tessellate(obj, 8))}
     else:
         summary = {"file": args.file, **_mesh_summary(obj)}
     if args.json_out:
-        write_json(Path(args.json_out), summary)
+        write_summary(args.json_out, summary)
     print(json.dumps(summary, indent=2))
     return 0
 
@@ -159,7 +128,7 @@ def _info(args: argparse.Namespace) -> int:
 def _convert(args: argparse.Namespace) -> int:
     from surfaces.io import write_mesh
 
-    obj = _read_any(args.file)
+    obj = read_model(args.file)
     path = write_mesh(obj, args.out, samples=args.samples)
     print(f"wrote {path}")
     return 0

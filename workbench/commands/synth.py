@@ -6,20 +6,18 @@ import argparse
 
 import numpy as np
 
+from workbench.commands.common import add_command
+
 
 def register(sub) -> None:
-    """Add ``triad`` and ``phantom`` to the ``synth`` group.
-
-    Parameters
-    ----------
-    sub : argparse._SubParsersAction
-        The group's sub-parser collection.
-    """
+    """Add ``triad`` and ``phantom`` to the ``synth`` group (see :mod:`workbench.commands`)."""
     from datasets_synthetic.heightfields import SCENES
     from datasets_synthetic.phantoms import SHAPES
 
-    p = sub.add_parser(
+    p = add_command(
+        sub,
         "triad",
+        _triad,
         help="render a height-field scene under N (deviated) lights as a DiLiGenT-layout folder",
         description="Render an analytic height field (exact normals, heights and defect truth) with "
         "Lambertian shading, shadows and noise. Images use the TRUE lights (nominal lights deviated by "
@@ -50,10 +48,11 @@ def register(sub) -> None:
                    help="add a Blinn-Phong term: KS,SHININESS (e.g. 0.3,40; default none)")
     p.add_argument("--seed", type=int, default=0, help="random seed of scene, albedo and noise (default 0)")
     p.add_argument("--out", required=True, help="output folder")
-    p.set_defaults(func=_triad)
 
-    p = sub.add_parser(
+    p = add_command(
+        sub,
         "phantom",
+        _phantom,
         help="CT phantom with exact volume/area: contours JSON, DICOM CT series or RT Structure Set",
         description="Cut an analytic solid into planar contours (unequal point counts, optional noise) and "
         "write contours.json, truth.json (exact volume_mm3, volume_between_end_planes_mm3, area_mm2, ...) "
@@ -73,7 +72,6 @@ def register(sub) -> None:
                    help="size of the true-surface sample surface_points.npy (default 20000)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     p.add_argument("--out", required=True, help="output folder")
-    p.set_defaults(func=_phantom)
 
 
 def _parse_deviate(text: str | None, n: int) -> np.ndarray:

@@ -7,7 +7,8 @@ import os
 
 import numpy as np
 
-from workbench.commands.render import add_picture_options, load_geometry, picture, write_json
+from workbench.commands.common import add_command, read_model, write_summary
+from workbench.commands.render import add_picture_options, picture
 
 PALETTE = np.array([[0.72, 0.76, 0.82], [0.90, 0.60, 0.35], [0.45, 0.70, 0.45],
                     [0.80, 0.45, 0.55], [0.55, 0.55, 0.85]])
@@ -32,7 +33,7 @@ def _merged(models, samples: int):
 
 def run(args: argparse.Namespace) -> int:
     """Show the files, or render them to ``--png``."""
-    models = [load_geometry(f) for f in args.files]
+    models = [read_model(f) for f in args.files]
     if args.png:
         from surfaces.io import write_png
 
@@ -44,8 +45,8 @@ def run(args: argparse.Namespace) -> int:
             mesh, colors = _merged(models, args.samples)
             img, summary = picture(args, mesh, colors=colors)
         out = write_png(args.png, img)
-        json_path = write_json(out.with_suffix(".json"),
-                               {"files": [str(f) for f in args.files], "out": str(out), **summary})
+        json_path = write_summary(out.with_suffix(".json"),
+                                  {"files": [str(f) for f in args.files], "out": str(out), **summary})
         print(f"wrote {out} ({img.shape[1]}x{img.shape[0]}, {summary['triangles']} triangles); "
               f"numbers in {json_path}")
         return 0
@@ -70,9 +71,11 @@ def run(args: argparse.Namespace) -> int:
 
 
 def register(subparsers) -> None:
-    """Add the top-level ``view`` command."""
-    p = subparsers.add_parser(
+    """Add the top-level ``view`` command (see :mod:`workbench.commands`)."""
+    p = add_command(
+        subparsers,
         "view",
+        run,
         help="show meshes / patch models in an open3d window (or --png without a display)",
         description="Open an open3d window with the given meshes (.ply/.obj/.stl) and patch "
         "models (.npz). Without a display, --png renders the same scene headless by ray casting.",
@@ -80,4 +83,3 @@ def register(subparsers) -> None:
     p.add_argument("files", nargs="+", metavar="FILE", help="mesh or patch files to show together")
     p.add_argument("--png", help="render headless to this PNG instead of opening a window")
     add_picture_options(p)
-    p.set_defaults(func=run)

@@ -1,0 +1,87 @@
+"""Batches of photometric or slices jobs on a Dask cluster (``workbench batch``).
+
+A *manifest* (CSV with a header row, or JSON lines) names one job per row; a
+folder instead of a manifest means every job found below it. Each job is one
+Dask task that reads its data from its paths (no arrays travel through the
+scheduler), calls the library pipeline (:func:`photometric.pipeline.reconstruct`
+or :func:`slices.pipeline.reconstruct`) and writes its own folder ``OUT/<id>``
+atomically: the pipeline writes into ``OUT/.tmp-<id>-<uuid>``, a ``_COMPLETE``
+marker (JSON: the job's row, input and options) is written last, and the folder
+is renamed to ``OUT/<id>`` with :func:`os.replace`. A failing job leaves no
+folder, only its row in ``OUT/results.csv`` (one-line error) and a record in
+``OUT/failed/<id>.json`` (with the traceback).
+
+Bookkeeping in ``OUT``:
+
+- ``results.csv``: one row per job (columns :data:`RESULT_COLUMNS`), appended
+  and flushed as each job finishes; at the end of a run the file is rewritten
+  atomically with the latest row of every job, so a retried job keeps one row.
+- Resuming: a rerun skips jobs whose folder is complete and jobs with a failure
+  record; skipped jobs are *not re-listed* (their earlier row stays as it was).
+  ``retry_failed=True`` runs only the jobs with a failure record.
+- ``batch_<kind>.json``: the figures of the last run (counts, wall time, jobs
+  per minute, scheduler).
+- ``.batch.lock``: held while a run is going on, so two runs never share ``OUT``.
+
+Modules: :mod:`~workbench.batch.jobs` (the :class:`Job` record),
+:mod:`~workbench.batch.manifest` (manifests, discovery, ids),
+:mod:`~workbench.batch.runners` (one job through its pipeline, atomically),
+:mod:`~workbench.batch.results` (results.csv, failure records, run figures),
+:mod:`~workbench.batch.driver` (planning, the Dask client, the run).
+
+The same code runs on a :class:`distributed.LocalCluster` or on any running
+cluster (``tcp://HOST:8786``); with several machines every worker must see the
+input paths and ``OUT`` under the same names (a shared filesystem).
+"""
+
+
+from workbench.batch.driver import LOCK_NAME, Plan, connect, dashboard_link, plan, run_batch
+from workbench.batch.jobs import KINDS, Job
+from workbench.batch.manifest import coerce_value, discover_jobs, job_id, load_jobs, read_manifest
+from workbench.batch.results import (
+    COMPLETE_MARKER,
+    FAILED_DIR,
+    FIGURES,
+    RESULT_COLUMNS,
+    RESULTS_NAME,
+    TMP_PREFIX,
+    BatchReport,
+    is_complete,
+    key_figures,
+    one_line_error,
+    read_results,
+    write_report,
+)
+from workbench.batch.runners import RUNNERS, execute_job, run_photometric, run_slices
+
+__all__ = [
+    "COMPLETE_MARKER",
+    "FAILED_DIR",
+    "FIGURES",
+    "KINDS",
+    "LOCK_NAME",
+    "RESULTS_NAME",
+    "RESULT_COLUMNS",
+    "RUNNERS",
+    "TMP_PREFIX",
+    "BatchReport",
+    "Job",
+    "Plan",
+    "coerce_value",
+    "connect",
+    "dashboard_link",
+    "discover_jobs",
+    "execute_job",
+    "is_complete",
+    "job_id",
+    "key_figures",
+    "load_jobs",
+    "one_line_error",
+    "plan",
+    "read_manifest",
+    "read_results",
+    "run_batch",
+    "run_photometric",
+    "run_slices",
+    "write_report",
+]

@@ -1,0 +1,399 @@
+"""The batch driver: plan a run from the state of ``OUT``, open a Dask client, run and record the jobs.
+
+One Dask task per job (:func:`workbench.batch.runners.execute_job`); rows are
+appended to ``OUT/results.csv`` as jobs finish and the file is rewritten with
+the latest row of every job at the end. ``OUT/.batch.lock`` is held while a
+run is going on, so two runs never share ``OUT``.
+"""
+
+from __future__ import annotations
+
+import csv
+import importlib.util
+import json
+import os
+import re
+import shutil
+import socket
+import time
+import traceback
+import uuid
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from surfaces.validate import positive
+from workbench.batch.jobs import Job
+from workbench.batch.results import (
+    FAILED_DIR,
+    RESULT_COLUMNS,
+    RESULTS_NAME,
+    TMP_PREFIX,
+    BatchReport,
+    healed_results,
+    is_complete,
+    marker_kind,
+    now_utc,
+    one_line_error,
+    record_outcome,
+    result_row,
+    write_results,
+)
+from workbench.batch.runners import RUNNERS, execute_job
+
+LOCK_NAME = ".batch.lock"
+
+
+@dataclass(frozen=True)
+class Plan:
+    """Which jobs a run does and which it leaves, from the state of ``OUT``.
+
+    Attributes
+    ----------
+    to_run : tuple of Job
+        Jobs this run submits.
+    complete : tuple of Job
+        Jobs whose folder ``OUT/<id>`` is complete (skipped, not re-listed).
+    failed_before : tuple of Job
+        Jobs with a failure record that this run does not retry.
+    pending : tuple of Job
+        Jobs never attempted that a ``retry_failed`` run leaves for a plain run.
+    """
+
+    to_run: tuple[Job, ...]
+    complete: tuple[Job, ...]
+    failed_before: tuple[Job, ...]
+    pending: tuple[Job, ...]
+
+
+def plan(jobs: Sequence[Job], out: str | os.PathLike, retry_failed: bool = False) -> Plan:
+    """Split jobs by the state of ``OUT``: to run, complete, failed before, pending.
+
+    Parameters
+    ----------
+    jobs : sequence of Job
+        Jobs with unique ids.
+    out : path
+        Batch output folder (may not exist yet).
+    retry_failed : bool, optional
+        Run only the jobs with a failure record in ``OUT/failed``.
+
+    Returns
+    -------
+    Plan
+
+    Raises
+    ------
+    ValueError
+        On duplicate ids, or when a complete folder under an id belongs to a job
+        of another kind.
+    """
+    out = Path(out)
+    ids = [job.id for job in jobs]
+    if len(set(ids)) != len(ids):
+        dup = sorted({i for i in ids if ids.count(i) > 1})
+        raise ValueError(f"jobs: duplicate id(s) {', '.join(dup[:5])}")
+    to_run, complete, failed_before, pending = [], [], [], []
+    for job in jobs:
+        folder = out / job.id
+        if is_complete(folder):
+            done_kind = marker_kind(folder)
+            if done_kind != job.kind:
+                raise ValueError(f"job {job.id}: {folder} holds a finished {done_kind} job, not {job.kind}")
+            complete.append(job)
+        elif (out / FAILED_DIR / f"{job.id}.json").is_file():
+            (to_run if retry_failed else failed_before).append(job)
+        else:
+            (pending if retry_failed else to_run).append(job)
+    return Plan(tuple(to_run), tuple(complete), tuple(failed_before), tuple(pending))
+
+
+@contextmanager
+def connect(scheduler: str = "local", workers: int | None = None, threads_per_worker: int = 1) -> Iterator[Any]:
+    """Open a Dask client: a new local cluster, or a running scheduler.
+
+    Parameters
+    ----------
+    scheduler : str
+        ``"local"``: a :class:`distributed.LocalCluster` of ``workers`` processes
+        with ``threads_per_worker`` threads each (HTTP service and, when bokeh is
+        installed, the dashboard on a free port), closed on exit. ``"tcp://HOST:PORT"``: connect to a
+        running scheduler (``dask scheduler``); its workers are used as they are
+        and ``workers`` is ignored.
+    workers : int, optional
+        Local worker processes; default the number of CPUs.
+    threads_per_worker : int, optional
+        Threads per local worker (default 1: the pipelines use numpy/OpenCV threads).
+
+    Yields
+    ------
+    distributed.Client
+
+    Raises
+    ------
+    ValueError
+        On a malformed scheduler address, bad counts, or when the scheduler
+        cannot be reached.
+    """
+    import dask
+    from distributed import Client, LocalCluster
+
+    n_threads = int(positive(threads_per_worker, "threads_per_worker"))
+    if scheduler == "local":
+        n_workers = int(positive(workers if workers is not None else (os.cpu_count() or 1), "workers"))
+        # distributed's nanny gives its workers MALLOC_TRIM_THRESHOLD_=65536, which pins
+        # glibc's mmap threshold: every large numpy temporary of a pipeline becomes a fresh
+        # mmap. In a plain process with it set, 10 triads of 512x512 took 9.5-9.7 s instead
+        # of 5.0-5.6 s in 2 of 3 rounds (noisy shared machine; bench_batch.py compares both
+        # clusters). Batch jobs free their memory when they end, so keep glibc's default.
+        with dask.config.set({"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}):
+            # a free port: without bokeh the scheduler still serves HTTP (health, metrics),
+            # and the default 8787 clashes with any other cluster on the machine
+            cluster = LocalCluster(
+                n_workers=n_workers,
+                threads_per_worker=n_threads,
+                processes=True,
+                dashboard_address=":0",
+            )
+        try:
+            client = Client(cluster)
+            try:
+                yield client
+            finally:
+                client.close()
+        finally:
+            cluster.close()
+        return
+    if not re.match(r"^(tcp|tls)://[^\s:/]+:\d+$", scheduler):
+        raise ValueError(f"scheduler: expected 'local' or tcp://HOST:PORT, got {scheduler!r}")
+    try:
+        client = Client(scheduler, timeout="20s")
+    except (OSError, TimeoutError) as exc:
+        raise ValueError(f"scheduler {scheduler}: cannot connect ({one_line_error(exc)})") from None
+    try:
+        yield client
+    finally:
+        client.close()
+
+
+def dashboard_link(client: Any) -> str | None:
+    """Return the dashboard address of a client's scheduler, or ``None`` when it has none.
+
+    The scheduler serves its dashboard only when bokeh is installed where it
+    runs (checked there); without bokeh its HTTP port has no dashboard.
+
+    Parameters
+    ----------
+    client : distributed.Client
+
+    Returns
+    -------
+    str or None
+    """
+    services = client.scheduler_info().get("services", {})
+    if "dashboard" not in services or not client.run_on_scheduler(_has_bokeh):
+        return None
+    return client.dashboard_link
+
+
+def _has_bokeh() -> bool:
+    """Whether bokeh is importable (run on the scheduler: the dashboard needs it there)."""
+    return importlib.util.find_spec("bokeh") is not None
+
+
+def run_batch(
+    jobs: Sequence[Job],
+    out: str | os.PathLike,
+    client: Any = None,
+    *,
+    scheduler: str = "local",
+    workers: int | None = None,
+    threads_per_worker: int = 1,
+    retry_failed: bool = False,
+    runners: Mapping[str, Callable[[Job, Path], dict]] | None = None,
+    progress: Callable[[dict[str, Any]], None] | None = None,
+) -> BatchReport:
+    """Run jobs on Dask, one task per job, and record their results in ``OUT``.
+
+    Jobs whose folder is complete, and jobs with a failure record, are skipped
+    (not re-listed in results.csv); ``retry_failed`` runs only the latter. The
+    remaining jobs are submitted at once; results are gathered with
+    :func:`distributed.as_completed` and each row is appended to
+    ``OUT/results.csv`` (flushed) as its job finishes. Failures are recorded in
+    ``OUT/failed/<id>.json``; a later success removes the record. Task-level
+    failures (a worker that dies) are recorded like job errors.
+
+    Parameters
+    ----------
+    jobs : sequence of Job
+        Jobs with unique ids (:func:`load_jobs`).
+    out : path
+        Batch output folder; created when missing.
+    client : distributed.Client, optional
+        Client to use; when omitted one is opened with :func:`connect`
+        (``scheduler``, ``workers``, ``threads_per_worker``) and closed after,
+        and only when there is something to run.
+    scheduler, workers, threads_per_worker
+        See :func:`connect`.
+    retry_failed : bool, optional
+        Run only the jobs that failed before.
+    runners : mapping, optional
+        Job runner table ``kind -> runner(job, out_dir) -> summary``; default
+        :data:`RUNNERS`. Runners must be importable on the workers.
+    progress : callable, optional
+        Called with each finished job's row (in the driver, as it finishes).
+
+    Returns
+    -------
+    BatchReport
+
+    Raises
+    ------
+    ValueError
+        On duplicate ids, a kind without runner, another run holding ``OUT``.
+    """
+    out = Path(out).resolve()
+    out.mkdir(parents=True, exist_ok=True)
+    runners = dict(runners or RUNNERS)
+    missing = sorted({job.kind for job in jobs} - set(runners))
+    if missing:
+        raise ValueError(f"runners: no runner for kind(s) {', '.join(missing)}")
+    with _lock(out):
+        _remove_stale_tmp(out)
+        steps = plan(jobs, out, retry_failed)
+        skipped = len(jobs) - len(steps.to_run)
+        previous = healed_results(out, steps.complete, steps.failed_before, rewrite=bool(steps.to_run))
+        finished: list[dict[str, Any]] = []
+        wall = 0.0
+        if steps.to_run:
+            if client is None:
+                with connect(scheduler, workers, threads_per_worker) as own:
+                    wall = _submit_and_gather(own, steps.to_run, out, runners, previous, finished, progress)
+            else:
+                wall = _submit_and_gather(client, steps.to_run, out, runners, previous, finished, progress)
+            # every task has ended: a folder left by a worker that died mid-job is garbage now
+            _remove_stale_tmp(out)
+    n_failed = sum(row["status"] == "failed" for row in finished)
+    return BatchReport(
+        n_jobs=len(jobs),
+        ran=len(finished),
+        ok=len(finished) - n_failed,
+        failed=n_failed,
+        skipped=skipped,
+        wall_s=wall,
+        jobs_per_minute=60.0 * len(finished) / wall if finished and wall > 0 else 0.0,
+        rows=tuple({k: v for k, v in row.items() if k != "traceback"} for row in finished),
+    )
+
+
+def _submit_and_gather(
+    client: Any,
+    jobs: Sequence[Job],
+    out: Path,
+    runners: Mapping[str, Callable[[Job, Path], dict]],
+    previous: Mapping[str, dict[str, str]],
+    finished: list[dict[str, Any]],
+    progress: Callable[[dict[str, Any]], None] | None,
+) -> float:
+    """Submit one task per job, record each row as it finishes; return the wall time in s.
+
+    ``previous`` holds the rows already in results.csv (by id); the file is
+    rewritten at the end with them and the new rows.
+    """
+    from distributed import as_completed
+
+    start = time.perf_counter()
+    token = uuid.uuid4().hex[:8]
+    futures = [
+        client.submit(
+            execute_job,
+            job,
+            str(out),
+            runners[job.kind],
+            key=f"batch-{job.kind}-{job.id}-{token}",
+            pure=False,
+        )
+        for job in jobs
+    ]
+    by_key = {fut.key: job for fut, job in zip(futures, jobs)}
+    results = out / RESULTS_NAME
+    try:
+        with open(results, "a", newline="", encoding="utf-8") as fh:
+            writer = csv.DictWriter(fh, fieldnames=RESULT_COLUMNS, extrasaction="ignore", lineterminator="\n")
+            for fut in as_completed(futures):
+                job = by_key[fut.key]
+                try:
+                    row = fut.result()
+                except Exception as exc:  # noqa: BLE001 - a lost task is a failed job, not a failed batch
+                    row = result_row(job, "failed", f"task: {one_line_error(exc)}", 0.0, {})
+                    row["traceback"] = "".join(traceback.format_exception(exc))
+                record_outcome(out, job, row)
+                writer.writerow(row)
+                fh.flush()
+                finished.append(row)
+                fut.release()
+                if progress is not None:
+                    progress({k: v for k, v in row.items() if k != "traceback"})
+    finally:
+        for fut in futures:
+            if not fut.done():
+                fut.cancel()
+        merged = dict(previous)
+        for row in finished:
+            merged[row["id"]] = row  # a retried job keeps its place, with its new row
+        write_results(results, merged.values())
+    return time.perf_counter() - start
+
+
+def _remove_stale_tmp(out: Path) -> None:
+    """Remove temporary job folders left by a run that died (we hold the lock)."""
+    for tmp in out.glob(f"{TMP_PREFIX}*"):
+        if tmp.is_dir():
+            shutil.rmtree(tmp, ignore_errors=True)
+
+
+@contextmanager
+def _lock(out: Path) -> Iterator[None]:
+    path = out / LOCK_NAME
+    me = {"pid": os.getpid(), "host": socket.gethostname(), "started_utc": now_utc()}
+    fd = _create_exclusive(path)
+    if fd is None:
+        try:
+            holder = json.loads(path.read_text())
+        except (ValueError, OSError):
+            holder = {}
+        if holder.get("host") == me["host"] and not _pid_alive(int(holder.get("pid", -1))):
+            path.unlink(missing_ok=True)  # that run died; take over
+            fd = _create_exclusive(path)
+        if fd is None:
+            raise ValueError(
+                f"batch folder {out}: another run holds {path} (pid {holder.get('pid')} on "
+                f"{holder.get('host')}); delete the file if that run is dead"
+            )
+    with os.fdopen(fd, "w") as fh:
+        json.dump(me, fh)
+    try:
+        yield
+    finally:
+        path.unlink(missing_ok=True)
+
+
+def _create_exclusive(path: Path) -> int | None:
+    try:
+        return os.open(path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
+    except FileExistsError:
+        return None
+
+
+def _pid_alive(pid: int) -> bool:
+    if pid <= 0:
+        return False
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True

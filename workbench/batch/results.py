@@ -1,0 +1,397 @@
+"""Bookkeeping of a batch in ``OUT``: results.csv rows, failure records, complete markers, run figures.
+
+``OUT/results.csv`` holds one row per job (columns :data:`RESULT_COLUMNS`);
+``OUT/failed/<id>.json`` keeps the last error of a failed job with its
+traceback; ``OUT/<id>/_COMPLETE`` marks a finished job folder and carries its
+row; ``OUT/batch_<kind>.json`` holds the figures of the last run. Every file
+here is written atomically (:mod:`surfaces.io`).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import os
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+from surfaces.io import atomic_write_text, write_json
+from workbench.batch.jobs import KINDS, Job, check_kind
+
+#: key figures copied from a job's summary into its results.csv row, per kind
+FIGURES: dict[str, tuple[str, ...]] = {
+    "photometric": ("n_defects", "max_depth_mm", "invalid_fraction", "light_condition_number"),
+    "slices": ("volume_mm3", "volume_ml", "area_mm2", "n_bodies", "n_patches"),
+}
+RESULT_COLUMNS: tuple[str, ...] = (
+    "id",
+    "kind",
+    "status",
+    "error",
+    "time_s",
+    *FIGURES["photometric"],
+    *FIGURES["slices"],
+    "input",
+)
+RESULTS_NAME = "results.csv"
+FAILED_DIR = "failed"
+COMPLETE_MARKER = "_COMPLETE"
+TMP_PREFIX = ".tmp-"
+
+
+@dataclass(frozen=True)
+class BatchReport:
+    """Figures of one batch run (also written to ``OUT/batch_<kind>.json``).
+
+    Attributes
+    ----------
+    n_jobs : int
+        Jobs in the manifest.
+    ran, ok, failed : int
+        Jobs submitted by this run; of them, finished and failed.
+    skipped : int
+        Jobs not run: complete before, failed before (without ``retry_failed``)
+        or, with ``retry_failed``, never attempted.
+    wall_s : float
+        Wall time of the run in seconds, cluster start excluded.
+    jobs_per_minute : float
+        ``60 * ran / wall_s`` (0 when nothing ran).
+    rows : tuple of dict
+        The results.csv rows of the jobs this run finished, in finishing order.
+    """
+
+    n_jobs: int
+    ran: int
+    ok: int
+    failed: int
+    skipped: int
+    wall_s: float
+    jobs_per_minute: float
+    rows: tuple[dict[str, str], ...]
+
+
+def key_figures(kind: str, summary: Mapping[str, Any]) -> dict[str, Any]:
+    """Pick the key figures of a job's summary for its results.csv row.
+
+    Each name of ``FIGURES[kind]`` is looked up at the top level of the summary,
+    then inside its nested dictionaries (first match, depth first).
+
+    Parameters
+    ----------
+    kind : {"photometric", "slices"}
+        Job kind.
+    summary : mapping
+        The pipeline's summary dictionary.
+
+    Returns
+    -------
+    dict
+        Figure name -> value (int or float); figures the summary lacks are left out.
+
+    Examples
+    --------
+    >>> key_figures("slices", {"volume_mm3": 1500.0, "mesh": {"n_patches": 96}, "n_bodies": True})
+    {'volume_mm3': 1500.0, 'n_bodies': 1, 'n_patches': 96}
+    """
+
+    def find(node: Mapping[str, Any], name: str) -> Any:
+        if name in node and isinstance(node[name], (int, float)):
+            return node[name]
+        for value in node.values():
+            if isinstance(value, Mapping):
+                found = find(value, name)
+                if found is not None:
+                    return found
+        return None
+
+    figures = {}
+    for name in FIGURES[check_kind(kind)]:
+        value = find(summary, name)
+        if value is not None:
+            figures[name] = int(value) if isinstance(value, bool) else value
+    return figures
+
+
+def is_complete(folder: str | os.PathLike) -> bool:
+    """Return whether a job folder is complete (it holds the ``_COMPLETE`` marker).
+
+    Parameters
+    ----------
+    folder : path
+        ``OUT/<id>``.
+
+    Returns
+    -------
+    bool
+    """
+    return (Path(folder) / COMPLETE_MARKER).is_file()
+
+
+def marker_kind(folder: str | os.PathLike) -> str:
+    """Return the job kind that a finished job folder's ``_COMPLETE`` marker records.
+
+    Parameters
+    ----------
+    folder : path
+        A job folder ``OUT/<id>``; :func:`workbench.batch.driver.plan` checks it against the job.
+
+    Returns
+    -------
+    str
+        ``"photometric"`` or ``"slices"``; ``"unknown"`` when the marker is missing or unreadable.
+    """
+    try:
+        return json.loads((Path(folder) / COMPLETE_MARKER).read_text())["row"]["kind"]
+    except (ValueError, KeyError, TypeError, OSError):
+        return "unknown"
+
+
+def one_line_error(exc: BaseException, limit: int = 300) -> str:
+    """Format an exception as ``Type: first line of the message`` (at most ``limit`` characters).
+
+    Parameters
+    ----------
+    exc : BaseException
+        The exception.
+    limit : int, optional
+        Maximum length.
+
+    Returns
+    -------
+    str
+
+    Examples
+    --------
+    >>> one_line_error(ValueError("lights: 2 rows\\nexpected 3"))
+    'ValueError: lights: 2 rows'
+    """
+    message = str(exc).strip().splitlines()
+    text = f"{type(exc).__name__}: {message[0]}" if message else type(exc).__name__
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def result_row(job: Job, status: str, error: str, time_s: float, figures: Mapping[str, Any]) -> dict[str, Any]:
+    """Build a job's results.csv row: every column of :data:`RESULT_COLUMNS`, as text.
+
+    Parameters
+    ----------
+    job : Job
+        The job.
+    status : {"ok", "failed"}
+        How it ended.
+    error : str
+        One-line error (empty when it succeeded).
+    time_s : float
+        Time the job took, in seconds.
+    figures : mapping
+        Key figures (:func:`key_figures`); floats are written with 10 significant digits.
+
+    Returns
+    -------
+    dict
+        Column name -> text (missing figures are empty).
+
+    Examples
+    --------
+    >>> row = result_row(Job("k1", "slices", "/d/k1.json"), "ok", "", 1.23456, {"volume_ml": 2.5})
+    >>> row["time_s"], row["volume_ml"], row["volume_mm3"], row["input"]
+    ('1.235', '2.5', '', '/d/k1.json')
+    """
+    row: dict[str, Any] = {name: "" for name in RESULT_COLUMNS}
+    row.update(
+        id=job.id,
+        kind=job.kind,
+        status=status,
+        error=error,
+        time_s=f"{time_s:.3f}",
+        input=job.describe(),
+    )
+    for name, value in figures.items():
+        row[name] = f"{value:.10g}" if isinstance(value, float) else str(value)
+    return row
+
+
+def record_outcome(out: str | os.PathLike, job: Job, row: Mapping[str, Any]) -> None:
+    """Keep ``OUT/failed/<id>.json`` in step with the job's last status.
+
+    A success removes the record; a failure writes it (error, traceback, time,
+    the number of attempts so far, the job's input and options).
+
+    Parameters
+    ----------
+    out : path
+        Batch output folder.
+    job : Job
+        The job.
+    row : mapping
+        Its results.csv row (``status``, ``error``, ``time_s``, optional ``traceback``).
+    """
+    record = Path(out) / FAILED_DIR / f"{job.id}.json"
+    if row["status"] == "ok":
+        record.unlink(missing_ok=True)
+        return
+    attempts = 1
+    if record.is_file():
+        try:
+            attempts = int(json.loads(record.read_text()).get("attempts", 0)) + 1
+        except (ValueError, OSError):
+            attempts = 1
+    record.parent.mkdir(exist_ok=True)
+    content = {
+        "id": job.id,
+        "kind": job.kind,
+        "error": row["error"],
+        "traceback": row.get("traceback", ""),
+        "time_s": float(row["time_s"]),
+        "attempts": attempts,
+        "input": job.input,
+        "roi": job.roi,
+        "options": job.options,
+        "finished_utc": now_utc(),
+    }
+    write_json(record, content)
+
+
+def read_results(path: str | os.PathLike) -> dict[str, dict[str, str]]:
+    """Read ``results.csv``: the last row of every job id, in order of first appearance.
+
+    Parameters
+    ----------
+    path : path
+        ``OUT/results.csv`` (missing -> empty).
+
+    Returns
+    -------
+    dict
+        Job id -> row (column name -> text).
+    """
+    path = Path(path)
+    if not path.is_file():
+        return {}
+    rows: dict[str, dict[str, str]] = {}
+    with open(path, newline="", encoding="utf-8") as fh:
+        for row in csv.DictReader(fh):
+            if row.get("id"):
+                rows[row["id"]] = {name: row.get(name) or "" for name in RESULT_COLUMNS}
+    return rows
+
+
+def write_results(path: str | os.PathLike, rows: Iterable[Mapping[str, Any]]) -> Path:
+    """Write ``results.csv`` atomically: one header, then the rows (extra keys are left out).
+
+    Parameters
+    ----------
+    path : path
+        ``OUT/results.csv``.
+    rows : iterable of mapping
+        Rows keyed by :data:`RESULT_COLUMNS`.
+
+    Returns
+    -------
+    Path
+        The file written.
+    """
+    buffer = io.StringIO()
+    writer = csv.DictWriter(buffer, fieldnames=RESULT_COLUMNS, extrasaction="ignore", lineterminator="\n")
+    writer.writeheader()
+    writer.writerows(rows)
+    return atomic_write_text(path, buffer.getvalue())
+
+
+def healed_results(
+    out: str | os.PathLike, complete: Sequence[Job], failed_before: Sequence[Job], rewrite: bool
+) -> dict[str, dict[str, str]]:
+    """Rows of results.csv, completed from the job folders and failure records.
+
+    A row cut short by a crash is dropped; a finished job without a row gets its
+    row back from its ``_COMPLETE`` marker, a failed one from ``failed/<id>.json``.
+    The file is rewritten (atomically, one header, current columns) only when
+    something changed, when ``rewrite`` is set (jobs are about to be appended) or
+    when it is missing, so a rerun with nothing to do leaves it untouched.
+
+    Parameters
+    ----------
+    out : path
+        Batch output folder.
+    complete : sequence of Job
+        Jobs whose folder is complete.
+    failed_before : sequence of Job
+        Jobs with a failure record that this run does not retry.
+    rewrite : bool
+        Rewrite the file even when nothing changed.
+
+    Returns
+    -------
+    dict
+        Job id -> row, the content of results.csv after healing.
+    """
+    out = Path(out)
+    results = out / RESULTS_NAME
+    rows = read_results(results)
+    kept = {k: r for k, r in rows.items() if r["status"] in ("ok", "failed") and r["kind"] in KINDS}
+    changed = len(kept) != len(rows)
+    for job in complete:
+        if job.id not in kept:
+            try:
+                marker = json.loads((out / job.id / COMPLETE_MARKER).read_text())["row"]
+            except (ValueError, KeyError, OSError):
+                continue
+            kept[job.id] = {name: str(marker.get(name, "")) for name in RESULT_COLUMNS}
+            changed = True
+    for job in failed_before:
+        if job.id not in kept:
+            try:
+                record = json.loads((out / FAILED_DIR / f"{job.id}.json").read_text())
+            except (ValueError, OSError):
+                continue
+            kept[job.id] = result_row(
+                job, "failed", str(record.get("error", "")), float(record.get("time_s", 0.0)), {}
+            )
+            changed = True
+    if changed or rewrite or not results.is_file():
+        write_results(results, kept.values())
+    return kept
+
+
+def write_report(report: BatchReport, out: str | os.PathLike, kind: str, **extra: Any) -> Path:
+    """Write a run's figures to ``OUT/batch_<kind>.json`` (atomically).
+
+    Parameters
+    ----------
+    report : BatchReport
+        The run's figures.
+    out : path
+        Batch output folder.
+    kind : str
+        Job kind (names the file).
+    **extra
+        More JSON-serialisable entries (scheduler, workers, dashboard, ...).
+
+    Returns
+    -------
+    Path
+        The file written.
+    """
+    content = {
+        "kind": kind,
+        "n_jobs": report.n_jobs,
+        "ran": report.ran,
+        "ok": report.ok,
+        "failed": report.failed,
+        "skipped": report.skipped,
+        "wall_s": round(report.wall_s, 3),
+        "jobs_per_minute": round(report.jobs_per_minute, 3),
+        "results": RESULTS_NAME,
+        "finished_utc": now_utc(),
+        **extra,
+    }
+    return write_json(Path(out) / f"batch_{check_kind(kind)}.json", content)
+
+
+def now_utc() -> str:
+    """Return the current UTC time as ISO 8601 text to the second (for records and markers)."""
+    return datetime.now(UTC).isoformat(timespec="seconds")
