@@ -5,7 +5,8 @@ The image model (seed 002a) is ``I_k = albedo * e_k * max(0, n . l_k)`` for ligh
 light, :data:`datasets_synthetic.heightfields.CONVENTION`), optionally plus a
 Blinn-Phong term ``k_s e_k max(0, n . h_k)^s`` with ``h_k = (l_k + v) / |l_k + v|``.
 Cast shadows come from an exact horizon test on the height field (see
-:func:`cast_shadow_mask`).
+:func:`cast_shadow_mask`). Light geometry (rings of lights, slant and azimuth,
+deviations, validation) is :mod:`photometric.lights`; this module is the forward model.
 """
 
 from __future__ import annotations
@@ -16,120 +17,18 @@ from pathlib import Path
 import numpy as np
 
 from datasets_synthetic.heightfields import CONVENTION, HeightField, make_scene
-from surfaces.io import png_bytes
-from datasets_synthetic.io import atomic_write_bytes, atomic_write_text, ensure_dir, save_npy, write_json
+from datasets_synthetic.io import ensure_dir
+from photometric.lights import deviate_lights, light_angles, ring_lights, validate_lights
+from photometric.normals import angular_error_deg
+from surfaces.io import atomic_write_text, save_npy, write_json, write_png
 from surfaces.validate import as_array, positive
 
 SHADOW_MODES = ("attached", "cast", "none")
 
 
-def ring_lights(n: int, slant_deg: float, azimuth0_deg: float = 90.0) -> np.ndarray:
-    """``n`` unit light directions on a cone of half-angle ``slant_deg`` around +z.
-
-    ``l_k = (sin s cos a_k, sin s sin a_k, cos s)`` with ``a_k = a_0 + 360 k / n``
-    degrees, azimuth from +x towards +y (y up). Three lights 120 deg apart are
-    best conditioned at ``tan(s) = sqrt(2)``, s = 54.74 deg (Drbohlav & Chantler 2005).
-
-    Parameters
-    ----------
-    n : int
-        Number of lights (>= 1).
-    slant_deg : float
-        Angle between each light and the viewing direction +z, in [0, 90) degrees.
-    azimuth0_deg : float
-        Azimuth of the first light (default 90: the first light comes from the top).
-
-    Returns
-    -------
-    (n, 3) float64 array of unit vectors.
-    """
-    if int(n) != n or n < 1:
-        raise ValueError(f"n: expected a whole number of lights >= 1, got {n!r}")
-    slant = float(slant_deg)
-    if not (0.0 <= slant < 90.0):
-        raise ValueError(f"slant_deg: must lie in [0, 90) degrees, got {slant_deg!r}")
-    s = np.deg2rad(slant)
-    a = np.deg2rad(float(azimuth0_deg) + 360.0 * np.arange(int(n)) / int(n))
-    return np.column_stack([np.sin(s) * np.cos(a), np.sin(s) * np.sin(a), np.full(a.shape, np.cos(s))])
-
-
-def slant_azimuth(lights) -> tuple[np.ndarray, np.ndarray]:
-    """Slant (from +z) and azimuth (from +x towards +y) of unit light directions, degrees.
-
-    Parameters
-    ----------
-    lights : (N, 3) array_like
-        Unit directions.
-
-    Returns
-    -------
-    slant, azimuth : (N,) float64 arrays in degrees.
-    """
-    lights = _unit_lights(lights)
-    slant = np.rad2deg(np.arccos(np.clip(lights[:, 2], -1.0, 1.0)))
-    azimuth = np.rad2deg(np.arctan2(lights[:, 1], lights[:, 0]))
-    return slant, azimuth
-
-
-def deviate_lights(lights, deviations) -> np.ndarray:
-    """Rotate each light by a slant and an azimuth deviation (the "wrong lights" of seed 002a).
-
-    Light k with slant ``s_k`` and azimuth ``a_k`` becomes the unit vector with slant
-    ``s_k + ds_k`` and azimuth ``a_k + da_k``.
-
-    Parameters
-    ----------
-    lights : (N, 3) array_like
-        Unit light directions.
-    deviations : (N, 2) or (N,) array_like
-        ``[ds, da]`` per light in degrees; a 1-D array gives slant deviations only.
-
-    Returns
-    -------
-    (N, 3) float64 array of unit vectors.
-    """
-    lights = _unit_lights(lights)
-    dev = as_array(deviations, "deviations", ndim=(1, 2))
-    if dev.ndim == 1:
-        dev = np.column_stack([dev, np.zeros_like(dev)])
-    if dev.shape != (len(lights), 2):
-        raise ValueError(
-            f"deviations: expected shape ({len(lights)}, 2) or ({len(lights)},), got {dev.shape}")
-    slant, azimuth = slant_azimuth(lights)
-    s = np.deg2rad(slant + dev[:, 0])
-    a = np.deg2rad(azimuth + dev[:, 1])
-    return np.column_stack([np.sin(s) * np.cos(a), np.sin(s) * np.sin(a), np.cos(s)])
-
-
-def angle_between_deg(a, b) -> np.ndarray:
-    """Angles between corresponding unit vectors, degrees.
-
-    Parameters
-    ----------
-    a, b : (N, 3) array_like
-
-    Returns
-    -------
-    (N,) float64 array.
-    """
-    a = _unit_lights(a, "a")
-    b = _unit_lights(b, "b")
-    if a.shape != b.shape:
-        raise ValueError(f"a and b: shapes differ ({a.shape} vs {b.shape})")
-    # atan2 of |a x b| and a . b keeps small angles accurate
-    return np.rad2deg(np.arctan2(np.linalg.norm(np.cross(a, b), axis=1), np.sum(a * b, axis=1)))
-
-
-def _unit_lights(lights, name: str = "lights") -> np.ndarray:
-    lights = as_array(lights, name, ndim=(1, 2))
-    if lights.ndim == 1:
-        lights = lights[None, :]
-    if lights.shape[1] != 3 or len(lights) < 1:
-        raise ValueError(f"{name}: expected shape (N, 3), got {lights.shape}")
-    norm = np.linalg.norm(lights, axis=1)
-    if np.any(np.abs(norm - 1.0) > 1e-6):
-        raise ValueError(f"{name}: rows must be unit vectors (norms {np.round(norm, 6).tolist()})")
-    return lights / norm[:, None]
+def _direction(vector, name: str) -> np.ndarray:
+    """One unit direction (3,) checked by the light validator."""
+    return validate_lights(as_array(vector, name, shape=(3,))[None], name, min_lights=1)[0]
 
 
 def cast_shadow_mask(
@@ -175,7 +74,7 @@ def cast_shadow_mask(
     from scipy.ndimage import map_coordinates
 
     z = as_array(height, "height", ndim=2)
-    lz = _unit_lights(light, "light")[0]
+    lz = _direction(light, "light")
     ps = positive(pixel_size, "pixel_size")
     step = positive(step, "step")
     if method not in ("auto", "march", "raycast"):
@@ -329,7 +228,7 @@ def render(
         raise ValueError(f"shadows: expected one of {SHADOW_MODES}, got {shadows!r}")
     if bit_depth not in (None, 8, 16):
         raise ValueError(f"bit_depth: expected None, 8 or 16, got {bit_depth!r}")
-    L = _unit_lights(lights)
+    L = validate_lights(lights, min_lights=1)
     n_lights = len(L)
     h, w = hf.shape
     e = np.ones(n_lights) if intensities is None else as_array(intensities, "intensities", ndim=(1, 2))
@@ -349,7 +248,7 @@ def render(
         unknown = set(specular) - {"ks", "shininess", "view"}
         if unknown:
             raise ValueError(f"specular: unknown keys {sorted(unknown)}")
-        view = _unit_lights(specular.get("view", (0.0, 0.0, 1.0)), "specular['view']")[0]
+        view = _direction(specular.get("view", (0.0, 0.0, 1.0)), "specular['view']")
         spec = (positive(specular.get("ks", 0.5), "specular['ks']", allow_zero=True),
                 positive(specular.get("shininess", 20.0), "specular['shininess']"), view)
     rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
@@ -439,7 +338,7 @@ def write_diligent_folder(
         raise ValueError(f"images: colour images need 3 channels, got shape {imgs.shape}")
     if imgs.min() < 0 or imgs.max() > 1:
         raise ValueError(f"images: values must lie in [0, 1], got [{imgs.min()}, {imgs.max()}]")
-    lights = _unit_lights(lights_nominal, "lights_nominal")
+    lights = validate_lights(lights_nominal, "lights_nominal", min_lights=1)
     if len(lights) != n:
         raise ValueError(f"lights_nominal: {len(lights)} rows for {n} images")
     e = as_array(intensities, "intensities", ndim=(1, 2))
@@ -452,8 +351,8 @@ def write_diligent_folder(
     hgt = as_array(height_gt, "height_gt", shape=(h, w))
     names = [f"{k + 1:03d}.png" for k in range(n)]
     for name, img in zip(names, imgs):
-        atomic_write_bytes(out / name, png_bytes(np.round(img * 65535.0).astype(np.uint16)))
-    atomic_write_bytes(out / "mask.png", png_bytes(m.astype(np.uint8) * 255))
+        write_png(out / name, np.round(img * 65535.0).astype(np.uint16))
+    write_png(out / "mask.png", m.astype(np.uint8) * 255)
     atomic_write_text(out / "filenames.txt", "".join(f"{s}\n" for s in names))
     atomic_write_text(out / "light_directions.txt",
                       "".join(f"{a:.10f} {b:.10f} {c:.10f}\n" for a, b, c in lights))
@@ -503,7 +402,7 @@ def make_triad_folder(
     size : int
         Image side in pixels.
     lights : int or (N, 3) array_like
-        Number of ring lights (:func:`ring_lights` at ``slant``/``azimuth0``) or the
+        Number of ring lights (:func:`photometric.lights.ring_lights` at ``slant``/``azimuth0``) or the
         nominal unit directions themselves.
     slant : float
         Slant of the ring lights, degrees.
@@ -547,7 +446,7 @@ def make_triad_folder(
     if np.ndim(lights) == 0:
         nominal = ring_lights(int(lights), slant, azimuth0)
     else:
-        nominal = _unit_lights(lights, "lights")
+        nominal = validate_lights(lights, min_lights=1)
     n = len(nominal)
     dev = np.zeros((n, 2)) if deviate is None else as_array(deviate, "deviate", ndim=(1, 2))
     if dev.ndim == 1:
@@ -576,7 +475,7 @@ def make_triad_folder(
                      cast_masks=cast[None])[0]
         images.append(np.clip(img, 0.0, 1.0))
         shadow_fraction.append(float(np.mean(cast)))
-    slant_nom, az_nom = slant_azimuth(nominal)
+    slant_nom, az_nom = light_angles(nominal)
     content = {
         "scene": scene,
         "size": size,
@@ -591,7 +490,7 @@ def make_triad_folder(
         "slant_nominal_deg": slant_nom,
         "azimuth_nominal_deg": az_nom,
         "deviations_deg": dev,
-        "light_error_deg": angle_between_deg(true, nominal),
+        "light_error_deg": angular_error_deg(true, nominal),
         "intensities": e,
         "albedo": albedo_desc,
         "shadows": shadows,

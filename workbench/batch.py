@@ -575,7 +575,7 @@ def _unique_ids(jobs: list[Job]) -> list[Job]:
 
 def _pipeline(kind: str) -> Callable[..., dict]:
     if kind == "photometric":
-        from photometric.pipeline import reconstruct
+        from workbench.runs.photometric import reconstruct_to_folder as reconstruct
     else:
         from slices.pipeline import reconstruct
     return reconstruct

@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
 
 import numpy as np
 import pytest
 
 from photometric import errors as E
+from photometric.lights import ring_lights
 from workbench.cli import main
 
 FAST = ["--grid", "9", "--samples", "400", "--deviation-max", "3"]
@@ -19,27 +19,16 @@ KEYS = {
 }
 
 
-def _has(name: str) -> bool:
-    try:
-        return importlib.util.find_spec(name) is not None
-    except ModuleNotFoundError:
-        return False
-
-
-CRACK = all(_has(m) for m in ("datasets_synthetic.render", "photometric.stereo", "photometric.integrate",
-                              "photometric.defects"))
-
-
 @pytest.fixture(scope="module")
 def lights_file(tmp_path_factory):
     path = tmp_path_factory.mktemp("lights") / "lights.txt"
-    np.savetxt(path, E.standard_triad(45.0), fmt="%.6f")
+    np.savetxt(path, ring_lights(3, 45.0), fmt="%.6f")
     return path
 
 
 @pytest.fixture(scope="module")
 def run(tmp_path_factory, lights_file):
-    """One run of the command on a small grid, with a surface and (when possible) the crack study."""
+    """One run of the command on a small grid, with a surface and the crack study."""
     tmp = tmp_path_factory.mktemp("errors")
     rows, cols = np.mgrid[0:24, 0:30]
     np.save(tmp / "h.npy", 0.2 * np.exp(-((rows - 12) ** 2 + (cols - 15) ** 2) / 40.0))
@@ -47,8 +36,6 @@ def run(tmp_path_factory, lights_file):
     argv = ["photometric", "errors", "--lights", str(lights_file), "--tolerance", "0.05",
             "--derivative-range", "1.0", "--surface", str(tmp / "h.npy"), "--pixel-size", "0.1",
             "--crack-size", "64", "--out", str(out), *FAST]
-    if not CRACK:
-        argv.append("--no-crack")
     code = main(argv)
     return code, out
 
@@ -57,7 +44,7 @@ def test_exit_code_and_files(run):
     code, out = run
     assert code == 0
     report = json.loads((out / "report.json").read_text())
-    assert KEYS - ({"crack_study"} if not CRACK else set()) <= set(report)
+    assert KEYS <= set(report)
     assert "_arrays" not in report
     md = (out / "report.md").read_text()
     assert "| D | eps |" in md
@@ -72,7 +59,7 @@ def test_numbers_match_the_library(run):
     _, out = run
     report = json.loads((out / "report.json").read_text())
     assert len(report["tolerances"]) == 7  # 3 single lights, 3 pairs, all three
-    direct = E.max_deviation(E.standard_triad(45.0), 0.05, 1.0, (0,), "any", n_grid=9)
+    direct = E.max_deviation(ring_lights(3, 45.0), 0.05, 1.0, (0,), "any", n_grid=9)
     row = report["tolerances"][0]
     assert row["lights"] == [1]
     assert row["any"]["value"] == pytest.approx(direct.value, rel=1e-6)
@@ -84,14 +71,13 @@ def test_numbers_match_the_library(run):
 def test_surface_parts(run):
     _, out = run
     report = json.loads((out / "report.json").read_text())
-    expect = {"square", "surface"} | ({"crack"} if CRACK else set())
+    expect = {"square", "surface", "crack"}
     assert {m["derivatives"] for m in report["error_maps"]} == expect
     assert report["inputs"]["surface"]["pixel_size_mm"] == 0.1
     she = report["surface_height_error"]
     assert len(she) == 3 and all(c["rms_dh_mm"] > 0 for c in she)
 
 
-@pytest.mark.skipif(not CRACK, reason="the crack study needs the renderer, solver, integrator and defect measures")
 def test_crack_study(run):
     _, out = run
     cs = json.loads((out / "report.json").read_text())["crack_study"]
