@@ -1,4 +1,4 @@
-"""workbench.runs.photometric: the photometric pipeline's files, and the command that writes them."""
+"""workbench.runs.photometric: the photometric pipeline's result written into a folder."""
 
 import inspect
 import json
@@ -11,7 +11,6 @@ from datasets_synthetic.render import make_triad_folder
 from photometric.pipeline import reconstruct
 from surfaces.grid import pixel_grid
 from surfaces.io import read_mesh
-from workbench.cli import main
 from workbench.runs.photometric import FILES, reconstruct_to_folder, write_result
 
 
@@ -94,41 +93,3 @@ def test_out_dir_that_is_a_file(plate_folder, tmp_path):
     (tmp_path / "f").write_text("x")
     with pytest.raises(NotADirectoryError, match="out_dir"):
         reconstruct_to_folder(plate_folder, tmp_path / "f")
-
-
-def test_cli_folder_and_triad(shared_data, tmp_path, capsys):
-    code = main(["photometric", "reconstruct", str(shared_data / "diligent_bear"), "--triad",
-                 "--out", str(tmp_path / "bear")])
-    assert code == 0
-    summary = json.loads((tmp_path / "bear" / "summary.json").read_text())
-    assert abs(summary["mean_angular_error_deg"] - 11.74) < 0.05
-    assert summary["images"] == ["090.png", "048.png", "033.png"]
-    text = capsys.readouterr().out
-    assert f"{summary['mean_angular_error_deg']:.3f}" in text
-
-
-def test_cli_images_form(plate_folder, tmp_path):
-    names = (plate_folder / "filenames.txt").read_text().split()
-    args = ["photometric", "reconstruct", "--images", *[str(plate_folder / n) for n in names],
-            "--lights", str(plate_folder / "light_directions.txt"),
-            "--intensities", str(plate_folder / "light_intensities.txt"),
-            "--mask", str(plate_folder / "mask.png"), "--integrator", "fc",
-            "--pixel-size", "0.2", "--out", str(tmp_path / "o")]
-    assert main(args) == 0
-    summary = json.loads((tmp_path / "o" / "summary.json").read_text())
-    assert summary["integrator"] == "fc" and summary["pixel_size_mm"] == 0.2
-    assert "mean_angular_error_deg" not in summary  # no ground truth given with --images
-
-
-@pytest.mark.parametrize(
-    "args",
-    [
-        ["photometric", "reconstruct"],
-        ["photometric", "reconstruct", "--images", "a.png", "b.png", "c.png"],
-        ["photometric", "reconstruct", "/definitely/not/here"],
-        ["photometric", "reconstruct", "--images", "a.png", "--lights", "l.txt", "--triad"],
-    ],
-)
-def test_cli_bad_input_exit_2(args, capsys):
-    assert main(args) == 2
-    assert "error" in capsys.readouterr().err
