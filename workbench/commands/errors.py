@@ -99,7 +99,7 @@ def run(args: argparse.Namespace) -> int:
     if args.crack_size < 32:
         raise ValueError(f"--crack-size: need at least 32 pixels, got {args.crack_size}")
     surface = _read_surface(args.surface) if args.surface else None
-    stages = 7 + (surface is not None) + (not args.no_crack)
+    stages = 6 + (surface is not None) + (not args.no_crack)  # the steps analyse() reports
     with tqdm(total=stages, desc="errors", unit="stage", leave=False) as bar:
         def progress(label: str) -> None:
             bar.set_postfix_str(label)
