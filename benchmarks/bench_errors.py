@@ -31,6 +31,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import Table, best_of, write_results  # noqa: E402
 
 from photometric import errors as E  # noqa: E402
+from photometric.lights import condition_number, deviate_lights, ring_lights, rotate_lights  # noqa: E402
+from photometric.normals import normals_from_slopes  # noqa: E402
 from photometric.stereo import solve  # noqa: E402
 
 BEAR = Path(__file__).resolve().parents[2] / "shared" / "data" / "diligent_bear" / "light_directions.txt"
@@ -39,7 +41,7 @@ BEAR = Path(__file__).resolve().parents[2] / "shared" / "data" / "diligent_bear"
 def bench_map(L, n_dev=21, n_normals=41, dmax=5.0):
     p, q = E.derivative_square(1.0, n_normals)
     t_ours, m = best_of(lambda: E.error_map(L, p, q, (0, "slant"), (1, "slant"), dmax, n_dev))
-    normals = E.normals_from_derivatives(p, q)
+    normals = normals_from_slopes(p, q)
 
     def empirical():
         v = np.linspace(-dmax, dmax, n_dev)
@@ -48,7 +50,7 @@ def bench_map(L, n_dev=21, n_normals=41, dmax=5.0):
             for j, d1 in enumerate(v):
                 dev = np.zeros((3, 2))
                 dev[0, 0], dev[1, 0] = d1, d2
-                Lt = E.deviate_lights(L, dev)
+                Lt = deviate_lights(L, dev)
                 images = np.einsum("kc,hwc->khw", Lt, normals).astype(np.float32)  # linear model, no clipping
                 res = solve(images, L)
                 out[i, j] = np.abs(res.p - p).max()
@@ -68,7 +70,7 @@ def bench_mc(L, samples=20000):
     def loop():
         dp = np.empty((samples, p.size))
         for s in range(samples):
-            Lt = E.rotate_lights(L, angle[s], direction[s])
+            Lt = rotate_lights(L, angle[s], direction[s])
             m = np.linalg.solve(L, Lt @ n)
             dp[s] = -m[0] / m[2] - p
         return dp
@@ -85,7 +87,7 @@ def bench_tolerance(L):
         p, q = E.derivative_square(1.0, 21)
         dev = np.zeros((grid.size, 2, 3, 2))
         dev[:, 0, 0, 0], dev[:, 1, 0, 0] = grid, -grid
-        ex = E.exact_error(L, E.deviate_lights(L, dev), p, q)
+        ex = E.exact_error(L, deviate_lights(L, dev), p, q)
         worst = np.maximum(np.abs(ex.dp), np.abs(ex.dq)).reshape(grid.size, -1).max(axis=1)
         return grid[np.argmax(worst > 0.05)] - 0.001
 
@@ -102,7 +104,7 @@ def first_order_accuracy(L):
             for j in range(2):
                 dev = np.zeros((3, 2))
                 dev[k, j] = d
-                ex = E.exact_error(L, E.deviate_lights(L, dev), p, q)
+                ex = E.exact_error(L, deviate_lights(L, dev), p, q)
                 fp, fq = E.first_order_error(L, dev, p, q)
                 for a, b in ((ex.dp, fp), (ex.dq, fq)):
                     if np.abs(a).max() > 1e-12:
@@ -112,7 +114,7 @@ def first_order_accuracy(L):
 
 
 def main() -> str:
-    L45 = E.standard_triad(45.0)
+    L45 = ring_lights(3, 45.0)
     speed = []
     t1, t2, diff, evals = bench_map(L45)
     speed.append([f"error map 21x21 deviations x 41x41 normals ({evals / 1e6:.2f} M normals)", f"{t1:.3f}",
@@ -136,7 +138,7 @@ def main() -> str:
     ]
     triads = [("standard triad, slant 45 deg", L45),
               (f"standard triad, slant {E.OPTIMAL_SLANT_DEG:.2f} deg (optimal conditioning)",
-               E.standard_triad(E.OPTIMAL_SLANT_DEG))]
+               ring_lights(3, E.OPTIMAL_SLANT_DEG))]
     if BEAR.is_file():
         triads.append(("DiLiGenT bear triad (images 090, 048, 033)", np.loadtxt(BEAR)[:3]))
     for name, L in triads:
@@ -144,7 +146,7 @@ def main() -> str:
         rows = E.recommendation_table(L, tolerances=(0.02, 0.05, 0.1), ranges=(0.5, 1.0, 2.0), n_grid=21)
         dt = time.perf_counter() - t0
         parts += [
-            f"### {name} (condition number {E.condition_number(L):.3f}; table in {dt:.2f} s)",
+            f"### {name} (condition number {condition_number(L):.3f}; table in {dt:.2f} s)",
             Table(["D", "eps", "one light", "two lights", "all three"],
                   [[f"{r['derivative_range']:g}", f"{r['tolerance']:g}", f"{r['single_light_deg']:.3f}",
                     f"{r['pair_deg']:.3f}", f"{r['all_lights_deg']:.3f}"] for r in rows]),

@@ -32,11 +32,12 @@ sys.path.insert(0, str(ROOT))
 from common import Table, results_markdown, write_results  # noqa: E402
 
 from datasets_synthetic.heightfields import make_scene  # noqa: E402
-from datasets_synthetic.render import render, ring_lights  # noqa: E402
+from datasets_synthetic.render import render  # noqa: E402
 from photometric.integrate import dct_poisson, integrate, least_squares  # noqa: E402
 from photometric.io import read_folder  # noqa: E402
-from photometric.lights import condition_number  # noqa: E402
-from photometric.stereo import angular_error_deg, solve  # noqa: E402
+from photometric.lights import condition_number, ring_lights  # noqa: E402
+from photometric.normals import angular_error_deg  # noqa: E402
+from photometric.stereo import solve  # noqa: E402
 
 SHARED = Path(os.environ.get("WORKBENCH_SHARED_DATA", ROOT.parent / "shared" / "data"))
 
@@ -246,12 +247,12 @@ def accuracy(size_int: int) -> list:
         ]:
             d = read_folder(bear, select=select)
             res = solve(d.images, d.lights, d.intensities, d.mask, **kw)
-            err = angular_error_deg(res.normals, d.normal_gt, d.mask)
+            err = angular_error_deg(res.normals, d.normal_gt)[d.mask]
             extra = ""
             if kw.get("outliers") and select == "triad":
                 valid = res.valid[d.mask]
                 extra = (f"; on the {100 * valid.mean():.1f} % valid pixels "
-                         f"{angular_error_deg(res.normals, d.normal_gt, d.mask & res.valid).mean():.2f} deg")
+                         f"{angular_error_deg(res.normals, d.normal_gt)[d.mask & res.valid].mean():.2f} deg")
             rows.append([f"{label} (cond {condition_number(d.lights):.2f})",
                          f"mean angular error {err.mean():.3f} deg{extra}", ref])
     bunny = SHARED / "rps_bunny"
@@ -276,7 +277,7 @@ def accuracy(size_int: int) -> list:
         imgs = render(hf, lights, shadows="none")
         lit = (np.einsum("hwc,kc->hwk", hf.normals, lights) > 0).all(axis=2)
         res = solve(imgs, lights, mask=lit)
-        e = angular_error_deg(res.normals, hf.normals, lit)
+        e = angular_error_deg(res.normals, hf.normals)[lit]
         rows.append([f"rendered sphere cap 256 px, {n_lights} lights, no noise/shadows",
                      f"max {e.max():.5f} deg, mean {e.mean():.1e} deg", "< 0.01 deg"])
     rmse = []

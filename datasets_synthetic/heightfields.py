@@ -20,7 +20,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from surfaces.grid import image_shape, pixel_grid
+from photometric.normals import normals_from_slopes
+from surfaces.grid import image_shape, pixel_grid, xy_to_pixel
 from surfaces.validate import as_array, positive
 
 CONVENTION = (
@@ -76,26 +77,6 @@ class HeightField:
         return self.height.shape
 
 
-def normals_from_slopes(p, q) -> np.ndarray:
-    """Unit normals ``n = (-p, -q, 1) / sqrt(1 + p^2 + q^2)``.
-
-    Parameters
-    ----------
-    p, q : (H, W) array_like
-        Slopes dz/dx and dz/dy (y up).
-
-    Returns
-    -------
-    (H, W, 3) float64 array
-    """
-    p = as_array(p, "p")
-    q = as_array(q, "q")
-    if p.shape != q.shape:
-        raise ValueError(f"p and q: shapes differ ({p.shape} vs {q.shape})")
-    n = np.stack([-p, -q, np.ones_like(p)], axis=-1)
-    return n / np.sqrt(1.0 + p * p + q * q)[..., None]
-
-
 def _make(height, p, q, mask, defects, pixel_size, name, params) -> HeightField:
     return HeightField(
         height=height,
@@ -119,9 +100,7 @@ def _center_mm(center_px, size, pixel_size) -> tuple[float, float]:
 
 
 def _defect_record(kind, depth, width, length, area, volume, cx, cy, axis_deg, size, ps) -> dict:
-    h, w = image_shape(size)
-    row = (h - 1) / 2.0 - cy / ps
-    col = cx / ps + (w - 1) / 2.0
+    row, col = xy_to_pixel(cx, cy, size, ps)
     return {
         "kind": kind,
         "depth_mm": float(depth),

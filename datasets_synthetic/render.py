@@ -5,135 +5,39 @@ The image model (seed 002a) is ``I_k = albedo * e_k * max(0, n . l_k)`` for ligh
 light, :data:`datasets_synthetic.heightfields.CONVENTION`), optionally plus a
 Blinn-Phong term ``k_s e_k max(0, n . h_k)^s`` with ``h_k = (l_k + v) / |l_k + v|``.
 Cast shadows come from an exact horizon test on the height field (see
-:func:`cast_shadow_mask`).
+:func:`cast_shadow_mask`). Light geometry (rings of lights, slant and azimuth,
+deviations, validation) is :mod:`photometric.lights`; this module is the forward model.
 """
 
 from __future__ import annotations
 
 import os
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from scipy.ndimage import map_coordinates
 
 from datasets_synthetic.heightfields import CONVENTION, HeightField, make_scene
-from surfaces.io import png_bytes
-from datasets_synthetic.io import atomic_write_bytes, atomic_write_text, ensure_dir, save_npy, write_json
+from datasets_synthetic.io import ensure_dir
+from photometric.lights import deviate_lights, light_angles, ring_lights, validate_lights
+from photometric.normals import angular_error_deg
+from surfaces.grid import image_shape, pixel_grid
+from surfaces.io import atomic_write_text, save_npy, write_json, write_png
 from surfaces.validate import as_array, positive
 
 SHADOW_MODES = ("attached", "cast", "none")
+#: Marching step of the cast-shadow test, pixels.
+SHADOW_STEP = 0.25
 
 
-def ring_lights(n: int, slant_deg: float, azimuth0_deg: float = 90.0) -> np.ndarray:
-    """``n`` unit light directions on a cone of half-angle ``slant_deg`` around +z.
-
-    ``l_k = (sin s cos a_k, sin s sin a_k, cos s)`` with ``a_k = a_0 + 360 k / n``
-    degrees, azimuth from +x towards +y (y up). Three lights 120 deg apart are
-    best conditioned at ``tan(s) = sqrt(2)``, s = 54.74 deg (Drbohlav & Chantler 2005).
-
-    Parameters
-    ----------
-    n : int
-        Number of lights (>= 1).
-    slant_deg : float
-        Angle between each light and the viewing direction +z, in [0, 90) degrees.
-    azimuth0_deg : float
-        Azimuth of the first light (default 90: the first light comes from the top).
-
-    Returns
-    -------
-    (n, 3) float64 array of unit vectors.
-    """
-    if int(n) != n or n < 1:
-        raise ValueError(f"n: expected a whole number of lights >= 1, got {n!r}")
-    slant = float(slant_deg)
-    if not (0.0 <= slant < 90.0):
-        raise ValueError(f"slant_deg: must lie in [0, 90) degrees, got {slant_deg!r}")
-    s = np.deg2rad(slant)
-    a = np.deg2rad(float(azimuth0_deg) + 360.0 * np.arange(int(n)) / int(n))
-    return np.column_stack([np.sin(s) * np.cos(a), np.sin(s) * np.sin(a), np.full(a.shape, np.cos(s))])
-
-
-def slant_azimuth(lights) -> tuple[np.ndarray, np.ndarray]:
-    """Slant (from +z) and azimuth (from +x towards +y) of unit light directions, degrees.
-
-    Parameters
-    ----------
-    lights : (N, 3) array_like
-        Unit directions.
-
-    Returns
-    -------
-    slant, azimuth : (N,) float64 arrays in degrees.
-    """
-    lights = _unit_lights(lights)
-    slant = np.rad2deg(np.arccos(np.clip(lights[:, 2], -1.0, 1.0)))
-    azimuth = np.rad2deg(np.arctan2(lights[:, 1], lights[:, 0]))
-    return slant, azimuth
-
-
-def deviate_lights(lights, deviations) -> np.ndarray:
-    """Rotate each light by a slant and an azimuth deviation (the "wrong lights" of seed 002a).
-
-    Light k with slant ``s_k`` and azimuth ``a_k`` becomes the unit vector with slant
-    ``s_k + ds_k`` and azimuth ``a_k + da_k``.
-
-    Parameters
-    ----------
-    lights : (N, 3) array_like
-        Unit light directions.
-    deviations : (N, 2) or (N,) array_like
-        ``[ds, da]`` per light in degrees; a 1-D array gives slant deviations only.
-
-    Returns
-    -------
-    (N, 3) float64 array of unit vectors.
-    """
-    lights = _unit_lights(lights)
-    dev = as_array(deviations, "deviations", ndim=(1, 2))
-    if dev.ndim == 1:
-        dev = np.column_stack([dev, np.zeros_like(dev)])
-    if dev.shape != (len(lights), 2):
-        raise ValueError(
-            f"deviations: expected shape ({len(lights)}, 2) or ({len(lights)},), got {dev.shape}")
-    slant, azimuth = slant_azimuth(lights)
-    s = np.deg2rad(slant + dev[:, 0])
-    a = np.deg2rad(azimuth + dev[:, 1])
-    return np.column_stack([np.sin(s) * np.cos(a), np.sin(s) * np.sin(a), np.cos(s)])
-
-
-def angle_between_deg(a, b) -> np.ndarray:
-    """Angles between corresponding unit vectors, degrees.
-
-    Parameters
-    ----------
-    a, b : (N, 3) array_like
-
-    Returns
-    -------
-    (N,) float64 array.
-    """
-    a = _unit_lights(a, "a")
-    b = _unit_lights(b, "b")
-    if a.shape != b.shape:
-        raise ValueError(f"a and b: shapes differ ({a.shape} vs {b.shape})")
-    # atan2 of |a x b| and a . b keeps small angles accurate
-    return np.rad2deg(np.arctan2(np.linalg.norm(np.cross(a, b), axis=1), np.sum(a * b, axis=1)))
-
-
-def _unit_lights(lights, name: str = "lights") -> np.ndarray:
-    lights = as_array(lights, name, ndim=(1, 2))
-    if lights.ndim == 1:
-        lights = lights[None, :]
-    if lights.shape[1] != 3 or len(lights) < 1:
-        raise ValueError(f"{name}: expected shape (N, 3), got {lights.shape}")
-    norm = np.linalg.norm(lights, axis=1)
-    if np.any(np.abs(norm - 1.0) > 1e-6):
-        raise ValueError(f"{name}: rows must be unit vectors (norms {np.round(norm, 6).tolist()})")
-    return lights / norm[:, None]
+def _direction(vector, name: str) -> np.ndarray:
+    """One unit direction (3,) checked by the light validator."""
+    return validate_lights(as_array(vector, name, shape=(3,))[None], name, min_lights=1)[0]
 
 
 def cast_shadow_mask(
-    height, light, pixel_size: float, step: float = 0.25, method: str = "auto"
+    height, light, pixel_size: float, step: float = SHADOW_STEP, method: str = "auto"
 ) -> np.ndarray:
     """Pixels whose view of a distant light is blocked by the height field itself.
 
@@ -172,14 +76,17 @@ def cast_shadow_mask(
         True where the pixel is in cast shadow. A light at or below the horizon
         (``l_z <= 0``) shadows every pixel.
     """
-    from scipy.ndimage import map_coordinates
-
     z = as_array(height, "height", ndim=2)
-    lz = _unit_lights(light, "light")[0]
+    lz = _direction(light, "light")
     ps = positive(pixel_size, "pixel_size")
     step = positive(step, "step")
     if method not in ("auto", "march", "raycast"):
         raise ValueError(f"method: expected 'auto', 'march' or 'raycast', got {method!r}")
+    return _shadow(z, lz, ps, step, method)
+
+
+def _shadow(z: np.ndarray, lz: np.ndarray, ps: float, step: float, method: str = "auto") -> np.ndarray:
+    """:func:`cast_shadow_mask` on checked input (float64 heights, a unit light)."""
     h, w = z.shape
     if lz[2] <= 0:
         return np.ones((h, w), bool)
@@ -221,10 +128,9 @@ def _raycast_shadow(z: np.ndarray, light: np.ndarray, ps: float) -> np.ndarray:
     import open3d as o3d
 
     h, w = z.shape
-    rows, cols = np.mgrid[0:h, 0:w]
-    # the mesh in the image convention: x = col * ps, y = -row * ps (y up), z = height
-    verts = np.column_stack([cols.ravel() * ps, -rows.ravel() * ps, z.ravel()]).astype(np.float32)
-    idx = (rows * w + cols)[:-1, :-1].ravel()
+    x, y = pixel_grid(z.shape, ps)
+    verts = np.column_stack([x.ravel(), y.ravel(), z.ravel()]).astype(np.float32)
+    idx = np.arange(h * w).reshape(h, w)[:-1, :-1].ravel()
     tris = np.concatenate([np.column_stack([idx, idx + w, idx + 1]),
                            np.column_stack([idx + 1, idx + w, idx + w + 1])]).astype(np.uint32)
     scene = o3d.t.geometry.RaycastingScene()
@@ -257,8 +163,6 @@ def texture_albedo(size, low: float = 0.55, high: float = 0.9, scale_px: float =
     """
     from scipy.ndimage import gaussian_filter
 
-    from surfaces.grid import image_shape
-
     h, w = image_shape(size)
     if not (0.0 < low < high <= 1.0):
         raise ValueError(f"low, high: need 0 < low < high <= 1, got {low}, {high}")
@@ -279,7 +183,7 @@ def render(
     shot_noise: float = 0.0,
     bit_depth: int | None = None,
     seed: int | np.random.Generator = 0,
-    shadow_step: float = 0.25,
+    shadow_step: float = SHADOW_STEP,
     cast_masks=None,
 ) -> np.ndarray:
     """Render Lambertian images ``I_k = albedo * e_k * max(0, n . l_k)`` (seed 002a).
@@ -323,14 +227,44 @@ def render(
         In [0, 1] (saturated at 1) except for ``shadows="none"`` without quantisation;
         RGB when ``intensities`` is (N, 3) or ``albedo`` is (H, W, 3).
     """
+    L = validate_lights(lights, min_lights=1)
+    opts = _options(hf, len(L), intensities, albedo, shadows, specular, noise, shot_noise, bit_depth)
+    rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
+    h, w = hf.shape
+    if cast_masks is not None:
+        cast_masks = as_array(cast_masks, "cast_masks", shape=(len(L), h, w), dtype=bool)
+    out = np.empty((len(L), h, w, 3) if opts.rgb else (len(L), h, w), np.float32)
+    for k in range(len(L)):
+        cast = None if cast_masks is None else cast_masks[k]
+        out[k] = _image(hf, L[k], opts.e[k], opts, rng, cast, shadow_step)
+    return out
+
+
+@dataclass(frozen=True)
+class _Options:
+    """Checked rendering options (see :func:`render`)."""
+
+    e: np.ndarray
+    rho: np.ndarray
+    shadows: str
+    spec: tuple | None
+    noise: float
+    shot_noise: float
+    bit_depth: int | None
+
+    @property
+    def rgb(self) -> bool:
+        return self.e.ndim == 2 or self.rho.ndim == 3
+
+
+def _options(hf, n_lights, intensities, albedo, shadows, specular, noise, shot_noise, bit_depth) -> _Options:
+    """The options of :func:`render` for ``n_lights`` lights, checked once."""
     if not isinstance(hf, HeightField):
         raise ValueError(f"hf: expected a HeightField, got {type(hf).__name__}")
     if shadows not in SHADOW_MODES:
         raise ValueError(f"shadows: expected one of {SHADOW_MODES}, got {shadows!r}")
     if bit_depth not in (None, 8, 16):
         raise ValueError(f"bit_depth: expected None, 8 or 16, got {bit_depth!r}")
-    L = _unit_lights(lights)
-    n_lights = len(L)
     h, w = hf.shape
     e = np.ones(n_lights) if intensities is None else as_array(intensities, "intensities", ndim=(1, 2))
     if e.shape not in ((n_lights,), (n_lights, 3)) or np.any(e < 0):
@@ -341,53 +275,52 @@ def render(
         raise ValueError(f"albedo: expected a scalar, ({h}, {w}) or ({h}, {w}, 3), got {rho.shape}")
     if np.any(rho < 0):
         raise ValueError("albedo: must be non-negative")
-    noise = positive(noise, "noise", allow_zero=True)
-    shot_noise = positive(shot_noise, "shot_noise", allow_zero=True)
-    rgb = e.ndim == 2 or rho.ndim == 3
     spec = None
     if specular is not None:
         unknown = set(specular) - {"ks", "shininess", "view"}
         if unknown:
             raise ValueError(f"specular: unknown keys {sorted(unknown)}")
-        view = _unit_lights(specular.get("view", (0.0, 0.0, 1.0)), "specular['view']")[0]
+        view = _direction(specular.get("view", (0.0, 0.0, 1.0)), "specular['view']")
         spec = (positive(specular.get("ks", 0.5), "specular['ks']", allow_zero=True),
                 positive(specular.get("shininess", 20.0), "specular['shininess']"), view)
-    rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
-    if cast_masks is not None:
-        cast_masks = as_array(cast_masks, "cast_masks", shape=(n_lights, h, w), dtype=bool)
+    return _Options(e, rho, shadows, spec, positive(noise, "noise", allow_zero=True),
+                    positive(shot_noise, "shot_noise", allow_zero=True), bit_depth)
 
+
+def _image(hf: HeightField, light: np.ndarray, ek, opts: _Options, rng: np.random.Generator,
+           cast: np.ndarray | None, shadow_step: float) -> np.ndarray:
+    """One image under the unit ``light`` of intensity ``ek`` (the loop body of :func:`render`)."""
+    h, w = hf.shape
     n = hf.normals
-    out = np.empty((n_lights, h, w, 3) if rgb else (n_lights, h, w), np.float32)
-    for k in range(n_lights):
-        ndotl = n @ L[k]
-        diffuse = ndotl if shadows == "none" else np.maximum(ndotl, 0.0)
-        highlight = np.zeros((h, w))
-        if spec is not None:
-            half = L[k] + spec[2]
-            half /= np.linalg.norm(half)
-            highlight = spec[0] * np.maximum(n @ half, 0.0) ** spec[1] * (ndotl > 0)
-        if shadows == "cast":
-            lit = ~(cast_masks[k] if cast_masks is not None
-                    else cast_shadow_mask(hf.height, L[k], hf.pixel_size, shadow_step))
-            diffuse = diffuse * lit
-            highlight = highlight * lit
-        if rgb:
-            ek = np.broadcast_to(e[k], (3,)) if e.ndim == 2 else np.full(3, e[k])
-            r = rho if rho.ndim == 3 else np.broadcast_to(rho[..., None], (h, w, 3)) if rho.ndim else rho
-            img = r * ek * diffuse[..., None] + ek * highlight[..., None]
-        else:
-            img = rho * e[k] * diffuse + e[k] * highlight
-        if shot_noise > 0:
-            img = shot_noise * rng.poisson(np.maximum(img, 0.0) / shot_noise)
-        if noise > 0:
-            img = img + rng.normal(0.0, noise, img.shape)
-        if shadows != "none" or bit_depth is not None:
-            img = np.clip(img, 0.0, 1.0)
-        if bit_depth is not None:
-            full = 2.0**bit_depth - 1.0
-            img = np.round(img * full) / full
-        out[k] = img
-    return out
+    ndotl = n @ light
+    diffuse = ndotl if opts.shadows == "none" else np.maximum(ndotl, 0.0)
+    highlight = np.zeros((h, w))
+    if opts.spec is not None:
+        ks, shininess, view = opts.spec
+        half = light + view
+        half /= np.linalg.norm(half)
+        highlight = ks * np.maximum(n @ half, 0.0) ** shininess * (ndotl > 0)
+    if opts.shadows == "cast":
+        lit = ~(cast if cast is not None else _shadow(hf.height, light, hf.pixel_size, shadow_step))
+        diffuse = diffuse * lit
+        highlight = highlight * lit
+    rho = opts.rho
+    if opts.rgb:
+        e3 = np.broadcast_to(ek, (3,)) if opts.e.ndim == 2 else np.full(3, ek)
+        r = rho if rho.ndim == 3 else np.broadcast_to(rho[..., None], (h, w, 3)) if rho.ndim else rho
+        img = r * e3 * diffuse[..., None] + e3 * highlight[..., None]
+    else:
+        img = rho * ek * diffuse + ek * highlight
+    if opts.shot_noise > 0:
+        img = opts.shot_noise * rng.poisson(np.maximum(img, 0.0) / opts.shot_noise)
+    if opts.noise > 0:
+        img = img + rng.normal(0.0, opts.noise, img.shape)
+    if opts.shadows != "none" or opts.bit_depth is not None:
+        img = np.clip(img, 0.0, 1.0)
+    if opts.bit_depth is not None:
+        full = 2.0**opts.bit_depth - 1.0
+        img = np.round(img * full) / full
+    return img
 
 
 def write_diligent_folder(
@@ -439,21 +372,34 @@ def write_diligent_folder(
         raise ValueError(f"images: colour images need 3 channels, got shape {imgs.shape}")
     if imgs.min() < 0 or imgs.max() > 1:
         raise ValueError(f"images: values must lie in [0, 1], got [{imgs.min()}, {imgs.max()}]")
-    lights = _unit_lights(lights_nominal, "lights_nominal")
+    lights = validate_lights(lights_nominal, "lights_nominal", min_lights=1)
     if len(lights) != n:
         raise ValueError(f"lights_nominal: {len(lights)} rows for {n} images")
+    e = _rgb_intensities(intensities, n)
+    m = as_array(mask, "mask", shape=(h, w), dtype=bool)
+    ngt = as_array(normal_gt, "normal_gt", shape=(h, w, 3))
+    hgt = as_array(height_gt, "height_gt", shape=(h, w))
+    return _write_folder(out, imgs, lights, e, m, ngt, hgt, scene)
+
+
+def _rgb_intensities(intensities, n: int) -> np.ndarray:
+    """Intensities (n,) or (n, 3) as (n, 3): a grey value is repeated in r, g, b."""
     e = as_array(intensities, "intensities", ndim=(1, 2))
     if e.ndim == 1:
         e = np.repeat(e[:, None], 3, axis=1)
     if e.shape != (n, 3):
         raise ValueError(f"intensities: expected ({n},) or ({n}, 3), got {e.shape}")
-    m = as_array(mask, "mask", shape=(h, w), dtype=bool)
-    ngt = as_array(normal_gt, "normal_gt", shape=(h, w, 3))
-    hgt = as_array(height_gt, "height_gt", shape=(h, w))
+    return e
+
+
+def _write_folder(out: Path, imgs: np.ndarray, lights: np.ndarray, e: np.ndarray, m: np.ndarray,
+                  ngt: np.ndarray, hgt: np.ndarray, scene: dict) -> dict:
+    """The files of :func:`write_diligent_folder` from checked arrays (images float64 in [0, 1])."""
+    n = imgs.shape[0]
     names = [f"{k + 1:03d}.png" for k in range(n)]
     for name, img in zip(names, imgs):
-        atomic_write_bytes(out / name, png_bytes(np.round(img * 65535.0).astype(np.uint16)))
-    atomic_write_bytes(out / "mask.png", png_bytes(m.astype(np.uint8) * 255))
+        write_png(out / name, np.round(img * 65535.0).astype(np.uint16))
+    write_png(out / "mask.png", m.astype(np.uint8) * 255)
     atomic_write_text(out / "filenames.txt", "".join(f"{s}\n" for s in names))
     atomic_write_text(out / "light_directions.txt",
                       "".join(f"{a:.10f} {b:.10f} {c:.10f}\n" for a, b, c in lights))
@@ -503,7 +449,7 @@ def make_triad_folder(
     size : int
         Image side in pixels.
     lights : int or (N, 3) array_like
-        Number of ring lights (:func:`ring_lights` at ``slant``/``azimuth0``) or the
+        Number of ring lights (:func:`photometric.lights.ring_lights` at ``slant``/``azimuth0``) or the
         nominal unit directions themselves.
     slant : float
         Slant of the ring lights, degrees.
@@ -547,7 +493,7 @@ def make_triad_folder(
     if np.ndim(lights) == 0:
         nominal = ring_lights(int(lights), slant, azimuth0)
     else:
-        nominal = _unit_lights(lights, "lights")
+        nominal = validate_lights(lights, min_lights=1)
     n = len(nominal)
     dev = np.zeros((n, 2)) if deviate is None else as_array(deviate, "deviate", ndim=(1, 2))
     if dev.ndim == 1:
@@ -557,7 +503,6 @@ def make_triad_folder(
     if dev.shape != (n, 2):
         raise ValueError(f"deviate: expected shape ({n}, 2), got {dev.shape}")
     true = deviate_lights(nominal, dev)
-    e = np.ones(n) if intensities is None else as_array(intensities, "intensities", ndim=(1, 2))
     if albedo == "texture":
         rho = texture_albedo(size, seed=seed)
         albedo_desc = {"kind": "texture", "low": 0.55, "high": 0.9, "scale_px": 12.0, "seed": seed}
@@ -566,17 +511,17 @@ def make_triad_folder(
         albedo_desc = {"kind": "constant", "value": rho}
     else:
         raise ValueError(f"albedo: expected a number, 'texture' or None, got {albedo!r}")
+    opts = _options(hf, n, intensities, rho, shadows, specular, noise, shot_noise, bit_depth)
+    e = opts.e
     rng = np.random.default_rng(seed)
     images, shadow_fraction = [], []
     for k in tqdm(range(n), desc="render", unit="image", disable=not progress):
-        cast = (cast_shadow_mask(hf.height, true[k], hf.pixel_size) if shadows == "cast"
+        cast = (_shadow(hf.height, true[k], hf.pixel_size, SHADOW_STEP) if shadows == "cast"
                 else np.zeros(hf.shape, bool))
-        img = render(hf, true[k:k + 1], e[k:k + 1], rho, shadows=shadows, specular=specular,
-                     noise=noise, shot_noise=shot_noise, bit_depth=bit_depth, seed=rng,
-                     cast_masks=cast[None])[0]
+        img = _image(hf, true[k], e[k], opts, rng, cast, SHADOW_STEP).astype(np.float32)
         images.append(np.clip(img, 0.0, 1.0))
         shadow_fraction.append(float(np.mean(cast)))
-    slant_nom, az_nom = slant_azimuth(nominal)
+    slant_nom, az_nom = light_angles(nominal)
     content = {
         "scene": scene,
         "size": size,
@@ -591,7 +536,7 @@ def make_triad_folder(
         "slant_nominal_deg": slant_nom,
         "azimuth_nominal_deg": az_nom,
         "deviations_deg": dev,
-        "light_error_deg": angle_between_deg(true, nominal),
+        "light_error_deg": angular_error_deg(true, nominal),
         "intensities": e,
         "albedo": albedo_desc,
         "shadows": shadows,
@@ -604,5 +549,5 @@ def make_triad_folder(
         "defects": list(hf.defects),
         "scene_params": hf.params,
     }
-    return write_diligent_folder(Path(out_dir), np.stack(images), nominal, e, np.ones(hf.shape, bool),
-                                 hf.normals, hf.height, content)
+    return _write_folder(ensure_dir(out_dir), np.stack(images).astype(np.float64), nominal, _rgb_intensities(e, n),
+                         np.ones(hf.shape, bool), hf.normals, hf.height, content)

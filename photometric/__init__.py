@@ -1,8 +1,48 @@
-"""Lambertian photometric stereo: lights, normals and albedo, height, defects.
+"""Lambertian photometric stereo: lights, normals and albedo, height, defects, error analysis.
 
-Modules (imported on demand to keep ``import photometric`` light):
-``lights`` (convention, reading, validation, mirror-sphere calibration), ``io``
+Modules: ``lights`` (the convention, slant and azimuth, validation, reading,
+mirror-sphere calibration), ``normals`` (normals from slopes, the angular error), ``io``
 (images and DiLiGenT-style folders), ``stereo`` (normals and albedo), ``integrate``
 (height from gradients, height field to Bezier patches), ``defects`` (crack/dent
-measures), ``pipeline`` (files in, files out).
+measures), ``pipeline`` (input to measured surface, no files) and the package
+``errors`` (accuracy against deviated lights).
+
+The names users call are importable from here (``photometric.solve``); each is loaded
+with its module on first use, so ``import photometric`` stays light. The integrator is
+``photometric.integrate.integrate`` (``photometric.integrate`` is its module).
 """
+
+from __future__ import annotations
+
+import importlib
+
+_HOMES = {
+    "lights": (
+        "CONVENTION", "validate_lights", "condition_number", "lights_from_angles", "light_angles",
+        "ring_lights", "tangent_basis", "deviate_lights", "rotate_lights", "load_lights",
+        "as_intensities", "load_intensities", "calibrate_mirror_sphere",
+    ),
+    "normals": ("normals_from_slopes", "angular_error_deg"),
+    "io": ("PhotometricData", "read_folder", "read_image", "read_images", "read_mask"),
+    "stereo": ("StereoResult", "solve"),
+    "integrate": ("height_to_patches",),
+    "defects": ("fit_background", "measure_defects"),
+    "pipeline": ("PhotometricReconstruction", "reconstruct"),
+}
+_MODULE_OF = {name: module for module, names in _HOMES.items() for name in names}
+
+__all__ = [*_MODULE_OF, "errors", "integrate"]
+
+
+def __getattr__(name: str):
+    if name in _HOMES or name == "errors":
+        return importlib.import_module(f"photometric.{name}")
+    if name not in _MODULE_OF:
+        raise AttributeError(f"module 'photometric' has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"photometric.{_MODULE_OF[name]}"), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

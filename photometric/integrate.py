@@ -1,7 +1,8 @@
 """Height from surface gradients, and height fields to the shared surface model.
 
-Grid convention (:data:`photometric.lights.CONVENTION`): pixel ``(row, col)`` sits at
-``x = col * h``, ``y = -row * h`` (y up, row 0 at the top) for a pixel size ``h``; the
+Grid convention (:data:`surfaces.grid.GRID_CONVENTION`): pixel ``(row, col)`` of an
+``H x W`` image has its centre at ``x = (col - (W - 1) / 2) h``, ``y = ((H - 1) / 2 - row) h``
+(y up, row 0 at the top, origin at the image centre) for a pixel size ``h``; the
 gradients are ``p = dz/dx`` and ``q = dz/dy``. Along the grid that is
 ``dz/dcol = p h`` and ``dz/drow = -q h``; heights come out in the unit of ``h``.
 
@@ -341,6 +342,14 @@ def integrate(p, q, method: str = "dct", mask=None, pixel_size: float = 1.0) -> 
     -------
     numpy.ndarray, shape (H, W), float64
         Height, zero mean per connected part of the domain, NaN outside the mask.
+
+    Examples
+    --------
+    A plane rising 0.5 per mm to the right (``p = 0.5``) on 0.1 mm pixels:
+
+    >>> z = integrate(np.full((3, 4), 0.5), np.zeros((3, 4)), pixel_size=0.1)
+    >>> np.round(z[0], 6).tolist()
+    [-0.075, -0.025, 0.025, 0.075]
     """
     if method not in METHODS:
         raise ValueError(f"method: expected one of {METHODS}, got {method!r}")
@@ -380,12 +389,15 @@ def height_to_patches(
     Returns
     -------
     surfaces.bezier.BezierPatches
-        ``(R - 1) x (C - 1)`` patches; point ``(x, y, z) = (col h, -row h, z)``; tangents
+        ``(R - 1) x (C - 1)`` patches; the grid point at fractional pixel ``(row, col)`` is
+        at ``(x, y, z)`` of :data:`surfaces.grid.GRID_CONVENTION` (origin at the image
+        centre, y up), so a node over a pixel centre has that pixel's x and y; tangents
         per grid step (seed 001, seed 002(a)): along rows (``u``) ``dP/di = s_r h (0, -1, -q)``,
         along columns (``v``) ``dP/dj = s_c h (1, 0, p)``, so ``du x dv`` points up
         (``+z``), along ``(-p, -q, 1)``.
     """
     from surfaces.coons import from_grid
+    from surfaces.grid import pixel_axes
 
     z = as_array(height, "height", ndim=2, finite=False)
     pp = as_array(p, "p", shape=z.shape, finite=False)
@@ -416,7 +428,9 @@ def height_to_patches(
         return ndimage.map_coordinates(a, coords, order=1, mode="nearest").reshape(n_r, n_c)
 
     zs, ps, qs = sample(z), sample(pp), sample(qq)
-    points = np.stack([grid_c * h, -grid_r * h, zs], axis=2)
+    # the grid is linear in the pixel indices: offset from the centres of pixel (0, 0)
+    x0, y0 = (axis[0] for axis in pixel_axes(z.shape, h))
+    points = np.stack([x0 + grid_c * h, y0 - grid_r * h, zs], axis=2)
     ones, zeros = np.ones_like(zs), np.zeros_like(zs)
     pu = s_r * h * np.stack([zeros, -ones, -qs], axis=2)
     pv = s_c * h * np.stack([ones, zeros, ps], axis=2)

@@ -1,4 +1,7 @@
-"""Light directions: the coordinate convention, reading, validation, calibration.
+"""Light directions: the coordinate convention, angles, validation, reading, calibration.
+
+The one home of light geometry in the workbench: the synthetic renderer and the
+error analysis take their lights from here.
 
 Convention (stated once for the whole workbench; DiLiGenT's)
 ------------------------------------------------------------
@@ -11,14 +14,26 @@ Camera frame, orthographic view along ``-z``:
 A light direction ``l`` is the unit vector from the surface point towards the light.
 A height field ``z(x, y)`` has derivatives ``p = dz/dx`` and ``q = dz/dy`` (y up), and
 its unit normal is ``n = (-p, -q, 1) / sqrt(1 + p^2 + q^2)``, so ``p = -n_x / n_z`` and
-``q = -n_y / n_z`` (seed 002(a)). Slant is the angle between ``l`` and ``+z``; tilt is the
-azimuth of ``l`` in the image plane, counter-clockwise from ``+x`` (tilt 90 deg: light from
-the top of the image), the way industrial vision software states it.
+``q = -n_y / n_z`` (seed 002(a)). The **slant** ``s`` is the angle between ``l`` and
+``+z``; the **azimuth** ``a`` is the angle of ``l`` in the image plane, counter-clockwise
+from ``+x`` towards ``+y`` (azimuth 90 deg: light from the top of the image), so
+``l = (sin s cos a, sin s sin a, cos s)``. Industrial vision software calls the azimuth
+"tilt"; the readers accept that name as an alias.
+
+Validation
+----------
+:func:`validate_lights` is the one validator: rows whose length differs from 1 by more
+than :data:`UNIT_TOLERANCE` are normalised with a ``UserWarning``; zero-length or
+non-finite rows, too few lights and coplanar lights raise ``ValueError``. Public
+functions validate their input once; the private helpers (``_vectors``, ``_angles``,
+``_basis``, ``_deviate``, ``_rotate``) take already validated unit lights and are what
+the rest of :mod:`photometric` calls inside.
 """
 
 from __future__ import annotations
 
 import json
+import math
 import warnings
 from pathlib import Path
 
@@ -26,48 +41,92 @@ import numpy as np
 
 from surfaces.validate import as_array
 
+__all__ = [
+    "CONVENTION",
+    "UNIT_TOLERANCE",
+    "COPLANAR_TOLERANCE",
+    "validate_lights",
+    "condition_number",
+    "lights_from_angles",
+    "light_angles",
+    "ring_lights",
+    "tangent_basis",
+    "deviate_lights",
+    "rotate_lights",
+    "rotation_matrix",
+    "load_lights",
+    "as_intensities",
+    "load_intensities",
+    "sphere_from_mask",
+    "calibrate_mirror_sphere",
+]
+
 CONVENTION = (
     "DiLiGenT camera frame: x right (columns), y up (row 0 is the top row), z towards the "
     "camera; light vectors point from the surface to the light; p = dz/dx = -n_x/n_z, "
-    "q = dz/dy = -n_y/n_z; slant from +z, tilt counter-clockwise from +x."
+    "q = dz/dy = -n_y/n_z; slant from +z, azimuth counter-clockwise from +x towards +y "
+    "(l = (sin s cos a, sin s sin a, cos s))."
 )
 
-#: Relative tolerance on ``|l| - 1`` before :func:`validate_lights` warns and normalises.
+#: Largest ``| |l| - 1 |`` accepted silently; longer or shorter rows are normalised with a warning.
 UNIT_TOLERANCE = 1e-3
 #: Smallest singular value relative to the largest below which lights count as coplanar.
 COPLANAR_TOLERANCE = 1e-6
 
 
-def validate_lights(lights, name: str = "lights") -> np.ndarray:
+# ----------------------------------------------------------------------------- validation
+
+
+def validate_lights(lights, name: str = "lights", *, min_lights: int = 3, batched: bool = False) -> np.ndarray:
     """Check light directions and return them as unit vectors.
 
     Parameters
     ----------
-    lights : array_like, shape (N, 3)
+    lights : array_like, shape (N, 3), or (..., N, 3) with ``batched=True``
         Light directions in the camera frame of :data:`CONVENTION`.
     name : str, optional
         Argument name used in messages.
+    min_lights : int, optional
+        Fewest lights per set (3 for photometric stereo; 1 to render with one light).
+        When it is 3 or more, each set must also determine a normal (not coplanar).
+    batched : bool, optional
+        Accept leading batch dimensions (several light sets at once).
 
     Returns
     -------
-    numpy.ndarray, shape (N, 3), float64
+    numpy.ndarray, same shape, float64
         Unit light directions. Rows whose length differs from 1 by more than
         :data:`UNIT_TOLERANCE` are normalised with a ``UserWarning``.
 
     Raises
     ------
     ValueError
-        Wrong shape, fewer than 3 lights, NaN/inf, a zero-length row, or lights that
-        are coplanar (the light matrix has rank < 3, so ``rho n = L^-1 I`` of seed
-        002(a) has no unique solution).
+        Wrong shape, fewer than ``min_lights`` lights, NaN/inf, a zero-length row, or
+        (``min_lights >= 3``) lights that are coplanar: the light matrix has rank < 3, so
+        ``rho n = L^-1 I`` of seed 002(a) has no unique solution.
+
+    Examples
+    --------
+    >>> validate_lights([[0, 0, 1], [1, 0, 0], [0, 1, 0]]).tolist()
+    [[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]
+    >>> validate_lights([[0, 0, 1], [1, 0, 0], [1, 0, 0]])  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    ValueError: lights: light directions are coplanar (singular values [1.414214, 1.0, 0.0]); ...
     """
-    arr = as_array(lights, name, shape=(None, 3))
-    if arr.shape[0] < 3:
-        raise ValueError(f"{name}: photometric stereo needs at least 3 lights, got {arr.shape[0]}")
-    norms = np.linalg.norm(arr, axis=1)
+    arr = as_array(lights, name)
+    if batched:
+        if arr.ndim < 2 or arr.shape[-1] != 3:
+            raise ValueError(f"{name}: expected shape (..., N, 3), got {arr.shape}")
+    elif arr.ndim != 2 or arr.shape[1] != 3:
+        raise ValueError(f"{name}: expected shape (N, 3), got {arr.shape}")
+    n = arr.shape[-2]
+    if n < min_lights:
+        raise ValueError(f"{name}: needs at least {min_lights} light direction(s), got {n}")
+    norms = np.linalg.norm(arr, axis=-1)
     if np.any(norms < 1e-12):
-        bad = np.flatnonzero(norms < 1e-12).tolist()
-        raise ValueError(f"{name}: zero-length light direction(s) at rows {bad}")
+        bad = np.argwhere(norms < 1e-12).tolist()
+        raise ValueError(f"{name}: zero-length light direction(s) at {bad}")
     off = np.abs(norms - 1.0) > UNIT_TOLERANCE
     if np.any(off):
         warnings.warn(
@@ -76,14 +135,23 @@ def validate_lights(lights, name: str = "lights") -> np.ndarray:
             UserWarning,
             stacklevel=2,
         )
-    unit = arr / norms[:, None]
-    s = np.linalg.svd(unit, compute_uv=False)
-    if s[-1] <= COPLANAR_TOLERANCE * s[0]:
-        raise ValueError(
-            f"{name}: light directions are coplanar (singular values {np.round(s, 6).tolist()}); "
-            "the normal is not determined"
-        )
+    unit = arr / norms[..., None]
+    if min_lights >= 3:
+        s = np.linalg.svd(unit, compute_uv=False)
+        flat = s[..., -1] <= COPLANAR_TOLERANCE * s[..., 0]
+        if np.any(flat):
+            where = "" if not batched else f" in set(s) {np.argwhere(flat).tolist()[:5]}"
+            worst = s[np.unravel_index(np.argmax(flat), flat.shape)] if batched else s
+            raise ValueError(
+                f"{name}: light directions are coplanar{where} (singular values "
+                f"{np.round(worst, 6).tolist()}); the normal is not determined"
+            )
     return unit
+
+
+def _condition(unit: np.ndarray) -> float:
+    s = np.linalg.svd(unit, compute_uv=False)
+    return float(s[0] / s[-1])
 
 
 def condition_number(lights) -> float:
@@ -92,7 +160,7 @@ def condition_number(lights) -> float:
     Parameters
     ----------
     lights : array_like, shape (N, 3)
-        Light directions (normalised first, see :func:`validate_lights`).
+        Light directions (validated by :func:`validate_lights`).
 
     Returns
     -------
@@ -100,61 +168,279 @@ def condition_number(lights) -> float:
         ``sigma_max / sigma_min`` of the unit light matrix; 1 is ideal (three lights
         120 deg apart at slant 54.74 deg, Drbohlav & Chantler 2005). Noise in the
         images is amplified by up to this factor in ``rho n``.
+
+    Examples
+    --------
+    >>> round(condition_number(ring_lights(3, 45.0)), 6)  # sqrt(2)
+    1.414214
     """
-    unit = validate_lights(lights)
-    s = np.linalg.svd(unit, compute_uv=False)
-    return float(s[0] / s[-1])
+    return _condition(validate_lights(lights))
 
 
-def lights_from_slant_tilt(slant_deg, tilt_deg) -> np.ndarray:
-    """Unit light directions from slant and tilt angles.
+# ----------------------------------------------------------------------------- angles
+
+
+def _vectors(slant_rad, azimuth_rad) -> np.ndarray:
+    """``(sin s cos a, sin s sin a, cos s)`` for broadcast angles in radians: (..., 3)."""
+    s, a = np.broadcast_arrays(slant_rad, azimuth_rad)
+    return np.stack([np.sin(s) * np.cos(a), np.sin(s) * np.sin(a), np.cos(s)], axis=-1)
+
+
+def _angles(unit: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Slant and azimuth in degrees of unit vectors (..., 3)."""
+    slant = np.degrees(np.arccos(np.clip(unit[..., 2], -1.0, 1.0)))
+    azimuth = np.degrees(np.arctan2(unit[..., 1], unit[..., 0]))
+    return slant, azimuth
+
+
+def _alias(value, alias, name: str, alias_name: str):
+    """The value given under ``name`` or under its alias (exactly one of them)."""
+    if (value is None) == (alias is None):
+        raise ValueError(f"{name}: give either {name} or its alias {alias_name} (exactly one)")
+    return value if value is not None else alias
+
+
+def lights_from_angles(slant_deg, azimuth_deg=None, *, tilt_deg=None) -> np.ndarray:
+    """Unit light directions from slant and azimuth angles.
 
     Parameters
     ----------
-    slant_deg : array_like, shape (N,)
+    slant_deg : array_like
         Angle between each light and the camera axis ``+z``, degrees, in [0, 90].
-    tilt_deg : array_like, shape (N,)
-        Azimuth in the image plane, counter-clockwise from ``+x`` (right) towards
-        ``+y`` (up), degrees.
+    azimuth_deg : array_like
+        Angle in the image plane, counter-clockwise from ``+x`` (right) towards ``+y``
+        (up), degrees; broadcast against ``slant_deg``.
+    tilt_deg : array_like, optional
+        Alias of ``azimuth_deg`` (give one of the two).
 
     Returns
     -------
-    numpy.ndarray, shape (N, 3), float64
-        ``l = (sin s cos t, sin s sin t, cos s)``.
+    numpy.ndarray, shape ``broadcast(slant, azimuth) + (3,)``, float64
+        ``l = (sin s cos a, sin s sin a, cos s)``.
+
+    Examples
+    --------
+    >>> np.round(lights_from_angles([0.0, 90.0], [0.0, 90.0]), 12).tolist()
+    [[0.0, 0.0, 1.0], [0.0, 1.0, 0.0]]
+    >>> np.allclose(lights_from_angles(30.0, tilt_deg=45.0), lights_from_angles(30.0, 45.0))
+    True
     """
-    slant = as_array(slant_deg, "slant_deg", ndim=(0, 1)).reshape(-1)
-    tilt = as_array(tilt_deg, "tilt_deg", ndim=(0, 1)).reshape(-1)
-    if slant.shape != tilt.shape:
-        raise ValueError(f"slant_deg and tilt_deg: lengths differ ({slant.size} vs {tilt.size})")
+    azimuth_deg = _alias(azimuth_deg, tilt_deg, "azimuth_deg", "tilt_deg")
+    slant = as_array(slant_deg, "slant_deg")
+    azimuth = as_array(azimuth_deg, "azimuth_deg")
     if np.any((slant < 0) | (slant > 90)):
-        raise ValueError(f"slant_deg: must lie in [0, 90] degrees, got {slant.tolist()}")
-    s, t = np.radians(slant), np.radians(tilt)
-    return np.stack([np.sin(s) * np.cos(t), np.sin(s) * np.sin(t), np.cos(s)], axis=1)
+        raise ValueError(f"slant_deg: must lie in [0, 90] degrees, got {np.round(slant, 6).tolist()}")
+    try:
+        np.broadcast_shapes(slant.shape, azimuth.shape)
+    except ValueError:
+        raise ValueError(f"slant_deg, azimuth_deg: shapes {slant.shape} and {azimuth.shape} do not broadcast") from None
+    return _vectors(np.radians(slant), np.radians(azimuth))
 
 
-def slant_tilt_from_lights(lights) -> tuple[np.ndarray, np.ndarray]:
-    """Slant and tilt angles (degrees) of unit light directions; inverse of
-    :func:`lights_from_slant_tilt`.
+def light_angles(lights) -> tuple[np.ndarray, np.ndarray]:
+    """Slant and azimuth of light directions (inverse of :func:`lights_from_angles`).
 
     Parameters
     ----------
-    lights : array_like, shape (N, 3)
+    lights : array_like, shape (..., N, 3)
+        Light directions (validated by :func:`validate_lights`, any number).
+
+    Returns
+    -------
+    slant_deg, azimuth_deg : numpy.ndarray, shape (..., N), float64
+        Slant in [0, 180], azimuth in (-180, 180]; the azimuth of a light on the z axis
+        is 0.
+
+    Examples
+    --------
+    >>> s, a = light_angles(lights_from_angles([45.0], [120.0]))
+    >>> round(float(s[0]), 9), round(float(a[0]), 9)
+    (45.0, 120.0)
+    """
+    return _angles(validate_lights(lights, min_lights=1, batched=True))
+
+
+def ring_lights(n: int, slant_deg: float, azimuth0_deg: float = 90.0) -> np.ndarray:
+    """``n`` lights at one slant, equally spaced in azimuth (the standard triad for n = 3).
+
+    ``l_k = (sin s cos a_k, sin s sin a_k, cos s)`` with ``a_k = a_0 + 360 k / n``
+    degrees. Three lights 120 deg apart are best conditioned at ``tan(s) = sqrt(2)``,
+    s = 54.74 deg (Drbohlav & Chantler 2005).
+
+    Parameters
+    ----------
+    n : int
+        Number of lights (>= 1).
+    slant_deg : float
+        Angle between each light and the viewing direction +z, degrees, in [0, 90].
+    azimuth0_deg : float, optional
+        Azimuth of the first light (default 90: the first light comes from the top).
+
+    Returns
+    -------
+    numpy.ndarray, shape (n, 3), float64
+        Unit light directions.
+
+    Examples
+    --------
+    >>> np.round(ring_lights(3, 45.0), 4).tolist()
+    [[0.0, 0.7071, 0.7071], [-0.6124, -0.3536, 0.7071], [0.6124, -0.3536, 0.7071]]
+    """
+    if isinstance(n, bool) or int(n) != n or n < 1:
+        raise ValueError(f"n: expected a whole number of lights >= 1, got {n!r}")
+    slant = float(slant_deg)
+    if not 0.0 <= slant <= 90.0:
+        raise ValueError(f"slant_deg: must lie in [0, 90] degrees, got {slant_deg!r}")
+    azimuth = float(azimuth0_deg) + 360.0 * np.arange(int(n)) / int(n)
+    return _vectors(np.radians(slant), np.radians(azimuth))
+
+
+# ----------------------------------------------------------------------------- deviations
+
+
+def _basis(unit: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``e_s`` and ``e_a`` of unit lights (..., 3)."""
+    s, a = _angles(unit)
+    s, a = np.radians(s), np.radians(a)
+    e_s = np.stack([np.cos(s) * np.cos(a), np.cos(s) * np.sin(a), -np.sin(s)], axis=-1)
+    e_a = np.stack([-np.sin(a), np.cos(a), np.zeros_like(a)], axis=-1)
+    return e_s, e_a
+
+
+def tangent_basis(lights) -> tuple[np.ndarray, np.ndarray]:
+    """Unit tangent vectors of the light directions along slant and azimuth.
+
+    ``e_s = dl/ds = (cos s cos a, cos s sin a, -sin s)`` and
+    ``e_a = (-sin a, cos a, 0)`` (``dl/da = sin s e_a``).
+
+    Parameters
+    ----------
+    lights : array_like, shape (..., N, 3)
         Light directions.
 
     Returns
     -------
-    slant_deg, tilt_deg : numpy.ndarray, shape (N,)
-        Slant in [0, 180], tilt in (-180, 180].
+    e_slant, e_azimuth : numpy.ndarray, shape (..., N, 3), float64
+        Together with ``l`` an orthonormal basis.
     """
-    arr = as_array(lights, "lights", shape=(None, 3))
-    unit = arr / np.maximum(np.linalg.norm(arr, axis=1, keepdims=True), 1e-300)
-    slant = np.degrees(np.arccos(np.clip(unit[:, 2], -1.0, 1.0)))
-    tilt = np.degrees(np.arctan2(unit[:, 1], unit[:, 0]))
-    return slant, tilt
+    return _basis(validate_lights(lights, min_lights=1, batched=True))
+
+
+def _deviate(unit: np.ndarray, deviations_deg: np.ndarray) -> np.ndarray:
+    """``l(s + d_slant, a + d_azimuth)`` for unit lights (N, 3) and deviations (..., N, 2)."""
+    s, a = _angles(unit)
+    return _vectors(np.radians(s + deviations_deg[..., 0]), np.radians(a + deviations_deg[..., 1]))
+
+
+def deviate_lights(lights, deviations_deg) -> np.ndarray:
+    """Deviate each light by increments of its slant and azimuth (the "wrong lights" of seed 002(a)).
+
+    Parameters
+    ----------
+    lights : array_like, shape (N, 3)
+        Nominal light directions.
+    deviations_deg : array_like, shape (N,) or (..., N, 2)
+        ``[d_slant, d_azimuth]`` per light, degrees; leading dimensions give a batch of
+        light sets. A 1-D array gives slant deviations only.
+
+    Returns
+    -------
+    numpy.ndarray, shape (N, 3) or (..., N, 3), float64
+        Deviated unit lights ``l(s + d_slant, a + d_azimuth)``.
+
+    Examples
+    --------
+    >>> nominal = lights_from_angles([45.0, 45.0, 45.0], [90.0, 210.0, 330.0])
+    >>> s, a = light_angles(deviate_lights(nominal, [[2.0, 0.0], [0.0, -5.0], [0.0, 0.0]]))
+    >>> np.round(s, 9).tolist(), np.round(a, 9).tolist()
+    ([47.0, 45.0, 45.0], [90.0, -155.0, -30.0])
+    """
+    unit = validate_lights(lights, min_lights=1)
+    n = unit.shape[0]
+    d = as_array(deviations_deg, "deviations_deg")
+    if d.ndim == 1 and d.shape == (n,):
+        d = np.stack([d, np.zeros_like(d)], axis=-1)
+    if d.ndim < 2 or d.shape[-2:] != (n, 2):
+        raise ValueError(f"deviations_deg: expected shape ({n},) or (..., {n}, 2), got {d.shape}")
+    return _deviate(unit, d)
+
+
+def _rotate(unit: np.ndarray, angle_deg, direction_deg) -> np.ndarray:
+    """Unit lights (N, 3) turned by angles towards tangent directions, both broadcast to (..., N)."""
+    delta, phi = np.broadcast_arrays(np.radians(angle_deg), np.radians(direction_deg))
+    e_s, e_a = _basis(unit)
+    u = np.cos(phi)[..., None] * e_s + np.sin(phi)[..., None] * e_a
+    return np.cos(delta)[..., None] * unit + np.sin(delta)[..., None] * u
+
+
+def rotate_lights(lights, angle_deg, direction_deg) -> np.ndarray:
+    """Turn each light by an angle towards a direction in its tangent plane.
+
+    ``l' = cos(delta) l + sin(delta) (cos(phi) e_s + sin(phi) e_a)``: a rotation
+    about the axis ``l x u`` perpendicular to the light, so ``angle(l, l') = |delta|``.
+
+    Parameters
+    ----------
+    lights : array_like, shape (N, 3)
+        Nominal light directions.
+    angle_deg : array_like, broadcastable to (..., N)
+        Rotation angle ``delta`` per light, degrees.
+    direction_deg : array_like, broadcastable to (..., N)
+        Direction ``phi`` of the motion, degrees: 0 = increasing slant,
+        90 = increasing azimuth.
+
+    Returns
+    -------
+    numpy.ndarray, shape (..., N, 3), float64
+        Unit light directions.
+    """
+    unit = validate_lights(lights, min_lights=1)
+    delta = as_array(angle_deg, "angle_deg")
+    phi = as_array(direction_deg, "direction_deg")
+    try:
+        shape = np.broadcast_shapes(delta.shape, phi.shape)
+    except ValueError:
+        raise ValueError(f"angle_deg, direction_deg: shapes {delta.shape} and {phi.shape} do not broadcast") from None
+    if len(shape) and shape[-1] not in (1, unit.shape[0]):
+        raise ValueError(f"angle_deg/direction_deg: last axis must have {unit.shape[0]} entries, got {shape}")
+    return _rotate(unit, delta, phi)
+
+
+def rotation_matrix(axis, angle_deg: float) -> np.ndarray:
+    """Rotation matrix about an axis (Rodrigues' formula), e.g. a common rotation of a light rig.
+
+    Parameters
+    ----------
+    axis : array_like, shape (3,)
+        Rotation axis (any non-zero length).
+    angle_deg : float
+        Right-handed rotation angle, degrees.
+
+    Returns
+    -------
+    numpy.ndarray, shape (3, 3), float64
+        Orthogonal matrix ``R``; a rotated light is ``R @ l``.
+
+    Examples
+    --------
+    >>> np.round(rotation_matrix([0, 0, 1], 90.0) @ [1.0, 0.0, 0.0], 12).tolist()
+    [0.0, 1.0, 0.0]
+    """
+    k = as_array(axis, "axis", shape=(3,))
+    norm = np.linalg.norm(k)
+    if norm == 0:
+        raise ValueError("axis: must be a non-zero vector")
+    k = k / norm
+    t = math.radians(float(angle_deg))
+    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return np.eye(3) + math.sin(t) * K + (1.0 - math.cos(t)) * (K @ K)
+
+
+# ----------------------------------------------------------------------------- files
 
 
 def _read_table(path: Path, name: str) -> np.ndarray:
-    """Numbers from a text, .npy or JSON file (JSON: list, or dict handled by callers)."""
+    """Numbers from a text or .npy file."""
     suffix = path.suffix.lower()
     if suffix == ".npy":
         return np.load(path, allow_pickle=False)
@@ -162,6 +448,13 @@ def _read_table(path: Path, name: str) -> np.ndarray:
         return np.loadtxt(path, ndmin=2, delimiter="," if suffix == ".csv" else None)
     except ValueError as exc:
         raise ValueError(f"{name}: {path} is not a table of numbers ({exc})") from None
+
+
+def _read_json(path: Path, name: str):
+    try:
+        return json.loads(path.read_text())
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"{name}: {path} is not valid JSON ({exc})") from None
 
 
 def _existing(path, name: str) -> Path:
@@ -180,15 +473,17 @@ def load_lights(path) -> np.ndarray:
         One of
 
         * text (``.txt``, ``.csv``, ...): one ``x y z`` row per light (DiLiGenT
-          ``light_directions.txt``), or two columns ``slant tilt`` in degrees;
+          ``light_directions.txt``), or two columns ``slant azimuth`` in degrees (the
+          "slant tilt" form of vision software: tilt is the azimuth);
         * ``.npy``: an ``(N, 3)`` array;
         * ``.json``: a list of ``[x, y, z]``, or an object with ``"lights"``
-          (list of ``[x, y, z]``) or ``"slant_deg"`` and ``"tilt_deg"`` lists.
+          (list of ``[x, y, z]``) or ``"slant_deg"`` and ``"azimuth_deg"`` lists
+          (``"tilt_deg"`` is accepted for ``"azimuth_deg"``).
 
     Returns
     -------
     numpy.ndarray, shape (N, 3), float64
-        Unit light directions, validated by :func:`validate_lights`.
+        Unit light directions, validated once by :func:`validate_lights`.
 
     Raises
     ------
@@ -198,22 +493,21 @@ def load_lights(path) -> np.ndarray:
         Unreadable content or invalid lights.
     """
     p = _existing(path, "lights")
+    name = f"lights ({p.name})"
     if p.suffix.lower() == ".json":
-        try:
-            data = json.loads(p.read_text())
-        except json.JSONDecodeError as exc:
-            raise ValueError(f"lights: {p} is not valid JSON ({exc})") from None
+        data = _read_json(p, "lights")
         if isinstance(data, dict):
             if "lights" in data:
-                return validate_lights(data["lights"], f"lights ({p.name})")
-            if "slant_deg" in data and "tilt_deg" in data:
-                return validate_lights(lights_from_slant_tilt(data["slant_deg"], data["tilt_deg"]))
-            raise ValueError(f"lights: {p} needs a 'lights' list or 'slant_deg' and 'tilt_deg'")
-        return validate_lights(data, f"lights ({p.name})")
+                data = data["lights"]
+            elif "slant_deg" in data and ("azimuth_deg" in data or "tilt_deg" in data):
+                data = lights_from_angles(data["slant_deg"], data.get("azimuth_deg"), tilt_deg=data.get("tilt_deg"))
+            else:
+                raise ValueError(f"lights: {p} needs a 'lights' list or 'slant_deg' and 'azimuth_deg' (or 'tilt_deg')")
+        return validate_lights(data, name)
     table = _read_table(p, "lights")
     if table.ndim == 2 and table.shape[1] == 2:
-        return validate_lights(lights_from_slant_tilt(table[:, 0], table[:, 1]))
-    return validate_lights(table, f"lights ({p.name})")
+        table = lights_from_angles(table[:, 0], table[:, 1])
+    return validate_lights(table, name)
 
 
 def as_intensities(values, n: int, name: str = "intensities") -> np.ndarray:
@@ -268,10 +562,7 @@ def load_intensities(path, n: int) -> np.ndarray:
     """
     p = _existing(path, "intensities")
     if p.suffix.lower() == ".json":
-        try:
-            data = json.loads(p.read_text())
-        except json.JSONDecodeError as exc:
-            raise ValueError(f"intensities: {p} is not valid JSON ({exc})") from None
+        data = _read_json(p, "intensities")
         if isinstance(data, dict):
             data = data.get("intensities")
             if data is None:
@@ -281,6 +572,9 @@ def load_intensities(path, n: int) -> np.ndarray:
     if table.ndim == 2 and table.shape[0] == 1 and n != 1:
         table = table.reshape(-1)
     return as_intensities(table, n, f"intensities ({p.name})")
+
+
+# ----------------------------------------------------------------------------- calibration
 
 
 def sphere_from_mask(mask) -> tuple[float, float, float]:

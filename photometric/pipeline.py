@@ -1,15 +1,15 @@
-"""Photometric stereo end to end: images and lights in, measured surface files out.
+"""Photometric stereo end to end: images and lights in, a measured surface out (no files).
 
-``reconstruct`` is what ``workbench photometric reconstruct``, the demo and batch
-jobs call. It reads the input, solves normals and albedo (:mod:`photometric.stereo`),
-integrates the height (:mod:`photometric.integrate`), builds the shared surface model
-and its mesh, measures defects (:mod:`photometric.defects`) and writes:
+:func:`reconstruct` reads the input, solves normals and albedo
+(:mod:`photometric.stereo`), integrates the height (:mod:`photometric.integrate`),
+builds the shared surface model and its mesh and measures defects
+(:mod:`photometric.defects`); it returns everything as one
+:class:`PhotometricReconstruction` and writes nothing. The command line, the demo and
+batch jobs write the result files with ``workbench.runs.photometric.reconstruct_to_folder``.
 
-``normals.npy`` (H, W, 3) float32 unit, ``albedo.npy`` (H, W[, 3]) float32,
-``p.npy``, ``q.npy`` (H, W) float32, ``valid.npy`` (H, W) bool, ``height.npy`` (H, W)
-float64 in mm (NaN outside the solved pixels), ``normals.png``, ``albedo.png``,
-``height.png``, ``surface.ply``, ``defects.json`` and ``summary.json`` (the returned
-dict). Every file is written atomically.
+Input is validated once, here where it enters: lights and intensities by their readers
+(:mod:`photometric.lights`), images and masks by :mod:`photometric.io`, the options
+before any file is read; the solver and integrator then take the checked arrays.
 """
 
 from __future__ import annotations
@@ -17,17 +17,85 @@ from __future__ import annotations
 import json
 import time
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from photometric.io import PhotometricData, read_folder, read_images, read_mask
-from photometric.lights import as_intensities, condition_number, load_intensities, load_lights, validate_lights
-from surfaces.io import save_npy, write_json
+from photometric.lights import _condition, as_intensities, load_intensities, load_lights, validate_lights
+from photometric.stereo import _check_images, _check_options, _solve
+from surfaces.bezier import BezierPatches
+from surfaces.mesh import TriangleMesh
 from surfaces.validate import as_array, positive
+
+__all__ = ["TARGET_PATCHES", "PhotometricReconstruction", "reconstruct"]
 
 #: Patches per image side aimed at when ``step`` is not given.
 TARGET_PATCHES = 64
+
+
+@dataclass(frozen=True)
+class PhotometricReconstruction:
+    """Everything :func:`reconstruct` computes.
+
+    Attributes
+    ----------
+    normals : numpy.ndarray, shape (H, W, 3), float32
+        Unit normals (:attr:`photometric.stereo.StereoResult.normals`).
+    albedo : numpy.ndarray, shape (H, W) or (H, W, 3), float32
+        Albedo.
+    p, q : numpy.ndarray, shape (H, W), float32
+        Slopes ``dz/dx``, ``dz/dy`` (y up); zero where not valid.
+    valid : numpy.ndarray, shape (H, W), bool
+        Pixels with a trustworthy normal.
+    mask : numpy.ndarray, shape (H, W), bool
+        The object mask of the input.
+    height : numpy.ndarray, shape (H, W), float64
+        Height in mm (NaN outside the valid pixels).
+    patches : surfaces.bezier.BezierPatches
+        The bicubic surface through the height (:func:`photometric.integrate.height_to_patches`).
+    mesh : surfaces.mesh.TriangleMesh
+        The tessellated surface, trimmed to the mask; coordinates in mm on the centred
+        pixel grid of :data:`surfaces.grid.GRID_CONVENTION`.
+    defects : list of dict
+        Defect measures (:func:`photometric.defects.measure_defects`).
+    background : str
+        Background removed before measuring the defects.
+    summary : dict
+        Input, sizes, options, light condition number, invalid fraction, timings (s) of
+        the stages ``read``, ``solve``, ``integrate``, ``surface``, ``defects``, mesh
+        size, number of defects and, with ground truth, ``mean_angular_error_deg``,
+        ``median_angular_error_deg`` (over the mask) and ``height_rmse_mm`` (over valid
+        pixels, means removed). JSON-ready.
+    """
+
+    normals: np.ndarray
+    albedo: np.ndarray
+    p: np.ndarray
+    q: np.ndarray
+    valid: np.ndarray
+    mask: np.ndarray
+    height: np.ndarray
+    patches: BezierPatches
+    mesh: TriangleMesh
+    defects: list
+    background: str
+    summary: dict
+
+
+def _lights(lights) -> np.ndarray:
+    return load_lights(lights) if isinstance(lights, (str, Path)) else validate_lights(lights)
+
+
+def _intensities(intensities, n: int) -> np.ndarray:
+    return load_intensities(intensities, n) if isinstance(intensities, (str, Path)) else as_intensities(intensities, n)
+
+
+def _mask(mask, shape) -> np.ndarray:
+    if isinstance(mask, (str, Path)):
+        return read_mask(mask, shape)
+    return as_array(mask, "mask", shape=shape, dtype=bool)
 
 
 def _load_input(source, lights, intensities, mask, select) -> tuple[PhotometricData, dict]:
@@ -50,20 +118,13 @@ def _load_input(source, lights, intensities, mask, select) -> tuple[PhotometricD
                 extra["scene_pixel_size_mm"] = float(scene["pixel_size_mm"])
         replace = {}
         if lights is not None:
-            replace["lights"] = load_lights(lights) if isinstance(lights, (str, Path)) else validate_lights(lights)
+            replace["lights"] = _lights(lights)
+            if replace["lights"].shape[0] != len(data.names):
+                raise ValueError(f"lights: {replace['lights'].shape[0]} directions for {len(data.names)} images")
         if intensities is not None:
-            n = len(data.names)
-            replace["intensities"] = (
-                load_intensities(intensities, n)
-                if isinstance(intensities, (str, Path))
-                else as_intensities(intensities, n)
-            )
+            replace["intensities"] = _intensities(intensities, len(data.names))
         if mask is not None:
-            replace["mask"] = (
-                read_mask(mask, data.images.shape[1:3])
-                if isinstance(mask, (str, Path))
-                else as_array(mask, "mask", shape=data.images.shape[1:3], dtype=bool)
-            )
+            replace["mask"] = _mask(mask, data.images.shape[1:3])
         if replace:
             fields = {k: getattr(data, k) for k in PhotometricData.__dataclass_fields__}
             fields.update(replace)
@@ -78,34 +139,30 @@ def _load_input(source, lights, intensities, mask, select) -> tuple[PhotometricD
         names = tuple(Path(s).name for s in source)
         kind = {"kind": "files", "paths": [str(s) for s in source]}
     else:
-        images = as_array(source, "images", ndim=(3, 4), dtype=np.float32)
+        images = _check_images(source)
         names = tuple(f"image{k:03d}" for k in range(images.shape[0]))
         kind = {"kind": "array"}
-    L = load_lights(lights) if isinstance(lights, (str, Path)) else validate_lights(lights)
+    L = _lights(lights)
     if L.shape[0] != images.shape[0]:
         raise ValueError(f"lights: {L.shape[0]} directions for {images.shape[0]} images")
     n = images.shape[0]
-    E = load_intensities(intensities, n) if isinstance(intensities, (str, Path)) else as_intensities(intensities, n)
     shape = images.shape[1:3]
-    if mask is None:
-        m = np.ones(shape, bool)
-    elif isinstance(mask, (str, Path)):
-        m = read_mask(mask, shape)
-    else:
-        m = as_array(mask, "mask", shape=shape, dtype=bool)
-    return PhotometricData(images, L, E, m, None, names), kind
+    m = np.ones(shape, bool) if mask is None else _mask(mask, shape)
+    return PhotometricData(images, L, _intensities(intensities, n), m, None, names), kind
 
 
 def _trimmed_mesh(patches, region: np.ndarray, pixel_size: float, samples: int):
     """Tessellate and drop triangles whose centroid falls outside ``region``."""
-    from surfaces.mesh import TriangleMesh, tessellate
+    from surfaces.grid import xy_to_pixel
+    from surfaces.mesh import tessellate
 
     mesh = tessellate(patches, samples=samples)
     if region.all():
         return mesh
     centroid = mesh.vertices[mesh.triangles].mean(axis=1)
-    col = np.clip(np.rint(centroid[:, 0] / pixel_size), 0, region.shape[1] - 1).astype(np.int64)
-    row = np.clip(np.rint(-centroid[:, 1] / pixel_size), 0, region.shape[0] - 1).astype(np.int64)
+    row, col = xy_to_pixel(centroid[:, 0], centroid[:, 1], region.shape, pixel_size)
+    row = np.clip(np.rint(row), 0, region.shape[0] - 1).astype(np.int64)
+    col = np.clip(np.rint(col), 0, region.shape[1] - 1).astype(np.int64)
     tri = mesh.triangles[region[row, col]]
     used = np.unique(tri)
     remap = np.full(len(mesh.vertices), -1, np.int64)
@@ -116,7 +173,6 @@ def _trimmed_mesh(patches, region: np.ndarray, pixel_size: float, samples: int):
 
 def reconstruct(
     source,
-    out_dir,
     *,
     lights=None,
     intensities=None,
@@ -132,16 +188,14 @@ def reconstruct(
     samples: int | None = None,
     background: str = "plane",
     progress: Callable[[str], None] | None = None,
-) -> dict:
-    """Run photometric stereo end to end and write the result files.
+) -> PhotometricReconstruction:
+    """Run photometric stereo end to end and return every result (writes nothing).
 
     Parameters
     ----------
     source : str, Path, sequence of paths, array_like or PhotometricData
         A DiLiGenT-style folder (:func:`photometric.io.read_folder`), image files, or an
         ``(N, H, W[, 3])`` image array.
-    out_dir : str or Path
-        Output folder (created if missing).
     lights : str, Path or array_like, shape (N, 3), optional
         Light directions (file or array); required for files/arrays, overrides a
         folder's own.
@@ -166,22 +220,17 @@ def reconstruct(
     background : {"plane", "smooth"}
         Background removed before measuring defects.
     progress : callable, optional
-        Called with the name of each stage as it starts (the command line's progress bar).
+        Called with the name of each stage as it starts (``read``, ``normals``,
+        ``height``, ``surface``, ``defects``; the command line's progress bar).
 
     Returns
     -------
-    dict
-        The content of ``summary.json``: input, sizes, options, light condition number,
-        invalid fraction, timings (s), files, mesh size, number of defects and, when the
-        folder has ground truth, ``mean_angular_error_deg`` (over the mask) and
-        ``height_rmse_mm`` (over valid pixels, means removed).
+    PhotometricReconstruction
+        Arrays, surface, mesh, defects and the summary.
     """
     from photometric.defects import measure_defects
     from photometric.integrate import METHODS, height_to_patches, integrate
-    from photometric.preview import normals_rgb, scaled
-    from surfaces.io import write_png
-    from photometric.stereo import angular_error_deg, solve
-    from surfaces.io import write_mesh
+    from photometric.normals import angular_error_deg
 
     if integrator not in METHODS:
         raise ValueError(f"integrator: expected one of {METHODS}, got {integrator!r}")
@@ -189,8 +238,7 @@ def reconstruct(
         positive(pixel_size, "pixel_size")
     if samples is not None and int(samples) < 1:
         raise ValueError(f"samples: must be at least 1, got {samples}")
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    _check_options(dark, saturation, highlight, 2)
     say = progress or (lambda _stage: None)
     timings: dict[str, float] = {}
     t_all = time.perf_counter()
@@ -212,10 +260,9 @@ def reconstruct(
 
     say("normals")
     t0 = time.perf_counter()
-    res = solve(
-        data.images, data.lights, data.intensities, data.mask, outliers=outliers,
-        dark=dark, saturation=saturation, highlight=highlight,
-    )
+    if not data.mask.any():
+        raise ValueError("mask: no pixel is selected")
+    res = _solve(data.images, data.lights, data.intensities, data.mask, outliers, dark, saturation, highlight, 2)
     timings["solve"] = time.perf_counter() - t0
 
     say("height")
@@ -229,32 +276,12 @@ def reconstruct(
     patches = height_to_patches(height, res.p, res.q, pixel_size=h, step=step_px)
     n_samples = int(samples) if samples is not None else min(step_px, 8)
     mesh = _trimmed_mesh(patches, data.mask, h, n_samples)
-    write_mesh(mesh, out / "surface.ply")
     timings["surface"] = time.perf_counter() - t0
 
     say("defects")
     t0 = time.perf_counter()
     defects = measure_defects(height, h, res.valid, background=background, p=res.p, q=res.q)
     timings["defects"] = time.perf_counter() - t0
-
-    say("write")
-    t0 = time.perf_counter()
-    save_npy(out / "normals.npy", res.normals)
-    save_npy(out / "albedo.npy", res.albedo)
-    save_npy(out / "p.npy", res.p)
-    save_npy(out / "q.npy", res.q)
-    save_npy(out / "valid.npy", res.valid)
-    save_npy(out / "height.npy", height)
-    write_png(out / "normals.png", normals_rgb(res.normals, res.valid))
-    write_png(out / "albedo.png", scaled(res.albedo, data.mask))
-    import cv2
-
-    write_png(out / "height.png", scaled(height, res.valid, colormap=cv2.COLORMAP_VIRIDIS))
-    write_json(
-        out / "defects.json",
-        {"units": "mm", "pixel_size_mm": h, "background": background, "defects": defects},
-    )
-    timings["write"] = time.perf_counter() - t0
     timings["total"] = time.perf_counter() - t_all
 
     n_mask = int(data.mask.sum())
@@ -266,7 +293,7 @@ def reconstruct(
         "pixel_size_source": h_source,
         "integrator": integrator,
         "outliers": bool(outliers),
-        "light_condition_number": condition_number(data.lights),
+        "light_condition_number": _condition(data.lights),
         "lights": data.lights.tolist(),
         "mask_pixels": n_mask,
         "valid_pixels": int(res.valid.sum()),
@@ -279,18 +306,26 @@ def reconstruct(
         "mesh": {"vertices": int(mesh.n_vertices), "triangles": int(mesh.n_triangles)},
         "n_defects": len(defects),
         "timings_s": {k: round(v, 4) for k, v in timings.items()},
-        "files": sorted(
-            ["normals.npy", "albedo.npy", "p.npy", "q.npy", "valid.npy", "height.npy", "normals.png",
-             "albedo.png", "height.png", "surface.ply", "defects.json", "summary.json"]
-        ),
     }
     if data.normal_gt is not None:
-        err = angular_error_deg(res.normals, data.normal_gt, data.mask)
+        err = angular_error_deg(res.normals, data.normal_gt)[data.mask]
         summary["mean_angular_error_deg"] = float(err.mean())
         summary["median_angular_error_deg"] = float(np.median(err))
     if height_gt is not None and np.shape(height_gt) == (rows, cols) and res.valid.any():
         v = res.valid & np.isfinite(height)
         diff = (height[v] - height[v].mean()) - (height_gt[v] - height_gt[v].mean())
         summary["height_rmse_mm"] = float(np.sqrt(np.mean(diff**2)))
-    write_json(out / "summary.json", summary)
-    return summary
+    return PhotometricReconstruction(
+        normals=res.normals,
+        albedo=res.albedo,
+        p=res.p,
+        q=res.q,
+        valid=res.valid,
+        mask=data.mask,
+        height=height,
+        patches=patches,
+        mesh=mesh,
+        defects=defects,
+        background=background,
+        summary=summary,
+    )

@@ -188,6 +188,20 @@ def solve(
     intensities and averaged to grey to solve for one normal; the albedo of channel
     ``c`` is then ``sum_k x_kc s_k / sum_k s_k^2`` with ``s_k = l_k . n`` over the
     observations used.
+
+    Examples
+    --------
+    A 2 x 2 patch of slope ``p = 0.2``, ``q = -0.1`` and albedo 0.5 under the 45 deg triad:
+
+    >>> from photometric.lights import ring_lights
+    >>> from photometric.normals import normals_from_slopes
+    >>> L = ring_lights(3, 45.0)
+    >>> images = 0.5 * (L @ normals_from_slopes(0.2, -0.1))[:, None, None] * np.ones((3, 2, 2))
+    >>> res = solve(images, L)
+    >>> round(float(res.p[0, 0]), 5), round(float(res.q[0, 0]), 5), round(float(res.albedo[0, 0]), 5)
+    (0.2, -0.1, 0.5)
+    >>> bool(res.valid.all())
+    True
     """
     imgs = _check_images(images)
     n_img, height, width = imgs.shape[:3]
@@ -198,6 +212,12 @@ def solve(
     m = None if mask is None else as_array(mask, "mask", shape=(height, width), dtype=bool)
     if m is not None and not m.any():
         raise ValueError("mask: no pixel is selected")
+    _check_options(dark, saturation, highlight, iterations)
+    return _solve(imgs, L, intens, m, outliers, dark, saturation, highlight, int(iterations))
+
+
+def _check_options(dark: float, saturation: float, highlight: float | None, iterations: int) -> None:
+    """The thresholds of the outlier test: checked where they enter (solve, the pipeline)."""
     for value, name in ((dark, "dark"), (saturation, "saturation")):
         if not np.isfinite(value) or value <= 0:
             raise ValueError(f"{name}: must be a positive number, got {value}")
@@ -206,6 +226,21 @@ def solve(
     if int(iterations) < 1:
         raise ValueError(f"iterations: must be at least 1, got {iterations}")
 
+
+def _solve(
+    imgs: np.ndarray,
+    L: np.ndarray,
+    intens: np.ndarray,
+    m: np.ndarray | None,
+    outliers: bool,
+    dark: float,
+    saturation: float,
+    highlight: float | None,
+    iterations: int,
+) -> StereoResult:
+    """:func:`solve` on validated input: images from :func:`_check_images`, unit lights (N, 3)
+    matching them, intensities (N, 3), a boolean mask or None, checked thresholds."""
+    n_img, height, width = imgs.shape[:3]
     planes = _grey_planes(imgs, intens)
     M = np.linalg.inv(L) if n_img == 3 else np.linalg.pinv(L)
     g = [_combine(M[i], planes) for i in range(3)]
@@ -313,28 +348,3 @@ def _colour_albedo(imgs, intens, L, normals, inliers, idx, blank) -> np.ndarray:
     albedo = albedo.reshape(height, width, 3)
     albedo[blank] = 0.0
     return albedo
-
-
-def angular_error_deg(normals, reference, mask=None) -> np.ndarray:
-    """Angle between two normal maps, degrees.
-
-    Parameters
-    ----------
-    normals, reference : array_like, shape (H, W, 3)
-        Normal maps (normalised here).
-    mask : array_like, shape (H, W), optional
-        Pixels to return (default all).
-
-    Returns
-    -------
-    numpy.ndarray, float64
-        ``arccos(n . n_ref)`` in degrees, shape (H, W), or (K,) over the mask pixels.
-    """
-    a = as_array(normals, "normals", shape=(None, None, 3))
-    b = as_array(reference, "reference", shape=a.shape)
-    a = a / np.maximum(np.linalg.norm(a, axis=2, keepdims=True), 1e-300)
-    b = b / np.maximum(np.linalg.norm(b, axis=2, keepdims=True), 1e-300)
-    err = np.degrees(np.arccos(np.clip(np.einsum("hwc,hwc->hw", a, b), -1.0, 1.0)))
-    if mask is None:
-        return err
-    return err[as_array(mask, "mask", shape=a.shape[:2], dtype=bool)]

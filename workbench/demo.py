@@ -218,9 +218,10 @@ def section_inspection(ctx: Context) -> None:
     with ctx.guard("Inspection: photometric stereo"):
         from photometric.integrate import height_to_patches
         from photometric.io import read_folder
-        from photometric.pipeline import reconstruct
+        from photometric.normals import angular_error_deg
         from surfaces.bezier import BezierPatches
         from surfaces.io import read_mesh
+        from workbench.runs.photometric import reconstruct_to_folder
 
         data = read_folder(folder)
         lights = np.asarray(scene["lights_nominal"], float)
@@ -232,14 +233,14 @@ def section_inspection(ctx: Context) -> None:
         rep.figure(im.montage(pics, cols=3, labels=labels), "inspection-images",
                    "The three rendered images (16-bit PNG, shown linearly); the shadows are cast "
                    "by the defects' walls.", triad_cmd)
-        summary = reconstruct(folder, recon)
+        summary = reconstruct_to_folder(folder, recon)
         ctx.step("inspection: photometric pipeline")
         normals = np.load(recon / "normals.npy")
         albedo = np.load(recon / "albedo.npy")
         valid = np.load(recon / "valid.npy")
         p, q = np.load(recon / "p.npy"), np.load(recon / "q.npy")
         height = np.load(recon / "height.npy")
-        err = im.angular_error(normals, data.normal_gt, valid)
+        err = np.where(valid, angular_error_deg(normals, data.normal_gt), np.nan)
         height = height - np.nanmean(height[valid])
         herr = np.where(valid, height - (height_gt - np.mean(height_gt[valid])), np.nan)
         nums.update(normal_error_mean_deg=float(np.nanmean(err)),
@@ -357,8 +358,10 @@ def section_accuracy(ctx: Context) -> None:
     ctx.numbers["accuracy"] = nums
     with ctx.guard("Accuracy study"):
         from photometric import errors
+        from photometric.lights import condition_number, ring_lights
+        from workbench.studies.crack import crack_study
 
-        lights = errors.standard_triad(45.0)
+        lights = ring_lights(3, 45.0)
         d_range = 1.0
         n_map = 21 if ctx.quick else 41
         p, q = errors.derivative_square(d_range, 21 if ctx.quick else 41)
@@ -415,7 +418,7 @@ def section_accuracy(ctx: Context) -> None:
         dev = np.zeros((2, 3, 2))
         dev[:, 0, 0] = 2.0
         dev[1, 1, 1] = -2.0
-        crack = errors.crack_study(lights, dev, size=64 if ctx.quick else 128)
+        crack = crack_study(lights, dev, size=64 if ctx.quick else 128)
         ctx.step("accuracy: crack study")
         maps = crack["maps"]
         tiles, captions = [], []
@@ -441,10 +444,10 @@ def section_accuracy(ctx: Context) -> None:
               c["max_abs_dp_measured"], c["max_abs_dp_predicted"], c["max_abs_dq_measured"],
               c["max_abs_dq_predicted"], c["max_abs_dq_first_order"], c["depth_mm"]]
              for k, c in enumerate(crack["cases"])],
-            caption="Crack study (photometric.errors.crack_study): the measured error equals the "
+            caption="Crack study (workbench.studies.crack.crack_study): the measured error equals the "
             "exact model's prediction; the first-order formula is within a few per cent.",
             digits=4)
-        nums["condition_number"] = float(errors.condition_number(lights))
+        nums["condition_number"] = float(condition_number(lights))
         rep.paragraph(f"Condition number of the nominal triad: {nums['condition_number']:.3f} "
                       f"(best, 1.0, at slant {errors.OPTIMAL_SLANT_DEG:.2f} deg).")
 
@@ -470,17 +473,18 @@ def section_real(ctx: Context) -> None:
         return
     with ctx.guard("Real captures"):
         from photometric.io import read_folder
-        from photometric.pipeline import reconstruct
+        from photometric.normals import angular_error_deg
         from surfaces.render import render
         from surfaces.io import read_mesh
+        from workbench.runs.photometric import reconstruct_to_folder
 
         results = {}
         for key, select in (("triad", "triad"), ("all14", None)):
             data = read_folder(folder, select=select)
             dest = ctx.out / "real" / f"bear_{key}"
-            summary = reconstruct(folder, dest, select=select)
+            summary = reconstruct_to_folder(folder, dest, select=select)
             normals = np.load(dest / "normals.npy")
-            err = im.angular_error(normals, data.normal_gt, data.mask)
+            err = np.where(data.mask, angular_error_deg(normals, data.normal_gt), np.nan)
             results[key] = (data, normals, err, dest)
             nums[f"{key}_mean_error_deg"] = float(np.nanmean(err))
             nums[f"{key}_median_error_deg"] = float(np.nanmedian(err))

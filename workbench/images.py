@@ -2,7 +2,9 @@
 
 All functions take numpy arrays and return RGB ``uint8`` pictures of shape
 ``(H, W', 3)`` (``W' > W`` when a colour bar is appended); :func:`surfaces.io.write_png`
-saves them atomically. Normal maps use the usual encoding
+saves them atomically. The previews of ``workbench photometric reconstruct``
+(``normals.png``, ``albedo.png``, ``height.png``) are :func:`normal_map`,
+:func:`albedo_image` and :func:`scalar_image` without a colour bar. Normal maps use the usual encoding
 ``RGB = 255 * (n + 1) / 2`` with the image convention of the data (DiLiGenT:
 x right, y up, z towards the camera), so a surface facing the camera is
 (128, 128, 255) light blue.
@@ -119,6 +121,7 @@ def scalar_image(
     colorbar: bool = True,
     min_height: int = 256,
     background: Sequence[float] = (1.0, 1.0, 1.0),
+    percentile: float | None = None,
 ) -> np.ndarray:
     """A scalar map through a colour map, with a colour bar on the right.
 
@@ -132,6 +135,10 @@ def scalar_image(
         Matplotlib colour map.
     vmin, vmax : float, optional
         Colour range; the masked finite min/max when omitted.
+    percentile : float, optional
+        When given, an omitted ``vmin``/``vmax`` is the ``100 - percentile`` /
+        ``percentile`` percentile of the masked finite values instead (a few outliers do
+        not wash out the map).
     label : str
         Colour-bar title with units.
     colorbar : bool
@@ -151,6 +158,12 @@ def scalar_image(
 
     vals = as_array(values, "values", ndim=2, finite=False)
     m = _mask(mask, vals.shape) & np.isfinite(vals)
+    if percentile is not None and m.any():
+        pct = positive(percentile, "percentile")
+        if vmin is None:
+            vmin = float(np.percentile(vals[m], 100.0 - pct))
+        if vmax is None:
+            vmax = float(np.percentile(vals[m], pct))
     lo, hi = scalar_range(vals[m], vmin, vmax)
     rgb = apply_colormap(np.where(m, vals, np.nan), cmap, lo, hi, nan_color=background)
     out = (rgb * 255 + 0.5).astype(np.uint8)
@@ -221,31 +234,6 @@ def error_image(
     if vmax is None:
         vmax = float(np.percentile(err[m], 99)) if m.any() else 1.0
     return scalar_image(err, m, cmap=cmap, vmin=0.0, vmax=max(float(vmax), 1e-12), label=label)
-
-
-def angular_error(normals: np.ndarray, reference: np.ndarray, mask: np.ndarray | None = None) -> np.ndarray:
-    """Angle between two normal fields, in degrees.
-
-    Parameters
-    ----------
-    normals, reference : (H, W, 3) array_like
-        Normal fields (normalised here).
-    mask : (H, W) bool, optional
-        Pixels to compare; NaN elsewhere.
-
-    Returns
-    -------
-    (H, W) float64
-        ``degrees(arccos(clip(n . n_ref, -1, 1)))``; NaN outside the mask or
-        where a normal is zero or not finite.
-    """
-    a = as_array(normals, "normals", shape=(None, None, 3), finite=False)
-    b = as_array(reference, "reference", shape=a.shape, finite=False)
-    m = _mask(mask, a.shape[:2])
-    na, nb = np.linalg.norm(a, axis=2), np.linalg.norm(b, axis=2)
-    ok = m & (na > 0) & (nb > 0) & np.isfinite(na) & np.isfinite(nb)
-    cos = np.einsum("ijc,ijc->ij", np.nan_to_num(a), np.nan_to_num(b)) / np.where(ok, na * nb, 1.0)
-    return np.where(ok, np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))), np.nan)
 
 
 def enlarge(image: np.ndarray, min_height: int = 256) -> np.ndarray:

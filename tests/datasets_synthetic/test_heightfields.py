@@ -8,7 +8,6 @@ import pytest
 from datasets_synthetic import heightfields as hfm
 from surfaces.grid import pixel_grid, xy_to_pixel
 from datasets_synthetic.heightfields import (
-    CONVENTION,
     SCENES,
     inspection_plate,
     make_scene,
@@ -19,10 +18,20 @@ from datasets_synthetic.heightfields import (
 )
 
 
-def test_convention_is_stated():
-    for words in ("x to the right", "y up", "z towards the camera", "row 0 is the TOP row",
-                  "n = (-p, -q, 1)"):
-        assert words in CONVENTION
+def test_scenes_follow_the_stated_convention():
+    """CONVENTION's numbers, written out: centred pixel centres, y up, n = (-p, -q, 1) / |.|."""
+    h, w, ps = 5, 8, 0.2
+    hf = tilted_plane((h, w), ps, slope_x=0.3, slope_y=-0.7)
+    rows, cols = np.mgrid[0:h, 0:w]
+    x = (cols - (w - 1) / 2) * ps
+    y = ((h - 1) / 2 - rows) * ps
+    np.testing.assert_allclose(hf.height, 0.3 * x - 0.7 * y, atol=1e-15)
+    assert hf.height[h // 2, (w - 1) // 2] == pytest.approx(0.3 * -0.5 * ps)  # origin between columns 3 and 4
+    np.testing.assert_allclose(hf.normals[2, 3], np.array([-0.3, 0.7, 1.0]) / np.sqrt(1.58), atol=1e-15)
+    # a defect placed in mm reports the pixel whose centre is there
+    crack = v_crack((21, 31), 0.1, depth_mm=0.1, width_mm=0.4, length_mm=1.0, center_px=(4.0, 25.0))
+    assert crack.defects[0]["center_mm"] == pytest.approx([(25 - 15) * 0.1, (10 - 4) * 0.1])
+    assert crack.defects[0]["center_px"] == pytest.approx([4.0, 25.0])
 
 
 def test_surface_rising_to_the_right_has_normals_with_negative_x():
@@ -145,7 +154,7 @@ def test_vase_lies_on_its_support():
         (lambda: spherical_dent(64, 0.05, depth_mm=2.0, width_mm=1.0), "depth_mm"),
         (lambda: v_crack(64, 0.05, width_mm=2.0, length_mm=1.0), "length_mm"),
         (lambda: inspection_plate(16, 0.05), "size"),
-        (lambda: hfm.normals_from_slopes(np.zeros((2, 2)), np.zeros((3, 3))), "p and q"),
+        (lambda: hfm.tilted_plane(8, 0.1, slope_x=np.inf), "slope_x"),
     ],
 )
 def test_bad_input_names_the_argument(call, message):

@@ -10,39 +10,27 @@ import pytest
 
 from datasets_synthetic.heightfields import gaussian_bumps, make_scene, plane, sphere_cap, tilted_plane
 from datasets_synthetic.render import (
-    angle_between_deg,
     cast_shadow_mask,
-    deviate_lights,
     make_triad_folder,
     render,
-    ring_lights,
-    slant_azimuth,
     texture_albedo,
     write_diligent_folder,
 )
+from photometric.io import read_folder
+from photometric.lights import deviate_lights, ring_lights
+from photometric.normals import angular_error_deg
 
 
-@pytest.mark.parametrize("n, slant", [(3, 45.0), (4, 30.0), (8, 54.74)])
-def test_ring_lights(n, slant):
-    L = ring_lights(n, slant)
-    np.testing.assert_allclose(np.linalg.norm(L, axis=1), 1.0)
-    s, a = slant_azimuth(L)
-    np.testing.assert_allclose(s, slant)
-    np.testing.assert_allclose(np.mod(a - 90.0 + 1e-9, 360.0 / n), 0.0, atol=1e-6)
-    assert L[0, 1] > 0.0  # azimuth 90: the first light comes from the top (y up)
-
-
-@pytest.mark.parametrize("ds, da", [(2.0, 0.0), (-3.0, 0.0), (0.0, 5.0), (1.0, 2.0)])
-def test_deviate_lights_angles(ds, da):
-    slant = 45.0
-    L = ring_lights(3, slant)
-    D = deviate_lights(L, [[ds, da], [0, 0], [0, 0]])
-    err = angle_between_deg(D, L)
-    # spherical law of cosines between (s, a) and (s + ds, a + da)
-    s0, s1, d = np.deg2rad(slant), np.deg2rad(slant + ds), np.deg2rad(da)
-    expected = np.rad2deg(np.arccos(np.cos(s0) * np.cos(s1) + np.sin(s0) * np.sin(s1) * np.cos(d)))
-    assert err[0] == pytest.approx(expected, abs=1e-9)
-    np.testing.assert_allclose(err[1:], 0.0, atol=1e-9)
+def test_scene_records_the_deviated_lights(tmp_path):
+    """scene.json states slant, azimuth and the angle between true and nominal lights."""
+    scene = make_triad_folder(tmp_path, scene="plane", size=16, lights=3, slant=40.0, noise=0.0,
+                              shadows="none", deviate=[[1.0, 0.0], [0.0, 3.0], [0.0, 0.0]], albedo=1.0)
+    np.testing.assert_allclose(scene["slant_nominal_deg"], 40.0, atol=1e-12)
+    np.testing.assert_allclose(np.mod(np.asarray(scene["azimuth_nominal_deg"]) - 90.0 + 1e-9, 120.0), 0.0, atol=1e-8)
+    s = np.radians(40.0)
+    expected = [1.0, np.degrees(np.arccos(np.cos(s) ** 2 + np.sin(s) ** 2 * np.cos(np.radians(3.0)))), 0.0]
+    np.testing.assert_allclose(scene["light_error_deg"], expected, atol=1e-9)
+    np.testing.assert_allclose(angular_error_deg(scene["lights_true"], scene["lights_nominal"]), expected, atol=1e-9)
 
 
 @pytest.mark.parametrize("rgb", [False, True])
@@ -96,8 +84,6 @@ def _exact_shadow_row(hf, row, light):
 @pytest.mark.parametrize("method", ["march", "raycast"])
 @pytest.mark.parametrize("slant", [50.0, 65.0])
 def test_tall_bump_shadows_the_pixels_behind_it(slant, method):
-    if method == "raycast":
-        pytest.importorskip("open3d")
     hf = _bump()
     light = np.array([np.sin(np.radians(slant)), 0.0, np.cos(np.radians(slant))])  # from the right
     mask = cast_shadow_mask(hf.height, light, hf.pixel_size, method=method)
@@ -123,7 +109,8 @@ def test_shadow_of_a_light_from_the_top_falls_towards_the_bottom_rows():
 
 
 def test_cast_shadows_agree_with_open3d_ray_casting():
-    o3d = pytest.importorskip("open3d")
+    import open3d as o3d
+
     hf = gaussian_bumps(64, 0.1, centers_px=[(30, 30), (40, 20)], amplitudes_mm=[2.0, 1.5],
                         sigmas_mm=[0.5, 0.4])
     light = deviate_lights(ring_lights(3, 60.0), np.zeros(3))[1]
@@ -181,7 +168,8 @@ def test_specular_highlight_where_the_normal_bisects_light_and_view():
 @pytest.mark.parametrize(
     "kwargs, message",
     [
-        ({"lights": [[0, 0, 2.0]]}, "unit"),
+        ({"lights": [[0, 0, 0.0]]}, "zero-length"),
+        ({"lights": [[0, 0, 1.0, 0.0]]}, "shape"),
         ({"lights": [[0, 0, 1.0]], "shadows": "soft"}, "shadows"),
         ({"lights": [[0, 0, 1.0]], "bit_depth": 12}, "bit_depth"),
         ({"lights": [[0, 0, 1.0]], "intensities": [1.0, 2.0]}, "intensities"),
@@ -192,6 +180,13 @@ def test_specular_highlight_where_the_normal_bisects_light_and_view():
 def test_render_rejects_bad_input(kwargs, message):
     with pytest.raises(ValueError, match=message):
         render(plane(8, 0.1), **kwargs)
+
+
+def test_render_normalises_a_long_light_with_a_warning():
+    hf = tilted_plane(8, 0.1, slope_x=0.3, slope_y=-0.1)
+    with pytest.warns(UserWarning, match="not unit"):
+        long = render(hf, [[0.0, 0.0, 2.0]])
+    np.testing.assert_allclose(long, render(hf, [[0.0, 0.0, 1.0]]), atol=1e-7)
 
 
 def test_triad_folder_round_trip(tmp_path):
@@ -219,7 +214,6 @@ def test_triad_folder_round_trip(tmp_path):
 
 
 def test_triad_folder_is_readable_by_the_photometric_reader(tmp_path):
-    read_folder = pytest.importorskip("photometric.io").read_folder
     make_triad_folder(tmp_path, scene="plate", size=48, lights=3, slant=50.0, noise=0.0,
                       deviate=None, seed=1)
     data = read_folder(tmp_path)

@@ -2,7 +2,8 @@ import numpy as np
 import pytest
 
 from datasets_synthetic.heightfields import inspection_plate, make_scene, v_crack
-from datasets_synthetic.render import render, ring_lights
+from datasets_synthetic.render import render
+from photometric.lights import ring_lights
 from photometric.defects import fit_background, measure_defects
 from photometric.integrate import integrate
 from photometric.stereo import solve

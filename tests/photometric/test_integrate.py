@@ -3,6 +3,7 @@ import pytest
 
 from datasets_synthetic.heightfields import make_scene
 from photometric.integrate import height_to_patches, integrate
+from surfaces.grid import pixel_grid
 
 
 def _rmse_rel(z, ref, mask=None):
@@ -116,8 +117,12 @@ def test_height_to_patches_interpolates_and_uses_measured_tangents(step):
     s = 64 / (n_r - 1)
     rows = np.arange(n_r - 1) * s
     cols = np.arange(n_r - 1) * s
-    assert np.allclose(corners[..., 0], cols[None, :] * 0.1)
-    assert np.allclose(corners[..., 1], -rows[:, None] * 0.1)
+    # centred pixel grid (surfaces.grid): pixel (row, col) at ((col - 32) h, (32 - row) h)
+    assert np.allclose(corners[..., 0], (cols[None, :] - 32) * 0.1)
+    assert np.allclose(corners[..., 1], (32 - rows[:, None]) * 0.1)
+    if step == 4:  # the node over pixel (4, 8) has that pixel's x and y from the scene itself
+        x, y = pixel_grid(hf.shape, 0.1)
+        np.testing.assert_allclose(corners[1, 2, :2], [x[4, 8], y[4, 8]], atol=1e-12)
     if step == 4:  # integer grid positions: heights exactly
         assert np.allclose(corners[..., 2], hf.height[::4, ::4][:-1, :-1])
         # tangent along v at a node is dP/dj = 3 (b01 - b00) = s h (1, 0, p)
@@ -134,7 +139,15 @@ def test_height_to_patches_fills_nan():
     hf = make_scene("vase", 33, 0.1)
     z = hf.height.copy()
     z[:5] = np.nan
-    patches = height_to_patches(z, hf.p, hf.q, 0.1, step=8)
-    assert np.isfinite(patches.control).all()
+    p = hf.p.copy()
+    p[:5] = np.nan
+    patches = height_to_patches(z, p, hf.q, 0.1, step=8)
+    # nodes on row 0 take the nearest finite height, the one five rows down
+    np.testing.assert_allclose(patches.control[0, :, 0, 0, 2], hf.height[5, 0:32:8], atol=1e-12)
+    np.testing.assert_allclose(patches.control[-1, -1, 3, 3, 2], hf.height[32, 32], atol=1e-12)
+    # a NaN slope counts as 0: the tangent along the row there is flat
+    tv = 3 * (patches.control[0, :, 0, 1] - patches.control[0, :, 0, 0])
+    np.testing.assert_allclose(tv[:, 2], 0.0, atol=1e-12)
+    np.testing.assert_allclose(tv[:, 0], 8 * 0.1, atol=1e-12)
     with pytest.raises(ValueError, match="step"):
         height_to_patches(hf.height, hf.p, hf.q, 0.1, step=0)

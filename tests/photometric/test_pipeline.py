@@ -1,16 +1,12 @@
-import json
+"""photometric.pipeline.reconstruct: input to measured surface, returned (no files written)."""
 
-import cv2
 import numpy as np
 import pytest
 
 from datasets_synthetic.render import make_triad_folder
-from photometric.io import read_folder, read_image
-from photometric.pipeline import reconstruct
-from workbench.cli import main
-
-FILES = ["normals.npy", "albedo.npy", "p.npy", "q.npy", "valid.npy", "height.npy", "normals.png",
-         "albedo.png", "height.png", "surface.ply", "defects.json", "summary.json"]
+from photometric.io import read_folder
+from photometric.pipeline import PhotometricReconstruction, reconstruct
+from surfaces.grid import pixel_grid, xy_to_pixel
 
 
 @pytest.fixture(scope="module")
@@ -21,28 +17,27 @@ def plate_folder(tmp_path_factory):
     return out
 
 
-def test_reconstruct_folder_writes_everything(plate_folder, tmp_path):
-    summary = reconstruct(plate_folder, tmp_path / "out", integrator="dct")
-    out = tmp_path / "out"
-    for name in FILES:
-        assert (out / name).is_file(), name
-    normals = np.load(out / "normals.npy")
-    assert normals.shape == (128, 128, 3) and normals.dtype == np.float32
-    assert np.allclose(np.linalg.norm(normals, axis=2), 1, atol=1e-5)
-    assert np.load(out / "valid.npy").dtype == bool
-    assert summary == json.loads((out / "summary.json").read_text())
+def test_reconstruct_folder_returns_everything(plate_folder, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    before = sorted(plate_folder.iterdir())
+    res = reconstruct(plate_folder, integrator="dct")
+    assert isinstance(res, PhotometricReconstruction)
+    assert list(tmp_path.iterdir()) == [] and sorted(plate_folder.iterdir()) == before  # writes nothing
+    assert res.normals.shape == (128, 128, 3) and res.normals.dtype == np.float32
+    assert np.allclose(np.linalg.norm(res.normals, axis=2), 1, atol=1e-5)
+    assert res.valid.dtype == bool and res.mask.all() and res.height.shape == (128, 128)
+    summary = res.summary
     assert summary["pixel_size_mm"] == 0.2 and summary["pixel_size_source"] == "scene.json"
     # 16-bit quantisation only: normals within a few hundredths of a degree
     assert summary["mean_angular_error_deg"] < 0.05
     assert summary["height_rmse_mm"] < 0.01 * summary["height_range_mm"]
     assert summary["invalid_fraction"] == 0.0
     assert summary["light_condition_number"] == pytest.approx(np.sqrt(2), rel=1e-6)
-    for key in ("read", "solve", "integrate", "surface", "defects", "write", "total"):
-        assert summary["timings_s"][key] >= 0
-    defects = json.loads((out / "defects.json").read_text())
-    assert defects["units"] == "mm" and len(defects["defects"]) == summary["n_defects"] == 3
-    truth = json.loads((plate_folder / "scene.json").read_text())
-    assert "defects" in truth
+    assert set(summary["timings_s"]) == {"read", "solve", "integrate", "surface", "defects", "total"}
+    assert "files" not in summary
+    assert len(res.defects) == summary["n_defects"] == 3
+    assert summary["mesh"] == {"vertices": res.mesh.n_vertices, "triangles": res.mesh.n_triangles}
+    assert list(res.patches.shape) == summary["patches"]
 
 
 def test_reconstruct_images_and_lights_arrays(tmp_path):
@@ -50,76 +45,50 @@ def test_reconstruct_images_and_lights_arrays(tmp_path):
     make_triad_folder(data_dir, scene="sphere", size=64, noise=0.0, shadows="none", deviate=None,
                       albedo=0.7, bit_depth=None, seed=0)
     data = read_folder(data_dir)
-    summary = reconstruct(data.images, tmp_path / "o", lights=data.lights, pixel_size=0.5,
-                          integrator="lsq", step=8, samples=2)
+    res = reconstruct(data.images, lights=data.lights, pixel_size=0.5, integrator="lsq", step=8, samples=2)
+    summary = res.summary
     assert summary["size"] == {"height": 64, "width": 64, "images": 3, "channels": 1}
     assert summary["patches"] == [8, 8] and summary["pixel_size_source"] == "option"
-    height = np.load(tmp_path / "o" / "height.npy")
-    assert height.shape == (64, 64)
+    assert summary["input"] == {"kind": "array"}
+    assert res.height.shape == (64, 64)
+    assert "mean_angular_error_deg" not in summary  # no ground truth with an array
 
 
-def test_read_image_keeps_16_bits_and_rgb_order(tmp_path):
-    img = np.zeros((4, 5, 3), np.uint16)
-    img[..., 0] = 1000  # red
-    img[..., 2] = 65535  # blue
-    cv2.imwrite(str(tmp_path / "a.png"), img[..., ::-1])
-    back = read_image(tmp_path / "a.png")
-    assert back.dtype == np.float32
-    assert np.allclose(back[0, 0], [1000 / 65535, 0, 1.0])
+def test_mesh_lies_on_the_centred_pixel_grid(tmp_path):
+    """A mesh vertex over a pixel centre has that pixel's x, y (surfaces.grid) and height."""
+    make_triad_folder(tmp_path, scene="sphere", size=65, noise=0.0, shadows="none", deviate=None,
+                      albedo=1.0, bit_depth=None, pixel_size=0.1)
+    res = reconstruct(tmp_path, step=8, samples=4)
+    x, y = pixel_grid((65, 65), 0.1)
+    v = res.mesh.vertices
+    for row, col in ((0, 0), (8, 16), (32, 32), (64, 40)):
+        hit = np.flatnonzero((np.abs(v[:, 0] - x[row, col]) < 1e-9) & (np.abs(v[:, 1] - y[row, col]) < 1e-9))
+        assert hit.size == 1, (row, col)
+        assert v[hit[0], 2] == pytest.approx(res.height[row, col], abs=1e-9)
+    # the image centre is the origin
+    assert np.allclose(v[:, :2].min(axis=0), [-3.2, -3.2]) and np.allclose(v[:, :2].max(axis=0), [3.2, 3.2])
 
 
-def test_read_folder_select_and_bear(shared_data):
-    data = read_folder(shared_data / "diligent_bear", select=["048.png", "033.png", "091.png"])
-    assert data.names == ("048.png", "033.png", "091.png")
-    assert data.intensities.shape == (3, 3) and data.mask.dtype == bool
-    assert data.images.max() <= 1.0 and data.images.dtype == np.float32
-    with pytest.raises(ValueError, match="select"):
-        read_folder(shared_data / "diligent_bear", select=["nope.png"])
+def test_mesh_is_trimmed_to_the_mask(tmp_path):
+    make_triad_folder(tmp_path, scene="sphere", size=64, noise=0.0, shadows="none", deviate=None,
+                      albedo=1.0, bit_depth=None, pixel_size=0.1)
+    mask = np.zeros((64, 64), bool)
+    mask[10:40, 20:60] = True  # off centre: a top-left origin would trim the wrong place
+    res = reconstruct(tmp_path, mask=mask, step=4, samples=4)
+    centroid = res.mesh.vertices[res.mesh.triangles].mean(axis=1)
+    row, col = xy_to_pixel(centroid[:, 0], centroid[:, 1], (64, 64), 0.1)
+    inside = mask[np.clip(np.rint(row), 0, 63).astype(int), np.clip(np.rint(col), 0, 63).astype(int)]
+    assert inside.all()
+    # and the kept triangles cover the mask: about 2 triangles per pixel of it
+    assert res.mesh.n_triangles == pytest.approx(2 * mask.sum(), rel=0.1)
 
 
-def test_cli_folder_and_triad(shared_data, tmp_path, capsys):
-    code = main(["photometric", "reconstruct", str(shared_data / "diligent_bear"), "--triad",
-                 "--out", str(tmp_path / "bear")])
-    assert code == 0
-    summary = json.loads((tmp_path / "bear" / "summary.json").read_text())
-    assert abs(summary["mean_angular_error_deg"] - 11.74) < 0.05
-    assert summary["images"] == ["090.png", "048.png", "033.png"]
-    text = capsys.readouterr().out
-    assert f"{summary['mean_angular_error_deg']:.3f}" in text
-
-
-def test_cli_images_form(plate_folder, tmp_path):
-    names = (plate_folder / "filenames.txt").read_text().split()
-    args = ["photometric", "reconstruct", "--images", *[str(plate_folder / n) for n in names],
-            "--lights", str(plate_folder / "light_directions.txt"),
-            "--intensities", str(plate_folder / "light_intensities.txt"),
-            "--mask", str(plate_folder / "mask.png"), "--integrator", "fc",
-            "--pixel-size", "0.2", "--out", str(tmp_path / "o")]
-    assert main(args) == 0
-    summary = json.loads((tmp_path / "o" / "summary.json").read_text())
-    assert summary["integrator"] == "fc" and summary["pixel_size_mm"] == 0.2
-    assert "mean_angular_error_deg" not in summary  # no ground truth given with --images
-
-
-@pytest.mark.parametrize(
-    "args",
-    [
-        ["photometric", "reconstruct"],
-        ["photometric", "reconstruct", "--images", "a.png", "b.png", "c.png"],
-        ["photometric", "reconstruct", "/definitely/not/here"],
-        ["photometric", "reconstruct", "--images", "a.png", "--lights", "l.txt", "--triad"],
-    ],
-)
-def test_cli_bad_input_exit_2(args, capsys):
-    assert main(args) == 2
-    assert "error" in capsys.readouterr().err
-
-
-def test_previews_readable(plate_folder, tmp_path):
-    reconstruct(plate_folder, tmp_path / "p", step=16)
-    for name in ("normals.png", "albedo.png", "height.png"):
-        img = cv2.imread(str(tmp_path / "p" / name), cv2.IMREAD_UNCHANGED)
-        assert img is not None and img.shape[:2] == (128, 128) and img.dtype == np.uint8
-    normals = cv2.imread(str(tmp_path / "p" / "normals.png"))[..., ::-1].astype(float)
-    # a flat plate faces the camera: blue (z) near 255, red/green near the middle
-    assert np.median(normals[..., 2]) > 250 and abs(np.median(normals[..., 0]) - 127.5) < 2
+def test_options_are_checked_before_any_file_is_read():
+    with pytest.raises(ValueError, match="dark"):
+        reconstruct("/definitely/not/here", dark=-1.0)
+    with pytest.raises(ValueError, match="integrator"):
+        reconstruct("/definitely/not/here", integrator="magic")
+    with pytest.raises(NotADirectoryError, match="input"):
+        reconstruct("/definitely/not/here")
+    with pytest.raises(ValueError, match="lights"):
+        reconstruct(np.ones((3, 4, 4), np.float32))

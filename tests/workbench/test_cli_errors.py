@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from photometric import errors as E
+from photometric.lights import ring_lights
 from workbench.cli import main
 
 FAST = ["--grid", "9", "--samples", "400", "--deviation-max", "3"]
@@ -21,7 +22,7 @@ KEYS = {
 @pytest.fixture(scope="module")
 def lights_file(tmp_path_factory):
     path = tmp_path_factory.mktemp("lights") / "lights.txt"
-    np.savetxt(path, E.standard_triad(45.0), fmt="%.6f")
+    np.savetxt(path, ring_lights(3, 45.0), fmt="%.6f")
     return path
 
 
@@ -64,7 +65,7 @@ def test_numbers_match_the_library(run):
     _, out = run
     report = json.loads((out / "report.json").read_text())
     assert len(report["tolerances"]) == 7  # 3 single lights, 3 pairs, all three
-    direct = E.max_deviation(E.standard_triad(45.0), 0.05, 1.0, (0,), "any", n_grid=9)
+    direct = E.max_deviation(ring_lights(3, 45.0), 0.05, 1.0, (0,), "any", n_grid=9)
     row = report["tolerances"][0]
     assert row["lights"] == [1]
     assert row["any"]["value"] == pytest.approx(direct.value, rel=1e-6)

@@ -70,17 +70,23 @@ def test_error_image_clips_at_vmax_and_masks():
     assert auto.shape == out.shape
 
 
-def test_angular_error_closed_form():
-    a = np.zeros((2, 2, 3))
-    a[..., 2] = 1
-    b = a.copy()
-    b[0, 0] = (np.sin(np.radians(30)), 0, np.cos(np.radians(30)))
-    b[0, 1] = (0, 0, 0)
-    mask = np.ones((2, 2), bool)
-    mask[1, 1] = False
-    e = images.angular_error(a, 2 * b, mask)
-    assert e[0, 0] == pytest.approx(30.0, abs=1e-9)
-    assert np.isnan(e[0, 1]) and np.isnan(e[1, 1]) and e[1, 0] == 0
+def test_scalar_image_percentile_range_without_bar():
+    """The preview of height.png: range from the masked percentiles, black outside, no bar."""
+    import matplotlib
+
+    v = np.linspace(0.0, 1.0, 40 * 50).reshape(40, 50)
+    v[0, 0] = 100.0  # one outlier does not wash out the map
+    mask = np.ones(v.shape, bool)
+    mask[-1, -1] = False
+    out = images.scalar_image(v, mask, percentile=99.0, colorbar=False, min_height=1, background=(0, 0, 0))
+    assert out.shape == (40, 50, 3)
+    assert tuple(out[-1, -1]) == (0, 0, 0)
+    cm = matplotlib.colormaps["viridis"]
+    lo, hi = np.percentile(v[mask], [1.0, 99.0])
+    assert np.allclose(out[0, 0] / 255, cm(1.0)[:3], atol=0.01)  # the outlier clips to the top
+    assert np.allclose(out[20, 25] / 255, cm((v[20, 25] - lo) / (hi - lo))[:3], atol=0.01)
+    plain = images.scalar_image(v, mask, colorbar=False, min_height=1)
+    assert np.allclose(plain[20, 25] / 255, cm(v[20, 25] / 100.0)[:3], atol=0.01)  # min/max range
 
 
 def test_montage_layout_and_labels():

@@ -3,8 +3,9 @@
 A *manifest* (CSV with a header row, or JSON lines) names one job per row; a
 folder instead of a manifest means every job found below it. Each job is one
 Dask task that reads its data from its paths (no arrays travel through the
-scheduler), calls the library pipeline (:func:`photometric.pipeline.reconstruct`
-or :func:`slices.pipeline.reconstruct`) and writes its own folder ``OUT/<id>``
+scheduler), calls the pipeline that writes a result folder
+(:func:`workbench.runs.photometric.reconstruct_to_folder` or
+:func:`slices.pipeline.reconstruct`) and writes its own folder ``OUT/<id>``
 atomically: the pipeline writes into ``OUT/.tmp-<id>-<uuid>``, a ``_COMPLETE``
 marker (JSON: the job's row, input and options) is written last, and the folder
 is renamed to ``OUT/<id>`` with :func:`os.replace`. A failing job leaves no

@@ -39,12 +39,15 @@ def pipeline(kind: str) -> Callable[..., dict]:
     Returns
     -------
     callable
-        :func:`photometric.pipeline.reconstruct` or :func:`slices.pipeline.reconstruct`.
+        :func:`workbench.runs.photometric.reconstruct_to_folder` or
+        :func:`slices.pipeline.reconstruct`.
     """
     if check_kind(kind) == "photometric":
-        from photometric.pipeline import reconstruct
-    else:
-        from slices.pipeline import reconstruct
+        from workbench.runs.photometric import reconstruct_to_folder
+
+        return reconstruct_to_folder
+    from slices.pipeline import reconstruct
+
     return reconstruct
 
 

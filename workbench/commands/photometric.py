@@ -28,8 +28,8 @@ def register(sub) -> None:
     p.add_argument("--images", nargs="+", default=None, metavar="IMG",
                    help="image files (PNG/TIFF 8/16 bit or .npy), one per light, in light order")
     p.add_argument("--lights", default=None, metavar="L",
-                   help="light directions: text 'x y z' (or 'slant tilt' deg) per row, .npy (N, 3) or "
-                   ".json; required with --images, overrides the folder's")
+                   help="light directions: text 'x y z' (or 'slant azimuth' deg, azimuth also called "
+                   "tilt) per row, .npy (N, 3) or .json; required with --images, overrides the folder's")
     p.add_argument("--intensities", default=None, metavar="I",
                    help="light intensities: one value or 'r g b' per row (text, .npy or .json)")
     p.add_argument("--mask", default=None, metavar="M", help="object mask image (non-zero inside)")
@@ -67,7 +67,7 @@ def register(sub) -> None:
 def _reconstruct(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
-    from photometric.pipeline import reconstruct
+    from workbench.runs.photometric import reconstruct_to_folder
 
     if (args.folder is None) == (args.images is None):
         raise ValueError("input: give either a folder DIR or --images (with --lights), not both")
@@ -83,7 +83,7 @@ def _reconstruct(args: argparse.Namespace) -> int:
                 bar.update(1)
             bar.set_postfix_str(stage)
 
-        summary = reconstruct(
+        summary = reconstruct_to_folder(
             args.folder if args.folder is not None else args.images,
             args.out,
             lights=args.lights,

@@ -1,0 +1,95 @@
+"""workbench.runs.photometric: the photometric pipeline's result written into a folder."""
+
+import inspect
+import json
+
+import cv2
+import numpy as np
+import pytest
+
+from datasets_synthetic.render import make_triad_folder
+from photometric.pipeline import reconstruct
+from surfaces.grid import pixel_grid
+from surfaces.io import read_mesh
+from workbench.runs.photometric import FILES, reconstruct_to_folder, write_result
+
+
+@pytest.fixture(scope="module")
+def plate_folder(tmp_path_factory):
+    out = tmp_path_factory.mktemp("plate")
+    make_triad_folder(out, scene="plate", size=128, noise=0.0, shadows="attached", deviate=None,
+                      albedo=0.8, pixel_size=0.2, seed=1)
+    return out
+
+
+def test_reconstruct_folder_writes_everything(plate_folder, tmp_path):
+    stages = []
+    summary = reconstruct_to_folder(plate_folder, tmp_path / "out", integrator="dct", progress=stages.append)
+    assert stages == ["read", "normals", "height", "surface", "defects", "write"]
+    out = tmp_path / "out"
+    assert sorted(p.name for p in out.iterdir()) == sorted(FILES)
+    assert summary["files"] == sorted(FILES)
+    normals = np.load(out / "normals.npy")
+    assert normals.shape == (128, 128, 3) and normals.dtype == np.float32
+    assert np.allclose(np.linalg.norm(normals, axis=2), 1, atol=1e-5)
+    assert np.load(out / "valid.npy").dtype == bool
+    assert summary == json.loads((out / "summary.json").read_text())
+    assert summary["pixel_size_mm"] == 0.2 and summary["pixel_size_source"] == "scene.json"
+    assert summary["mean_angular_error_deg"] < 0.05
+    assert list(summary["timings_s"]) == ["read", "solve", "integrate", "surface", "defects", "write", "total"]
+    assert summary["timings_s"]["total"] >= summary["timings_s"]["write"] >= 0
+    defects = json.loads((out / "defects.json").read_text())
+    assert defects["units"] == "mm" and len(defects["defects"]) == summary["n_defects"] == 3
+    assert defects["pixel_size_mm"] == 0.2 and defects["background"] == "plane"
+
+
+def test_files_hold_the_library_result(plate_folder, tmp_path):
+    res = reconstruct(plate_folder, step=16)
+    summary = write_result(res, tmp_path)
+    for name in ("normals", "albedo", "p", "q", "valid", "height"):
+        np.testing.assert_array_equal(np.load(tmp_path / f"{name}.npy"), getattr(res, name))
+    same = {k: v for k, v in res.summary.items() if k != "timings_s"}
+    assert {k: v for k, v in summary.items() if k not in ("timings_s", "files")} == json.loads(json.dumps(same))
+    mesh = read_mesh(tmp_path / "surface.ply")
+    np.testing.assert_allclose(mesh.vertices, res.mesh.vertices, atol=1e-5)
+
+
+def test_surface_ply_is_on_the_centred_pixel_grid(tmp_path):
+    """A vertex of surface.ply over a pixel centre (a patch corner) has that pixel's x and y."""
+    make_triad_folder(tmp_path / "in", scene="sphere", size=65, noise=0.0, shadows="none", deviate=None,
+                      albedo=1.0, bit_depth=None, pixel_size=0.1)
+    reconstruct_to_folder(tmp_path / "in", tmp_path / "out", step=8, samples=8)
+    v = read_mesh(tmp_path / "out" / "surface.ply").vertices
+    height = np.load(tmp_path / "out" / "height.npy")
+    x, y = pixel_grid((65, 65), 0.1)
+    for row, col in ((0, 64), (16, 8), (40, 48)):
+        d = np.hypot(v[:, 0] - x[row, col], v[:, 1] - y[row, col])
+        assert d.min() < 1e-5, (row, col)
+        assert v[np.argmin(d), 2] == pytest.approx(height[row, col], abs=1e-5)
+
+
+def test_previews_readable(plate_folder, tmp_path):
+    reconstruct_to_folder(plate_folder, tmp_path / "p", step=16)
+    for name in ("normals.png", "albedo.png", "height.png"):
+        img = cv2.imread(str(tmp_path / "p" / name), cv2.IMREAD_UNCHANGED)
+        assert img is not None and img.shape[:2] == (128, 128) and img.dtype == np.uint8
+    normals = cv2.imread(str(tmp_path / "p" / "normals.png"))[..., ::-1].astype(float)
+    # a flat plate faces the camera: blue (z) near 255, red/green near the middle
+    assert np.median(normals[..., 2]) > 250 and abs(np.median(normals[..., 0]) - 127.5) < 2
+    albedo = cv2.imread(str(tmp_path / "p" / "albedo.png"))
+    assert np.percentile(albedo, 50) > 200  # constant albedo 0.8, stretched to its percentile
+
+
+def test_signature_lists_the_library_options():
+    """Batch manifests check option names against this signature."""
+    params = list(inspect.signature(reconstruct_to_folder).parameters)
+    assert params[:2] == ["source", "out_dir"]
+    assert set(params[2:]) == set(inspect.signature(reconstruct).parameters) - {"source"}
+    with pytest.raises(TypeError):
+        reconstruct_to_folder("x", "y", no_such_option=1)
+
+
+def test_out_dir_that_is_a_file(plate_folder, tmp_path):
+    (tmp_path / "f").write_text("x")
+    with pytest.raises(NotADirectoryError, match="out_dir"):
+        reconstruct_to_folder(plate_folder, tmp_path / "f")
