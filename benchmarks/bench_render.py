@@ -89,7 +89,7 @@ def main() -> str:
         "`.venv/bin/python benchmarks/bench_render.py`",
         "",
         f"One iso view at {SIZE[0]}x{SIZE[1]} (786,432 primary rays), best of 5 (matplotlib: best "
-        "of 3, one run above 300k triangles); `surfaces.view.render` "
+        "of 3, one run above 300k triangles); `surfaces.render.render` "
         "includes the Embree BVH build, the cast, Phong-interpolated Blinn-Phong shading and PNG-ready "
         "uint8 output. The peer is matplotlib `plot_trisurf` (Agg, same size, flat shading, "
         "painter's algorithm) drawing the same mesh.",
