@@ -34,20 +34,29 @@ from __future__ import annotations
 import numpy as np
 
 from surfaces.bezier import BezierPatches, bernstein
+from surfaces.knots import chord_lengths
 from surfaces.validate import as_array
+
+
+def _chord_parameters(points: np.ndarray, closed: bool, coincide: str) -> np.ndarray:
+    """Chord-length parameters along axis 0, the chords averaged over the other axes.
+
+    Open: ``n`` parameters from 0 in units of length. Closed: ``n`` parameters
+    in ``[0, 1)``, the period 1 being the whole closed polygon.
+    """
+    seg = chord_lengths(points, 0, closed)
+    seg = seg.reshape(len(seg), -1).mean(axis=1)
+    if np.any(seg <= 0):
+        raise ValueError(f"points: {coincide} (zero chord length)")
+    t = np.concatenate([[0.0], np.cumsum(seg)])
+    return t[:-1] / t[-1] if closed else t
 
 
 def _parameters(points: np.ndarray, params, closed: bool) -> np.ndarray:
     """Validated strictly increasing parameters; chord length when not given."""
     n = len(points)
     if params is None:
-        seg = np.linalg.norm(np.diff(points, axis=0), axis=1)
-        if closed:
-            seg = np.append(seg, np.linalg.norm(points[0] - points[-1]))
-        if np.any(seg <= 0):
-            raise ValueError("points: consecutive points coincide (zero chord length)")
-        t = np.concatenate([[0.0], np.cumsum(seg)])
-        return t / t[-1] if closed else t
+        return _chord_parameters(points, closed, "consecutive points coincide")
     t = as_array(params, "params", shape=(n,))
     if np.any(np.diff(t) <= 0):
         raise ValueError("params: must increase strictly")
@@ -344,13 +353,7 @@ def from_grid(points, u_params=None, closed_u: bool = False, closed_v: bool = Fa
     if rows < (3 if closed_u else 2) or cols < (3 if closed_v else 2):
         raise ValueError(f"points: grid of {rows}x{cols} is too small")
     if u_params is None:
-        seg = np.linalg.norm(np.diff(pts, axis=0), axis=2).mean(axis=1)
-        if closed_u:
-            seg = np.append(seg, np.linalg.norm(pts[0] - pts[-1], axis=1).mean())
-        if np.any(seg <= 0):
-            raise ValueError("points: coincident grid rows (zero chord length)")
-        t = np.concatenate([[0.0], np.cumsum(seg)])
-        u_params = t[:-1] / t[-1] if closed_u else t
+        u_params = _chord_parameters(pts, closed_u, "coincident grid rows")
     # curves along u for every column at once: treat the column index as extra coordinates
     flat = pts.reshape(rows, cols * 3)
     ctrl, _ = overhauser_curve(flat, u_params, closed=closed_u)

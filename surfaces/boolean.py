@@ -299,17 +299,56 @@ def boolean(a, b, op: str = "union", *, repair: bool = False, names: Sequence[st
 
 
 def union(a, b, **options) -> BooleanResult:
-    """``boolean(a, b, "union", **options)``: the solid inside A or B. See :func:`boolean`."""
+    """``boolean(a, b, "union", **options)``: the solid inside A or B.
+
+    Parameters
+    ----------
+    a, b : TriangleMesh or BezierPatches
+        Closed, outward-oriented solids (see :func:`boolean`).
+    **options
+        ``repair`` and ``names``, as for :func:`boolean`.
+
+    Returns
+    -------
+    BooleanResult
+        The resulting solid and its checks, see :func:`boolean`.
+    """
     return boolean(a, b, "union", **options)
 
 
 def intersection(a, b, **options) -> BooleanResult:
-    """``boolean(a, b, "intersection", **options)``: inside A and B. See :func:`boolean`."""
+    """``boolean(a, b, "intersection", **options)``: inside A and B.
+
+    Parameters
+    ----------
+    a, b : TriangleMesh or BezierPatches
+        Closed, outward-oriented solids (see :func:`boolean`).
+    **options
+        ``repair`` and ``names``, as for :func:`boolean`.
+
+    Returns
+    -------
+    BooleanResult
+        The resulting solid and its checks, see :func:`boolean`.
+    """
     return boolean(a, b, "intersection", **options)
 
 
 def difference(a, b, **options) -> BooleanResult:
-    """``boolean(a, b, "difference", **options)``: inside A, outside B. See :func:`boolean`."""
+    """``boolean(a, b, "difference", **options)``: inside A, outside B.
+
+    Parameters
+    ----------
+    a, b : TriangleMesh or BezierPatches
+        Closed, outward-oriented solids (see :func:`boolean`).
+    **options
+        ``repair`` and ``names``, as for :func:`boolean`.
+
+    Returns
+    -------
+    BooleanResult
+        The resulting solid and its checks, see :func:`boolean`.
+    """
     return boolean(a, b, "difference", **options)
 
 

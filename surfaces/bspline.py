@@ -120,14 +120,14 @@ def _unwrap_control(control: np.ndarray, degree: int, axis: int) -> np.ndarray:
     return np.concatenate([control, head], axis=axis)
 
 
-def _domain_u(u, name: str, closed: bool) -> np.ndarray:
-    arr = as_array(u, name, ndim=(0, 1))
-    arr = np.atleast_1d(arr)
-    if not closed:
-        if arr.size and (arr.min() < -1e-12 or arr.max() > 1 + 1e-12):
-            raise ValueError(f"{name}: parameters of an open direction must lie in [0, 1]")
-        arr = np.clip(arr, 0.0, 1.0)
-    return arr
+def _domain_u(u, name: str, closed: bool, knots: np.ndarray, degree: int) -> np.ndarray:
+    """Checked parameters of one direction mapped into its knot domain (periodic when closed)."""
+    arr = np.atleast_1d(as_array(u, name, ndim=(0, 1)))
+    if closed:
+        return to_knot_domain(arr, knots, degree)
+    if arr.size and (arr.min() < -1e-12 or arr.max() > 1 + 1e-12):
+        raise ValueError(f"{name}: parameters of an open direction must lie in [0, 1]")
+    return np.clip(arr, 0.0, 1.0)
 
 
 # ----------------------------------------------------------------------------- curves
@@ -174,18 +174,14 @@ class BSplineCurve:
 
     def evaluate(self, u) -> np.ndarray:
         """Points at parameters ``u`` (``(M,)`` in ``[0, 1]``, periodic if closed) -> ``(M, d)``."""
-        x = _domain_u(u, "u", self.closed)
-        if self.closed:
-            x = to_knot_domain(x, self.knots, self.degree)
+        x = _domain_u(u, "u", self.closed, self.knots, self.degree)
         return self._spline()(x)
 
     def derivative(self, u, order: int = 1) -> np.ndarray:
         """Derivative of the given order (1 .. p) with respect to u at ``u`` -> ``(M, d)``."""
         if not 0 <= int(order) <= self.degree:
             raise ValueError(f"order: expected 0 to {self.degree}, got {order}")
-        x = _domain_u(u, "u", self.closed)
-        if self.closed:
-            x = to_knot_domain(x, self.knots, self.degree)
+        x = _domain_u(u, "u", self.closed, self.knots, self.degree)
         return self._spline()(x, nu=int(order))
 
     def with_control(self, control) -> BSplineCurve:
@@ -303,14 +299,10 @@ class BSplineSurface:
         return c
 
     def _domain(self, u, v) -> np.ndarray:
-        x = _domain_u(u, "u", self.closed_u)
-        y = _domain_u(v, "v", self.closed_v)
+        x = _domain_u(u, "u", self.closed_u, self.knots_u, self.degree_u)
+        y = _domain_u(v, "v", self.closed_v, self.knots_v, self.degree_v)
         if x.shape != y.shape:
             raise ValueError(f"u, v: expected equal shapes, got {x.shape} and {y.shape}")
-        if self.closed_u:
-            x = to_knot_domain(x, self.knots_u, self.degree_u)
-        if self.closed_v:
-            y = to_knot_domain(y, self.knots_v, self.degree_v)
         return np.stack([x, y], axis=1)
 
     def evaluate(self, u, v) -> np.ndarray:

@@ -29,6 +29,7 @@ from __future__ import annotations
 import numpy as np
 
 from surfaces.bezier import BezierPatches
+from surfaces.knots import chord_lengths
 from surfaces.validate import as_array, drop_closing_repeat
 
 #: Hermite basis in power form, rows act on [P0, P1, P0', P1'] (seed 001).
@@ -56,16 +57,6 @@ def coons_to_bezier(geometry) -> np.ndarray:
     if geom.ndim < 3 or geom.shape[-3:] != (4, 4, 3):
         raise ValueError(f"geometry: expected shape (..., 4, 4, 3), got {geom.shape}")
     return np.einsum("ab,...bcx,dc->...adx", K, geom, K)
-
-
-def _chords(points: np.ndarray, axis: int, closed: bool) -> np.ndarray:
-    """Chord lengths between consecutive grid points along ``axis``.
-
-    Returns shape ``n - 1`` (open) or ``n`` (closed, last entry wraps) along axis.
-    """
-    if closed:
-        return np.linalg.norm(np.roll(points, -1, axis=axis) - points, axis=-1)
-    return np.linalg.norm(np.diff(points, axis=axis), axis=-1)
 
 
 def _take(a: np.ndarray, axis: int, index) -> np.ndarray:
@@ -193,8 +184,8 @@ def from_grid(
 
     # chord spacings along u (shape (nu, C)) and v (shape (R, nv))
     if chord_length:
-        hu = _safe_spacing(_chords(pts, 0, closed_u))
-        hv = _safe_spacing(_chords(pts, 1, closed_v))
+        hu = _safe_spacing(chord_lengths(pts, 0, closed_u))
+        hv = _safe_spacing(chord_lengths(pts, 1, closed_v))
     else:
         hu = np.ones((rows if closed_u else rows - 1, cols))
         hv = np.ones((rows, cols if closed_v else cols - 1))

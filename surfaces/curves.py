@@ -143,6 +143,11 @@ def line(start, end) -> ParametricCurve:
     ----------
     start, end : (d,) array_like of float
         End points (2D or 3D, any unit).
+
+    Returns
+    -------
+    ParametricCurve
+        ``evaluate(t)`` and exact ``derivative(t, k)`` for ``t`` in ``[0, 1]``, shape ``(M, d)``.
     """
     a = as_array(start, "start", ndim=1)
     b = as_array(end, "end", shape=a.shape)
@@ -166,6 +171,11 @@ def circle(radius: float, center=(0.0, 0.0), normal=(0.0, 0.0, 1.0)) -> Parametr
         Centre; a 2D centre gives a plane curve ``(cx + r cos 2 pi t, cy + r sin 2 pi t)``.
     normal : (3,) array_like of float
         Plane normal of a 3D circle (ignored in 2D).
+
+    Returns
+    -------
+    ParametricCurve
+        ``evaluate(t)`` and exact ``derivative(t, k)`` for ``t`` in ``[0, 1]``, shape ``(M, d)``.
     """
     r = positive(radius, "radius")
     c = as_array(center, "center", ndim=1)
@@ -199,6 +209,11 @@ def helix(radius: float, pitch: float, turns: float, center=(0.0, 0.0, 0.0)) -> 
         Number of turns ``n`` (> 0).
     center : (3,) array_like of float
         Point on the axis at ``t = 0``.
+
+    Returns
+    -------
+    ParametricCurve
+        ``evaluate(t)`` and exact ``derivative(t, k)`` for ``t`` in ``[0, 1]``, shape ``(M, d)``.
     """
     r, n = positive(radius, "radius"), positive(turns, "turns")
     p = float(pitch)
@@ -222,6 +237,20 @@ def thread_profile(minor_radius: float, depth: float, pitch: float) -> Parametri
     ``r(t) = minor_radius + depth (1 - cos 2 pi t) / 2``, ``z(t) = pitch * t``: root at
     ``t = 0, 1``, crest (``minor_radius + depth``) at ``t = 1/2``. Swept helically with
     the same pitch (:func:`surfaces.kinematic.screw_thread`) the profile joins itself from turn to turn.
+
+    Parameters
+    ----------
+    minor_radius : float
+        Root radius (> 0).
+    depth : float
+        Thread depth (> 0): the crest lies at ``minor_radius + depth``.
+    pitch : float
+        Rise per pitch, same unit (any sign).
+
+    Returns
+    -------
+    ParametricCurve
+        ``evaluate(t)`` and exact ``derivative(t, k)`` for ``t`` in ``[0, 1]``, shape ``(M, d)``.
     """
     r0, h, p = positive(minor_radius, "minor_radius"), positive(depth, "depth"), float(pitch)
     w = 2 * np.pi
@@ -237,7 +266,19 @@ def thread_profile(minor_radius: float, depth: float, pitch: float) -> Parametri
 
 
 def as_curve(obj) -> Curve:
-    """Accept a B-spline curve, a :class:`ParametricCurve` or a callable ``f(t) -> (M, d)``."""
+    """Accept a B-spline curve, a :class:`ParametricCurve` or a callable ``f(t) -> (M, d)``.
+
+    Parameters
+    ----------
+    obj : BSplineCurve, ParametricCurve or callable
+        A callable maps ``(M,)`` parameters in ``[0, 1]`` to ``(M, d)`` points; its
+        derivatives are then central differences.
+
+    Returns
+    -------
+    Curve
+        ``obj`` itself, or the callable wrapped in a :class:`ParametricCurve`.
+    """
     if isinstance(obj, (BSplineCurve, ParametricCurve)):
         return obj
     if callable(obj):
@@ -266,6 +307,16 @@ def load_curve(source) -> Curve:
         {"type": "line", "start": [...], "end": [...]}
         {"type": "circle", "radius": r, "center": [0, 0] or [0, 0, 0], "normal": [0, 0, 1]}
         {"type": "helix", "radius": r, "pitch": p, "turns": n, "center": [0, 0, 0]}
+
+    Parameters
+    ----------
+    source : str, os.PathLike or dict
+        A JSON file or the already parsed description.
+
+    Returns
+    -------
+    Curve
+        A :class:`~surfaces.bspline.BSplineCurve` or :class:`ParametricCurve`.
 
     Raises
     ------

@@ -81,7 +81,20 @@ def atomic_write_bytes(path, data: bytes) -> Path:
 
 
 def atomic_write_text(path, text: str) -> Path:
-    """Write UTF-8 ``text`` to ``path`` atomically (see :func:`atomic_write_bytes`)."""
+    """Write UTF-8 ``text`` to ``path`` atomically (see :func:`atomic_write_bytes`).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Destination file; its folder must exist.
+    text : str
+        File content.
+
+    Returns
+    -------
+    pathlib.Path
+        The destination path.
+    """
     return atomic_write_bytes(path, text.encode("utf-8"))
 
 

@@ -288,6 +288,17 @@ def pipe(directrix, radius: float, frame: str = "rmf", up=None) -> KinematicSurf
     """Tube of circular section ``radius`` along a directrix (area ``2 pi r L`` when it does
     not overlap itself).
 
+    Parameters
+    ----------
+    directrix : curve
+        Path of the tube's axis (3D, or 2D in z = 0), see :func:`sweep`.
+    radius : float
+        Tube radius (> 0), in the directrix's length unit.
+    frame : {"fixed", "frenet", "rmf"}
+        Moving frame (default rotation-minimising).
+    up : (3,) array_like of float, optional
+        First normal at the start.
+
     Returns
     -------
     KinematicSurface
@@ -301,6 +312,13 @@ def revolve(profile, angle: float = 2 * np.pi) -> KinematicSurface:
 
     ``X(u, v) = (r cos(angle v), r sin(angle v), z)``; obeys Pappus' theorems
     (area ``2 pi r_c L``, volume ``2 pi r_c A`` for a full turn).
+
+    Parameters
+    ----------
+    profile : curve
+        2D curve ``(r(u), z(u))`` (``r >= 0``).
+    angle : float, optional
+        Angle of revolution in radians (default a full turn ``2 pi``).
 
     Returns
     -------
@@ -317,6 +335,15 @@ def helical_sweep(profile, pitch: float, turns: float) -> KinematicSurface:
     ``P = pitch`` (> 0: right-handed; mirror the result for a left-handed screw):
     helicoids, screw threads.
 
+    Parameters
+    ----------
+    profile : curve
+        2D curve ``(r(u), z(u))``.
+    pitch : float
+        Rise per turn ``P`` (> 0), in the profile's length unit.
+    turns : float
+        Number of turns ``n`` (> 0).
+
     Returns
     -------
     KinematicSurface
@@ -332,6 +359,15 @@ def helical_sweep(profile, pitch: float, turns: float) -> KinematicSurface:
 def helicoid(inner: float, outer: float, pitch: float, turns: float) -> KinematicSurface:
     """Helicoid ``(r cos th, r sin th, c th)``, ``c = pitch / 2 pi``, ``inner <= r <= outer``.
 
+    Parameters
+    ----------
+    inner, outer : float
+        Inner and outer radius (``0 <= inner < outer``).
+    pitch : float
+        Rise per turn (> 0), same unit as the radii.
+    turns : float
+        Number of turns (> 0).
+
     Returns
     -------
     KinematicSurface
@@ -345,16 +381,27 @@ def helicoid(inner: float, outer: float, pitch: float, turns: float) -> Kinemati
 def coil_spring(radius: float, pitch: float, turns: float, wire_radius: float) -> KinematicSurface:
     """Coil spring: a circle of ``wire_radius`` swept along a helix with an RMF.
 
-    Raises
-    ------
-    ValueError
-        When the wire would overlap itself (``2 * wire_radius >= |pitch|``, or
-        ``wire_radius >= radius``).
+    Parameters
+    ----------
+    radius : float
+        Coil radius (> 0): distance of the wire's axis from the z axis.
+    pitch : float
+        Rise per turn of the wire's axis, same unit.
+    turns : float
+        Number of turns (> 0).
+    wire_radius : float
+        Radius of the wire's circular section (> 0).
 
     Returns
     -------
     KinematicSurface
         Evaluate exactly with ``evaluate``; ``to_bezier(n_u, n_v)`` gives the shared model.
+
+    Raises
+    ------
+    ValueError
+        When the wire would overlap itself (``2 * wire_radius >= |pitch|``, or
+        ``wire_radius >= radius``).
     """
     a = positive(wire_radius, "wire_radius")
     r = positive(radius, "radius")
@@ -368,6 +415,17 @@ def coil_spring(radius: float, pitch: float, turns: float, wire_radius: float) -
 
 def screw_thread(major_radius: float, pitch: float, turns: float, depth: float) -> KinematicSurface:
     """Screw-thread surface: :func:`thread_profile` swept helically with its own pitch.
+
+    Parameters
+    ----------
+    major_radius : float
+        Crest radius (> 0); the root lies at ``major_radius - depth``.
+    pitch : float
+        Rise per turn (> 0), same unit.
+    turns : float
+        Number of turns (> 0).
+    depth : float
+        Thread depth (``0 < depth < major_radius``).
 
     Returns
     -------

@@ -21,6 +21,7 @@ from surfaces.validate import as_array
 __all__ = [
     "METHODS",
     "check_degree",
+    "chord_lengths",
     "data_parameters",
     "averaged_knots",
     "periodic_knots",
@@ -60,6 +61,35 @@ def check_degree(degree, name: str = "degree") -> int:
     if not 2 <= int(degree) <= 5:
         raise ValueError(f"{name}: expected an integer from 2 to 5, got {degree}")
     return int(degree)
+
+
+def chord_lengths(points: np.ndarray, axis: int = 0, closed: bool = False) -> np.ndarray:
+    """Distances between consecutive points along one axis of an array of points.
+
+    Parameters
+    ----------
+    points : (..., d) float array
+        Points, coordinates on the last axis (any length unit).
+    axis : int, optional
+        The axis along which the points follow each other (not the last one).
+    closed : bool, optional
+        Also the chord from the last point back to the first.
+
+    Returns
+    -------
+    float64 array
+        The shape of ``points`` without its last axis, ``n - 1`` long along
+        ``axis`` (``n`` when closed, the wrapping chord last).
+
+    Examples
+    --------
+    >>> square = np.array([[0.0, 0.0], [3.0, 0.0], [3.0, 4.0], [0.0, 4.0]])
+    >>> chord_lengths(square).tolist(), chord_lengths(square, closed=True).tolist()
+    ([3.0, 4.0, 3.0], [3.0, 4.0, 3.0, 4.0])
+    """
+    if closed:
+        return np.linalg.norm(np.roll(points, -1, axis=axis) - points, axis=-1)
+    return np.linalg.norm(np.diff(points, axis=axis), axis=-1)
 
 
 def data_parameters(
@@ -134,8 +164,7 @@ def _averaged_parameters(lines: np.ndarray, method: str, closed: bool) -> np.nda
     if method == "uniform":
         steps = np.ones((1, n if closed else n - 1))
     else:
-        seg = np.diff(np.concatenate([lines, lines[:, :1]], axis=1) if closed else lines, axis=1)
-        steps = np.linalg.norm(seg, axis=2)
+        steps = chord_lengths(lines, axis=1, closed=closed)
         if method == "centripetal":
             steps = np.sqrt(steps)
     total = steps.sum(axis=1)

@@ -83,6 +83,24 @@ def test_restrict_curve_is_exact():
         blending.restrict_curve(ctrl, knots, np.linspace(knots[0], knots[-1], 7))
 
 
+def test_closed_curve_defaults_to_chord_length():
+    """A closed curve without parameters gets chord-length ones in [0, 1): a rectangle 3 x 1
+    has chords 3, 1, 3, 1, so its parameters are 0, 3/8, 1/2, 7/8 and the curve is the one
+    given those parameters."""
+    p = np.array([[0.0, 0.0], [3.0, 0.0], [3.0, 1.0], [0.0, 1.0]])
+    ctrl, knots = blending.overhauser_curve(p, closed=True)
+    np.testing.assert_allclose(knots, [0, 3 / 8, 1 / 2, 7 / 8, 1], atol=1e-15)
+    ref, _ = blending.overhauser_curve(p, [0, 3 / 8, 1 / 2, 7 / 8], closed=True)
+    np.testing.assert_allclose(ctrl, ref, atol=1e-14)
+    np.testing.assert_allclose(blending.overhauser_tangents(p, closed=True),
+                               blending.overhauser_tangents(p, [0, 3 / 8, 1 / 2, 7 / 8], closed=True),
+                               atol=1e-14)
+    with pytest.raises(ValueError, match="consecutive points coincide"):
+        blending.overhauser_curve(np.vstack([p, p[:1]]), closed=True)
+    with pytest.raises(ValueError, match="coincident grid rows"):
+        blending.from_grid(np.zeros((3, 3, 3)))
+
+
 @pytest.mark.parametrize("closed_v", [False, True])
 def test_surface_through_grid(closed_v):
     rng = np.random.default_rng(7)

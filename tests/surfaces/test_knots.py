@@ -12,6 +12,7 @@ from surfaces.knots import (
     averaged_knots,
     bezier_pieces,
     check_degree,
+    chord_lengths,
     cubic_pieces,
     data_parameters,
     interpolation_knots,
@@ -21,6 +22,17 @@ from surfaces.knots import (
 )
 
 EXAMPLE_9_1 = np.array([[(0, 0), (3, 4), (-1, 4), (-4, 0), (-4, -3)]], dtype=float)
+
+
+def test_chord_lengths_along_any_axis():
+    """Example 9.1's chords 5, 4, 5, 3, and the closing chord |(-4, -3)| = 5 when closed."""
+    np.testing.assert_allclose(chord_lengths(EXAMPLE_9_1[0]), [5, 4, 5, 3])
+    np.testing.assert_allclose(chord_lengths(EXAMPLE_9_1[0], closed=True), [5, 4, 5, 3, 5])
+    grid = np.stack([EXAMPLE_9_1[0], 2 * EXAMPLE_9_1[0]], axis=1)  # (5, 2, 2): two lines along axis 0
+    np.testing.assert_allclose(chord_lengths(grid, 0), [[5, 10], [4, 8], [5, 10], [3, 6]])
+    np.testing.assert_allclose(chord_lengths(grid, 1), np.linalg.norm(EXAMPLE_9_1[0], axis=1)[:, None])
+    np.testing.assert_allclose(chord_lengths(grid, 1, closed=True),
+                               np.repeat(np.linalg.norm(EXAMPLE_9_1[0], axis=1)[:, None], 2, axis=1))
 
 
 def test_example_9_1_parameters_and_knots():
