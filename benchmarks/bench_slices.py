@@ -38,7 +38,7 @@ sys.path.insert(0, str(ROOT))
 from datasets_synthetic.phantoms import make_phantom  # noqa: E402
 from slices.control_points import clean_contour  # noqa: E402
 from slices.io import Contour, load  # noqa: E402
-from slices.pipeline import reconstruct_contours  # noqa: E402
+from slices.structure import reconstruct_contours  # noqa: E402
 
 PIXEL = 0.5  # mm, raster of the peers
 SMOOTH = ("ellipsoid", "kidney", "ring", "tilted_cylinder")  # smooth sides; lobes has a crease and branches

@@ -577,7 +577,7 @@ def _pipeline(kind: str) -> Callable[..., dict]:
     if kind == "photometric":
         from photometric.pipeline import reconstruct
     else:
-        from slices.pipeline import reconstruct
+        from workbench.runs.slices import reconstruct_to_folder as reconstruct
     return reconstruct
 
 

@@ -1,0 +1,1 @@
+"""Runs that compute with the library packages and write result folders."""
