@@ -16,8 +16,8 @@ from pathlib import Path
 import numpy as np
 
 from datasets_synthetic.heightfields import CONVENTION, HeightField, make_scene
-from surfaces.io import png_bytes
-from datasets_synthetic.io import atomic_write_bytes, atomic_write_text, ensure_dir, save_npy, write_json
+from datasets_synthetic.io import ensure_dir
+from surfaces.io import atomic_write_bytes, atomic_write_text, png_bytes, save_npy, write_json
 from surfaces.validate import as_array, positive
 
 SHADOW_MODES = ("attached", "cast", "none")
