@@ -201,7 +201,7 @@ def seed_parameter_rows():
                 m = rec.mesh
                 mean, haus = distances(m.vertices, m.triangles, pts, tree, z0, z1)
                 err = 100 * (rec.volume_mm3 / truth["volume_between_end_planes_mm3"] - 1)
-                ray = "auto ({:.2f})".format(rec.bodies[0].info["ray_start_deg"]) if start is None else "0 (+x)"
+                ray = "auto ({:.2f})".format(np.degrees(rec.bodies[0].start_angle)) if start is None else "0 (+x)"
                 rows.append((spacing, n_points, corr, ray, mode, err, mean, haus, rec.max_deviation_mm))
     print("  seed parameter study done", file=sys.stderr)
     return rows
