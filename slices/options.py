@@ -10,13 +10,21 @@ the command line converts its degrees once, at the edge.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, fields, replace
+
+from surfaces.validate import as_array, positive
 
 
 def _choice(value, name: str, allowed: tuple[str, ...]) -> None:
     if value not in allowed:
         raise ValueError(f"{name}: must be one of {allowed}, got {value!r}")
+
+
+def _whole(value, name: str, least: int, what: str) -> int:
+    x = positive(value, name)
+    if x != int(x) or x < least:
+        raise ValueError(f"{name}: need a whole number of at least {least} {what}, got {value!r}")
+    return int(x)
 
 
 @dataclass(frozen=True)
@@ -52,7 +60,7 @@ class SurfaceOptions:
     >>> SurfaceOptions(n_rays=2)
     Traceback (most recent call last):
     ...
-    ValueError: n_rays: need at least 3 rays (seed 000, eq. 1), got 2
+    ValueError: n_rays: need a whole number of at least 3 rays (seed 000, eq. 1), got 2
     """
 
     method: str = "blending"
@@ -73,20 +81,16 @@ class SurfaceOptions:
         _choice(self.caps, "caps", CAP_KINDS)
         _choice(self.lattice_mode, "lattice_mode", LATTICE_MODES)
         _choice(self.correspondence, "correspondence", CORRESPONDENCES)
-        if isinstance(self.n_rays, bool) or int(self.n_rays) != self.n_rays or self.n_rays < 3:
-            raise ValueError(f"n_rays: need at least 3 rays (seed 000, eq. 1), got {self.n_rays}")
-        factor = float(self.lattice_factor)
-        if not math.isfinite(factor) or factor < 1:
-            raise ValueError(f"lattice_factor: must be a finite number of at least 1, got {self.lattice_factor}")
-        if self.start_angle is not None and not math.isfinite(float(self.start_angle)):
-            raise ValueError(f"start_angle: must be finite, got {self.start_angle!r}")
-        if self.samples is not None and (int(self.samples) != self.samples or self.samples < 1):
-            raise ValueError(f"samples: need at least 1 subdivision per patch side, got {self.samples}")
-        object.__setattr__(self, "n_rays", int(self.n_rays))
-        object.__setattr__(self, "lattice_factor", factor)
+        n_rays = _whole(self.n_rays, "n_rays", 3, "rays (seed 000, eq. 1)")
+        factor = positive(self.lattice_factor, "lattice_factor")
+        if factor < 1:
+            raise ValueError(f"lattice_factor: must be at least 1, got {self.lattice_factor!r}")
+        if self.start_angle is not None:
+            object.__setattr__(self, "start_angle", float(as_array(self.start_angle, "start_angle", shape=())))
         if self.samples is not None:
-            object.__setattr__(self, "samples", int(self.samples))
-
+            object.__setattr__(self, "samples", _whole(self.samples, "samples", 1, "subdivision per patch side"))
+        object.__setattr__(self, "n_rays", n_rays)
+        object.__setattr__(self, "lattice_factor", factor)
 
 @dataclass(frozen=True)
 class ReadOptions:

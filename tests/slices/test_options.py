@@ -67,3 +67,10 @@ def test_split_options_sorts_reading_from_surface():
     assert read.spacing == "1,1,1" and surf.samples == 3
     with pytest.raises(ValueError, match=r"unknown \['lattice'\]"):
         split_options({"lattice": 2.0})
+
+
+@pytest.mark.parametrize(("field", "value"), [("n_rays", "many"), ("n_rays", True), ("lattice_factor", "wide"),
+                                              ("start_angle", "north"), ("samples", [2])])
+def test_values_that_are_no_numbers_are_named(field, value):
+    with pytest.raises(ValueError, match=f"{field}: "):
+        SurfaceOptions(**{field: value})
