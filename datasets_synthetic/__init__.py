@@ -13,9 +13,9 @@ Package map
 ``io``            output folders (files are written with :mod:`surfaces.io`)
 ================  ===================================================================
 
-The names in ``__all__`` load their module on first use, so ``import
-datasets_synthetic`` stays fast. A function named like its module is called
-through it: ``datasets_synthetic.render.render``.
+Importing the package loads numpy and :mod:`surfaces` helpers only (pydicom,
+OpenCV, scipy and open3d are imported where they are used). A function named
+like its module is called through it: ``datasets_synthetic.render.render``.
 
 Examples
 --------
@@ -27,37 +27,21 @@ Examples
 
 from __future__ import annotations
 
-from importlib import import_module
+from datasets_synthetic.dicom import write_ct_series, write_rtstruct
+from datasets_synthetic.heightfields import SCENES, HeightField, make_scene
+from datasets_synthetic.phantoms import SHAPES, Phantom, make_phantom, write_phantom
+from datasets_synthetic.render import make_triad_folder, write_diligent_folder
 
-_MODULES = ("dicom", "heightfields", "io", "phantoms", "render")
-
-# public name -> the module that holds it
-_NAMES = {
-    "HeightField": "heightfields",
-    "SCENES": "heightfields",
-    "make_scene": "heightfields",
-    "make_triad_folder": "render",
-    "write_diligent_folder": "render",
-    "Phantom": "phantoms",
-    "SHAPES": "phantoms",
-    "make_phantom": "phantoms",
-    "write_phantom": "phantoms",
-    "write_ct_series": "dicom",
-    "write_rtstruct": "dicom",
-}
-__all__ = sorted({*_MODULES, *_NAMES})
-
-
-def __getattr__(name: str):
-    if name in _NAMES:
-        value = getattr(import_module(f"datasets_synthetic.{_NAMES[name]}"), name)
-    elif name in _MODULES:
-        value = import_module(f"datasets_synthetic.{name}")
-    else:
-        raise AttributeError(f"module 'datasets_synthetic' has no attribute {name!r}")
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted({*globals(), *__all__})
+__all__ = [
+    "SCENES",
+    "SHAPES",
+    "HeightField",
+    "Phantom",
+    "make_phantom",
+    "make_scene",
+    "make_triad_folder",
+    "write_ct_series",
+    "write_diligent_folder",
+    "write_phantom",
+    "write_rtstruct",
+]

@@ -18,8 +18,9 @@ end to end          ``pipeline`` (an input in, a :class:`SlicesReconstruction` o
 ==================  ==================================================================
 
 The library computes and returns; it writes no files (``workbench.runs.slices``
-writes a result folder). Lengths are mm, angles radians. The modules and the
-names in ``__all__`` load on first use, so ``import slices`` stays fast.
+writes a result folder). Lengths are mm, angles radians. Importing the package
+loads numpy and the shared surface model only; scipy, OpenCV, scikit-image,
+pydicom and manifold3d are imported inside the functions that need them.
 
 Examples
 --------
@@ -31,63 +32,39 @@ Examples
 
 from __future__ import annotations
 
-from importlib import import_module
+from slices.body import BodySurface, build_body
+from slices.chaining import Body, chain, slab_volume
+from slices.compose import compose_rois
+from slices.control_points import ContourParameters, clean_contour, parameterize, signed_area
+from slices.io import Contour, ContourStack, list_rois, load, read_rtstruct
+from slices.options import ReadOptions, SurfaceOptions
+from slices.pipeline import SlicesReconstruction, reconstruct
+from slices.structure import Reconstruction, reconstruct_contours, reconstruct_roi
+from slices.surface import side_surface, slice_curves
 
-_MODULES = (
-    "body",
-    "caps",
-    "chaining",
-    "compose",
-    "control_points",
-    "io",
-    "options",
-    "pipeline",
-    "reference",
-    "structure",
-    "summary",
-    "surface",
-)
-
-# public name -> the module that holds it
-_NAMES = {
-    "Contour": "io",
-    "ContourStack": "io",
-    "load": "io",
-    "list_rois": "io",
-    "read_rtstruct": "io",
-    "clean_contour": "control_points",
-    "signed_area": "control_points",
-    "parameterize": "control_points",
-    "ContourParameters": "control_points",
-    "slice_curves": "surface",
-    "side_surface": "surface",
-    "Body": "chaining",
-    "chain": "chaining",
-    "slab_volume": "chaining",
-    "BodySurface": "body",
-    "build_body": "body",
-    "Reconstruction": "structure",
-    "reconstruct_contours": "structure",
-    "reconstruct_roi": "structure",
-    "compose_rois": "compose",
-    "SlicesReconstruction": "pipeline",
-    "reconstruct": "pipeline",
-    "SurfaceOptions": "options",
-    "ReadOptions": "options",
-}
-__all__ = sorted({*_MODULES, *_NAMES})
-
-
-def __getattr__(name: str):
-    if name in _NAMES:
-        value = getattr(import_module(f"slices.{_NAMES[name]}"), name)
-    elif name in _MODULES:
-        value = import_module(f"slices.{name}")
-    else:
-        raise AttributeError(f"module 'slices' has no attribute {name!r}")
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted({*globals(), *__all__})
+__all__ = [
+    "Body",
+    "BodySurface",
+    "Contour",
+    "ContourParameters",
+    "ContourStack",
+    "ReadOptions",
+    "Reconstruction",
+    "SlicesReconstruction",
+    "SurfaceOptions",
+    "build_body",
+    "chain",
+    "clean_contour",
+    "compose_rois",
+    "list_rois",
+    "load",
+    "parameterize",
+    "read_rtstruct",
+    "reconstruct",
+    "reconstruct_contours",
+    "reconstruct_roi",
+    "side_surface",
+    "signed_area",
+    "slab_volume",
+    "slice_curves",
+]
