@@ -97,8 +97,6 @@ def _reconstruct(args: argparse.Namespace) -> int:
 
     from workbench.runs.slices import reconstruct_to_folder
 
-    if args.samples is not None and args.samples < 1:
-        raise ValueError(f"--samples: need at least 1 subdivision per patch side, got {args.samples}")
     with tqdm(desc="bodies", unit="body", leave=False) as bar:
 
         def progress(done: int, total: int) -> None:

@@ -85,7 +85,7 @@ def library_options(options: dict) -> dict:
     return out
 
 
-def save_patches(result: SlicesReconstruction, path) -> None:
+def save_body_patches(result: SlicesReconstruction, path) -> None:
     """All bodies' patches in one ``.npz``.
 
     Parameters
@@ -132,7 +132,7 @@ def write_result(result: SlicesReconstruction, out_dir, *, render: bool = True) 
     t_write = time.perf_counter()
     write_mesh(result.mesh, out / "surface.ply")
     write_mesh(result.mesh, out / "surface.stl")
-    save_patches(result, out / "patches.npz")
+    save_body_patches(result, out / "patches.npz")
     t_write = time.perf_counter() - t_write
     t_render = time.perf_counter()
     if render:
