@@ -40,7 +40,7 @@ from common import Table, write_results  # noqa: E402
 from datasets_synthetic.phantoms import make_phantom  # noqa: E402
 from slices.control_points import clean_contour  # noqa: E402
 from slices.io import Contour, load  # noqa: E402
-from slices.pipeline import reconstruct_contours  # noqa: E402
+from slices.structure import reconstruct_contours  # noqa: E402
 
 PIXEL = 0.5  # mm, raster of the peers
 SMOOTH = ("ellipsoid", "kidney", "ring", "tilted_cylinder")  # smooth sides; lobes has a crease and branches
@@ -203,7 +203,7 @@ def seed_parameter_rows():
                 m = rec.mesh
                 mean, haus = distances(m.vertices, m.triangles, pts, tree, z0, z1)
                 err = 100 * (rec.volume_mm3 / truth["volume_between_end_planes_mm3"] - 1)
-                ray = "auto ({:.2f})".format(rec.bodies[0].info["ray_start_deg"]) if start is None else "0 (+x)"
+                ray = "auto ({:.2f})".format(np.degrees(rec.bodies[0].start_angle)) if start is None else "0 (+x)"
                 rows.append((spacing, n_points, corr, ray, mode, err, mean, haus, rec.max_deviation_mm))
     print("  seed parameter study done", file=sys.stderr)
     return rows

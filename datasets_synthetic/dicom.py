@@ -17,7 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-from datasets_synthetic.io import atomic_write_bytes, ensure_dir
+from datasets_synthetic.io import ensure_dir
+from surfaces.io import atomic_write_bytes
 from surfaces.validate import as_array, positive
 
 CT_IMAGE_STORAGE = "1.2.840.10008.5.1.4.1.1.2"

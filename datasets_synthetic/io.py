@@ -1,18 +1,13 @@
-"""File helpers of the synthetic-data writers.
+"""Output folders of the synthetic-data writers.
 
-Every file is written under a temporary name in its destination folder and
-moved into place with :func:`os.replace`, so a reader never sees half a file.
+The files themselves are written with :mod:`surfaces.io` (atomic: a temporary
+name in the destination folder, then :func:`os.replace`).
 """
 
 from __future__ import annotations
 
 import os
 from pathlib import Path
-
-
-from surfaces.io import atomic_write_bytes, atomic_write_text, save_npy, write_json
-
-__all__ = ["atomic_write_bytes", "atomic_write_text", "write_json", "save_npy", "ensure_dir"]
 
 
 def ensure_dir(path: str | os.PathLike, name: str = "out_dir") -> Path:
@@ -28,6 +23,11 @@ def ensure_dir(path: str | os.PathLike, name: str = "out_dir") -> Path:
     Returns
     -------
     pathlib.Path
+
+    Raises
+    ------
+    NotADirectoryError
+        When ``path`` is an existing file.
     """
     path = Path(path)
     if path.exists() and not path.is_dir():

@@ -16,7 +16,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from scipy.ndimage import map_coordinates
 
 from datasets_synthetic.heightfields import CONVENTION, HeightField, make_scene
 from datasets_synthetic.io import ensure_dir
@@ -98,6 +97,8 @@ def _shadow(z: np.ndarray, lz: np.ndarray, ps: float, step: float, method: str =
     reach = min(zrange / rise, float(np.hypot(h, w)))
     if method == "raycast" or (method == "auto" and reach / step > 64):
         return _raycast_shadow(z, lz, ps)
+    from scipy.ndimage import map_coordinates
+
     drow, dcol = -lz[1] / lxy, lz[0] / lxy
     flat = z.ravel()
     zmax = float(z.max())

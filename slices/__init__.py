@@ -1,22 +1,70 @@
 """CT contour stacks and RT structure sets to one interpolating surface (seed 000).
 
-Modules
--------
-io
-    Readers: RTSTRUCT (``list_rois``, ``read_rtstruct``), CT series, mask stacks,
-    contour JSON; ``load`` picks by input.
-control_points
-    Contour checks and orientation, the seed's control-point parameters
-    (rays, support points, turning points, chord length; eqs. 1-5).
-surface
-    Slice curves on a common lattice, side surfaces (parabolic blending,
-    Coons, B-spline: the ``METHODS`` table), fast patch integrals and tessellation.
-caps
-    End caps (none, flat, half, dome).
-chaining
-    Holes by containment, bodies by overlap, the planning-system slab volume.
-reference
-    The smoothing B-spline comparison (seed 000, ref. [5]).
-pipeline
-    ``reconstruct_contours`` (in memory) and ``reconstruct`` (files in, files out).
+Package map
+-----------
+==================  ==================================================================
+reading             ``io`` (RTSTRUCT, CT series, mask stacks, contour JSON: ``load``,
+                    ``list_rois``; :class:`Contour`, :class:`ContourStack`)
+one contour         ``control_points`` (checks and orientation, the seed's parameters:
+                    rays, support and turning points, chord length; eqs. 1-5)
+one body            ``surface`` (slice curves on a common lattice, side surfaces:
+                    blending, Coons, B-spline), ``caps`` (none, flat, half, dome),
+                    ``body`` (surface, volume, area and mesh of one chain of contours)
+a structure         ``chaining`` (holes, bodies by overlap, the slab volume),
+                    ``structure`` (all bodies, the united solid), ``compose`` (set
+                    operations of ROIs), ``reference`` (the smoothing B-spline comparison)
+end to end          ``pipeline`` (an input in, a :class:`SlicesReconstruction` out),
+                    ``summary`` (its figures), ``options`` (every default, once)
+==================  ==================================================================
+
+The library computes and returns; it writes no files (``workbench.runs.slices``
+writes a result folder). Lengths are mm, angles radians. Importing the package
+loads numpy and the shared surface model only; scipy, OpenCV, scikit-image,
+pydicom and manifold3d are imported inside the functions that need them.
+
+Examples
+--------
+>>> import slices
+>>> square = slices.clean_contour([[0, 0], [0, 3], [3, 3], [3, 0]])
+>>> slices.signed_area(square)
+9.0
 """
+
+from __future__ import annotations
+
+from slices.body import BodySurface, build_body
+from slices.chaining import Body, chain, slab_volume
+from slices.compose import compose_rois
+from slices.control_points import ContourParameters, clean_contour, parameterize, signed_area
+from slices.io import Contour, ContourStack, list_rois, load, read_rtstruct
+from slices.options import ReadOptions, SurfaceOptions
+from slices.pipeline import SlicesReconstruction, reconstruct
+from slices.structure import Reconstruction, reconstruct_contours, reconstruct_roi
+from slices.surface import side_surface, slice_curves
+
+__all__ = [
+    "Body",
+    "BodySurface",
+    "Contour",
+    "ContourParameters",
+    "ContourStack",
+    "ReadOptions",
+    "Reconstruction",
+    "SlicesReconstruction",
+    "SurfaceOptions",
+    "build_body",
+    "chain",
+    "clean_contour",
+    "compose_rois",
+    "list_rois",
+    "load",
+    "parameterize",
+    "read_rtstruct",
+    "reconstruct",
+    "reconstruct_contours",
+    "reconstruct_roi",
+    "side_surface",
+    "signed_area",
+    "slab_volume",
+    "slice_curves",
+]

@@ -16,13 +16,21 @@ it sweeps, also where the fan overlaps itself on a folded outline). Their area
 is computed from the boundary curve with Green's theorem, and their triangles
 by a constrained triangulation of the boundary polygon (manifold3d), which
 stays inside non-convex outlines.
+
+A body's caps are put together in three steps: :func:`end_kinds` (which cap
+each end gets), :func:`add_dome_rings` (virtual slices of dome caps, before
+the side surface is built over the stack) and :func:`close_side` (half-cap
+extrusions and fan columns around the side surface); :func:`weld_flat_caps`
+joins the flat caps' triangles to the tessellated side.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
-from surfaces.mesh import TriangleMesh
+from surfaces.mesh import TriangleMesh, merge_meshes, weld
 from surfaces.validate import as_array, positive
 
 CAP_KINDS = ("none", "flat", "half", "dome")
@@ -207,3 +215,175 @@ def planar_cap_mesh(curve, samples: int, outward_z: float) -> TriangleMesh:
     normal = np.zeros_like(ring)
     normal[:, 2] = 1.0 if outward_z > 0 else -1.0
     return TriangleMesh(ring, tri, normal)
+
+
+def end_kinds(caps: str, start: str, stop: str) -> tuple[str, str]:
+    """Cap of the low and the high end of a body.
+
+    Parameters
+    ----------
+    caps : {"none", "flat", "half", "dome"}
+        The requested caps.
+    start, stop : str
+        Why the body's chain starts and stops (:class:`slices.chaining.Body`):
+        ``"end"``, ``"branch"`` or ``"merge"``.
+
+    Returns
+    -------
+    (str, str)
+        The requested caps at a true end; ``"half"`` where the chain splits
+        (branching or merging contours), so neighbouring bodies meet half-way
+        between the planes.
+
+    Examples
+    --------
+    >>> end_kinds("flat", "end", "branch")
+    ('flat', 'half')
+    """
+    if caps not in CAP_KINDS:
+        raise ValueError(f"caps: must be one of {CAP_KINDS}, got {caps!r}")
+    return (caps if start == "end" else "half"), (caps if stop == "end" else "half")
+
+
+def add_dome_rings(curves, centers, height: float, low: str, high: str) -> tuple[np.ndarray, int]:
+    """The slice curves with the rings of dome caps added below and above.
+
+    Parameters
+    ----------
+    curves : array_like, shape (K, M, 4, 3)
+        Slice curves on a common lattice.
+    centers : array_like, shape (K, 3)
+        Centre of each slice (mm, in its plane).
+    height : float
+        Dome height in mm (half a slice spacing).
+    low, high : str
+        Cap kinds of the two ends (:func:`end_kinds`); only ``"dome"`` adds rings.
+
+    Returns
+    -------
+    stack : numpy.ndarray, shape (K', M, 4, 3)
+        Rings of the low dome (pole first), the curves, rings of the high dome.
+    prepend : int
+        Number of rings below the first slice curve.
+    """
+    c = as_array(curves, "curves", shape=(None, None, 4, 3))
+    p = as_array(centers, "centers", shape=(len(c), 3))
+    low_rings = high_rings = np.zeros((0,) + c.shape[1:])
+    if low == "dome":
+        low_rings = dome_rings(c[0], p[0], height, upward=False)[::-1]
+    if high == "dome":
+        high_rings = dome_rings(c[-1], p[-1], height, upward=True)
+    return np.concatenate([low_rings, c, high_rings]), len(low_rings)
+
+
+@dataclass(frozen=True)
+class CappedGrid:
+    """A body's patch grid: side columns closed by cap columns.
+
+    Attributes
+    ----------
+    control : numpy.ndarray, shape (M, C, 4, 4, 3)
+        Control points of the closed grid (fan columns of flat caps first and
+        last; with ``caps="none"`` they are there too, so the grid encloses the
+        volume between the end planes).
+    side_columns : slice
+        Patch columns of the open side surface (with half-cap extrusions and domes).
+    flat_caps : tuple of (numpy.ndarray, float)
+        Boundary curve ``(M, 4, 3)`` and outward z (+1 top, -1 bottom) of every
+        flat cap that is part of the surface (not those of ``caps="none"``).
+    end_planes : (float, float)
+        z of the lowest and highest side boundary in mm (where caps can meet the side).
+    """
+
+    control: np.ndarray
+    side_columns: slice
+    flat_caps: tuple
+    end_planes: tuple[float, float]
+
+    @property
+    def flat_cap_area(self) -> float:
+        """Area of the flat caps in mm^2 (:func:`curve_area`)."""
+        return float(sum(abs(curve_area(c)) for c, _ in self.flat_caps))
+
+
+def close_side(side, bottom, top, low_center, high_center, height: float, low: str, high: str) -> CappedGrid:
+    """Close a side surface with its caps.
+
+    Parameters
+    ----------
+    side : array_like, shape (M, S, 4, 4, 3) or None
+        Side patch columns; None for a single slice (no side surface).
+    bottom, top : array_like, shape (M, 4, 3)
+        The side's lowest and highest boundary curves (the single slice curve
+        when ``side`` is None).
+    low_center, high_center : array_like, shape (2,)
+        x, y of the fan apex of the low and the high cap (mm).
+    height : float
+        Extrusion of half caps in mm (half a slice spacing).
+    low, high : str
+        Cap kinds of the two ends (:func:`end_kinds`).
+
+    Returns
+    -------
+    CappedGrid
+    """
+    bottom = as_array(bottom, "bottom", shape=(None, 4, 3))
+    top = as_array(top, "top", shape=bottom.shape)
+    columns = [] if side is None else [as_array(side, "side", shape=(len(bottom), None, 4, 4, 3))]
+    if low == "half":
+        columns.insert(0, prism_column(bottom, -height))
+        bottom = bottom.copy()
+        bottom[..., 2] -= height
+    if high == "half":
+        columns.append(prism_column(top, height))
+        top = top.copy()
+        top[..., 2] += height
+    if not columns:
+        raise ValueError("side: a single slice has no side surface; it needs a half cap at one end at least")
+    side_ctrl = np.concatenate(columns, axis=1)
+    full = [side_ctrl]
+    flat = []
+    first = 0
+    if low != "dome":
+        full.insert(0, fan_column(bottom, np.append(low_center, bottom[0, 0, 2]), False))
+        first = 1
+        if low != "none":
+            flat.append((bottom, -1.0))
+    if high != "dome":
+        full.append(fan_column(top, np.append(high_center, top[0, 0, 2]), True))
+        if high != "none":
+            flat.append((top, 1.0))
+    return CappedGrid(np.concatenate(full, axis=1), slice(first, first + side_ctrl.shape[1]), tuple(flat),
+                      (float(bottom[0, 0, 2]), float(top[0, 0, 2])))
+
+
+def weld_flat_caps(side: TriangleMesh, grid: CappedGrid, samples: int) -> tuple[TriangleMesh, TriangleMesh]:
+    """The side's triangles with the flat caps' triangles joined to them.
+
+    Parameters
+    ----------
+    side : TriangleMesh
+        Tessellation of the side columns (:func:`surfaces.mesh.tessellate` at ``samples``).
+    grid : CappedGrid
+        The body's grid (its flat caps and end planes).
+    samples : int
+        Subdivisions per patch side used for ``side`` (the caps' boundary matches it).
+
+    Returns
+    -------
+    mesh : TriangleMesh
+        Caps welded to the side (watertight when the body is capped).
+    display : TriangleMesh
+        The same triangles with the caps' vertices kept apart, so that flat caps
+        shade with their own +-z normals.
+    """
+    if not grid.flat_caps:
+        return side, side
+    # only vertices in the end planes can be shared with the caps
+    zv = side.vertices[:, 2]
+    tol = 1e-7 * max(1.0, float(np.abs(side.vertices).max()))
+    low, high = grid.end_planes
+    rim = np.flatnonzero((np.abs(zv - low) < tol) | (np.abs(zv - high) < tol))
+    merged = merge_meshes([side] + [planar_cap_mesh(c, samples, s) for c, s in grid.flat_caps])
+    candidates = np.concatenate([rim, np.arange(side.n_vertices, merged.n_vertices)])
+    return weld(merged, candidates=candidates), merged

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from slices.control_points import points_in_polygon, signed_area
-from slices.io import Contour
+from slices.io import SPACING_RTOL, Contour
 
 #: Pixels along the longer side of the raster used for overlap tests.
 _RASTER = 256
@@ -136,7 +136,7 @@ def chain(contours: list[Contour], spacing: float | None) -> list[Body]:
     for p0, p1 in zip(planes[:-1], planes[1:]):
         lower = np.flatnonzero(np.round(z, 6) == p0)
         upper = np.flatnonzero(np.round(z, 6) == p1)
-        if spacing is not None and abs((p1 - p0) - spacing) > 0.01 * spacing:
+        if spacing is not None and abs((p1 - p0) - spacing) > SPACING_RTOL * spacing:
             # missing planes are fine between separate bodies, not inside one
             if any(overlaps(contours[i].points, contours[j].points) for i in lower for j in upper):
                 raise ValueError(

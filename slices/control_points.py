@@ -187,6 +187,19 @@ def clean_contour(points, name: str = "contour") -> np.ndarray:
     ------
     ValueError
         Fewer than 3 distinct points, zero area, or self-intersecting edges.
+
+    Examples
+    --------
+    A clockwise square with its first vertex repeated at the end comes back
+    counter-clockwise, without the repeat, enclosing its area of 4:
+
+    >>> square = clean_contour([[0, 0], [0, 2], [2, 2], [2, 0], [0, 0]])
+    >>> square.tolist(), signed_area(square)
+    ([[0.0, 0.0], [2.0, 0.0], [2.0, 2.0], [0.0, 2.0]], 4.0)
+    >>> clean_contour([[0, 0], [1, 1], [2, 2]], name="ROI 'Heart' contour 3")
+    Traceback (most recent call last):
+    ...
+    ValueError: ROI 'Heart' contour 3: has zero area (all points on one line)
     """
     p = as_array(points, name, ndim=2)
     if p.shape[1] != 2:
@@ -295,7 +308,7 @@ class ContourParameters:
     turning: np.ndarray
 
 
-def parameterize(points, n_rays: int = 64, start_angle: float = 0.0) -> ContourParameters:
+def parameterize(points, n_rays: int, start_angle: float = 0.0) -> ContourParameters:
     """Seed 000 control-point parameters of one closed contour (eqs. 1-5).
 
     Parameters
@@ -303,7 +316,8 @@ def parameterize(points, n_rays: int = 64, start_angle: float = 0.0) -> ContourP
     points : array_like, shape (n, 2)
         Contour vertices in mm, counter-clockwise (see :func:`clean_contour`).
     n_rays : int
-        Number of rays ``N1 >= 3`` (default 64).
+        Number of rays ``N1 >= 3`` (:attr:`slices.options.SurfaceOptions.n_rays` by default
+        in a reconstruction).
     start_angle : float
         Direction of ray 0 in radians from +x (common to all slices).
 
@@ -315,6 +329,18 @@ def parameterize(points, n_rays: int = 64, start_angle: float = 0.0) -> ContourP
     ------
     ValueError
         Too few rays, or a contour that does not wind once around any interior point.
+
+    Examples
+    --------
+    Four rays from the centre of a square meet it at its edges' midpoints
+    (``u = k / 4``); each corner lies half-way between two of them in arc
+    length (eq. 5):
+
+    >>> par = parameterize([[-1, -1], [1, -1], [1, 1], [-1, 1]], n_rays=4)
+    >>> par.u.tolist(), par.points.tolist()
+    ([0.125, 0.375, 0.625, 0.875], [[1.0, 1.0], [-1.0, 1.0], [-1.0, -1.0], [1.0, -1.0]])
+    >>> (par.support.round(12) + 0.0).tolist()
+    [[1.0, 0.0], [0.0, 1.0], [-1.0, 0.0], [0.0, -1.0]]
     """
     p = as_array(points, "points", shape=(None, 2))
     n1 = int(n_rays)
@@ -473,7 +499,7 @@ def ray_supports(points, n_rays: int, start_angle: float = 0.0) -> tuple[np.ndar
     return (s_arc[order] % arc[len(p)]) / arc[len(p)], xy[order]
 
 
-def choose_start_angle(contours, n_rays: int = 64, candidates: int = 8) -> float:
+def choose_start_angle(contours, n_rays: int, candidates: int = 8) -> float:
     """Direction of ray 0, common to a stack of slices, that keeps support points steady.
 
     Where a contour folds, the support point of a ray that passes close to the

@@ -73,6 +73,17 @@ def _contours_from_list(items, label: str) -> list[Contour]:
     return out
 
 
+def _existing(path, what: str, kind: str = "file") -> Path:
+    """``path`` as a Path, checked to be an existing ``"file"``, ``"folder"`` or either (``"any"``)."""
+    path = Path(path)
+    if kind == "folder":
+        if not path.is_dir():
+            raise NotADirectoryError(f"{path}: not a {what}")
+    elif not (path.is_file() if kind == "file" else path.exists()):
+        raise FileNotFoundError(f"{path}: no such {what}")
+    return path
+
+
 # ------------------------------------------------------------------ RTSTRUCT
 def _read_dicom(path: Path):
     import pydicom
@@ -108,6 +119,15 @@ def _contour_array(item) -> np.ndarray:
     return np.asarray(item.ContourData, dtype=np.float64)
 
 
+def _open_rtstruct(path):
+    """Path and dataset of an RT Structure Set file (checked: it exists and holds ROIs)."""
+    path = _existing(path, "RT structure set file")
+    ds = _read_dicom(path)
+    if "StructureSetROISequence" not in ds:
+        raise ValueError(f"{path}: not an RT Structure Set (no StructureSetROISequence)")
+    return path, ds
+
+
 def list_rois(path) -> list[dict]:
     """ROIs of an RT Structure Set.
 
@@ -122,13 +142,7 @@ def list_rois(path) -> list[dict]:
         ``number`` (int), ``name`` (str), ``n_contours`` (int), ``n_planes`` (int),
         ``max_points`` (int) per ROI, in file order.
     """
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"{path}: no such RT structure set file")
-    ds = _read_dicom(path)
-    if "StructureSetROISequence" not in ds:
-        raise ValueError(f"{path}: not an RT Structure Set (no StructureSetROISequence)")
-    return _roi_table(ds)
+    return _roi_table(_open_rtstruct(path)[1])
 
 
 def _roi_table(ds) -> list[dict]:
@@ -171,12 +185,7 @@ def read_rtstruct(path, roi) -> ContourStack:
         contours, non-planar or non-axial contours, fewer than 3 points,
         self-intersecting contours.
     """
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"{path}: no such RT structure set file")
-    ds = _read_dicom(path)
-    if "StructureSetROISequence" not in ds:
-        raise ValueError(f"{path}: not an RT Structure Set (no StructureSetROISequence)")
+    path, ds = _open_rtstruct(path)
     rois = _roi_table(ds)
     if roi is None:
         raise ValueError(
@@ -222,6 +231,12 @@ def read_rtstruct(path, roi) -> ContourStack:
 
 
 # ------------------------------------------------------------------ volumes
+def _segment(values: np.ndarray, hu_min, hu_max, label: str) -> tuple[np.ndarray, str]:
+    """The object of a volume (window or mask, largest component) and a note saying how."""
+    mask, how = _mask_from_values(values, hu_min, hu_max, label)
+    return largest_component(mask), f"segmented by {how}, largest connected component"
+
+
 def _mask_from_values(values: np.ndarray, hu_min, hu_max, label: str) -> tuple[np.ndarray, str]:
     if hu_min is not None or hu_max is not None:
         lo = -np.inf if hu_min is None else float(hu_min)
@@ -380,9 +395,7 @@ def read_ct_series(folder, hu_min=None, hu_max=None, resample: bool = False) -> 
     -------
     ContourStack
     """
-    folder = Path(folder)
-    if not folder.is_dir():
-        raise NotADirectoryError(f"{folder}: not a folder of DICOM files")
+    folder = _existing(folder, "folder of DICOM files", "folder")
     import pydicom
 
     slices = []
@@ -426,9 +439,8 @@ def read_ct_series(folder, hu_min=None, hu_max=None, resample: bool = False) -> 
             raise
         values, z, d = _resample_volume(values, z)
         notes.append(f"resampled to uniform {d:.3f} mm slices")
-    mask, how = _mask_from_values(values, hu_min, hu_max, str(folder))
-    mask = largest_component(mask)
-    notes.append(f"segmented by {how}, largest connected component")
+    mask, note = _segment(values, hu_min, hu_max, str(folder))
+    notes.append(note)
     ps = [float(s) for s in slices[0].PixelSpacing]  # row spacing, column spacing
     ipp = np.asarray(slices[0].ImagePositionPatient, float)
     # axial: x follows the row direction (columns), y the column direction (rows); flip the
@@ -444,6 +456,10 @@ def read_ct_series(folder, hu_min=None, hu_max=None, resample: bool = False) -> 
     return ContourStack(contours, "ct", folder.name, notes)
 
 
+def _first_channel(images) -> list[np.ndarray]:
+    return [im if im.ndim == 2 else im[..., 0] for im in images]
+
+
 def _read_image_stack(path: Path) -> np.ndarray:
     import cv2
 
@@ -454,7 +470,7 @@ def _read_image_stack(path: Path) -> np.ndarray:
         images = [cv2.imread(str(f), cv2.IMREAD_UNCHANGED) for f in files]
         if any(im is None for im in images):
             raise ValueError(f"{path}: an image could not be read")
-        images = [im if im.ndim == 2 else im[..., 0] for im in images]
+        images = _first_channel(images)
         if len({im.shape for im in images}) != 1:
             raise ValueError(f"{path}: images have different sizes")
         return np.stack(images)
@@ -468,7 +484,7 @@ def _read_image_stack(path: Path) -> np.ndarray:
         ok, pages = cv2.imreadmulti(str(path), flags=cv2.IMREAD_UNCHANGED)
         if not ok or not pages:
             raise ValueError(f"{path}: not a readable multi-page TIFF")
-        return np.stack([p if p.ndim == 2 else p[..., 0] for p in pages])
+        return np.stack(_first_channel(pages))
     raise ValueError(f"{path}: unknown stack format (use .npy, .tif or a folder of PNGs)")
 
 
@@ -508,18 +524,14 @@ def read_mask_stack(path, spacing, hu_min=None, hu_max=None) -> ContourStack:
     -------
     ContourStack
     """
-    path = Path(path)
-    if not path.exists():
-        raise FileNotFoundError(f"{path}: no such mask stack")
+    path = _existing(path, "mask stack", "any")
     if spacing is None:
         raise ValueError(f"{path}: a mask stack needs --spacing z,y,x (mm)")
     dz, dy, dx = parse_spacing(spacing)
-    values = _read_image_stack(path)
-    mask, how = _mask_from_values(values, hu_min, hu_max, str(path))
-    mask = largest_component(mask)
+    mask, note = _segment(_read_image_stack(path), hu_min, hu_max, str(path))
     z = dz * np.arange(mask.shape[0])
     contours = contours_from_mask(mask, z, (dy, dx), label=str(path))
-    return ContourStack(contours, "mask", path.name, [f"segmented by {how}, largest connected component"])
+    return ContourStack(contours, "mask", path.name, [note])
 
 
 def read_contour_json(path) -> ContourStack:
@@ -533,9 +545,7 @@ def read_contour_json(path) -> ContourStack:
     -------
     ContourStack
     """
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"{path}: no such contour file")
+    path = _existing(path, "contour file")
     try:
         data = json.loads(path.read_text())
     except json.JSONDecodeError as exc:
@@ -583,9 +593,7 @@ def load(path, roi=None, hu_min=None, hu_max=None, spacing=None, resample: bool 
     -------
     ContourStack
     """
-    path = Path(path)
-    if not path.exists():
-        raise FileNotFoundError(f"{path}: no such file or folder")
+    path = _existing(path, "file or folder", "any")
     suffix = path.suffix.lower()
     if suffix == ".json":
         return read_contour_json(path)

@@ -16,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from slices.control_points import parameterize
+from slices.options import SurfaceOptions
 from surfaces.validate import positive
 
 #: Default smoothing: RMS distance of the contour spline from its points, in mm.
@@ -23,7 +24,7 @@ SMOOTH_MM = 0.25
 
 
 def smoothing_surface(contours, z, n_u: int = 256, smooth_mm: float = SMOOTH_MM,
-                      n_rays: int = 64) -> np.ndarray:
+                      n_rays: int = SurfaceOptions.n_rays) -> np.ndarray:
     """Smoothing B-spline surface sampled on a grid.
 
     Parameters
@@ -103,7 +104,7 @@ def compare(rec) -> dict:
 
     Parameters
     ----------
-    rec : slices.pipeline.Reconstruction
+    rec : slices.structure.Reconstruction
         Our reconstruction (its bodies carry the contours).
 
     Returns

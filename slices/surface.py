@@ -18,8 +18,6 @@ Caps are extra patch columns (:mod:`slices.caps`).
 
 from __future__ import annotations
 
-import importlib
-import importlib.util
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -33,9 +31,16 @@ from slices.control_points import (
     parameterize,
     quantize,
 )
-from surfaces import blending
+from slices.options import SurfaceOptions
+from surfaces import blending, coons
 from surfaces.bezier import BezierPatches
 from surfaces.validate import as_array, positive
+
+#: Common ``u`` lattices of :func:`slice_curves`.
+LATTICE_MODES = ("balanced", "uniform", "adaptive", "union")
+
+#: Which ``u`` links the slices in :func:`slice_curves`.
+CORRESPONDENCES = ("seed", "arc")
 
 
 @dataclass(frozen=True)
@@ -63,24 +68,29 @@ class SliceCurves:
     start_angle: float = 0.0
 
 
-def lattice_size(max_points: int, factor: float = 2.0) -> int:
-    """Lattice size ``M`` for the common ``u`` breakpoints.
+def lattice_size(max_points: int, lattice_factor: float = SurfaceOptions.lattice_factor) -> int:
+    """Lattice size ``M`` (a count) for the common ``u`` breakpoints.
 
     Parameters
     ----------
     max_points : int
         Largest number of points of a contour.
-    factor : float
+    lattice_factor : float
         Lattice values per point of the largest contour (>= 1).
 
     Returns
     -------
     int
-        ``ceil(factor * max_points)``, at least ``max_points`` and 4.
+        ``ceil(lattice_factor * max_points)``, at least ``max_points`` and 4.
+
+    Examples
+    --------
+    >>> lattice_size(10), lattice_size(10, 2.5), lattice_size(1)
+    (20, 25, 4)
     """
-    f = positive(factor, "lattice factor")
+    f = positive(lattice_factor, "lattice_factor")
     if f < 1:
-        raise ValueError(f"lattice factor: must be at least 1, got {factor}")
+        raise ValueError(f"lattice_factor: must be at least 1, got {lattice_factor}")
     return max(4, int(max_points), int(np.ceil(f * max_points)))
 
 
@@ -95,9 +105,10 @@ def _geometry_parameters(points: np.ndarray, kind: str) -> np.ndarray:
     return t[:-1] / t[-1]
 
 
-def slice_curves(contours, z, n_rays: int = 64, n_lattice: int | None = None,
+def slice_curves(contours, z, n_rays: int, n_lattice: int | None = None,
                  start_angle: float | None = None, geometry: str = "centripetal",
-                 correspondence: str = "seed", lattice_mode: str = "balanced") -> SliceCurves:
+                 correspondence: str = SurfaceOptions.correspondence,
+                 lattice_mode: str = SurfaceOptions.lattice_mode) -> SliceCurves:
     """Closed parabolic-blending curve of every slice, cut on a common lattice.
 
     Parameters
@@ -109,7 +120,7 @@ def slice_curves(contours, z, n_rays: int = 64, n_lattice: int | None = None,
     n_rays : int
         Rays per contour (seed 000, eq. 1).
     n_lattice : int, optional
-        Lattice size ``M``; default :func:`lattice_size` of the largest contour.
+        Lattice size ``M`` (a count); default :func:`lattice_size` of the largest contour.
     start_angle : float, optional
         Direction of ray 0 (radians from +x), common to all slices; by default
         the rotation of the rays that keeps the support points steadiest from
@@ -139,10 +150,10 @@ def slice_curves(contours, z, n_rays: int = 64, n_lattice: int | None = None,
     SliceCurves
     """
     zz = as_array(z, "z", shape=(len(contours),))
-    if correspondence not in ("seed", "arc"):
-        raise ValueError(f"correspondence: must be 'seed' or 'arc', got {correspondence!r}")
-    if lattice_mode not in ("balanced", "uniform", "adaptive", "union"):
-        raise ValueError(f"lattice_mode: must be 'balanced', 'uniform', 'adaptive' or 'union', got {lattice_mode!r}")
+    if correspondence not in CORRESPONDENCES:
+        raise ValueError(f"correspondence: must be one of {CORRESPONDENCES}, got {correspondence!r}")
+    if lattice_mode not in LATTICE_MODES:
+        raise ValueError(f"lattice_mode: must be one of {LATTICE_MODES}, got {lattice_mode!r}")
     if start_angle is None:
         start_angle = choose_start_angle(contours, n_rays)
     params: list[ContourParameters] = [parameterize(c, n_rays, start_angle) for c in contours]
@@ -200,15 +211,14 @@ def _side_blending(curves: np.ndarray, v: np.ndarray) -> tuple[BezierPatches, No
 
 
 def _side_coons(curves: np.ndarray, v: np.ndarray) -> tuple[BezierPatches, NodeEval]:
-    from surfaces import coons
-
     nodes = curves[:, :, 0].transpose(1, 0, 2)  # (M, K, 3); chord-length tangents follow v
     patches = coons.from_grid(nodes, closed_u=True)
     return patches, _corner_eval(patches, len(curves))
 
 
 def _side_bspline(curves: np.ndarray, v: np.ndarray) -> tuple[BezierPatches, NodeEval]:
-    bspline = importlib.import_module("surfaces.bspline")
+    from surfaces import bspline  # scipy.interpolate: loaded when this method is used
+
     nodes = curves[:, :, 0].transpose(1, 0, 2)
     m = nodes.shape[0]
     surf = bspline.interpolate_surface(
@@ -227,21 +237,6 @@ METHODS: dict[str, Callable[[np.ndarray, np.ndarray], tuple[BezierPatches, NodeE
     "coons": _side_coons,
     "bspline": _side_bspline,
 }
-
-
-def available_methods() -> list[str]:
-    """Names of the surface methods whose modules can be imported.
-
-    Returns
-    -------
-    list of str
-    """
-    out = []
-    for name in METHODS:
-        if name == "bspline" and importlib.util.find_spec("surfaces.bspline") is None:
-            continue
-        out.append(name)
-    return out
 
 
 def side_surface(curves, method: str = "blending", v=None) -> tuple[BezierPatches, NodeEval]:
@@ -266,14 +261,11 @@ def side_surface(curves, method: str = "blending", v=None) -> tuple[BezierPatche
         ``node_eval(j, k) -> (N, 3)``: the surface at lattice node ``j`` of slice ``k``.
     """
     c = as_array(curves, "curves", shape=(None, None, 4, 3))
-    if method not in METHODS or method not in available_methods():
-        raise ValueError(f"method: unknown or unavailable {method!r}; choose from {available_methods()}")
+    if method not in METHODS:
+        raise ValueError(f"method: must be one of {tuple(METHODS)}, got {method!r}")
     if len(c) < 2:
         raise ValueError(f"curves: need at least 2 slices for a side surface, got {len(c)}")
     vv = np.arange(len(c), dtype=np.float64) if v is None else as_array(v, "v", shape=(len(c),))
     if np.any(np.diff(vv) <= 0):
         raise ValueError("v: slice positions must increase strictly")
     return METHODS[method](c, vv)
-
-
-# ------------------------------------------------------------------ fast grid evaluation

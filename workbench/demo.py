@@ -573,7 +573,7 @@ def section_ct(ctx: Context) -> None:
     kid = ctx.out / "ct" / "kidney"
     with ctx.guard("CT: kidney phantom"):
         from datasets_synthetic.phantoms import make_phantom, write_phantom
-        from slices.pipeline import reconstruct
+        from workbench.runs.slices import reconstruct_to_folder as reconstruct
         from surfaces.distance import deviation
         from surfaces.render import render
         from surfaces.io import read_mesh
@@ -649,7 +649,7 @@ def section_breast(ctx: Context) -> None:
         rep.note(f"CT: breast structure set: not available: {reason}")
         return
     with ctx.guard("CT: breast structure set"):
-        from slices.pipeline import reconstruct
+        from workbench.runs.slices import reconstruct_to_folder as reconstruct
         from surfaces.render import render
         from surfaces.io import read_mesh
         from surfaces.mesh import TriangleMesh, merge_meshes

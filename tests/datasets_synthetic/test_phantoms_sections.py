@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from datasets_synthetic.phantoms import MIN_SECTION_FRACTION, SHAPES, make_phantom, polygon_area
+from datasets_synthetic.phantoms import MIN_SECTION_FRACTION, SHAPES, make_phantom
+from slices.control_points import signed_area
 
 
 def _orient(p, q, r):
@@ -59,7 +60,7 @@ def test_contours_are_simple_with_exact_areas(shape, spacing):
     for c in contours:
         others = [o["points"] for o in contours if o["z"] == c["z"] and o is not c]
         depth = sum(_inside(c["points"][0], o) for o in others)
-        per_plane[c["z"]] = per_plane.get(c["z"], 0.0) + (-1) ** depth * abs(polygon_area(c["points"]))
+        per_plane[c["z"]] = per_plane.get(c["z"], 0.0) + (-1) ** depth * abs(signed_area(c["points"]))
     z = np.array(sorted(per_plane))
     exact = ph.section_area_mm2(z)
     got = np.array([per_plane[k] for k in z])

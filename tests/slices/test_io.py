@@ -149,3 +149,41 @@ def test_rtstruct_breast(shared_data):
         io.load(path, roi="Hart")
     with pytest.raises(ValueError, match="choose an ROI"):
         io.load(path)
+
+
+def test_structure_set_readers_check_their_file(phantom_dicom, tmp_path):
+    src, _ = phantom_dicom
+    ct_slice = next((src / "ct").iterdir())
+    for reader in (io.list_rois, lambda p: io.read_rtstruct(p, "ellipsoid")):
+        with pytest.raises(FileNotFoundError, match="no such RT structure set file"):
+            reader(tmp_path / "none.dcm")
+        with pytest.raises(ValueError, match="not an RT Structure Set"):
+            reader(ct_slice)
+    (tmp_path / "junk.dcm").write_bytes(b"not dicom")
+    with pytest.raises(ValueError, match="not a readable DICOM file"):
+        io.list_rois(tmp_path / "junk.dcm")
+    with pytest.raises(ValueError, match="must be an RT Structure Set"):
+        io.load(ct_slice)
+
+
+def test_segmentation_note_names_the_window(phantom_dicom):
+    src, _ = phantom_dicom
+    stack = io.load(src / "ct", hu_min=-500, hu_max=500)
+    assert "segmented by window [-500, 500], largest connected component" in stack.notes
+    with pytest.raises(ValueError, match="above --hu-max"):
+        io.load(src / "ct", hu_min=10, hu_max=0)
+
+
+def test_every_reader_names_a_missing_input(tmp_path):
+    """One path check: each reader says what it expected at the path."""
+    (tmp_path / "file.txt").write_text("x")
+    with pytest.raises(NotADirectoryError, match="file.txt: not a folder of DICOM files"):
+        io.read_ct_series(tmp_path / "file.txt")
+    with pytest.raises(FileNotFoundError, match="none.npy: no such mask stack"):
+        io.read_mask_stack(tmp_path / "none.npy", "1,1,1")
+    with pytest.raises(FileNotFoundError, match="none.json: no such contour file"):
+        io.read_contour_json(tmp_path / "none.json")
+    with pytest.raises(FileNotFoundError, match="none: no such file or folder"):
+        io.load(tmp_path / "none")
+    with pytest.raises(FileNotFoundError, match="no such contour file"):
+        io.read_contour_json(tmp_path)

@@ -2,28 +2,25 @@
 
 from __future__ import annotations
 
-import json
-
 import pytest
 
 from datasets_synthetic.phantoms import SHAPES, make_phantom
 from slices.pipeline import reconstruct
-from surfaces.io import read_mesh
+from surfaces.io import write_json
 
 
 @pytest.mark.parametrize("shape", SHAPES)
 @pytest.mark.parametrize("spacing", [1.0, 2.5, 5.0])
 def test_reconstruct_every_phantom(shape, spacing, tmp_path):
     ph = make_phantom(shape)
-    path = tmp_path / "contours.json"
-    path.write_text(json.dumps({"units": "mm", "contours": [
-        {"z": c["z"], "points": c["points"].tolist()} for c in ph.contours(spacing, n_points=48)]}))
-    summary = reconstruct(path, tmp_path / "out", caps="flat", rays=32, samples=1, render=False, reference=False)
+    path = write_json(tmp_path / "contours.json", {"units": "mm", "contours": ph.contours(spacing, n_points=48)})
+    result = reconstruct(path, caps="flat", n_rays=32, samples=1, reference=False)
+    summary = result.summary
     truth = ph.truth(spacing)
     assert summary["n_slices"] == truth["n_planes"]
     assert summary["max_control_point_deviation_mm"] < 1e-6
     assert summary["mesh_watertight"] and summary["mesh_oriented"]
     exact = truth["volume_between_end_planes_mm3"]
     assert summary["volume_mm3"] == pytest.approx(exact, rel=3e-2)
-    mesh = read_mesh(tmp_path / "out" / "surface.ply")
+    mesh = result.mesh
     assert mesh.is_watertight() and mesh.is_oriented() and mesh.signed_volume() > 0

@@ -249,7 +249,7 @@ def test_patch_models_are_accepted_directly():
 # ----------------------------------------------------------------------------- reconstructed CT structures
 def test_reconstructed_tumour_bed_inside_its_block(shared_data, tmp_path):
     """Real RTSTRUCT (breast plan): the tumour bed and the block drawn around it, reconstructed."""
-    from slices.pipeline import reconstruct
+    from workbench.runs.slices import reconstruct_to_folder as reconstruct
     from surfaces.io import read_mesh
 
     rtss = shared_data / "rtstruct_breast" / "rtss.dcm"

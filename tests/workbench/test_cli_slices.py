@@ -51,6 +51,13 @@ def test_methods_and_bad_input(contour_json, tmp_path, capsys):
                  "--out", str(tmp_path / "c")]) == 0
     assert main(["slices", "reconstruct", str(tmp_path / "missing.json"), "--out", str(tmp_path)]) == 2
     assert "no such" in capsys.readouterr().err
+    bad = (("--samples", "0", "samples"), ("--rays", "2", "n_rays"), ("--lattice", "0.5", "lattice"))
+    for flag, value, name in bad:
+        out = tmp_path / name
+        assert main(["slices", "reconstruct", str(path), flag, value, "--out", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and f"error: {name}" in err
+        assert not out.exists()
 
 
 def test_rois_and_unknown_roi(shared_data, tmp_path, capsys):

@@ -5,7 +5,7 @@ folder instead of a manifest means every job found below it. Each job is one
 Dask task that reads its data from its paths (no arrays travel through the
 scheduler), calls the pipeline that writes a result folder
 (:func:`workbench.runs.photometric.reconstruct_to_folder` or
-:func:`slices.pipeline.reconstruct`) and writes its own folder ``OUT/<id>``
+:func:`workbench.runs.slices.reconstruct_to_folder`) and writes its own folder ``OUT/<id>``
 atomically: the pipeline writes into ``OUT/.tmp-<id>-<uuid>``, a ``_COMPLETE``
 marker (JSON: the job's row, input and options) is written last, and the folder
 is renamed to ``OUT/<id>`` with :func:`os.replace`. A failing job leaves no

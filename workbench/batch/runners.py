@@ -40,15 +40,15 @@ def pipeline(kind: str) -> Callable[..., dict]:
     -------
     callable
         :func:`workbench.runs.photometric.reconstruct_to_folder` or
-        :func:`slices.pipeline.reconstruct`.
+        :func:`workbench.runs.slices.reconstruct_to_folder`.
     """
     if check_kind(kind) == "photometric":
         from workbench.runs.photometric import reconstruct_to_folder
 
         return reconstruct_to_folder
-    from slices.pipeline import reconstruct
+    from workbench.runs.slices import reconstruct_to_folder as slices_to_folder
 
-    return reconstruct
+    return slices_to_folder
 
 
 def run_photometric(job: Job, out_dir: Path) -> dict:

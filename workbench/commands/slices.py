@@ -4,9 +4,6 @@ from __future__ import annotations
 
 import argparse
 
-#: Methods offered on the command line (B-spline only when its module is there).
-_METHODS = ("blending", "coons", "bspline")
-
 
 def register(sub) -> None:
     """Add ``reconstruct`` and ``rois`` to the ``slices`` group.
@@ -16,6 +13,12 @@ def register(sub) -> None:
     sub : argparse._SubParsersAction
         The group's sub-parser collection.
     """
+    from slices.body import MESH_BUDGET
+    from slices.caps import CAP_KINDS
+    from slices.options import SurfaceOptions as defaults
+    from slices.pipeline import UNION_LIMIT
+    from slices.surface import CORRESPONDENCES, METHODS
+
     p = sub.add_parser(
         "reconstruct",
         help="planar contours (RTSTRUCT, CT series, mask stack, contour JSON) to one "
@@ -31,16 +34,16 @@ def register(sub) -> None:
                    "folder of PNGs) or contour .json")
     p.add_argument("--roi", default=None, metavar="NAME",
                    help="ROI name (case-insensitive) or number of an RT structure set")
-    p.add_argument("--method", default="blending", choices=_METHODS,
-                   help="side surface: blending (seed 000 parabolic blending, default), coons "
+    p.add_argument("--method", default=defaults.method, choices=tuple(METHODS),
+                   help="side surface: blending (seed 000 parabolic blending), coons "
                    "(seed 001 Coons patches over the lattice nodes), bspline (interpolating "
-                   "cubic B-spline over the lattice nodes)")
-    p.add_argument("--rays", type=int, default=64,
-                   help="rays from each contour's centroid (seed 000 eq. 1, N1 >= 3; default 64)")
-    p.add_argument("--caps", default="flat", choices=("none", "flat", "half", "dome"),
-                   help="end caps: none (open surface), flat (in the end contour planes; "
-                   "default), half (half a slice beyond, as planning systems count), dome "
-                   "(smooth closure)")
+                   f"cubic B-spline over the lattice nodes); default {defaults.method}")
+    p.add_argument("--rays", type=int, default=defaults.n_rays,
+                   help=f"rays from each contour's centroid (seed 000 eq. 1, N1 >= 3; default {defaults.n_rays})")
+    p.add_argument("--caps", default=defaults.caps, choices=CAP_KINDS,
+                   help="end caps: none (open surface), flat (in the end contour planes), half (half a "
+                   "slice beyond, as planning systems count), dome (smooth closure); "
+                   f"default {defaults.caps}")
     p.add_argument("--out", default="slices_out", help="output folder (default slices_out)")
     p.add_argument("--hu-min", type=float, default=None,
                    help="CT series / grey stacks: lower HU (intensity) of the object window")
@@ -52,18 +55,20 @@ def register(sub) -> None:
                    help="unequal slice spacing: resample a CT series / image stack onto uniform "
                    "slices, or blend contour inputs (RTSTRUCT, JSON) with non-uniform parabolas "
                    "at the true slice positions, instead of failing")
-    p.add_argument("--lattice", type=float, default=2.0,
-                   help="common u lattice values per point of the largest contour (default 2)")
-    p.add_argument("--correspondence", default="seed", choices=("seed", "arc"),
+    p.add_argument("--lattice", type=float, default=defaults.lattice_factor,
+                   help="common u lattice values per point of the largest contour "
+                   f"(default {defaults.lattice_factor:g})")
+    p.add_argument("--correspondence", default=defaults.correspondence, choices=CORRESPONDENCES,
                    help="u that links the slices: seed (eqs. 1-5: rays, turning points, chord "
-                   "length; default) or arc (normalised arc length from the first ray)")
+                   "length) or arc (normalised arc length from the first ray); "
+                   f"default {defaults.correspondence}")
     p.add_argument("--ray-start", default="auto", metavar="DEG|auto",
                    help="direction of ray 0 in degrees from +x, common to all slices of a body; auto "
                    "(default) rotates the rays (within one ray spacing) so that support points do not "
                    "jump across folds from slice to slice")
     p.add_argument("--union", default="auto", choices=("auto", "yes", "no"),
                    help="several bodies: write one solid (manifold3d union of the bodies minus "
-                   "the holes) or their meshes side by side; auto (default) unites up to 200k "
+                   f"the holes) or their meshes side by side; auto (default) unites up to {UNION_LIMIT // 1000}k "
                    "triangles")
     p.add_argument("--minus", action="append", default=[], metavar="NAME",
                    help="structure sets: subtract this ROI (reconstructed with the same options) from "
@@ -73,9 +78,9 @@ def register(sub) -> None:
     p.add_argument("--repair", action="store_true",
                    help="with --minus/--plus: repair each mesh (weld, orient, fill small holes) before "
                    "the set operations; what was repaired goes into summary.json")
-    p.add_argument("--samples", type=int, default=None, metavar="N",
+    p.add_argument("--samples", type=int, default=defaults.samples, metavar="N",
                    help="tessellation subdivisions per patch side (default: adapted so that the mesh "
-                   "has about 250,000 vertices)")
+                   f"has about {MESH_BUDGET:,} vertices)")
     p.add_argument("--no-render", action="store_true", help="skip render.png")
     p.set_defaults(func=_reconstruct)
 
@@ -90,14 +95,8 @@ def register(sub) -> None:
 def _reconstruct(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
-    from slices.pipeline import reconstruct
-    from slices.surface import available_methods
+    from workbench.runs.slices import reconstruct_to_folder
 
-    if args.samples is not None and args.samples < 1:
-        raise ValueError(f"--samples: need at least 1 subdivision per patch side, got {args.samples}")
-    if args.method not in available_methods():
-        raise ValueError(f"--method: {args.method!r} is not available here; "
-                         f"choose from {available_methods()}")
     with tqdm(desc="bodies", unit="body", leave=False) as bar:
 
         def progress(done: int, total: int) -> None:
@@ -105,7 +104,7 @@ def _reconstruct(args: argparse.Namespace) -> int:
             bar.n = done
             bar.refresh()
 
-        summary = reconstruct(
+        summary = reconstruct_to_folder(
             args.input, args.out, roi=args.roi, method=args.method, rays=args.rays, caps=args.caps,
             hu_min=args.hu_min, hu_max=args.hu_max, spacing=args.spacing, resample=args.resample,
             lattice=args.lattice, render=not args.no_render, samples=args.samples, progress=progress,
@@ -133,17 +132,12 @@ def _reconstruct(args: argparse.Namespace) -> int:
 
 
 def _rois(args: argparse.Namespace) -> int:
-    import json
-    from pathlib import Path
-
     from slices.io import list_rois
+    from surfaces.io import write_json
 
     rois = list_rois(args.file)
     if args.json:
-        from surfaces.io import atomic_path
-
-        with atomic_path(Path(args.json), suffix=".json") as tmp:
-            tmp.write_text(json.dumps(rois, indent=2))
+        write_json(args.json, rois)
     print(f"{'number':>6}  {'name':<24} {'contours':>8} {'planes':>6} {'max points':>10}")
     for r in rois:
         print(f"{r['number']:>6}  {r['name']:<24} {r['n_contours']:>8} {r['n_planes']:>6} "

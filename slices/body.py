@@ -1,0 +1,173 @@
+"""One body (a chain of contours on consecutive planes) to a closed surface, volume and area.
+
+Seed 000, sections II-III: slice curves on a common lattice
+(:func:`slices.surface.slice_curves`), the side surface across them
+(:func:`slices.surface.side_surface`), the caps (:mod:`slices.caps`), the
+volume and area of the closed patch grid (:func:`surfaces.measure.integrals`),
+the deviation at the control points and the triangle mesh.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from slices import caps as capmod
+from slices.chaining import Body
+from slices.io import SPACING_RTOL
+from slices.options import SurfaceOptions
+from slices.surface import lattice_size, side_surface, slice_curves
+from surfaces import measure
+from surfaces.bezier import BezierPatches
+from surfaces.mesh import TriangleMesh, tessellate
+from surfaces.validate import positive
+
+#: Vertices the written mesh aims at (the tessellation density adapts to it).
+MESH_BUDGET = 250_000
+
+
+@dataclass
+class BodySurface:
+    """One reconstructed body.
+
+    Attributes
+    ----------
+    body : Body
+        The chained contours.
+    patches : BezierPatches
+        Closed grid (side and cap columns; with ``caps="none"`` the cap columns
+        are still there so the patches enclose the volume between end planes).
+    side_columns : slice
+        Patch columns of the open side surface (with half-cap extrusions and domes).
+    mesh : TriangleMesh or None
+        Triangles, oriented outward of the solid (holes point into the hole);
+        caps welded to the side, watertight when capped.
+    display_mesh : TriangleMesh or None
+        The same triangles with the caps' vertices kept apart, so flat caps
+        shade with their own normals.
+    volume_mm3 : float
+        Enclosed volume (positive, also for holes).
+    area_mm2 : float
+        Surface area (side plus caps).
+    max_deviation_mm : float
+        Largest distance between a control point and the surface at its parameters.
+    n_points : int
+        Control points used.
+    n_turning : int
+        Turning points that got eq. 4 parameters.
+    n_lattice : int
+        Size of the body's common ``u`` lattice (patch rows).
+    start_angle : float
+        Direction of ray 0 in radians from +x.
+    """
+
+    body: Body
+    patches: BezierPatches
+    side_columns: slice
+    mesh: TriangleMesh | None
+    display_mesh: TriangleMesh | None
+    volume_mm3: float
+    area_mm2: float
+    max_deviation_mm: float
+    n_points: int
+    n_turning: int
+    n_lattice: int
+    start_angle: float
+
+
+def _flip(mesh: TriangleMesh) -> TriangleMesh:
+    """The same triangles with the opposite orientation."""
+    normals = None if mesh.vertex_normals is None else -mesh.vertex_normals
+    return TriangleMesh(mesh.vertices, mesh.triangles[:, ::-1].copy(), normals)
+
+
+def body_lattice_size(body: Body, lattice_factor: float) -> int:
+    """Lattice size ``M`` of a body: :func:`slices.surface.lattice_size` of its largest contour.
+
+    Parameters
+    ----------
+    body : Body
+    lattice_factor : float
+        Lattice values per point of the largest contour.
+
+    Returns
+    -------
+    int
+    """
+    return lattice_size(max(len(c.points) for c in body.contours), lattice_factor)
+
+
+def build_body(body: Body, spacing: float, options: SurfaceOptions | None = None,
+               mesh: bool = True) -> BodySurface | None:
+    """Surface, volume and area of one body (seed 000 sections II-III).
+
+    Parameters
+    ----------
+    body : Body
+        Contours on consecutive planes.
+    spacing : float
+        Slice spacing in mm (unequally spaced planes, accepted by a reconstruction
+        with ``irregular=True``, give caps of half the median interval).
+    options : SurfaceOptions, optional
+        Method, rays, caps, lattice, ray rotation and tessellation (the defaults
+        when omitted). ``samples=None`` gives this body a density from :data:`MESH_BUDGET`.
+    mesh : bool
+        Build the triangle mesh.
+
+    Returns
+    -------
+    BodySurface or None
+        None for a single-contour body with caps none/flat at both ends (no thickness).
+        Ends where the chain splits (branching or merging contours) always get
+        half caps, so neighbouring bodies meet half-way between the planes.
+    """
+    opts = SurfaceOptions() if options is None else options
+    z = body.z
+    low, high = capmod.end_kinds(opts.caps, body.start, body.stop)
+    thin = ("none", "flat")
+    if len(z) == 1 and low in thin and high in thin:
+        return None
+    d = positive(spacing, "spacing")
+    if len(z) > 1 and np.any(np.abs(np.diff(z) - d) > SPACING_RTOL * d):
+        d = float(np.median(np.diff(z)))
+    sc = slice_curves([c.points for c in body.contours], z, opts.n_rays, body_lattice_size(body, opts.lattice_factor),
+                      start_angle=opts.start_angle, correspondence=opts.correspondence,
+                      lattice_mode=opts.lattice_mode)
+    curves = sc.curves
+    centers = np.array([np.append(p.center, zk) for p, zk in zip(sc.params, z)])
+    stack, prepend = capmod.add_dome_rings(curves, centers, d / 2, low, high)
+    if len(stack) >= 2:
+        side, node_eval = side_surface(stack, opts.method, v=stack[:, 0, 0, 2])
+        side_ctrl, bottom, top = side.control, side.control[:, 0, :, 0], side.control[:, -1, :, 3]
+    else:
+        side_ctrl, bottom = None, curves[0]
+        top = bottom
+
+        def node_eval(j, kk):
+            return curves[0][j, 0]
+
+    grid = capmod.close_side(side_ctrl, bottom, top, centers[0, :2], centers[-1, :2], d / 2, low, high)
+    patches = BezierPatches(grid.control, closed_u=True)
+    side_patches = BezierPatches(grid.control[:, grid.side_columns], closed_u=True)
+    vol_pp, area_pp = measure.integrals(patches, per_patch=True)
+    volume = float(vol_pp.sum())
+    area = float(area_pp[:, grid.side_columns].sum()) + grid.flat_cap_area
+    # deviation at the control points, evaluated on the final surface
+    j = np.concatenate(sc.nodes)
+    kk = np.concatenate([np.full(len(n), i + prepend) for i, n in enumerate(sc.nodes)])
+    pts = np.concatenate(sc.points)
+    dev = float(np.max(np.linalg.norm(node_eval(j, kk) - pts, axis=1)))
+    tri_mesh = display = None
+    if mesh:
+        n_s = opts.samples or max(1, min(6, int(np.sqrt(MESH_BUDGET / side_patches.n_patches))))
+        tri_mesh, display = capmod.weld_flat_caps(tessellate(side_patches, n_s), grid, n_s)
+    if body.kind == "hole":
+        patches = patches.flipped()
+        if tri_mesh is not None:
+            tri_mesh, display = _flip(tri_mesh), _flip(display)
+    return BodySurface(
+        body, patches, grid.side_columns, tri_mesh, display, volume, area, dev,
+        int(len(pts)), int(sum(int(p.turning.sum()) for p in sc.params)), int(curves.shape[1]),
+        float(sc.start_angle),
+    )

@@ -1,0 +1,274 @@
+"""All bodies of one structure: reconstructed one by one, then united into one solid.
+
+:func:`reconstruct_contours` chains the contours into bodies
+(:func:`slices.chaining.chain`) and builds each (:func:`slices.body.build_body`);
+:meth:`Reconstruction.solid_mesh` unites the outer bodies and subtracts the
+holes with manifold3d; :func:`reconstruct_roi` reads one ROI (or the whole
+input) and reconstructs it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from slices.body import MESH_BUDGET, BodySurface, body_lattice_size, build_body
+from slices.chaining import chain, slab_volume
+from slices.io import SPACING_RTOL, Contour, ContourStack, check_spacing, load
+from slices.options import ReadOptions, SurfaceOptions, surface_options
+from surfaces.mesh import TriangleMesh, merge_meshes
+from surfaces.validate import positive
+
+
+def _merged(meshes: list) -> TriangleMesh | None:
+    meshes = [m for m in meshes if m is not None]
+    if not meshes:
+        return None
+    return meshes[0] if len(meshes) == 1 else merge_meshes(meshes)
+
+
+@dataclass
+class Reconstruction:
+    """All bodies of one structure.
+
+    Attributes
+    ----------
+    bodies : list of BodySurface
+    skipped : list of Body
+        Single-contour bodies left out (caps none/flat give them no thickness).
+    volume_mm3 : float
+        Outer bodies' volumes minus the holes'.
+    area_mm2 : float
+        All bodies' areas.
+    slab_volume_mm3 : float
+        The planning systems' count (:func:`slices.chaining.slab_volume`).
+    spacing : float
+        Slice spacing in mm.
+    options : SurfaceOptions
+        The options asked for (``samples=None``: the bodies got one density
+        adapted to :data:`slices.body.MESH_BUDGET`).
+    """
+
+    bodies: list
+    skipped: list
+    volume_mm3: float
+    area_mm2: float
+    slab_volume_mm3: float
+    spacing: float
+    options: SurfaceOptions
+
+    @property
+    def mesh(self) -> TriangleMesh | None:
+        """All bodies' triangles concatenated in one mesh (None when no mesh was built).
+
+        Bodies that meet half-way between planes at a branching keep their
+        caps there (internal walls); see :meth:`solid_mesh`.
+        """
+        return _merged([b.mesh for b in self.bodies])
+
+    @property
+    def display_mesh(self) -> TriangleMesh | None:
+        """All bodies' display meshes (caps shaded with their own normals)."""
+        return _merged([b.display_mesh for b in self.bodies])
+
+    @property
+    def max_deviation_mm(self) -> float:
+        """Largest control-point deviation over all bodies."""
+        return max((b.max_deviation_mm for b in self.bodies), default=0.0)
+
+    def solid_mesh(self) -> tuple[TriangleMesh | None, bool]:
+        """One solid: manifold3d union of the outer bodies minus the holes.
+
+        Returns
+        -------
+        mesh : TriangleMesh or None
+            Without internal walls; the concatenated :attr:`mesh` when the
+            union fails (or there is only one body).
+        union : bool
+            Whether the union was made.
+        """
+        if sum(b.mesh is not None for b in self.bodies) > 1:
+            solid = solid_union(self.bodies)
+            if solid is not None:
+                return solid, True
+        return self.mesh, False
+
+
+def reconstruct_contours(contours: list[Contour], *, spacing: float | None = None, irregular: bool = False,
+                         mesh: bool = True, progress=None, options: SurfaceOptions | None = None,
+                         **keywords) -> Reconstruction:
+    """Reconstruct a structure from validated contours in memory.
+
+    Parameters
+    ----------
+    contours : list of Contour
+        Counter-clockwise contours (see :func:`slices.control_points.clean_contour`).
+    spacing : float, optional
+        Slice spacing in mm; checked against the planes (taken from them when omitted).
+    irregular : bool
+        Accept unequally spaced planes: consecutive planes are neighbours and
+        the blending in ``v`` uses the slice positions (non-uniform parabolas)
+        instead of failing.
+    mesh : bool
+        Build triangle meshes.
+    progress : callable, optional
+        Called with the number of finished bodies and the total.
+    options : SurfaceOptions, optional
+        Method, rays, caps, lattice, ray rotation and tessellation (the defaults when omitted).
+    **keywords
+        Fields of :class:`slices.options.SurfaceOptions` that override ``options``.
+        ``samples=None`` (default) gives all bodies one density, so that the
+        whole mesh has about :data:`slices.body.MESH_BUDGET` vertices.
+
+    Returns
+    -------
+    Reconstruction
+
+    Examples
+    --------
+    A cylinder of radius 10 mm and height 20 mm, drawn as circles of 64 points
+    on five planes 5 mm apart, with flat caps: the surface passes through every
+    point and encloses the cylinder's volume ``pi r^2 h`` (to the curve's
+    interpolation between the points):
+
+    >>> import numpy as np
+    >>> from slices.io import Contour
+    >>> t = np.linspace(0, 2 * np.pi, 64, endpoint=False)
+    >>> circle = 10 * np.stack([np.cos(t), np.sin(t)], axis=1)
+    >>> rec = reconstruct_contours([Contour(z, circle) for z in (0.0, 5.0, 10.0, 15.0, 20.0)], mesh=False)
+    >>> len(rec.bodies), rec.max_deviation_mm < 1e-9
+    (1, True)
+    >>> round(rec.volume_mm3 / (np.pi * 10**2 * 20), 4)
+    1.0
+    """
+    opts = surface_options(options, **keywords)
+    if not contours:
+        raise ValueError("contours: no contours given")
+    planes = np.unique(np.round([c.z for c in contours], 6))
+    if irregular and len(planes) > 1:
+        d = float(np.median(np.diff(planes)))
+    else:
+        d = check_spacing(planes, "contours", allow_gaps=True)
+    if spacing is not None and not irregular:
+        s = positive(spacing, "spacing")
+        if d and abs(s - d) > SPACING_RTOL * d:
+            raise ValueError(f"spacing: {s} mm given but the planes are {d} mm apart")
+        d = s
+    if d == 0:
+        raise ValueError("contours: a single plane has no slice spacing; give spacing")
+    bodies = chain(contours, None if irregular else d)
+    build = opts
+    if opts.samples is None:
+        # one tessellation density for all bodies, so the whole mesh meets the budget
+        est = sum(body_lattice_size(b, opts.lattice_factor) * (len(b.contours) + 5) for b in bodies)
+        build = surface_options(opts, samples=max(1, min(6, int(np.sqrt(MESH_BUDGET / max(est, 1))))))
+    built, skipped = [], []
+    for i, body in enumerate(bodies):
+        b = build_body(body, d, build, mesh=mesh)
+        (skipped if b is None else built).append(body if b is None else b)
+        if progress is not None:
+            progress(i + 1, len(bodies))
+    sign = {"outer": 1.0, "hole": -1.0}
+    volume = sum(sign[b.body.kind] * b.volume_mm3 for b in built)
+    area = sum(b.area_mm2 for b in built)
+    slab = slab_volume(contours, None if irregular else d)
+    return Reconstruction(built, skipped, float(volume), float(area), slab, d, opts)
+
+
+def reconstruct_roi(input_path, roi=None, *, reading: ReadOptions | None = None,
+                    options: SurfaceOptions | None = None, progress=None) -> tuple[ContourStack, Reconstruction]:
+    """Read one ROI (or the whole input) and reconstruct it.
+
+    Parameters
+    ----------
+    input_path : str or os.PathLike
+        RTSTRUCT, CT folder, mask stack or contour JSON (see :func:`slices.io.load`).
+    roi : str or int, optional
+        ROI name or number (RTSTRUCT).
+    reading : ReadOptions, optional
+        Intensity window, voxel spacing, resampling. With ``resample``, contour
+        inputs (RTSTRUCT, JSON) are blended at their true plane positions
+        (``irregular`` of :func:`reconstruct_contours`).
+    options : SurfaceOptions, optional
+        How the contours become a surface.
+    progress : callable, optional
+        See :func:`reconstruct_contours`.
+
+    Returns
+    -------
+    stack : ContourStack
+    reconstruction : Reconstruction
+
+    Raises
+    ------
+    ValueError
+        Besides the readers' errors: nothing to reconstruct (only single-contour
+        bodies with caps none/flat).
+    """
+    read = ReadOptions() if reading is None else reading
+    stack = load(input_path, roi, read.hu_min, read.hu_max, read.spacing, bool(read.resample))
+    rec = reconstruct_contours(stack.contours, irregular=bool(read.resample) and stack.source in ("rtstruct", "json"),
+                               progress=progress, options=options)
+    if not rec.bodies:
+        raise ValueError(f"{input_path}: nothing to reconstruct in {stack.name!r} "
+                         "(only single-contour bodies; try --caps half)")
+    return stack, rec
+
+
+def solid_union(bodies: list[BodySurface]) -> TriangleMesh | None:
+    """Union of the outer bodies' meshes minus the holes (manifold3d).
+
+    Parameters
+    ----------
+    bodies : list of BodySurface
+        Bodies with meshes (holes oriented into the hole).
+
+    Returns
+    -------
+    TriangleMesh or None
+        The solid, or None when a mesh is not watertight or manifold3d fails.
+    """
+    import manifold3d
+
+    closed = [b for b in bodies if b.mesh is not None and b.mesh.is_watertight()]
+    if len(closed) != len(bodies):
+        return None
+    centre = np.mean([b.mesh.vertices.mean(axis=0) for b in closed], axis=0)
+    extent = max(float(np.ptp(b.mesh.vertices, axis=0).max()) for b in closed)
+
+    def solid(b: BodySurface, outward: bool):
+        mesh = b.mesh
+        verts = mesh.vertices - centre
+        # bodies that meet at a branching plane only touch there (coplanar half caps); a tiny
+        # overlap lets the union remove the shared caps instead of keeping them as inner walls
+        eps = 1e-8 * extent
+        z = verts[:, 2]
+        for why, plane, step in ((b.body.start, z.min(), -eps), (b.body.stop, z.max(), eps)):
+            if why != "end":
+                verts = verts.copy()
+                verts[np.abs(z - plane) <= 1e-9 * extent, 2] += step
+        tri = mesh.triangles if outward else mesh.triangles[:, ::-1]
+        m = manifold3d.Manifold(manifold3d.Mesh64(
+            vert_properties=np.ascontiguousarray(verts, dtype=np.float64),
+            tri_verts=np.ascontiguousarray(tri, dtype=np.uint64)))
+        return m if m.status() == manifold3d.Error.NoError else None
+
+    outer = [solid(b, True) for b in closed if b.body.kind == "outer"]
+    holes = [solid(b, False) for b in closed if b.body.kind == "hole"]
+    if not outer or any(m is None for m in outer + holes):
+        return None
+    result = manifold3d.Manifold.batch_boolean(outer, manifold3d.OpType.Add) if len(outer) > 1 else outer[0]
+    if holes:
+        result = manifold3d.Manifold.batch_boolean([result] + holes, manifold3d.OpType.Subtract)
+    if result.status() != manifold3d.Error.NoError or result.is_empty():
+        return None
+    out = result.to_mesh64()
+    verts = np.asarray(out.vert_properties, dtype=np.float64)[:, :3] + centre
+    tri = np.asarray(out.tri_verts, dtype=np.int64).reshape(-1, 3)
+    merge_from = np.asarray(out.merge_from_vert, dtype=np.int64)
+    if len(merge_from):
+        remap = np.arange(len(verts))
+        remap[merge_from] = np.asarray(out.merge_to_vert, dtype=np.int64)
+        tri = remap[tri]
+    return TriangleMesh(verts, tri)

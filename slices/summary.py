@@ -1,0 +1,151 @@
+"""The summary of a reconstruction: the figures ``summary.json`` holds, as one dict.
+
+Angles are reported in degrees here (``ray_start``, ``ray_start_deg``), the
+unit of the command line; inside the package they are radians.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from slices.io import ContourStack
+from slices.structure import Reconstruction
+from surfaces.mesh import TriangleMesh
+
+
+def body_table(rec: Reconstruction) -> list[dict]:
+    """One row per body: kind, planes, chain ends, volume, area, patches, parameters.
+
+    Parameters
+    ----------
+    rec : Reconstruction
+
+    Returns
+    -------
+    list of dict
+        Built bodies first (``volume_mm3``, ``area_mm2``, ``n_patches``,
+        ``n_control_points``, ``n_turning_points``, ``max_control_point_deviation_mm``,
+        ``ray_start_deg``), then skipped single-contour bodies (``skipped``: why).
+    """
+    out = []
+    for b in rec.bodies:
+        z = b.body.z
+        out.append({
+            "kind": b.body.kind,
+            "z_min_mm": float(z.min()), "z_max_mm": float(z.max()),
+            "n_slices": int(len(z)),
+            "start": b.body.start, "stop": b.body.stop,
+            "volume_mm3": b.volume_mm3, "area_mm2": b.area_mm2,
+            "n_patches": int(b.patches.n_patches),
+            "n_control_points": b.n_points, "n_turning_points": b.n_turning,
+            "max_control_point_deviation_mm": b.max_deviation_mm,
+            "ray_start_deg": float(np.degrees(b.start_angle)),
+        })
+    for body in rec.skipped:
+        out.append({"kind": body.kind, "z_min_mm": float(body.z.min()), "z_max_mm": float(body.z.max()),
+                    "n_slices": 1, "start": body.start, "stop": body.stop,
+                    "skipped": "single contour: no thickness with caps none/flat"})
+    return out
+
+
+def chaining_text(rec: Reconstruction) -> str:
+    """How the contours were chained into bodies, in one sentence.
+
+    Parameters
+    ----------
+    rec : Reconstruction
+
+    Returns
+    -------
+    str
+    """
+    n_out = sum(b.body.kind == "outer" for b in rec.bodies)
+    n_hole = len(rec.bodies) - n_out
+    splits = sum(b.body.stop in ("branch", "merge") for b in rec.bodies)
+    text = (f"{len(rec.bodies)} body(ies) chained by overlap of contours on neighbouring planes: "
+            f"{n_out} outer, {n_hole} hole(s) (volume subtracted)")
+    if splits:
+        text += f"; {splits} chain(s) split at a branching or merging contour"
+    if rec.skipped:
+        text += f"; {len(rec.skipped)} single-contour body(ies) skipped (no thickness with these caps)"
+    return text
+
+
+def summarize(input_path, stack: ContourStack, rec: Reconstruction, mesh: TriangleMesh, union: bool,
+              composition: dict | None, reference: dict | None, timings: dict) -> dict:
+    """The summary of a reconstruction.
+
+    Parameters
+    ----------
+    input_path : str or os.PathLike
+        What was read.
+    stack : ContourStack
+        The base ROI's contours (its notes end up in ``notes``).
+    rec : Reconstruction
+        The base ROI's reconstruction.
+    mesh : TriangleMesh
+        The result's solid (united, concatenated or composed).
+    union : bool
+        Whether the bodies were united.
+    composition : dict or None
+        :func:`slices.compose.compose_rois`'s record.
+    reference : dict or None
+        :func:`slices.reference.compare`'s record.
+    timings : dict
+        Seconds per stage, ``surface_time_s`` and ``reference_time_s``.
+
+    Returns
+    -------
+    dict
+        Input, options, volume, area, slab volume, counts, mesh checks, bodies,
+        chaining, notes, timings; ``composition`` and ``reference_bspline`` when given.
+        With a composition, ``volume_mm3``, ``volume_ml`` and ``area_mm2`` are the
+        composed solid's (``volume_source`` says which); the base ROI's own figures
+        are under ``composition.base``.
+    """
+    opts = rec.options
+    n_out = sum(b.body.kind == "outer" for b in rec.bodies)
+    volume = rec.volume_mm3 if composition is None else composition["result_volume_mm3"]
+    area = rec.area_mm2 if composition is None else composition["area_mm2"]
+    summary = {
+        "input": str(input_path),
+        "source": stack.source,
+        "roi": stack.name,
+        "method": opts.method,
+        "caps": opts.caps,
+        "rays": opts.n_rays,
+        "correspondence": opts.correspondence,
+        "ray_start": "auto" if opts.start_angle is None else float(np.degrees(opts.start_angle)),
+        "volume_mm3": volume,
+        "volume_ml": volume / 1000.0,
+        "area_mm2": area,
+        "volume_source": "patches" if composition is None else "composition",
+        "slab_volume_mm3": rec.slab_volume_mm3,
+        "slab_volume_ml": rec.slab_volume_mm3 / 1000.0,
+        "spacing_mm": rec.spacing,
+        "n_slices": int(len(stack.planes)),
+        "n_contours": len(stack.contours),
+        "n_bodies": len(rec.bodies),
+        "n_outer_bodies": int(n_out),
+        "n_hole_bodies": int(len(rec.bodies) - n_out),
+        "n_patches": int(sum(b.patches.n_patches for b in rec.bodies)),
+        "n_control_points": int(sum(b.n_points for b in rec.bodies)),
+        "max_control_point_deviation_mm": rec.max_deviation_mm,
+        "mesh_vertices": int(mesh.n_vertices),
+        "mesh_triangles": int(mesh.n_triangles),
+        "mesh_watertight": bool(mesh.is_watertight()),
+        "mesh_oriented": bool(mesh.is_oriented()),
+        "mesh_union": union,
+        "bodies": body_table(rec),
+        "chaining": chaining_text(rec),
+        "notes": list(stack.notes),
+        **timings,
+    }
+    if composition is not None:
+        summary["composition"] = composition
+        summary["notes"].append(
+            f"surface.ply/.stl, volume_mm3, volume_ml and area_mm2 are the composition {composition['operation']} "
+            "(triangle meshes); slab volume, counts, chaining and patches.npz are the base ROI's")
+    if reference is not None:
+        summary["reference_bspline"] = reference
+    return summary

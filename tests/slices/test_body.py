@@ -1,0 +1,100 @@
+"""One body: caps against each other, closed-grid integrals, single slices, holes and the mesh."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from slices.body import build_body
+from slices.caps import curve_area
+from slices.chaining import Body, chain
+from slices.io import Contour
+from slices.options import SurfaceOptions
+from slices.surface import slice_curves
+from surfaces import measure
+from tests.slices._stacks import circle, phantom_stack
+
+
+@pytest.fixture(scope="module")
+def ellipsoid_body():
+    _, conts, _ = phantom_stack("ellipsoid", a=15.0, b=10.0, c=12.0, n_points=48)
+    return chain(conts, 2.5)[0]
+
+
+def test_caps_relations(ellipsoid_body):
+    body, d = ellipsoid_body, 2.5
+    flat = build_body(body, d, SurfaceOptions(caps="flat"), mesh=False)
+    half = build_body(body, d, SurfaceOptions(caps="half"), mesh=False)
+    dome = build_body(body, d, SurfaceOptions(caps="dome", samples=2))
+    none = build_body(body, d, SurfaceOptions(caps="none"), mesh=False)
+    sc = slice_curves([body.contours[0].points, body.contours[-1].points], [body.z[0], body.z[-1]], 64)
+    ends = abs(curve_area(sc.curves[0])) + abs(curve_area(sc.curves[1]))
+    # half caps add a prism of half a spacing at both ends
+    assert half.volume_mm3 - flat.volume_mm3 == pytest.approx(ends * d / 2, rel=1e-3)
+    assert flat.volume_mm3 < dome.volume_mm3 < half.volume_mm3
+    assert dome.mesh.is_watertight()
+    assert none.volume_mm3 == pytest.approx(flat.volume_mm3)
+    assert none.area_mm2 == pytest.approx(flat.area_mm2 - ends, rel=1e-3)
+    assert flat.mesh is None and flat.display_mesh is None
+
+
+def test_one_pass_integrals_match_volume_and_area(ellipsoid_body):
+    body = Body("outer", ellipsoid_body.contours[:6], "end", "end")
+    patches = build_body(body, 2.5, mesh=False).patches
+    vol, area = measure.integrals(patches, order=6)
+    assert vol == pytest.approx(measure.volume(patches), rel=1e-12)
+    assert area == pytest.approx(measure.area(patches, order=6), rel=1e-12)
+
+
+def test_side_columns_and_reported_lattice(ellipsoid_body):
+    b = build_body(ellipsoid_body, 2.5, SurfaceOptions(caps="half", n_rays=32, start_angle=0.05), mesh=False)
+    rows, cols = b.patches.control.shape[:2]
+    assert rows == b.n_lattice
+    # fan column, half-cap prism, K - 1 slice columns, prism, fan column
+    assert b.side_columns == slice(1, cols - 1) and cols == len(ellipsoid_body.contours) - 1 + 4
+    assert b.start_angle == 0.05 and b.max_deviation_mm < 1e-9
+
+
+def test_flat_capped_mesh_is_watertight_and_display_keeps_caps_apart(ellipsoid_body):
+    b = build_body(ellipsoid_body, 2.5, SurfaceOptions(samples=2))
+    assert b.mesh.is_watertight() and b.mesh.is_oriented()
+    assert b.display_mesh.n_triangles == b.mesh.n_triangles
+    assert b.display_mesh.n_vertices > b.mesh.n_vertices
+    assert b.mesh.signed_volume() == pytest.approx(b.volume_mm3, rel=1e-2)
+
+
+def test_single_contour_body():
+    body = Body("outer", (Contour(0.0, circle(0, 0, 10, 64)),), "end", "end")
+    assert build_body(body, 3.0, SurfaceOptions(caps="flat")) is None
+    assert build_body(body, 3.0, SurfaceOptions(caps="none")) is None
+    half = build_body(body, 3.0, SurfaceOptions(caps="half", samples=2))
+    area = abs(curve_area(slice_curves([body.contours[0].points], [0.0], 64).curves[0]))
+    assert half.volume_mm3 == pytest.approx(area * 3.0, rel=1e-9)
+    assert half.mesh.is_watertight()
+    dome = build_body(body, 3.0, SurfaceOptions(caps="dome"), mesh=False)
+    assert 0 < dome.volume_mm3 < half.volume_mm3
+
+
+def test_hole_body_faces_into_the_hole():
+    body = Body("hole", tuple(Contour(z, circle(0, 0, 5, 48)) for z in (0.0, 2.0, 4.0)), "end", "end")
+    b = build_body(body, 2.0, SurfaceOptions(samples=2))
+    assert b.volume_mm3 > 0  # the volume is reported positive; the reconstruction subtracts it
+    assert b.mesh.signed_volume() < 0 and b.mesh.is_oriented()
+
+
+def test_branching_end_gets_half_caps():
+    conts = tuple(Contour(z, circle(0, 0, 8, 48)) for z in (0.0, 2.0))
+    ended = build_body(Body("outer", conts, "end", "end"), 2.0, mesh=False)
+    split = build_body(Body("outer", conts, "end", "branch"), 2.0, mesh=False)
+    area = abs(curve_area(slice_curves([conts[0].points], [0.0], 64).curves[0]))
+    assert split.volume_mm3 - ended.volume_mm3 == pytest.approx(area * 1.0, rel=1e-6)
+
+
+def test_unequal_planes_use_the_median_interval():
+    conts = tuple(Contour(z, circle(0, 0, 8, 48)) for z in (0.0, 2.0, 4.0, 8.0))
+    b = build_body(Body("outer", conts, "end", "end"), 3.0, SurfaceOptions(caps="half"), mesh=False)
+    flat = build_body(Body("outer", conts, "end", "end"), 3.0, mesh=False)
+    area = abs(curve_area(slice_curves([conts[0].points], [0.0], 64).curves[0]))
+    # planes 2, 2 and 4 mm apart: half caps of half the median interval (2 mm), not of the 3 mm given
+    assert b.volume_mm3 - flat.volume_mm3 == pytest.approx(2 * area * 1.0, rel=1e-6)
+    assert np.isfinite(b.area_mm2)

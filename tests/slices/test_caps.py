@@ -1,0 +1,107 @@
+"""End caps: cap kinds per end, fan and prism columns, dome rings, Green's-theorem areas, flat-cap meshes."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from slices import caps
+from surfaces import measure
+from surfaces.bezier import BezierPatches
+from surfaces.mesh import tessellate
+from tests.slices._stacks import circle
+
+
+def _polygon_curve(corners, z=0.0) -> np.ndarray:
+    """Straight Bezier segments between the corners (collinear control points), in the plane z."""
+    a, b = corners, np.roll(corners, -1, axis=0)
+    w = np.arange(4) / 3.0
+    curve = a[:, None, :] + w[None, :, None] * (b - a)[:, None, :]
+    return np.concatenate([curve, np.full(curve.shape[:2] + (1,), z)], axis=2)
+
+
+SQUARE = np.array([(0, 0), (4, 0), (4, 4), (0, 4)], float)
+
+
+@pytest.mark.parametrize("kind", caps.CAP_KINDS)
+def test_end_kinds(kind):
+    assert caps.end_kinds(kind, "end", "end") == (kind, kind)
+    assert caps.end_kinds(kind, "merge", "branch") == ("half", "half")
+    with pytest.raises(ValueError, match="caps"):
+        caps.end_kinds("round", "end", "end")
+
+
+def test_curve_area_of_a_square_both_ways():
+    curve = _polygon_curve(SQUARE)
+    assert caps.curve_area(curve) == pytest.approx(16.0, rel=1e-12)
+    assert caps.curve_area(_polygon_curve(SQUARE[::-1])) == pytest.approx(-16.0, rel=1e-12)
+
+
+def test_prism_column_encloses_area_times_height():
+    curve = _polygon_curve(SQUARE, z=1.0)
+    below = caps.prism_column(curve, -2.0)
+    assert below.shape == (4, 1, 4, 4, 3)
+    np.testing.assert_allclose(below[:, 0, :, 0, 2], -1.0)  # v starts 2 mm below the curve
+    np.testing.assert_allclose(below[:, 0, :, 3], curve)  # and ends on it
+    above = caps.prism_column(curve, 2.0)
+    np.testing.assert_allclose(above[:, 0, :, 0], curve)
+
+
+def test_closed_grid_volume_is_exact_for_a_box():
+    bottom = _polygon_curve(SQUARE, z=0.0)
+    grid = caps.close_side(None, bottom, bottom, (2.0, 2.0), (2.0, 2.0), 1.5, "half", "half")
+    assert grid.side_columns == slice(1, 3) and grid.end_planes == (-1.5, 1.5)
+    assert [s for _, s in grid.flat_caps] == [-1.0, 1.0]
+    patches = BezierPatches(grid.control, closed_u=True)
+    assert measure.volume(patches) == pytest.approx(16.0 * 3.0, rel=1e-12)
+    assert grid.flat_cap_area == pytest.approx(32.0, rel=1e-12)
+    open_grid = caps.close_side(None, bottom, bottom, (2.0, 2.0), (2.0, 2.0), 1.5, "half", "none")
+    # "none" keeps its fan column (the grid still encloses the volume) but no flat cap
+    assert len(open_grid.flat_caps) == 1 and open_grid.control.shape[1] == 3
+
+
+def test_dome_rings_close_in_a_pole():
+    curve = np.repeat(circle(0, 0, 10, 16)[:, None, :], 4, axis=1)
+    curve = np.concatenate([curve, np.zeros(curve.shape[:2] + (1,))], axis=2)
+    rings = caps.dome_rings(curve, [0, 0, 0], 2.0, upward=True, n_rings=3)
+    np.testing.assert_allclose(rings[-1], np.broadcast_to([0, 0, 2.0], rings[-1].shape))
+    # ring k on the quarter ellipse: radius 10 cos(t_k), height 2 sin(t_k)
+    t = np.pi / 6
+    np.testing.assert_allclose(np.linalg.norm(rings[0][..., :2], axis=-1), 10 * np.cos(t))
+    np.testing.assert_allclose(rings[0][..., 2], 2 * np.sin(t))
+    stack, prepend = caps.add_dome_rings(curve[None], np.zeros((1, 3)), 2.0, "dome", "flat")
+    assert prepend == caps.DOME_RINGS and len(stack) == caps.DOME_RINGS + 1
+    assert stack[0, 0, 0, 2] == pytest.approx(-2.0)
+
+
+@pytest.mark.parametrize("outward", [1.0, -1.0])
+@pytest.mark.parametrize("outline", ["star", "u_shape"])
+@pytest.mark.parametrize("clockwise", [False, True])
+def test_flat_cap_triangles_face_outward_consistently(outward, outline, clockwise):
+    if outline == "star":
+        corners = circle(1.0, -2.0, 8.0, 12)
+    else:  # not star-shaped about its vertex mean: constrained triangulation
+        corners = np.array([(0, 0), (10, 0), (10, 10), (7, 10), (7, 3), (3, 3), (3, 10), (0, 10)], float)
+    if clockwise:
+        corners = corners[::-1]
+    curve = _polygon_curve(corners, z=5.0)
+    cap = caps.planar_cap_mesh(curve, 3, outward)
+    assert cap.is_oriented()
+    nz = cap.face_normals(normalize=False)[:, 2]
+    assert np.all(np.sign(nz[np.abs(nz) > 1e-12]) == outward)
+    assert 0.5 * abs(nz.sum()) == pytest.approx(abs(caps.curve_area(curve)), rel=1e-12)
+
+
+def test_welded_box_is_watertight():
+    bottom = _polygon_curve(SQUARE, z=0.0)
+    grid = caps.close_side(None, bottom, bottom, (2.0, 2.0), (2.0, 2.0), 1.5, "half", "half")
+    side = tessellate(BezierPatches(grid.control[:, grid.side_columns], closed_u=True), 3)
+    mesh, display = caps.weld_flat_caps(side, grid, 3)
+    assert mesh.is_watertight() and mesh.is_oriented()
+    assert mesh.signed_volume() == pytest.approx(48.0, rel=1e-9)
+    assert not display.is_watertight()  # caps kept apart for shading
+    open_grid = caps.close_side(grid.control[:, grid.side_columns], bottom, bottom, (2.0, 2.0), (2.0, 2.0), 1.5,
+                                "none", "none")
+    assert caps.weld_flat_caps(side, open_grid, 3) == (side, side)
+    with pytest.raises(ValueError, match="single slice"):
+        caps.close_side(None, bottom, bottom, (2.0, 2.0), (2.0, 2.0), 1.5, "flat", "none")

@@ -1,0 +1,62 @@
+"""Holes by containment, bodies by overlap across planes, the planning systems' slab volume."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from slices.chaining import chain, classify_holes, overlaps, slab_volume
+from slices.io import Contour
+from tests.slices._stacks import branching_stack, circle
+
+SQUARE = np.array([[0, 0], [10, 0], [10, 10], [0, 10]], float)
+
+
+def test_holes_by_containment_islands_are_outer_again():
+    conts = [Contour(0.0, circle(0, 0, 20)), Contour(0.0, circle(0, 0, 10)), Contour(0.0, circle(0, 0, 4)),
+             Contour(0.0, circle(50, 0, 4))]
+    np.testing.assert_array_equal(classify_holes(conts), [False, True, False, False])
+
+
+def test_overlap_of_polygons():
+    assert overlaps(SQUARE, SQUARE + 5)
+    assert not overlaps(SQUARE, SQUARE + 11)  # bounding boxes apart
+    l_shape = np.array([[0, 0], [10, 0], [10, 2], [2, 2], [2, 10], [0, 10]], float)
+    assert not overlaps(l_shape, np.array([[5, 5], [9, 5], [9, 9], [5, 9]], float))  # boxes overlap, shapes not
+
+
+def test_branching_splits_chain_and_separate_bodies():
+    conts = branching_stack() + [Contour(0.0, circle(40, 0, 5)), Contour(2.0, circle(40, 0, 5))]
+    bodies = chain(conts, 2.0)
+    assert len(bodies) == 4
+    stops = sorted((b.start, b.stop) for b in bodies)
+    assert stops.count(("end", "branch")) == 1 and stops.count(("branch", "end")) == 2
+    np.testing.assert_array_equal(bodies[0].z, [0.0, 2.0])
+
+
+def test_merging_chains_and_holes_come_last():
+    conts = [Contour(z, circle(0, 0, 20)) for z in (0.0, 1.0, 2.0)] + [Contour(1.0, circle(0, 0, 5))]
+    merge = [Contour(0.0, circle(-5, 0, 4)), Contour(0.0, circle(5, 0, 4)), Contour(1.0, circle(0, 0, 10))]
+    bodies = chain(conts, 1.0)
+    assert [b.kind for b in bodies] == ["outer", "hole"]
+    assert sorted((b.start, b.stop) for b in chain(merge, 1.0)) == [("end", "merge"), ("end", "merge"),
+                                                                      ("merge", "end")]
+
+
+def test_gap_inside_a_body_is_an_error_between_bodies_not():
+    conts = [Contour(0.0, circle(0, 0, 10)), Contour(2.0, circle(0, 0, 10)), Contour(6.0, circle(0, 0, 10))]
+    with pytest.raises(ValueError, match="resample"):
+        chain(conts, 2.0)
+    apart = conts[:2] + [Contour(6.0, circle(40, 0, 10))]
+    assert len(chain(apart, 2.0)) == 2
+    assert len(chain(conts, None)) == 1  # unequal spacing accepted: consecutive planes are neighbours
+
+
+def test_slab_volume_counts_end_planes_half():
+    hole = np.array([[2, 2], [4, 2], [4, 4], [2, 4]], float)
+    conts = [Contour(z, SQUARE) for z in (0.0, 1.0, 2.0, 3.0)] + [Contour(1.0, hole)]
+    assert slab_volume(conts, 1.0) == pytest.approx(100 * 3 - 4)
+    # unequal planes: the trapezoid rule over the true positions
+    uneven = [Contour(z, SQUARE) for z in (0.0, 1.0, 3.0)]
+    assert slab_volume(uneven, None) == pytest.approx(300.0)
+    assert slab_volume(uneven[:1], None) == 0.0

@@ -1,0 +1,193 @@
+"""A contour input into a result folder: :func:`slices.pipeline.reconstruct`, then its files.
+
+:func:`reconstruct_to_folder` is what ``workbench slices reconstruct``, batch
+jobs and the demo call. It takes the options as users type them (the command
+line's and the batch manifests' names: ``rays``, ``lattice``, ``ray_start`` in
+degrees), converts them once into the library's
+(:class:`slices.options.SurfaceOptions`: ``n_rays``, ``lattice_factor``,
+``start_angle`` in radians) and writes, atomically file by file:
+
+``surface.ply``, ``surface.stl`` (the solid), ``patches.npz`` (every body's
+control points), ``render.png`` (ray-cast views, unless ``render=False``) and
+``summary.json`` (the returned dict).
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+
+from slices.pipeline import SlicesReconstruction, reconstruct
+from surfaces.io import atomic_path, jsonable, write_json, write_mesh, write_png
+
+#: The options :func:`reconstruct_to_folder` accepts (command-line and manifest names).
+OPTIONS = frozenset({
+    "method", "rays", "caps", "hu_min", "hu_max", "spacing", "resample", "lattice", "samples", "correspondence",
+    "ray_start", "union", "minus", "plus", "repair", "render", "reference",
+})
+
+#: Views of ``render.png``.
+RENDER_VIEWS = ("iso", "front", "top", "side")
+
+
+def start_angle(value) -> float | None:
+    """The ``ray_start`` option (degrees from +x, or "auto"/None) in radians.
+
+    Parameters
+    ----------
+    value : float, str or None
+        Degrees, or ``"auto"``/None for each body's own rotation.
+
+    Returns
+    -------
+    float or None
+        Radians, or None for "auto".
+
+    Examples
+    --------
+    >>> start_angle("auto") is None, round(start_angle("90"), 6)
+    (True, 1.570796)
+    """
+    if value is None or (isinstance(value, str) and value.strip().lower() == "auto"):
+        return None
+    try:
+        deg = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"ray_start: must be an angle in degrees or 'auto', got {value!r}") from None
+    if not np.isfinite(deg):
+        raise ValueError(f"ray_start: must be finite, got {value!r}")
+    return float(np.radians(deg))
+
+
+def library_options(options: dict) -> dict:
+    """Options as users name them -> keywords of :func:`slices.pipeline.reconstruct`.
+
+    Parameters
+    ----------
+    options : dict
+        Names of :data:`OPTIONS` except ``render``.
+
+    Returns
+    -------
+    dict
+        ``rays`` as ``n_rays``, ``lattice`` as ``lattice_factor``, ``ray_start``
+        (degrees) as ``start_angle`` (radians); the others unchanged.
+    """
+    out = dict(options)
+    if "rays" in out:
+        out["n_rays"] = int(out.pop("rays"))
+    if "lattice" in out:
+        out["lattice_factor"] = float(out.pop("lattice"))
+    if "ray_start" in out:
+        out["start_angle"] = start_angle(out.pop("ray_start"))
+    return out
+
+
+def save_body_patches(result: SlicesReconstruction, path) -> None:
+    """All bodies' patches in one ``.npz``.
+
+    Parameters
+    ----------
+    result : SlicesReconstruction
+    path : str or os.PathLike
+        Destination; holds ``body<i>_control`` per body, ``control`` (the
+        largest body's), ``closed_u`` (True), ``closed_v`` (False) and
+        ``body_kind`` ("outer"/"hole" per body).
+    """
+    bodies = result.reconstruction.bodies
+    arrays = {f"body{i}_control": b.patches.control for i, b in enumerate(bodies)}
+    arrays["control"] = max(bodies, key=lambda b: b.patches.n_patches).patches.control
+    arrays["closed_u"] = np.array(True)
+    arrays["closed_v"] = np.array(False)
+    arrays["body_kind"] = np.array([b.body.kind for b in bodies])
+    with atomic_path(path, suffix=".npz") as tmp:
+        with open(tmp, "wb") as fh:
+            np.savez(fh, **arrays)
+
+
+def write_result(result: SlicesReconstruction, out_dir, *, render: bool = True) -> dict:
+    """Write a reconstruction's files into ``out_dir`` and return the content of ``summary.json``.
+
+    Parameters
+    ----------
+    result : SlicesReconstruction
+        What :func:`slices.pipeline.reconstruct` returned.
+    out_dir : str or os.PathLike
+        Output folder (created when missing).
+    render : bool
+        Write ``render.png`` (ray-cast views of :attr:`SlicesReconstruction.display_mesh`).
+
+    Returns
+    -------
+    dict
+        The library's summary with ``write_time_s``, ``render_time_s`` and the
+        total ``time_s`` (s).
+    """
+    from surfaces.render import render as render_views
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    t_write = time.perf_counter()
+    write_mesh(result.mesh, out / "surface.ply")
+    write_mesh(result.mesh, out / "surface.stl")
+    save_body_patches(result, out / "patches.npz")
+    t_write = time.perf_counter() - t_write
+    t_render = time.perf_counter()
+    if render:
+        write_png(out / "render.png",
+                  render_views(result.display_mesh, views=RENDER_VIEWS, size=(1024, 768), colorbar=False))
+    t_render = time.perf_counter() - t_render
+    summary = {}
+    for key, value in result.summary.items():
+        if key != "time_s":
+            summary[key] = value
+        # each stage's time beside the library's, in the order they run on the command line
+        if key == "surface_time_s":
+            summary["write_time_s"] = t_write
+        elif key == "reference_time_s":
+            summary["render_time_s"] = t_render
+    summary["time_s"] = result.summary["time_s"] + t_write + t_render
+    summary = jsonable(summary)
+    write_json(out / "summary.json", summary)
+    return summary
+
+
+def reconstruct_to_folder(input_path, out_dir, *, roi=None, progress=None, **options) -> dict:
+    """Reconstruct a contour input and write every output file.
+
+    Parameters
+    ----------
+    input_path : str or os.PathLike
+        RTSTRUCT, CT folder, mask stack or contour JSON (see :func:`slices.io.load`).
+    out_dir : str or os.PathLike
+        Output folder (created).
+    roi : str or int, optional
+        ROI name or number for RTSTRUCT input.
+    progress : callable, optional
+        Called with finished and total bodies.
+    **options
+        As on the command line and in batch manifests: ``method``, ``rays``
+        (rays per contour, seed 000 eq. 1), ``caps``, ``hu_min``, ``hu_max``,
+        ``spacing`` (z,y,x for mask stacks), ``resample``, ``lattice``
+        (lattice values per point of the largest contour), ``samples``,
+        ``correspondence``, ``ray_start`` (direction of ray 0 in degrees from
+        +x for every body, or "auto" (default): per body the rotation that keeps
+        support points steadiest), ``union``, ``minus``, ``plus``, ``repair``,
+        ``reference`` (see :func:`slices.pipeline.reconstruct`) and ``render``
+        (default True). Defaults are those of :class:`slices.options.SurfaceOptions`
+        and :func:`slices.pipeline.reconstruct`.
+
+    Returns
+    -------
+    dict
+        The content of ``summary.json`` (``ray_start`` as given, "auto" when not).
+    """
+    unknown = set(options) - OPTIONS
+    if unknown:
+        raise ValueError(f"options: unknown {sorted(unknown)}")
+    render = bool(options.pop("render", True))
+    result = reconstruct(input_path, roi=roi, progress=progress, **library_options(options))
+    result.summary["ray_start"] = options.get("ray_start") or "auto"
+    return write_result(result, out_dir, render=render)
