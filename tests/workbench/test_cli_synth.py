@@ -72,3 +72,13 @@ def test_bad_input_exits_with_code_2(tmp_path, capsys, args, message):
     assert main(args + ["--out", str(tmp_path / "x")]) == 2
     err = capsys.readouterr().err
     assert message in err and "Traceback" not in err
+
+
+def test_phantom_pixel_size_has_the_alias_pixel():
+    """``--pixel-size`` as in every other command; ``--pixel`` (the old name) still works."""
+    from workbench.cli import build_parser
+
+    parse = build_parser().parse_args
+    assert parse(["synth", "phantom", "--out", "x"]).pixel_size == 0.8
+    assert parse(["synth", "phantom", "--pixel-size", "0.5", "--out", "x"]).pixel_size == 0.5
+    assert parse(["synth", "phantom", "--pixel", "2", "--out", "x"]).pixel_size == 2.0

@@ -60,7 +60,8 @@ def register(sub) -> None:
     )
     p.add_argument("--shape", default="kidney", choices=SHAPES, help="phantom shape (default kidney)")
     p.add_argument("--spacing", type=float, default=2.5, help="slice spacing in mm (default 2.5)")
-    p.add_argument("--pixel", type=float, default=0.8, help="CT pixel size in mm (default 0.8)")
+    p.add_argument("--pixel-size", "--pixel", dest="pixel_size", type=float, default=0.8,
+                   help="CT pixel size in mm (default 0.8; --pixel is accepted too)")
     p.add_argument("--format", dest="fmt", default="json", choices=("json", "dicom", "rtstruct"),
                    help="json: contours only; dicom: + CT series; rtstruct: + CT series and RT Structure Set")
     p.add_argument("--points", type=int, default=64,
@@ -136,7 +137,7 @@ def _phantom(args: argparse.Namespace) -> int:
     from datasets_synthetic.phantoms import make_phantom, write_phantom
 
     phantom = make_phantom(args.shape)
-    truth = write_phantom(args.out, phantom, args.spacing, args.pixel, fmt=args.fmt,
+    truth = write_phantom(args.out, phantom, args.spacing, args.pixel_size, fmt=args.fmt,
                           n_points=args.points, noise_mm=args.noise, seed=args.seed,
                           offset_mm=args.offset, n_surface=args.surface_points, progress=True)
     print(f"phantom {truth['shape']}: volume {truth['volume_mm3']:.3f} mm^3, "
