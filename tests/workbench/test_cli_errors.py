@@ -118,6 +118,24 @@ def test_bad_input_exits_2(tmp_path, lights_file, capsys, content, extra, messag
     assert message in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("content, message", [
+    (np.zeros(5), "expected a 2-D height field"),
+    (np.zeros((1, 5)), "expected a 2-D height field"),
+    (b"not numpy", "not a readable .npy file"),
+])
+def test_bad_surface_file(tmp_path, lights_file, capsys, content, message):
+    path = tmp_path / "h.npy"
+    if isinstance(content, bytes):
+        path.write_bytes(content)
+    else:
+        np.save(path, content)
+    code = main(["photometric", "errors", "--lights", str(lights_file), "--surface", str(path),
+                 "--no-crack", "--out", str(tmp_path / "o"), *FAST])
+    assert code == 2
+    err = capsys.readouterr().err
+    assert "--surface" in err and message in err
+
+
 def test_missing_lights_file(tmp_path, capsys):
     assert main(["photometric", "errors", "--lights", str(tmp_path / "nope.txt")]) == 2
     assert "nope.txt" in capsys.readouterr().err

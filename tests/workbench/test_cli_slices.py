@@ -62,10 +62,11 @@ def test_methods_and_bad_input(contour_json, tmp_path, capsys):
 
 def test_rois_and_unknown_roi(shared_data, tmp_path, capsys):
     rtss = shared_data / "rtstruct_breast" / "rtss.dcm"
-    assert main(["slices", "rois", str(rtss), "--json", str(tmp_path / "rois.json")]) == 0
+    table = tmp_path / "tables" / "rois.json"  # the folder is created
+    assert main(["slices", "rois", str(rtss), "--json", str(table)]) == 0
     out = capsys.readouterr().out
     assert "Heart" in out and "Lt Lung" in out
-    assert json.loads((tmp_path / "rois.json").read_text())[4]["name"] == "Heart"
+    assert json.loads(table.read_text())[4]["name"] == "Heart"
     assert main(["slices", "reconstruct", str(rtss), "--roi", "Liver", "--out", str(tmp_path)]) == 2
     assert "Heart" in capsys.readouterr().err
 

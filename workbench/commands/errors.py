@@ -12,6 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
+from workbench.commands.common import add_command, load_npy
+
 
 def register(subparsers) -> None:
     """Add the ``errors`` sub-command to the ``photometric`` group.
@@ -21,8 +23,10 @@ def register(subparsers) -> None:
     subparsers : argparse._SubParsersAction
         The ``photometric`` group's sub-parser collection.
     """
-    p = subparsers.add_parser(
+    p = add_command(
+        subparsers,
         "errors",
+        run,
         help="error of p, q, normals and height against deviated light directions; tolerances",
         description="Accuracy study of photometric stereo when the real light directions deviate "
         "from the nominal ones (seed 002(a)): error maps over two deviations, first-order "
@@ -58,17 +62,11 @@ def register(subparsers) -> None:
                    help="image side of the crack study, pixels (default 128)")
     p.add_argument("--out", default="photometric_errors",
                    help="output folder (default ./photometric_errors)")
-    p.set_defaults(func=run)
 
 
 def _read_surface(path: str) -> np.ndarray:
-    f = Path(path)
-    if not f.is_file():
-        raise FileNotFoundError(f"--surface: {f}: no such file")
-    try:
-        h = np.load(f, allow_pickle=False)
-    except (ValueError, OSError) as exc:
-        raise ValueError(f"--surface: {f} is not a readable .npy array ({exc})") from None
+    """The ``--surface`` height field: a 2-D ``.npy`` array of at least 2 x 2 pixels."""
+    h = load_npy(path, "--surface")
     if h.ndim != 2 or min(h.shape) < 2:
         raise ValueError(f"--surface: expected a 2-D height field, got shape {h.shape}")
     return np.asarray(h, dtype=float)

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 
+from workbench.commands.common import add_command, write_summary
+
 
 def register(sub) -> None:
     """Add ``reconstruct`` and ``rois`` to the ``slices`` group.
@@ -19,8 +21,10 @@ def register(sub) -> None:
     from slices.pipeline import UNION_LIMIT
     from slices.surface import CORRESPONDENCES, METHODS
 
-    p = sub.add_parser(
+    p = add_command(
+        sub,
         "reconstruct",
+        _reconstruct,
         help="planar contours (RTSTRUCT, CT series, mask stack, contour JSON) to one "
         "interpolating surface with volume and area",
         description="Seed 000: the seed's control-point parameters per contour (rays from the "
@@ -82,14 +86,12 @@ def register(sub) -> None:
                    help="tessellation subdivisions per patch side (default: adapted so that the mesh "
                    f"has about {MESH_BUDGET:,} vertices)")
     p.add_argument("--no-render", action="store_true", help="skip render.png")
-    p.set_defaults(func=_reconstruct)
 
-    r = sub.add_parser("rois", help="list the ROIs of an RT structure set",
-                       description="List ROI numbers, names, contour and plane counts.")
+    r = add_command(sub, "rois", _rois, help="list the ROIs of an RT structure set",
+                    description="List ROI numbers, names, contour and plane counts.")
     r.add_argument("file", metavar="FILE", help="RTSTRUCT .dcm")
     r.add_argument("--json", default=None, metavar="OUT",
                    help="also write the table to this JSON file")
-    r.set_defaults(func=_rois)
 
 
 def _reconstruct(args: argparse.Namespace) -> int:
@@ -133,11 +135,10 @@ def _reconstruct(args: argparse.Namespace) -> int:
 
 def _rois(args: argparse.Namespace) -> int:
     from slices.io import list_rois
-    from surfaces.io import write_json
 
     rois = list_rois(args.file)
     if args.json:
-        write_json(args.json, rois)
+        write_summary(args.json, rois)
     print(f"{'number':>6}  {'name':<24} {'contours':>8} {'planes':>6} {'max points':>10}")
     for r in rois:
         print(f"{r['number']:>6}  {r['name']:<24} {r['n_contours']:>8} {r['n_planes']:>6} "
