@@ -7,16 +7,13 @@ import pytest
 
 from photometric.lights import load_lights, ring_lights
 from workbench.demo.accuracy import RANGES, TOLERANCES, section_accuracy
-from workbench.demo.context import Context
-from workbench.report import Report
 
-from .test_context import parses
+from .test_context import parses, quick_context
 
 
 @pytest.fixture(scope="module")
 def accuracy(tmp_path_factory):
-    out = tmp_path_factory.mktemp("accuracy")
-    ctx = Context(out=out, quick=True, shared=out / "absent", report=Report("t", out))
+    ctx = quick_context(tmp_path_factory.mktemp("accuracy"))
     section_accuracy(ctx)
     return ctx
 

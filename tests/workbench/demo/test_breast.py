@@ -6,7 +6,8 @@ from pathlib import Path
 
 from workbench.demo.breast import PALETTE, REFERENCES_CC, roi_folder, section_breast
 from workbench.demo.context import Context
-from workbench.report import Report
+
+from .test_context import quick_context
 
 
 def test_roi_folder_and_tables():
@@ -18,7 +19,7 @@ def test_roi_folder_and_tables():
 
 
 def test_absent_data_is_reported(tmp_path):
-    ctx = Context(out=tmp_path, quick=True, shared=tmp_path / "absent", report=Report("t", tmp_path))
+    ctx = quick_context(tmp_path)
     section_breast(ctx)
     assert list(ctx.unavailable) == ["CT: breast structure set"]
     assert "rtss.dcm" in ctx.unavailable["CT: breast structure set"]

@@ -12,6 +12,11 @@ from workbench.demo.context import Context, shared_data_dir
 from workbench.report import Report
 
 
+def quick_context(out: Path) -> Context:
+    """A --quick run's context writing to ``out``, without real data, with its own report."""
+    return Context(out=out, quick=True, shared=out / "absent", report=Report("t", out))
+
+
 def parses(command: str) -> bool:
     """True when every ``workbench ...`` part of ``command`` (joined by ``&&``) parses."""
     parser = build_parser()
@@ -65,7 +70,7 @@ def test_step_advances_the_bar(tmp_path):
 
 
 def test_missing_is_recorded_and_reported(tmp_path):
-    ctx = Context(out=tmp_path, quick=True, shared=tmp_path, report=Report("t", tmp_path))
+    ctx = quick_context(tmp_path)
     ctx.missing("Real captures", "the folder is absent")
     assert ctx.unavailable == {"Real captures": "the folder is absent"}
     html = ctx.report.write().read_text()

@@ -4,15 +4,13 @@ from __future__ import annotations
 
 import json
 
-from workbench.demo.context import Context
 from workbench.demo.ct import section_ct
-from workbench.report import Report
 
-from .test_context import parses
+from .test_context import parses, quick_context
 
 
 def test_kidney_section(tmp_path):
-    ctx = Context(out=tmp_path, quick=True, shared=tmp_path / "absent", report=Report("t", tmp_path))
+    ctx = quick_context(tmp_path)
     section_ct(ctx)
     kidney = ctx.numbers["ct"]["kidney"]
     truth = json.loads((tmp_path / "ct" / "kidney" / "truth.json").read_text())

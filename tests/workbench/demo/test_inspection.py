@@ -5,11 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from workbench.demo.context import Context
 from workbench.demo.inspection import defect_numbers, match_defects, section_inspection
-from workbench.report import Report
 
-from .test_context import parses
+from .test_context import parses, quick_context
 
 TRUTH = [
     {"kind": "v_crack", "center_px": [20, 30], "depth_mm": 0.1, "width_mm": 0.4, "length_mm": 6.0,
@@ -49,8 +47,7 @@ def test_defect_numbers_pairs_true_and_measured_values():
 
 @pytest.fixture(scope="module")
 def quick_inspection(tmp_path_factory):
-    out = tmp_path_factory.mktemp("inspection")
-    ctx = Context(out=out, quick=True, shared=out / "absent", report=Report("t", out))
+    ctx = quick_context(tmp_path_factory.mktemp("inspection"))
     section_inspection(ctx)
     return ctx
 

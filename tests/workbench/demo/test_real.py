@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 
 from photometric.io import PhotometricData
-from workbench.demo.context import Context
 from workbench.demo.real import display_image, section_real
-from workbench.report import Report
+
+from .test_context import quick_context
 
 
 def test_display_image_divides_by_the_light_intensities():
@@ -26,7 +26,7 @@ def test_display_image_divides_by_the_light_intensities():
 
 def test_absent_data_is_reported(tmp_path):
     """Without ../shared the section says so; nothing is faked."""
-    ctx = Context(out=tmp_path, quick=True, shared=tmp_path / "absent", report=Report("t", tmp_path))
+    ctx = quick_context(tmp_path)
     section_real(ctx)
     assert list(ctx.unavailable) == ["Real captures"]
     assert "absent" in ctx.unavailable["Real captures"]
