@@ -205,7 +205,7 @@ def section_inspection(ctx: Context) -> None:
     rep.table(["defect", "depth true (mm)", "depth measured (mm)", "width true (mm)",
                "max width measured (mm)", "length true (mm)", "length measured (mm)",
                "area true (mm2)", "area measured (mm2)"],
-              [[d["kind"], *(d[k] if d[k] is not None else "not found" for k in list(d)[1:])]
+              [[d["kind"], *("not found" if v is None else v for k, v in d.items() if k != "kind")]
                for d in nums["defects"]],
               caption=f"Defects measured by the pipeline (photometric.defects.measure_defects on "
               f"the reconstructed height, {len(found)} region(s) found; defects.json) against "
