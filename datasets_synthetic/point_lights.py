@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from datasets_synthetic.render import _deviations
 from photometric.lights import deviate_lights, ring_lights
 from surfaces.validate import as_array, positive
 
@@ -162,6 +163,47 @@ def ring_point_lights(n: int, slant_deg: float, distance_mm: float, azimuth0_deg
     if deviations_deg is not None:
         unit = deviate_lights(unit, deviations_deg)
     return point_lights(d * unit, None, mu, intensities)
+
+
+def rig_lights(lights, slant_deg: float, distance_mm: float, azimuth0_deg: float = 90.0, mu=0.0, intensities=None,
+               deviate=None) -> tuple[PointLights, PointLights, np.ndarray]:
+    """Nominal and true LEDs of a rendered rig: a ring (or given positions), the true ones deviated.
+
+    Parameters
+    ----------
+    lights : int or (N, 3) array_like
+        Number of ring LEDs (:func:`ring_point_lights` at ``slant_deg``, ``distance_mm``,
+        ``azimuth0_deg``), or their nominal positions in mm.
+    slant_deg, distance_mm, azimuth0_deg
+        The ring (ignored for given positions).
+    mu, intensities
+        As :func:`point_lights` (the same for nominal and true LEDs).
+    deviate : (N,) or (N, 2) array_like, optional
+        Slant (and azimuth) deviations, degrees, of each true LED from its nominal place on
+        its sphere about the origin; the true axes are aimed at the origin.
+
+    Returns
+    -------
+    nominal, true : PointLights
+    deviations : (N, 2) float64 array
+        [slant, azimuth] deviations in degrees.
+
+    Examples
+    --------
+    >>> nominal, true, dev = rig_lights(3, 45.0, 200.0, deviate=[2.0, 0.0, 0.0])
+    >>> round(float(np.degrees(np.arccos(true.positions[0, 2] / 200.0))), 6), dev.shape
+    (47.0, (3, 2))
+    """
+    m = as_array(mu, "led_mu", ndim=(0, 1))
+    if np.ndim(lights) == 0:
+        nominal = ring_point_lights(int(lights), slant_deg, distance_mm, azimuth0_deg, m, intensities)
+    else:
+        nominal = point_lights(lights, None, m, intensities)
+    dev = _deviations(deviate, len(nominal))
+    if not np.any(dev):
+        return nominal, nominal, dev
+    moved = nominal.d0[:, None] * deviate_lights(nominal.directions, dev)
+    return nominal, point_lights(moved, None, m, nominal.intensities), dev
 
 
 def light_vectors(lights: PointLights, points) -> tuple[np.ndarray, np.ndarray]:
