@@ -142,3 +142,40 @@ def test_near_field_bad_input_exits_with_code_2(tmp_path, capsys, extra, message
     err = capsys.readouterr().err
     assert message in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "x" / "scene.json").exists()
+
+
+def test_spheres_command_writes_one_folder_per_placement(tmp_path, capsys):
+    out = tmp_path / "cal"
+    code = main(["synth", "spheres", "--light-distance", "200", "--lights", "4", "--slant", "40",
+                 "--centers=-12,8,10", "--centers", "12,-8,10", "0,0,25", "--radius", "10", "--size", "96x128",
+                 "--camera", "perspective", "--focal-length-px", "500", "--camera-height", "300",
+                 "--supersample", "2", "--out", str(out)])
+    assert code == 0
+    scene = json.loads((out / "scene.json").read_text())
+    assert [s["folder"] for s in scene["spheres"]] == ["sphere_01", "sphere_02", "sphere_03"]
+    positions = np.asarray(scene["lights"]["positions_mm"])
+    np.testing.assert_allclose(np.linalg.norm(positions, axis=1), 200.0)
+    for folder, centre in zip(("sphere_01", "sphere_02", "sphere_03"), ([-12, 8, 10], [12, -8, 10], [0, 0, 25])):
+        assert json.loads((out / folder / "sphere.json").read_text()) == {"radius_mm": 10.0, "center_mm": centre}
+        assert (out / folder / "filenames.txt").read_text().split() == ["001.png", "002.png", "003.png", "004.png"]
+        assert json.loads((out / folder / "scene.json").read_text())["camera"]["model"] == "perspective"
+    assert "sphere_03: centre [0.0, 0.0, 25.0] mm" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(
+    "extra, message",
+    [
+        (["--centers", "0,0"], "--centers"),
+        (["--centers", "0,0,5", "--pixel-size", "1"], "cuts the reference plane"),
+        (["--centers", "0,0,10", "--slant", "95"], "--slant"),
+        (["--centers", "0,0,10", "--camera", "perspective", "--camera-height", "300"], "--focal-length-px"),
+        (["--centers", "0,0,10", "--camera", "perspective", "--focal-length-px", "100", "--camera-height", "15"],
+         "above the sphere"),
+    ],
+)
+def test_spheres_bad_input_exits_with_code_2(tmp_path, capsys, extra, message):
+    args = ["synth", "spheres", "--light-distance", "150", "--size", "32"]
+    assert main(args + extra + ["--out", str(tmp_path / "x")]) == 2
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err
+    assert not (tmp_path / "x").exists()

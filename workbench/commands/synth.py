@@ -80,12 +80,18 @@ def register(sub) -> None:
     p.add_argument("--slant", type=float, default=45.0, help="LED slant from the view axis, deg (default 45)")
     p.add_argument("--azimuth0", type=float, default=90.0,
                    help="azimuth of the first LED from +x towards +y (up), deg (default 90)")
-    p.add_argument("--centers", nargs="+", required=True, metavar="X,Y,Z",
-                   help="sphere centres in mm, one per placement (a sphere resting on the plane has Z = radius)")
+    p.add_argument("--centers", nargs="+", action="extend", required=True, metavar="X,Y,Z",
+                   help="sphere centres in mm, one per placement (a sphere resting on the plane has Z = radius); "
+                   "repeatable; write a centre with a negative X as --centers=-12,8,10")
     p.add_argument("--radius", type=float, default=10.0, help="sphere radius, mm (default 10)")
     p.add_argument("--led-radius", type=float, default=1.0, help="radius of each LED's emitting disc, mm (default 1)")
     p.add_argument("--supersample", type=int, default=4,
-                   help="samples per pixel side (default 4; 8 times more near the highlight)")
+                   help="rays per pixel side for the sphere's diffuse image (default 4; the highlight is traced on "
+                   "its own fine grid)")
+    p.add_argument("--psf-sigma", type=float, default=1.0,
+                   help="Gaussian lens blur of the highlight, pixels (default 1; 0: none)")
+    p.add_argument("--background", type=float, default=0.0,
+                   help="albedo of the matte reference plane around the sphere (default 0: black)")
     p.add_argument("--deviate", default=None,
                    help="per-LED deviation of the true from the nominal position on its sphere about the origin, "
                    "deg, as for triad (default none)")
@@ -366,7 +372,8 @@ def _spheres(args: argparse.Namespace) -> int:
         args.out, centers, args.radius, size=args.size, lights=args.lights, slant=args.slant,
         light_distance=args.light_distance, azimuth0=args.azimuth0, led_mu=mu, camera=args.camera,
         pixel_size=cam["pixel_size"], focal_length_px=cam["focal_length_px"], camera_height=cam["camera_height"],
-        led_radius=args.led_radius, supersample=args.supersample, deviate=_parse_deviate(args.deviate, args.lights),
+        led_radius=args.led_radius, supersample=args.supersample, psf_sigma_px=args.psf_sigma,
+        background=args.background, deviate=_parse_deviate(args.deviate, args.lights),
         vignetting=_vignetting(args.vignetting), noise=args.noise, bit_depth=args.bit_depth, seed=args.seed,
     )
     print(f"{len(scene['spheres'])} sphere placement(s), radius {scene['radius_mm']} mm, {scene['n_lights']} LEDs "
