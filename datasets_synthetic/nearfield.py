@@ -32,7 +32,7 @@ from scipy.ndimage import map_coordinates
 from datasets_synthetic.cameras import Camera, SurfaceHits, intersect, make_camera, vignetting_map
 from datasets_synthetic.heightfields import CONVENTION, AnalyticSurface, make_scene
 from datasets_synthetic.io import ensure_dir
-from datasets_synthetic.point_lights import PointLights, _light_vector, rig_lights
+from datasets_synthetic.point_lights import PointLights, rig_lights, shading
 from datasets_synthetic.render import _albedo, _rgb_intensities, _write_folder, grid_triangles, sensor
 from photometric.normals import angular_error_deg
 from surfaces.grid import image_shape, xy_to_pixel
@@ -185,14 +185,19 @@ def render_near_field(
     shape = (n, h, w, 3) if rgb else (n, h, w)
     clean = np.empty(shape, np.float32)
     clean_flat = np.empty(shape, np.float32)
+    seen = tuple(np.ascontiguousarray(hits.points[..., i]) for i in range(3))
+    facing = tuple(np.ascontiguousarray(hits.normals[..., i]) for i in range(3))
+    flat = tuple(np.ascontiguousarray(flat_points[..., i]) for i in range(3))
+    up = (np.zeros((h, w)), np.zeros((h, w)), np.ones((h, w)))
     for k in tqdm(range(n), desc="render", unit="light", disable=not progress):
-        towards, falloff = _light_vector(lights, k, hits.points)
-        shade = falloff * np.maximum(0.0, np.einsum("...i,...i->...", hits.normals, towards)) * v
+        shade = shading(lights, k, seen, facing)
+        shade *= v
         if casts is not None:
-            shade = shade * ~casts[k]
+            shade *= ~casts[k]
         clean[k] = _colour(rho, lights.intensities[k], shade, rgb)
-        lf, falloff_f = _light_vector(lights, k, flat_points)
-        clean_flat[k] = _colour(np.asarray(flat_albedo), lights.intensities[k], falloff_f * lf[..., 2] * v, rgb)
+        shade = shading(lights, k, flat, up)
+        shade *= v
+        clean_flat[k] = _colour(np.asarray(flat_albedo), lights.intensities[k], shade, rgb)
     brightest = max(float(clean.max()), float(clean_flat.max()))
     if brightest <= 0:
         raise ValueError("lights: no pixel of the part or the flat field is lit")

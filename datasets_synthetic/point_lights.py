@@ -248,3 +248,58 @@ def _light_vector(lights: PointLights, k: int, pts: np.ndarray) -> tuple[np.ndar
     if lights.mu[k] > 0:
         falloff = falloff * np.maximum(0.0, -(unit @ lights.axes[k])) ** lights.mu[k]
     return unit, falloff
+
+
+def shading(lights: PointLights, k: int, points: tuple, normals: tuple) -> np.ndarray:
+    """``E_k(X) / e_k * max(0, n . l_k(X))`` of light ``k`` from coordinate planes (the renderers' hot path).
+
+    Parameters
+    ----------
+    lights : PointLights
+        The lights.
+    k : int
+        Light index.
+    points : (x, y, z) tuple of float64 arrays, one shape
+        Surface points in mm, one array per coordinate (contiguous planes are faster than
+        an interleaved (..., 3) array).
+    normals : (nx, ny, nz) tuple of float64 arrays, same shape
+        Unit normals there.
+
+    Returns
+    -------
+    float64 array (same shape)
+        ``(d0_k / r)^2 max(0, -l . a_k)^mu_k max(0, n . l)``, ``r = |P_k - X|``.
+
+    Examples
+    --------
+    >>> lights = point_lights([[0.0, 0.0, 100.0]])
+    >>> x = np.array([0.0, 100.0])
+    >>> shading(lights, 0, (x, 0 * x, 0 * x), (0 * x, 0 * x, 0 * x + 1)).round(6).tolist()
+    [1.0, 0.176777]
+    """
+    px, py, pz = lights.positions[k]
+    dx = px - points[0]
+    dy = py - points[1]
+    dz = pz - points[2]
+    inv = dx * dx
+    inv += dy * dy
+    inv += dz * dz
+    falloff = lights.d0[k] ** 2 / inv
+    np.sqrt(inv, out=inv)
+    np.divide(1.0, inv, out=inv)
+    cos = normals[0] * dx
+    cos += normals[1] * dy
+    cos += normals[2] * dz
+    cos *= inv
+    np.maximum(cos, 0.0, out=cos)
+    cos *= falloff
+    mu = lights.mu[k]
+    if mu > 0:
+        ax, ay, az = lights.axes[k]
+        lobe = dx * -ax
+        lobe -= ay * dy
+        lobe -= az * dz
+        lobe *= inv
+        np.maximum(lobe, 0.0, out=lobe)
+        cos *= lobe if mu == 1 else lobe * lobe if mu == 2 else lobe**mu
+    return cos
