@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.ndimage import map_coordinates
 
-from datasets_synthetic.cameras import Camera, SurfaceHits, intersect, make_camera, vignetting_map
+from datasets_synthetic.cameras import Camera, SurfaceHits, analytic_surface, intersect, make_camera, vignetting_map
 from datasets_synthetic.heightfields import CONVENTION, AnalyticSurface, make_scene
 from datasets_synthetic.io import ensure_dir
 from datasets_synthetic.point_lights import PointLights, rig_lights, shading
@@ -181,7 +181,8 @@ def render_near_field(
     h, w = camera.shape
     n = len(lights)
     rgb = lights.intensities.ndim == 2 or rho.ndim == 3
-    casts = _point_shadows(hits.points, lights.positions, camera.reference_pixel_mm) if shadows == "cast" else None
+    casts = (_point_shadows(hits.points, lights.positions, camera.reference_pixel_mm, analytic_surface(surface))
+             if shadows == "cast" else None)
     shape = (n, h, w, 3) if rgb else (n, h, w)
     clean = np.empty(shape, np.float32)
     clean_flat = np.empty(shape, np.float32)
@@ -248,8 +249,14 @@ def _albedo_at(albedo, camera: Camera, hits: SurfaceHits) -> np.ndarray:
     return sampled[0] if rho.ndim == 2 else np.stack(sampled, axis=-1)
 
 
-def _point_shadows(points: np.ndarray, positions: np.ndarray, pixel_mm: float) -> np.ndarray:
-    """(N, H, W) True where the segment from a seen point to light k's position meets the seen surface."""
+def _point_shadows(points: np.ndarray, positions: np.ndarray, pixel_mm: float, surface: AnalyticSurface) -> np.ndarray:
+    """(N, H, W) True where the segment from a seen point to light k's position meets the seen surface.
+
+    Only points that may be shadowed are ray cast: above its base plane the surface's
+    relief never exceeds ``hi`` (:attr:`AnalyticSurface.relief_bounds`), so a point whose
+    relief is ``hi`` and whose segment to the LED climbs away from the base plane stays
+    above every occluder (on a flat plate with a scratch, only the scratch is cast).
+    """
     import open3d as o3d
 
     h, w = points.shape[:2]
@@ -258,15 +265,22 @@ def _point_shadows(points: np.ndarray, positions: np.ndarray, pixel_mm: float) -
     scene.add_triangles(o3d.core.Tensor(verts), o3d.core.Tensor(tris))
     start = 1e-3 * pixel_mm  # leave the vertex the ray starts from
     flat = points.reshape(-1, 3)
-    out = np.empty((len(positions), h, w), bool)
+    _, sx, sy = surface.plane
+    hi = surface.relief_bounds[1]
+    low = flat[:, 2] - sx * flat[:, 0] - sy * flat[:, 1] < hi - 1e-12
+    out = np.zeros((len(positions), h * w), bool)
     for k, position in enumerate(positions):
-        v = position - flat
+        climb = (position[2] - flat[:, 2]) - sx * (position[0] - flat[:, 0]) - sy * (position[1] - flat[:, 1])
+        todo = np.flatnonzero(low | (climb <= 0))
+        if todo.size == 0:
+            continue
+        v = position - flat[todo]
         dist = np.linalg.norm(v, axis=1)
         d = v / dist[:, None]
-        rays = np.concatenate([flat + start * d, d], axis=1).astype(np.float32)
+        rays = np.concatenate([flat[todo] + start * d, d], axis=1).astype(np.float32)
         t_hit = scene.cast_rays(o3d.core.Tensor(rays))["t_hit"].numpy()
-        out[k] = (t_hit < dist - start).reshape(h, w)
-    return out
+        out[k, todo] = t_hit < dist - start
+    return out.reshape(len(positions), h, w)
 
 
 def write_near_field_folder(out_dir: str | os.PathLike, rendered: NearFieldRender, scene: dict,
