@@ -255,31 +255,49 @@ def _point_shadows(points: np.ndarray, positions: np.ndarray, pixel_mm: float, s
     Only points that may be shadowed are ray cast: above its base plane the surface's
     relief never exceeds ``hi`` (:attr:`AnalyticSurface.relief_bounds`), so a point whose
     relief is ``hi`` and whose segment to the LED climbs away from the base plane stays
-    above every occluder (on a flat plate with a scratch, only the scratch is cast).
+    above every occluder (on a flat plate with a scratch, only the scratch is cast). A
+    climbing segment also reaches ``hi`` within a known distance, so the mesh covers only
+    the pixels that far around those points.
     """
     import open3d as o3d
 
     h, w = points.shape[:2]
-    verts, tris = grid_triangles(points)
-    scene = o3d.t.geometry.RaycastingScene()
-    scene.add_triangles(o3d.core.Tensor(verts), o3d.core.Tensor(tris))
-    start = 1e-3 * pixel_mm  # leave the vertex the ray starts from
     flat = points.reshape(-1, 3)
     _, sx, sy = surface.plane
     hi = surface.relief_bounds[1]
-    low = flat[:, 2] - sx * flat[:, 0] - sy * flat[:, 1] < hi - 1e-12
+    relief = flat[:, 2] - sx * flat[:, 0] - sy * flat[:, 1]
+    low = relief < hi - 1e-12
+    todo, reach = [], 0.0
+    for position in positions:
+        v = position - flat
+        climb = v[:, 2] - sx * v[:, 0] - sy * v[:, 1]
+        idx = np.flatnonzero(low | (climb <= 0))
+        todo.append(idx)
+        if idx.size:
+            c = climb[idx]
+            run = np.hypot(v[idx, 0], v[idx, 1])
+            reach = np.inf if np.any(c <= 0) else max(reach, float(np.max((hi - relief[idx]) * run / c)))
     out = np.zeros((len(positions), h * w), bool)
-    for k, position in enumerate(positions):
-        climb = (position[2] - flat[:, 2]) - sx * (position[0] - flat[:, 0]) - sy * (position[1] - flat[:, 1])
-        todo = np.flatnonzero(low | (climb <= 0))
-        if todo.size == 0:
+    if not any(idx.size for idx in todo):
+        return out.reshape(len(positions), h, w)
+    every = np.concatenate(todo)
+    rows, cols = every // w, every % w
+    margin = h + w if not np.isfinite(reach) else int(np.ceil(1.1 * reach / pixel_mm)) + 2
+    r0, r1 = max(int(rows.min()) - margin, 0), min(int(rows.max()) + margin, h - 1)
+    c0, c1 = max(int(cols.min()) - margin, 0), min(int(cols.max()) + margin, w - 1)
+    verts, tris = grid_triangles(points[r0:r1 + 1, c0:c1 + 1])
+    scene = o3d.t.geometry.RaycastingScene()
+    scene.add_triangles(o3d.core.Tensor(verts), o3d.core.Tensor(tris))
+    start = 1e-3 * pixel_mm  # leave the vertex the ray starts from
+    for k, (position, idx) in enumerate(zip(positions, todo)):
+        if idx.size == 0:
             continue
-        v = position - flat[todo]
+        v = position - flat[idx]
         dist = np.linalg.norm(v, axis=1)
         d = v / dist[:, None]
-        rays = np.concatenate([flat[todo] + start * d, d], axis=1).astype(np.float32)
+        rays = np.concatenate([flat[idx] + start * d, d], axis=1).astype(np.float32)
         t_hit = scene.cast_rays(o3d.core.Tensor(rays))["t_hit"].numpy()
-        out[k, todo] = t_hit < dist - start
+        out[k, idx] = t_hit < dist - start
     return out.reshape(len(positions), h, w)
 
 
