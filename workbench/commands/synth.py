@@ -12,7 +12,7 @@ import argparse
 
 import numpy as np
 
-from workbench.commands.common import add_command
+from workbench.commands.common import add_command, parse_vector
 
 
 def register(sub) -> None:
@@ -363,10 +363,7 @@ def _spheres(args: argparse.Namespace) -> int:
 
     _check_ring(args)
     cam = _camera_settings(args)
-    centers = [_floats(c, "--centers") for c in args.centers]
-    bad = [c for c, v in zip(args.centers, centers) if v.size != 3]
-    if bad:
-        raise ValueError(f"--centers: expected X,Y,Z in mm for each sphere, got {bad[0]!r}")
+    centers = [parse_vector(c, "--centers") for c in args.centers]
     mu = _floats(args.led_mu, "--led-mu", args.lights)
     scene = make_sphere_folders(
         args.out, centers, args.radius, size=args.size, lights=args.lights, slant=args.slant,
