@@ -71,8 +71,9 @@ def register(sub) -> None:
         _spheres,
         help="render mirror-sphere calibration images (one folder per sphere placement) under near LEDs",
         description="Render a polished sphere at each --centers placement under N point LEDs: per light one "
-        "image with the LED's specular highlight (the LED a small emitting disc, pixels supersampled, finer "
-        "near the highlight) and a weak diffuse term. Writes OUT/sphere_01, OUT/sphere_02, ... (001.png..., "
+        "image with the LED's specular highlight (the LED a small emitting disc; the highlight traced on its own "
+        "fine grid and blurred by a Gaussian lens PSF, so its centroid is sub-pixel exact) and a weak diffuse term. "
+        "Writes OUT/sphere_01, OUT/sphere_02, ... (001.png..., "
         "filenames.txt, sphere.json with radius_mm and center_mm) and OUT/scene.json with the true rig.",
     )
     p.add_argument("--light-distance", type=float, required=True, help="distance of every LED from the origin, mm")
