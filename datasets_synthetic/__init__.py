@@ -2,28 +2,7 @@
 
 Package map
 -----------
-================  ===================================================================
-``heightfields``  analytic height fields with exact slopes and defect truth (crack,
-                  dent, scratch, bumps, sphere, vase, inspection plate)
-``render``        Lambertian renders with cast shadows and noise, DiLiGenT-style folders
-``phantoms``      CT phantoms with exact volume and area, cut into contour stacks
-                  (a package: ``base``, ``scaled``, ``ring``, ``lobes``, ``cylinder``,
-                  ``catalog``, ``write``)
-``dicom``         CT series and RT Structure Set writers for the phantoms
-``io``            output folders (files are written with :mod:`surfaces.io`)
-================  ===================================================================
-
-Importing the package loads numpy and :mod:`surfaces` helpers only (pydicom,
-OpenCV, scipy and open3d are imported where they are used). A function named
-like its module is called through it: ``datasets_synthetic.render.render``.
-
-Examples
---------
->>> import datasets_synthetic as ds
->>> ring = ds.make_phantom("ring", major_mm=20.0, minor_mm=5.0)
->>> round(ring.volume_mm3 / ds.make_phantom("ring", major_mm=10.0, minor_mm=5.0).volume_mm3, 12)
-2.0
-"""
+================  ============================================================"""
 
 from __future__ import annotations
 
