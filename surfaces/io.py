@@ -301,7 +301,17 @@ def write_mesh(mesh, path, samples: int = PATCH_SAMPLES) -> Path:
     >>> back = read_mesh(path)
     >>> back.n_triangles, back.surface_area()
     (2, 1.0)
+
+    The mesh comes first:
+
+    >>> write_mesh("square.ply", square)
+    Traceback (most recent call last):
+    ...
+    TypeError: path: expected a file name (str or os.PathLike), got TriangleMesh; the order is write_mesh(mesh, path)
     """
+    if not isinstance(path, str | os.PathLike):
+        raise TypeError(f"path: expected a file name (str or os.PathLike), got {type(path).__name__}; "
+                        "the order is write_mesh(mesh, path)")
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix not in MESH_FORMATS:
@@ -350,17 +360,41 @@ def read_mesh(path) -> TriangleMesh:
         raise ValueError(f"{path}: unsupported mesh format; use one of {', '.join(MESH_FORMATS)}")
     import open3d as o3d
 
-    m = o3d.io.read_triangle_mesh(str(path))
+    # open3d and its RPly reader print their own complaints about a bad file straight to the
+    # process's stderr; they are caught and the ValueError below says it once
+    with o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error), _captured_stderr() as said:
+        m = o3d.io.read_triangle_mesh(str(path))
     verts = np.asarray(m.vertices, dtype=np.float64)
     tri = np.asarray(m.triangles, dtype=np.int64)
     if len(verts) == 0 or len(tri) == 0:
-        raise ValueError(f"{path}: no triangles could be read")
+        reason = next((line.strip() for line in said if line.strip()), "")
+        raise ValueError(f"{path}: no triangles could be read" + (f" ({reason})" if reason else ""))
     normals = np.asarray(m.vertex_normals, dtype=np.float64) if m.has_vertex_normals() else None
     colors = np.asarray(m.vertex_colors, dtype=np.float64) if m.has_vertex_colors() else None
     mesh = TriangleMesh(verts, tri, normals, colors)
     if path.suffix.lower() == ".stl":
         mesh = weld(mesh)
     return mesh
+
+
+@contextmanager
+def _captured_stderr():
+    """Redirect the process's file descriptor 2 (C libraries write there) into a list of lines."""
+    lines: list[str] = []
+    try:
+        saved = os.dup(2)
+    except OSError:  # no stderr to redirect
+        yield lines
+        return
+    with tempfile.TemporaryFile() as sink:
+        os.dup2(sink.fileno(), 2)
+        try:
+            yield lines
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            sink.seek(0)
+            lines.extend(sink.read().decode("utf-8", "replace").splitlines())
 
 
 def save_patches(patches: BezierPatches, path) -> Path:
