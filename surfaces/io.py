@@ -19,6 +19,7 @@ import numpy as np
 
 from surfaces.bezier import BezierPatches
 from surfaces.mesh import PATCH_SAMPLES, TriangleMesh, as_mesh, weld
+from surfaces.vectors import cross, unit
 
 MESH_FORMATS = (".ply", ".obj", ".stl")
 
@@ -230,28 +231,38 @@ def save_npy(path, array) -> Path:
     return Path(path)
 
 
-def _ply_bytes(mesh: TriangleMesh) -> bytes:
+#: records per block when a mesh file is written (bounds the extra memory of writing to ~50 MB)
+WRITE_BLOCK = 1 << 21
+
+
+def _write_ply(mesh: TriangleMesh, fh) -> None:
     fields = [("x", "<f4"), ("y", "<f4"), ("z", "<f4")]
     if mesh.vertex_normals is not None:
         fields += [("nx", "<f4"), ("ny", "<f4"), ("nz", "<f4")]
     if mesh.vertex_colors is not None:
         fields += [("red", "u1"), ("green", "u1"), ("blue", "u1")]
-    vert = np.empty(mesh.n_vertices, dtype=fields)
-    vert["x"], vert["y"], vert["z"] = mesh.vertices.T
-    if mesh.vertex_normals is not None:
-        vert["nx"], vert["ny"], vert["nz"] = mesh.vertex_normals.T
-    if mesh.vertex_colors is not None:
-        rgb = np.clip(np.round(mesh.vertex_colors * 255.0), 0, 255).astype(np.uint8)
-        vert["red"], vert["green"], vert["blue"] = rgb.T
-    faces = np.empty(mesh.n_triangles, dtype=[("n", "u1"), ("idx", "<i4", (3,))])
-    faces["n"] = 3
-    faces["idx"] = mesh.triangles
     names = {"<f4": "float", "u1": "uchar"}
     header = ["ply", "format binary_little_endian 1.0", "comment surface-workbench"]
     header.append(f"element vertex {mesh.n_vertices}")
     header += [f"property {names[t]} {n}" for n, t in fields]
     header += [f"element face {mesh.n_triangles}", "property list uchar int vertex_indices", "end_header"]
-    return ("\n".join(header) + "\n").encode("ascii") + vert.tobytes() + faces.tobytes()
+    fh.write(("\n".join(header) + "\n").encode("ascii"))
+    for start in range(0, mesh.n_vertices, WRITE_BLOCK):
+        part = slice(start, start + WRITE_BLOCK)
+        vert = np.empty(len(mesh.vertices[part]), dtype=fields)
+        vert["x"], vert["y"], vert["z"] = mesh.vertices[part].T
+        if mesh.vertex_normals is not None:
+            vert["nx"], vert["ny"], vert["nz"] = mesh.vertex_normals[part].T
+        if mesh.vertex_colors is not None:
+            rgb = np.clip(np.round(mesh.vertex_colors[part] * 255.0), 0, 255).astype(np.uint8)
+            vert["red"], vert["green"], vert["blue"] = rgb.T
+        fh.write(vert.tobytes())
+    for start in range(0, mesh.n_triangles, WRITE_BLOCK):
+        tri = mesh.triangles[start:start + WRITE_BLOCK]
+        faces = np.empty(len(tri), dtype=[("n", "u1"), ("idx", "<i4", (3,))])
+        faces["n"] = 3
+        faces["idx"] = tri
+        fh.write(faces.tobytes())
 
 
 def _obj_text(mesh: TriangleMesh) -> str:
@@ -266,12 +277,15 @@ def _obj_text(mesh: TriangleMesh) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _stl_bytes(mesh: TriangleMesh) -> bytes:
-    rec = np.zeros(mesh.n_triangles, dtype=[("n", "<f4", (3,)), ("v", "<f4", (3, 3)), ("attr", "<u2")])
-    rec["n"] = mesh.face_normals()
-    rec["v"] = mesh.triangle_corners()
-    header = b"surface-workbench binary STL".ljust(80, b" ")
-    return header + np.uint32(mesh.n_triangles).tobytes() + rec.tobytes()
+def _write_stl(mesh: TriangleMesh, fh) -> None:
+    fh.write(b"surface-workbench binary STL".ljust(80, b" ") + np.uint32(mesh.n_triangles).tobytes())
+    for start in range(0, mesh.n_triangles, WRITE_BLOCK):
+        tri = mesh.triangles[start:start + WRITE_BLOCK]
+        rec = np.zeros(len(tri), dtype=[("n", "<f4", (3,)), ("v", "<f4", (3, 3)), ("attr", "<u2")])
+        corners = mesh.vertices[tri]
+        rec["n"] = unit(cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]))
+        rec["v"] = corners
+        fh.write(rec.tobytes())
 
 
 def write_mesh(mesh, path, samples: int = PATCH_SAMPLES) -> Path:
@@ -318,12 +332,11 @@ def write_mesh(mesh, path, samples: int = PATCH_SAMPLES) -> Path:
         raise ValueError(f"path: unsupported mesh format {path.suffix!r}; use one of {', '.join(MESH_FORMATS)}")
     mesh = as_mesh(mesh, "mesh", samples)
     with atomic_path(path) as tmp:
-        if suffix == ".ply":
-            tmp.write_bytes(_ply_bytes(mesh))
-        elif suffix == ".obj":
+        if suffix == ".obj":
             tmp.write_text(_obj_text(mesh))
-        else:
-            tmp.write_bytes(_stl_bytes(mesh))
+            return path
+        with open(tmp, "wb") as fh:
+            (_write_ply if suffix == ".ply" else _write_stl)(mesh, fh)
     return path
 
 
