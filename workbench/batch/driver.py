@@ -58,12 +58,15 @@ class Plan:
         Jobs with a failure record that this run does not retry.
     pending : tuple of Job
         Jobs never attempted that a ``retry_failed`` run leaves for a plain run.
+    retried : tuple of Job
+        Jobs with a failure record that a ``retry_failed`` run runs again (also in ``to_run``).
     """
 
     to_run: tuple[Job, ...]
     complete: tuple[Job, ...]
     failed_before: tuple[Job, ...]
     pending: tuple[Job, ...]
+    retried: tuple[Job, ...] = ()
 
 
 def plan(jobs: Sequence[Job], out: str | os.PathLike, retry_failed: bool = False) -> Plan:
@@ -105,7 +108,8 @@ def plan(jobs: Sequence[Job], out: str | os.PathLike, retry_failed: bool = False
             (to_run if retry_failed else failed_before).append(job)
         else:
             (pending if retry_failed else to_run).append(job)
-    return Plan(tuple(to_run), tuple(complete), tuple(failed_before), tuple(pending))
+    retried = tuple(job for job in to_run if retry_failed)
+    return Plan(tuple(to_run), tuple(complete), tuple(failed_before), tuple(pending), retried)
 
 
 @contextmanager
