@@ -12,6 +12,7 @@ from __future__ import annotations
 import json
 import os
 import tempfile
+import zipfile
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -448,7 +449,20 @@ def load_patches(path) -> BezierPatches:
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such patch file")
-    with np.load(path) as data:
+    try:
+        data = np.load(path, allow_pickle=False)
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+        raise ValueError(f"{path}: not a readable patch file ({exc})") from None
+    if not isinstance(data, np.lib.npyio.NpzFile):
+        raise ValueError(f"{path}: not a patch file (an .npz archive with a 'control' array)")
+    with data:
         if "control" not in data:
             raise ValueError(f"{path}: no 'control' array (not a patch file)")
-        return BezierPatches(data["control"], bool(data["closed_u"]), bool(data["closed_v"]))
+        try:
+            flags = [data[name] if name in data else np.array(False) for name in ("closed_u", "closed_v")]
+            control = data["control"]
+        except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+            raise ValueError(f"{path}: not a readable patch file ({exc})") from None
+    if any(flag.size != 1 for flag in flags):
+        raise ValueError(f"{path}: closed_u and closed_v must be single flags")
+    return BezierPatches(control, bool(flags[0]), bool(flags[1]))
