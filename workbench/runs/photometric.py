@@ -23,7 +23,7 @@ from pathlib import Path
 from photometric.pipeline import PhotometricReconstruction, reconstruct
 from surfaces.io import save_npy, write_json, write_mesh, write_png
 from workbench import images
-from workbench.runs.folder import check_out_folder, result_folder
+from workbench.runs.folder import result_folder
 
 __all__ = ["FILES", "reconstruct_to_folder", "write_result"]
 
@@ -123,8 +123,7 @@ def reconstruct_to_folder(
         if progress is not None:
             progress("write")
         return write_result(result, out_dir)
-    check_out_folder(out_dir, "out_dir", FILES)
-    # the lock is taken before the work, so a second writer is refused at once
+    # the folder is checked and locked before the work, so a bad --out or a second writer is refused at once
     with result_folder(out_dir, owned=FILES) as tmp:
         result = reconstruct(source, progress=progress, **options)
         if progress is not None:

@@ -22,7 +22,7 @@ import numpy as np
 
 from slices.pipeline import SlicesReconstruction, reconstruct
 from surfaces.io import atomic_path, jsonable, write_json, write_mesh, write_png
-from workbench.runs.folder import check_out_folder, result_folder
+from workbench.runs.folder import result_folder
 
 #: The options :func:`reconstruct_to_folder` accepts (command-line and manifest names).
 OPTIONS = frozenset({
@@ -202,8 +202,7 @@ def reconstruct_to_folder(input_path, out_dir, *, roi=None, progress=None, atomi
         result = reconstruct(input_path, roi=roi, progress=progress, **library_options(options))
         result.summary["ray_start"] = options.get("ray_start") or "auto"
         return write_result(result, out_dir, render=render)
-    check_out_folder(out_dir, "out_dir", FILES)
-    # the lock is taken before the work, so a second writer is refused at once
+    # the folder is checked and locked before the work, so a bad --out or a second writer is refused at once
     with result_folder(out_dir, owned=FILES) as tmp:
         result = reconstruct(input_path, roi=roi, progress=progress, **library_options(options))
         result.summary["ray_start"] = options.get("ray_start") or "auto"
