@@ -119,6 +119,28 @@ def _contour_array(item) -> np.ndarray:
     return np.asarray(item.ContourData, dtype=np.float64)
 
 
+def _damaged_rtstruct_is_bad_input(read):
+    """Report a structure set that pydicom cannot walk (a truncated or damaged file) as a ValueError.
+
+    pydicom reads sequences lazily: a cut file fails only when its items are used,
+    with whatever the parser met (missing attributes, short buffers, no tag to read).
+    """
+    import functools
+    import struct
+
+    @functools.wraps(read)
+    def wrapper(path, *args, **kwargs):
+        try:
+            return read(path, *args, **kwargs)
+        except (FileNotFoundError, NotADirectoryError, IsADirectoryError, PermissionError):
+            raise
+        except (AttributeError, KeyError, IndexError, TypeError, OSError, EOFError, NotImplementedError,
+                struct.error) as exc:
+            raise ValueError(f"{path}: incomplete or damaged RT Structure Set ({exc})") from None
+
+    return wrapper
+
+
 def _open_rtstruct(path):
     """Path and dataset of an RT Structure Set file (checked: it exists and holds ROIs)."""
     path = _existing(path, "RT structure set file")
@@ -128,6 +150,7 @@ def _open_rtstruct(path):
     return path, ds
 
 
+@_damaged_rtstruct_is_bad_input
 def list_rois(path) -> list[dict]:
     """ROIs of an RT Structure Set.
 
@@ -163,6 +186,7 @@ def _roi_table(ds) -> list[dict]:
     return out
 
 
+@_damaged_rtstruct_is_bad_input
 def read_rtstruct(path, roi) -> ContourStack:
     """Closed planar contours of one ROI of an RT Structure Set.
 

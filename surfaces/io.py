@@ -12,6 +12,7 @@ from __future__ import annotations
 import json
 import os
 import tempfile
+import zipfile
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -19,6 +20,7 @@ import numpy as np
 
 from surfaces.bezier import BezierPatches
 from surfaces.mesh import PATCH_SAMPLES, TriangleMesh, as_mesh, weld
+from surfaces.vectors import cross, unit
 
 MESH_FORMATS = (".ply", ".obj", ".stl")
 
@@ -230,28 +232,38 @@ def save_npy(path, array) -> Path:
     return Path(path)
 
 
-def _ply_bytes(mesh: TriangleMesh) -> bytes:
+#: records per block when a mesh file is written (bounds the extra memory of writing to ~50 MB)
+WRITE_BLOCK = 1 << 21
+
+
+def _write_ply(mesh: TriangleMesh, fh) -> None:
     fields = [("x", "<f4"), ("y", "<f4"), ("z", "<f4")]
     if mesh.vertex_normals is not None:
         fields += [("nx", "<f4"), ("ny", "<f4"), ("nz", "<f4")]
     if mesh.vertex_colors is not None:
         fields += [("red", "u1"), ("green", "u1"), ("blue", "u1")]
-    vert = np.empty(mesh.n_vertices, dtype=fields)
-    vert["x"], vert["y"], vert["z"] = mesh.vertices.T
-    if mesh.vertex_normals is not None:
-        vert["nx"], vert["ny"], vert["nz"] = mesh.vertex_normals.T
-    if mesh.vertex_colors is not None:
-        rgb = np.clip(np.round(mesh.vertex_colors * 255.0), 0, 255).astype(np.uint8)
-        vert["red"], vert["green"], vert["blue"] = rgb.T
-    faces = np.empty(mesh.n_triangles, dtype=[("n", "u1"), ("idx", "<i4", (3,))])
-    faces["n"] = 3
-    faces["idx"] = mesh.triangles
     names = {"<f4": "float", "u1": "uchar"}
     header = ["ply", "format binary_little_endian 1.0", "comment surface-workbench"]
     header.append(f"element vertex {mesh.n_vertices}")
     header += [f"property {names[t]} {n}" for n, t in fields]
     header += [f"element face {mesh.n_triangles}", "property list uchar int vertex_indices", "end_header"]
-    return ("\n".join(header) + "\n").encode("ascii") + vert.tobytes() + faces.tobytes()
+    fh.write(("\n".join(header) + "\n").encode("ascii"))
+    for start in range(0, mesh.n_vertices, WRITE_BLOCK):
+        part = slice(start, start + WRITE_BLOCK)
+        vert = np.empty(len(mesh.vertices[part]), dtype=fields)
+        vert["x"], vert["y"], vert["z"] = mesh.vertices[part].T
+        if mesh.vertex_normals is not None:
+            vert["nx"], vert["ny"], vert["nz"] = mesh.vertex_normals[part].T
+        if mesh.vertex_colors is not None:
+            rgb = np.clip(np.round(mesh.vertex_colors[part] * 255.0), 0, 255).astype(np.uint8)
+            vert["red"], vert["green"], vert["blue"] = rgb.T
+        fh.write(vert.tobytes())
+    for start in range(0, mesh.n_triangles, WRITE_BLOCK):
+        tri = mesh.triangles[start:start + WRITE_BLOCK]
+        faces = np.empty(len(tri), dtype=[("n", "u1"), ("idx", "<i4", (3,))])
+        faces["n"] = 3
+        faces["idx"] = tri
+        fh.write(faces.tobytes())
 
 
 def _obj_text(mesh: TriangleMesh) -> str:
@@ -266,12 +278,15 @@ def _obj_text(mesh: TriangleMesh) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _stl_bytes(mesh: TriangleMesh) -> bytes:
-    rec = np.zeros(mesh.n_triangles, dtype=[("n", "<f4", (3,)), ("v", "<f4", (3, 3)), ("attr", "<u2")])
-    rec["n"] = mesh.face_normals()
-    rec["v"] = mesh.triangle_corners()
-    header = b"surface-workbench binary STL".ljust(80, b" ")
-    return header + np.uint32(mesh.n_triangles).tobytes() + rec.tobytes()
+def _write_stl(mesh: TriangleMesh, fh) -> None:
+    fh.write(b"surface-workbench binary STL".ljust(80, b" ") + np.uint32(mesh.n_triangles).tobytes())
+    for start in range(0, mesh.n_triangles, WRITE_BLOCK):
+        tri = mesh.triangles[start:start + WRITE_BLOCK]
+        rec = np.zeros(len(tri), dtype=[("n", "<f4", (3,)), ("v", "<f4", (3, 3)), ("attr", "<u2")])
+        corners = mesh.vertices[tri]
+        rec["n"] = unit(cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]))
+        rec["v"] = corners
+        fh.write(rec.tobytes())
 
 
 def write_mesh(mesh, path, samples: int = PATCH_SAMPLES) -> Path:
@@ -301,19 +316,28 @@ def write_mesh(mesh, path, samples: int = PATCH_SAMPLES) -> Path:
     >>> back = read_mesh(path)
     >>> back.n_triangles, back.surface_area()
     (2, 1.0)
+
+    The mesh comes first:
+
+    >>> write_mesh("square.ply", square)
+    Traceback (most recent call last):
+    ...
+    TypeError: path: expected a file name (str or os.PathLike), got TriangleMesh; the order is write_mesh(mesh, path)
     """
+    if not isinstance(path, str | os.PathLike):
+        raise TypeError(f"path: expected a file name (str or os.PathLike), got {type(path).__name__}; "
+                        "the order is write_mesh(mesh, path)")
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix not in MESH_FORMATS:
         raise ValueError(f"path: unsupported mesh format {path.suffix!r}; use one of {', '.join(MESH_FORMATS)}")
     mesh = as_mesh(mesh, "mesh", samples)
     with atomic_path(path) as tmp:
-        if suffix == ".ply":
-            tmp.write_bytes(_ply_bytes(mesh))
-        elif suffix == ".obj":
+        if suffix == ".obj":
             tmp.write_text(_obj_text(mesh))
-        else:
-            tmp.write_bytes(_stl_bytes(mesh))
+            return path
+        with open(tmp, "wb") as fh:
+            (_write_ply if suffix == ".ply" else _write_stl)(mesh, fh)
     return path
 
 
@@ -350,17 +374,41 @@ def read_mesh(path) -> TriangleMesh:
         raise ValueError(f"{path}: unsupported mesh format; use one of {', '.join(MESH_FORMATS)}")
     import open3d as o3d
 
-    m = o3d.io.read_triangle_mesh(str(path))
+    # open3d and its RPly reader print their own complaints about a bad file straight to the
+    # process's stderr; they are caught and the ValueError below says it once
+    with o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error), _captured_stderr() as said:
+        m = o3d.io.read_triangle_mesh(str(path))
     verts = np.asarray(m.vertices, dtype=np.float64)
     tri = np.asarray(m.triangles, dtype=np.int64)
     if len(verts) == 0 or len(tri) == 0:
-        raise ValueError(f"{path}: no triangles could be read")
+        reason = next((line.strip() for line in said if line.strip()), "")
+        raise ValueError(f"{path}: no triangles could be read" + (f" ({reason})" if reason else ""))
     normals = np.asarray(m.vertex_normals, dtype=np.float64) if m.has_vertex_normals() else None
     colors = np.asarray(m.vertex_colors, dtype=np.float64) if m.has_vertex_colors() else None
     mesh = TriangleMesh(verts, tri, normals, colors)
     if path.suffix.lower() == ".stl":
         mesh = weld(mesh)
     return mesh
+
+
+@contextmanager
+def _captured_stderr():
+    """Redirect the process's file descriptor 2 (C libraries write there) into a list of lines."""
+    lines: list[str] = []
+    try:
+        saved = os.dup(2)
+    except OSError:  # no stderr to redirect
+        yield lines
+        return
+    with tempfile.TemporaryFile() as sink:
+        os.dup2(sink.fileno(), 2)
+        try:
+            yield lines
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            sink.seek(0)
+            lines.extend(sink.read().decode("utf-8", "replace").splitlines())
 
 
 def save_patches(patches: BezierPatches, path) -> Path:
@@ -401,7 +449,20 @@ def load_patches(path) -> BezierPatches:
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such patch file")
-    with np.load(path) as data:
+    try:
+        data = np.load(path, allow_pickle=False)
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+        raise ValueError(f"{path}: not a readable patch file ({exc})") from None
+    if not isinstance(data, np.lib.npyio.NpzFile):
+        raise ValueError(f"{path}: not a patch file (an .npz archive with a 'control' array)")
+    with data:
         if "control" not in data:
             raise ValueError(f"{path}: no 'control' array (not a patch file)")
-        return BezierPatches(data["control"], bool(data["closed_u"]), bool(data["closed_v"]))
+        try:
+            flags = [data[name] if name in data else np.array(False) for name in ("closed_u", "closed_v")]
+            control = data["control"]
+        except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+            raise ValueError(f"{path}: not a readable patch file ({exc})") from None
+    if any(flag.size != 1 for flag in flags):
+        raise ValueError(f"{path}: closed_u and closed_v must be single flags")
+    return BezierPatches(control, bool(flags[0]), bool(flags[1]))

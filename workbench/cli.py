@@ -2,7 +2,10 @@
 
 Errors that come from bad input (``ValueError``, ``FileNotFoundError``,
 ``NotADirectoryError``, ``PermissionError``) are printed as one line on stderr
-and the process exits with code 2, without a traceback.
+and the process exits with code 2, without a traceback. Python warnings raised
+while a command runs (a library's ``UserWarning``, SciPy's and NumPy's
+``RuntimeWarning``) are printed as one line each, ``workbench: warning: ...``,
+without their source line.
 """
 
 from __future__ import annotations
@@ -10,6 +13,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import sys
+import warnings
 from collections.abc import Sequence
 
 # group name -> (help text, modules that register sub-commands into the group)
@@ -72,6 +76,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="Surface-reconstruction workbench: photometric stereo and CT contour "
         "stacks converge on one Coons/Bezier surface model.",
     )
+    parser.add_argument("--version", action="version", version=f"%(prog)s {version()}")
     top = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     for name, (help_text, modules) in GROUPS.items():
         group = top.add_parser(name, help=help_text, description=help_text)
@@ -82,6 +87,28 @@ def build_parser() -> argparse.ArgumentParser:
     for module_name in TOP_LEVEL:
         importlib.import_module(module_name).register(top)
     return parser
+
+
+def version() -> str:
+    """The installed version of the workbench (``surface-workbench`` package metadata).
+
+    Returns
+    -------
+    str
+        E.g. ``"0.1.0"``; ``"unknown"`` when the package is not installed (run from a bare checkout).
+    """
+    from importlib.metadata import PackageNotFoundError
+    from importlib.metadata import version as installed
+
+    try:
+        return installed("surface-workbench")
+    except PackageNotFoundError:
+        return "unknown"
+
+
+def _one_line_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    text = str(message).strip().splitlines()
+    print(f"workbench: warning: {text[0] if text else category.__name__}", file=sys.stderr)
 
 
 def _group_help(group: argparse.ArgumentParser):
@@ -118,7 +145,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.print_help()
         return 2
     try:
-        code = func(args)
+        with warnings.catch_warnings():
+            warnings.showwarning = _one_line_warning
+            code = func(args)
     except INPUT_ERRORS as exc:
         message = str(exc) or exc.__class__.__name__
         print(f"workbench: error: {message.splitlines()[0] if message else ''}", file=sys.stderr)

@@ -103,3 +103,33 @@ def test_json_npy_and_atomic_writes(tmp_path):
             raise RuntimeError("interrupted")
     assert (tmp_path / "t.txt").read_text() == "hello"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.npy", "t.txt", "x.json"]
+
+
+@pytest.mark.parametrize("suffix", [".ply", ".stl"])
+def test_mesh_files_written_in_blocks_are_the_same_bytes(tmp_path, suffix, monkeypatch):
+    import surfaces.io
+
+    mesh = tessellate(from_grid(_torus(), closed_u=True, closed_v=True), 3)
+    mesh.vertex_colors = np.full((mesh.n_vertices, 3), 0.5)
+    whole = write_mesh(mesh, tmp_path / f"whole{suffix}").read_bytes()
+    monkeypatch.setattr(surfaces.io, "WRITE_BLOCK", 7)  # many small blocks, a ragged last one
+    assert write_mesh(mesh, tmp_path / f"blocks{suffix}").read_bytes() == whole
+    back = read_mesh(tmp_path / f"blocks{suffix}")
+    assert back.n_triangles == mesh.n_triangles
+
+
+def test_write_mesh_with_arguments_reversed_names_them(tmp_path):
+    mesh = TriangleMesh([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]])
+    with pytest.raises(TypeError, match=r"path: expected a file name .* got TriangleMesh; the order is write_mesh"):
+        write_mesh(tmp_path / "t.ply", mesh)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_read_mesh_of_a_broken_file_is_one_error_and_no_chatter(tmp_path, capfd):
+    """open3d's RPly prints to the process's stderr; that text becomes the error's reason instead."""
+    path = write_mesh(TriangleMesh([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]]), tmp_path / "t.ply")
+    path.write_bytes(path.read_bytes()[:-10])
+    with pytest.raises(ValueError, match=r"t.ply: no triangles could be read \(RPly: "):
+        read_mesh(path)
+    captured = capfd.readouterr()
+    assert captured.err == "" and captured.out == ""

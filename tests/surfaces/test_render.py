@@ -246,6 +246,7 @@ def test_view_command_opens_window_with_display(tmp_path, monkeypatch):
     save_patches(BezierPatches(ctrl[None, None]), tmp_path / "p.npz")
     shown = []
     monkeypatch.setenv("DISPLAY", ":0")
+    monkeypatch.setattr("workbench.commands.view.probe_display", lambda: None)  # a display that answers
     monkeypatch.setattr(vis, "draw_geometries", lambda geoms, **kw: shown.extend(geoms))
     assert main(["view", str(tmp_path / "p.npz"), "--net"]) == 0
     kinds = sorted(type(g).__name__ for g in shown)

@@ -69,3 +69,32 @@ def test_other_errors_are_not_hidden(monkeypatch):
     monkeypatch.setattr("workbench.commands.demo.run", broken)
     with pytest.raises(ZeroDivisionError):
         main(["demo"])
+
+
+def test_version(capsys):
+    from importlib.metadata import version
+
+    with pytest.raises(SystemExit) as stop:
+        main(["--version"])
+    assert stop.value.code == 0
+    assert capsys.readouterr().out == f"workbench {version('surface-workbench')}\n"
+
+
+def test_warnings_are_one_line_each(monkeypatch, capsys):
+    """A library warning or a numpy RuntimeWarning: one line each, no source line, the command goes on."""
+    import warnings
+
+    import numpy as np
+
+    def noisy(args):
+        warnings.warn("the grid is oriented inward\nsecond line", UserWarning, stacklevel=1)
+        np.float64(1.0) / np.float64(0.0)
+        print("done")
+        return 0
+
+    monkeypatch.setattr("workbench.commands.demo.run", noisy)
+    assert main(["demo"]) == 0
+    captured = capsys.readouterr()
+    assert captured.err == ("workbench: warning: the grid is oriented inward\n"
+                            "workbench: warning: divide by zero encountered in scalar divide\n")
+    assert captured.out == "done\n"

@@ -140,8 +140,10 @@ def test_batch_end_to_end(data, cluster, tmp_path, capsys):
             ["batch", "photometric", str(root / "triads"), "--out", str(out), "--scheduler", cluster, "--retry-failed"]
         )
         assert code == 0
+        assert "1 failed before (retrying them)" in capsys.readouterr().out
         summary = json.loads((out / "batch_photometric.json").read_text())
         assert (summary["ran"], summary["ok"], summary["skipped"]) == (1, 1, N_TRIADS - 1)
+        assert summary["failed_before"] == 1
         rows_after = _rows(out)
         assert len(rows_after) == N_TRIADS + N_PHANTOMS
         assert all(r["status"] == "ok" for r in rows_after)

@@ -82,14 +82,25 @@ def test_open_input_is_refused_then_repaired(tmp_path, capsys):
     assert summary["repairs"][str(a)]["filled_holes"] == 2
 
 
-def test_empty_result_writes_only_summary(tmp_path):
+@pytest.mark.parametrize("suffix", [".ply", ".stl"])
+def test_empty_result_replaces_an_older_mesh(tmp_path, capsys, suffix):
+    """Disjoint solids: the empty answer is written over --out (no stale mesh survives), and said so."""
     a, b = tmp_path / "a.ply", tmp_path / "b.ply"
     write_mesh(box([0, 0, 0], [1, 1, 1]), a)
     write_mesh(box([2, 0, 0], [3, 1, 1]), b)
-    out = tmp_path / "E.ply"
+    out = tmp_path / f"E{suffix}"
+    assert main(["surfaces", "boolean", str(a), str(b), "--op", "union", "--out", str(out)]) == 0
+    assert read_mesh(out).n_triangles == 24
+    capsys.readouterr()
     assert main(["surfaces", "boolean", str(a), str(b), "--op", "intersection", "--out", str(out)]) == 0
     summary = json.loads(out.with_suffix(".json").read_text())
-    assert summary["empty"] and summary["volume"] == 0.0 and not out.exists()
+    assert summary["empty"] and summary["volume"] == 0.0 and summary["out"] == str(out)
+    assert summary["units"]["volume"] == "length^3"
+    with pytest.raises(ValueError, match="no triangles"):
+        read_mesh(out)
+    captured = capsys.readouterr()
+    assert captured.err == f"workbench: warning: the intersection is empty; {out} holds a mesh with no triangles\n"
+    assert "(length units^3 of the inputs)" in captured.out and f"wrote {out} and" in captured.out
 
 
 @pytest.mark.parametrize(

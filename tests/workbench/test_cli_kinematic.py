@@ -5,6 +5,8 @@ from __future__ import annotations
 import json
 import math
 
+import numpy as np
+
 import pytest
 
 from surfaces.io import load_patches, read_mesh
@@ -90,3 +92,38 @@ def test_frenet_on_line_is_a_clear_error(tmp_path, capsys):
                  "--out", str(tmp_path / "x.ply")])
     assert code == 2
     assert "Frenet frame is undefined" in capsys.readouterr().err
+
+
+def test_coil_spring_with_caps_is_a_closed_solid_of_the_closed_form_volume(tmp_path, capsys):
+    """Tube theorem: V = pi a^2 L for the wire; the capped mesh is watertight and encloses it."""
+    out = tmp_path / "spring.ply"
+    assert main(["surfaces", "helix", "--radius", "2", "--pitch", "1", "--turns", "2", "--wire-radius", "0.2",
+                 "--samples-u", "24", "--mesh-samples", "4", "--caps", "--out", str(out)]) == 0
+    summary = json.loads(out.with_suffix(".json").read_text())
+    assert summary["caps"] == "flat" and summary["watertight"]
+    assert summary["mesh_volume"] == pytest.approx(summary["closed_form_volume"], rel=5e-3)
+    assert summary["cap_area"] == pytest.approx(2 * np.pi * 0.2**2, rel=5e-3)
+    mesh = read_mesh(out)
+    assert mesh.is_watertight() and mesh.is_oriented()
+    assert mesh.signed_volume() == pytest.approx(summary["mesh_volume"], rel=1e-4)
+    assert "closed by flat caps" in capsys.readouterr().out
+    # without --caps the tube stays open
+    assert main(["surfaces", "helix", "--radius", "2", "--pitch", "1", "--turns", "2", "--wire-radius", "0.2",
+                 "--samples-u", "24", "--mesh-samples", "4", "--out", str(out)]) == 0
+    assert not json.loads(out.with_suffix(".json").read_text())["watertight"]
+
+
+def test_sweep_with_caps_is_a_closed_cylinder(tmp_path):
+    g = _write(tmp_path / "g.json", {"type": "circle", "radius": 0.5})
+    d = _write(tmp_path / "d.json", {"type": "line", "start": [0, 0, 0], "end": [0, 0, 2]})
+    out = tmp_path / "c.stl"
+    assert main(["surfaces", "sweep", "--generatrix", g, "--directrix", d, "--caps", "--out", str(out)]) == 0
+    summary = json.loads(out.with_suffix(".json").read_text())
+    assert summary["watertight"] and summary["mesh_volume"] == pytest.approx(np.pi * 0.25 * 2, rel=5e-3)
+
+
+def test_caps_on_an_open_cross_section_is_a_clear_error(tmp_path, capsys):
+    out = tmp_path / "t.ply"
+    assert main(["surfaces", "helix", "--radius", "2", "--pitch", "1", "--turns", "1", "--profile", "thread",
+                 "--caps", "--out", str(out)]) == 2
+    assert "--caps: flat caps close a tube" in capsys.readouterr().err and not out.exists()

@@ -49,7 +49,7 @@ def test_methods_and_bad_input(contour_json, tmp_path, capsys):
     path, _ = contour_json
     assert main(["slices", "reconstruct", str(path), "--method", "coons", "--no-render",
                  "--out", str(tmp_path / "c")]) == 0
-    assert main(["slices", "reconstruct", str(tmp_path / "missing.json"), "--out", str(tmp_path)]) == 2
+    assert main(["slices", "reconstruct", str(tmp_path / "missing.json"), "--out", str(tmp_path / "m")]) == 2
     assert "no such" in capsys.readouterr().err
     bad = (("--samples", "0", "samples"), ("--rays", "2", "n_rays"), ("--lattice", "0.5", "lattice"))
     for flag, value, name in bad:
@@ -67,7 +67,7 @@ def test_rois_and_unknown_roi(shared_data, tmp_path, capsys):
     out = capsys.readouterr().out
     assert "Heart" in out and "Lt Lung" in out
     assert json.loads(table.read_text())[4]["name"] == "Heart"
-    assert main(["slices", "reconstruct", str(rtss), "--roi", "Liver", "--out", str(tmp_path)]) == 2
+    assert main(["slices", "reconstruct", str(rtss), "--roi", "Liver", "--out", str(tmp_path / "liver")]) == 2
     assert "Heart" in capsys.readouterr().err
 
 

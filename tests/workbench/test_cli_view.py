@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import cv2
 import pytest
@@ -47,3 +48,36 @@ def test_without_display_points_to_png(two_files, monkeypatch, capsys):
     assert "--png OUT.png" in capsys.readouterr().out
     monkeypatch.setenv("WAYLAND_DISPLAY", "wayland-0")
     assert has_display()
+
+
+@pytest.mark.parametrize("server", ["silent", "none"])
+def test_unreachable_display_falls_back_to_png(two_files, monkeypatch, capsys, server):
+    """DISPLAY set but hanging (a listener that never answers) or refusing: a note and a PNG, no hang."""
+    import socket
+    import time
+
+    from workbench.commands import view
+
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    monkeypatch.setattr(view, "PROBE_TIMEOUT_S", 1.5)
+    listener = socket.socket()
+    listener.bind(("127.0.0.1", 0))
+    port = listener.getsockname()[1]
+    if server == "silent":
+        listener.listen()
+    else:
+        listener.close()
+    monkeypatch.setenv("DISPLAY", f"127.0.0.1:{port - 6000}")
+    start = time.monotonic()
+    try:
+        assert main(["view", str(two_files[0])]) == 0
+    finally:
+        listener.close()
+    assert time.monotonic() - start < 30
+    png = f"{two_files[0].stem}_view.png"
+    err = capsys.readouterr().err.splitlines()
+    assert [line for line in err if "note" in line] == [
+        f"workbench: note: display 127.0.0.1:{port - 6000} "
+        + ("did not answer within 1.5 s" if server == "silent" else "cannot be opened")
+        + f"; rendering {png} headless instead (--png)"]
+    assert (Path.cwd() / png).is_file() and (Path.cwd() / png).with_suffix(".json").is_file()

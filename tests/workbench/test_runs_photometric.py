@@ -11,6 +11,7 @@ from datasets_synthetic.render import make_triad_folder
 from photometric.pipeline import reconstruct
 from surfaces.grid import pixel_grid
 from surfaces.io import read_mesh
+from workbench.runs.folder import COMPLETE_MARKER
 from workbench.runs.photometric import FILES, reconstruct_to_folder, write_result
 
 
@@ -27,7 +28,7 @@ def test_reconstruct_folder_writes_everything(plate_folder, tmp_path):
     summary = reconstruct_to_folder(plate_folder, tmp_path / "out", integrator="dct", progress=stages.append)
     assert stages == ["read", "normals", "height", "surface", "defects", "write"]
     out = tmp_path / "out"
-    assert sorted(p.name for p in out.iterdir()) == sorted(FILES)
+    assert sorted(p.name for p in out.iterdir()) == sorted((*FILES, COMPLETE_MARKER))
     assert summary["files"] == sorted(FILES)
     normals = np.load(out / "normals.npy")
     assert normals.shape == (128, 128, 3) and normals.dtype == np.float32

@@ -47,8 +47,8 @@ def test_folder_holds_the_library_result(fork, tmp_path):
     out = tmp_path / "out"
     summary = run.reconstruct_to_folder(fork, out, rays=32, lattice=2.5, ray_start="2.5", samples=2,
                                         reference=False)
-    assert sorted(p.name for p in out.iterdir()) == ["patches.npz", "render.png", "summary.json", "surface.ply",
-                                                     "surface.stl"]
+    assert sorted(p.name for p in out.iterdir()) == ["_COMPLETE", "patches.npz", "render.png", "summary.json",
+                                                     "surface.ply", "surface.stl"]
     assert json.loads((out / "summary.json").read_text()) == summary
     assert summary["ray_start"] == "2.5" and summary["rays"] == 32  # as given
     assert summary["bodies"][0]["ray_start_deg"] == pytest.approx(2.5)

@@ -10,11 +10,9 @@ from __future__ import annotations
 
 import csv
 import importlib.util
-import json
 import os
 import re
 import shutil
-import socket
 import time
 import traceback
 import uuid
@@ -35,13 +33,13 @@ from workbench.batch.results import (
     healed_results,
     is_complete,
     marker_kind,
-    now_utc,
     one_line_error,
     record_outcome,
     result_row,
     write_results,
 )
 from workbench.batch.runners import RUNNERS, execute_job
+from workbench.runs.folder import hold_lock
 
 LOCK_NAME = ".batch.lock"
 
@@ -60,12 +58,15 @@ class Plan:
         Jobs with a failure record that this run does not retry.
     pending : tuple of Job
         Jobs never attempted that a ``retry_failed`` run leaves for a plain run.
+    retried : tuple of Job
+        Jobs with a failure record that a ``retry_failed`` run runs again (also in ``to_run``).
     """
 
     to_run: tuple[Job, ...]
     complete: tuple[Job, ...]
     failed_before: tuple[Job, ...]
     pending: tuple[Job, ...]
+    retried: tuple[Job, ...] = ()
 
 
 def plan(jobs: Sequence[Job], out: str | os.PathLike, retry_failed: bool = False) -> Plan:
@@ -107,7 +108,8 @@ def plan(jobs: Sequence[Job], out: str | os.PathLike, retry_failed: bool = False
             (to_run if retry_failed else failed_before).append(job)
         else:
             (pending if retry_failed else to_run).append(job)
-    return Plan(tuple(to_run), tuple(complete), tuple(failed_before), tuple(pending))
+    retried = tuple(job for job in to_run if retry_failed)
+    return Plan(tuple(to_run), tuple(complete), tuple(failed_before), tuple(pending), retried)
 
 
 @contextmanager
@@ -354,46 +356,5 @@ def _remove_stale_tmp(out: Path) -> None:
             shutil.rmtree(tmp, ignore_errors=True)
 
 
-@contextmanager
-def _lock(out: Path) -> Iterator[None]:
-    path = out / LOCK_NAME
-    me = {"pid": os.getpid(), "host": socket.gethostname(), "started_utc": now_utc()}
-    fd = _create_exclusive(path)
-    if fd is None:
-        try:
-            holder = json.loads(path.read_text())
-        except (ValueError, OSError):
-            holder = {}
-        if holder.get("host") == me["host"] and not _pid_alive(int(holder.get("pid", -1))):
-            path.unlink(missing_ok=True)  # that run died; take over
-            fd = _create_exclusive(path)
-        if fd is None:
-            raise ValueError(
-                f"batch folder {out}: another run holds {path} (pid {holder.get('pid')} on "
-                f"{holder.get('host')}); delete the file if that run is dead"
-            )
-    with os.fdopen(fd, "w") as fh:
-        json.dump(me, fh)
-    try:
-        yield
-    finally:
-        path.unlink(missing_ok=True)
-
-
-def _create_exclusive(path: Path) -> int | None:
-    try:
-        return os.open(path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
-    except FileExistsError:
-        return None
-
-
-def _pid_alive(pid: int) -> bool:
-    if pid <= 0:
-        return False
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
+def _lock(out: Path):
+    return hold_lock(out / LOCK_NAME, f"batch folder {out}: another run holds {out / LOCK_NAME}")

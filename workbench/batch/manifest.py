@@ -74,7 +74,8 @@ def read_manifest(path: str | os.PathLike, kind: str, defaults: Mapping[str, Any
     absent, one job per ROI that has contours); a CT folder takes the HU window
     as ``hu_min``/``hu_max`` options. Every other column is a keyword
     option of the pipeline (``integrator``, ``pixel_size``, ``method``,
-    ``caps``, ``rays``, ...); in a CSV, numbers and ``true``/``false`` are
+    ``caps``, ``rays``, ...); a photometric ``select`` is ``triad`` or image
+    names (a list, or names separated by ``;``); in a CSV, numbers and ``true``/``false`` are
     converted and empty cells are left out. An ``id`` column is optional;
     without it the id is derived from the input path (see :func:`job_id`).
     Relative paths are taken from the manifest's folder. Lines starting with
@@ -389,6 +390,8 @@ def _jobs_from_row(row: dict[str, Any], kind: str, base: Path, where: str) -> li
             rois = list(_as_list(row.pop("roi"), where, "roi"))
         elif source.lower().endswith(".dcm") and Path(source).is_file():
             rois = _rois_with_contours(Path(source)) or [None]
+    if kind == "photometric" and row.get("select") is not None and row["select"] != "triad":
+        row["select"] = _as_list(row["select"], where, "select")
     options = {  # a path option may also be a number (a scalar intensity)
         name: _resolve(value, base, where, name) if name in _PATH_OPTIONS[kind] and isinstance(value, str) else value
         for name, value in row.items()

@@ -21,6 +21,7 @@ from typing import Any
 
 from surfaces.io import atomic_write_text, write_json
 from workbench.batch.jobs import KINDS, Job, check_kind
+from workbench.runs.folder import COMPLETE_MARKER, is_complete  # noqa: F401 - one marker for every result folder
 
 #: key figures copied from a job's summary into its results.csv row, per kind
 FIGURES: dict[str, tuple[str, ...]] = {
@@ -39,7 +40,6 @@ RESULT_COLUMNS: tuple[str, ...] = (
 )
 RESULTS_NAME = "results.csv"
 FAILED_DIR = "failed"
-COMPLETE_MARKER = "_COMPLETE"
 TMP_PREFIX = ".tmp-"
 
 
@@ -114,21 +114,6 @@ def key_figures(kind: str, summary: Mapping[str, Any]) -> dict[str, Any]:
         if value is not None:
             figures[name] = int(value) if isinstance(value, bool) else value
     return figures
-
-
-def is_complete(folder: str | os.PathLike) -> bool:
-    """Return whether a job folder is complete (it holds the ``_COMPLETE`` marker).
-
-    Parameters
-    ----------
-    folder : path
-        ``OUT/<id>``.
-
-    Returns
-    -------
-    bool
-    """
-    return (Path(folder) / COMPLETE_MARKER).is_file()
 
 
 def marker_kind(folder: str | os.PathLike) -> str:

@@ -69,7 +69,8 @@ def run_photometric(job: Job, out_dir: Path) -> dict:
         (0.0 when there is none), when the summary lacks it.
     """
     source = list(job.input) if isinstance(job.input, tuple) else job.input
-    summary = dict(pipeline("photometric")(source, out_dir, **job.options))
+    # execute_job already builds the job's folder aside and swaps it in
+    summary = dict(pipeline("photometric")(source, out_dir, atomic=False, **job.options))
     if "max_depth_mm" not in summary:
         # the pipeline lists its defects in defects.json; the row reports the deepest
         defects = json.loads((Path(out_dir) / "defects.json").read_text())["defects"]
@@ -92,7 +93,7 @@ def run_slices(job: Job, out_dir: Path) -> dict:
     dict
         The pipeline's summary (the content of its ``summary.json``).
     """
-    return pipeline("slices")(job.input, out_dir, roi=job.roi, **job.options)
+    return pipeline("slices")(job.input, out_dir, roi=job.roi, atomic=False, **job.options)
 
 
 #: the job runner table: kind -> callable(job, out_dir) -> summary dict

@@ -21,7 +21,8 @@ _DESCRIPTIONS = {
         "Run photometric.pipeline.reconstruct on many inputs. MANIFEST is a CSV (header row) or "
         "JSON-lines file, one job per row: 'input' (a DiLiGenT-style folder) or 'images' "
         "(';'-separated) + 'lights' (+ 'intensities', 'mask'), optional 'id', and pipeline "
-        "options as further columns (integrator, pixel_size, ...). A folder instead of a "
+        "options as further columns (integrator, pixel_size, ...; 'select' is 'triad' or "
+        "';'-separated image names). A folder instead of a "
         "manifest runs every folder below it that holds a light_directions.txt."
     ),
     "slices": (
@@ -119,8 +120,9 @@ def _run(kind: str, args: argparse.Namespace) -> int:
     steps = batch.plan(jobs, out, args.retry_failed)
     print(
         f"{len(jobs)} {kind} job(s): {len(steps.to_run)} to run, {len(steps.complete)} complete "
-        f"(skipped), {len(steps.failed_before)} failed before"
+        f"(skipped), {len(steps.failed_before) + len(steps.retried)} failed before"
         + (" (use --retry-failed)" if steps.failed_before else "")
+        + (" (retrying them)" if steps.retried else "")
         + (f", {len(steps.pending)} never run (left for a run without --retry-failed)" if steps.pending else "")
     )
     dashboard, n_workers, address = None, 0, None
@@ -155,7 +157,7 @@ def _run(kind: str, args: argparse.Namespace) -> int:
         out,
         kind,
         complete_before=len(steps.complete),
-        failed_before=len(steps.failed_before),
+        failed_before=len(steps.failed_before) + len(steps.retried),
         never_run=len(steps.pending),
         scheduler=args.scheduler,
         scheduler_address=address,

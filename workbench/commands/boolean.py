@@ -4,16 +4,25 @@ Writes the result mesh (``--out C.ply``, format by suffix: .ply, .obj, .stl)
 and, next to it, a JSON summary with the volumes (``C.json``); optionally the
 intersection curve as polylines (``--curves``) and a Loop-subdivision
 smoothing of the result (``--smooth N``).
+
+An empty result (disjoint solids, a difference that removes everything) is a
+valid answer: the mesh file is still written, with no triangles, atomically over
+any older file at ``--out`` (so no stale mesh survives), the JSON says
+``"empty": true`` and stderr says so in one line; the exit code is 0.
 """
 
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 import numpy as np
 
 from workbench.commands.common import add_command, mesh_out, read_model, write_summary
+
+#: what the summary's numbers are measured in (mesh files carry no unit)
+UNITS = {"length": "as the input files (workbench writes mm)", "area": "length^2", "volume": "length^3"}
 
 
 def register(subparsers) -> None:
@@ -28,7 +37,9 @@ def register(subparsers) -> None:
         help="union / intersection / difference of two closed meshes (manifold3d)",
         description="Set operation on two solids bounded by closed, outward oriented triangle "
         "meshes (PLY/OBJ/STL). Writes the result mesh and a JSON summary with the volumes "
-        "(same name as --out, suffix .json).",
+        "(same name as --out, suffix .json). Lengths are those of the input files (workbench "
+        "writes mm), volumes their cube. An empty result writes a mesh with no triangles over "
+        "--out and says so on stderr.",
     )
     p.add_argument("a", type=Path, help="first closed solid A: mesh (.ply, .obj, .stl) or patch file (.npz)")
     p.add_argument("b", type=Path, help="second closed solid B: mesh (.ply, .obj, .stl) or patch file (.npz)")
@@ -91,7 +102,7 @@ def run(args: argparse.Namespace) -> int:
     b = read_model(args.b)
     result = boolean(a, b, args.op, repair=args.repair, names=(str(args.a), str(args.b)))
     mesh = result.mesh
-    summary = {"a": str(args.a), "b": str(args.b), "out": str(args.out), **result.summary()}
+    summary = {"a": str(args.a), "b": str(args.b), "out": str(args.out), "units": UNITS, **result.summary()}
     if args.smooth > 0 and len(mesh.triangles):
         mesh = loop_smooth(mesh, args.smooth, filter=args.filter, filter_iterations=args.filter_iterations)
         summary["smooth"] = {
@@ -103,11 +114,8 @@ def run(args: argparse.Namespace) -> int:
         }
     json_path = args.out.with_suffix(".json")
     summary["empty"] = len(mesh.triangles) == 0
-    if summary["empty"]:
-        # a valid answer (disjoint solids): there is no surface to write, only the summary
-        summary["out"] = None
-    else:
-        write_mesh(mesh, args.out)
+    # an empty result is a valid answer (disjoint solids); it still replaces an older mesh at --out
+    write_mesh(mesh, args.out)
     if args.curves is not None:
         write_summary(
             args.curves,
@@ -122,14 +130,17 @@ def run(args: argparse.Namespace) -> int:
         summary["curves_file"] = str(args.curves)
     summary["summary_file"] = str(json_path)
     write_summary(json_path, summary)
+    if summary["empty"]:
+        print(f"workbench: warning: the {args.op} is empty; {args.out} holds a mesh with no triangles",
+              file=sys.stderr)
     print(
         f"{args.op}: volume A {result.volume_a:.6g}, B {result.volume_b:.6g}, "
-        f"result {result.volume:.6g}; {summary['n_triangles']} triangles, "
+        f"result {result.volume:.6g} (length units^3 of the inputs); {summary['n_triangles']} triangles, "
         f"watertight {summary['watertight']}, {summary['n_curves']} intersection curve(s)"
     )
     if "smooth" in summary:
         print(
             f"smoothed ({args.smooth} Loop step(s), {args.filter}): volume {summary['smooth']['volume_smoothed']:.6g}"
         )
-    print(f"wrote {json_path}" if summary["empty"] else f"wrote {args.out} and {json_path}")
+    print(f"wrote {args.out} and {json_path}")
     return 0

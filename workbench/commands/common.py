@@ -122,6 +122,106 @@ def load_npy(path: str | os.PathLike, name: str) -> np.ndarray:
         raise ValueError(f"{name}: {p} is not a readable .npy file ({exc})") from None
 
 
+def npy_shape(path: str | os.PathLike, name: str) -> tuple[int, ...]:
+    """Shape of a ``.npy`` array given on the command line, read from its header (no data loaded).
+
+    Parameters
+    ----------
+    path : path-like
+        The file.
+    name : str
+        The argument or option it came from, for messages.
+
+    Returns
+    -------
+    tuple of int
+
+    Raises
+    ------
+    FileNotFoundError
+        When the file does not exist.
+    ValueError
+        When it is not a readable ``.npy`` file of numbers.
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise FileNotFoundError(f"{name}: {p} does not exist")
+    try:
+        array = np.load(p, mmap_mode="r", allow_pickle=False)
+    except (OSError, ValueError) as exc:
+        raise ValueError(f"{name}: {p} is not a readable .npy file ({exc})") from None
+    if not isinstance(array, np.ndarray) or not np.issubdtype(array.dtype, np.number):
+        raise ValueError(f"{name}: {p} does not hold an array of numbers")
+    return tuple(array.shape)
+
+
+#: ``--max-memory`` suffixes
+_UNITS = {"": 1, "K": 2**10, "M": 2**20, "G": 2**30, "T": 2**40}
+
+
+def machine_memory() -> int:
+    """Physical memory of this machine in bytes (0 when the system does not say)."""
+    try:
+        return int(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
+    except (ValueError, OSError, AttributeError):
+        return 0
+
+
+def parse_size(text: str, name: str) -> int:
+    """Parse a memory size such as ``"8G"``, ``"512M"``, ``"1.5GB"`` or ``"100000"`` (bytes).
+
+    Parameters
+    ----------
+    text : str
+        A positive number with an optional binary suffix K, M, G or T (``B`` allowed after it).
+    name : str
+        The option it came from, for messages.
+
+    Returns
+    -------
+    int
+        Bytes.
+
+    Raises
+    ------
+    ValueError
+        When ``text`` is not a positive size.
+
+    Examples
+    --------
+    >>> parse_size("2G", "--max-memory"), parse_size("512mb", "--max-memory")
+    (2147483648, 536870912)
+    >>> parse_size("lots", "--max-memory")
+    Traceback (most recent call last):
+    ...
+    ValueError: --max-memory: expected a size such as 8G or 512M, got 'lots'
+    """
+    clean = text.strip().upper().removesuffix("B").replace("I", "")
+    unit = clean[-1:] if clean[-1:] in _UNITS and clean[-1:] else ""
+    try:
+        value = float(clean[: len(clean) - len(unit)]) * _UNITS[unit]
+    except ValueError:
+        value = float("nan")
+    if not np.isfinite(value) or value <= 0:
+        raise ValueError(f"{name}: expected a size such as 8G or 512M, got {text!r}")
+    return int(value)
+
+
+def format_size(n_bytes: float) -> str:
+    """Bytes as a short text with a binary unit.
+
+    Examples
+    --------
+    >>> format_size(10.3 * 2**30), format_size(836e6), format_size(512)
+    ('10.3 GB', '797 MB', '512 B')
+    """
+    for unit, factor in (("TB", 2**40), ("GB", 2**30), ("MB", 2**20), ("kB", 2**10)):
+        if n_bytes >= factor:
+            value = n_bytes / factor
+            return f"{value:.3g} {unit}" if value < 100 else f"{value:.0f} {unit}"
+    return f"{int(n_bytes)} B"
+
+
 def mesh_out(path: str | os.PathLike, name: str = "--out") -> Path:
     """Check an output mesh name before any work is done: a known format, in an existing folder.
 

@@ -4,6 +4,9 @@ Both commands build the kinematic surface, interpolate a sampled grid with a bic
 B-spline surface (seed 003), convert it exactly to Bezier patches, tessellate and
 measure it, and write: the mesh (``--out``), the patches (same name, ``.npz``) and a
 JSON summary (same name, ``.json``; or ``--summary``) holding every printed number.
+``--caps`` closes the two open ends of a tube (a closed cross-section: a pipe, a coil
+spring) with flat caps in the mesh (:func:`surfaces.kinematic.cap_ends`), so the mesh is
+a watertight solid with a volume.
 """
 
 from __future__ import annotations
@@ -76,6 +79,9 @@ def _common(p: argparse.ArgumentParser, samples_u: int, samples_v: int | None) -
                    help="subdivisions per patch side in the written mesh (default 4)")
     p.add_argument("--out", required=True, help="mesh file to write (.ply, .obj or .stl)")
     p.add_argument("--summary", help="JSON summary path (default: --out with suffix .json)")
+    p.add_argument("--caps", action="store_true",
+                   help="close the tube's two open ends with flat caps in the mesh, making a watertight "
+                   "solid (needs a closed cross-section: a closed generatrix, the coil spring)")
 
 
 def _sweep(args: argparse.Namespace) -> int:
@@ -137,9 +143,19 @@ def _finish(surface, args: argparse.Namespace, out: Path, info: dict, samples_v:
     from surfaces.measure import area_and_volume
     from surfaces.mesh import tessellate
 
+    from surfaces.kinematic import cap_ends
+
+    if args.caps and (not surface.closed_u or surface.closed_v):
+        raise ValueError("--caps: flat caps close a tube with a closed cross-section and two open ends; "
+                         + ("this cross-section (generatrix) is open" if not surface.closed_u
+                            else "this surface closes on itself"))
     t0 = time.perf_counter()
     patches = surface.to_bezier(args.samples_u, samples_v)
     mesh = tessellate(patches, args.mesh_samples)
+    caps = {}
+    if args.caps:
+        mesh, cap_area = cap_ends(mesh)
+        caps = {"caps": "flat", "cap_area": cap_area, "mesh_volume": abs(mesh.signed_volume())}
     summary = {
         **info,
         "samples": [int(args.samples_u), int(samples_v)],
@@ -151,6 +167,7 @@ def _finish(surface, args: argparse.Namespace, out: Path, info: dict, samples_v:
         "n_vertices": mesh.n_vertices,
         "n_triangles": mesh.n_triangles,
         "watertight": mesh.is_watertight(),
+        **caps,
     }
     summary["time_s"] = time.perf_counter() - t0
     write_mesh(mesh, out)
@@ -163,6 +180,7 @@ def _finish(surface, args: argparse.Namespace, out: Path, info: dict, samples_v:
         f"{patches.shape[0]}x{patches.shape[1]} patches, {mesh.n_triangles} triangles, "
         f"area {summary['area']:.6g}, volume "
         + (f"{volume:.6g}" if volume is not None else "n/a (open surface)")
+        + (f", closed by flat caps (mesh volume {caps['mesh_volume']:.6g})" if caps else "")
         + f"; wrote {out}, {npz}, {json_path}"
     )
     return 0

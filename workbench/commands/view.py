@@ -1,9 +1,19 @@
-"""``workbench view``: an open3d window when there is a display, else a pointer to ``--png``."""
+"""``workbench view``: an open3d window when there is a display, else a pointer to ``--png``.
+
+A display that is set but does not answer (``DISPLAY=:99`` with no X server, a
+dead SSH tunnel) would make the window hang forever: it is probed first, in a
+subprocess with a time limit, and the scene is rendered headless to a PNG
+instead (``<first file>_view.png`` in the current folder), with a one-line note.
+"""
 
 from __future__ import annotations
 
 import argparse
 import os
+import socket
+import subprocess
+import sys
+from pathlib import Path
 
 import numpy as np
 
@@ -17,6 +27,61 @@ PALETTE = np.array([[0.72, 0.76, 0.82], [0.90, 0.60, 0.35], [0.45, 0.70, 0.45],
 def has_display() -> bool:
     """True when an X11 or Wayland display is available (``DISPLAY`` / ``WAYLAND_DISPLAY`` set)."""
     return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+
+
+#: seconds a display gets to answer
+PROBE_TIMEOUT_S = 3.0
+
+# opens and closes the X display named by DISPLAY through Xlib; exit 0 when it answers
+_X11_PROBE = """
+import ctypes, ctypes.util, sys
+name = ctypes.util.find_library("X11")
+if name is None:
+    sys.exit(3)
+x11 = ctypes.CDLL(name)
+x11.XOpenDisplay.restype = ctypes.c_void_p
+x11.XOpenDisplay.argtypes = [ctypes.c_char_p]
+display = x11.XOpenDisplay(None)
+if not display:
+    sys.exit(1)
+x11.XCloseDisplay.argtypes = [ctypes.c_void_p]
+x11.XCloseDisplay(display)
+"""
+
+
+def probe_display(timeout: float | None = None) -> str | None:
+    """Check that the display in ``DISPLAY`` / ``WAYLAND_DISPLAY`` answers, within ``timeout`` seconds.
+
+    Parameters
+    ----------
+    timeout : float, optional
+        Seconds to wait for the display (default :data:`PROBE_TIMEOUT_S`).
+
+    Returns
+    -------
+    str or None
+        None when the display answers, else why not (one phrase for the note).
+    """
+    timeout = PROBE_TIMEOUT_S if timeout is None else timeout
+    wayland = os.environ.get("WAYLAND_DISPLAY")
+    if wayland:
+        path = Path(wayland) if os.path.isabs(wayland) else Path(os.environ.get("XDG_RUNTIME_DIR", "/tmp")) / wayland
+        with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as sock:
+            sock.settimeout(timeout)
+            try:
+                sock.connect(str(path))
+                return None
+            except OSError as exc:
+                return f"Wayland display {wayland} does not answer ({exc.strerror or exc})"
+    display = os.environ.get("DISPLAY", "")
+    try:
+        probe = subprocess.run([sys.executable, "-c", _X11_PROBE], timeout=timeout,
+                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    except subprocess.TimeoutExpired:
+        return f"display {display} did not answer within {timeout:g} s"
+    if probe.returncode == 3:  # no Xlib to ask: let open3d try
+        return None
+    return None if probe.returncode == 0 else f"display {display} cannot be opened"
 
 
 def _merged(models, samples: int):
@@ -34,6 +99,11 @@ def _merged(models, samples: int):
 def run(args: argparse.Namespace) -> int:
     """Show the files, or render them to ``--png``."""
     models = [read_model(f) for f in args.files]
+    if not args.png and has_display():
+        reason = probe_display()
+        if reason is not None:
+            args.png = f"{Path(args.files[0]).stem}_view.png"
+            print(f"workbench: note: {reason}; rendering {args.png} headless instead (--png)", file=sys.stderr)
     if args.png:
         from surfaces.io import write_png
 

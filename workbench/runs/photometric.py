@@ -1,7 +1,9 @@
 """Photometric stereo into a folder: :func:`photometric.pipeline.reconstruct`, then its files.
 
 :func:`reconstruct_to_folder` is what ``workbench photometric reconstruct``, batch jobs
-and the demo call. It writes, atomically file by file:
+and the demo call. It builds the folder beside ``out_dir`` and swaps it in whole
+(:func:`workbench.runs.folder.result_folder`: locked, previous result kept until the
+swap, ``_COMPLETE`` marker last):
 
 ``normals.npy`` (H, W, 3) float32 unit, ``albedo.npy`` (H, W[, 3]) float32,
 ``p.npy``, ``q.npy`` (H, W) float32, ``valid.npy`` (H, W) bool, ``height.npy`` (H, W)
@@ -21,6 +23,7 @@ from pathlib import Path
 from photometric.pipeline import PhotometricReconstruction, reconstruct
 from surfaces.io import save_npy, write_json, write_mesh, write_png
 from workbench import images
+from workbench.runs.folder import result_folder
 
 __all__ = ["FILES", "reconstruct_to_folder", "write_result"]
 
@@ -82,7 +85,9 @@ def write_result(result: PhotometricReconstruction, out_dir) -> dict:
     return summary
 
 
-def reconstruct_to_folder(source, out_dir, *, progress: Callable[[str], None] | None = None, **options) -> dict:
+def reconstruct_to_folder(
+    source, out_dir, *, progress: Callable[[str], None] | None = None, atomic: bool = True, **options
+) -> dict:
     """Run :func:`photometric.pipeline.reconstruct` and write its result files into ``out_dir``.
 
     Parameters
@@ -90,10 +95,15 @@ def reconstruct_to_folder(source, out_dir, *, progress: Callable[[str], None] | 
     source : str, Path, sequence of paths, array_like or PhotometricData
         Input of :func:`photometric.pipeline.reconstruct`.
     out_dir : str or Path
-        Output folder (created when missing).
+        Output folder: replaced whole by the new result (it must be missing, empty,
+        or hold only a previous result's files).
     progress : callable, optional
         Called with the name of each stage as it starts: the library's ``read``,
         ``normals``, ``height``, ``surface``, ``defects``, then ``write``.
+    atomic : bool
+        Build the folder beside ``out_dir`` and swap it in (default). ``False``
+        writes straight into ``out_dir``, for callers that already write into a
+        temporary folder of their own (batch jobs).
     **options
         Keyword options of :func:`photometric.pipeline.reconstruct` (``lights``,
         ``intensities``, ``mask``, ``select``, ``integrator``, ``pixel_size``,
@@ -108,13 +118,17 @@ def reconstruct_to_folder(source, out_dir, *, progress: Callable[[str], None] | 
         folder has ground truth, ``mean_angular_error_deg`` (over the mask) and
         ``height_rmse_mm`` (over valid pixels, means removed).
     """
-    out = Path(out_dir)
-    if out.exists() and not out.is_dir():
-        raise NotADirectoryError(f"out_dir: {out} exists and is not a folder")
-    result = reconstruct(source, progress=progress, **options)
-    if progress is not None:
-        progress("write")
-    return write_result(result, out)
+    if not atomic:
+        result = reconstruct(source, progress=progress, **options)
+        if progress is not None:
+            progress("write")
+        return write_result(result, out_dir)
+    # the folder is checked and locked before the work, so a bad --out or a second writer is refused at once
+    with result_folder(out_dir, owned=FILES) as tmp:
+        result = reconstruct(source, progress=progress, **options)
+        if progress is not None:
+            progress("write")
+        return write_result(result, tmp)
 
 
 def _signature() -> inspect.Signature:

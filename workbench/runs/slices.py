@@ -5,7 +5,8 @@ jobs and the demo call. It takes the options as users type them (the command
 line's and the batch manifests' names: ``rays``, ``lattice``, ``ray_start`` in
 degrees), converts them once into the library's
 (:class:`slices.options.SurfaceOptions`: ``n_rays``, ``lattice_factor``,
-``start_angle`` in radians) and writes, atomically file by file:
+``start_angle`` in radians) and writes, in a folder built beside ``out_dir`` and
+swapped in whole (:func:`workbench.runs.folder.result_folder`):
 
 ``surface.ply``, ``surface.stl`` (the solid), ``patches.npz`` (every body's
 control points), ``render.png`` (ray-cast views, unless ``render=False``) and
@@ -21,12 +22,16 @@ import numpy as np
 
 from slices.pipeline import SlicesReconstruction, reconstruct
 from surfaces.io import atomic_path, jsonable, write_json, write_mesh, write_png
+from workbench.runs.folder import result_folder
 
 #: The options :func:`reconstruct_to_folder` accepts (command-line and manifest names).
 OPTIONS = frozenset({
     "method", "rays", "caps", "hu_min", "hu_max", "spacing", "resample", "lattice", "samples", "correspondence",
     "ray_start", "union", "minus", "plus", "repair", "render", "reference",
 })
+
+#: Files written into the output folder (``render.png`` only when rendering).
+FILES = ("surface.ply", "surface.stl", "patches.npz", "render.png", "summary.json")
 
 #: Views of ``render.png``.
 RENDER_VIEWS = ("iso", "front", "top", "side")
@@ -154,7 +159,7 @@ def write_result(result: SlicesReconstruction, out_dir, *, render: bool = True) 
     return summary
 
 
-def reconstruct_to_folder(input_path, out_dir, *, roi=None, progress=None, **options) -> dict:
+def reconstruct_to_folder(input_path, out_dir, *, roi=None, progress=None, atomic: bool = True, **options) -> dict:
     """Reconstruct a contour input and write every output file.
 
     Parameters
@@ -162,11 +167,16 @@ def reconstruct_to_folder(input_path, out_dir, *, roi=None, progress=None, **opt
     input_path : str or os.PathLike
         RTSTRUCT, CT folder, mask stack or contour JSON (see :func:`slices.io.load`).
     out_dir : str or os.PathLike
-        Output folder (created).
+        Output folder: replaced whole by the new result (it must be missing, empty,
+        or hold only a previous result's files).
     roi : str or int, optional
         ROI name or number for RTSTRUCT input.
     progress : callable, optional
         Called with finished and total bodies.
+    atomic : bool
+        Build the folder beside ``out_dir`` and swap it in (default). ``False``
+        writes straight into ``out_dir``, for callers that already write into a
+        temporary folder of their own (batch jobs).
     **options
         As on the command line and in batch manifests: ``method``, ``rays``
         (rays per contour, seed 000 eq. 1), ``caps``, ``hu_min``, ``hu_max``,
@@ -188,6 +198,12 @@ def reconstruct_to_folder(input_path, out_dir, *, roi=None, progress=None, **opt
     if unknown:
         raise ValueError(f"options: unknown {sorted(unknown)}")
     render = bool(options.pop("render", True))
-    result = reconstruct(input_path, roi=roi, progress=progress, **library_options(options))
-    result.summary["ray_start"] = options.get("ray_start") or "auto"
-    return write_result(result, out_dir, render=render)
+    if not atomic:
+        result = reconstruct(input_path, roi=roi, progress=progress, **library_options(options))
+        result.summary["ray_start"] = options.get("ray_start") or "auto"
+        return write_result(result, out_dir, render=render)
+    # the folder is checked and locked before the work, so a bad --out or a second writer is refused at once
+    with result_folder(out_dir, owned=FILES) as tmp:
+        result = reconstruct(input_path, roi=roi, progress=progress, **library_options(options))
+        result.summary["ray_start"] = options.get("ray_start") or "auto"
+        return write_result(result, tmp, render=render)

@@ -29,6 +29,8 @@ def test_plan_splits_jobs_by_the_state_of_out(tmp_path):
     retry = plan(jobs, tmp_path, retry_failed=True)
     assert [[j.id for j in part] for part in (retry.to_run, retry.complete, retry.failed_before, retry.pending)] == [
         ["failed"], ["done"], [], ["new"]]
+    # the jobs that failed before are still counted as such when they are retried
+    assert [j.id for j in retry.retried] == ["failed"] and steps.retried == ()
     assert plan(jobs, tmp_path / "not yet").to_run == tuple(jobs)
 
 

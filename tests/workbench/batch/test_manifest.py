@@ -177,3 +177,16 @@ def test_csv_cells_are_coerced(tmp_path):
 def test_coerce_value(text, value):
     got = coerce_value(text)
     assert got == value and type(got) is type(value)
+
+
+@pytest.mark.parametrize(("cell", "expected"), [
+    ("triad", "triad"), ("a.png;b.png;c.png", ["a.png", "b.png", "c.png"]), ("only.png", ["only.png"])])
+def test_photometric_select_is_triad_or_names_separated_by_semicolons(tmp_path, cell, expected):
+    path = tmp_path / "jobs.csv"
+    path.write_text(f"input,select\nbear,{cell}\n")
+    (job,) = read_manifest(path, "photometric")
+    assert job.options["select"] == expected
+    path = tmp_path / "jobs.jsonl"
+    path.write_text(json.dumps({"input": "bear", "select": expected}) + "\n")
+    (job,) = read_manifest(path, "photometric")
+    assert job.options["select"] == expected
