@@ -358,7 +358,8 @@ def save_patches(patches: BezierPatches, path) -> Path:
     patches : BezierPatches
         The model.
     path : str or os.PathLike
-        Output ``.npz`` file (keys ``control`` (R, C, 4, 4, 3), ``closed_u``, ``closed_v``).
+        Output ``.npz`` file (keys ``control`` (R, C, 4, 4, 3), ``closed_u``, ``closed_v``;
+        patches of mixed sizes, :class:`surfaces.mixed.MixedPatches`, also ``cells`` (R, 3)).
 
     Returns
     -------
@@ -367,8 +368,9 @@ def save_patches(patches: BezierPatches, path) -> Path:
     path = Path(path)
     with atomic_path(path, suffix=".npz") as tmp:
         with open(tmp, "wb") as fh:
+            extra = {} if getattr(patches, "cells", None) is None else {"cells": patches.cells}
             np.savez_compressed(
-                fh, control=patches.control, closed_u=patches.closed_u, closed_v=patches.closed_v
+                fh, control=patches.control, closed_u=patches.closed_u, closed_v=patches.closed_v, **extra
             )
     return path
 
@@ -384,6 +386,7 @@ def load_patches(path) -> BezierPatches:
     Returns
     -------
     BezierPatches
+        A :class:`surfaces.mixed.MixedPatches` when the file has ``cells``.
     """
     path = Path(path)
     if not path.is_file():
@@ -391,4 +394,8 @@ def load_patches(path) -> BezierPatches:
     with np.load(path) as data:
         if "control" not in data:
             raise ValueError(f"{path}: no 'control' array (not a patch file)")
+        if "cells" in data:
+            from surfaces.mixed import MixedPatches
+
+            return MixedPatches(data["control"], cells=data["cells"])
         return BezierPatches(data["control"], bool(data["closed_u"]), bool(data["closed_v"]))
