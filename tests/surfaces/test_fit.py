@@ -313,3 +313,42 @@ def test_patch_sizes_and_lattice():
     # the leaves tile the 64 x 64 pixel squares exactly once
     assert (fit.patches.patch_map() >= 0).all() and fit.patches.lattice_shape == (64, 64)
     assert sum(k * k * n for k, n in sizes.items()) == 64 * 64
+
+
+def test_level_zero_is_scipys_least_squares_spline(monkeypatch):
+    """Without refinement and smoothing, the fit is the tensor-product least-squares cubic spline
+    of heights and slopes on the uniform knots ``-0.5 + i step``: the same problem posed with
+    scipy's B-spline basis and solved by a dense least-squares solver gives the same surface."""
+    from scipy.interpolate import BSpline
+
+    import surfaces.fit as fit_module
+
+    monkeypatch.setattr(fit_module, "SMOOTHING", 0.0)
+    rng = np.random.default_rng(3)
+    H, W, k, h, lam = 24, 32, 8, 0.2, 0.7
+    x, y = pixel_grid((H, W), h)
+    z = np.sin(1.3 * x) * np.cos(0.7 * y) + 0.1 * rng.standard_normal((H, W))
+    p = 1.3 * np.cos(1.3 * x) * np.cos(0.7 * y) + 0.2 * rng.standard_normal((H, W))
+    q = -0.7 * np.sin(1.3 * x) * np.sin(0.7 * y) + 0.2 * rng.standard_normal((H, W))
+    fit = fit_height(z, p, q, pixel_size=h, step=k, tolerance=1e3, slope_weight=lam, jump=1e3)
+    assert len(fit.levels) == 1
+
+    def basis(n_px):
+        cells = -(-n_px // k)
+        knots = -0.5 + k * np.arange(-3, cells + 4)
+        spline = BSpline(knots, np.eye(cells + 3), 3)
+        s = np.arange(n_px, dtype=float)
+        return spline(s), spline.derivative()(s)  # values and d/d(pixel)
+
+    Bs, Ds = basis(H)
+    Bt, Dt = basis(W)
+    # rows: heights, slopes along rows (z_s = -q h) and columns (z_t = p h), slope rows weighted by sqrt(lam)
+    design = np.concatenate([np.kron(Bs, Bt), np.sqrt(lam) * np.kron(Ds, Bt), np.sqrt(lam) * np.kron(Bs, Dt)])
+    target = np.concatenate([z.ravel(), np.sqrt(lam) * (-q * h).ravel(), np.sqrt(lam) * (p * h).ravel()])
+    coef = np.linalg.lstsq(design, target, rcond=None)[0]
+    peer = (np.kron(Bs, Bt) @ coef).reshape(H, W)
+    np.testing.assert_allclose(fit.surface[..., 2], peer, atol=1e-10)
+    # and the patches carry it: the Bezier conversion is exact
+    point, ds, dt = _patch_values(fit, *np.nonzero(np.ones((H, W), bool)))
+    np.testing.assert_allclose(point[:, 2], peer.ravel(), atol=1e-10)
+    np.testing.assert_allclose(dt[:, 2], (np.kron(Bs, Dt) @ coef), atol=1e-10)
