@@ -72,9 +72,11 @@ class PhotometricReconstruction:
     summary : dict
         Input, sizes, options, light condition number, invalid fraction, timings (s) of
         the stages ``read``, ``solve``, ``integrate``, ``surface``, ``defects``, mesh
-        size, the surface method with ``surface_tolerance_mm`` (fit), ``surface_max_dev_mm``
-        and ``surface_rms_dev_mm`` (largest and RMS ``|surface - height|`` over the valid
-        pixels) and ``n_patches``, number of defects and, with ground truth, ``mean_angular_error_deg``,
+        size, the surface method with ``surface_tolerance_mm`` and ``surface_patch_sizes_px``
+        (fit), ``surface_max_dev_mm`` and ``surface_rms_dev_mm`` (largest and RMS
+        ``|surface - height|`` over the fitted (fit) or valid (coons) pixels), ``n_patches``
+        and ``patches`` (the patch grid's shape; ``[n_patches, 1]`` for the fit's flat list of
+        patches), number of defects and, with ground truth, ``mean_angular_error_deg``,
         ``median_angular_error_deg`` (over the mask) and ``height_rmse_mm`` (over valid
         pixels, means removed). JSON-ready.
     """

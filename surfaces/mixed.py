@@ -12,7 +12,8 @@ patch list in the shared :class:`surfaces.bezier.BezierPatches` form, control sh
 Its parameter ``u`` runs down the lattice rows and ``v`` along the columns, so two
 patches whose squares touch share that piece of edge. Everything written for patch
 grids keeps working on the flat list: area and volume (:mod:`surfaces.measure`, a
-sum over patches), evaluation, normals and the control net. What needs the
+sum over patches), evaluation, normals and the control net; global parameters
+(:meth:`MixedPatches.locate`, ``evaluate_global``) are lattice coordinates. What needs the
 adjacency, tessellation, reads the lattice (:func:`surfaces.mesh.tessellate`
 samples every patch on one global vertex lattice, so the vertices on a T-junction
 are shared and the mesh has no cracks), and :func:`surfaces.io.save_patches`
@@ -143,6 +144,31 @@ class MixedPatches(BezierPatches):
         outside = (r < 0) | (c < 0) | (r > pmap.shape[0]) | (c > pmap.shape[1])
         patch = np.where(outside, -1, patch)
         return patch, u, v
+
+    def locate(self, s, t) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Global parameters are lattice coordinates: :meth:`locate_lattice` in the grid form.
+
+        Parameters
+        ----------
+        s, t : array_like, shape (N,)
+            Lattice row and column, ``0 .. lattice_shape``.
+
+        Returns
+        -------
+        pi, pj : numpy.ndarray of int, shape (N,)
+            Patch index and 0 (the one patch column).
+        u, v : numpy.ndarray of float, shape (N,)
+
+        Raises
+        ------
+        ValueError
+            Where no patch covers a point.
+        """
+        patch, u, v = self.locate_lattice(s, t)
+        if (patch < 0).any():
+            i = int(np.flatnonzero(patch < 0)[0])
+            raise ValueError(f"s, t: no patch covers lattice point ({np.ravel(s)[i]}, {np.ravel(t)[i]})")
+        return patch, np.zeros_like(patch), u, v
 
     def transformed(self, matrix=None, offset=None) -> MixedPatches:
         """An affinely transformed copy on the same lattice (see :meth:`BezierPatches.transformed`)."""

@@ -72,3 +72,13 @@ def test_bad_cells_are_a_clear_error():
         MixedPatches(control, closed_u=True, cells=[[0, 0, 1], [0, 1, 1]])
     with pytest.raises(ValueError, match="control"):
         MixedPatches(np.zeros((1, 2, 4, 4, 3)), cells=[[0, 0, 1]])
+
+
+def test_global_parameters_are_lattice_coordinates(crack_fit):
+    """evaluate_global on the flat patch list reads the lattice, as the grid form reads its patch grid."""
+    patches = crack_fit.patches
+    # lattice (row + 0.5, col + 0.5) is the centre of pixel (row, col)
+    centres = patches.evaluate_global(np.arange(64) + 0.5, np.arange(64) + 0.5)
+    np.testing.assert_allclose(centres, crack_fit.surface[np.arange(64), np.arange(64)], atol=1e-12)
+    with pytest.raises(ValueError, match="no patch covers"):
+        patches.evaluate_global([70.0], [3.0])
