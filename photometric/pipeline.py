@@ -29,10 +29,13 @@ from surfaces.bezier import BezierPatches
 from surfaces.mesh import TriangleMesh
 from surfaces.validate import as_array, positive
 
-__all__ = ["TARGET_PATCHES", "PhotometricReconstruction", "reconstruct"]
+__all__ = ["SURFACES", "TARGET_PATCHES", "PhotometricReconstruction", "reconstruct"]
 
 #: Patches per image side aimed at when ``step`` is not given.
 TARGET_PATCHES = 64
+#: Surface methods: the least-squares fit (:func:`surfaces.fit.fit_height`) and the Coons
+#: interpolation of a decimated grid (:func:`photometric.integrate.height_to_patches`).
+SURFACES = ("fit", "coons")
 
 
 @dataclass(frozen=True)
@@ -54,10 +57,14 @@ class PhotometricReconstruction:
     height : numpy.ndarray, shape (H, W), float64
         Height in mm (NaN outside the valid pixels).
     patches : surfaces.bezier.BezierPatches
-        The bicubic surface through the height (:func:`photometric.integrate.height_to_patches`).
+        The bicubic surface: patches of mixed sizes fitted to the height and slopes
+        (:class:`surfaces.mixed.MixedPatches` from :func:`surfaces.fit.fit_height`,
+        ``surface="fit"``) or the Coons grid through the height
+        (:func:`photometric.integrate.height_to_patches`, ``surface="coons"``).
     mesh : surfaces.mesh.TriangleMesh
-        The tessellated surface, trimmed to the mask; coordinates in mm on the centred
-        pixel grid of :data:`surfaces.grid.GRID_CONVENTION`.
+        The tessellated surface, trimmed to the fitted pixels along their sub-pixel outline
+        (fit) or to the mask by triangle centroids (coons); coordinates in mm on the
+        centred pixel grid of :data:`surfaces.grid.GRID_CONVENTION`.
     defects : list of dict
         Defect measures (:func:`photometric.defects.measure_defects`).
     background : str
@@ -65,7 +72,11 @@ class PhotometricReconstruction:
     summary : dict
         Input, sizes, options, light condition number, invalid fraction, timings (s) of
         the stages ``read``, ``solve``, ``integrate``, ``surface``, ``defects``, mesh
-        size, number of defects and, with ground truth, ``mean_angular_error_deg``,
+        size, the surface method with ``surface_tolerance_mm`` and ``surface_patch_sizes_px``
+        (fit), ``surface_max_dev_mm`` and ``surface_rms_dev_mm`` (largest and RMS
+        ``|surface - height|`` over the fitted (fit) or valid (coons) pixels), ``n_patches``
+        and ``patches`` (the patch grid's shape; ``[n_patches, 1]`` for the fit's flat list of
+        patches), number of defects and, with ground truth, ``mean_angular_error_deg``,
         ``median_angular_error_deg`` (over the mask) and ``height_rmse_mm`` (over valid
         pixels, means removed). JSON-ready.
     """
@@ -171,6 +182,48 @@ def _trimmed_mesh(patches, region: np.ndarray, pixel_size: float, samples: int):
     return TriangleMesh(mesh.vertices[used], remap[tri], normals)
 
 
+def _surface_step(method, height, p, q, valid, mask, h, step, samples, tolerance):
+    """The surface model, its mesh and their summary entries (the ``surface`` stage)."""
+    shape = height.shape
+    if method == "coons":
+        from photometric.integrate import height_to_patches
+
+        step_px = int(step) if step is not None else max(2, int(np.ceil(max(shape) / TARGET_PATCHES)))
+        patches = height_to_patches(height, p, q, pixel_size=h, step=step_px)
+        n_samples = int(samples) if samples is not None else min(step_px, 8)
+        mesh = _trimmed_mesh(patches, mask, h, n_samples)
+        dev = _coons_deviation(patches, height, valid)
+        info = {"surface": "coons"}
+    else:
+        from surfaces.fit import default_step, fit_height, fit_mesh
+
+        fit = fit_height(height, p, q, mask=valid, pixel_size=h, tolerance=tolerance,
+                         step=step if step is not None else default_step(shape))
+        step_px = fit.step
+        n_samples = int(samples) if samples is not None else min(step_px, 8)
+        mesh = fit_mesh(fit, spacing=step_px / n_samples)
+        patches = fit.patches
+        dev = np.abs(fit.deviation[fit.region])
+        info = {"surface": "fit", "surface_tolerance_mm": fit.tolerance,
+                "surface_patch_sizes_px": {str(k): v for k, v in fit.patch_sizes().items()}}
+    info.update(surface_max_dev_mm=float(dev.max()), surface_rms_dev_mm=float(np.sqrt(np.mean(dev**2))),
+                n_patches=int(patches.n_patches))
+    return patches, mesh, step_px, n_samples, info
+
+
+def _coons_deviation(patches, height: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    """``|surface - height|`` at the valid pixel centres of :func:`height_to_patches`' grid.
+
+    Its grid spans the image with equal steps, so pixel ``(r, c)`` is at the global patch
+    parameters ``(r R / (H - 1), c C / (W - 1))``.
+    """
+    rows, cols = np.nonzero(valid)
+    H, W = height.shape
+    R, C = patches.shape
+    pts = patches.evaluate_global(rows * (R / (H - 1)), cols * (C / (W - 1)))
+    return np.abs(pts[:, 2] - height[rows, cols])
+
+
 def reconstruct(
     source,
     *,
@@ -186,6 +239,8 @@ def reconstruct(
     highlight: float | None = None,
     step: int | None = None,
     samples: int | None = None,
+    surface: str = "fit",
+    surface_tolerance: float | None = None,
     background: str = "plane",
     progress: Callable[[str], None] | None = None,
 ) -> PhotometricReconstruction:
@@ -213,10 +268,20 @@ def reconstruct(
     outliers, dark, saturation, highlight :
         Shadow/highlight handling, see :func:`photometric.stereo.solve`.
     step : int, optional
-        Pixels per patch of the surface model; default ``ceil(max(H, W) / 64)``, at least 2.
+        Pixels per patch of the surface model: the largest patch side of the fit (rounded
+        down to a power of two; default :func:`surfaces.fit.default_step`, about 64 patches
+        across) or the Coons decimation step (default ``ceil(max(H, W) / 64)``, at least 2).
     samples : int, optional
-        Mesh subdivisions per patch side; default ``min(step, 8)`` (about one vertex per
-        pixel).
+        Mesh subdivisions per (largest) patch side; default ``min(step, 8)`` (about one
+        vertex per pixel). The fit's mesh lies on a lattice of ``step / samples`` pixels.
+    surface : {"fit", "coons"}
+        ``"fit"``: bicubic patches fitted by least squares to the height and the slopes of
+        every pixel, refined where they miss ``surface_tolerance`` (:func:`surfaces.fit.fit_height`);
+        ``"coons"``: Coons patches through the decimated height with tangents from single
+        pixels' slopes (:func:`photometric.integrate.height_to_patches`).
+    surface_tolerance : float, optional
+        Largest deviation of the fitted surface from the height, mm (> 0); default 0.5 % of
+        the height range (:data:`surfaces.fit.RELATIVE_TOLERANCE`). Fit only.
     background : {"plane", "smooth"}
         Background removed before measuring defects.
     progress : callable, optional
@@ -229,7 +294,7 @@ def reconstruct(
         Arrays, surface, mesh, defects and the summary.
     """
     from photometric.defects import measure_defects
-    from photometric.integrate import METHODS, height_to_patches, integrate
+    from photometric.integrate import METHODS, integrate
     from photometric.normals import angular_error_deg
 
     if integrator not in METHODS:
@@ -238,6 +303,12 @@ def reconstruct(
         positive(pixel_size, "pixel_size")
     if samples is not None and int(samples) < 1:
         raise ValueError(f"samples: must be at least 1, got {samples}")
+    if step is not None and int(step) < 1:
+        raise ValueError(f"step: must be at least 1 pixel, got {step}")
+    if surface not in SURFACES:
+        raise ValueError(f"surface: expected one of {SURFACES}, got {surface!r}")
+    if surface_tolerance is not None:
+        positive(surface_tolerance, "surface_tolerance")
     _check_options(dark, saturation, highlight, 2)
     say = progress or (lambda _stage: None)
     timings: dict[str, float] = {}
@@ -272,10 +343,8 @@ def reconstruct(
 
     say("surface")
     t0 = time.perf_counter()
-    step_px = int(step) if step is not None else max(2, int(np.ceil(max(rows, cols) / TARGET_PATCHES)))
-    patches = height_to_patches(height, res.p, res.q, pixel_size=h, step=step_px)
-    n_samples = int(samples) if samples is not None else min(step_px, 8)
-    mesh = _trimmed_mesh(patches, data.mask, h, n_samples)
+    patches, mesh, step_px, n_samples, surface_info = _surface_step(
+        surface, height, res.p, res.q, res.valid, data.mask, h, step, samples, surface_tolerance)
     timings["surface"] = time.perf_counter() - t0
 
     say("defects")
@@ -304,6 +373,7 @@ def reconstruct(
         "patch_step_px": step_px,
         "mesh_samples_per_patch": n_samples,
         "mesh": {"vertices": int(mesh.n_vertices), "triangles": int(mesh.n_triangles)},
+        **surface_info,
         "n_defects": len(defects),
         "timings_s": {k: round(v, 4) for k, v in timings.items()},
     }

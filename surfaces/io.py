@@ -419,7 +419,8 @@ def save_patches(patches: BezierPatches, path) -> Path:
     patches : BezierPatches
         The model.
     path : str or os.PathLike
-        Output ``.npz`` file (keys ``control`` (R, C, 4, 4, 3), ``closed_u``, ``closed_v``).
+        Output ``.npz`` file (keys ``control`` (R, C, 4, 4, 3), ``closed_u``, ``closed_v``;
+        patches of mixed sizes, :class:`surfaces.mixed.MixedPatches`, also ``cells`` (R, 3)).
 
     Returns
     -------
@@ -428,8 +429,9 @@ def save_patches(patches: BezierPatches, path) -> Path:
     path = Path(path)
     with atomic_path(path, suffix=".npz") as tmp:
         with open(tmp, "wb") as fh:
+            extra = {} if getattr(patches, "cells", None) is None else {"cells": patches.cells}
             np.savez_compressed(
-                fh, control=patches.control, closed_u=patches.closed_u, closed_v=patches.closed_v
+                fh, control=patches.control, closed_u=patches.closed_u, closed_v=patches.closed_v, **extra
             )
     return path
 
@@ -445,6 +447,7 @@ def load_patches(path) -> BezierPatches:
     Returns
     -------
     BezierPatches
+        A :class:`surfaces.mixed.MixedPatches` when the file has ``cells``.
     """
     path = Path(path)
     if not path.is_file():
@@ -461,8 +464,13 @@ def load_patches(path) -> BezierPatches:
         try:
             flags = [data[name] if name in data else np.array(False) for name in ("closed_u", "closed_v")]
             control = data["control"]
+            cells = data["cells"] if "cells" in data else None
         except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
             raise ValueError(f"{path}: not a readable patch file ({exc})") from None
+    if cells is not None:
+        from surfaces.mixed import MixedPatches
+
+        return MixedPatches(control, cells=cells)
     if any(flag.size != 1 for flag in flags):
         raise ValueError(f"{path}: closed_u and closed_v must be single flags")
     return BezierPatches(control, bool(flags[0]), bool(flags[1]))

@@ -435,6 +435,15 @@ def tessellate(patches: BezierPatches, samples: int = PATCH_SAMPLES, weld_seams:
         Vertices on the surface, vertex normals from the patches, triangles
         counter-clockwise about ``S_u x S_v``.
 
+    Notes
+    -----
+    Patches of mixed sizes (:class:`surfaces.mixed.MixedPatches`) get ``samples``
+    subdivisions per side each, on their lattice squares; vertices at the same lattice
+    point are one vertex, and a triangle whose edge lies along the side of a larger patch
+    that smaller neighbours subdivide more finely is split (a fan around its parameter
+    centroid through those vertices), so the mesh is conforming and has no cracks at
+    T-junctions.
+
     Examples
     --------
     One flat patch, 4 subdivisions per side: a 5 x 5 vertex grid, 32 triangles.
@@ -452,6 +461,10 @@ def tessellate(patches: BezierPatches, samples: int = PATCH_SAMPLES, weld_seams:
     n = int(samples)
     if n < 1:
         raise ValueError(f"samples: need at least 1 subdivision per patch side, got {samples}")
+    from surfaces.mixed import MixedPatches
+
+    if isinstance(patches, MixedPatches):
+        return _tessellate_mixed(patches, n)
     rows, cols = patches.shape
     pi, a = _grid_index(rows, n, patches.closed_u)
     pj, b = _grid_index(cols, n, patches.closed_v)
@@ -481,6 +494,82 @@ def tessellate(patches: BezierPatches, samples: int = PATCH_SAMPLES, weld_seams:
             edge[:, [0, -1]] = True
         mesh = weld(mesh, candidates=np.flatnonzero(edge.ravel() | collapsed))
     return mesh
+
+
+def _tessellate_mixed(patches, n: int) -> TriangleMesh:
+    """:func:`tessellate` for patches of mixed sizes on a lattice (see its Notes)."""
+    count = patches.n_patches
+    cells = patches.cells
+    pts, dus, dvs = (a[:, 0] for a in patches.evaluate_grid(n + 1, n + 1, order=1))  # (P, n+1, n+1, 3)
+    # integer lattice keys of every sample: lattice coordinates times n
+    i = np.arange(n + 1)
+    R = cells[:, 0, None, None] * n + cells[:, 2, None, None] * i[None, :, None]
+    C = cells[:, 1, None, None] * n + cells[:, 2, None, None] * i[None, None, :]
+    R, C = np.broadcast_arrays(R, C)
+    stride = int(C.max()) + 2
+    keys, first, local_id = np.unique((R * stride + C).ravel(), return_index=True, return_inverse=True)
+    verts = pts.reshape(-1, 3)[first]
+    normals = unit(cross(dus.reshape(-1, 3)[first], dvs.reshape(-1, 3)[first]))
+    local = _grid_triangles(n + 1, n + 1, False, False)  # per patch, indices into its (n+1)^2 samples
+    tri = (local[None] + (np.arange(count) * (n + 1) ** 2)[:, None, None]).reshape(-1, 3)
+    tri = local_id.reshape(-1)[tri]
+    # vertices of finer neighbours lying inside an axis-parallel triangle edge (T-junctions)
+    rk, ck = keys // stride, keys % stride
+    by_row = keys  # sorted by (R, C)
+    col_keys = ck * (int(rk.max()) + 2) + rk
+    col_order = np.argsort(col_keys)
+    by_col = col_keys[col_order]
+    inserts = []
+    for e in range(3):
+        a, b = tri[:, e], tri[:, (e + 1) % 3]
+        same_r = rk[a] == rk[b]
+        same_c = ck[a] == ck[b]
+        lo_h = np.searchsorted(by_row, rk[a] * stride + np.minimum(ck[a], ck[b]) + 1)
+        hi_h = np.searchsorted(by_row, rk[a] * stride + np.maximum(ck[a], ck[b]))
+        cstride = int(rk.max()) + 2
+        lo_v = np.searchsorted(by_col, ck[a] * cstride + np.minimum(rk[a], rk[b]) + 1)
+        hi_v = np.searchsorted(by_col, ck[a] * cstride + np.maximum(rk[a], rk[b]))
+        lo = np.where(same_r, lo_h, np.where(same_c, lo_v, 0))
+        hi = np.where(same_r, hi_h, np.where(same_c, hi_v, 0))
+        forward = np.where(same_r, ck[b] > ck[a], rk[b] > rk[a])
+        inserts.append((np.maximum(hi - lo, 0), lo, forward, same_r))
+    fix = np.flatnonzero(sum(cnt for cnt, _, _, _ in inserts) > 0)
+    if fix.size == 0:
+        return TriangleMesh(verts, tri, normals)
+    # polygon of each fixed triangle: a, inserts(ab), b, inserts(bc), c, inserts(ca)
+    seq_len = 3 + sum(cnt[fix] for cnt, _, _, _ in inserts)
+    start = np.concatenate([[0], np.cumsum(seq_len)[:-1]])
+    seq = np.empty(int(seq_len.sum()), np.int64)
+    pos = start.copy()
+    for e in range(3):
+        cnt, lo, fwd, horiz = (x[fix] for x in inserts[e])
+        seq[pos] = tri[fix, e]
+        pos += 1
+        owner = np.repeat(np.arange(fix.size), cnt)
+        k = np.arange(int(cnt.sum())) - np.repeat(np.cumsum(cnt) - cnt, cnt)
+        rank = np.where(fwd[owner], k, cnt[owner] - 1 - k)
+        idx = lo[owner] + rank
+        vid = np.where(horiz[owner], idx, col_order[np.minimum(idx, col_order.size - 1)])
+        seq[pos[owner] + k] = vid
+        pos += cnt
+    # a new vertex at the parameter centroid of each fixed triangle (inside its patch)
+    patch = np.arange(count).repeat(local.shape[0])[fix]
+    corners = tri[fix]
+    uu = (rk[corners].mean(axis=1) - cells[patch, 0] * n) / (cells[patch, 2] * n)
+    vv = (ck[corners].mean(axis=1) - cells[patch, 1] * n) / (cells[patch, 2] * n)
+    d = patches.derivatives(patch, 0, uu, vv)
+    centre = len(verts) + np.arange(fix.size)
+    owner = np.repeat(np.arange(fix.size), seq_len)
+    nxt = np.arange(seq.size) + 1
+    nxt[np.cumsum(seq_len) - 1] = start
+    fan = np.stack([seq, seq[nxt], centre[owner]], axis=1)
+    keep = np.ones(len(tri), bool)
+    keep[fix] = False
+    return TriangleMesh(
+        np.concatenate([verts, d.point]),
+        np.concatenate([tri[keep], fan]),
+        np.concatenate([normals, unit(cross(d.du, d.dv))]),
+    )
 
 
 def merge_meshes(meshes, weld_vertices: bool = False) -> TriangleMesh:

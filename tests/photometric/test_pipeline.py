@@ -45,7 +45,8 @@ def test_reconstruct_images_and_lights_arrays(tmp_path):
     make_triad_folder(data_dir, scene="sphere", size=64, noise=0.0, shadows="none", deviate=None,
                       albedo=0.7, bit_depth=None, seed=0)
     data = read_folder(data_dir)
-    res = reconstruct(data.images, lights=data.lights, pixel_size=0.5, integrator="lsq", step=8, samples=2)
+    res = reconstruct(data.images, lights=data.lights, pixel_size=0.5, integrator="lsq", step=8, samples=2,
+                      surface="coons")
     summary = res.summary
     assert summary["size"] == {"height": 64, "width": 64, "images": 3, "channels": 1}
     assert summary["patches"] == [8, 8] and summary["pixel_size_source"] == "option"
@@ -58,7 +59,7 @@ def test_mesh_lies_on_the_centred_pixel_grid(tmp_path):
     """A mesh vertex over a pixel centre has that pixel's x, y (surfaces.grid) and height."""
     make_triad_folder(tmp_path, scene="sphere", size=65, noise=0.0, shadows="none", deviate=None,
                       albedo=1.0, bit_depth=None, pixel_size=0.1)
-    res = reconstruct(tmp_path, step=8, samples=4)
+    res = reconstruct(tmp_path, step=8, samples=4, surface="coons")
     x, y = pixel_grid((65, 65), 0.1)
     v = res.mesh.vertices
     for row, col in ((0, 0), (8, 16), (32, 32), (64, 40)):

@@ -59,7 +59,7 @@ def test_surface_ply_is_on_the_centred_pixel_grid(tmp_path):
     """A vertex of surface.ply over a pixel centre (a patch corner) has that pixel's x and y."""
     make_triad_folder(tmp_path / "in", scene="sphere", size=65, noise=0.0, shadows="none", deviate=None,
                       albedo=1.0, bit_depth=None, pixel_size=0.1)
-    reconstruct_to_folder(tmp_path / "in", tmp_path / "out", step=8, samples=8)
+    reconstruct_to_folder(tmp_path / "in", tmp_path / "out", step=8, samples=8, surface="coons")
     v = read_mesh(tmp_path / "out" / "surface.ply").vertices
     height = np.load(tmp_path / "out" / "height.npy")
     x, y = pixel_grid((65, 65), 0.1)

@@ -55,10 +55,18 @@ def register(sub) -> None:
     p.add_argument("--highlight", type=float, default=None,
                    help="outlier mode: also drop observations brighter than the Lambertian "
                    "prediction by more than HIGHLIGHT x albedo (default off)")
+    p.add_argument("--surface", default="fit", choices=("fit", "coons"),
+                   help="surface model: fit (bicubic patches fitted by least squares to the height and "
+                   "the slopes of every pixel, smaller where they miss --surface-tolerance; default) or "
+                   "coons (Coons patches through every STEP-th height, tangents from single pixels)")
+    p.add_argument("--surface-tolerance", type=float, default=None, metavar="MM",
+                   help="fit: largest deviation of the surface from the integrated height, mm "
+                   "(default 0.5 %% of the height range)")
     p.add_argument("--step", type=int, default=None,
-                   help="pixels per surface patch (default: about 64 patches across)")
+                   help="pixels per surface patch: the largest fitted patch (a power of two) or the "
+                   "coons grid step (default: about 64 patches across)")
     p.add_argument("--samples", type=int, default=None,
-                   help="mesh subdivisions per patch side (default min(step, 8))")
+                   help="mesh subdivisions per (largest) patch side (default min(step, 8))")
     p.add_argument("--background", default="plane", choices=("plane", "smooth"),
                    help="background removed before measuring defects (default plane)")
     p.set_defaults(func=_reconstruct)
@@ -98,6 +106,8 @@ def _reconstruct(args: argparse.Namespace) -> int:
             highlight=args.highlight,
             step=args.step,
             samples=args.samples,
+            surface=args.surface,
+            surface_tolerance=args.surface_tolerance,
             background=args.background,
             progress=progress,
         )
@@ -116,7 +126,8 @@ def _reconstruct(args: argparse.Namespace) -> int:
         print(f"height RMSE vs height_gt: {summary['height_rmse_mm']:.4g} {unit}")
     print(
         f"height range {summary['height_range_mm']:.4g} {unit} ({summary['integrator']}), "
-        f"{summary['patches'][0]} x {summary['patches'][1]} patches, "
+        f"{summary['n_patches']} patches ({summary['surface']}, surface within "
+        f"{summary['surface_max_dev_mm']:.3g} {unit} of the height), "
         f"{summary['mesh']['triangles']} triangles, {summary['n_defects']} defect(s)"
     )
     print(f"total {summary['timings_s']['total']:.2f} s; wrote {args.out} (summary.json holds every number above)")

@@ -5,13 +5,15 @@ from __future__ import annotations
 import json
 
 import numpy as np
+from scipy import ndimage
 
 from datasets_synthetic.render import make_triad_folder
-from photometric.integrate import height_to_patches
 from photometric.io import read_folder
 from photometric.normals import angular_error_deg
-from surfaces.bezier import BezierPatches
+from surfaces.fit import fit_height, fit_mesh
+from surfaces.grid import xy_to_pixel
 from surfaces.io import read_mesh
+from surfaces.mixed import MixedPatches
 from surfaces.render import render
 from workbench import images as im
 from workbench.demo.context import Context
@@ -178,24 +180,48 @@ def section_inspection(ctx: Context) -> None:
     mesh.vertices[:, 2] *= EXAGGERATION
     pic = render(mesh, ["iso"], vsize, scalars=z_true, colorbar_label="height mm",
                  cmap="cividis", antialias=1 if ctx.quick else 2, light=PICTURE_LIGHT)
-    step = int(summary["patch_step_px"])
+    sizes = summary.get("surface_patch_sizes_px", {})
     rep.figure(pic, "inspection-bezier",
-               f"The bicubic Coons/Bezier surface through the measured height "
-               f"({summary['patches'][0]} x {summary['patches'][1]} patches, one grid point "
-               f"every {step} pixels, tangents from the measured slopes; surface.ply of the "
-               "pipeline, tessellated), ray-cast with height exaggerated 10x.", recon_cmd)
-    patches = height_to_patches(height, p, q, pixel_size=pixel, step=step)
-    nums["bezier_patches"] = int(patches.n_patches)
-    shown = BezierPatches(patches.control * np.array([1.0, 1.0, EXAGGERATION]))
-    rows, cols = patches.shape
-    r0, c0 = int(rows * 0.18), int(cols * 0.2)
-    span = max(3, rows // 5)
-    crop = BezierPatches(shown.control[r0:r0 + span, c0:c0 + span])
-    pic = render(crop, ["iso"], (640, 480), net=True, samples=8, antialias=2, light=PICTURE_LIGHT)
+               f"The bicubic Bezier surface fitted by least squares to the measured height and "
+               f"slopes ({summary['n_patches']} patches of "
+               f"{', '.join(f'{n} x {k} px' for k, n in sizes.items())}: smaller where a larger "
+               f"patch missed the tolerance of {summary['surface_tolerance_mm'] * 1000:.1f} um, "
+               f"largest deviation {summary['surface_max_dev_mm'] * 1000:.1f} um; surface.ply of "
+               "the pipeline), ray-cast with height exaggerated 10x.", recon_cmd)
+    fit = fit_height(height, p, q, mask=valid, pixel_size=pixel, tolerance=summary["surface_tolerance_mm"])
+    nums["bezier_patches"] = int(fit.patches.n_patches)
+    nums["surface_max_dev_um"] = 1000 * fit.max_deviation
+    # |surface - height| at every vertex of the fitted mesh: the height bilinearly
+    # interpolated at the vertex's pixel position
+    fmesh = fit_mesh(fit, spacing=max(1.0, fit.step / 8))
+    vr, vc = xy_to_pixel(fmesh.vertices[:, 0], fmesh.vertices[:, 1], height.shape, pixel)
+    filled = np.where(valid, height, np.nanmean(height[valid]))
+    dev_um = 1000 * np.abs(fmesh.vertices[:, 2] - ndimage.map_coordinates(filled, [vr, vc], order=1,
+                                                                          mode="nearest"))
+    fmesh.vertices[:, 2] *= EXAGGERATION
+    pic = render(fmesh, ["iso", "top"], vsize, scalars=dev_um, colorbar_label="|dz| um",
+                 cmap="magma", vmin=0.0, antialias=1 if ctx.quick else 2, light=PICTURE_LIGHT)
+    rep.figure(pic, "inspection-deviation",
+               f"Deviation |dz| of the fitted surface from the integrated height at the mesh vertices "
+               f"(largest {nums['surface_max_dev_um']:.1f} um at the pixel centres, tolerance "
+               f"{fit.tolerance * 1000:.1f} um); height exaggerated 10x. The largest deviations "
+               "sit on the crack's floor and rim, kinks that no smooth patch follows exactly.",
+               recon_cmd)
+    shown = MixedPatches(fit.patches.control * np.array([1.0, 1.0, 3.0]), cells=fit.patches.cells)
+    # a square window of the lattice around the crack (upper left of the plate)
+    rows, cols = height.shape
+    r0, c0, span = int(rows * 0.18), int(cols * 0.2), max(12, rows // 5)
+    cells = shown.cells
+    inside = ((cells[:, 0] >= r0) & (cells[:, 0] + cells[:, 2] <= r0 + span)
+              & (cells[:, 1] >= c0) & (cells[:, 1] + cells[:, 2] <= c0 + span))
+    crop = MixedPatches(shown.control[inside], cells=cells[inside] - [r0, c0, 0])
+    pic = render(crop, ["top", "iso"], (1100, 480), net=True, samples=4, antialias=2, light=PICTURE_LIGHT)
     rep.figure(pic, "inspection-bezier-net",
-               f"Detail around the crack: {span} x {span} of the patches with their Bezier "
-               "control net (seed 001's 'carcass') drawn over the ray-cast surface (height "
-               "exaggerated 10x).", recon_cmd)
+               f"Detail around the crack: the {int(inside.sum())} fitted patches of a {span} x {span} "
+               "pixel window with their Bezier control nets (seed 001's 'carcass') drawn over the "
+               "ray-cast surface (height exaggerated 3x): large patches on the flat plate, smaller "
+               "ones towards the crack, one-pixel patches (the dark band of dense nets) on it.",
+               recon_cmd)
     ctx.step("inspection: Bezier surface")
 
     found = json.loads((recon / "defects.json").read_text())["defects"]

@@ -104,7 +104,8 @@ def section_real(ctx: Context) -> None:
                  light=(-0.3, 0.4, 0.87))
     rep.figure(pic, "bear-surface",
                "The pipeline's surface from the 14-image normals (height integrated, Bezier "
-               "patches, tessellated inside the mask; pixel units), ray-cast.", cmd_all)
+               "patches fitted by least squares to the height and slopes, trimmed along the "
+               "mask's outline; pixel units), ray-cast.", cmd_all)
     ctx.step("bear: figures")
     rep.table(["light set", "images", "our mean error (deg)", "our median (deg)",
                "baseline mean (deg)", "difference (deg)"], [

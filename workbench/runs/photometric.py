@@ -108,7 +108,7 @@ def reconstruct_to_folder(
         Keyword options of :func:`photometric.pipeline.reconstruct` (``lights``,
         ``intensities``, ``mask``, ``select``, ``integrator``, ``pixel_size``,
         ``outliers``, ``dark``, ``saturation``, ``highlight``, ``step``, ``samples``,
-        ``background``).
+        ``surface``, ``surface_tolerance``, ``background``).
 
     Returns
     -------

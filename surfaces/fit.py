@@ -1,0 +1,937 @@
+"""A height field and its measured slopes fitted by hierarchical cubic B-splines, as Bezier patches.
+
+:func:`fit_height` chooses the control points of bicubic patches by least squares
+against the height **and** the slopes ``p = dz/dx``, ``q = dz/dy`` of every pixel they
+cover, instead of interpolating a decimated grid (the Hermite construction of
+:func:`photometric.integrate.height_to_patches`, whose tangents come from single pixels
+and overshoot where the slope changes within a patch). :func:`fit_mesh` tessellates the
+result on the pixel lattice and trims it along the sub-pixel outline of the fitted
+region.
+
+The model
+---------
+The surface is a sum of tensor-product cubic B-splines over the pixel parameter domain
+``(s, t)`` (``s`` the row, ``t`` the column, pixel centres at whole numbers), with
+uniform knots on the pixel edges ``-0.5 + i k`` (Forsey & Bartels 1988, hierarchical
+B-splines):
+
+* level 0 has knot spacing ``k0 = step`` pixels over the whole image;
+* level ``l`` (spacing ``k0 / 2^l``) is an overlay whose B-splines all lie inside a
+  refined region ``R_l`` (a union of level ``l - 1`` cells, ``R_l`` inside
+  ``R_{l-1}``). Outside its region an overlay vanishes with all its derivatives, so the
+  sum is C2 everywhere, also where patches of different sizes meet.
+
+Fitting and refinement
+----------------------
+Each level minimises, over its coefficients, with the coarser levels fixed::
+
+    sum_pixels w (S - z)^2 + lambda w ((S_s - z_s)^2 + (S_t - z_t)^2) + mu k^2 sum m (Delta^4 c)^2
+
+``z_s = -q h`` and ``z_t = p h`` are the measured slopes per pixel step (``h`` the
+pixel size), ``w`` is 1 on fitted pixels and 0 elsewhere. The last term, fourth
+differences of the coefficients along each direction weighted by the fraction ``m`` of
+a B-spline's support without data, fills masked and invalid pixels smoothly; its null
+space is the bicubic polynomials, so bicubic data are reproduced exactly wherever data
+are missing. The normal equations are assembled cell by cell (identical pixel offsets
+in every cell, so full cells share one 16 x 16 block, summed per B-spline piece; partial
+cells use two GEMMs each) and solved by sparse LU. The one-pixel level weighs slopes by
+:data:`FINE_SLOPE`. Cells of level ``l`` whose largest deviation ``|S - z|`` exceeds
+the tolerance, with a margin of one cell, become the region of level ``l + 1``; the
+refinement stops at one-pixel knots. Flat background therefore keeps the large level-0
+patches, cracks and edges get small ones.
+
+Patches
+-------
+Every leaf cell (a level-``l`` cell of ``R_l`` not refined further) is one bicubic
+Bezier patch: the sum of every level's B-spline restricted to it, converted exactly
+(blossoms of the uniform B-spline pieces over the leaf's interval). The patches are
+returned as a :class:`surfaces.mixed.MixedPatches` whose lattice unit is one pixel:
+lattice ``(row, col)`` is the pixel-edge point ``(s, t) = (row - 0.5, col - 0.5)``.
+Patch ``u`` runs down the rows, ``v`` along the columns, so ``S_u x S_v`` points up.
+
+Coordinates
+-----------
+By default x and y follow :data:`surfaces.grid.GRID_CONVENTION` (orthographic pixels:
+``x = (t - (W - 1) / 2) h``, ``y = ((H - 1) / 2 - s) h``), exactly linear in the
+parameters, so only z is fitted. A camera whose pixels see points at known ``x, y``
+(a perspective camera) passes them as ``xy``: then x, y and z are all fitted over the
+same pixel parameter domain with the same normal equations (three right-hand sides),
+the slope targets of z become ``z_s = p x_s + q y_s`` and ``z_t = p x_t + q y_t`` with
+``x_s`` ... differences of ``xy``, and the deviation is the 3-D distance.
+
+Borders
+-------
+Patches exist only over cells with fitted pixels (and a margin of one level-0 cell),
+so none reaches into the background. Two neighbouring pixels whose height difference
+the trapezoidal slope prediction misses by more than ``jump`` are a depth
+discontinuity: both become border pixels, left out of the fit and of the mesh.
+:func:`fit_mesh` trims along the 0.5 level line of the slightly smoothed region mask
+(the outline :func:`skimage.measure.find_contours` draws), by marching squares on the
+pixel lattice, so borders follow the outline to a fraction of a pixel instead of
+stair-stepping.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+import scipy.sparse as sp
+from scipy import ndimage
+from scipy.sparse.linalg import splu
+
+from surfaces.mixed import MixedPatches
+from surfaces.validate import as_array, positive
+
+__all__ = [
+    "RELATIVE_TOLERANCE",
+    "SurfaceFit",
+    "default_step",
+    "fit_height",
+    "fit_mesh",
+    "find_discontinuities",
+]
+
+#: Default tolerance as a fraction of the height range (0.5th to 99.5th percentile) of
+#: the fitted pixels; never below ``MIN_TOLERANCE_PX`` pixel sizes.
+RELATIVE_TOLERANCE = 0.005
+MIN_TOLERANCE_PX = 0.01
+#: Default depth-discontinuity threshold, in pixel sizes.
+JUMP_PX = 4.0
+#: Weight ``mu`` of the fourth-difference smoothness term where data are missing. Small:
+#: it only has to fix the coefficients no pixel determines; at weight 1 it also fought the
+#: data beside a depth discontinuity (a step across a two-pixel gap was missed by 13 %).
+SMOOTHING = 1e-3
+#: Slope weight of the one-pixel level relative to ``slope_weight``: there a pixel's slope
+#: is a point sample of a kink (a crack's floor or rim) that no C2 cubic follows inside
+#: the pixel, and full weight trades height for it (overshoot beside the kink).
+FINE_SLOPE = 0.25
+
+# Monomial coefficients (columns x^0 .. x^3) of the four pieces b_a (rows) of the uniform
+# cubic B-spline on one knot span, local x in [0, 1]: in cell CI the B-spline CI + a is b_a.
+_MONO = np.array([[1.0, -3.0, 3.0, -1.0], [4.0, 0.0, -6.0, 3.0], [1.0, 3.0, 3.0, -3.0], [0.0, 0.0, 0.0, 1.0]]) / 6.0
+_DELTA4 = np.array([1.0, -4.0, 6.0, -4.0, 1.0])
+
+
+# ----------------------------------------------------------------------------- results
+@dataclass(frozen=True)
+class SurfaceFit:
+    """What :func:`fit_height` returns.
+
+    Attributes
+    ----------
+    patches : surfaces.mixed.MixedPatches
+        The bicubic Bezier patches (mixed sizes), lattice unit one pixel: lattice
+        ``(row, col)`` is the pixel-edge point ``(s, t) = (row - 0.5, col - 0.5)``.
+    deviation : numpy.ndarray, shape (H, W)
+        Surface minus measured height at the fitted pixels (the 3-D distance when ``xy``
+        was given), NaN elsewhere.
+    region : numpy.ndarray, shape (H, W), bool
+        The fitted pixels: the mask without the depth-discontinuity borders; the mesh of
+        :func:`fit_mesh` is trimmed to its outline.
+    tolerance : float
+        The tolerance the refinement aimed at (height unit).
+    max_deviation, rms_deviation : float
+        Largest and root-mean-square ``|deviation|`` over the fitted pixels.
+    levels : tuple of dict
+        Per level: ``spacing_px``, ``cells`` (cells in its region), ``unknowns``,
+        ``refined`` (cells that missed the tolerance).
+    step : int
+        Knot spacing of level 0 (the largest patch side) in pixels.
+    pixel_size : float
+        Pixel size (the unit of x, y and z).
+    covered : numpy.ndarray, shape (H, W), bool
+        Pixels under a patch.
+    values : tuple of numpy.ndarray
+        The fitted coordinates and their derivatives per pixel step along rows and
+        columns at the pixel centres, three ``(H, W, d)`` arrays (``d = 1``: z only;
+        ``d = 3`` with ``xy``); :attr:`surface` and :attr:`normals` are built from them.
+    """
+
+    patches: MixedPatches
+    deviation: np.ndarray
+    region: np.ndarray
+    tolerance: float
+    max_deviation: float
+    rms_deviation: float
+    levels: tuple
+    step: int
+    pixel_size: float
+    covered: np.ndarray
+    values: tuple
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """Image shape ``(H, W)``."""
+        return self.region.shape
+
+    def patch_sizes(self) -> dict:
+        """Number of patches of each side length in pixels, ``{size_px: count}``, largest first."""
+        sizes, counts = np.unique(self.patches.sizes, return_counts=True)
+        return {int(s): int(c) for s, c in zip(sizes[::-1], counts[::-1])}
+
+    @cached_property
+    def surface(self) -> np.ndarray:
+        """Surface points at the pixel centres, ``(H, W, 3)`` (NaN where no patch is)."""
+        S = self.values[0]
+        if S.shape[-1] == 3:
+            out = S.copy()
+        else:
+            from surfaces.grid import pixel_grid
+
+            x, y = pixel_grid(self.shape, self.pixel_size)
+            out = np.stack([x, y, S[..., 0]], axis=2)
+        out[~self.covered] = np.nan
+        return out
+
+    @cached_property
+    def normals(self) -> np.ndarray:
+        """Unit normals ``S_u x S_v`` at the pixel centres, ``(H, W, 3)``.
+
+        Upwards (+z) for a height field; NaN where no patch is.
+        """
+        _, Ss, St = self.values
+        if Ss.shape[-1] == 3:
+            from surfaces.vectors import cross, unit
+
+            out = unit(cross(Ss, St))
+        else:
+            # S_s = (0, -h, z_s), S_t = (h, 0, z_t): S_s x S_t = h (-z_t, z_s, h)
+            h = self.pixel_size
+            out = np.empty((*self.shape, 3))
+            out[..., 0] = -St[..., 0]
+            out[..., 1] = Ss[..., 0]
+            out[..., 2] = h
+            out /= np.sqrt(St[..., 0] ** 2 + Ss[..., 0] ** 2 + h * h)[..., None]
+        out[~self.covered] = np.nan
+        return out
+
+
+# ----------------------------------------------------------------------------- B-spline pieces
+def _pieces(x: np.ndarray, derivative: bool = False) -> np.ndarray:
+    """``b_a(x)`` or ``b_a'(x)`` per unit of local parameter, shape (len(x), 4)."""
+    x = np.asarray(x, float)
+    if derivative:
+        powers = np.stack([np.zeros_like(x), np.ones_like(x), 2.0 * x, 3.0 * x * x], axis=-1)
+    else:
+        powers = np.stack([np.ones_like(x), x, x * x, x**3], axis=-1)
+    return powers @ _MONO.T
+
+
+def _blossom_matrix(x0: np.ndarray, x1: np.ndarray) -> np.ndarray:
+    """Bezier points over ``[x0, x1]`` of the pieces: ``out[n, j, a]`` is point ``j`` of ``b_a``.
+
+    Point ``j`` of a cubic over ``[x0, x1]`` is its blossom ``F(x0^(3-j), x1^j)``; for a
+    monomial basis the blossom is the elementary symmetric mean of the arguments.
+    """
+    x0 = np.asarray(x0, float)[:, None]
+    x1 = np.asarray(x1, float)[:, None]
+    j = np.arange(4.0)[None, :]
+    i = 3.0 - j
+    e1 = (i * x0 + j * x1) / 3.0
+    e2 = (i * (i - 1) / 2 * x0 * x0 + i * j * x0 * x1 + j * (j - 1) / 2 * x1 * x1) / 3.0
+    e3 = x0**i * x1**j
+    e = np.stack([np.ones_like(e1), e1, e2, e3], axis=-1)
+    return e @ _MONO.T
+
+
+class _Level:
+    """One uniform knot grid: spacing ``k`` pixels, ``ns x nt`` cells over the padded image."""
+
+    def __init__(self, k: int, ns: int, nt: int, slope_weight: float):
+        self.k, self.ns, self.nt, self.lam = k, ns, nt, slope_weight
+        x = (np.arange(k) + 0.5) / k
+        self.V = _pieces(x)  # (k, 4) values at the pixel centres of a cell
+        self.D = _pieces(x, derivative=True) / k  # (k, 4) derivatives per pixel step
+        self.VV = (self.V[:, :, None] * self.V[:, None, :]).reshape(k, 16)
+        self.DD = (self.D[:, :, None] * self.D[:, None, :]).reshape(k, 16)
+        ones = np.ones((1, k, k))
+        self.full_block = self.blocks(ones)[0]
+
+    def cells(self, a: np.ndarray) -> np.ndarray:
+        """``(..., ns k, nt k)`` pixel array as ``(..., ns, nt, k, k)`` cells (a view)."""
+        k = self.k
+        return np.swapaxes(a.reshape(*a.shape[:-2], self.ns, k, self.nt, k), -3, -2)
+
+    def blocks(self, w: np.ndarray) -> np.ndarray:
+        """Normal-equation blocks ``(n, 4, 4, 4, 4)`` ``[a, b, c, d]`` of cells with weights ``(n, k, k)``.
+
+        ``sum_op w_op (e_op e_op^T)`` with ``e = V_o (x) V_p``, ``lambda D_o (x) V_p``,
+        ``lambda V_o (x) D_p``: rows ``(a, b)`` and columns ``(c, d)`` are B-splines.
+        """
+        n, k = len(w), self.k
+        flat = w.reshape(n * k, k)
+        wv = (flat @ self.VV).reshape(n, k, 16)  # column offsets contracted: [n, o, (b, d)]
+        wd = (flat @ self.DD).reshape(n, k, 16)
+        rows = np.concatenate([self.VV, self.lam * self.DD, self.lam * self.VV], axis=1)  # (k, 48)
+        stacked = np.concatenate([wv, wv, wd], axis=2)  # (n, k, 48)
+        out = np.zeros((n, 16, 16))
+        for part in range(3):
+            r = rows[:, 16 * part:16 * (part + 1)]  # (k, 16) [o, (a, c)]
+            s = stacked[:, :, 16 * part:16 * (part + 1)]  # (n, k, 16) [n, o, (b, d)]
+            out += (r.T @ s.transpose(1, 0, 2).reshape(k, n * 16)).reshape(16, n, 16).transpose(1, 0, 2)
+        return out.reshape(n, 4, 4, 4, 4).transpose(0, 1, 3, 2, 4)
+
+    def project(self, x: np.ndarray, along_s: np.ndarray, along_t: np.ndarray) -> np.ndarray:
+        """``sum_op along_s[o, a] x[n, o, p] along_t[p, b]``: ``(n, k, k)`` -> ``(n, 4, 4)``."""
+        n, k = len(x), self.k
+        y = (x.reshape(n * k, k) @ along_t).reshape(n, k, 4)  # [n, o, b]
+        return (y.transpose(0, 2, 1).reshape(n * 4, k) @ along_s).reshape(n, 4, 4).transpose(0, 2, 1)
+
+    def expand(self, c: np.ndarray, along_s: np.ndarray, along_t: np.ndarray) -> np.ndarray:
+        """``sum_ab along_s[o, a] c[n, a, b] along_t[p, b]``: ``(n, 4, 4)`` -> ``(n, k, k)``."""
+        n, k = len(c), self.k
+        y = (c.reshape(n * 4, 4) @ along_t.T).reshape(n, 4, k)  # [n, a, p]
+        return (y.transpose(0, 2, 1).reshape(n * k, 4) @ along_s.T).reshape(n, k, k).transpose(0, 2, 1)
+
+
+    def project_grid(self, x: np.ndarray, along_s: np.ndarray, along_t: np.ndarray) -> np.ndarray:
+        """:meth:`project` of every cell of a whole ``(ns k, nt k)`` image: ``(ns, nt, 4, 4)``."""
+        k, ns, nt = self.k, self.ns, self.nt
+        y = (x.reshape(ns * k * nt, k) @ along_t).reshape(ns, k, nt * 4)  # [CI, o, (CJ, b)]
+        return (along_s.T[None] @ y).reshape(ns, 4, nt, 4).transpose(0, 2, 1, 3)
+
+    def expand_grid(self, coef: np.ndarray, along_s: np.ndarray, along_t: np.ndarray) -> np.ndarray:
+        """:meth:`expand` over every cell of a coefficient grid ``(ns + 3, nt + 3)``: ``(ns k, nt k)``."""
+        k, ns, nt = self.k, self.ns, self.nt
+        shifted = np.stack([coef[:, b:b + nt] for b in range(4)], axis=2)  # [i, CJ, b]
+        u = (shifted @ along_t.T).reshape(ns + 3, nt * k)  # [i, (CJ, p)]
+        rows = np.stack([u[a:a + ns] for a in range(4)], axis=1)  # [CI, a, (CJ, p)]
+        return (along_s[None] @ rows).reshape(ns * k, nt * k)
+
+
+class _Lookup:
+    """Position of integer pairs ``(i, j)`` in a list of distinct pairs, -1 where absent (a dense map)."""
+
+    def __init__(self, i: np.ndarray, j: np.ndarray, shape: tuple[int, int]):
+        self.offset = 8  # lookups reach a few entries beyond the grid
+        self.map = np.full((shape[0] + 2 * self.offset, shape[1] + 2 * self.offset), -1, np.int32)
+        self.map[i + self.offset, j + self.offset] = np.arange(np.size(i))
+
+    def __call__(self, i, j) -> np.ndarray:
+        i = np.asarray(i) + self.offset
+        j = np.asarray(j) + self.offset
+        rows, cols = self.map.shape
+        inside = (i >= 0) & (i < rows) & (j >= 0) & (j < cols)
+        return np.where(inside, self.map[np.clip(i, 0, rows - 1), np.clip(j, 0, cols - 1)], -1)
+
+
+_A4 = np.arange(4)
+
+
+def _window_index(lookup: _Lookup, CI: np.ndarray, CJ: np.ndarray) -> np.ndarray:
+    """Index (or -1) of the 16 B-splines acting on cells ``(CI, CJ)``, ``(n, 4, 4)``.
+
+    Entry ``[a, b]`` is B-spline ``(CI + a, CJ + b)``.
+    """
+    return lookup(CI[:, None, None] + _A4[None, :, None], CJ[:, None, None] + _A4[None, None, :])
+
+
+def _gather(values: np.ndarray, index: np.ndarray) -> np.ndarray:
+    """``values[index]`` with zero where ``index`` is -1 (B-splines not solved for are zero)."""
+    out = values[np.maximum(index, 0)]
+    out[index < 0] = 0.0
+    return out
+
+
+# ----------------------------------------------------------------------------- one level
+def _assemble(level: _Level, CI, CJ, w, cell_rhs, fi, fj, missing, ridge):
+    """Sparse normal equations of one level over its B-splines ``(fi, fj)``.
+
+    ``CI, CJ``: cells that carry data or smoothing; ``w`` their pixel weights ``(n, k, k)``;
+    ``cell_rhs`` ``(d, n, 4, 4)`` each cell's share of the right-hand sides;
+    ``missing`` ``(len(fi),)`` the fraction of each B-spline's support without data.
+    """
+    k = level.k
+    n = fi.size
+    lookup = _Lookup(fi, fj, (level.ns + 3, level.nt + 3))
+    flat = w.reshape(len(w), -1)
+    with_data = flat.max(axis=1) > 0.0
+    full = flat[with_data].min(axis=1) == 1.0
+    cell_f = _window_index(lookup, CI[with_data], CJ[with_data])
+    # Full cells all add the same block: B-spline (fi, fj) is piece (a, b) of cell
+    # (fi - a, fj - b) and meets there piece (c, d), the B-spline at offset (c - a, d - b).
+    # Summing per piece over the B-splines costs 256 vector operations, not 256 scattered
+    # entries per cell (most cells of the fine levels are full).
+    stencil = np.zeros((n, 7, 7))
+    is_full = _Lookup(CI[with_data][full], CJ[with_data][full], (level.ns, level.nt))
+    for a in range(4):
+        for b in range(4):
+            here = (is_full(fi - a, fj - b) >= 0).astype(float)
+            if not here.any():
+                continue
+            block = level.full_block[a, b]  # (c, d)
+            for c in range(4):
+                stencil[:, 3 + c - a, 3 - b:7 - b] += here[:, None] * block[c][None, :]
+    stencil = stencil.reshape(n, 49)
+    if not full.all():
+        # partial cells: their own blocks, scattered; entries of B-splines not solved for go
+        # to a discarded slot n * 49
+        part_f = cell_f[~full].astype(np.int64)  # keys reach n * 49
+        blocks = level.blocks(w[with_data][~full])
+        row = np.broadcast_to(part_f[:, :, :, None, None], blocks.shape)
+        col = np.broadcast_to(part_f[:, None, None, :, :], blocks.shape)
+        da = _A4[None, :] - _A4[:, None] + 3  # [a, c] -> c - a + 3
+        slot = np.broadcast_to(da[:, None, :, None] * 7 + da[None, :, None, :], blocks.shape)
+        keys = np.where((row >= 0) & (col >= 0), row * 49 + slot, n * 49)
+        stencil += np.bincount(keys.ravel(), weights=blocks.ravel(), minlength=n * 49 + 1)[: n * 49].reshape(n, 49)
+    off = np.arange(-3, 4)
+    cols = lookup(fi[:, None, None] + off[None, :, None], fj[:, None, None] + off[None, None, :]).reshape(n, 49)
+    nz = cols >= 0
+    A = sp.csr_matrix((stencil[nz], (np.nonzero(nz)[0], cols[nz])), shape=(n, n))
+    d = len(cell_rhs)
+    rhs = np.zeros((n, d))
+    ok = cell_f >= 0
+    for c in range(d):
+        rhs[:, c] = np.bincount(cell_f[ok], weights=cell_rhs[c][with_data][ok], minlength=n)
+    # Fourth differences along s and t where data are missing, centred on every B-spline
+    # whose four neighbours along the line are solved for too; a row weighs as much as the
+    # emptiest support among its five coefficients.
+    weight = SMOOTHING * k * k * missing
+    parts = []
+    sh = np.arange(-2, 3)
+    for di, dj in ((1, 0), (0, 1)):
+        nb = lookup(fi[:, None] + di * sh, fj[:, None] + dj * sh)  # (n, 5)
+        whole = (nb >= 0).all(axis=1)
+        wrow = np.zeros(n)
+        wrow[whole] = weight[nb[whole]].max(axis=1)
+        use = np.flatnonzero(wrow > 0)
+        vals = _DELTA4[None, :] * np.sqrt(wrow[use])[:, None]
+        r = np.repeat(np.arange(use.size), 5)
+        parts.append(sp.csr_matrix((vals.ravel(), (r, nb[use].ravel())), shape=(use.size, n)))
+    Dm = sp.vstack(parts).tocsr()
+    A = (A + Dm.T @ Dm).tocsr()
+    if ridge:
+        A = A + sp.diags(np.full(n, ridge * max(float(A.diagonal().mean()), 1e-300)))
+    return A, rhs, lookup
+
+
+def _solve(A: sp.csr_matrix, b: np.ndarray) -> np.ndarray:
+    """The symmetric positive definite system, by sparse LU (one factorisation, ``d`` right-hand sides).
+
+    SuperLU with minimum-degree ordering on ``A + A^T`` is single-threaded, so it does not
+    stall on a busy machine as threaded dense LAPACK (a banded Cholesky) does; measured on
+    the levels of a 4 MP fit it is faster than Jacobi-preconditioned CG on the finest,
+    thin overlays (whose conditioning follows their width) and never much slower.
+    """
+    n = A.shape[0]
+    if n == 0:
+        return np.zeros((0, b.shape[1]))
+    try:
+        return splu(A.tocsc(), permc_spec="MMD_AT_PLUS_A").solve(b)
+    except RuntimeError:  # exactly singular: a part without data or smoothing; a ridge fixes it
+        ridge = sp.diags(np.full(n, 1e-10 * max(float(A.diagonal().mean()), 1e-300)))
+        return splu((A + ridge).tocsc(), permc_spec="MMD_AT_PLUS_A").solve(b)
+
+
+# ----------------------------------------------------------------------------- input
+def default_step(shape) -> int:
+    """Default level-0 knot spacing: a power of two giving about 64 patches across the longer side.
+
+    Parameters
+    ----------
+    shape : (H, W)
+        Image size in pixels.
+
+    Returns
+    -------
+    int
+        ``2^round(log2(max(H, W) / 64))``, from 1 to 64.
+
+    Examples
+    --------
+    >>> default_step((512, 612)), default_step((2048, 2048)), default_step((40, 40))
+    (8, 32, 1)
+    """
+    n = max(int(shape[0]), int(shape[1]))
+    return int(2 ** np.clip(np.round(np.log2(n / 64.0)), 0, 6))
+
+
+def _step(step, shape) -> int:
+    if step is None:
+        return default_step(shape)
+    if isinstance(step, bool) or not isinstance(step, (int, np.integer)) or int(step) < 1:
+        raise ValueError(f"step: expected a positive whole number of pixels, got {step!r}")
+    return 1 << (int(step).bit_length() - 1)
+
+
+def _slope_targets(p, q, h, xy, valid):
+    """Per-pixel-step derivative targets ``(z_s, z_t)`` and, with ``xy``, those of x and y."""
+    if xy is None:
+        return -q * h, p * h, None, None
+    fs = _differences(xy, valid, axis=0)
+    ft = _differences(xy, valid, axis=1)
+    zs = p * fs[..., 0] + q * fs[..., 1]
+    zt = p * ft[..., 0] + q * ft[..., 1]
+    return zs, zt, fs, ft
+
+
+def _differences(a: np.ndarray, valid: np.ndarray, axis: int) -> np.ndarray:
+    """Central differences along ``axis`` where both neighbours are valid, one-sided otherwise."""
+    a = np.moveaxis(a, axis, 0)
+    v = np.moveaxis(valid, axis, 0)
+    fwd = np.zeros_like(a)
+    bwd = np.zeros_like(a)
+    ok_f = np.zeros(v.shape, bool)
+    ok_b = np.zeros(v.shape, bool)
+    fwd[:-1] = a[1:] - a[:-1]
+    ok_f[:-1] = v[1:] & v[:-1]
+    bwd[1:] = fwd[:-1]
+    ok_b[1:] = ok_f[:-1]
+    both = (ok_f & ok_b)[..., None]
+    out = np.where(both, 0.5 * (fwd + bwd), np.where(ok_f[..., None], fwd, bwd))
+    return np.moveaxis(out, 0, axis)
+
+
+def find_discontinuities(height, p, q, mask, pixel_size: float = 1.0, jump: float | None = None, xy=None):
+    """Pixels beside a height jump that the measured slopes do not explain.
+
+    Parameters
+    ----------
+    height : array_like, shape (H, W)
+        Height (unit of ``pixel_size``); only pixels in ``mask`` are read.
+    p, q : array_like, shape (H, W)
+        Slopes ``dz/dx``, ``dz/dy`` (y up).
+    mask : array_like of bool, shape (H, W)
+        Pixels with data.
+    pixel_size : float
+        Pixel size ``h``.
+    jump : float, optional
+        Largest height difference between neighbouring pixels that the slopes may leave
+        unexplained; default ``4 h``.
+    xy : array_like, shape (H, W, 2), optional
+        Per-pixel x, y (a perspective camera); the slope prediction then uses their
+        differences instead of ``h``.
+
+    Returns
+    -------
+    numpy.ndarray, shape (H, W), bool
+        Both pixels of every 4-neighbour pair inside ``mask`` whose height difference
+        differs from the trapezoidal prediction ``(g_a + g_b) / 2`` by more than ``jump``.
+    """
+    z = as_array(height, "height", ndim=2, finite=False)
+    m = as_array(mask, "mask", shape=z.shape, dtype=bool)
+    pp = as_array(p, "p", shape=z.shape, finite=False)
+    qq = as_array(q, "q", shape=z.shape, finite=False)
+    h = positive(pixel_size, "pixel_size")
+    limit = JUMP_PX * h if jump is None else positive(jump, "jump")
+    zz = np.where(m, z, 0.0)
+    border = np.zeros(z.shape, bool)
+    for axis in (0, 1):
+        lo = [slice(None), slice(None)]
+        hi = [slice(None), slice(None)]
+        lo[axis], hi[axis] = slice(None, -1), slice(1, None)
+        lo, hi = tuple(lo), tuple(hi)
+        if xy is None:
+            dx, dy = (0.0, -h) if axis == 0 else (h, 0.0)
+        else:
+            dx = xy[hi + (0,)] - xy[lo + (0,)]
+            dy = xy[hi + (1,)] - xy[lo + (1,)]
+        predicted = 0.5 * (pp[lo] + pp[hi]) * dx + 0.5 * (qq[lo] + qq[hi]) * dy
+        both = m[lo] & m[hi]
+        with np.errstate(invalid="ignore"):
+            bad = both & (np.abs(zz[hi] - zz[lo] - predicted) > limit)
+        border[lo] |= bad
+        border[hi] |= bad
+    return border
+
+
+# ----------------------------------------------------------------------------- the fit
+def fit_height(
+    height,
+    p,
+    q,
+    *,
+    mask=None,
+    pixel_size: float = 1.0,
+    tolerance: float | None = None,
+    step: int | None = None,
+    xy=None,
+    jump: float | None = None,
+    slope_weight: float = 1.0,
+) -> SurfaceFit:
+    """Fit bicubic patches to a height field and its slopes, refining until within a tolerance.
+
+    Parameters
+    ----------
+    height : array_like, shape (H, W)
+        Height in the unit of ``pixel_size`` (mm); must be finite inside ``mask``.
+    p, q : array_like, shape (H, W)
+        Measured slopes ``dz/dx``, ``dz/dy`` (y up, dimensionless); finite inside ``mask``.
+    mask : array_like of bool, shape (H, W), optional
+        Pixels with data (default: all). Patches cover only cells with data.
+    pixel_size : float
+        Pixel size ``h`` (mm).
+    tolerance : float, optional
+        Largest deviation ``|S - z|`` aimed at (unit of ``h``, > 0); cells that miss it
+        are refined, down to one-pixel patches. Default: :data:`RELATIVE_TOLERANCE` of the
+        height range (0.5th to 99.5th percentile) inside the mask, at least
+        :data:`MIN_TOLERANCE_PX` pixel sizes.
+    step : int, optional
+        Largest patch side (level-0 knot spacing) in pixels, rounded down to a power of
+        two; default :func:`default_step`.
+    xy : array_like, shape (H, W, 2), optional
+        The x, y (unit of ``h``) each pixel sees (a perspective camera); default: the
+        orthographic grid of :data:`surfaces.grid.GRID_CONVENTION`. With ``xy`` all
+        three coordinates are fitted (see the module notes).
+    jump : float, optional
+        Depth-discontinuity threshold of :func:`find_discontinuities` (default ``4 h``).
+    slope_weight : float
+        ``lambda``, the weight of the slope residuals (per pixel step) against the
+        height residuals (> 0).
+
+    Returns
+    -------
+    SurfaceFit
+        Patches, the surface and its normals at the pixel centres, deviations.
+
+    Raises
+    ------
+    ValueError
+        Wrong shapes, ``tolerance <= 0``, NaN heights or slopes inside the mask, an empty
+        mask (each naming the input).
+
+    Examples
+    --------
+    A plane is one patch per level-0 cell, exactly:
+
+    >>> r, c = np.mgrid[0:16, 0:16]
+    >>> fit = fit_height(0.5 * c - 0.25 * r, np.full((16, 16), 0.5), np.full((16, 16), 0.25), step=8)
+    >>> fit.patches.n_patches, fit.max_deviation < 1e-9
+    (4, True)
+    """
+    z = as_array(height, "height", ndim=2, finite=False)
+    H, W = z.shape
+    if min(H, W) < 2:
+        raise ValueError(f"height: needs at least 2 x 2 pixels, got {z.shape}")
+    pp = as_array(p, "p", shape=z.shape, finite=False)
+    qq = as_array(q, "q", shape=z.shape, finite=False)
+    h = positive(pixel_size, "pixel_size")
+    lam = positive(slope_weight, "slope_weight")
+    m = np.ones(z.shape, bool) if mask is None else as_array(mask, "mask", shape=z.shape, dtype=bool)
+    if not m.any():
+        raise ValueError("mask: no pixel is selected")
+    for name, arr in (("height", z), ("p", pp), ("q", qq)):
+        bad = m & ~np.isfinite(arr)
+        if bad.any():
+            r, c = np.argwhere(bad)[0]
+            raise ValueError(
+                f"{name}: {int(bad.sum())} non-finite value(s) inside the mask (first at row {r}, column {c}); "
+                "leave such pixels out of the mask"
+            )
+    xyv = None
+    if xy is not None:
+        xyv = as_array(xy, "xy", shape=(H, W, 2), finite=False)
+        if (m & ~np.isfinite(xyv).all(axis=2)).any():
+            raise ValueError("xy: non-finite values inside the mask")
+    if tolerance is None:
+        lo, hi = np.percentile(z[m], [0.5, 99.5])
+        tol = max(RELATIVE_TOLERANCE * float(hi - lo), MIN_TOLERANCE_PX * h)
+    else:
+        tol = positive(tolerance, "tolerance")
+    k0 = _step(step, z.shape)
+    region = m & ~find_discontinuities(z, pp, qq, m, h, jump, xyv)
+    if not region.any():
+        raise ValueError("height: every pixel of the mask lies on a depth discontinuity")
+    return _fit(z, pp, qq, region, h, tol, k0, xyv, lam)
+
+
+def _fit(z, p, q, region, h, tol, k0, xy, lam) -> SurfaceFit:
+    H, W = z.shape
+    ns, nt = -(-H // k0), -(-W // k0)
+    HP, WP = ns * k0, nt * k0
+    d = 1 if xy is None else 3
+    w = np.zeros((HP, WP))
+    w[:H, :W] = region
+    zs, zt, fs, ft = _slope_targets(p, q, h, xy, region)
+    sources = [(z,), (zs,), (zt,)] if xy is None else [
+        (xy[..., 0], xy[..., 1], z), (fs[..., 0], fs[..., 1], zs), (ft[..., 0], ft[..., 1], zt)]
+    # value, s-slope and t-slope targets, component first, zero off the fitted pixels
+    targets = []
+    for source in sources:
+        t = np.zeros((d, HP, WP))
+        for c, comp in enumerate(source):
+            np.copyto(t[c, :H, :W], comp, where=region)
+        targets.append(t)
+    fitted = [np.zeros((d, HP, WP)) for _ in range(3)]  # running S, S_s, S_t
+    levels, solved, leaves = [], [], []
+    top = int(np.log2(k0))
+    for lev in range(top + 1):
+        k = k0 >> lev
+        lv = _Level(k, ns << lev, nt << lev, lam * FINE_SLOPE if k == 1 and lev else lam)
+        V, D = lv.V, lv.D
+        wc = lv.cells(w)
+        if lev == 0:
+            count = wc.sum(axis=(2, 3))
+            # patches over the cells with data and a margin of one cell; B-splines that
+            # touch them; cells where those live
+            patch = ndimage.binary_dilation(count > 0, np.ones((3, 3), bool))
+            act = ndimage.maximum_filter(np.pad(patch, 3), size=4, origin=(-2, -2))[: ns + 3, : nt + 3]
+            fi, fj = np.nonzero(act)
+            CI, CJ = np.nonzero(patch)
+            WI, WJ = np.nonzero(ndimage.binary_dilation(patch, np.ones((7, 7), bool)))
+            covered = np.repeat(np.repeat(patch, k, axis=0), k, axis=1)[:H, :W]
+            # the targets are zero off the fitted pixels: weighting by w changes nothing
+            grid = [lv.project_grid(targets[0][c], V, V) + lv.lam * (lv.project_grid(targets[1][c], D, V)
+                    + lv.project_grid(targets[2][c], V, D)) for c in range(d)]
+            cell_rhs = np.stack([g[WI, WJ] for g in grid])
+            ridge = 0.0
+        else:
+            # an overlay B-spline lies wholly inside the region; outside the image the
+            # region continues its edge cells
+            here = _Lookup(CI, CJ, (lv.ns, lv.nt))
+            ci, cj = np.broadcast_arrays(CI[:, None, None] + _A4[None, :, None], CJ[:, None, None] + _A4[None, None, :])
+            keys = np.unique(ci.ravel() * (lv.nt + 3) + cj.ravel())
+            ci, cj = keys // (lv.nt + 3), keys % (lv.nt + 3)
+            si = np.clip(ci[:, None, None] - 3 + _A4[None, :, None], 0, lv.ns - 1)
+            sj = np.clip(cj[:, None, None] - 3 + _A4[None, None, :], 0, lv.nt - 1)
+            inside = (here(si, sj) >= 0).reshape(ci.size, 16).all(axis=1)
+            fi, fj = ci[inside], cj[inside]
+            WI, WJ = CI, CJ
+            ww = wc[CI, CJ]
+            res = [(lv.cells(t)[:, CI, CJ] - lv.cells(f)[:, CI, CJ]) * ww for t, f in zip(targets, fitted)]
+            cell_rhs = np.stack([lv.project(res[0][c], V, V) + lv.lam * (lv.project(res[1][c], D, V)
+                                 + lv.project(res[2][c], V, D)) for c in range(d)])
+            ridge = 1e-9
+        work_w = wc[WI, WJ]
+        counts = _Lookup(WI, WJ, (lv.ns, lv.nt))
+        n_data = work_w.reshape(len(WI), -1).sum(axis=1)
+        support = counts(fi[:, None, None] - 3 + _A4[None, :, None], fj[:, None, None] - 3 + _A4[None, None, :])
+        sup = _gather(n_data, support)
+        missing = np.clip(1.0 - sup.reshape(len(fi), 16).mean(axis=1) / (k * k), 0.0, 1.0)
+        A, b, lookup = _assemble(lv, WI, WJ, work_w, cell_rhs, fi, fj, missing, ridge)
+        values = _solve(A, b)
+        solved.append((lookup, values))
+        if lev == 0:
+            coef = np.zeros((ns + 3, nt + 3, d))
+            coef[fi, fj] = values
+            for arr, (ps, pt) in zip(fitted, ((V, V), (D, V), (V, D))):
+                for c in range(d):
+                    arr[c] = lv.expand_grid(coef[..., c], ps, pt)
+        else:
+            block = _gather(values, _window_index(lookup, CI, CJ))  # (n, 4, 4, d)
+            for arr, (ps, pt) in zip(fitted, ((V, V), (D, V), (V, D))):
+                view = lv.cells(arr)
+                for c in range(d):
+                    view[c, CI, CJ] += lv.expand(block[..., c], ps, pt)
+        fail = _cell_deviation(lv, CI, CJ, targets[0], fitted[0], wc) > tol
+        levels.append({"spacing_px": k, "cells": int(CI.size), "unknowns": int(fi.size), "refined": int(fail.sum())})
+        if lev == top or not fail.any():
+            leaves.append((lev, CI, CJ))
+            break
+        # the failing cells and their neighbours inside this level's region are refined
+        region_here = _Lookup(CI, CJ, (lv.ns, lv.nt))
+        di, dj = np.meshgrid(np.arange(-1, 2), np.arange(-1, 2), indexing="ij")
+        pos = region_here((CI[fail][:, None] + di.ravel()).ravel(), (CJ[fail][:, None] + dj.ravel()).ravel())
+        refine = np.zeros(CI.size, bool)
+        refine[pos[pos >= 0]] = True
+        leaves.append((lev, CI[~refine], CJ[~refine]))
+        CI = (2 * CI[refine][:, None] + np.array([0, 0, 1, 1])).ravel()
+        CJ = (2 * CJ[refine][:, None] + np.array([0, 1, 0, 1])).ravel()
+    patches = _patches(leaves, solved, k0, (H, W), h, xy is None)
+    values = tuple(np.moveaxis(f[:, :H, :W], 0, -1) for f in fitted)
+    deviation = np.full((H, W), np.nan)
+    S = values[0]
+    if xy is None:
+        deviation[region] = S[region][:, 0] - z[region]
+    else:
+        measured = np.concatenate([xy, z[..., None]], axis=2)
+        deviation[region] = np.linalg.norm(S[region] - measured[region], axis=1)
+    dv = np.abs(deviation[region])
+    return SurfaceFit(
+        patches=patches,
+        deviation=deviation,
+        region=region,
+        tolerance=float(tol),
+        max_deviation=float(dv.max()),
+        rms_deviation=float(np.sqrt(np.mean(dv * dv))),
+        levels=tuple(levels),
+        step=k0,
+        pixel_size=float(h),
+        covered=covered,
+        values=values,
+    )
+
+
+def _cell_deviation(lv: _Level, CI, CJ, target, fitted, wc) -> np.ndarray:
+    """Largest deviation (3-D distance over the components) on the fitted pixels of each cell ``(CI, CJ)``."""
+    diff = lv.cells(fitted)[:, CI, CJ] - lv.cells(target)[:, CI, CJ]  # (d, n, k, k)
+    dist = np.abs(diff[0]) if len(diff) == 1 else np.sqrt((diff * diff).sum(axis=0))
+    return np.where(wc[CI, CJ] > 0, dist, 0.0).reshape(len(CI), -1).max(axis=1)
+
+
+def _patches(leaves, solved, k0: int, shape, h: float, orthographic: bool) -> MixedPatches:
+    """Exact Bezier patches of the leaf cells: the sum of every level's B-spline over each leaf."""
+    H, W = shape
+    d = solved[0][1].shape[-1]
+    ctrl, cells = [], []
+    for lev, CI, CJ in leaves:
+        if CI.size == 0:
+            continue
+        k = k0 >> lev
+        bez = np.zeros((CI.size, 4, 4, d))
+        for coarse in range(lev + 1):
+            km = k0 >> coarse
+            Im, Jm = (CI * k) // km, (CJ * k) // km
+            s0 = (CI * k - Im * km) / km
+            t0 = (CJ * k - Jm * km) / km
+            # the leaf's interval inside the coarse cell takes few values: one matrix each
+            starts, s_at = np.unique(s0, return_inverse=True)
+            Ts = _blossom_matrix(starts, starts + k / km)[s_at]
+            starts, t_at = np.unique(t0, return_inverse=True)
+            Tt = _blossom_matrix(starts, starts + k / km).transpose(0, 2, 1)[t_at]
+            lookup, values = solved[coarse]
+            block = _gather(values, _window_index(lookup, Im, Jm))  # (n, 4, 4, d)
+            for c in range(d):
+                bez[..., c] += Ts @ block[..., c] @ Tt
+        c = np.empty((CI.size, 4, 4, 3))
+        if orthographic:
+            s = (CI[:, None] * k - 0.5) + k * np.arange(4)[None, :] / 3.0
+            t = (CJ[:, None] * k - 0.5) + k * np.arange(4)[None, :] / 3.0
+            c[..., 0] = ((t - (W - 1) / 2.0) * h)[:, None, :]
+            c[..., 1] = (((H - 1) / 2.0 - s) * h)[:, :, None]
+            c[..., 2] = bez[..., 0]
+        else:
+            c[:] = bez
+        ctrl.append(c)
+        cells.append(np.stack([CI * k, CJ * k, np.full(CI.size, k)], axis=1))
+    return MixedPatches(np.concatenate(ctrl)[:, None], cells=np.concatenate(cells))
+
+
+# ----------------------------------------------------------------------------- trimmed mesh
+def _marching_table() -> dict:
+    """Triangles (cycle positions 0..7) of the inside polygon of every marching-squares case.
+
+    Around a lattice cell the cycle runs corner 0 ``(i, j)``, edge 0, corner 1
+    ``(i + 1, j)``, edge 1, corner 2 ``(i + 1, j + 1)``, edge 2, corner 3 ``(i, j + 1)``,
+    edge 3: counter-clockwise about ``S_u x S_v``. Keys ``(case, joined)``; ``joined``
+    only matters for the saddles (corners 0 and 2, or 1 and 3, inside) and says whether
+    the centre is inside (one hexagon) or not (two triangles).
+    """
+    table = {}
+    for case in range(16):
+        inside = [(case >> c) & 1 for c in range(4)]
+        ring = []
+        for c in range(4):
+            if inside[c]:
+                ring.append(2 * c)
+            if inside[c] != inside[(c + 1) % 4]:
+                ring.append(2 * c + 1)
+        for joined in (False, True):
+            if case in (5, 10) and not joined:
+                # two separate corners: the triangle (edge before, corner, edge after) of each
+                first = 0 if case == 5 else 2
+                polys = [[(first + 7) % 8, first, first + 1], [(first + 3) % 8, first + 4, first + 5]]
+            else:
+                polys = [ring] if ring else []
+            table[case, joined] = [(poly[0], poly[i], poly[i + 1]) for poly in polys for i in range(1, len(poly) - 1)]
+    return table
+
+
+_MARCHING = _marching_table()
+
+
+def fit_mesh(fit: SurfaceFit, spacing: float = 1.0, smoothing: float = 0.7):
+    """Triangle mesh of a fit on a lattice of parameter points, trimmed along the region's outline.
+
+    The vertices lie on the lattice ``s, t = 0, spacing, 2 spacing, ...`` of pixel
+    coordinates (pixel centres for ``spacing = 1``) and on the trimming line; each is
+    evaluated on the patches (:attr:`SurfaceFit.patches`), so the mesh has no cracks
+    where patches of different sizes meet.
+
+    Trimming: the region mask is smoothed (Gaussian, ``smoothing`` pixels) and every
+    lattice cell keeps the part of itself where the bilinear interpolant of that field is
+    at least 0.5 (marching squares, saddles decided by the cell centre), with the cut
+    points interpolated linearly along the lattice edges: the boundary is the level line
+    that :func:`skimage.measure.find_contours` draws at 0.5, which follows the mask's
+    pixel outline to a fraction of a pixel without stair steps.
+
+    Parameters
+    ----------
+    fit : SurfaceFit
+        A result of :func:`fit_height`.
+    spacing : float
+        Lattice spacing in pixels (> 0); 1 puts a vertex on every pixel centre.
+    smoothing : float
+        Standard deviation (pixels, >= 0) of the Gaussian smoothing of the region mask
+        before trimming; 0 trims along the raw 0.5 line of the mask.
+
+    Returns
+    -------
+    surfaces.mesh.TriangleMesh
+        Vertices in the unit of the fit, vertex normals from the patches, triangles
+        counter-clockwise about ``S_u x S_v`` (upwards for a height field).
+    """
+    from surfaces.mesh import TriangleMesh
+    from surfaces.vectors import cross, unit
+
+    if not isinstance(fit, SurfaceFit):
+        raise ValueError(f"fit: expected a SurfaceFit, got {type(fit).__name__}")
+    step = positive(spacing, "spacing")
+    sigma = float(smoothing)
+    if not np.isfinite(sigma) or sigma < 0:
+        raise ValueError(f"smoothing: must be a finite number >= 0, got {smoothing!r}")
+    H, W = fit.shape
+    inside_px = fit.region & fit.covered
+    field = ndimage.gaussian_filter(inside_px.astype(float), sigma, mode="constant") if sigma else inside_px * 1.0
+    # lattice nodes one spacing beyond the pixel centres on every side, so the outline
+    # reaches the image edges
+    s = np.arange(-1, int(np.ceil((H - 1) / step)) + 2) * step
+    t = np.arange(-1, int(np.ceil((W - 1) / step)) + 2) * step
+    S, T = np.meshgrid(s, t, indexing="ij")
+    f = ndimage.map_coordinates(field, [S.ravel(), T.ravel()], order=1, mode="constant", cval=0.0)
+    f = f.reshape(S.shape)
+    inside = f >= 0.5
+    nr, nc = S.shape
+    # vertices: inside nodes, then the crossings on vertical (along s) and horizontal edges
+    node_id = np.full(S.shape, -1, np.int64)
+    node_id[inside] = np.arange(int(inside.sum()))
+    n_vert = int(inside.sum())
+    params = [np.stack([S[inside], T[inside]], axis=1)]
+    edge_ids = []
+    for axis in (0, 1):
+        a = (slice(None, -1), slice(None)) if axis == 0 else (slice(None), slice(None, -1))
+        b = (slice(1, None), slice(None)) if axis == 0 else (slice(None), slice(1, None))
+        cut = inside[a] != inside[b]
+        ids = np.full(cut.shape, -1, np.int64)
+        ids[cut] = n_vert + np.arange(int(cut.sum()))
+        n_vert += int(cut.sum())
+        frac = (0.5 - f[a][cut]) / (f[b][cut] - f[a][cut])
+        s_cut = S[a][cut] + frac * (S[b][cut] - S[a][cut])
+        t_cut = T[a][cut] + frac * (T[b][cut] - T[a][cut])
+        params.append(np.stack([s_cut, t_cut], axis=1))
+        edge_ids.append(ids)
+    along_s, along_t = edge_ids
+    # the eight cycle positions of every lattice cell
+    ring = np.stack([
+        node_id[:-1, :-1], along_s[:, :-1], node_id[1:, :-1], along_t[1:, :],
+        node_id[1:, 1:], along_s[:, 1:], node_id[:-1, 1:], along_t[:-1, :],
+    ], axis=-1).reshape(-1, 8)
+    case = (inside[:-1, :-1] * 1 + inside[1:, :-1] * 2 + inside[1:, 1:] * 4 + inside[:-1, 1:] * 8).ravel()
+    centre = (0.25 * (f[:-1, :-1] + f[1:, :-1] + f[1:, 1:] + f[:-1, 1:])).ravel() >= 0.5
+    tris = []
+    for (c, joined), triangles in _MARCHING.items():
+        if not triangles:
+            continue
+        sel = case == c
+        if c in (5, 10):
+            sel &= centre == joined
+        elif joined:
+            continue
+        cells = ring[sel]
+        for tri in triangles:
+            tris.append(cells[:, list(tri)])
+    tri = np.concatenate(tris) if tris else np.zeros((0, 3), np.int64)
+    st = np.concatenate(params)
+    patch, u, v = fit.patches.locate_lattice(st[:, 0] + 0.5, st[:, 1] + 0.5)
+    lost = patch < 0
+    if lost.any():  # a cut beyond the patches (never for fits): drop its triangles
+        tri = tri[~lost[tri].any(axis=1)]
+    d = fit.patches.derivatives(np.maximum(patch, 0), 0, u, v)
+    mesh = TriangleMesh(d.point, tri, unit(cross(d.du, d.dv)))
+    if lost.any():
+        from surfaces.mesh import compact
+
+        mesh = compact(mesh)
+    return mesh
