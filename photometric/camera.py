@@ -263,15 +263,13 @@ def surface_xy(camera: Camera, z) -> np.ndarray:
     """
     zz = as_array(z, "z", ndim=2, finite=False)
     u, v = pixel_offsets(camera, zz.shape)
-    out = np.empty(zz.shape + (2,))
     if isinstance(camera, Orthographic):
-        out[..., 0] = u[None, :]
+        row = np.stack([u, np.zeros_like(u)], axis=1)  # (W, 2): x, then y added per row
+        out = np.broadcast_to(row, zz.shape + (2,)).copy()
         out[..., 1] = v[:, None]
         return out
-    scale = (camera.camera_height_mm - zz) / camera.focal_length_px
-    out[..., 0] = u[None, :] * scale
-    out[..., 1] = v[:, None] * scale
-    return out
+    scale = (camera.camera_height_mm - zz) * (1.0 / camera.focal_length_px)
+    return np.stack([u[None, :] * scale, v[:, None] * scale], axis=2)
 
 
 def plane_points(camera: Camera, shape, z0: float = 0.0) -> np.ndarray:

@@ -510,14 +510,15 @@ def _alternate(level, lights, camera, opts, integrator, ref, tol, max_iterations
         both = valid if prev_valid is None else valid & prev_valid
         if not both.any():
             both = valid
-        change = float(np.max(np.abs(z_new[both] - z[both])))
+        change = float(np.max(np.abs(z_new - z), where=both, initial=0.0))
         history.append({"level": name, "step": level.step, "depth_change_mm": change,
-                        "valid_fraction": float(valid.sum() / max(int(level.mask.sum()), 1))})
+                        "valid_fraction": float(np.count_nonzero(valid) / max(np.count_nonzero(level.mask), 1))})
         z, prev_valid = z_new, valid
-        if not np.isfinite(change) or not np.all(np.isfinite(z)) or float(z.max()) >= top:
+        highest = float(z.max())  # NaN when any height is not finite
+        if not (np.isfinite(change) and np.isfinite(highest)) or highest >= top:
             raise NotConvergedError(
                 f"near-field solve diverged at pass {len(history)} ({name} level): the heights "
-                + ("reach a light" if np.isfinite(change) and np.all(np.isfinite(z)) else "are not finite"),
+                + ("reach a light" if np.isfinite(highest) else "are not finite"),
                 _history_summary(history, tol, False),
             )
         if change < tol:
