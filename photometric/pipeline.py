@@ -309,10 +309,6 @@ def _near_setup(data: PhotometricData, *, light_model, light_positions, led_mu, 
     if cam is None:
         raise ValueError("camera: point lights need the camera's scale in mm: --pixel-size (orthographic) or "
                          "--camera perspective --focal-length-px F --camera-height MM")
-    for k, z in enumerate(lights.positions[:, 2]):
-        if isinstance(cam, Perspective) and z >= cam.camera_height_mm:
-            raise ValueError(f"light_positions: light {k} at z = {z:g} mm is not below the camera "
-                             f"({cam.camera_height_mm:g} mm)")
     gains, flat = None, None
     if flat_field is not None and flat_field is not False:
         albedo = 1.0 if flat_albedo is None else flat_albedo
