@@ -290,3 +290,43 @@ def test_cli_calibrate_needs_spheres_or_positions(capsys):
         main(["photometric", "calibrate", "--out", "rig.json"])
     assert info.value.code == 2
     assert "one of the arguments --spheres --light-positions is required" in capsys.readouterr().err
+
+
+def test_cli_more_near_field_errors_write_nothing(near_plane, tmp_path, capsys):
+    pos = np.loadtxt(near_plane["positions"])
+    np.savetxt(tmp_path / "P2.txt", pos[:, :2])
+    np.savetxt(tmp_path / "P4.txt", np.vstack([pos, pos[:1]]))
+    np.savetxt(tmp_path / "L.txt", pos / np.linalg.norm(pos, axis=1, keepdims=True))
+    (tmp_path / "bad.json").write_text("{not json")
+    images = ["photometric", "reconstruct", "--images", *near_plane["images"]]
+    cases = [
+        (["--light-positions", str(tmp_path / "P2.txt"), "--pixel-size", "0.4"], "expected shape (N, 3)"),
+        (["--light-positions", str(tmp_path / "P4.txt"), "--pixel-size", "0.4"],
+         "light_positions: 4 LEDs for 3 images"),
+        (["--light-positions", str(tmp_path / "none.txt"), "--pixel-size", "0.4"], "does not exist"),
+        (["--rig", str(tmp_path / "none.json")], "rig: file"),
+        (["--rig", str(tmp_path / "bad.json")], "is not valid JSON"),
+        (["--light-positions", near_plane["positions"], "--camera", "perspective", "--pixel-size", "0.4",
+          "--focal-length-px", "700", "--camera-height", "280"], "--pixel-size is for the orthographic camera"),
+        (["--light-positions", near_plane["positions"], "--pixel-size", "0.4", "--light-model", "directional",
+          "--flat-field", *near_plane["flats"]], "flat_field: flat-field gains need the point-light model"),
+        (["--lights", str(tmp_path / "L.txt"), "--pixel-size", "0.4", "--flat-field", *near_plane["flats"]],
+         "flat_field: flat-field gains need the point-light model"),
+        (["--light-positions", near_plane["positions"], "--pixel-size", "0.4", "--tolerance", "0"], "tolerance_mm"),
+    ]
+    for extra, message in cases:
+        capsys.readouterr()
+        assert main([*images, *extra, "--out", str(tmp_path / "o")]) == 2, extra
+        assert message in _error_line(capsys), extra
+        assert not (tmp_path / "o").exists(), extra
+
+
+def test_cli_rig_with_another_number_of_lights(near_plane, tmp_path, capsys):
+    rig = tmp_path / "rig.json"
+    assert main(["photometric", "calibrate", "--light-positions", near_plane["positions"], "--flat-field",
+                 *near_plane["flats"], "--pixel-size", "0.4", "--out", str(rig)]) == 0
+    capsys.readouterr()
+    assert main(["photometric", "reconstruct", "--images", *near_plane["images"][:2], near_plane["images"][0],
+                 near_plane["images"][1], "--rig", str(rig), "--out", str(tmp_path / "o")]) == 2
+    assert "rig: 3 LEDs for 4 images" in _error_line(capsys)
+    assert not (tmp_path / "o").exists()
