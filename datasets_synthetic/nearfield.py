@@ -29,19 +29,11 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.ndimage import map_coordinates
 
-from datasets_synthetic.cameras import (
-    Camera,
-    SurfaceHits,
-    intersect,
-    orthographic_camera,
-    perspective_camera,
-    vignetting_map,
-)
+from datasets_synthetic.cameras import Camera, SurfaceHits, intersect, make_camera, vignetting_map
 from datasets_synthetic.heightfields import CONVENTION, AnalyticSurface, make_scene
 from datasets_synthetic.io import ensure_dir
-from datasets_synthetic.point_lights import PointLights, _light_vector, point_lights, ring_point_lights
-from datasets_synthetic.render import _albedo, _deviations, _rgb_intensities, _write_folder, grid_triangles, sensor
-from photometric.lights import deviate_lights
+from datasets_synthetic.point_lights import PointLights, rig_lights, shading
+from datasets_synthetic.render import _albedo, _rgb_intensities, _write_folder, grid_triangles, sensor
 from photometric.normals import angular_error_deg
 from surfaces.grid import image_shape, xy_to_pixel
 from surfaces.io import atomic_write_text, save_npy, write_png
@@ -193,14 +185,19 @@ def render_near_field(
     shape = (n, h, w, 3) if rgb else (n, h, w)
     clean = np.empty(shape, np.float32)
     clean_flat = np.empty(shape, np.float32)
+    seen = tuple(np.ascontiguousarray(hits.points[..., i]) for i in range(3))
+    facing = tuple(np.ascontiguousarray(hits.normals[..., i]) for i in range(3))
+    flat = tuple(np.ascontiguousarray(flat_points[..., i]) for i in range(3))
+    up = (np.zeros((h, w)), np.zeros((h, w)), np.ones((h, w)))
     for k in tqdm(range(n), desc="render", unit="light", disable=not progress):
-        towards, falloff = _light_vector(lights, k, hits.points)
-        shade = falloff * np.maximum(0.0, np.einsum("...i,...i->...", hits.normals, towards)) * v
+        shade = shading(lights, k, seen, facing)
+        shade *= v
         if casts is not None:
-            shade = shade * ~casts[k]
+            shade *= ~casts[k]
         clean[k] = _colour(rho, lights.intensities[k], shade, rgb)
-        lf, falloff_f = _light_vector(lights, k, flat_points)
-        clean_flat[k] = _colour(np.asarray(flat_albedo), lights.intensities[k], falloff_f * lf[..., 2] * v, rgb)
+        shade = shading(lights, k, flat, up)
+        shade *= v
+        clean_flat[k] = _colour(np.asarray(flat_albedo), lights.intensities[k], shade, rgb)
     brightest = max(float(clean.max()), float(clean_flat.max()))
     if brightest <= 0:
         raise ValueError("lights: no pixel of the part or the flat field is lit")
@@ -431,16 +428,9 @@ def make_near_field_folder(
         (mm; the pixel values refer to the reference-plane grid) and ``scene_params``).
     """
     h, w = image_shape(size)
-    cam = _camera(camera, (h, w), pixel_size, focal_length_px, camera_height)
-    mu = as_array(led_mu, "led_mu", ndim=(0, 1))
-    if np.ndim(lights) == 0:
-        nominal = ring_point_lights(int(lights), slant, light_distance, azimuth0, mu, intensities)
-    else:
-        nominal = point_lights(lights, None, mu, intensities)
+    cam = make_camera(camera, (h, w), pixel_size, focal_length_px, camera_height)
+    nominal, true, dev = rig_lights(lights, slant, light_distance, azimuth0, led_mu, intensities, deviate)
     n = len(nominal)
-    dev = _deviations(deviate, n)
-    true = (nominal if not np.any(dev)
-            else point_lights(nominal.d0[:, None] * deviate_lights(nominal.directions, dev), None, mu, intensities))
     rho, albedo_desc = _albedo(albedo, (h, w), seed)
     hf = make_scene(scene, (h, w), cam.reference_pixel_mm, seed)
     rendered = render_near_field(hf, cam, true, rho, shadows, vignetting, exposure, peak, flat_albedo, noise,
@@ -473,19 +463,3 @@ def make_near_field_folder(
         "scene_params": hf.params,
     }
     return write_near_field_folder(out_dir, rendered, content, nominal)
-
-
-def _camera(model: str, size, pixel_size, focal_length_px, camera_height) -> Camera:
-    """The camera of :func:`make_near_field_folder` from its options (a clear error for a missing one)."""
-    if model == "orthographic":
-        if focal_length_px is not None or camera_height is not None:
-            raise ValueError("camera: focal_length_px and camera_height belong to a perspective camera")
-        return orthographic_camera(size, 0.05 if pixel_size is None else pixel_size)
-    if model == "perspective":
-        if focal_length_px is None or camera_height is None:
-            raise ValueError("camera: a perspective camera needs focal_length_px and camera_height")
-        if pixel_size is not None:
-            raise ValueError("pixel_size: a perspective camera's scale is camera_height / focal_length_px; "
-                             "give no pixel size")
-        return perspective_camera(size, focal_length_px, camera_height)
-    raise ValueError(f"camera: expected 'orthographic' or 'perspective', got {model!r}")
