@@ -330,3 +330,42 @@ def test_cli_rig_with_another_number_of_lights(near_plane, tmp_path, capsys):
                  near_plane["images"][1], "--rig", str(rig), "--out", str(tmp_path / "o")]) == 2
     assert "rig: 3 LEDs for 4 images" in _error_line(capsys)
     assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("camera", ["orthographic", "perspective"])
+def test_cli_calibrate_rendered_spheres_then_reconstruct_a_rendered_part(tmp_path, capsys, camera):
+    """The whole rig workflow on the independent renders: mirror spheres and a flat field
+    -> rig.json -> the scratched plate, under a lobe (mu = 1) the solver is never told."""
+    from datasets_synthetic.nearfield import make_near_field_folder
+    from datasets_synthetic.spheres import make_sphere_folders
+
+    size = 256
+    cam = ({"pixel_size": 60.0 / 512} if camera == "orthographic"
+           else {"focal_length_px": 512 * 300.0 / 60.0, "camera_height": 300.0})
+    ring = {"lights": 4, "slant": 45.0, "light_distance": 200.0, "camera": camera}
+    spheres = make_sphere_folders(tmp_path / "spheres", [[-7.0, 5.0, 5.0], [7.0, -5.0, 5.0]], radius=5.0,
+                                  size=size, noise=0.003, highlight_samples=48, **ring, **cam)
+    part = make_near_field_folder(tmp_path / "part", "inspection_scratch", size, led_mu=1.0, shadows="attached",
+                                  albedo=0.8, seed=4, **ring, **cam)
+    flats = [str(tmp_path / "part" / f) for f in part["flat_field"]["files"]]
+    rig = tmp_path / "rig.json"
+    assert main(["photometric", "calibrate", "--spheres", str(tmp_path / "spheres" / "sphere_01"),
+                 str(tmp_path / "spheres" / "sphere_02"), "--flat-field", *flats, "--flat-albedo", "0.8",
+                 "--out", str(rig)]) == 0
+    doc = json.loads(rig.read_text())
+    truth = np.array(spheres["lights"]["positions_mm"])
+    assert np.linalg.norm(np.array(doc["lights"]["positions_mm"]) - truth, axis=1).max() < 2.0
+    assert doc["camera"]["model"] == camera and doc["lights"]["mu"] is None
+    names = (tmp_path / "part" / "filenames.txt").read_text().split()
+    capsys.readouterr()
+    assert main(["photometric", "reconstruct", "--images", *[str(tmp_path / "part" / n) for n in names],
+                 "--rig", str(rig), "--out", str(tmp_path / "o")]) == 0
+    summary = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert summary["light_model"] == "point" and summary["flat_field"]["source"] == "rig"
+    assert summary["converged"] is True and summary["camera"]["model"] == camera
+    height = np.load(tmp_path / "o" / "height.npy")
+    truth_h = np.load(tmp_path / "part" / "height_gt.npy")
+    outside = np.isfinite(height) & (truth_h == 0.0)
+    assert np.sqrt(np.mean((height - truth_h)[outside] ** 2)) < 0.01
+    found = json.loads((tmp_path / "o" / "defects.json").read_text())["defects"]
+    assert found and found[0]["max_depth_mm"] == pytest.approx(0.10, rel=0.1)
