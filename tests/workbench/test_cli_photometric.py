@@ -369,3 +369,26 @@ def test_cli_calibrate_rendered_spheres_then_reconstruct_a_rendered_part(tmp_pat
     assert np.sqrt(np.mean((height - truth_h)[outside] ** 2)) < 0.01
     found = json.loads((tmp_path / "o" / "defects.json").read_text())["defects"]
     assert found and found[0]["max_depth_mm"] == pytest.approx(0.10, rel=0.1)
+
+
+def test_cli_rendered_perspective_folder_is_solved_near_field(tmp_path, capsys):
+    """A folder with light_positions.txt, flat_*.png and a perspective camera in scene.json:
+    the folder argument alone selects the point-light model, the camera and the flat field."""
+    from datasets_synthetic.nearfield import make_near_field_folder
+
+    make_near_field_folder(tmp_path / "part", "inspection_scratch", 256, lights=3, light_distance=150.0, led_mu=2.0,
+                           camera="perspective", focal_length_px=512 * 300.0 / 60.0, camera_height=300.0,
+                           shadows="attached", seed=5)
+    assert main(["photometric", "reconstruct", str(tmp_path / "part"), "--out", str(tmp_path / "o")]) == 0
+    out = capsys.readouterr().out
+    assert "point lights, perspective camera" in out
+    summary = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert summary["light_model"] == "point" and summary["converged"] is True
+    assert summary["camera"]["model"] == "perspective" and summary["camera"]["camera_height_mm"] == 300.0
+    assert summary["flat_field"]["source"] == "folder"
+    assert summary["height_rmse_mm"] < 0.01 and summary["xy_rmse_mm"] < 0.01
+    assert "xy.npy" in summary["files"]
+    xy = np.load(tmp_path / "o" / "xy.npy")
+    np.testing.assert_allclose(xy, np.load(tmp_path / "part" / "xy_gt.npy"), atol=0.01)
+    found = json.loads((tmp_path / "o" / "defects.json").read_text())["defects"]
+    assert found and found[0]["length_mm"] == pytest.approx(12.0, rel=0.02)
