@@ -154,3 +154,23 @@ def test_issue_plate_60mm(camera_height):
     found = measure_defects(res.height, px, res.valid, background="plane", p=res.p, q=res.q, **on_points)
     assert found[0]["max_depth_mm"] == pytest.approx(0.10, rel=0.05)
     assert found[0]["length_mm"] == pytest.approx(12.0, rel=0.02)
+
+
+def test_outlier_mode_drops_cast_and_attached_shadows():
+    """A tall cap under six low LEDs: shadowed observations bend the plain solve; the outlier
+    mode drops them per pixel and re-solves from the rest."""
+    shape, px = (128, 128), 0.3
+    rcam, cam = _cameras(shape, px, None)
+    cap = sphere_cap(shape, px, radius_mm=15.0, height_mm=9.0)
+    lights = ring_point_lights(6, 55.0, 150.0, 90.0, 1.0)
+    r = render_near_field(cap, rcam, lights, 0.8, shadows="cast", noise=0.003, bit_depth=16)
+    assert r.shadow_fraction.max() > 0.01
+    pl = point_lights(lights.positions, mu=1.0)
+    plain = solve_nearfield(r.images, pl, cam)
+    robust = solve_nearfield(r.images, pl, cam, outliers=True)
+    err_plain = angular_error_deg(plain.normals, r.hits.normals).mean()
+    err_robust = angular_error_deg(robust.normals, r.hits.normals)[robust.valid].mean()
+    assert err_robust < 0.5 < 5.0 < err_plain
+    assert robust.valid.mean() > 0.99 and robust.outliers.any()
+    height_err = (robust.height - r.hits.height)[robust.valid]
+    assert np.sqrt(np.mean(height_err**2)) < 0.1
