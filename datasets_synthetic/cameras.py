@@ -342,12 +342,7 @@ def intersect(surface, camera: Camera, tol_mm: float = 1e-9) -> SurfaceHits:
     first hit from the camera). Newton steps on the exact slope, ``g' = -1 - dx p - dy q``,
     fall back to bisection whenever they leave the bracket, all rays at once.
     """
-    if isinstance(surface, HeightField):
-        if surface.surface is None:
-            raise ValueError("surface: this HeightField carries no analytic surface")
-        surface = surface.surface
-    if not isinstance(surface, AnalyticSurface):
-        raise ValueError(f"surface: expected an AnalyticSurface or HeightField, got {type(surface).__name__}")
+    surface = analytic_surface(surface)
     if not isinstance(camera, Camera):
         raise ValueError(f"camera: expected a Camera, got {type(camera).__name__}")
     tol = positive(tol_mm, "tol_mm")
@@ -363,6 +358,32 @@ def intersect(surface, camera: Camera, tol_mm: float = 1e-9) -> SurfaceHits:
     x, y = t * dx, t * dy
     z, p, q, inside = surface._evaluate(x, y)
     return _hits(*(a.reshape(h, w) for a in (x, y, z, p, q, inside)))
+
+
+def analytic_surface(surface) -> AnalyticSurface:
+    """The closed-form surface of a scene.
+
+    Parameters
+    ----------
+    surface : AnalyticSurface or HeightField
+        A scene, or a height field that carries its analytic ``surface``.
+
+    Returns
+    -------
+    AnalyticSurface
+
+    Raises
+    ------
+    ValueError
+        Anything else, or a height field without an analytic surface.
+    """
+    if isinstance(surface, HeightField):
+        if surface.surface is None:
+            raise ValueError("surface: this HeightField carries no analytic surface")
+        surface = surface.surface
+    if not isinstance(surface, AnalyticSurface):
+        raise ValueError(f"surface: expected an AnalyticSurface or HeightField, got {type(surface).__name__}")
+    return surface
 
 
 def _hits(x, y, z, p, q, inside) -> SurfaceHits:

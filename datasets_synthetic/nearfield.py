@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.ndimage import map_coordinates
 
-from datasets_synthetic.cameras import Camera, SurfaceHits, intersect, make_camera, vignetting_map
+from datasets_synthetic.cameras import Camera, SurfaceHits, analytic_surface, intersect, make_camera, vignetting_map
 from datasets_synthetic.heightfields import CONVENTION, AnalyticSurface, make_scene
 from datasets_synthetic.io import ensure_dir
 from datasets_synthetic.point_lights import PointLights, rig_lights, shading
@@ -181,7 +181,8 @@ def render_near_field(
     h, w = camera.shape
     n = len(lights)
     rgb = lights.intensities.ndim == 2 or rho.ndim == 3
-    casts = _point_shadows(hits.points, lights.positions, camera.reference_pixel_mm) if shadows == "cast" else None
+    casts = (_point_shadows(hits.points, lights.positions, camera.reference_pixel_mm, analytic_surface(surface))
+             if shadows == "cast" else None)
     shape = (n, h, w, 3) if rgb else (n, h, w)
     clean = np.empty(shape, np.float32)
     clean_flat = np.empty(shape, np.float32)
@@ -248,25 +249,56 @@ def _albedo_at(albedo, camera: Camera, hits: SurfaceHits) -> np.ndarray:
     return sampled[0] if rho.ndim == 2 else np.stack(sampled, axis=-1)
 
 
-def _point_shadows(points: np.ndarray, positions: np.ndarray, pixel_mm: float) -> np.ndarray:
-    """(N, H, W) True where the segment from a seen point to light k's position meets the seen surface."""
+def _point_shadows(points: np.ndarray, positions: np.ndarray, pixel_mm: float, surface: AnalyticSurface) -> np.ndarray:
+    """(N, H, W) True where the segment from a seen point to light k's position meets the seen surface.
+
+    Only points that may be shadowed are ray cast: above its base plane the surface's
+    relief never exceeds ``hi`` (:attr:`AnalyticSurface.relief_bounds`), so a point whose
+    relief is ``hi`` and whose segment to the LED climbs away from the base plane stays
+    above every occluder (on a flat plate with a scratch, only the scratch is cast). A
+    climbing segment also reaches ``hi`` within a known distance, so the mesh covers only
+    the pixels that far around those points.
+    """
     import open3d as o3d
 
     h, w = points.shape[:2]
-    verts, tris = grid_triangles(points)
+    flat = points.reshape(-1, 3)
+    _, sx, sy = surface.plane
+    hi = surface.relief_bounds[1]
+    relief = flat[:, 2] - sx * flat[:, 0] - sy * flat[:, 1]
+    low = relief < hi - 1e-12
+    todo, reach = [], 0.0
+    for position in positions:
+        v = position - flat
+        climb = v[:, 2] - sx * v[:, 0] - sy * v[:, 1]
+        idx = np.flatnonzero(low | (climb <= 0))
+        todo.append(idx)
+        if idx.size:
+            c = climb[idx]
+            run = np.hypot(v[idx, 0], v[idx, 1])
+            reach = np.inf if np.any(c <= 0) else max(reach, float(np.max((hi - relief[idx]) * run / c)))
+    out = np.zeros((len(positions), h * w), bool)
+    if not any(idx.size for idx in todo):
+        return out.reshape(len(positions), h, w)
+    every = np.concatenate(todo)
+    rows, cols = every // w, every % w
+    margin = h + w if not np.isfinite(reach) else int(np.ceil(1.1 * reach / pixel_mm)) + 2
+    r0, r1 = max(int(rows.min()) - margin, 0), min(int(rows.max()) + margin, h - 1)
+    c0, c1 = max(int(cols.min()) - margin, 0), min(int(cols.max()) + margin, w - 1)
+    verts, tris = grid_triangles(points[r0:r1 + 1, c0:c1 + 1])
     scene = o3d.t.geometry.RaycastingScene()
     scene.add_triangles(o3d.core.Tensor(verts), o3d.core.Tensor(tris))
     start = 1e-3 * pixel_mm  # leave the vertex the ray starts from
-    flat = points.reshape(-1, 3)
-    out = np.empty((len(positions), h, w), bool)
-    for k, position in enumerate(positions):
-        v = position - flat
+    for k, (position, idx) in enumerate(zip(positions, todo)):
+        if idx.size == 0:
+            continue
+        v = position - flat[idx]
         dist = np.linalg.norm(v, axis=1)
         d = v / dist[:, None]
-        rays = np.concatenate([flat + start * d, d], axis=1).astype(np.float32)
+        rays = np.concatenate([flat[idx] + start * d, d], axis=1).astype(np.float32)
         t_hit = scene.cast_rays(o3d.core.Tensor(rays))["t_hit"].numpy()
-        out[k] = (t_hit < dist - start).reshape(h, w)
-    return out
+        out[k, idx] = t_hit < dist - start
+    return out.reshape(len(positions), h, w)
 
 
 def write_near_field_folder(out_dir: str | os.PathLike, rendered: NearFieldRender, scene: dict,
