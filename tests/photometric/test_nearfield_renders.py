@@ -174,3 +174,21 @@ def test_outlier_mode_drops_cast_and_attached_shadows():
     assert robust.valid.mean() > 0.99 and robust.outliers.any()
     height_err = (robust.height - r.hits.height)[robust.valid]
     assert np.sqrt(np.mean(height_err**2)) < 0.1
+
+
+def test_distant_lights_with_a_perspective_lens():
+    """LEDs 100 m away are distant lights; the perspective camera still needs the log-depth
+    integration: one far-field solve, heights and x, y of each pixel's point."""
+    shape, px = (128, 128), 0.3
+    rcam, cam = _cameras(shape, px, 120.0)  # a short lens: the field is wide for the distance
+    cap = sphere_cap(shape, px, radius_mm=15.0, height_mm=3.0)
+    r = _render(cap, rcam, distance=1e5, mu=0.0)
+    res = solve_nearfield(r.images, r.lights.directions, cam)
+    assert res.iterations == 1 and res.depth_change_mm is None
+    assert angular_error_deg(res.normals, r.hits.normals)[res.valid].mean() < 0.5
+    rmse = np.sqrt(np.mean((res.height - r.hits.height)[res.valid] ** 2))
+    assert rmse < 0.01
+    assert np.sqrt(np.mean(np.sum((res.xy - r.hits.points[..., :2]) ** 2, axis=-1))) < 0.005
+    # the same normals integrated as if the lens were telecentric: the cap comes out too low
+    flat = solve_nearfield(r.images, r.lights.directions, make_camera("orthographic", pixel_size_mm=px))
+    assert np.sqrt(np.mean((flat.height - r.hits.height)[flat.valid] ** 2)) > 3 * rmse
