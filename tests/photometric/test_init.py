@@ -11,7 +11,8 @@ import pytest
 import photometric
 
 
-MODULES = ("lights", "normals", "io", "stereo", "integrate", "defects", "pipeline")
+MODULES = ("lights", "normals", "io", "stereo", "integrate", "defects", "pipeline", "camera", "nearfield", "rig",
+           "calibrate")
 
 
 @pytest.mark.parametrize("name", sorted(photometric.__all__))
