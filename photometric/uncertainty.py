@@ -73,6 +73,7 @@ __all__ = [
     "height_noise_variance",
     "linear_variance",
     "propagate",
+    "format_value",
 ]
 
 #: ``method`` choices.
@@ -168,6 +169,40 @@ class UncertaintyResult:
     height_u: np.ndarray
     defects: list
     summary: dict
+
+
+def format_value(value: float, expanded: float | None, unit: str = "mm") -> str:
+    """A value with its expanded uncertainty as metrology writes it: ``0.100 ± 0.006 mm (k = 2)``.
+
+    ``U`` keeps two significant digits when its first digit is 1 or 2, else one; the value
+    is rounded to the same decimal place.
+
+    Parameters
+    ----------
+    value : float
+        The measured value.
+    expanded : float or None
+        Expanded uncertainty ``U`` (k = 2); None gives the value alone (4 significant digits).
+    unit : str
+        Unit written after the numbers.
+
+    Returns
+    -------
+    str
+
+    Examples
+    --------
+    >>> format_value(0.1004, 0.00612)
+    '0.100 ± 0.006 mm (k = 2)'
+    >>> format_value(5.0213, 0.0238)
+    '5.021 ± 0.024 mm (k = 2)'
+    """
+    if expanded is None or not np.isfinite(expanded) or expanded <= 0:
+        return f"{value:.4g} {unit}"
+    first = math.floor(math.log10(expanded))
+    lead = int(expanded / 10.0**first)
+    digits = max(0, -(first - (1 if lead < 3 else 0)))
+    return f"{value:.{digits}f} ± {expanded:.{digits}f} {unit} (k = {COVERAGE_FACTOR:g})"
 
 
 # ----------------------------------------------------------------------------- slopes
@@ -518,12 +553,12 @@ def _bias_term(spread: float, bias: float) -> float:
 
 
 def _depth_sampling(depth_map: np.ndarray, peak: tuple[int, int], inside: np.ndarray) -> float:
-    """Standard uncertainty of taking the deepest pixel for the deepest point: the depth
-    falls by ``a`` over half a pixel (a quarter of the drop to the shallower of the two
-    neighbours along the steepest direction's mean), rectangular: ``a / sqrt(3)``."""
+    """Standard uncertainty of the depth's pixel sampling and integration on the pixel grid:
+    ``a / sqrt(3)`` with ``a`` half the mean depth drop to the two row or column neighbours
+    of the deepest pixel (the larger), i.e. the drop over half a pixel (rectangular)."""
     r, c = peak
     drops = []
-    for dr, dc in ((0, 1), (1, 0), (1, 1), (1, -1)):
+    for dr, dc in ((0, 1), (1, 0)):
         pair = []
         for sgn in (-1, 1):
             rr, cc = r + sgn * dr, c + sgn * dc
@@ -620,8 +655,8 @@ def propagate(
     mask : array_like, shape (H, W), optional
         Object mask of the solve (Monte Carlo).
     pixel_size_given : bool
-        False when the pixel size is the default 1 unit per pixel: a pixel size tolerance
-        is then an error (mm outputs need a pixel size).
+        False when the pixel size is the default 1 unit per pixel: an error (the
+        uncertainties are stated in mm).
     resolve : callable, optional
         Monte Carlo: ``resolve(images, lights, intensities) -> (p, q, valid, height,
         defects)`` re-runs the fast solve (the pipeline passes its own).
@@ -637,9 +672,9 @@ def propagate(
     tol = tolerances
     t0 = time.perf_counter()
     h = positive(pixel_size, "pixel_size")
-    if not pixel_size_given and (tol.pixel_size_tolerance > 0 or tol.light_position_tolerance_mm > 0):
-        raise ValueError("pixel_size: tolerances of mm outputs (pixel size, light positions) need the pixel size "
-                         "(--pixel-size or the folder's scene.json)")
+    if not pixel_size_given:
+        raise ValueError("pixel_size: uncertainties are stated in mm and need the pixel size (--pixel-size or the "
+                         "folder's scene.json); without it the heights are in pixel units")
     L = as_array(lights, "lights", ndim=2)
     n = L.shape[0]
     E = np.ones(n) if intensities is None else np.asarray(intensities, float)
