@@ -52,12 +52,14 @@ the same in every repetition).
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass
 
 import numpy as np
 import scipy.fft as sfft
 from scipy import ndimage
 
+from photometric.nearfield import _upsample
 from surfaces.validate import as_array, positive
 
 __all__ = [
@@ -70,6 +72,7 @@ __all__ = [
     "estimate_noise_sigma",
     "slope_noise_covariance",
     "slope_sensitivities",
+    "slope_systematic_variance",
     "height_noise_variance",
     "linear_variance",
     "propagate",
@@ -87,8 +90,13 @@ FIGURES = ("max_depth_mm", "mean_width_mm", "length_mm", "area_mm2", "volume_mm3
 COVERAGE_FACTOR = 2.0
 #: Powers of the pixel size in each figure (heights scale with ``h`` like lengths).
 _H_POWER = {"max_depth_mm": 1, "mean_width_mm": 1, "length_mm": 1, "area_mm2": 2, "volume_mm3": 3}
-_QUANTISATION_OFFSETS = 48
+_QUANTISATION_OFFSETS = 24
 _MAX_FIT_POINTS = 200_000
+#: Largest image on which the systematic fields are integrated pixel by pixel; larger
+#: images integrate them on blocks of r x r pixels (the fields are smooth at that scale).
+_SYSTEMATIC_PIXELS = 1 << 20
+#: Pixels per row block of the per-pixel maps (fits the CPU cache with its temporaries).
+_BLOCK_PIXELS = 1 << 15
 
 
 @dataclass(frozen=True)
@@ -268,7 +276,7 @@ def slope_noise_covariance(lights, albedo, p, q, sigma: float, intensities=None,
 
     Returns
     -------
-    var_p, var_q, cov_pq : numpy.ndarray, shape (H, W), float64
+    var_p, var_q, cov_pq : numpy.ndarray, shape (H, W), float32
         ``sigma^2 (1 + p^2 + q^2) / rho^2 G A G^T`` with ``A = C diag(1 / E^2) C^T``;
         infinite where the albedo is zero.
     """
@@ -276,13 +284,14 @@ def slope_noise_covariance(lights, albedo, p, q, sigma: float, intensities=None,
     C = np.linalg.pinv(L)
     E = _grey_intensities(intensities, L.shape[0])
     A = (C / E**2) @ C.T
-    pp = np.asarray(p, np.float64)
-    qq = np.asarray(q, np.float64)
-    rho = np.asarray(albedo, np.float64)
+    pp = np.asarray(p, np.float32)
+    qq = np.asarray(q, np.float32)
+    rho = np.asarray(albedo, np.float32)
     if rho.ndim == 3:
         rho = rho.mean(axis=2)
+    A = A.astype(np.float32)
     with np.errstate(divide="ignore"):
-        s2 = (sigma**2 / channels) * (1.0 + pp * pp + qq * qq) / (rho * rho)
+        s2 = np.float32(sigma**2 / channels) * (1.0 + pp * pp + qq * qq) / (rho * rho)
     var_p = s2 * (A[0, 0] + 2.0 * pp * A[0, 2] + pp * pp * A[2, 2])
     var_q = s2 * (A[1, 1] + 2.0 * qq * A[1, 2] + qq * qq * A[2, 2])
     cov = s2 * (A[0, 1] + pp * A[1, 2] + qq * A[0, 2] + pp * qq * A[2, 2])
@@ -296,8 +305,37 @@ def _tangents(L: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return _basis(L)
 
 
-def slope_sensitivities(lights, p, q, tolerances: Tolerances, intensities=None):
-    """The systematic light parameters and their slope fields (far-field lights).
+def _far_parameters(L: np.ndarray, tol: Tolerances) -> list:
+    """``(source, name, u, k, e)`` per systematic parameter of distant lights: light ``k`` moves
+    by ``e`` per unit (a tangent for the direction, ``l_k`` itself for the intensity)."""
+    e_s, e_a = _tangents(L)
+    u_dir = math.radians(tol.light_tolerance_deg)
+    out = []
+    for k in range(L.shape[0]):
+        if u_dir > 0:
+            out += [("light_direction", f"light {k} slant", u_dir, k, e_s[k]),
+                    ("light_direction", f"light {k} azimuth", u_dir, k, e_a[k])]
+        if tol.intensity_tolerance > 0:
+            out.append(("light_intensity", f"light {k} intensity", tol.intensity_tolerance, k, L[k]))
+    return out
+
+
+def _far_field(C: np.ndarray, k: int, e: np.ndarray, base: dict) -> tuple[np.ndarray, np.ndarray]:
+    """``(dp, dq) = G c_k (n . e)`` from the base fields ``1, p, q, p^2, pq, q^2`` (``base``):
+    the fields are linear in them, so block means of the base fields give the block means
+    of the fields exactly."""
+    f = np.float32
+    c0, c1, c2 = (f(v) for v in C[:, k])
+    ex, ey, ez = (f(v) for v in e)
+    one, p, q, pp, pq, qq = (base[key] for key in ("1", "p", "q", "pp", "pq", "qq"))
+    # n . e = ez - p ex - q ey;  dp = -(c0 + c2 p)(n . e),  dq = -(c1 + c2 q)(n . e)
+    dp = -(c0 * ez * one + (c2 * ez - c0 * ex) * p - c0 * ey * q - c2 * ex * pp - c2 * ey * pq)
+    dq = -(c1 * ez * one - c1 * ex * p + (c2 * ez - c1 * ey) * q - c2 * ex * pq - c2 * ey * qq)
+    return dp, dq
+
+
+def slope_sensitivities(lights, p, q, tolerances: Tolerances):
+    """The systematic light parameters and their slope fields (distant lights).
 
     Parameters
     ----------
@@ -307,9 +345,6 @@ def slope_sensitivities(lights, p, q, tolerances: Tolerances, intensities=None):
         Slopes.
     tolerances : Tolerances
         ``light_tolerance_deg`` and ``intensity_tolerance`` select the parameters.
-    intensities : array_like, optional
-        Unused by the first-order model (the intensities divide out); kept for the
-        signature of the near-field variant.
 
     Yields
     ------
@@ -321,42 +356,79 @@ def slope_sensitivities(lights, p, q, tolerances: Tolerances, intensities=None):
         Standard uncertainty of the parameter (rad or relative).
     dp, dq : numpy.ndarray, shape (H, W), float32
         Change of ``p``, ``q`` per unit of the parameter: ``G c_k (n . dl_k)`` with
-        ``n = (-p, -q, 1)``.
+        ``n = (-p, -q, 1)``, ``G = [[-1, 0, -p], [0, -1, -q]]`` and ``c_k`` column k of
+        ``L^+`` (an intensity error ``delta`` acts as ``dl_k = delta l_k``).
     """
     L = as_array(lights, "lights", ndim=2)
     C = np.linalg.pinv(L)
     pp = np.asarray(p, np.float32)
     qq = np.asarray(q, np.float32)
-    e_s, e_a = _tangents(L)
-    u_dir = math.radians(tolerances.light_tolerance_deg)
+    base = {"1": np.ones_like(pp), "p": pp, "q": qq, "pp": pp * pp, "pq": pp * qq, "qq": qq * qq}
+    for source, name, u, k, e in _far_parameters(L, tolerances):
+        dp, dq = _far_field(C, k, e, base)
+        yield source, name, u, dp, dq
+
+
+def slope_systematic_variance(lights, p, q, tolerances: Tolerances) -> tuple[np.ndarray, np.ndarray]:
+    """Per-pixel variance of ``p`` and ``q`` from the light directions and intensities.
+
+    Per light ``w_k = u_l^2 ((n . e_s)^2 + (n . e_a)^2) + u_E^2 (n . l_k)^2
+    = u_l^2 (|n|^2 - (n . l_k)^2) + u_E^2 (n . l_k)^2`` and ``var = sum_k w_k (G c_k)^2``
+    (:func:`slope_sensitivities`, summed in closed form).
+
+    Parameters
+    ----------
+    lights : array_like, shape (N, 3)
+        Nominal unit lights.
+    p, q : array_like, shape (H, W)
+        Slopes.
+    tolerances : Tolerances
+        ``light_tolerance_deg``, ``intensity_tolerance``.
+
+    Returns
+    -------
+    var_p, var_q : numpy.ndarray, shape (H, W), float32
+    """
+    L = as_array(lights, "lights", ndim=2)
+    C = np.linalg.pinv(L).astype(np.float32)
+    pp = np.asarray(p, np.float32)
+    qq = np.asarray(q, np.float32)
+    u_dir2 = np.float32(math.radians(tolerances.light_tolerance_deg) ** 2)
+    u_int2 = np.float32(tolerances.intensity_tolerance**2)
+    var_p = np.zeros(pp.shape, np.float32)
+    var_q = np.zeros(pp.shape, np.float32)
+    if u_dir2 == 0 and u_int2 == 0:
+        return var_p, var_q
+    # e_s, e_a and l_k are orthonormal: (n . e_s)^2 + (n . e_a)^2 = |n|^2 - (n . l_k)^2
+    n2 = 1.0 + pp * pp + qq * qq
     for k in range(L.shape[0]):
-        gp = -(np.float32(C[0, k]) + pp * np.float32(C[2, k]))
-        gq = -(np.float32(C[1, k]) + qq * np.float32(C[2, k]))
-        vectors = []
-        if u_dir > 0:
-            vectors += [("light_direction", f"light {k} slant", u_dir, e_s[k]),
-                        ("light_direction", f"light {k} azimuth", u_dir, e_a[k])]
-        if tolerances.intensity_tolerance > 0:
-            vectors.append(("light_intensity", f"light {k} intensity", tolerances.intensity_tolerance, L[k]))
-        for source, name, u, e in vectors:
-            ndl = np.float32(e[2]) - pp * np.float32(e[0]) - qq * np.float32(e[1])
-            yield source, name, u, gp * ndl, gq * ndl
+        lx, ly, lz = (np.float32(v) for v in L[k])
+        ndl = lz - pp * lx - qq * ly
+        w = u_dir2 * n2 + (u_int2 - u_dir2) * ndl * ndl
+        gp = C[0, k] + pp * C[2, k]
+        gq = C[1, k] + qq * C[2, k]
+        var_p += w * gp * gp
+        var_q += w * gq * gq
+    return var_p, var_q
 
 
 # ----------------------------------------------------------------------------- heights
 
 
 def _mode_variance(shape, var_p: float, var_q: float, h: float) -> np.ndarray:
-    """``T_kl``: variance of each DCT-II mode of the integrated height (module docstring)."""
+    """``T_kl``: variance of each DCT-II mode of the integrated height (module docstring), float32."""
     rows, cols = shape
     ar = np.pi * np.arange(rows) / (2 * rows)
     ac = np.pi * np.arange(cols) / (2 * cols)
     sr = 4.0 * np.sin(ar) ** 2
     sc = 4.0 * np.sin(ac) ** 2
-    num = var_p * (sc * np.cos(ac) ** 2)[None, :] + var_q * (sr * np.cos(ar) ** 2)[:, None]
-    den = (sr[:, None] + sc[None, :]) ** 2
+    num_r = (h * h * var_q * sr * np.cos(ar) ** 2).astype(np.float32)[:, None]
+    num_c = (h * h * var_p * sc * np.cos(ac) ** 2).astype(np.float32)[None, :]
+    den = sr.astype(np.float32)[:, None] + sc.astype(np.float32)[None, :]
     den[0, 0] = 1.0
-    T = h * h * num / den
+    np.square(den, out=den)
+    T = num_r + num_c
+    T /= den
     T[0, 0] = 0.0
     return T
 
@@ -364,19 +436,26 @@ def _mode_variance(shape, var_p: float, var_q: float, h: float) -> np.ndarray:
 def _squared_basis_sum(T: np.ndarray, axis: int) -> np.ndarray:
     """``sum_k a_k(r)^2 T_k`` along ``axis`` for the orthonormal DCT-II basis ``a_k``.
 
-    ``a_k(r)^2 = c_k^2 (1 + cos(pi k (2 r + 1) / n)) / 2``: a constant plus a cosine sum,
-    evaluated as the real part of a zero-padded inverse FFT of length ``2 n``.
+    ``a_k(r)^2 = c_k^2 (1 + cos(pi 2k (2 r + 1) / 2n)) / 2``: a constant plus a cosine sum at
+    the even frequencies ``j = 2k``; those with ``j >= n`` fold back to ``2n - j`` with a
+    minus sign (``cos(pi (2r + 1) - x) = -cos x``), so the sum is one DCT-III of length
+    ``n``.
     """
     n = T.shape[axis]
-    c2 = np.full(n, 2.0 / n)
+    c2 = np.full(n, 2.0 / n, np.float32)
     c2[0] = 1.0 / n
     shape = [1, 1]
     shape[axis] = n
-    Y = T * c2.reshape(shape)
-    const = 0.5 * Y.sum(axis=axis, keepdims=True)
-    F = sfft.ifft(Y, n=2 * n, axis=axis, workers=-1) * (2 * n)
-    odd = np.take(F.real, np.arange(1, 2 * n, 2), axis=axis)
-    return const + 0.5 * odd
+    Y = np.moveaxis(T * c2.reshape(shape), axis, 0)
+    const = 0.5 * Y.sum(axis=0, keepdims=True)
+    folded = np.zeros_like(Y)
+    low = np.arange(0, (n + 1) // 2)  # j = 2k < n
+    folded[2 * low] += Y[low]
+    high = np.arange((n + 2) // 2, n)  # j = 2n - 2k, 0 < j < n (j = n: cos = 0)
+    folded[2 * n - 2 * high] -= Y[high]
+    folded[1:] *= 0.5  # scipy's DCT-III doubles every term but the first
+    S = sfft.dct(folded, type=3, axis=0, workers=-1, overwrite_x=True)
+    return np.moveaxis(const + 0.5 * S, 0, axis)
 
 
 def height_noise_variance(shape, var_p: float, var_q: float, pixel_size: float = 1.0) -> np.ndarray:
@@ -398,7 +477,7 @@ def height_noise_variance(shape, var_p: float, var_q: float, pixel_size: float =
         the image is the datum, as :func:`photometric.integrate.dct_poisson` returns it.
     """
     T = _mode_variance(shape, float(var_p), float(var_q), float(pixel_size))
-    return np.maximum(_squared_basis_sum(_squared_basis_sum(T, 0), 1), 0.0)
+    return np.maximum(_squared_basis_sum(_squared_basis_sum(T, 0), 1), 0.0).astype(np.float64)
 
 
 def linear_variance(weights, var_p: float, var_q: float, pixel_size: float = 1.0) -> float:
@@ -417,9 +496,57 @@ def linear_variance(weights, var_p: float, var_q: float, pixel_size: float = 1.0
         ``sum_kl T_kl DCT(w)_kl^2`` (mm^2 times the unit of ``w`` squared).
     """
     w = as_array(weights, "weights", ndim=2)
-    T = _mode_variance(w.shape, float(var_p), float(var_q), float(pixel_size))
-    W = sfft.dctn(w, type=2, norm="ortho", workers=-1)
-    return float(np.sum(T * W * W))
+    return _linear_variance(w, _mode_variance(w.shape, float(var_p), float(var_q), float(pixel_size)))
+
+
+def _linear_variance(w: np.ndarray, T: np.ndarray) -> float:
+    W = sfft.dctn(w.astype(np.float32), type=2, norm="ortho", workers=-1)
+    return float(np.sum(T * W * W, dtype=np.float64))
+
+
+def _bin(a: np.ndarray, r: int) -> np.ndarray:
+    """Means of ``r x r`` blocks (trailing rows and columns dropped, as
+    :func:`photometric.nearfield._upsample` expects); OpenCV's area resampling."""
+    import cv2
+
+    h, w = a.shape[0] // r, a.shape[1] // r
+    return cv2.resize(a[: h * r, : w * r], (w, h), interpolation=cv2.INTER_AREA)
+
+
+def _slope_maps(L, E, albedo, p, q, ok, sigma, tol, channels):
+    """``p_u``, ``q_u`` (noise and light parameters) and the mean noise variances of ``p``
+    and ``q`` over ``ok``; row blocks that stay in the CPU cache."""
+    p_u = np.zeros(p.shape, np.float32)
+    q_u = np.zeros(p.shape, np.float32)
+    sums = np.zeros(2)
+    rows = max(1, _BLOCK_PIXELS // p.shape[1])
+    for r0 in range(0, p.shape[0], rows):
+        sl = slice(r0, r0 + rows)
+        vp, vq, _ = slope_noise_covariance(L, albedo[sl], p[sl], q[sl], sigma, E, channels)
+        m = ok[sl]
+        sums += (vp.sum(where=m, dtype=np.float64), vq.sum(where=m, dtype=np.float64))
+        sp, sq = slope_systematic_variance(L, p[sl], q[sl], tol)
+        np.sqrt(vp + sp, out=p_u[sl])
+        np.sqrt(vq + sq, out=q_u[sl])
+    p_u[~ok] = 0.0
+    q_u[~ok] = 0.0
+    count = max(int(np.count_nonzero(ok)), 1)
+    return p_u, q_u, float(sums[0] / count), float(sums[1] / count)
+
+
+def _integrate_field(dp: np.ndarray, dq: np.ndarray, integrator: str, ok: np.ndarray, h: float) -> np.ndarray:
+    """A systematic slope field (zero outside ``ok``) integrated like the height: float32 DCT
+    for ``dct`` (uncertainties need no more digits), zero mean over ``ok``, zero outside."""
+    from photometric.integrate import dct_poisson, integrate
+
+    if integrator == "dct":
+        z = dct_poisson(dp, dq, None, h, dtype=np.float32).astype(np.float32)
+    else:
+        z = np.nan_to_num(integrate(dp, dq, integrator, mask=ok, pixel_size=h)).astype(np.float32)
+    if not ok.all():
+        z -= np.float32(z[ok].mean())
+        z[~ok] = 0.0
+    return z
 
 
 # ----------------------------------------------------------------------------- defects
@@ -460,9 +587,21 @@ class _Background:
 
     def weights(self, d: np.ndarray) -> np.ndarray:
         """Image of the weights with which the fit's value ``d . coef`` takes each pixel."""
-        w = np.zeros(self.shape)
-        np.add.at(w, (self.rows, self.cols), self.A @ (self.gram_inv @ d))
+        w = np.zeros(self.shape, np.float32)
+        w[self.rows, self.cols] = self.A @ (self.gram_inv @ d)  # the fit's pixels are distinct
         return w
+
+
+def _grown(labels: np.ndarray, defects: list, margin: int) -> np.ndarray:
+    """The defects' pixels grown by ``margin`` pixels (dilated within each bounding box)."""
+    out = np.zeros(labels.shape, bool)
+    for rec in defects:
+        r0, c0, r1, c1 = rec["bbox_px"]
+        r0, c0 = max(r0 - margin, 0), max(c0 - margin, 0)
+        r1, c1 = min(r1 + margin, labels.shape[0]), min(c1 + margin, labels.shape[1])
+        window = labels[r0:r1, c0:c1] == rec["id"] + 1
+        out[r0:r1, c0:c1] |= ndimage.binary_dilation(window, iterations=margin)
+    return out
 
 
 def _figures(labels: np.ndarray, defects: list, height: np.ndarray, bg: _Background) -> list[_Figures]:
@@ -478,11 +617,44 @@ def _figures(labels: np.ndarray, defects: list, height: np.ndarray, bg: _Backgro
     return out
 
 
-def _systematic(fig: _Figures, z: np.ndarray, coef: np.ndarray, h: float) -> tuple[float, float]:
-    """Change of (depth, volume) for a systematic height field ``z`` with background ``coef``."""
-    r, c = fig.peak
-    depth = fig.sign * (z[r, c] - fig.d_peak @ coef)
-    volume = fig.sign * h * h * (z[fig.region[:, 0], fig.region[:, 1]].sum() - fig.d_region @ coef)
+def _points(bg: _Background, figs: list) -> tuple[np.ndarray, np.ndarray, list]:
+    """Every pixel a systematic field is read at: the background's, then per defect its peak
+    and its region; with the slices of each defect's part."""
+    rows, cols, parts = [bg.rows], [bg.cols], []
+    start = bg.rows.size
+    for fig in figs:
+        rows += [np.array([fig.peak[0]]), fig.region[:, 0]]
+        cols += [np.array([fig.peak[1]]), fig.region[:, 1]]
+        parts.append((start, start + 1 + fig.region.shape[0]))
+        start = parts[-1][1]
+    return np.concatenate(rows), np.concatenate(cols), parts
+
+
+def _sampler(rows: np.ndarray, cols: np.ndarray, r: int, coarse_shape) -> tuple[np.ndarray, np.ndarray]:
+    """Flat indices (n, 4) and weights (n, 4) that read a field of ``r x r`` block means at
+    full-resolution pixels bilinearly, as :func:`photometric.nearfield._upsample` does."""
+    hc, wc = coarse_shape
+    out_i, out_w = [], []
+    for pix, n in ((rows, hc), (cols, wc)):
+        x = np.clip((pix + 0.5) / r - 0.5, 0.0, n - 1)
+        i0 = np.floor(x).astype(np.int64)
+        i1 = np.minimum(i0 + 1, n - 1)
+        f = x - i0
+        out_i.append((i0, i1))
+        out_w.append((1.0 - f, f))
+    (r0, r1), (c0, c1) = out_i
+    (wr0, wr1), (wc0, wc1) = out_w
+    idx = np.stack([r0 * wc + c0, r0 * wc + c1, r1 * wc + c0, r1 * wc + c1], axis=1)
+    w = np.stack([wr0 * wc0, wr0 * wc1, wr1 * wc0, wr1 * wc1], axis=1)
+    return idx, w
+
+
+def _systematic(fig: _Figures, values: np.ndarray, part: tuple, coef: np.ndarray, h: float) -> tuple[float, float]:
+    """Change of (depth, volume) for a systematic height field read at the defect's pixels
+    (``values[part]``: peak, then region) with background ``coef``."""
+    v = values[part[0]:part[1]]
+    depth = fig.sign * (v[0] - fig.d_peak @ coef)
+    volume = fig.sign * h * h * (v[1:].sum() - fig.d_region @ coef)
     return float(depth), float(volume)
 
 
@@ -490,7 +662,7 @@ def _noise_weights(fig: _Figures, bg: _Background, h: float) -> tuple[np.ndarray
     w_depth = -fig.sign * bg.weights(fig.d_peak)
     w_depth[fig.peak] += fig.sign
     w_vol = -fig.sign * h * h * bg.weights(fig.d_region)
-    np.add.at(w_vol, (fig.region[:, 0], fig.region[:, 1]), fig.sign * h * h)
+    w_vol[fig.region[:, 0], fig.region[:, 1]] += fig.sign * h * h  # distinct pixels
     return w_depth, w_vol
 
 
@@ -511,13 +683,15 @@ def _quantisation(rec: dict, h: float, rng: np.random.Generator) -> dict:
     length = max(float(rec["length_mm"]) / h, width)
     a = math.radians(float(rec["axis_deg"]))
     ux, uy = math.cos(a), math.sin(a)
-    half = int(math.ceil(0.5 * length + width)) + 2
-    grid = np.arange(-half, half + 1, dtype=float)
-    y0, x0 = np.meshgrid(-grid, grid, indexing="ij")  # y up, rows down
+    seg = 0.5 * (length - width)
+    half_x = int(math.ceil(abs(ux) * seg + 0.5 * width)) + 2
+    half_y = int(math.ceil(abs(uy) * seg + 0.5 * width)) + 2
+    y0, x0 = np.meshgrid(-np.arange(-half_y, half_y + 1.0), np.arange(-half_x, half_x + 1.0),
+                         indexing="ij")  # y up, rows down
     values = {"mean_width_mm": [], "length_mm": [], "area_mm2": []}
     for off in rng.uniform(-0.5, 0.5, (_QUANTISATION_OFFSETS, 2)):
         x, y = x0 - off[0], y0 - off[1]
-        s = np.clip(x * ux + y * uy, -0.5 * (length - width), 0.5 * (length - width))
+        s = np.clip(x * ux + y * uy, -seg, seg)
         inside = np.hypot(x - s * ux, y - s * uy) < 0.5 * width
         if inside.sum() < 2:
             continue
@@ -539,36 +713,63 @@ def _quantisation(rec: dict, h: float, rng: np.random.Generator) -> dict:
 def _bias_term(spread: float, bias: float) -> float:
     """Standard uncertainty of an uncorrected bias ``b`` next to a spread ``s``: the ``u_b`` for
     which ``2 sqrt(s^2 + u_b^2)`` is the half-width that holds 95 % of ``Normal(b, s)``."""
-    from scipy import optimize, stats
-
-    b, s = abs(bias), max(spread, 1e-300)
-    if b < 1e-12 * max(s, 1e-300) or b == 0.0:
+    b, s = abs(bias), spread
+    if b == 0.0:
         return 0.0
+    if s <= 0.0:
+        return 0.5 * b
 
-    def miss(U):
-        return stats.norm.cdf((U - b) / s) - stats.norm.cdf((-U - b) / s) - 0.95
+    def held(U):
+        return 0.5 * (math.erf((U - b) / (s * math.sqrt(2.0))) - math.erf((-U - b) / (s * math.sqrt(2.0))))
 
-    U = optimize.brentq(miss, 0.0, b + 10.0 * s)
-    return float(math.sqrt(max((0.5 * U) ** 2 - s * s, 0.0)))
+    lo, hi = 0.0, b + 10.0 * s
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if held(mid) < 0.95 else (lo, mid)
+    return float(math.sqrt(max((0.25 * (lo + hi)) ** 2 - s * s, 0.0)))
 
 
-def _depth_sampling(depth_map: np.ndarray, peak: tuple[int, int], inside: np.ndarray) -> float:
+def _depth_sampling(z: np.ndarray, fig: _Figures, bg: _Background, coef: np.ndarray, labels: np.ndarray,
+                    label: int) -> float:
     """Standard uncertainty of the depth's pixel sampling and integration on the pixel grid:
     ``a / sqrt(3)`` with ``a`` half the mean depth drop to the two row or column neighbours
     of the deepest pixel (the larger), i.e. the drop over half a pixel (rectangular)."""
-    r, c = peak
+    r, c = fig.peak
+
+    def depth(rr, cc):
+        return fig.sign * (z[rr, cc] - float((bg.design(rr, cc) @ coef)[0]))
+
+    top = depth(r, c)
     drops = []
     for dr, dc in ((0, 1), (1, 0)):
         pair = []
         for sgn in (-1, 1):
             rr, cc = r + sgn * dr, c + sgn * dc
-            if 0 <= rr < depth_map.shape[0] and 0 <= cc < depth_map.shape[1] and inside[rr, cc]:
-                pair.append(depth_map[r, c] - depth_map[rr, cc])
+            if 0 <= rr < z.shape[0] and 0 <= cc < z.shape[1] and labels[rr, cc] == label:
+                pair.append(top - depth(rr, cc))
         if pair:
             drops.append(np.mean(pair))
     if not drops:
         return 0.0
     return float(0.5 * max(max(drops), 0.0) / math.sqrt(3.0))
+
+
+def _stage_times(t0: float, marks: dict) -> dict:
+    """Seconds of each stage between the marks, and the total."""
+    out, last = {}, t0
+    for name, t in marks.items():
+        out[name] = round(t - last, 4)
+        last = t
+    out["defects"] = round(time.perf_counter() - last, 4)
+    out["total"] = round(time.perf_counter() - t0, 4)
+    return out
+
+
+def _median(values: np.ndarray, where: np.ndarray) -> float:
+    """Median over ``where`` (of at most ~250 000 evenly spread pixels: a summary figure)."""
+    step = max(1, int(math.sqrt(values.size / 250_000)))
+    v = values[::step, ::step][where[::step, ::step]]
+    return float(np.median(v)) if v.size else 0.0
 
 
 def _entry(u_input: float, sensitivity: float) -> dict:
@@ -665,10 +866,6 @@ def propagate(
     -------
     UncertaintyResult
     """
-    import time
-
-    from photometric.integrate import integrate
-
     tol = tolerances
     t0 = time.perf_counter()
     h = positive(pixel_size, "pixel_size")
@@ -692,53 +889,64 @@ def propagate(
         else:
             sigma, sigma_source = 0.0, "not given (a triad has no residual to estimate it from)"
 
-    var_p, var_q, cov_pq = slope_noise_covariance(L, albedo, pp, qq, sigma, E, channels)
-    var_p = np.where(ok, var_p, 0.0)
-    var_q = np.where(ok, var_q, 0.0)
-    mean_vp = float(var_p[ok].mean()) if ok.any() else 0.0
-    mean_vq = float(var_q[ok].mean()) if ok.any() else 0.0
+    p_u, q_u, mean_vp, mean_vq = _slope_maps(L, E, albedo, pp, qq, ok, sigma, tol, channels)
 
     near = ok & np.isfinite(z)
-    grown = ndimage.binary_dilation(lab > 0, iterations=3) if defects else np.zeros(shape, bool)
+    grown = _grown(lab, defects, 3)
     deg = 1 if background in ("plane", "none") else 3
     bg = _Background(near & ~grown, deg, shape) if defects else None
     figs = _figures(lab, defects, z, bg) if defects else []
 
-    # systematic parameters: one slope field each, integrated once
-    sys_var = np.zeros(shape)
-    slope_sys_p = np.zeros(shape)
-    slope_sys_q = np.zeros(shape)
+    marks = {"setup": time.perf_counter()}
+    # systematic parameters: one slope field each, integrated once (on blocks of r x r
+    # pixels for large images: the fields are linear in 1, p, q, p^2, pq, q^2, whose block
+    # means give the fields' block means exactly)
     dterms = [{"max_depth_mm": {}, "volume_mm3": {}} for _ in defects]
-    for source, _name, u, dp, dq in slope_sensitivities(L, pp, qq, tol, E):
-        dp = np.where(ok, dp, 0.0)
-        dq = np.where(ok, dq, 0.0)
-        slope_sys_p += (dp * u) ** 2
-        slope_sys_q += (dq * u) ** 2
-        zj = integrate(dp, dq, integrator, mask=ok, pixel_size=h)
-        zj = np.nan_to_num(zj)
-        sys_var += (zj * u) ** 2
+    sys_var = np.zeros(shape, np.float32)
+    params = _far_parameters(L, tol) if tol.method == "linear" else []
+    if params:
+        C = np.linalg.pinv(L)
+        r = max(1, int(math.ceil(math.sqrt(pp.size / _SYSTEMATIC_PIXELS))))
+        okf = ok.astype(np.float32)
+        p0, q0 = pp * okf, qq * okf
+        base = {"1": okf, "p": p0, "q": q0, "pp": p0 * p0, "pq": p0 * q0, "qq": q0 * q0}
+        if r > 1:
+            base = {key: _bin(v, r) for key, v in base.items()}
+        ok_c = base["1"] > 0
+        var_c = np.zeros(ok_c.shape, np.float32)
         if figs:
-            coef = bg.coef(zj)
-            for i, fig in enumerate(figs):
-                c_depth, c_vol = _systematic(fig, zj, coef, h)
-                for figname, c in (("max_depth_mm", c_depth), ("volume_mm3", c_vol)):
-                    acc = dterms[i][figname].setdefault(source, [0.0, u])
-                    acc[0] += c * c
-    t_sys = time.perf_counter() - t0
+            rows, cols, parts = _points(bg, figs)
+            idx, wts = _sampler(rows, cols, r, ok_c.shape)
+            n_bg = bg.rows.size
+        for source, _name, u, k, e in params:
+            dp, dq = _far_field(C, k, e, base)
+            zj = _integrate_field(dp, dq, integrator, ok_c, h * r)
+            var_c += (zj * np.float32(u)) ** 2
+            if figs:
+                # constants cancel in depth and volume against the fitted background
+                values = np.einsum("nk,nk->n", zj.ravel()[idx], wts)
+                coef = bg.gram_inv @ (bg.A.T @ values[:n_bg])
+                for i, fig in enumerate(figs):
+                    c_depth, c_vol = _systematic(fig, values, parts[i], coef, h)
+                    for figname, c in (("max_depth_mm", c_depth), ("volume_mm3", c_vol)):
+                        acc = dterms[i][figname].setdefault(source, [0.0, u])
+                        acc[0] += c * c
+        sys_var = _upsample(var_c, r, shape) if r > 1 else var_c
+    marks["systematic"] = time.perf_counter()
 
-    noise_var = height_noise_variance(shape, mean_vp, mean_vq, h) if sigma > 0 else np.zeros(shape)
-    zc = np.where(near, z - (z[near].mean() if near.any() else 0.0), 0.0)
-    height_var = sys_var + noise_var + (tol.pixel_size_tolerance * zc) ** 2
-    height_u = np.where(near, np.sqrt(height_var), np.nan).astype(np.float32)
-    p_u = np.where(ok, np.sqrt(var_p + slope_sys_p), 0.0).astype(np.float32)
-    q_u = np.where(ok, np.sqrt(var_q + slope_sys_q), 0.0).astype(np.float32)
+    T = _mode_variance(shape, mean_vp, mean_vq, h) if sigma > 0 else None
+    height_var = sys_var
+    if T is not None:
+        height_var = height_var + _squared_basis_sum(_squared_basis_sum(T, 0), 1).astype(np.float32)
+    if tol.pixel_size_tolerance > 0:
+        zc = np.where(near, z - (z[near].mean() if near.any() else 0.0), 0.0)
+        height_var = height_var + ((tol.pixel_size_tolerance * zc) ** 2).astype(np.float32)
+    height_u = np.sqrt(np.maximum(height_var, 0.0))
+    height_u[~near] = np.nan
 
+    marks["maps"] = time.perf_counter()
     rng = np.random.default_rng(tol.seed)
-    depth_map = None
-    if figs:
-        coef0 = bg.coef(np.nan_to_num(z))
-        rows, cols = np.indices(shape)
-        depth_map = np.nan_to_num(z) - (bg.design(rows.ravel(), cols.ravel()) @ coef0).reshape(shape)
+    coef0 = bg.coef(np.nan_to_num(z)) if figs else None
 
     mc = None
     if tol.method == "montecarlo":
@@ -756,8 +964,8 @@ def propagate(
                     terms[figname][source] = _entry(u, math.sqrt(c2))
             if sigma > 0:
                 w_depth, w_vol = _noise_weights(fig, bg, h)
-                vd = linear_variance(w_depth, mean_vp, mean_vq, h)
-                vv = linear_variance(w_vol, mean_vp, mean_vq, h)
+                vd = _linear_variance(w_depth, T)
+                vv = _linear_variance(w_vol, T)
                 terms["max_depth_mm"]["image_noise"] = _entry(sigma, math.sqrt(vd) / sigma)
                 terms["volume_mm3"]["image_noise"] = _entry(sigma, math.sqrt(vv) / sigma)
         else:
@@ -771,7 +979,7 @@ def propagate(
             others = math.sqrt(sum(e["contribution"] ** 2 for e in terms[figname].values()))
             terms[figname]["method_bias"] = _entry(_bias_term(others, bias), 1.0)
         terms["max_depth_mm"]["discretisation"] = _entry(
-            _depth_sampling(fig.sign * depth_map, fig.peak, lab == rec["id"] + 1), 1.0)
+            _depth_sampling(z, fig, bg, coef0, lab, rec["id"] + 1), 1.0)
         budget, expanded = _budget(rec, terms)
         out_defects.append({"id": rec["id"], "uncertainty_k2": expanded, "budget": budget})
 
@@ -781,10 +989,10 @@ def propagate(
         "noise_sigma": float(sigma),
         "noise_sigma_source": sigma_source,
         "coverage_factor": COVERAGE_FACTOR,
-        "median_p_u": float(np.median(p_u[ok])) if ok.any() else 0.0,
-        "median_q_u": float(np.median(q_u[ok])) if ok.any() else 0.0,
-        "median_height_u_mm": float(np.nanmedian(height_u[near])) if near.any() else 0.0,
-        "timings_s": {"systematic": round(t_sys, 4), "total": round(time.perf_counter() - t0, 4)},
+        "median_p_u": _median(p_u, ok),
+        "median_q_u": _median(q_u, ok),
+        "median_height_u_mm": _median(height_u, near),
+        "timings_s": _stage_times(t0, marks),
     }
     if mc is not None:
         summary["mc_samples"] = int(tol.mc_samples)
