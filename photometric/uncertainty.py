@@ -95,6 +95,8 @@ _MAX_FIT_POINTS = 200_000
 #: Largest image on which the systematic fields are integrated pixel by pixel; larger
 #: images integrate them on blocks of r x r pixels (the fields are smooth at that scale).
 _SYSTEMATIC_PIXELS = 1 << 20
+#: Blocks across the narrowest defect at least, when the fields are integrated on blocks.
+_RESOLVE = 16
 #: Pixels per row block of the per-pixel maps (fits the CPU cache with its temporaries).
 _BLOCK_PIXELS = 1 << 15
 
@@ -666,6 +668,49 @@ def _noise_weights(fig: _Figures, bg: _Background, h: float) -> tuple[np.ndarray
     return w_depth, w_vol
 
 
+def _point_variance(T: np.ndarray, row: int, col: int) -> float:
+    """Variance of the integrated height at one pixel: ``a(row)^2 . T . b(col)^2``."""
+    h, w = T.shape
+    a = np.cos(np.pi * np.arange(h) * (2 * row + 1) / (2 * h)) ** 2 * (2.0 / h)
+    a[0] = 1.0 / h
+    b = np.cos(np.pi * np.arange(w) * (2 * col + 1) / (2 * w)) ** 2 * (2.0 / w)
+    b[0] = 1.0 / w
+    return float(a.astype(np.float32) @ T @ b.astype(np.float32))
+
+
+def _noise_functionals(fig: _Figures, bg: _Background, h: float, r: int, T: np.ndarray, var_p: float,
+                       var_q: float, cache: dict) -> tuple[float, float]:
+    """Noise variance of a defect's depth and volume against the background fit.
+
+    ``r = 1``: exact (:func:`linear_variance` of the weights). Large images (``r > 1``):
+    the weights summed over ``r x r`` blocks against the mode variances of the block-mean
+    slopes (variance ``/ r^2`` on pixels ``r h``), which hold every scale of the
+    background fit and the region; the depth adds the peak pixel's own variance at full
+    resolution minus its block's (:func:`_point_variance`).
+    """
+    w_depth, w_vol = _noise_weights(fig, bg, h)
+    if r == 1:
+        return _linear_variance(w_depth, T), _linear_variance(w_vol, T)
+    shape = (T.shape[0] // r, T.shape[1] // r)
+    if "T" not in cache:
+        cache["T"] = _mode_variance(shape, var_p / r**2, var_q / r**2, h * r)
+    Tc = cache["T"]
+
+    def blocks(w):
+        hc, wc = shape
+        out = w[: hc * r, : wc * r].reshape(hc, r, wc, r).sum(axis=(1, 3), dtype=np.float64)
+        # trailing rows and columns belong to the last blocks
+        out[-1, :] += w[hc * r:, : wc * r].reshape(-1, wc, r).sum(axis=(0, 2))
+        out[:, -1] += w[: hc * r, wc * r:].sum(axis=1).reshape(hc, r).sum(axis=1)
+        out[-1, -1] += w[hc * r:, wc * r:].sum()
+        return out
+
+    pr, pc = fig.peak
+    rc, cc = min(pr // r, shape[0] - 1), min(pc // r, shape[1] - 1)
+    vd = _linear_variance(blocks(w_depth), Tc) + _point_variance(T, pr, pc) - _point_variance(Tc, rc, cc)
+    return max(vd, 0.0), _linear_variance(blocks(w_vol), Tc)
+
+
 def _quantisation(rec: dict, h: float, rng: np.random.Generator) -> dict:
     """Pixel quantisation of the outline: width, length and area measured (as
     :func:`photometric.defects.measure_defects` does) on the measured outline, a stadium
@@ -904,9 +949,15 @@ def propagate(
     dterms = [{"max_depth_mm": {}, "volume_mm3": {}} for _ in defects]
     sys_var = np.zeros(shape, np.float32)
     params = _far_parameters(L, tol) if tol.method == "linear" else []
+    r = max(1, int(math.ceil(math.sqrt(pp.size / _SYSTEMATIC_PIXELS))))
+    if defects:
+        # the blocks must resolve the narrowest defect (at least _RESOLVE blocks across)
+        r = min(r, max(1, int(min(d["mean_width_mm"] for d in defects) / h // _RESOLVE)))
+    if min(shape) < 8 * r:
+        r = 1
+    coarse_T: dict = {}
     if params:
         C = np.linalg.pinv(L)
-        r = max(1, int(math.ceil(math.sqrt(pp.size / _SYSTEMATIC_PIXELS))))
         okf = ok.astype(np.float32)
         p0, q0 = pp * okf, qq * okf
         base = {"1": okf, "p": p0, "q": q0, "pp": p0 * p0, "pq": p0 * q0, "qq": q0 * q0}
@@ -963,9 +1014,7 @@ def propagate(
                 for source, (c2, u) in dterms[i][figname].items():
                     terms[figname][source] = _entry(u, math.sqrt(c2))
             if sigma > 0:
-                w_depth, w_vol = _noise_weights(fig, bg, h)
-                vd = _linear_variance(w_depth, T)
-                vv = _linear_variance(w_vol, T)
+                vd, vv = _noise_functionals(fig, bg, h, r, T, mean_vp, mean_vq, coarse_T)
                 terms["max_depth_mm"]["image_noise"] = _entry(sigma, math.sqrt(vd) / sigma)
                 terms["volume_mm3"]["image_noise"] = _entry(sigma, math.sqrt(vv) / sigma)
         else:
