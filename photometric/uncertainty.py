@@ -69,6 +69,7 @@ __all__ = [
     "COVERAGE_FACTOR",
     "Tolerances",
     "UncertaintyResult",
+    "PointLightModel",
     "estimate_noise_sigma",
     "slope_noise_covariance",
     "slope_sensitivities",
@@ -336,6 +337,21 @@ def _far_field(C: np.ndarray, k: int, e: np.ndarray, base: dict) -> tuple[np.nda
     return dp, dq
 
 
+def _far_systematic(L: np.ndarray, tol: Tolerances, p: np.ndarray, q: np.ndarray, okf: np.ndarray, r: int):
+    """``(source, u, dp, dq)`` of every distant-light parameter on blocks of ``r x r`` pixels."""
+    params = _far_parameters(L, tol)
+    if not params:
+        return
+    C = np.linalg.pinv(L)
+    p0, q0 = p * okf, q * okf
+    base = {"1": okf, "p": p0, "q": q0, "pp": p0 * p0, "pq": p0 * q0, "qq": q0 * q0}
+    if r > 1:
+        base = {key: _bin(v, r) for key, v in base.items()}
+    for source, _name, u, k, e in params:
+        dp, dq = _far_field(C, k, e, base)
+        yield source, u, dp, dq
+
+
 def slope_sensitivities(lights, p, q, tolerances: Tolerances):
     """The systematic light parameters and their slope fields (distant lights).
 
@@ -412,6 +428,115 @@ def slope_systematic_variance(lights, p, q, tolerances: Tolerances) -> tuple[np.
         var_p += w * gp * gp
         var_q += w * gq * gq
     return var_p, var_q
+
+
+@dataclass(frozen=True)
+class PointLightModel:
+    """The point-light (near-field) model of a solve, as the position Jacobian needs it.
+
+    Attributes
+    ----------
+    lights : photometric.lights.PointLights
+        Nominal LED positions, axes and lobe exponents.
+    camera : photometric.camera.Orthographic or Perspective
+        The camera (the flat field's reference-plane points).
+    gains : numpy.ndarray or None, shape (N, H, W)
+        Flat-field gains, or None.
+    lobe : bool
+        Whether the modelled LED lobe multiplies the strength.
+    xy : numpy.ndarray, shape (H, W, 2)
+        ``x, y`` (mm) of the point each pixel sees.
+    plane_scale : numpy.ndarray, shape (N,)
+        What divides each image plane before the solve (the intensities; ones with a flat
+        field): the noise of a plane is ``sigma / plane_scale``.
+    """
+
+    lights: object
+    camera: object
+    gains: np.ndarray | None
+    lobe: bool
+    xy: np.ndarray
+    plane_scale: np.ndarray
+
+
+def _point_fields(model: PointLightModel, albedo, p, q, ok, z, sigma, tol, channels):
+    """Slope fields of every LED coordinate (and intensity), ``p_u``, ``q_u`` and the mean
+    noise variances, from the per-pixel light vectors ``s_k(X)`` at the solved points.
+
+    ``m = M^-1 sum_k x_k s_k`` with ``M = sum_k s_k s_k^T``; a change ``ds_k`` of light
+    ``k``'s vector moves the slopes by ``G c_k (n . ds_k)`` with ``c_k = M^-1 s_k``
+    (the feedback of the changed heights on the light vectors is second order and left
+    out); ``ds_k / dP_kj`` by central differences of the light model, whose strength
+    follows the position as the model defines it (the intensity is stated at the origin,
+    ``e d0^2``, or measured by the flat field on the reference plane,
+    ``G |P - X0|^2``); noise: ``Cov(m) = sum_k w_k c_k c_k^T``,
+    ``w_k = sigma^2 / (channels * plane_scale_k^2)``.
+    """
+    from photometric.lights import _scaled_vectors, point_lights
+    from photometric.nearfield import _strengths
+
+    lights = model.lights
+    shape = p.shape
+    ones = np.ones((len(lights), 3))
+
+    def strength(k, position):
+        moved = lights.positions.copy()
+        moved[k] = position
+        one = point_lights(moved, lights.axes, lights.mu if lights.mu_known else None)
+        return _strengths(one, model.camera, shape, model.gains, ones)[k]
+    n = len(lights)
+    x = model.xy[..., 0].astype(np.float64)
+    y = model.xy[..., 1].astype(np.float64)
+    zz = np.where(ok & np.isfinite(z), z, np.median(z[ok & np.isfinite(z)]) if ok.any() else 0.0)
+    pp = p.astype(np.float64)
+    qq = q.astype(np.float64)
+
+    def vectors(k, position):
+        return np.stack(_scaled_vectors(position, lights.axes[k], float(lights.mu[k]), strength(k, position), x, y,
+                                        zz, lobe=model.lobe))
+
+    S = [vectors(k, lights.positions[k]) for k in range(n)]
+    M = sum(np.einsum("ihw,jhw->ijhw", s, s) for s in S)
+    Minv = np.linalg.inv(np.where(ok[..., None, None], M.transpose(2, 3, 0, 1), np.eye(3))).transpose(2, 3, 0, 1)
+    C = [np.einsum("ijhw,jhw->ihw", Minv, s) for s in S]
+    rho = np.asarray(albedo, np.float64)
+    if rho.ndim == 3:
+        rho = rho.mean(axis=2)
+    n2 = 1.0 + pp * pp + qq * qq
+    scale = np.asarray(model.plane_scale, float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        noise = np.where(ok, sigma**2 / channels * n2 / (rho * rho), 0.0)
+    var_p = np.zeros(p.shape)
+    var_q = np.zeros(p.shape)
+    sys_p = np.zeros(p.shape)
+    sys_q = np.zeros(p.shape)
+    fields = []
+    step = 1e-3
+    for k in range(n):
+        gp = -(C[k][0] + pp * C[k][2])
+        gq = -(C[k][1] + qq * C[k][2])
+        var_p += noise / scale[k] ** 2 * gp * gp
+        var_q += noise / scale[k] ** 2 * gq * gq
+        moves = []
+        if tol.light_position_tolerance_mm > 0:
+            for j, axis in enumerate("xyz"):
+                e = np.zeros(3)
+                e[j] = step
+                ds = (vectors(k, lights.positions[k] + e) - vectors(k, lights.positions[k] - e)) / (2 * step)
+                moves.append(("light_position", f"light {k} {axis}", tol.light_position_tolerance_mm, ds))
+        if tol.intensity_tolerance > 0:
+            moves.append(("light_intensity", f"light {k} intensity", tol.intensity_tolerance, S[k]))
+        for source, name, u, ds in moves:
+            ndl = ds[2] - pp * ds[0] - qq * ds[1]
+            dp = np.where(ok, gp * ndl, 0.0).astype(np.float32)
+            dq = np.where(ok, gq * ndl, 0.0).astype(np.float32)
+            sys_p += (u * dp) ** 2
+            sys_q += (u * dq) ** 2
+            fields.append((source, name, u, dp, dq))
+    count = max(int(np.count_nonzero(ok)), 1)
+    p_u = np.where(ok, np.sqrt(var_p + sys_p), 0.0).astype(np.float32)
+    q_u = np.where(ok, np.sqrt(var_q + sys_q), 0.0).astype(np.float32)
+    return fields, p_u, q_u, float(var_p.sum() / count), float(var_q.sum() / count)
 
 
 # ----------------------------------------------------------------------------- heights
@@ -863,6 +988,8 @@ def propagate(
     mask=None,
     pixel_size_given: bool = True,
     resolve=None,
+    point: PointLightModel | None = None,
+    draw=None,
 ) -> UncertaintyResult:
     """Uncertainty of the slopes, heights and defect figures of a far-field reconstruction.
 
@@ -906,6 +1033,12 @@ def propagate(
     resolve : callable, optional
         Monte Carlo: ``resolve(images, lights, intensities) -> (p, q, valid, height,
         defects)`` re-runs the fast solve (the pipeline passes its own).
+    point : PointLightModel, optional
+        Point lights (near-field rig, orthographic camera): the LED position Jacobian
+        replaces the direction sensitivities; ``lights`` are then their directions.
+    draw : callable, optional
+        Monte Carlo: ``draw(rng) -> lights`` for ``resolve`` (default: the directions
+        deviated by ``light_tolerance_deg``).
 
     Returns
     -------
@@ -934,7 +1067,17 @@ def propagate(
         else:
             sigma, sigma_source = 0.0, "not given (a triad has no residual to estimate it from)"
 
-    p_u, q_u, mean_vp, mean_vq = _slope_maps(L, E, albedo, pp, qq, ok, sigma, tol, channels)
+    point_fields = []
+    if point is None:
+        if tol.light_position_tolerance_mm > 0:
+            raise ValueError("light_position_tolerance_mm: applies to point lights (LED positions); distant lights "
+                             "are directions (use light_tolerance_deg)")
+        p_u, q_u, mean_vp, mean_vq = _slope_maps(L, E, albedo, pp, qq, ok, sigma, tol, channels)
+    else:
+        if tol.light_tolerance_deg > 0:
+            raise ValueError("light_tolerance_deg: point lights (LED positions) take light_position_tolerance_mm")
+        point_fields, p_u, q_u, mean_vp, mean_vq = _point_fields(point, albedo, pp, qq, ok, z, sigma, tol,
+                                                                 channels)
 
     near = ok & np.isfinite(z)
     grown = _grown(lab, defects, 3)
@@ -948,7 +1091,6 @@ def propagate(
     # means give the fields' block means exactly)
     dterms = [{"max_depth_mm": {}, "volume_mm3": {}} for _ in defects]
     sys_var = np.zeros(shape, np.float32)
-    params = _far_parameters(L, tol) if tol.method == "linear" else []
     r = max(1, int(math.ceil(math.sqrt(pp.size / _SYSTEMATIC_PIXELS))))
     if defects:
         # the blocks must resolve the narrowest defect (at least _RESOLVE blocks across)
@@ -956,33 +1098,33 @@ def propagate(
     if min(shape) < 8 * r:
         r = 1
     coarse_T: dict = {}
-    if params:
-        C = np.linalg.pinv(L)
-        okf = ok.astype(np.float32)
-        p0, q0 = pp * okf, qq * okf
-        base = {"1": okf, "p": p0, "q": q0, "pp": p0 * p0, "pq": p0 * q0, "qq": q0 * q0}
-        if r > 1:
-            base = {key: _bin(v, r) for key, v in base.items()}
-        ok_c = base["1"] > 0
-        var_c = np.zeros(ok_c.shape, np.float32)
+    okf = ok.astype(np.float32)
+    ok_c = (_bin(okf, r) if r > 1 else okf) > 0
+    if tol.method != "linear":
+        fields = iter(())
+    elif point is None:
+        fields = _far_systematic(L, tol, pp, qq, okf, r)
+    else:
+        fields = ((src, u, _bin(dp, r) if r > 1 else dp, _bin(dq, r) if r > 1 else dq)
+                  for src, _name, u, dp, dq in point_fields)
+    var_c = np.zeros(ok_c.shape, np.float32)
+    if figs:
+        rows, cols, parts = _points(bg, figs)
+        idx, wts = _sampler(rows, cols, r, ok_c.shape)
+        n_bg = bg.rows.size
+    for source, u, dp, dq in fields:
+        zj = _integrate_field(dp, dq, integrator, ok_c, h * r)
+        var_c += (zj * np.float32(u)) ** 2
         if figs:
-            rows, cols, parts = _points(bg, figs)
-            idx, wts = _sampler(rows, cols, r, ok_c.shape)
-            n_bg = bg.rows.size
-        for source, _name, u, k, e in params:
-            dp, dq = _far_field(C, k, e, base)
-            zj = _integrate_field(dp, dq, integrator, ok_c, h * r)
-            var_c += (zj * np.float32(u)) ** 2
-            if figs:
-                # constants cancel in depth and volume against the fitted background
-                values = np.einsum("nk,nk->n", zj.ravel()[idx], wts)
-                coef = bg.gram_inv @ (bg.A.T @ values[:n_bg])
-                for i, fig in enumerate(figs):
-                    c_depth, c_vol = _systematic(fig, values, parts[i], coef, h)
-                    for figname, c in (("max_depth_mm", c_depth), ("volume_mm3", c_vol)):
-                        acc = dterms[i][figname].setdefault(source, [0.0, u])
-                        acc[0] += c * c
-        sys_var = _upsample(var_c, r, shape) if r > 1 else var_c
+            # constants cancel in depth and volume against the fitted background
+            values = np.einsum("nk,nk->n", zj.ravel()[idx], wts)
+            coef = bg.gram_inv @ (bg.A.T @ values[:n_bg])
+            for i, fig in enumerate(figs):
+                c_depth, c_vol = _systematic(fig, values, parts[i], coef, h)
+                for figname, c in (("max_depth_mm", c_depth), ("volume_mm3", c_vol)):
+                    acc = dterms[i][figname].setdefault(source, [0.0, u])
+                    acc[0] += c * c
+    sys_var = _upsample(var_c, r, shape) if r > 1 else var_c
     marks["systematic"] = time.perf_counter()
 
     T = _mode_variance(shape, mean_vp, mean_vq, h) if sigma > 0 else None
@@ -1003,7 +1145,7 @@ def propagate(
     if tol.method == "montecarlo":
         if resolve is None or images is None:
             raise ValueError("method: 'montecarlo' needs the images and the solver (use the pipeline)")
-        mc = _monte_carlo(images, L, E, sigma, tol, resolve, defects, shape, h, rng)
+        mc = _monte_carlo(images, L, E, sigma, tol, resolve, defects, shape, h, rng, draw)
         p_u, q_u, height_u = mc["p_u"], mc["q_u"], mc["height_u"]
 
     out_defects = []
@@ -1070,7 +1212,7 @@ def _match(defects: list, found: list) -> list:
     return out
 
 
-def _monte_carlo(images, L, E, sigma, tol, resolve, defects, shape, h, rng) -> dict:
+def _monte_carlo(images, L, E, sigma, tol, resolve, defects, shape, h, rng, draw=None) -> dict:
     """Repeat the fast solve with perturbed inputs; spreads of slopes, heights and figures."""
     imgs = np.asarray(images, np.float32)
     n = tol.mc_samples
@@ -1081,7 +1223,7 @@ def _monte_carlo(images, L, E, sigma, tol, resolve, defects, shape, h, rng) -> d
     missing = 0
     u_dir = math.radians(tol.light_tolerance_deg)
     for _ in range(n):
-        Lm = _perturbed_lights(L, u_dir, rng) if u_dir > 0 else L
+        Lm = draw(rng) if draw is not None else _perturbed_lights(L, u_dir, rng) if u_dir > 0 else L
         Em = E * (1.0 + tol.intensity_tolerance * rng.standard_normal(E.shape[0]).reshape(
             (-1,) + (1,) * (E.ndim - 1))) if tol.intensity_tolerance > 0 else E
         im = imgs + rng.normal(0.0, sigma, imgs.shape).astype(np.float32) if sigma > 0 else imgs

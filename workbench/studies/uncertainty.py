@@ -157,7 +157,7 @@ def _trial(rng: np.random.Generator, opts: dict, method: str, mc_samples: int) -
     """One rendered scratch under randomly deviated lights, reconstructed with the nominal ones."""
     from datasets_synthetic.heightfields import u_scratch
     from datasets_synthetic.render import render
-    from photometric.lights import ring_lights
+    from photometric.lights import light_field, point_lights, ring_lights
     from photometric.pipeline import reconstruct
     from photometric.uncertainty import _perturbed_lights
 
@@ -166,12 +166,28 @@ def _trial(rng: np.random.Generator, opts: dict, method: str, mc_samples: int) -
     centre = (0.5 * (size - 1) + rng.uniform(-4, 4), 0.5 * (size - 1) + rng.uniform(-4, 4))
     hf = u_scratch(size, h, depth_mm=opts["depth_mm"], width_mm=opts["width_mm"], length_mm=opts["length_mm"],
                    center_px=centre, axis_deg=rng.uniform(-90.0, 90.0))
-    true_lights = _perturbed_lights(L, math.radians(opts["light_tolerance_deg"]), rng)
-    images = render(hf, true_lights, albedo=opts["albedo"], noise=opts["noise"], seed=rng)
-    tol = Tolerances(noise_sigma=opts["noise"], light_tolerance_deg=opts["light_tolerance_deg"], method=method,
-                     mc_samples=mc_samples, seed=int(rng.integers(1 << 31)))
+    if opts["rig"] == "near":
+        from surfaces.grid import pixel_grid
+
+        nominal = opts["light_distance_mm"] * L
+        true = point_lights(nominal + rng.normal(0.0, opts["light_position_tolerance_mm"], nominal.shape),
+                            point_lights(nominal).axes)
+        x, y = pixel_grid(hf.shape, h)
+        X = np.stack([x, y, hf.height], axis=-1)
+        shading = np.einsum("khwc,hwc->khw", light_field(true, X), hf.normals)
+        images = (opts["albedo"] * np.clip(shading, 0.0, None)
+                  + rng.normal(0.0, opts["noise"], shading.shape)).astype(np.float32)
+        inputs = {"light_positions": nominal}
+        tol = Tolerances(noise_sigma=opts["noise"], light_position_tolerance_mm=opts["light_position_tolerance_mm"],
+                         method=method, mc_samples=mc_samples, seed=int(rng.integers(1 << 31)))
+    else:
+        true_lights = _perturbed_lights(L, math.radians(opts["light_tolerance_deg"]), rng)
+        images = render(hf, true_lights, albedo=opts["albedo"], noise=opts["noise"], seed=rng)
+        inputs = {"lights": L}
+        tol = Tolerances(noise_sigma=opts["noise"], light_tolerance_deg=opts["light_tolerance_deg"], method=method,
+                         mc_samples=mc_samples, seed=int(rng.integers(1 << 31)))
     t0 = time.perf_counter()
-    res = reconstruct(images, lights=L, pixel_size=h, uncertainty=tol)
+    res = reconstruct(images, pixel_size=h, uncertainty=tol, **inputs)
     seconds = time.perf_counter() - t0
     if not res.defects:
         return None
@@ -207,6 +223,9 @@ def coverage_study(
     pixels_per_trial: int = 20,
     mc_samples: int = 30,
     seed: int = 0,
+    rig: str = "far",
+    light_distance_mm: float = 150.0,
+    light_position_tolerance_mm: float = 0.5,
 ) -> dict:
     """Coverage of the stated 95 % intervals over independent rendered trials.
 
@@ -238,6 +257,13 @@ def coverage_study(
         Monte Carlo repetitions (``method="montecarlo"``).
     seed : int
         Seed of the trials.
+    rig : {"far", "near"}
+        ``far``: distant lights deviated in direction; ``near``: LEDs at
+        ``light_distance_mm`` on the same ring (point lights, inverse-square falloff,
+        orthographic camera) whose TRUE positions deviate by ``light_position_tolerance_mm``
+        per coordinate (rendered with :func:`photometric.lights.light_field`).
+    light_distance_mm, light_position_tolerance_mm :
+        The near-field rig.
 
     Returns
     -------
@@ -251,12 +277,17 @@ def coverage_study(
     n = int(n_trials)
     if n < 1:
         raise ValueError(f"n_trials: need at least 1 trial, got {n_trials}")
-    for value, name in ((light_tolerance_deg, "light_tolerance_deg"), (noise, "noise")):
+    if rig not in ("far", "near"):
+        raise ValueError(f"rig: expected 'far' or 'near', got {rig!r}")
+    for value, name in ((light_tolerance_deg, "light_tolerance_deg"), (noise, "noise"),
+                        (light_position_tolerance_mm, "light_position_tolerance_mm")):
         positive(value, name, allow_zero=True)
     opts = {"size": int(size), "pixel_size": float(pixel_size), "n_lights": int(n_lights),
             "slant_deg": float(slant_deg), "light_tolerance_deg": float(light_tolerance_deg), "noise": float(noise),
             "depth_mm": float(depth_mm), "width_mm": float(width_mm), "length_mm": float(length_mm),
-            "albedo": float(albedo), "pixels_per_trial": int(pixels_per_trial)}
+            "albedo": float(albedo), "pixels_per_trial": int(pixels_per_trial), "rig": rig,
+            "light_distance_mm": float(light_distance_mm),
+            "light_position_tolerance_mm": float(light_position_tolerance_mm)}
     t0 = time.perf_counter()
     trials = []
     for rng in (np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(n)):
