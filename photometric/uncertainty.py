@@ -942,6 +942,22 @@ def _median(values: np.ndarray, where: np.ndarray) -> float:
     return float(np.median(v)) if v.size else 0.0
 
 
+def _volume_edge(z: np.ndarray, fig: _Figures, bg: _Background, coef: np.ndarray, h: float) -> float:
+    """Standard uncertainty of the volume from the outline's place: the outline moves together
+    by up to a quarter of a pixel (rectangular; it is where the slope crosses its
+    threshold, inside a pixel), each outline pixel's volume with it:
+    ``h^2 sum(depth) / (4 sqrt(3))`` over the outline pixels, mm^3."""
+    rows, cols = fig.region[:, 0], fig.region[:, 1]
+    r0, c0 = rows.min() - 1, cols.min() - 1
+    inside = np.zeros((rows.max() - r0 + 2, cols.max() - c0 + 2), bool)
+    inside[rows - r0, cols - c0] = True
+    edge = inside & ~ndimage.binary_erosion(inside)
+    er, ec = np.nonzero(edge)
+    er, ec = er + r0, ec + c0
+    depth = fig.sign * (z[er, ec] - bg.design(er, ec) @ coef)
+    return float(0.25 * h * h * np.clip(np.nan_to_num(depth), 0.0, None).sum() / math.sqrt(3.0))
+
+
 def _entry(u_input: float, sensitivity: float) -> dict:
     return {"standard_uncertainty": float(u_input), "sensitivity": float(sensitivity),
             "contribution": float(abs(sensitivity) * u_input)}
@@ -1171,6 +1187,7 @@ def propagate(
             terms[figname]["method_bias"] = _entry(_bias_term(others, bias), 1.0)
         terms["max_depth_mm"]["discretisation"] = _entry(
             _depth_sampling(z, fig, bg, coef0, lab, rec["id"] + 1), 1.0)
+        terms["volume_mm3"]["discretisation"] = _entry(_volume_edge(z, fig, bg, coef0, h), 1.0)
         budget, expanded = _budget(rec, terms)
         out_defects.append({"id": rec["id"], "uncertainty_k2": expanded, "budget": budget})
 
