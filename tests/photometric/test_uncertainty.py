@@ -234,3 +234,62 @@ def test_coverage_of_fifty_rendered_trials():
     for fig in ("max_depth_mm", "mean_width_mm", "length_mm", "height"):
         assert 0.84 <= out[fig]["coverage"] <= 1.0, (fig, out[fig])
     assert out["max_depth_mm"]["mean_U"] < 0.4 * 0.05
+
+
+def _near_scene(size=96, h=0.05):
+    from photometric.lights import light_field, point_lights
+    from surfaces.grid import pixel_grid
+
+    hf = u_scratch(size, h, depth_mm=0.05, width_mm=0.4, length_mm=3.0, axis_deg=20.0)
+    nominal = 150.0 * ring_lights(3, 45.0)
+    x, y = pixel_grid(hf.shape, h)
+    X = np.stack([x, y, hf.height], axis=-1)
+
+    def images(positions):
+        lights = point_lights(positions, point_lights(nominal).axes)
+        shading = np.einsum("khwc,hwc->khw", light_field(lights, X), hf.normals)
+        return (0.8 * np.clip(shading, 0.0, None)).astype(np.float32)
+
+    return hf, nominal, images
+
+
+def test_led_position_jacobian_matches_the_near_field_solver():
+    """Move one LED coordinate by 2 mm: the integrated sensitivity field predicts the height change."""
+    from photometric.camera import make_camera
+    from photometric.lights import point_lights
+
+    hf, nominal, images = _near_scene()
+    h = 0.05
+    base = reconstruct(images(nominal), light_positions=nominal, pixel_size=h)
+    model = U.PointLightModel(point_lights(nominal), make_camera("orthographic", pixel_size_mm=h), None, True,
+                              base.xy, np.ones(3))
+    fields, p_u, _, _, _ = U._point_fields(model, base.albedo, base.p, base.q, base.valid, base.height, 0.0,
+                                           U.Tolerances(light_position_tolerance_mm=1.0), 1)
+    assert [f[1] for f in fields][:3] == ["light 0 x", "light 0 y", "light 0 z"] and len(fields) == 9
+    for index in (1, 2, 3):
+        k, j = divmod(index, 3)
+        moved = nominal.copy()
+        moved[k, j] += 2.0
+        other = reconstruct(images(moved), light_positions=nominal, pixel_size=h)
+        v = base.valid & other.valid
+        actual = (other.height - base.height) / 2.0
+        actual -= actual[v].mean()
+        predicted = U._integrate_field(fields[index][3], fields[index][4], "dct", base.valid, h)
+        assert np.corrcoef(actual[v], predicted[v])[0, 1] > 0.999
+        assert np.sqrt(np.mean(predicted[v] ** 2)) == pytest.approx(np.sqrt(np.mean(actual[v] ** 2)), rel=0.05)
+    assert np.all(p_u[base.valid] > 0)
+
+
+def test_near_field_budget_and_errors():
+    _, nominal, images = _near_scene()
+    imgs = images(nominal)
+    res = reconstruct(imgs, light_positions=nominal, pixel_size=0.05,
+                      uncertainty={"noise_sigma": 0.002, "light_position_tolerance_mm": 0.5})
+    sources = res.uncertainty.defects[0]["budget"]["max_depth_mm"]["sources"]
+    assert {"light_position", "image_noise"} <= set(sources)
+    assert res.summary["light_model"] == "point"
+    with pytest.raises(ValueError, match="light_position_tolerance_mm"):
+        reconstruct(imgs, light_positions=nominal, pixel_size=0.05, uncertainty={"light_tolerance_deg": 0.5})
+    with pytest.raises(ValueError, match="montecarlo"):
+        reconstruct(imgs, light_positions=nominal, camera="perspective", focal_length_px=2000.0,
+                    camera_height_mm=300.0, uncertainty={"light_position_tolerance_mm": 0.5})
