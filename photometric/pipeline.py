@@ -308,16 +308,15 @@ def _near_setup(data: PhotometricData, *, light_model, light_positions, led_mu, 
         if light_model == "point":
             raise ValueError("light_model: 'point' needs LED positions (--light-positions, --rig or the "
                              "folder's light_positions.txt)")
+        if flat_field is not None and flat_field is not False:
+            raise ValueError("flat_field: flat-field gains need the point-light model (LED positions from "
+                             "--light-positions, --rig or the folder, and not --light-model directional)")
         if cam is None or isinstance(cam, Orthographic):
             return None
         return _Near("directional", data.lights, cam, cam_source, None, None, data.intensities, None)
     if cam is None:
         raise ValueError("camera: point lights need the camera's scale in mm: --pixel-size (orthographic) or "
                          "--camera perspective --focal-length-px F --camera-height MM")
-    for k, z in enumerate(lights.positions[:, 2]):
-        if isinstance(cam, Perspective) and z >= cam.camera_height_mm:
-            raise ValueError(f"light_positions: light {k} at z = {z:g} mm is not below the camera "
-                             f"({cam.camera_height_mm:g} mm)")
     gains, flat = None, None
     if flat_field is not None and flat_field is not False:
         albedo = 1.0 if flat_albedo is None else flat_albedo
@@ -516,9 +515,12 @@ def reconstruct(
         # point lights give the far-field directions (from the origin to each LED)
         if light_positions is not None:
             pos = load_light_positions(light_positions) if isinstance(light_positions, (str, Path)) else light_positions
-            lights = point_lights(pos).directions
+            lights, name = point_lights(pos).directions, "light_positions"
         elif rig is not None:
-            lights = (rig if isinstance(rig, Rig) else read_rig(rig)).lights.directions
+            lights, name = (rig if isinstance(rig, Rig) else read_rig(rig)).lights.directions, "rig"
+        if lights is not None and isinstance(source, (Sequence, np.ndarray)) and not isinstance(source, str) \
+                and len(source) != len(lights):
+            raise ValueError(f"{name}: {len(lights)} LEDs for {len(source)} images")
     data, input_info = _load_input(source, lights, intensities, mask, select)
     height_gt = input_info.pop("height_gt", None)
     xy_gt = input_info.pop("xy_gt", None)
