@@ -702,6 +702,6 @@ def _uncertainty(tol: Tolerances, data: PhotometricData, near, res, height, defe
         intensities=intensities, albedo=res.albedo, p=res.p, q=res.q, valid=res.valid,
         height=height, defects=defects, labels=labels, pixel_size=h, tolerances=tol, integrator=integrator,
         background=background, residual=res.residual,
-        channels=data.images.shape[3] if data.images.ndim == 4 else 1, images=data.images, mask=data.mask,
+        channels=data.images.shape[3] if data.images.ndim == 4 else 1, images=data.images,
         pixel_size_given=not h_source.startswith("default"), resolve=resolve, point=point, draw=draw,
     )

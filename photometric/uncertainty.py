@@ -31,17 +31,28 @@ The far-field solve is ``m = C x`` with ``C = L^+`` (3, N), ``x_k = I_k / E_k`` 
   ``T_kl = h^2 (sigma_p^2 s_l^2 c_l^2 + sigma_q^2 s_k^2 c_k^2) / (s_k^2 + s_l^2)^2``
   (derived here: ``z = (A^T A)^+ A^T M g`` with the edge difference ``A`` and the
   trapezoidal average ``M``, and ``A^T M M^T A`` is diagonal in the same basis). The
-  per-pixel variance ``sum_kl a_k(r)^2 b_l(c)^2 T_kl`` is evaluated with FFTs
+  per-pixel variance ``sum_kl a_k(r)^2 b_l(c)^2 T_kl`` takes one DCT-III per axis
   (``cos^2 = (1 + cos 2x) / 2``), and the variance of any linear figure ``w . z`` (a depth
   against a fitted background, a volume) is ``sum_kl T_kl DCT(w)_kl^2``. ``sigma_p``,
   ``sigma_q`` are the mean slope variances over the valid pixels (stationary model).
+* Point lights (near-field rigs, orthographic camera): per pixel the light vectors
+  ``s_k(X)`` at the solved points give ``m = M^-1 sum_k x_k s_k`` (``M = sum_k s_k s_k^T``);
+  an LED coordinate moves the slopes by ``G c_k (n . ds_k/dP)`` with ``c_k = M^-1 s_k``
+  (:class:`PointLightModel`); the noise covariance is ``sum_k w_k c_k c_k^T``.
+* Images above ~1 MP integrate the systematic fields on blocks of ``r x r`` pixels (the
+  far-field fields are linear in ``1, p, q, p^2, pq, q^2``, so the block means are exact;
+  the blocks must resolve the narrowest defect) and the noise figures on block sums
+  plus the peak pixel's own fine-scale variance.
 * Defect depth and volume are linear in the height after a least-squares background fit:
   each systematic field's effect is taken on the *measured depth* (field minus its
   background fit), so a light error that only tilts the plate adds nothing.
-* Width, length and area depend on the segmentation: their budget holds the pixel size
-  and the pixel quantisation of the outline (the spread of the same measures over the
-  fitted outline rasterised at random sub-pixel offsets); the depth also gets its
-  sampling term (the true deepest point lies up to half a pixel from the deepest pixel).
+* Width, length and area depend on the segmentation: their budget holds the pixel size,
+  the pixel quantisation of the outline (the spread of the same measures over the
+  measured outline, a stadium, rasterised at random sub-pixel offsets) and the measures'
+  own bias found the same way (``method_bias``: e.g. the ``+ 1`` pixel of the extent,
+  stated as the standard uncertainty whose k = 2 interval holds 95 % of the biased
+  spread). The depth gets its sampling term (the deepest point lies up to half a pixel
+  from the deepest pixel) and the volume the place of its outline.
 
 Monte Carlo (``method="montecarlo"``) repeats the fast solve (normals, integration,
 defects) with perturbed lights, intensities and noise added to the images, and reports
@@ -1001,7 +1012,6 @@ def propagate(
     residual=None,
     channels: int = 1,
     images=None,
-    mask=None,
     pixel_size_given: bool = True,
     resolve=None,
     point: PointLightModel | None = None,
@@ -1041,8 +1051,6 @@ def propagate(
         Colour channels of the images.
     images : array_like, shape (N, H, W[, 3]), optional
         The images (Monte Carlo adds noise to them).
-    mask : array_like, shape (H, W), optional
-        Object mask of the solve (Monte Carlo).
     pixel_size_given : bool
         False when the pixel size is the default 1 unit per pixel: an error (the
         uncertainties are stated in mm).
