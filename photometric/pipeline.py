@@ -697,9 +697,8 @@ def _uncertainty(tol: Tolerances, data: PhotometricData, near, res, height, defe
         return r.p, r.q, r.valid, r.height, found
 
     return propagate(
-        lights=data.lights if point is None and near is None else (
-            lights.directions if point is not None else lights),
-        intensities=intensities, albedo=res.albedo, p=res.p, q=res.q, valid=res.valid,
+        lights=lights.directions if point is not None else lights, intensities=intensities, albedo=res.albedo,
+        p=res.p, q=res.q, valid=res.valid,
         height=height, defects=defects, labels=labels, pixel_size=h, tolerances=tol, integrator=integrator,
         background=background, residual=res.residual,
         channels=data.images.shape[3] if data.images.ndim == 4 else 1, images=data.images,

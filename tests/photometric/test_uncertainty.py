@@ -293,3 +293,12 @@ def test_near_field_budget_and_errors():
     with pytest.raises(ValueError, match="montecarlo"):
         reconstruct(imgs, light_positions=nominal, camera="perspective", focal_length_px=2000.0,
                     camera_height_mm=300.0, uncertainty={"light_position_tolerance_mm": 0.5})
+
+
+def test_near_field_monte_carlo_moves_the_leds():
+    _, nominal, images = _near_scene(size=64)
+    res = reconstruct(images(nominal), light_positions=nominal, pixel_size=0.05,
+                      uncertainty={"light_position_tolerance_mm": 1.0, "noise_sigma": 0.001, "method": "montecarlo",
+                                   "mc_samples": 4})
+    assert res.uncertainty.summary["method"] == "montecarlo"
+    assert np.nanmedian(res.uncertainty.height_u[res.valid]) > 0
