@@ -136,12 +136,13 @@ def reconstruct_to_folder(source, out_dir, *, progress: Callable[[str], None] | 
         Output folder (created when missing).
     progress : callable, optional
         Called with the name of each stage as it starts: the library's ``read``,
-        ``normals``, ``height``, ``surface``, ``defects``, then ``write``.
+        ``normals``, ``height``, ``surface``, ``defects`` (and ``uncertainty``), then ``write``.
     **options
         Keyword options of :func:`photometric.pipeline.reconstruct` (``lights``,
         ``intensities``, ``mask``, ``select``, ``integrator``, ``pixel_size``,
         ``outliers``, ``dark``, ``saturation``, ``highlight``, ``step``, ``samples``,
-        ``background``).
+        ``background``, ``uncertainty``: a :class:`photometric.uncertainty.Tolerances` or
+        its dict, which adds :data:`UNCERTAINTY_FILES`).
 
     Returns
     -------
