@@ -476,7 +476,7 @@ def reconstruct(
         given, the result carries ``uncertainty`` and the summary an ``uncertainty`` key.
     progress : callable, optional
         Called with the name of each stage as it starts (``read``, ``normals``,
-        ``height``, ``surface``, ``defects``; the command line's progress bar).
+        ``height``, ``surface``, ``defects``, ``uncertainty`` when asked; the command line's progress bar).
 
     Returns
     -------
