@@ -17,8 +17,8 @@ from pathlib import Path
 from surfaces.io import atomic_write_text
 
 HERE = Path(__file__).resolve().parent
-ORDER = ["surfaces", "bspline", "photometric", "nearfield", "surface_fit", "errors", "slices", "render", "boolean",
-         "batch"]
+ORDER = ["surfaces", "bspline", "photometric", "nearfield", "surface_fit", "errors", "uncertainty", "slices", "render",
+         "boolean", "batch"]
 
 HEADER = """# Benchmarks
 

@@ -52,6 +52,7 @@ from photometric.nearfield import (
 )
 from photometric.rig import FLAT_SMOOTHING_PX, Rig, check_rig, flat_field_gains, read_rig
 from photometric.stereo import _check_images, _check_options, _solve
+from photometric.uncertainty import Tolerances, UncertaintyResult
 from surfaces.bezier import BezierPatches
 from surfaces.mesh import TriangleMesh
 from surfaces.validate import as_array, positive
@@ -116,6 +117,9 @@ class PhotometricReconstruction:
     xy : numpy.ndarray or None, shape (H, W, 2), float64
         ``x, y`` (mm) of the point each pixel sees (near-field and perspective solves;
         None on the far-field orthographic path, whose points are the pixel grid).
+    uncertainty : photometric.uncertainty.UncertaintyResult or None
+        Per-pixel ``p_u``, ``q_u``, ``height_u`` and the defects' budgets, when
+        ``uncertainty`` was given.
     """
 
     normals: np.ndarray
@@ -131,6 +135,7 @@ class PhotometricReconstruction:
     background: str
     summary: dict
     xy: np.ndarray | None = None
+    uncertainty: UncertaintyResult | None = None
 
 
 def _lights(lights) -> np.ndarray:
@@ -457,6 +462,7 @@ def reconstruct(
     reference_height_mm: float = 0.0,
     tolerance_mm: float = DEFAULT_TOLERANCE_MM,
     max_iterations: int = 30,
+    uncertainty: Tolerances | dict | None = None,
     progress: Callable[[str], None] | None = None,
 ) -> PhotometricReconstruction:
     """Run photometric stereo end to end and return every result (writes nothing).
@@ -530,9 +536,12 @@ def reconstruct(
         (:func:`photometric.camera.depth_from_field`).
     tolerance_mm, max_iterations :
         Near-field convergence (:func:`photometric.nearfield.solve_nearfield`).
+    uncertainty : photometric.uncertainty.Tolerances or dict, optional
+        Input standard uncertainties and the method (:mod:`photometric.uncertainty`); when
+        given, the result carries ``uncertainty`` and the summary an ``uncertainty`` key.
     progress : callable, optional
         Called with the name of each stage as it starts (``read``, ``normals``,
-        ``height``, ``surface``, ``defects``; the command line's progress bar).
+        ``height``, ``surface``, ``defects``, ``uncertainty`` when asked; the command line's progress bar).
 
     Returns
     -------
@@ -563,6 +572,10 @@ def reconstruct(
         raise ValueError(f"max_iterations: must be at least 1, got {max_iterations}")
     if not np.isfinite(float(reference_height_mm)):
         raise ValueError(f"reference_height_mm: must be finite, got {reference_height_mm}")
+    if isinstance(uncertainty, dict):
+        uncertainty = Tolerances(**uncertainty)
+    elif uncertainty is not None and not isinstance(uncertainty, Tolerances):
+        raise ValueError(f"uncertainty: expected Tolerances, a dict or None, got {type(uncertainty).__name__}")
     say = progress or (lambda _stage: None)
     timings: dict[str, float] = {}
     t_all = time.perf_counter()
@@ -637,8 +650,19 @@ def reconstruct(
     t0 = time.perf_counter()
     on_points = {} if near is None or isinstance(near.camera, Orthographic) else {
         "xy": res.xy, "area": res.footprint_mm2}
-    defects = measure_defects(height, h, res.valid, background=background, p=res.p, q=res.q, **on_points)
+    defects = measure_defects(height, h, res.valid, background=background, p=res.p, q=res.q,
+                              return_labels=uncertainty is not None, **on_points)
+    if uncertainty is not None:
+        defects, labels = defects
     timings["defects"] = time.perf_counter() - t0
+    unc = None
+    if uncertainty is not None:
+        say("uncertainty")
+        t0 = time.perf_counter()
+        unc = _uncertainty(uncertainty, data, near, res, height, defects, labels, h, h_source, integrator,
+                           background, outliers, dark, saturation, highlight, reference_height_mm, tolerance_mm,
+                           max_iterations)
+        timings["uncertainty"] = time.perf_counter() - t0
     timings["total"] = time.perf_counter() - t_all
 
     n_mask = int(data.mask.sum())
@@ -670,6 +694,8 @@ def reconstruct(
     }
     if near is not None:
         summary.update(_near_summary(near, res, float(tolerance_mm)))
+    if unc is not None:
+        summary["uncertainty"] = unc.summary
     if data.normal_gt is not None:
         err = angular_error_deg(res.normals, data.normal_gt)[data.mask]
         summary["mean_angular_error_deg"] = float(err.mean())
@@ -696,4 +722,55 @@ def reconstruct(
         background=background,
         summary=summary,
         xy=None if near is None else res.xy,
+        uncertainty=unc,
+    )
+
+
+def _uncertainty(tol: Tolerances, data: PhotometricData, near, res, height, defects, labels, h, h_source,
+                 integrator, background, outliers, dark, saturation, highlight, reference_height_mm, tolerance_mm,
+                 max_iterations) -> UncertaintyResult:
+    """:func:`photometric.uncertainty.propagate` with this solve's inputs; Monte Carlo re-runs
+    the same solve (far-field, or the near-field alternation), integration and defect measures."""
+    from photometric.defects import measure_defects
+    from photometric.integrate import integrate
+    from photometric.uncertainty import PointLightModel, propagate
+
+    point, draw, lights, intensities = None, None, data.lights, data.intensities
+    if near is not None:
+        if tol.method == "linear" and not (near.model == "point" and isinstance(near.camera, Orthographic)):
+            raise ValueError("uncertainty: the linear propagation covers distant lights and point lights with an "
+                             "orthographic camera; use method 'montecarlo' (--uncertainty montecarlo) here")
+        lights, intensities = near.lights, near.intensities
+        if near.model == "point":
+            point = PointLightModel(
+                near.lights, near.camera, near.gains, near.lights.mu_known or near.gains is None, res.xy,
+                np.ones(len(near.lights)) if near.gains is not None else near.intensities.mean(axis=1))
+            if tol.light_tolerance_deg > 0:
+                raise ValueError("light_tolerance_deg: point lights (LED positions) take light_position_tolerance_mm")
+            u_pos = tol.light_position_tolerance_mm
+
+            def draw(rng):
+                moved = near.lights.positions + rng.normal(0.0, u_pos, near.lights.positions.shape)
+                return point_lights(moved, near.lights.axes, near.lights.mu if near.lights.mu_known else None)
+
+    def resolve(images, moved, intens):
+        if near is None:
+            r = _solve(images, moved, intens, data.mask, outliers, dark, saturation, highlight, 2)
+            z = integrate(r.p, r.q, integrator, mask=r.valid, pixel_size=h)
+            found = measure_defects(z, h, r.valid, background=background, p=r.p, q=r.q)
+            return r.p, r.q, r.valid, z, found
+        r = _solve_nearfield(images, moved, near.camera, intens, data.mask, near.gains, outliers, dark, saturation,
+                             highlight, integrator, float(reference_height_mm), float(tolerance_mm),
+                             int(max_iterations), COARSE_PIXELS, None)
+        on_points = {} if isinstance(near.camera, Orthographic) else {"xy": r.xy, "area": r.footprint_mm2}
+        found = measure_defects(r.height, h, r.valid, background=background, p=r.p, q=r.q, **on_points)
+        return r.p, r.q, r.valid, r.height, found
+
+    return propagate(
+        lights=lights.directions if point is not None else lights, intensities=intensities, albedo=res.albedo,
+        p=res.p, q=res.q, valid=res.valid,
+        height=height, defects=defects, labels=labels, pixel_size=h, tolerances=tol, integrator=integrator,
+        background=background, residual=res.residual,
+        channels=data.images.shape[3] if data.images.ndim == 4 else 1, images=data.images,
+        pixel_size_given=not h_source.startswith("default"), resolve=resolve, point=point, draw=draw,
     )

@@ -393,3 +393,73 @@ def test_cli_rendered_perspective_folder_is_solved_near_field(tmp_path, capsys):
     np.testing.assert_allclose(xy, np.load(tmp_path / "part" / "xy_gt.npy"), atol=0.01)
     found = json.loads((tmp_path / "o" / "defects.json").read_text())["defects"]
     assert found and found[0]["length_mm"] == pytest.approx(12.0, rel=0.02)
+
+
+@pytest.fixture(scope="module")
+def scratch_folder(tmp_path_factory):
+    out = tmp_path_factory.mktemp("scratch")
+    make_triad_folder(out, scene="scratch", size=96, noise=0.002, shadows="attached", deviate=None,
+                      albedo=0.8, pixel_size=0.05, seed=2)
+    return out
+
+
+def test_cli_uncertainty_files_and_keys(scratch_folder, tmp_path, capsys):
+    out = tmp_path / "u"
+    args = ["photometric", "reconstruct", str(scratch_folder), "--noise-sigma", "0.002", "--light-tolerance-deg",
+            "0.5", "--intensity-tolerance", "0.01", "--pixel-size-tolerance", "0.002", "--out", str(out)]
+    assert main(args) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    for name in ("p_u.npy", "q_u.npy", "height_u.npy", "uncertainty.json"):
+        assert name in summary["files"] and (out / name).is_file()
+    unc = summary["uncertainty"]
+    assert unc["method"] == "linear" and unc["noise_sigma"] == 0.002
+    assert unc["tolerances"]["light_tolerance_deg"] == 0.5 and unc["tolerances"]["intensity_tolerance"] == 0.01
+    defects = json.loads((out / "defects.json").read_text())["defects"]
+    assert defects and set(defects[0]["uncertainty_k2"]) == {
+        "max_depth_mm", "mean_width_mm", "length_mm", "area_mm2", "volume_mm3"}
+    budget = json.loads((out / "uncertainty.json").read_text())
+    depth = budget["defects"][0]["budget"]["max_depth_mm"]
+    assert depth["k"] == 2.0 and depth["expanded_uncertainty"] == defects[0]["uncertainty_k2"]["max_depth_mm"]
+    assert {"image_noise", "light_direction", "light_intensity", "pixel_size"} <= set(depth["sources"])
+    assert np.load(out / "height_u.npy").shape == np.load(out / "height.npy").shape
+    assert "(k = 2)" in capsys.readouterr().out
+
+
+def test_cli_without_uncertainty_options_writes_no_uncertainty(scratch_folder, tmp_path):
+    assert main(["photometric", "reconstruct", str(scratch_folder), "--out", str(tmp_path / "n")]) == 0
+    summary = json.loads((tmp_path / "n" / "summary.json").read_text())
+    assert "uncertainty" not in summary and "p_u.npy" not in summary["files"]
+
+
+def test_cli_monte_carlo(scratch_folder, tmp_path):
+    out = tmp_path / "mc"
+    assert main(["photometric", "reconstruct", str(scratch_folder), "--light-tolerance-deg", "0.5", "--uncertainty",
+                 "montecarlo", "--mc-samples", "6", "--out", str(out)]) == 0
+    unc = json.loads((out / "uncertainty.json").read_text())
+    assert unc["method"] == "montecarlo" and unc["mc_samples"] == 6
+    assert "montecarlo" in unc["defects"][0]["budget"]["max_depth_mm"]["sources"]
+
+
+@pytest.mark.parametrize(
+    "extra, message",
+    [
+        (["--mc-samples", "0"], "--mc-samples"),
+        (["--light-tolerance-deg", "-0.5"], "--light-tolerance-deg"),
+        (["--noise-sigma", "-1"], "--noise-sigma"),
+        (["--intensity-tolerance", "-0.1"], "--intensity-tolerance"),
+        (["--pixel-size-tolerance", "-0.1"], "--pixel-size-tolerance"),
+    ],
+)
+def test_cli_uncertainty_bad_input(scratch_folder, tmp_path, capsys, extra, message):
+    assert main(["photometric", "reconstruct", str(scratch_folder), *extra, "--out", str(tmp_path / "x")]) == 2
+    assert message in capsys.readouterr().err
+    assert not (tmp_path / "x").exists()
+
+
+def test_cli_uncertainty_needs_a_pixel_size(plate_folder, tmp_path, capsys):
+    names = (plate_folder / "filenames.txt").read_text().split()
+    args = ["photometric", "reconstruct", "--images", *[str(plate_folder / n) for n in names],
+            "--lights", str(plate_folder / "light_directions.txt"), "--light-tolerance-deg", "0.5",
+            "--out", str(tmp_path / "o")]
+    assert main(args) == 2
+    assert "pixel size" in capsys.readouterr().err
