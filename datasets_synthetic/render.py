@@ -123,16 +123,39 @@ def _shadow(z: np.ndarray, lz: np.ndarray, ps: float, step: float, method: str =
     return shadow.reshape(h, w)
 
 
+def grid_triangles(points) -> tuple[np.ndarray, np.ndarray]:
+    """A triangle mesh through a grid of surface points, two triangles per grid cell.
+
+    Parameters
+    ----------
+    points : (H, W, 3) array_like
+        Surface points in mm, one per pixel (the height field at the pixel centres,
+        or the points a perspective camera sees).
+
+    Returns
+    -------
+    vertices : (H * W, 3) float32 array
+        The points, row by row (open3d ray casting works in float32).
+    triangles : (2 (H - 1) (W - 1), 3) uint32 array
+        Vertex indices; cell (r, c) gives (r, c), (r + 1, c), (r, c + 1) and
+        (r, c + 1), (r + 1, c), (r + 1, c + 1).
+    """
+    pts = as_array(points, "points", shape=(None, None, 3))
+    h, w = pts.shape[:2]
+    verts = pts.reshape(-1, 3).astype(np.float32)
+    idx = np.arange(h * w).reshape(h, w)[:-1, :-1].ravel()
+    tris = np.concatenate([np.column_stack([idx, idx + w, idx + 1]),
+                           np.column_stack([idx + 1, idx + w, idx + w + 1])]).astype(np.uint32)
+    return verts, tris
+
+
 def _raycast_shadow(z: np.ndarray, light: np.ndarray, ps: float) -> np.ndarray:
     """Cast shadows by open3d ray casting over the height-field mesh (see cast_shadow_mask)."""
     import open3d as o3d
 
     h, w = z.shape
     x, y = pixel_grid(z.shape, ps)
-    verts = np.column_stack([x.ravel(), y.ravel(), z.ravel()]).astype(np.float32)
-    idx = np.arange(h * w).reshape(h, w)[:-1, :-1].ravel()
-    tris = np.concatenate([np.column_stack([idx, idx + w, idx + 1]),
-                           np.column_stack([idx + 1, idx + w, idx + w + 1])]).astype(np.uint32)
+    verts, tris = grid_triangles(np.stack([x, y, z], axis=-1))
     scene = o3d.t.geometry.RaycastingScene()
     scene.add_triangles(o3d.core.Tensor(verts), o3d.core.Tensor(tris))
     direction = light.astype(np.float32)
@@ -311,14 +334,42 @@ def _image(hf: HeightField, light: np.ndarray, ek, opts: _Options, rng: np.rando
         img = r * e3 * diffuse[..., None] + e3 * highlight[..., None]
     else:
         img = rho * ek * diffuse + ek * highlight
-    if opts.shot_noise > 0:
-        img = opts.shot_noise * rng.poisson(np.maximum(img, 0.0) / opts.shot_noise)
-    if opts.noise > 0:
-        img = img + rng.normal(0.0, opts.noise, img.shape)
-    if opts.shadows != "none" or opts.bit_depth is not None:
+    return sensor(img, rng, opts.noise, opts.shot_noise, opts.bit_depth,
+                  clip=opts.shadows != "none" or opts.bit_depth is not None)
+
+
+def sensor(img, rng: np.random.Generator, noise: float = 0.0, shot_noise: float = 0.0,
+           bit_depth: int | None = None, clip: bool = True) -> np.ndarray:
+    """What the sensor makes of a clean image: shot noise, Gaussian noise, clipping, quantisation.
+
+    Parameters
+    ----------
+    img : array_like
+        Clean image in full-scale units (1 = the largest value the sensor records).
+    rng : numpy.random.Generator
+        Noise source (drawn from in this order: Poisson, then Gaussian).
+    noise : float
+        Standard deviation of additive Gaussian noise, full-scale units.
+    shot_noise : float
+        Shot-noise scale g: the signal becomes ``g * Poisson(I / g)`` (mean I, variance
+        ``g I``); 0 disables it.
+    bit_depth : {None, 8, 16}
+        Quantise to ``round(I (2^b - 1)) / (2^b - 1)``.
+    clip : bool
+        Clip to [0, 1] (always done when quantising).
+
+    Returns
+    -------
+    float64 array (same shape)
+    """
+    if shot_noise > 0:
+        img = shot_noise * rng.poisson(np.maximum(img, 0.0) / shot_noise)
+    if noise > 0:
+        img = img + rng.normal(0.0, noise, np.shape(img))
+    if clip or bit_depth is not None:
         img = np.clip(img, 0.0, 1.0)
-    if opts.bit_depth is not None:
-        full = 2.0**opts.bit_depth - 1.0
+    if bit_depth is not None:
+        full = 2.0**bit_depth - 1.0
         img = np.round(img * full) / full
     return img
 
@@ -393,8 +444,12 @@ def _rgb_intensities(intensities, n: int) -> np.ndarray:
 
 
 def _write_folder(out: Path, imgs: np.ndarray, lights: np.ndarray, e: np.ndarray, m: np.ndarray,
-                  ngt: np.ndarray, hgt: np.ndarray, scene: dict) -> dict:
-    """The files of :func:`write_diligent_folder` from checked arrays (images float64 in [0, 1])."""
+                  ngt: np.ndarray, hgt: np.ndarray, scene: dict, extra_files: dict | None = None) -> dict:
+    """The files of :func:`write_diligent_folder` from checked arrays (images float64 in [0, 1]).
+
+    ``extra_files`` names files the caller wrote already (listed under ``files`` in scene.json,
+    which is written last).
+    """
     n = imgs.shape[0]
     names = [f"{k + 1:03d}.png" for k in range(n)]
     for name, img in zip(names, imgs):
@@ -410,7 +465,7 @@ def _write_folder(out: Path, imgs: np.ndarray, lights: np.ndarray, e: np.ndarray
     content = dict(scene)
     content["files"] = {"images": names, "lights": "light_directions.txt",
                         "intensities": "light_intensities.txt", "mask": "mask.png",
-                        "normal_gt": "normal_gt.npy", "height_gt": "height_gt.npy"}
+                        "normal_gt": "normal_gt.npy", "height_gt": "height_gt.npy", **(extra_files or {})}
     write_json(out / "scene.json", content)
     return content
 
@@ -495,22 +550,9 @@ def make_triad_folder(
     else:
         nominal = validate_lights(lights, min_lights=1)
     n = len(nominal)
-    dev = np.zeros((n, 2)) if deviate is None else as_array(deviate, "deviate", ndim=(1, 2))
-    if dev.ndim == 1:
-        if dev.shape != (n,):
-            raise ValueError(f"deviate: expected {n} slant deviations (one per light), got {len(dev)}")
-        dev = np.column_stack([dev, np.zeros(n)])
-    if dev.shape != (n, 2):
-        raise ValueError(f"deviate: expected shape ({n}, 2), got {dev.shape}")
+    dev = _deviations(deviate, n)
     true = deviate_lights(nominal, dev)
-    if albedo == "texture":
-        rho = texture_albedo(size, seed=seed)
-        albedo_desc = {"kind": "texture", "low": 0.55, "high": 0.9, "scale_px": 12.0, "seed": seed}
-    elif albedo is None or np.ndim(albedo) == 0:
-        rho = 1.0 if albedo is None else positive(albedo, "albedo")
-        albedo_desc = {"kind": "constant", "value": rho}
-    else:
-        raise ValueError(f"albedo: expected a number, 'texture' or None, got {albedo!r}")
+    rho, albedo_desc = _albedo(albedo, size, seed)
     opts = _options(hf, n, intensities, rho, shadows, specular, noise, shot_noise, bit_depth)
     e = opts.e
     rng = np.random.default_rng(seed)
@@ -551,3 +593,26 @@ def make_triad_folder(
     }
     return _write_folder(ensure_dir(out_dir), np.stack(images).astype(np.float64), nominal, _rgb_intensities(e, n),
                          np.ones(hf.shape, bool), hf.normals, hf.height, content)
+
+
+def _deviations(deviate, n: int) -> np.ndarray:
+    """Per-light [slant, azimuth] deviations (n, 2) in degrees from None, (n,) or (n, 2)."""
+    dev = np.zeros((n, 2)) if deviate is None else as_array(deviate, "deviate", ndim=(1, 2))
+    if dev.ndim == 1:
+        if dev.shape != (n,):
+            raise ValueError(f"deviate: expected {n} slant deviations (one per light), got {len(dev)}")
+        dev = np.column_stack([dev, np.zeros(n)])
+    if dev.shape != (n, 2):
+        raise ValueError(f"deviate: expected shape ({n}, 2), got {dev.shape}")
+    return dev
+
+
+def _albedo(albedo, size, seed: int):
+    """The albedo of a rendered folder and its description for scene.json."""
+    if isinstance(albedo, str) and albedo == "texture":
+        return (texture_albedo(size, seed=seed),
+                {"kind": "texture", "low": 0.55, "high": 0.9, "scale_px": 12.0, "seed": seed})
+    if albedo is None or (not isinstance(albedo, str) and np.ndim(albedo) == 0):
+        rho = 1.0 if albedo is None else positive(albedo, "albedo")
+        return rho, {"kind": "constant", "value": rho}
+    raise ValueError(f"albedo: expected a number, 'texture' or None, got {albedo!r}")

@@ -161,7 +161,7 @@ class NearFieldResult:
 class _Level:
     """One resolution of the alternation: observations and geometry per pixel."""
 
-    planes: list  # N (h, w) float32 intensity-divided grey observations
+    planes: np.ndarray  # (N, h, w) float32 intensity-divided grey observations
     strength: list  # N scalars or (h, w) float32 maps: E_k = strength * lobe / r^2
     mask: np.ndarray  # (h, w) bool
     saturated: np.ndarray | None  # (N, h, w) bool, outlier mode
@@ -347,7 +347,7 @@ def _solve_nearfield(
     opts = _Options(outliers, dark, saturation, highlight, 2, lights.mu_known or gains is None)
     u, v = pixel_offsets(camera, shape)
     fine = _Level(
-        planes=_grey_planes(imgs, np.ones_like(intens) if gains is not None else intens),
+        planes=np.stack(_grey_planes(imgs, np.ones_like(intens) if gains is not None else intens)),
         strength=_strengths(lights, camera, shape, gains, intens),
         mask=m,
         saturated=_saturated(imgs, saturation) if outliers else None,
@@ -471,7 +471,7 @@ def _coarsen(fine: _Level, r: int) -> _Level:
     if fine.saturated is not None:
         sat = fine.saturated[:, : h * r, : w * r].reshape(-1, h, r, w, r).any(axis=(2, 4))
     return _Level(
-        planes=[_block_mean(pl, r) for pl in fine.planes],
+        planes=np.stack([_block_mean(pl, r) for pl in fine.planes]),
         strength=[s if np.ndim(s) == 0 else _block_mean(s, r) for s in fine.strength],
         mask=mask,
         saturated=sat,
@@ -601,19 +601,19 @@ def _block(level: _Level, lights: PointLights, camera: Camera, z: np.ndarray, op
             strength = strength[r0:r1]
         S[k, 0], S[k, 1], S[k, 2] = _scaled_vectors(lights.positions[k], lights.axes[k], float(lights.mu[k]),
                                                     strength, x, y, zz, lobe=opts.lobe)
-    X = np.stack([pl[r0:r1] for pl in level.planes])
+    X = level.planes[:, r0:r1]
     mask = level.mask[r0:r1]
     g_all, ok_all = _solve3(S, X, None)
     g, ok = g_all, ok_all & mask
     weights = None
     if opts.outliers:
-        E = np.sqrt(np.einsum("kchw,kchw->khw", S, S))
+        E = np.sqrt(_kdot(S, S, axis=1))
         sat = level.saturated[:, r0:r1]
         for _ in range(opts.rounds):
-            rho = np.sqrt(np.einsum("chw,chw->hw", g, g))
+            rho = np.sqrt(_kdot(g, g))
             bad = (X < f32(opts.dark) * rho * E) | sat
             if opts.highlight is not None:
-                bad |= (X - np.einsum("kchw,chw->khw", S, g)) > f32(opts.highlight) * rho * E
+                bad |= (X - _kdot(S, g[None], axis=1)) > f32(opts.highlight) * rho * E
             if n == 3:
                 ok = ok_all & mask & ~bad.any(axis=0)
                 break
@@ -627,7 +627,7 @@ def _block(level: _Level, lights: PointLights, camera: Camera, z: np.ndarray, op
             g = np.where(ok[None], g_new, g_all)
         if out["outliers"] is not None:
             out["outliers"][:, r0:r1] = bad & mask[None]
-    rho = np.sqrt(np.einsum("chw,chw->hw", g, g))
+    rho = np.sqrt(_kdot(g, g))
     blank = ~mask | ~(rho > 0) | ~np.isfinite(rho)
     with np.errstate(divide="ignore", invalid="ignore"):
         nrm = g / rho[None]
@@ -641,21 +641,21 @@ def _block(level: _Level, lights: PointLights, camera: Camera, z: np.ndarray, op
     if not final:
         return
     g = nrm * rho[None]
-    err = X - np.einsum("kchw,chw->khw", S, g)
+    err = X - _kdot(S, g[None], axis=1)
     if weights is not None:
         err *= weights
         count = np.maximum(weights.sum(axis=0), 1.0)
     else:
         count = f32(n)
-    res = np.sqrt(np.einsum("khw,khw->hw", err, err) / count)
+    res = np.sqrt(_kdot(err, err) / count)
     res[blank] = 0.0
     out["residual"][r0:r1] = res
     if out["albedo"] is not None:
-        shade = np.einsum("kchw,chw->khw", S, nrm)
+        shade = _kdot(S, nrm[None], axis=1)
         if weights is not None:
             shade *= weights
         num = np.einsum("khwc,khw->hwc", level.colour[:, r0:r1], shade)
-        den = np.einsum("khw,khw->hw", shade, shade)
+        den = _kdot(shade, shade)
         alb = np.divide(num, den[..., None], out=np.zeros_like(num), where=den[..., None] > 0)
         alb[blank] = 0.0
         out["albedo"][r0:r1] = alb
@@ -672,15 +672,15 @@ def _solve3(S: np.ndarray, X: np.ndarray, weights: np.ndarray | None) -> tuple[n
         wx, wy, wz = sx * weights, sy * weights, sz * weights
     else:
         wx, wy, wz = sx, sy, sz
-    a00 = np.einsum("khw,khw->hw", wx, sx)
-    a01 = np.einsum("khw,khw->hw", wx, sy)
-    a02 = np.einsum("khw,khw->hw", wx, sz)
-    a11 = np.einsum("khw,khw->hw", wy, sy)
-    a12 = np.einsum("khw,khw->hw", wy, sz)
-    a22 = np.einsum("khw,khw->hw", wz, sz)
-    b0 = np.einsum("khw,khw->hw", wx, X)
-    b1 = np.einsum("khw,khw->hw", wy, X)
-    b2 = np.einsum("khw,khw->hw", wz, X)
+    a00 = _kdot(wx, sx)
+    a01 = _kdot(wx, sy)
+    a02 = _kdot(wx, sz)
+    a11 = _kdot(wy, sy)
+    a12 = _kdot(wy, sz)
+    a22 = _kdot(wz, sz)
+    b0 = _kdot(wx, X)
+    b1 = _kdot(wy, X)
+    b2 = _kdot(wz, X)
     c00 = a11 * a22 - a12 * a12
     c01 = a02 * a12 - a01 * a22
     c02 = a01 * a12 - a02 * a11
@@ -696,6 +696,17 @@ def _solve3(S: np.ndarray, X: np.ndarray, weights: np.ndarray | None) -> tuple[n
     np.multiply(c01 * b0 + c11 * b1 + c12 * b2, inv, out=g[1])
     np.multiply(c02 * b0 + c12 * b1 + c22 * b2, inv, out=g[2])
     return g, ok
+
+
+def _kdot(a: np.ndarray, b: np.ndarray, axis: int = 0) -> np.ndarray:
+    """``sum(a * b, axis)`` over a short axis (lights or components), accumulated in place:
+    twice as fast as ``einsum`` on float32 image blocks."""
+    a, b = np.moveaxis(a, axis, 0), np.moveaxis(b, axis, 0)
+    out = np.multiply(a[0], b[0])
+    tmp = np.empty_like(out)
+    for i in range(1, max(a.shape[0], b.shape[0])):
+        out += np.multiply(a[i if a.shape[0] > 1 else 0], b[i if b.shape[0] > 1 else 0], out=tmp)
+    return out
 
 
 def _conditioned(S: np.ndarray, E: np.ndarray, weights: np.ndarray) -> np.ndarray:

@@ -8,7 +8,9 @@ import pytest
 from datasets_synthetic import heightfields as hfm
 from surfaces.grid import pixel_grid, xy_to_pixel
 from datasets_synthetic.heightfields import (
+    INSPECTION_DEFECTS,
     SCENES,
+    inspection_part,
     inspection_plate,
     make_scene,
     spherical_dent,
@@ -57,7 +59,8 @@ def test_pixel_grid_round_trip():
 
 @pytest.mark.parametrize("name", SCENES)
 def test_slopes_are_exact_derivatives(name):
-    hf = make_scene(name, 96, 0.05, seed=1)
+    # the inspection parts' defects are sized in mm and need a field of about 20 mm
+    hf = make_scene(name, 96, 0.25 if name.startswith("inspection") else 0.05, seed=1)
     assert hf.height.shape == hf.p.shape == hf.q.shape == (96, 96)
     assert hf.normals.shape == (96, 96, 3)
     np.testing.assert_allclose(np.linalg.norm(hf.normals, axis=2), 1.0, atol=1e-12)
@@ -160,3 +163,75 @@ def test_vase_lies_on_its_support():
 def test_bad_input_names_the_argument(call, message):
     with pytest.raises(ValueError, match=message):
         call()
+
+
+def _field_pixel(name):
+    """A pixel size whose 64 px field holds the scene (the inspection parts' defects are sized in mm)."""
+    return 0.3 if name.startswith("inspection") else 0.05
+
+
+@pytest.mark.parametrize("name", SCENES)
+def test_the_grid_is_the_analytic_surface_at_the_pixel_centres(name):
+    hf = make_scene(name, (48, 64), _field_pixel(name), seed=2)
+    x, y = pixel_grid(hf.shape, hf.pixel_size)
+    z, p, q, inside = hf.surface.evaluate(x, y)
+    np.testing.assert_array_equal(z, hf.height)
+    np.testing.assert_array_equal(p, hf.p)
+    np.testing.assert_array_equal(q, hf.q)
+    np.testing.assert_array_equal(inside, hf.defect_mask)
+
+
+@pytest.mark.parametrize("name", SCENES)
+def test_the_surface_anywhere_has_exact_slopes_within_its_bounds(name):
+    hf = make_scene(name, 64, _field_pixel(name), seed=1)
+    s = hf.surface
+    half = 0.6 * 64 * hf.pixel_size  # beyond the image too: the scene is defined everywhere
+    rng = np.random.default_rng(7)
+    x, y = rng.uniform(-half, half, (2, 20000))
+    z, p, q, inside = s.evaluate(x, y)
+    eps = 1e-6
+    zx = (s.evaluate(x + eps, y)[0] - s.evaluate(x - eps, y)[0]) / (2 * eps)
+    zy = (s.evaluate(x, y + eps)[0] - s.evaluate(x, y - eps)[0]) / (2 * eps)
+    bad = (np.abs(zx - p) > 1e-5 * (1 + np.abs(p))) | (np.abs(zy - q) > 1e-5 * (1 + np.abs(q)))
+    assert bad.mean() < 1e-3  # only samples within 1e-6 mm of a kink
+    z0, sx, sy = s.plane
+    lo, hi = s.relief_bounds
+    relief = z - sx * x - sy * y
+    assert relief.min() >= lo - 1e-12 and relief.max() <= hi + 1e-12
+    assert np.hypot(p - sx, q - sy).max() <= s.relief_max_slope * (1 + 1e-9) + 1e-15
+
+
+@pytest.mark.parametrize("name, reached", [("crack", 1.0), ("dent", 0.8), ("scratch", 0.8)])
+def test_slope_bounds_are_tight_for_one_feature(name, reached):
+    hf = make_scene(name, 256, 0.05)
+    steepest = np.hypot(hf.p, hf.q).max()
+    assert reached * hf.surface.relief_max_slope * (1 - 1e-12) <= steepest <= hf.surface.relief_max_slope * (1 + 1e-12)
+
+
+@pytest.mark.parametrize("defect, kind", [("scratch", "u_scratch"), ("crack", "v_crack"), ("dent", "spherical_dent")])
+def test_inspection_part_is_a_60_mm_plate_with_one_defect_in_mm(defect, kind):
+    hf = inspection_part(600, 0.1, defect=defect)
+    (d,) = hf.defects
+    spec = INSPECTION_DEFECTS[defect]
+    assert d["kind"] == kind and d["depth_mm"] == pytest.approx(0.10)
+    assert d["center_mm"] == pytest.approx(list(spec["center_mm"]))
+    assert d["width_mm"] == spec["width_mm"] and d["length_mm"] == spec["length_mm"]
+    cx, cy = spec["center_mm"]
+    z = hf.surface.evaluate(cx, cy)[0]
+    assert float(z) == pytest.approx(-0.10, abs=1e-12)  # deepest at the centre, in mm, at any resolution
+    assert hf.params["plate_mm"] == 60.0
+    # the same part on another grid: the defect does not scale with the image
+    finer = inspection_part(500, 0.05, defect=defect)
+    assert finer.defects[0]["area_mm2"] == pytest.approx(d["area_mm2"])
+    assert make_scene(f"inspection_{defect}", 600, 0.1).defects == hf.defects
+
+
+def test_inspection_part_options_and_errors():
+    hf = inspection_part(200, 0.1, depth_mm=0.05, width_mm=0.8, length_mm=5.0, center_mm=(0.0, 0.0),
+                         axis_deg=0.0, tilt=(0.01, 0.0))
+    assert hf.defects[0]["depth_mm"] == 0.05 and hf.defects[0]["length_mm"] == 5.0
+    np.testing.assert_allclose(hf.p[0, 0], 0.01)
+    with pytest.raises(ValueError, match="does not contain the scratch"):
+        inspection_part(64, 0.05)
+    with pytest.raises(ValueError, match="defect"):
+        inspection_part(200, 0.1, defect="hole")
