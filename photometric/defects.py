@@ -155,7 +155,8 @@ def measure_defects(
     slope_threshold: float | None = None,
     xy=None,
     area=None,
-) -> list[dict]:
+    return_labels: bool = False,
+) -> list[dict] | tuple[list[dict], np.ndarray]:
     """Segment and measure defects of a height field.
 
     Parameters
@@ -208,6 +209,8 @@ def measure_defects(
         ``center_px`` (row, col, depth-weighted), ``bbox_px`` (min_row, min_col,
         max_row, max_col), ``area_px`` and the thresholds used; with ``xy`` also
         ``center_mm`` (x, y, depth-weighted).
+    labels : numpy.ndarray, shape (H, W), int32
+        Only with ``return_labels``: ``id + 1`` on each defect's pixels, 0 elsewhere.
     """
     z = as_array(height, "height", ndim=2, finite=False)
     h = positive(pixel_size, "pixel_size")
@@ -251,6 +254,7 @@ def measure_defects(
 
     signs = {"depression": (-1.0,), "bump": (1.0,), "both": (-1.0, 1.0)}[polarity]
     results: list[dict] = []
+    pixels: list[np.ndarray] = []
     for sign in signs:
         depth = sign * residual
         deepest = float(depth.max())
@@ -276,10 +280,17 @@ def measure_defects(
                 results.append(_measure(prop, h, kind, low, high, sigma))
             else:
                 results.append(_measure_points(prop, pts, foot, kind, low, high, sigma))
-    results.sort(key=lambda d: -d["max_depth_mm"])
+            pixels.append(prop.coords)
+    order = sorted(range(len(results)), key=lambda i: -results[i]["max_depth_mm"])
+    results = [results[i] for i in order]
     for i, rec in enumerate(results):
         rec["id"] = i
-    return results
+    if not return_labels:
+        return results
+    out = np.zeros(z.shape, np.int32)
+    for i, k in enumerate(order):
+        out[pixels[k][:, 0], pixels[k][:, 1]] = i + 1
+    return results, out
 
 
 def _slope_footprint(p, q, background, inspect, h, slope_threshold, xy=None) -> np.ndarray:

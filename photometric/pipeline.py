@@ -52,6 +52,7 @@ from photometric.nearfield import (
 )
 from photometric.rig import FLAT_SMOOTHING_PX, Rig, check_rig, flat_field_gains, read_rig
 from photometric.stereo import _check_images, _check_options, _solve
+from photometric.uncertainty import Tolerances, UncertaintyResult
 from surfaces.bezier import BezierPatches
 from surfaces.mesh import TriangleMesh
 from surfaces.validate import as_array, positive
@@ -105,6 +106,9 @@ class PhotometricReconstruction:
     xy : numpy.ndarray or None, shape (H, W, 2), float64
         ``x, y`` (mm) of the point each pixel sees (near-field and perspective solves;
         None on the far-field orthographic path, whose points are the pixel grid).
+    uncertainty : photometric.uncertainty.UncertaintyResult or None
+        Per-pixel ``p_u``, ``q_u``, ``height_u`` and the defects' budgets, when
+        ``uncertainty`` was given.
     """
 
     normals: np.ndarray
@@ -120,6 +124,7 @@ class PhotometricReconstruction:
     background: str
     summary: dict
     xy: np.ndarray | None = None
+    uncertainty: UncertaintyResult | None = None
 
 
 def _lights(lights) -> np.ndarray:
@@ -403,6 +408,7 @@ def reconstruct(
     reference_height_mm: float = 0.0,
     tolerance_mm: float = DEFAULT_TOLERANCE_MM,
     max_iterations: int = 30,
+    uncertainty: Tolerances | dict | None = None,
     progress: Callable[[str], None] | None = None,
 ) -> PhotometricReconstruction:
     """Run photometric stereo end to end and return every result (writes nothing).
@@ -466,6 +472,9 @@ def reconstruct(
         (:func:`photometric.camera.depth_from_field`).
     tolerance_mm, max_iterations :
         Near-field convergence (:func:`photometric.nearfield.solve_nearfield`).
+    uncertainty : photometric.uncertainty.Tolerances or dict, optional
+        Input standard uncertainties and the method (:mod:`photometric.uncertainty`); when
+        given, the result carries ``uncertainty`` and the summary an ``uncertainty`` key.
     progress : callable, optional
         Called with the name of each stage as it starts (``read``, ``normals``,
         ``height``, ``surface``, ``defects``; the command line's progress bar).
@@ -493,6 +502,10 @@ def reconstruct(
         raise ValueError(f"max_iterations: must be at least 1, got {max_iterations}")
     if not np.isfinite(float(reference_height_mm)):
         raise ValueError(f"reference_height_mm: must be finite, got {reference_height_mm}")
+    if isinstance(uncertainty, dict):
+        uncertainty = Tolerances(**uncertainty)
+    elif uncertainty is not None and not isinstance(uncertainty, Tolerances):
+        raise ValueError(f"uncertainty: expected Tolerances, a dict or None, got {type(uncertainty).__name__}")
     say = progress or (lambda _stage: None)
     timings: dict[str, float] = {}
     t_all = time.perf_counter()
@@ -566,8 +579,18 @@ def reconstruct(
     t0 = time.perf_counter()
     on_points = {} if near is None or isinstance(near.camera, Orthographic) else {
         "xy": res.xy, "area": res.footprint_mm2}
-    defects = measure_defects(height, h, res.valid, background=background, p=res.p, q=res.q, **on_points)
+    defects = measure_defects(height, h, res.valid, background=background, p=res.p, q=res.q,
+                              return_labels=uncertainty is not None, **on_points)
+    if uncertainty is not None:
+        defects, labels = defects
     timings["defects"] = time.perf_counter() - t0
+    unc = None
+    if uncertainty is not None:
+        say("uncertainty")
+        t0 = time.perf_counter()
+        unc = _uncertainty(uncertainty, data, near, res, height, defects, labels, h, h_source, integrator,
+                           background, outliers, dark, saturation, highlight)
+        timings["uncertainty"] = time.perf_counter() - t0
     timings["total"] = time.perf_counter() - t_all
 
     n_mask = int(data.mask.sum())
@@ -598,6 +621,8 @@ def reconstruct(
     }
     if near is not None:
         summary.update(_near_summary(near, res, float(tolerance_mm)))
+    if unc is not None:
+        summary["uncertainty"] = unc.summary
     if data.normal_gt is not None:
         err = angular_error_deg(res.normals, data.normal_gt)[data.mask]
         summary["mean_angular_error_deg"] = float(err.mean())
@@ -624,4 +649,35 @@ def reconstruct(
         background=background,
         summary=summary,
         xy=None if near is None else res.xy,
+        uncertainty=unc,
+    )
+
+
+def _uncertainty(tol: Tolerances, data: PhotometricData, near, res, height, defects, labels, h, h_source,
+                 integrator, background, outliers, dark, saturation, highlight) -> UncertaintyResult:
+    """:func:`photometric.uncertainty.propagate` with this solve's inputs; Monte Carlo re-runs
+    the same fast far-field solve, integration and defect measures."""
+    from photometric.defects import measure_defects
+    from photometric.integrate import integrate
+    from photometric.uncertainty import propagate
+
+    if near is not None:
+        raise ValueError("uncertainty: near-field and perspective solves are not covered yet (far-field lights "
+                         "with an orthographic camera only)")
+    if tol.light_position_tolerance_mm > 0:
+        raise ValueError("light_position_tolerance_mm: applies to near-field rigs (LED positions); these lights "
+                         "are directions (use light_tolerance_deg)")
+
+    def resolve(images, lights, intensities):
+        r = _solve(images, lights, intensities, data.mask, outliers, dark, saturation, highlight, 2)
+        z = integrate(r.p, r.q, integrator, mask=r.valid, pixel_size=h)
+        found = measure_defects(z, h, r.valid, background=background, p=r.p, q=r.q)
+        return r.p, r.q, r.valid, z, found
+
+    return propagate(
+        lights=data.lights, intensities=data.intensities, albedo=res.albedo, p=res.p, q=res.q, valid=res.valid,
+        height=height, defects=defects, labels=labels, pixel_size=h, tolerances=tol, integrator=integrator,
+        background=background, residual=res.residual,
+        channels=data.images.shape[3] if data.images.ndim == 4 else 1, images=data.images, mask=data.mask,
+        pixel_size_given=not h_source.startswith("default"), resolve=resolve,
     )
