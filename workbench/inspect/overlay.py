@@ -108,12 +108,11 @@ def overlay_image(albedo, mask, decision: Decision, spec: Spec, pixel_size: floa
         if depth.get("U") is not None:
             text += f"+-{depth['U']:.3f}"
         text += " mm"
-        x, y = int(box[:, 0].max()) + 4, int(box[:, 1].min()) + 4
-        x = min(x, max(0, w - int(9 * font * len(text))))
-        cv2.putText(pic, text, (x, max(y, int(14 * font))), cv2.FONT_HERSHEY_SIMPLEX, font, (0, 0, 0), thick + 2,
-                    cv2.LINE_AA)
-        cv2.putText(pic, text, (x, max(y, int(14 * font))), cv2.FONT_HERSHEY_SIMPLEX, font, colour, thick,
-                    cv2.LINE_AA)
+        (tw, th), _ = cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, font, thick)
+        x = int(np.clip(box[:, 0].max() + 4, 0, max(0, w - tw - 2)))
+        y = int(np.clip(box[:, 1].min() + th, th + 2, h - 2))
+        cv2.putText(pic, text, (x, y), cv2.FONT_HERSHEY_SIMPLEX, font, (0, 0, 0), thick + 2, cv2.LINE_AA)
+        cv2.putText(pic, text, (x, y), cv2.FONT_HERSHEY_SIMPLEX, font, colour, thick, cv2.LINE_AA)
 
     verdict = decision.verdict.upper()
     org = (int(10 * font), int(34 * font))

@@ -159,7 +159,7 @@ def _spec(spec) -> Spec:
     return _cached_spec(str(p), os.stat(p).st_mtime_ns)
 
 
-def _summary_figures(decision, defects) -> dict:
+def _summary_figures(decision) -> dict:
     """The part's key figures (the results.csv row of :data:`workbench.batch.FIGURES` ``inspect``)."""
     counted = [r for r in decision.imperfections if r["region"] == "inspected"]
     deepest = max(counted, key=lambda r: r["values"]["max_depth_mm"]["value"], default=None)
@@ -218,12 +218,19 @@ def inspect_part(folder, out_dir, rig, spec, *, keep_arrays: bool = False, part_
     root = Path(folder)
     paths = part_images(root, len(rig_obj.lights))
     mask = root / "mask.png"
+    if not keep_arrays:
+        # the surface model and mesh are only written with the arrays: a coarse one is enough
+        options = {"step": max(2, -(-max(rig_obj.image_size) // 8)), "samples": 1, **options}
     t0 = time.perf_counter()
     res = reconstruct([str(p) for p in paths], rig=rig_obj, mask=str(mask) if mask.is_file() else None, **options)
     t_measure = time.perf_counter() - t0
     pixel = float(res.summary["pixel_size_mm"])
+    defects = res.defects
+    if res.uncertainty is not None:
+        stated = {d["id"]: d["uncertainty_k2"] for d in res.uncertainty.defects}
+        defects = [{**d, "uncertainty_k2": stated.get(d["id"])} for d in defects]
     t0 = time.perf_counter()
-    decision = judge(res.defects, spec_obj, res.valid.shape, pixel)
+    decision = judge(defects, spec_obj, res.valid.shape, pixel)
     t_decide = time.perf_counter() - t0
 
     out = Path(out_dir)
@@ -238,7 +245,7 @@ def inspect_part(folder, out_dir, rig, spec, *, keep_arrays: bool = False, part_
 
         files += write_result(res, out)["files"]
     t_arrays = time.perf_counter() - t0
-    figures = _summary_figures(decision, res.defects)
+    figures = _summary_figures(decision)
     figures["invalid_fraction"] = res.summary["invalid_fraction"]
     s = res.summary
     timings = {"reconstruct": round(t_measure, 4), "decide": round(t_decide, 4), "overlay": round(t_overlay, 4)}
@@ -269,6 +276,7 @@ def inspect_part(folder, out_dir, rig, spec, *, keep_arrays: bool = False, part_
             "n_defects": s.get("n_defects"),
             "invalid_fraction": s.get("invalid_fraction"),
             "image_size": [s["size"]["height"], s["size"]["width"]],
+            "uncertainty": s.get("uncertainty"),
         },
         "files": sorted(set(files)),
     }
