@@ -102,7 +102,7 @@ def overlay_image(albedo, mask, decision: Decision, spec: Spec, pixel_size: floa
         # a hair-thin defect would vanish at this scale: draw at least a few pixels across
         centre = box.mean(axis=0)
         box = np.where(np.abs(box - centre) < 3, centre + np.sign(box - centre + 1e-9) * 3, box).astype(np.int32)
-        cv2.polylines(pic, [box], True, colour, thick, cv2.LINE_AA)
+        cv2.polylines(pic, [box], True, colour, thick, cv2.LINE_8)
         depth = rec["values"].get("max_depth_mm", {})
         text = f"{rec['id']}: {depth.get('value', float('nan')):.3f}"
         if depth.get("U") is not None:
