@@ -175,9 +175,11 @@ def _run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from workbench.batch import plan
+    from workbench.inspect.part import check_options, load_rig
     from workbench.inspect.run import load_parts, make_jobs, run_inspection
 
-    options = _options(args)
+    options = check_options(_options(args))
+    load_rig(args.rig)
     parts = load_parts(args.parts)
     steps = plan(make_jobs(parts, args.rig, args.spec), Path(args.out).resolve())
     print(f"{len(parts)} part(s): {len(steps.to_run)} to inspect, {len(steps.complete)} finished before "
