@@ -311,7 +311,7 @@ def judge(defects, spec: Spec, shape, pixel_size: float) -> Decision:
         us = [a["U"] for a in areas]
         U = None if any(u is None for u in us) else float(sum(us))
         part.append(_check("total_area_mm2", float(sum(a["value"] for a in areas)), U,
-                           spec.limits["max_total_area_mm2"], rule, where="the summed area: an imperfection's "))
+                           spec.limits["max_total_area_mm2"], rule, where="part "))
     if "min_distance_mm" in spec.limits and len(counted) >= 2:
         best, U = np.inf, None
         for i in range(len(counted)):
@@ -323,7 +323,7 @@ def judge(defects, spec: Spec, shape, pixel_size: float) -> Decision:
                     U = None if any(u is None for u in flat) else 0.5 * (max(ext[0]) + max(ext[1]))
                     best = gap
         part.append(_check("min_distance_mm", float(best), U, spec.limits["min_distance_mm"], rule, lower=True,
-                           where="a gap: the outline "))
+                           where="part "))
     verdicts = [r["verdict"] for r, _ in counted] + [c["verdict"] for c in part]
     verdict = _worst(verdicts)
     decided_by = []

@@ -109,6 +109,6 @@ def test_guard_band_refuses_an_imperfection_without_U():
     # simple decides without U, and records that none was stated
     d = judge([defect(0, 0.05, [50, 50], u=None)], parse_spec({"max_depth_mm": 0.1}), (101, 101), 0.1)
     assert d.verdict == "pass" and d.imperfections[0]["values"]["max_depth_mm"]["U"] is None
-    with pytest.raises(ValueError, match="summed area"):
+    with pytest.raises(ValueError, match="guard_band: part total_area_mm2 has no expanded uncertainty"):
         judge([defect(0, 0.05, [50, 50], u={"max_depth_mm": 0.01})],
               parse_spec({"max_total_area_mm2": 1.0, "decision_rule": "guard_band"}), (101, 101), 0.1)

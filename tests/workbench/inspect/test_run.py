@@ -144,3 +144,13 @@ def test_watch_inspects_each_part_once_and_survives_a_restart(small_lot, tmp_pat
     assert totals["ran"] == 1 and set(_rows(out)) == {"p1", "p2"} and _rows(out)["p2"]["verdict"] == "pass"
     with pytest.raises(NotADirectoryError, match="INBOX"):
         watch(tmp_path / "none", small_lot["rig"], small_lot["spec"], out, client=client, timeout=0)
+
+
+def test_inspect_figures_in_the_batch_rows():
+    from workbench.batch import FIGURES, RESULT_COLUMNS, key_figures
+
+    summary = {"verdict": "uncertain", "n_imperfections": 2, "n_fail": 0, "n_uncertain": 1, "max_depth_mm": 0.1,
+               "max_depth_U_mm": 0.01, "total_area_mm2": 3.5, "invalid_fraction": 0.0, "timings_s": {"total": 1.0}}
+    assert key_figures("inspect", summary) == {k: summary[k] for k in FIGURES["inspect"]}
+    assert set(FIGURES["inspect"]) <= set(RESULT_COLUMNS) and len(set(RESULT_COLUMNS)) == len(RESULT_COLUMNS)
+    assert RESULT_COLUMNS[:5] == ("id", "kind", "status", "error", "time_s") and RESULT_COLUMNS[-1] == "input"
