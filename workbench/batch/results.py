@@ -30,6 +30,8 @@ FIGURES: dict[str, tuple[str, ...]] = {
     "inspect": ("verdict", "n_imperfections", "n_fail", "n_uncertain", "max_depth_mm", "max_depth_U_mm",
                 "total_area_mm2", "invalid_fraction"),
 }
+#: figures whose value is text (every other figure is a number)
+TEXT_FIGURES: tuple[str, ...] = ("verdict",)
 RESULT_COLUMNS: tuple[str, ...] = tuple(dict.fromkeys((
     "id",
     "kind",
@@ -94,8 +96,8 @@ def key_figures(kind: str, summary: Mapping[str, Any]) -> dict[str, Any]:
     Returns
     -------
     dict
-        Figure name -> value (int, float, or text such as a verdict); figures the summary
-        lacks are left out.
+        Figure name -> value (int or float; text for :data:`TEXT_FIGURES`); figures the
+        summary lacks are left out.
 
     Examples
     --------
@@ -104,7 +106,8 @@ def key_figures(kind: str, summary: Mapping[str, Any]) -> dict[str, Any]:
     """
 
     def find(node: Mapping[str, Any], name: str) -> Any:
-        if name in node and isinstance(node[name], (int, float, str)):
+        if name in node and (isinstance(node[name], (int, float))
+                             or name in TEXT_FIGURES and isinstance(node[name], str)):
             return node[name]
         for value in node.values():
             if isinstance(value, Mapping):
