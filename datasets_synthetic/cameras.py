@@ -175,6 +175,44 @@ def perspective_camera(size, focal_length_px: float, camera_height_mm: float, pr
     return Camera("perspective", (h, w), focal_length_px=f, camera_height_mm=height, principal_point_px=pp)
 
 
+def make_camera(model: str, size, pixel_size_mm: float | None = None, focal_length_px: float | None = None,
+                camera_height_mm: float | None = None) -> Camera:
+    """A camera from the options of a command or a folder maker (clear errors for a missing or foreign one).
+
+    Parameters
+    ----------
+    model : {"orthographic", "perspective"}
+        Camera model.
+    size : int or (H, W)
+        Image size in pixels.
+    pixel_size_mm : float, optional
+        Orthographic pixel size in mm (default 0.05); not for a perspective camera.
+    focal_length_px, camera_height_mm : float, optional
+        Perspective focal length (pixels) and camera height (mm); both required for it.
+
+    Returns
+    -------
+    Camera
+
+    Examples
+    --------
+    >>> make_camera("perspective", 64, focal_length_px=640.0, camera_height_mm=200.0).reference_pixel_mm
+    0.3125
+    """
+    if model == "orthographic":
+        if focal_length_px is not None or camera_height_mm is not None:
+            raise ValueError("camera: focal_length_px and camera_height belong to a perspective camera")
+        return orthographic_camera(size, 0.05 if pixel_size_mm is None else pixel_size_mm)
+    if model == "perspective":
+        if focal_length_px is None or camera_height_mm is None:
+            raise ValueError("camera: a perspective camera needs focal_length_px and camera_height")
+        if pixel_size_mm is not None:
+            raise ValueError("pixel_size: a perspective camera's scale is camera_height / focal_length_px; "
+                             "give no pixel size")
+        return perspective_camera(size, focal_length_px, camera_height_mm)
+    raise ValueError(f"camera: expected 'orthographic' or 'perspective', got {model!r}")
+
+
 def project(camera: Camera, points) -> tuple[np.ndarray, np.ndarray]:
     """Fractional pixel positions where the camera sees points of the rig frame.
 
@@ -304,12 +342,7 @@ def intersect(surface, camera: Camera, tol_mm: float = 1e-9) -> SurfaceHits:
     first hit from the camera). Newton steps on the exact slope, ``g' = -1 - dx p - dy q``,
     fall back to bisection whenever they leave the bracket, all rays at once.
     """
-    if isinstance(surface, HeightField):
-        if surface.surface is None:
-            raise ValueError("surface: this HeightField carries no analytic surface")
-        surface = surface.surface
-    if not isinstance(surface, AnalyticSurface):
-        raise ValueError(f"surface: expected an AnalyticSurface or HeightField, got {type(surface).__name__}")
+    surface = analytic_surface(surface)
     if not isinstance(camera, Camera):
         raise ValueError(f"camera: expected a Camera, got {type(camera).__name__}")
     tol = positive(tol_mm, "tol_mm")
@@ -325,6 +358,32 @@ def intersect(surface, camera: Camera, tol_mm: float = 1e-9) -> SurfaceHits:
     x, y = t * dx, t * dy
     z, p, q, inside = surface._evaluate(x, y)
     return _hits(*(a.reshape(h, w) for a in (x, y, z, p, q, inside)))
+
+
+def analytic_surface(surface) -> AnalyticSurface:
+    """The closed-form surface of a scene.
+
+    Parameters
+    ----------
+    surface : AnalyticSurface or HeightField
+        A scene, or a height field that carries its analytic ``surface``.
+
+    Returns
+    -------
+    AnalyticSurface
+
+    Raises
+    ------
+    ValueError
+        Anything else, or a height field without an analytic surface.
+    """
+    if isinstance(surface, HeightField):
+        if surface.surface is None:
+            raise ValueError("surface: this HeightField carries no analytic surface")
+        surface = surface.surface
+    if not isinstance(surface, AnalyticSurface):
+        raise ValueError(f"surface: expected an AnalyticSurface or HeightField, got {type(surface).__name__}")
+    return surface
 
 
 def _hits(x, y, z, p, q, inside) -> SurfaceHits:

@@ -29,19 +29,11 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.ndimage import map_coordinates
 
-from datasets_synthetic.cameras import (
-    Camera,
-    SurfaceHits,
-    intersect,
-    orthographic_camera,
-    perspective_camera,
-    vignetting_map,
-)
+from datasets_synthetic.cameras import Camera, SurfaceHits, analytic_surface, intersect, make_camera, vignetting_map
 from datasets_synthetic.heightfields import CONVENTION, AnalyticSurface, make_scene
 from datasets_synthetic.io import ensure_dir
-from datasets_synthetic.point_lights import PointLights, _light_vector, point_lights, ring_point_lights
-from datasets_synthetic.render import _albedo, _deviations, _rgb_intensities, _write_folder, grid_triangles, sensor
-from photometric.lights import deviate_lights
+from datasets_synthetic.point_lights import PointLights, rig_lights, shading
+from datasets_synthetic.render import _albedo, _rgb_intensities, _write_folder, grid_triangles, sensor
 from photometric.normals import angular_error_deg
 from surfaces.grid import image_shape, xy_to_pixel
 from surfaces.io import atomic_write_text, save_npy, write_png
@@ -189,18 +181,24 @@ def render_near_field(
     h, w = camera.shape
     n = len(lights)
     rgb = lights.intensities.ndim == 2 or rho.ndim == 3
-    casts = _point_shadows(hits.points, lights.positions, camera.reference_pixel_mm) if shadows == "cast" else None
+    casts = (_point_shadows(hits.points, lights.positions, camera.reference_pixel_mm, analytic_surface(surface))
+             if shadows == "cast" else None)
     shape = (n, h, w, 3) if rgb else (n, h, w)
     clean = np.empty(shape, np.float32)
     clean_flat = np.empty(shape, np.float32)
+    seen = tuple(np.ascontiguousarray(hits.points[..., i]) for i in range(3))
+    facing = tuple(np.ascontiguousarray(hits.normals[..., i]) for i in range(3))
+    flat = tuple(np.ascontiguousarray(flat_points[..., i]) for i in range(3))
+    up = (np.zeros((h, w)), np.zeros((h, w)), np.ones((h, w)))
     for k in tqdm(range(n), desc="render", unit="light", disable=not progress):
-        towards, falloff = _light_vector(lights, k, hits.points)
-        shade = falloff * np.maximum(0.0, np.einsum("...i,...i->...", hits.normals, towards)) * v
+        shade = shading(lights, k, seen, facing)
+        shade *= v
         if casts is not None:
-            shade = shade * ~casts[k]
+            shade *= ~casts[k]
         clean[k] = _colour(rho, lights.intensities[k], shade, rgb)
-        lf, falloff_f = _light_vector(lights, k, flat_points)
-        clean_flat[k] = _colour(np.asarray(flat_albedo), lights.intensities[k], falloff_f * lf[..., 2] * v, rgb)
+        shade = shading(lights, k, flat, up)
+        shade *= v
+        clean_flat[k] = _colour(np.asarray(flat_albedo), lights.intensities[k], shade, rgb)
     brightest = max(float(clean.max()), float(clean_flat.max()))
     if brightest <= 0:
         raise ValueError("lights: no pixel of the part or the flat field is lit")
@@ -251,25 +249,56 @@ def _albedo_at(albedo, camera: Camera, hits: SurfaceHits) -> np.ndarray:
     return sampled[0] if rho.ndim == 2 else np.stack(sampled, axis=-1)
 
 
-def _point_shadows(points: np.ndarray, positions: np.ndarray, pixel_mm: float) -> np.ndarray:
-    """(N, H, W) True where the segment from a seen point to light k's position meets the seen surface."""
+def _point_shadows(points: np.ndarray, positions: np.ndarray, pixel_mm: float, surface: AnalyticSurface) -> np.ndarray:
+    """(N, H, W) True where the segment from a seen point to light k's position meets the seen surface.
+
+    Only points that may be shadowed are ray cast: above its base plane the surface's
+    relief never exceeds ``hi`` (:attr:`AnalyticSurface.relief_bounds`), so a point whose
+    relief is ``hi`` and whose segment to the LED climbs away from the base plane stays
+    above every occluder (on a flat plate with a scratch, only the scratch is cast). A
+    climbing segment also reaches ``hi`` within a known distance, so the mesh covers only
+    the pixels that far around those points.
+    """
     import open3d as o3d
 
     h, w = points.shape[:2]
-    verts, tris = grid_triangles(points)
+    flat = points.reshape(-1, 3)
+    _, sx, sy = surface.plane
+    hi = surface.relief_bounds[1]
+    relief = flat[:, 2] - sx * flat[:, 0] - sy * flat[:, 1]
+    low = relief < hi - 1e-12
+    todo, reach = [], 0.0
+    for position in positions:
+        v = position - flat
+        climb = v[:, 2] - sx * v[:, 0] - sy * v[:, 1]
+        idx = np.flatnonzero(low | (climb <= 0))
+        todo.append(idx)
+        if idx.size:
+            c = climb[idx]
+            run = np.hypot(v[idx, 0], v[idx, 1])
+            reach = np.inf if np.any(c <= 0) else max(reach, float(np.max((hi - relief[idx]) * run / c)))
+    out = np.zeros((len(positions), h * w), bool)
+    if not any(idx.size for idx in todo):
+        return out.reshape(len(positions), h, w)
+    every = np.concatenate(todo)
+    rows, cols = every // w, every % w
+    margin = h + w if not np.isfinite(reach) else int(np.ceil(1.1 * reach / pixel_mm)) + 2
+    r0, r1 = max(int(rows.min()) - margin, 0), min(int(rows.max()) + margin, h - 1)
+    c0, c1 = max(int(cols.min()) - margin, 0), min(int(cols.max()) + margin, w - 1)
+    verts, tris = grid_triangles(points[r0:r1 + 1, c0:c1 + 1])
     scene = o3d.t.geometry.RaycastingScene()
     scene.add_triangles(o3d.core.Tensor(verts), o3d.core.Tensor(tris))
     start = 1e-3 * pixel_mm  # leave the vertex the ray starts from
-    flat = points.reshape(-1, 3)
-    out = np.empty((len(positions), h, w), bool)
-    for k, position in enumerate(positions):
-        v = position - flat
+    for k, (position, idx) in enumerate(zip(positions, todo)):
+        if idx.size == 0:
+            continue
+        v = position - flat[idx]
         dist = np.linalg.norm(v, axis=1)
         d = v / dist[:, None]
-        rays = np.concatenate([flat + start * d, d], axis=1).astype(np.float32)
+        rays = np.concatenate([flat[idx] + start * d, d], axis=1).astype(np.float32)
         t_hit = scene.cast_rays(o3d.core.Tensor(rays))["t_hit"].numpy()
-        out[k] = (t_hit < dist - start).reshape(h, w)
-    return out
+        out[k, idx] = t_hit < dist - start
+    return out.reshape(len(positions), h, w)
 
 
 def write_near_field_folder(out_dir: str | os.PathLike, rendered: NearFieldRender, scene: dict,
@@ -431,16 +460,9 @@ def make_near_field_folder(
         (mm; the pixel values refer to the reference-plane grid) and ``scene_params``).
     """
     h, w = image_shape(size)
-    cam = _camera(camera, (h, w), pixel_size, focal_length_px, camera_height)
-    mu = as_array(led_mu, "led_mu", ndim=(0, 1))
-    if np.ndim(lights) == 0:
-        nominal = ring_point_lights(int(lights), slant, light_distance, azimuth0, mu, intensities)
-    else:
-        nominal = point_lights(lights, None, mu, intensities)
+    cam = make_camera(camera, (h, w), pixel_size, focal_length_px, camera_height)
+    nominal, true, dev = rig_lights(lights, slant, light_distance, azimuth0, led_mu, intensities, deviate)
     n = len(nominal)
-    dev = _deviations(deviate, n)
-    true = (nominal if not np.any(dev)
-            else point_lights(nominal.d0[:, None] * deviate_lights(nominal.directions, dev), None, mu, intensities))
     rho, albedo_desc = _albedo(albedo, (h, w), seed)
     hf = make_scene(scene, (h, w), cam.reference_pixel_mm, seed)
     rendered = render_near_field(hf, cam, true, rho, shadows, vignetting, exposure, peak, flat_albedo, noise,
@@ -473,19 +495,3 @@ def make_near_field_folder(
         "scene_params": hf.params,
     }
     return write_near_field_folder(out_dir, rendered, content, nominal)
-
-
-def _camera(model: str, size, pixel_size, focal_length_px, camera_height) -> Camera:
-    """The camera of :func:`make_near_field_folder` from its options (a clear error for a missing one)."""
-    if model == "orthographic":
-        if focal_length_px is not None or camera_height is not None:
-            raise ValueError("camera: focal_length_px and camera_height belong to a perspective camera")
-        return orthographic_camera(size, 0.05 if pixel_size is None else pixel_size)
-    if model == "perspective":
-        if focal_length_px is None or camera_height is None:
-            raise ValueError("camera: a perspective camera needs focal_length_px and camera_height")
-        if pixel_size is not None:
-            raise ValueError("pixel_size: a perspective camera's scale is camera_height / focal_length_px; "
-                             "give no pixel size")
-        return perspective_camera(size, focal_length_px, camera_height)
-    raise ValueError(f"camera: expected 'orthographic' or 'perspective', got {model!r}")

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from datasets_synthetic.render import _deviations
 from photometric.lights import deviate_lights, ring_lights
 from surfaces.validate import as_array, positive
 
@@ -164,6 +165,47 @@ def ring_point_lights(n: int, slant_deg: float, distance_mm: float, azimuth0_deg
     return point_lights(d * unit, None, mu, intensities)
 
 
+def rig_lights(lights, slant_deg: float, distance_mm: float, azimuth0_deg: float = 90.0, mu=0.0, intensities=None,
+               deviate=None) -> tuple[PointLights, PointLights, np.ndarray]:
+    """Nominal and true LEDs of a rendered rig: a ring (or given positions), the true ones deviated.
+
+    Parameters
+    ----------
+    lights : int or (N, 3) array_like
+        Number of ring LEDs (:func:`ring_point_lights` at ``slant_deg``, ``distance_mm``,
+        ``azimuth0_deg``), or their nominal positions in mm.
+    slant_deg, distance_mm, azimuth0_deg
+        The ring (ignored for given positions).
+    mu, intensities
+        As :func:`point_lights` (the same for nominal and true LEDs).
+    deviate : (N,) or (N, 2) array_like, optional
+        Slant (and azimuth) deviations, degrees, of each true LED from its nominal place on
+        its sphere about the origin; the true axes are aimed at the origin.
+
+    Returns
+    -------
+    nominal, true : PointLights
+    deviations : (N, 2) float64 array
+        [slant, azimuth] deviations in degrees.
+
+    Examples
+    --------
+    >>> nominal, true, dev = rig_lights(3, 45.0, 200.0, deviate=[2.0, 0.0, 0.0])
+    >>> round(float(np.degrees(np.arccos(true.positions[0, 2] / 200.0))), 6), dev.shape
+    (47.0, (3, 2))
+    """
+    m = as_array(mu, "led_mu", ndim=(0, 1))
+    if np.ndim(lights) == 0:
+        nominal = ring_point_lights(int(lights), slant_deg, distance_mm, azimuth0_deg, m, intensities)
+    else:
+        nominal = point_lights(lights, None, m, intensities)
+    dev = _deviations(deviate, len(nominal))
+    if not np.any(dev):
+        return nominal, nominal, dev
+    moved = nominal.d0[:, None] * deviate_lights(nominal.directions, dev)
+    return nominal, point_lights(moved, None, m, nominal.intensities), dev
+
+
 def light_vectors(lights: PointLights, points) -> tuple[np.ndarray, np.ndarray]:
     """Unit light vectors and geometric irradiance factors at surface points.
 
@@ -206,3 +248,58 @@ def _light_vector(lights: PointLights, k: int, pts: np.ndarray) -> tuple[np.ndar
     if lights.mu[k] > 0:
         falloff = falloff * np.maximum(0.0, -(unit @ lights.axes[k])) ** lights.mu[k]
     return unit, falloff
+
+
+def shading(lights: PointLights, k: int, points: tuple, normals: tuple) -> np.ndarray:
+    """``E_k(X) / e_k * max(0, n . l_k(X))`` of light ``k`` from coordinate planes (the renderers' hot path).
+
+    Parameters
+    ----------
+    lights : PointLights
+        The lights.
+    k : int
+        Light index.
+    points : (x, y, z) tuple of float64 arrays, one shape
+        Surface points in mm, one array per coordinate (contiguous planes are faster than
+        an interleaved (..., 3) array).
+    normals : (nx, ny, nz) tuple of float64 arrays, same shape
+        Unit normals there.
+
+    Returns
+    -------
+    float64 array (same shape)
+        ``(d0_k / r)^2 max(0, -l . a_k)^mu_k max(0, n . l)``, ``r = |P_k - X|``.
+
+    Examples
+    --------
+    >>> lights = point_lights([[0.0, 0.0, 100.0]])
+    >>> x = np.array([0.0, 100.0])
+    >>> shading(lights, 0, (x, 0 * x, 0 * x), (0 * x, 0 * x, 0 * x + 1)).round(6).tolist()
+    [1.0, 0.176777]
+    """
+    px, py, pz = lights.positions[k]
+    dx = px - points[0]
+    dy = py - points[1]
+    dz = pz - points[2]
+    inv = dx * dx
+    inv += dy * dy
+    inv += dz * dz
+    falloff = lights.d0[k] ** 2 / inv
+    np.sqrt(inv, out=inv)
+    np.divide(1.0, inv, out=inv)
+    cos = normals[0] * dx
+    cos += normals[1] * dy
+    cos += normals[2] * dz
+    cos *= inv
+    np.maximum(cos, 0.0, out=cos)
+    cos *= falloff
+    mu = lights.mu[k]
+    if mu > 0:
+        ax, ay, az = lights.axes[k]
+        lobe = dx * -ax
+        lobe -= ay * dy
+        lobe -= az * dz
+        lobe *= inv
+        np.maximum(lobe, 0.0, out=lobe)
+        cos *= lobe if mu == 1 else lobe * lobe if mu == 2 else lobe**mu
+    return cos

@@ -120,11 +120,17 @@ def fit_background(
             break
         use = new
     if coords is not None:
-        background = np.zeros(z.shape)
-        k = 0
-        for d in range(deg + 1):
+        # powers built by repeated products (no pow on whole images, no ones for x^0 y^0)
+        xs, ys = [None, coords[0]], [None, coords[1]]
+        for _ in range(2, deg + 1):
+            xs.append(xs[-1] * coords[0])
+            ys.append(ys[-1] * coords[1])
+        background = np.full(z.shape, float(coef[0]))
+        k = 1
+        for d in range(1, deg + 1):
             for a in range(d + 1):
-                background += coef[k] * coords[0] ** a * coords[1] ** (d - a)
+                term = ys[d] if a == 0 else xs[a] if a == d else xs[a] * ys[d - a]
+                background += coef[k] * term
                 k += 1
         return background, sigma
     # Evaluate term by term as outer products: no (H * W, terms) design matrix in memory.

@@ -308,16 +308,15 @@ def _near_setup(data: PhotometricData, *, light_model, light_positions, led_mu, 
         if light_model == "point":
             raise ValueError("light_model: 'point' needs LED positions (--light-positions, --rig or the "
                              "folder's light_positions.txt)")
+        if flat_field is not None and flat_field is not False:
+            raise ValueError("flat_field: flat-field gains need the point-light model (LED positions from "
+                             "--light-positions, --rig or the folder, and not --light-model directional)")
         if cam is None or isinstance(cam, Orthographic):
             return None
         return _Near("directional", data.lights, cam, cam_source, None, None, data.intensities, None)
     if cam is None:
         raise ValueError("camera: point lights need the camera's scale in mm: --pixel-size (orthographic) or "
                          "--camera perspective --focal-length-px F --camera-height MM")
-    for k, z in enumerate(lights.positions[:, 2]):
-        if isinstance(cam, Perspective) and z >= cam.camera_height_mm:
-            raise ValueError(f"light_positions: light {k} at z = {z:g} mm is not below the camera "
-                             f"({cam.camera_height_mm:g} mm)")
     gains, flat = None, None
     if flat_field is not None and flat_field is not False:
         albedo = 1.0 if flat_albedo is None else flat_albedo
@@ -477,7 +476,7 @@ def reconstruct(
         given, the result carries ``uncertainty`` and the summary an ``uncertainty`` key.
     progress : callable, optional
         Called with the name of each stage as it starts (``read``, ``normals``,
-        ``height``, ``surface``, ``defects``; the command line's progress bar).
+        ``height``, ``surface``, ``defects``, ``uncertainty`` when asked; the command line's progress bar).
 
     Returns
     -------
@@ -516,9 +515,12 @@ def reconstruct(
         # point lights give the far-field directions (from the origin to each LED)
         if light_positions is not None:
             pos = load_light_positions(light_positions) if isinstance(light_positions, (str, Path)) else light_positions
-            lights = point_lights(pos).directions
+            lights, name = point_lights(pos).directions, "light_positions"
         elif rig is not None:
-            lights = (rig if isinstance(rig, Rig) else read_rig(rig)).lights.directions
+            lights, name = (rig if isinstance(rig, Rig) else read_rig(rig)).lights.directions, "rig"
+        if lights is not None and isinstance(source, (Sequence, np.ndarray)) and not isinstance(source, str) \
+                and len(source) != len(lights):
+            raise ValueError(f"{name}: {len(lights)} LEDs for {len(source)} images")
     data, input_info = _load_input(source, lights, intensities, mask, select)
     height_gt = input_info.pop("height_gt", None)
     xy_gt = input_info.pop("xy_gt", None)
@@ -589,7 +591,8 @@ def reconstruct(
         say("uncertainty")
         t0 = time.perf_counter()
         unc = _uncertainty(uncertainty, data, near, res, height, defects, labels, h, h_source, integrator,
-                           background, outliers, dark, saturation, highlight)
+                           background, outliers, dark, saturation, highlight, reference_height_mm, tolerance_mm,
+                           max_iterations)
         timings["uncertainty"] = time.perf_counter() - t0
     timings["total"] = time.perf_counter() - t_all
 
@@ -654,30 +657,50 @@ def reconstruct(
 
 
 def _uncertainty(tol: Tolerances, data: PhotometricData, near, res, height, defects, labels, h, h_source,
-                 integrator, background, outliers, dark, saturation, highlight) -> UncertaintyResult:
+                 integrator, background, outliers, dark, saturation, highlight, reference_height_mm, tolerance_mm,
+                 max_iterations) -> UncertaintyResult:
     """:func:`photometric.uncertainty.propagate` with this solve's inputs; Monte Carlo re-runs
-    the same fast far-field solve, integration and defect measures."""
+    the same solve (far-field, or the near-field alternation), integration and defect measures."""
     from photometric.defects import measure_defects
     from photometric.integrate import integrate
-    from photometric.uncertainty import propagate
+    from photometric.uncertainty import PointLightModel, propagate
 
+    point, draw, lights, intensities = None, None, data.lights, data.intensities
     if near is not None:
-        raise ValueError("uncertainty: near-field and perspective solves are not covered yet (far-field lights "
-                         "with an orthographic camera only)")
-    if tol.light_position_tolerance_mm > 0:
-        raise ValueError("light_position_tolerance_mm: applies to near-field rigs (LED positions); these lights "
-                         "are directions (use light_tolerance_deg)")
+        if tol.method == "linear" and not (near.model == "point" and isinstance(near.camera, Orthographic)):
+            raise ValueError("uncertainty: the linear propagation covers distant lights and point lights with an "
+                             "orthographic camera; use method 'montecarlo' (--uncertainty montecarlo) here")
+        lights, intensities = near.lights, near.intensities
+        if near.model == "point":
+            point = PointLightModel(
+                near.lights, near.camera, near.gains, near.lights.mu_known or near.gains is None, res.xy,
+                np.ones(len(near.lights)) if near.gains is not None else near.intensities.mean(axis=1))
+            if tol.light_tolerance_deg > 0:
+                raise ValueError("light_tolerance_deg: point lights (LED positions) take light_position_tolerance_mm")
+            u_pos = tol.light_position_tolerance_mm
 
-    def resolve(images, lights, intensities):
-        r = _solve(images, lights, intensities, data.mask, outliers, dark, saturation, highlight, 2)
-        z = integrate(r.p, r.q, integrator, mask=r.valid, pixel_size=h)
-        found = measure_defects(z, h, r.valid, background=background, p=r.p, q=r.q)
-        return r.p, r.q, r.valid, z, found
+            def draw(rng):
+                moved = near.lights.positions + rng.normal(0.0, u_pos, near.lights.positions.shape)
+                return point_lights(moved, near.lights.axes, near.lights.mu if near.lights.mu_known else None)
+
+    def resolve(images, moved, intens):
+        if near is None:
+            r = _solve(images, moved, intens, data.mask, outliers, dark, saturation, highlight, 2)
+            z = integrate(r.p, r.q, integrator, mask=r.valid, pixel_size=h)
+            found = measure_defects(z, h, r.valid, background=background, p=r.p, q=r.q)
+            return r.p, r.q, r.valid, z, found
+        r = _solve_nearfield(images, moved, near.camera, intens, data.mask, near.gains, outliers, dark, saturation,
+                             highlight, integrator, float(reference_height_mm), float(tolerance_mm),
+                             int(max_iterations), COARSE_PIXELS, None)
+        on_points = {} if isinstance(near.camera, Orthographic) else {"xy": r.xy, "area": r.footprint_mm2}
+        found = measure_defects(r.height, h, r.valid, background=background, p=r.p, q=r.q, **on_points)
+        return r.p, r.q, r.valid, r.height, found
 
     return propagate(
-        lights=data.lights, intensities=data.intensities, albedo=res.albedo, p=res.p, q=res.q, valid=res.valid,
+        lights=lights.directions if point is not None else lights, intensities=intensities, albedo=res.albedo,
+        p=res.p, q=res.q, valid=res.valid,
         height=height, defects=defects, labels=labels, pixel_size=h, tolerances=tol, integrator=integrator,
         background=background, residual=res.residual,
-        channels=data.images.shape[3] if data.images.ndim == 4 else 1, images=data.images, mask=data.mask,
-        pixel_size_given=not h_source.startswith("default"), resolve=resolve,
+        channels=data.images.shape[3] if data.images.ndim == 4 else 1, images=data.images,
+        pixel_size_given=not h_source.startswith("default"), resolve=resolve, point=point, draw=draw,
     )

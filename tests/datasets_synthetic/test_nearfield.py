@@ -256,3 +256,26 @@ def test_make_near_field_folder_rejects_bad_input(tmp_path, kwargs, message):
     with pytest.raises(ValueError, match=message):
         make_near_field_folder(tmp_path, **{"size": 32, **kwargs})
     assert not (tmp_path / "scene.json").exists()
+
+
+@pytest.mark.parametrize("tilt", [(0.0, 0.0), (0.05, -0.03)])
+def test_cast_shadows_of_a_scratch_stay_in_the_scratch(tilt):
+    """Only points below the plate can be shadowed on a scratched plate; a grazing LED shadows the scratch wall."""
+    from datasets_synthetic.heightfields import inspection_part
+
+    hf = inspection_part((200, 260), 0.06, defect="scratch", center_mm=(0.0, 0.0), length_mm=6.0, axis_deg=90.0,
+                         tilt=tilt)
+    camera = orthographic_camera((200, 260), 0.06)
+    grazing = point_lights([[150.0, 0.0, 25.0]])  # 80.5 deg slant, across the scratch
+    out = render_near_field(hf, camera, grazing, shadows="cast", exposure=1.0)
+    attached = render_near_field(hf, camera, grazing, exposure=1.0)
+    darkened = out.images[0] < attached.images[0]
+    assert darkened.sum() > 50 and np.all(hf.defect_mask[darkened])
+    # mirrored LED, mirrored shadow (the untilted scratch is symmetric about its axis x = 0)
+    if tilt == (0.0, 0.0):
+        mirrored = render_near_field(hf, camera, point_lights([[-150.0, 0.0, 25.0]]), shadows="cast", exposure=1.0)
+        other = mirrored.images[0] < render_near_field(hf, camera, point_lights([[-150.0, 0.0, 25.0]]),
+                                                       exposure=1.0).images[0]
+        np.testing.assert_array_equal(other, darkened[:, ::-1])
+    overhead = render_near_field(hf, camera, point_lights([[0.0, 0.0, 200.0]]), shadows="cast", exposure=1.0)
+    assert overhead.shadow_fraction[0] == 0.0

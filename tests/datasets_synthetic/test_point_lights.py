@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from datasets_synthetic.point_lights import light_vectors, point_lights, ring_point_lights
+from datasets_synthetic.point_lights import light_vectors, point_lights, ring_point_lights, shading
 from photometric.lights import ring_lights
 
 
@@ -40,6 +40,22 @@ def test_irradiance_is_inverse_square_times_the_lobe():
     np.testing.assert_allclose(unit[0], v / r[:, None], rtol=1e-14)
     cos = -(v / r[:, None]) @ a
     np.testing.assert_allclose(g[0], (np.linalg.norm(lights.positions[0]) / r) ** 2 * cos**3, rtol=1e-13)
+
+
+@pytest.mark.parametrize("mu", [0.0, 1.0, 2.0, 1.7])
+def test_shading_planes_equal_the_light_vectors(mu):
+    lights = point_lights([[20.0, -10.0, 150.0], [-90.0, 40.0, 60.0]], axes=[[0.1, 0.0, -1.0], [1.0, -0.2, -0.8]],
+                          mu=mu)
+    rng = np.random.default_rng(2)
+    points = np.column_stack([rng.uniform(-30, 30, (200, 2)), rng.uniform(-1, 1, 200)])
+    normals = rng.normal(size=(200, 3)) + [0.0, 0.0, 2.0]
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    unit, g = light_vectors(lights, points)
+    for k in range(2):
+        expected = g[k] * np.maximum(0.0, np.sum(normals * unit[k], axis=1))
+        got = shading(lights, k, tuple(points.T.copy()), tuple(normals.T.copy()))
+        np.testing.assert_allclose(got, expected, rtol=1e-12, atol=1e-15)
+        assert (got == 0).any() or k == 0
 
 
 @pytest.mark.parametrize(

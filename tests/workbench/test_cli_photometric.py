@@ -290,3 +290,175 @@ def test_cli_calibrate_needs_spheres_or_positions(capsys):
         main(["photometric", "calibrate", "--out", "rig.json"])
     assert info.value.code == 2
     assert "one of the arguments --spheres --light-positions is required" in capsys.readouterr().err
+
+
+def test_cli_more_near_field_errors_write_nothing(near_plane, tmp_path, capsys):
+    pos = np.loadtxt(near_plane["positions"])
+    np.savetxt(tmp_path / "P2.txt", pos[:, :2])
+    np.savetxt(tmp_path / "P4.txt", np.vstack([pos, pos[:1]]))
+    np.savetxt(tmp_path / "L.txt", pos / np.linalg.norm(pos, axis=1, keepdims=True))
+    (tmp_path / "bad.json").write_text("{not json")
+    images = ["photometric", "reconstruct", "--images", *near_plane["images"]]
+    cases = [
+        (["--light-positions", str(tmp_path / "P2.txt"), "--pixel-size", "0.4"], "expected shape (N, 3)"),
+        (["--light-positions", str(tmp_path / "P4.txt"), "--pixel-size", "0.4"],
+         "light_positions: 4 LEDs for 3 images"),
+        (["--light-positions", str(tmp_path / "none.txt"), "--pixel-size", "0.4"], "does not exist"),
+        (["--rig", str(tmp_path / "none.json")], "rig: file"),
+        (["--rig", str(tmp_path / "bad.json")], "is not valid JSON"),
+        (["--light-positions", near_plane["positions"], "--camera", "perspective", "--pixel-size", "0.4",
+          "--focal-length-px", "700", "--camera-height", "280"], "--pixel-size is for the orthographic camera"),
+        (["--light-positions", near_plane["positions"], "--pixel-size", "0.4", "--light-model", "directional",
+          "--flat-field", *near_plane["flats"]], "flat_field: flat-field gains need the point-light model"),
+        (["--lights", str(tmp_path / "L.txt"), "--pixel-size", "0.4", "--flat-field", *near_plane["flats"]],
+         "flat_field: flat-field gains need the point-light model"),
+        (["--light-positions", near_plane["positions"], "--pixel-size", "0.4", "--tolerance", "0"], "tolerance_mm"),
+    ]
+    for extra, message in cases:
+        capsys.readouterr()
+        assert main([*images, *extra, "--out", str(tmp_path / "o")]) == 2, extra
+        assert message in _error_line(capsys), extra
+        assert not (tmp_path / "o").exists(), extra
+
+
+def test_cli_rig_with_another_number_of_lights(near_plane, tmp_path, capsys):
+    rig = tmp_path / "rig.json"
+    assert main(["photometric", "calibrate", "--light-positions", near_plane["positions"], "--flat-field",
+                 *near_plane["flats"], "--pixel-size", "0.4", "--out", str(rig)]) == 0
+    capsys.readouterr()
+    assert main(["photometric", "reconstruct", "--images", *near_plane["images"][:2], near_plane["images"][0],
+                 near_plane["images"][1], "--rig", str(rig), "--out", str(tmp_path / "o")]) == 2
+    assert "rig: 3 LEDs for 4 images" in _error_line(capsys)
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("camera", ["orthographic", "perspective"])
+def test_cli_calibrate_rendered_spheres_then_reconstruct_a_rendered_part(tmp_path, capsys, camera):
+    """The whole rig workflow on the independent renders: mirror spheres and a flat field
+    -> rig.json -> the scratched plate, under a lobe (mu = 1) the solver is never told."""
+    from datasets_synthetic.nearfield import make_near_field_folder
+    from datasets_synthetic.spheres import make_sphere_folders
+
+    size = 256
+    cam = ({"pixel_size": 60.0 / 512} if camera == "orthographic"
+           else {"focal_length_px": 512 * 300.0 / 60.0, "camera_height": 300.0})
+    ring = {"lights": 4, "slant": 45.0, "light_distance": 200.0, "camera": camera}
+    spheres = make_sphere_folders(tmp_path / "spheres", [[-7.0, 5.0, 5.0], [7.0, -5.0, 5.0]], radius=5.0,
+                                  size=size, noise=0.003, highlight_samples=48, **ring, **cam)
+    part = make_near_field_folder(tmp_path / "part", "inspection_scratch", size, led_mu=1.0, shadows="attached",
+                                  albedo=0.8, seed=4, **ring, **cam)
+    flats = [str(tmp_path / "part" / f) for f in part["flat_field"]["files"]]
+    rig = tmp_path / "rig.json"
+    assert main(["photometric", "calibrate", "--spheres", str(tmp_path / "spheres" / "sphere_01"),
+                 str(tmp_path / "spheres" / "sphere_02"), "--flat-field", *flats, "--flat-albedo", "0.8",
+                 "--out", str(rig)]) == 0
+    doc = json.loads(rig.read_text())
+    truth = np.array(spheres["lights"]["positions_mm"])
+    assert np.linalg.norm(np.array(doc["lights"]["positions_mm"]) - truth, axis=1).max() < 2.0
+    assert doc["camera"]["model"] == camera and doc["lights"]["mu"] is None
+    names = (tmp_path / "part" / "filenames.txt").read_text().split()
+    capsys.readouterr()
+    assert main(["photometric", "reconstruct", "--images", *[str(tmp_path / "part" / n) for n in names],
+                 "--rig", str(rig), "--out", str(tmp_path / "o")]) == 0
+    summary = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert summary["light_model"] == "point" and summary["flat_field"]["source"] == "rig"
+    assert summary["converged"] is True and summary["camera"]["model"] == camera
+    height = np.load(tmp_path / "o" / "height.npy")
+    truth_h = np.load(tmp_path / "part" / "height_gt.npy")
+    outside = np.isfinite(height) & (truth_h == 0.0)
+    assert np.sqrt(np.mean((height - truth_h)[outside] ** 2)) < 0.01
+    found = json.loads((tmp_path / "o" / "defects.json").read_text())["defects"]
+    assert found and found[0]["max_depth_mm"] == pytest.approx(0.10, rel=0.1)
+
+
+def test_cli_rendered_perspective_folder_is_solved_near_field(tmp_path, capsys):
+    """A folder with light_positions.txt, flat_*.png and a perspective camera in scene.json:
+    the folder argument alone selects the point-light model, the camera and the flat field."""
+    from datasets_synthetic.nearfield import make_near_field_folder
+
+    make_near_field_folder(tmp_path / "part", "inspection_scratch", 256, lights=3, light_distance=150.0, led_mu=2.0,
+                           camera="perspective", focal_length_px=512 * 300.0 / 60.0, camera_height=300.0,
+                           shadows="attached", seed=5)
+    assert main(["photometric", "reconstruct", str(tmp_path / "part"), "--out", str(tmp_path / "o")]) == 0
+    out = capsys.readouterr().out
+    assert "point lights, perspective camera" in out
+    summary = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert summary["light_model"] == "point" and summary["converged"] is True
+    assert summary["camera"]["model"] == "perspective" and summary["camera"]["camera_height_mm"] == 300.0
+    assert summary["flat_field"]["source"] == "folder"
+    assert summary["height_rmse_mm"] < 0.01 and summary["xy_rmse_mm"] < 0.01
+    assert "xy.npy" in summary["files"]
+    xy = np.load(tmp_path / "o" / "xy.npy")
+    np.testing.assert_allclose(xy, np.load(tmp_path / "part" / "xy_gt.npy"), atol=0.01)
+    found = json.loads((tmp_path / "o" / "defects.json").read_text())["defects"]
+    assert found and found[0]["length_mm"] == pytest.approx(12.0, rel=0.02)
+
+
+@pytest.fixture(scope="module")
+def scratch_folder(tmp_path_factory):
+    out = tmp_path_factory.mktemp("scratch")
+    make_triad_folder(out, scene="scratch", size=96, noise=0.002, shadows="attached", deviate=None,
+                      albedo=0.8, pixel_size=0.05, seed=2)
+    return out
+
+
+def test_cli_uncertainty_files_and_keys(scratch_folder, tmp_path, capsys):
+    out = tmp_path / "u"
+    args = ["photometric", "reconstruct", str(scratch_folder), "--noise-sigma", "0.002", "--light-tolerance-deg",
+            "0.5", "--intensity-tolerance", "0.01", "--pixel-size-tolerance", "0.002", "--out", str(out)]
+    assert main(args) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    for name in ("p_u.npy", "q_u.npy", "height_u.npy", "uncertainty.json"):
+        assert name in summary["files"] and (out / name).is_file()
+    unc = summary["uncertainty"]
+    assert unc["method"] == "linear" and unc["noise_sigma"] == 0.002
+    assert unc["tolerances"]["light_tolerance_deg"] == 0.5 and unc["tolerances"]["intensity_tolerance"] == 0.01
+    defects = json.loads((out / "defects.json").read_text())["defects"]
+    assert defects and set(defects[0]["uncertainty_k2"]) == {
+        "max_depth_mm", "mean_width_mm", "length_mm", "area_mm2", "volume_mm3"}
+    budget = json.loads((out / "uncertainty.json").read_text())
+    depth = budget["defects"][0]["budget"]["max_depth_mm"]
+    assert depth["k"] == 2.0 and depth["expanded_uncertainty"] == defects[0]["uncertainty_k2"]["max_depth_mm"]
+    assert {"image_noise", "light_direction", "light_intensity", "pixel_size"} <= set(depth["sources"])
+    assert np.load(out / "height_u.npy").shape == np.load(out / "height.npy").shape
+    assert "(k = 2)" in capsys.readouterr().out
+
+
+def test_cli_without_uncertainty_options_writes_no_uncertainty(scratch_folder, tmp_path):
+    assert main(["photometric", "reconstruct", str(scratch_folder), "--out", str(tmp_path / "n")]) == 0
+    summary = json.loads((tmp_path / "n" / "summary.json").read_text())
+    assert "uncertainty" not in summary and "p_u.npy" not in summary["files"]
+
+
+def test_cli_monte_carlo(scratch_folder, tmp_path):
+    out = tmp_path / "mc"
+    assert main(["photometric", "reconstruct", str(scratch_folder), "--light-tolerance-deg", "0.5", "--uncertainty",
+                 "montecarlo", "--mc-samples", "6", "--out", str(out)]) == 0
+    unc = json.loads((out / "uncertainty.json").read_text())
+    assert unc["method"] == "montecarlo" and unc["mc_samples"] == 6
+    assert "montecarlo" in unc["defects"][0]["budget"]["max_depth_mm"]["sources"]
+
+
+@pytest.mark.parametrize(
+    "extra, message",
+    [
+        (["--mc-samples", "0"], "--mc-samples"),
+        (["--light-tolerance-deg", "-0.5"], "--light-tolerance-deg"),
+        (["--noise-sigma", "-1"], "--noise-sigma"),
+        (["--intensity-tolerance", "-0.1"], "--intensity-tolerance"),
+        (["--pixel-size-tolerance", "-0.1"], "--pixel-size-tolerance"),
+    ],
+)
+def test_cli_uncertainty_bad_input(scratch_folder, tmp_path, capsys, extra, message):
+    assert main(["photometric", "reconstruct", str(scratch_folder), *extra, "--out", str(tmp_path / "x")]) == 2
+    assert message in capsys.readouterr().err
+    assert not (tmp_path / "x").exists()
+
+
+def test_cli_uncertainty_needs_a_pixel_size(plate_folder, tmp_path, capsys):
+    names = (plate_folder / "filenames.txt").read_text().split()
+    args = ["photometric", "reconstruct", "--images", *[str(plate_folder / n) for n in names],
+            "--lights", str(plate_folder / "light_directions.txt"), "--light-tolerance-deg", "0.5",
+            "--out", str(tmp_path / "o")]
+    assert main(args) == 2
+    assert "pixel size" in capsys.readouterr().err

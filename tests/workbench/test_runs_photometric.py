@@ -167,3 +167,21 @@ def test_write_rig_and_calibrate_to_rig(tmp_path):
     assert again == json.loads((tmp_path / "again.json").read_text())
     with pytest.raises(IsADirectoryError, match="rig.json file name"):
         write_rig(rig, tmp_path / "cal")
+
+
+def test_reconstruct_folder_with_uncertainty_writes_its_files(plate_folder, tmp_path):
+    from photometric.uncertainty import Tolerances
+    from workbench.runs.photometric import UNCERTAINTY_FILES
+
+    stages = []
+    summary = reconstruct_to_folder(plate_folder, tmp_path / "out", progress=stages.append,
+                                    uncertainty=Tolerances(light_tolerance_deg=0.5, noise_sigma=0.001))
+    assert stages == ["read", "normals", "height", "surface", "defects", "uncertainty", "write"]
+    out = tmp_path / "out"
+    assert sorted(p.name for p in out.iterdir()) == sorted(FILES + UNCERTAINTY_FILES) == summary["files"]
+    assert np.load(out / "p_u.npy").dtype == np.float32
+    defects = json.loads((out / "defects.json").read_text())["defects"]
+    budget = json.loads((out / "uncertainty.json").read_text())
+    assert [d["id"] for d in budget["defects"]] == [d["id"] for d in defects]
+    assert all(d["uncertainty_k2"]["max_depth_mm"] > 0 for d in defects)
+    assert summary["timings_s"]["uncertainty"] >= 0

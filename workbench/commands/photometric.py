@@ -39,6 +39,55 @@ def _camera_options(args: argparse.Namespace) -> dict:
             "camera_height_mm": args.camera_height, "principal_point_px": pp}
 
 
+def _add_uncertainty(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group(
+        "uncertainty (GUM, k = 2)",
+        "Any of these options adds p_u.npy, q_u.npy, height_u.npy (standard uncertainties), uncertainty.json "
+        "(the budget of every defect figure) and uncertainty_k2 per defect in defects.json; needs the pixel size.")
+    g.add_argument("--noise-sigma", type=float, default=None, metavar="S",
+                   help="image noise, standard deviation in full-scale units 0-1 (default: estimated from the "
+                   "residuals with 4 or more lights, none with a triad)")
+    g.add_argument("--light-tolerance-deg", type=float, default=None, metavar="DEG",
+                   help="standard uncertainty of each light's direction, degrees (isotropic: each tangent axis)")
+    g.add_argument("--light-position-tolerance-mm", type=float, default=None, metavar="MM",
+                   help="standard uncertainty of each LED coordinate, mm (near-field rigs)")
+    g.add_argument("--intensity-tolerance", type=float, default=None, metavar="R",
+                   help="relative standard uncertainty of each light's intensity")
+    g.add_argument("--pixel-size-tolerance", type=float, default=None, metavar="R",
+                   help="relative standard uncertainty of the pixel size")
+    g.add_argument("--uncertainty", default=None, choices=("linear", "montecarlo"),
+                   help="propagation: linear (default; closed form) or montecarlo (repeat the fast solve with "
+                   "perturbed inputs)")
+    g.add_argument("--mc-samples", type=int, default=None, metavar="N",
+                   help="Monte Carlo repetitions (default 50)")
+
+
+def _uncertainty_options(args: argparse.Namespace):
+    """The tolerances of the command line, or None when no uncertainty option was given."""
+    from photometric.uncertainty import Tolerances
+
+    given = {
+        "noise_sigma": args.noise_sigma,
+        "light_tolerance_deg": args.light_tolerance_deg,
+        "light_position_tolerance_mm": args.light_position_tolerance_mm,
+        "intensity_tolerance": args.intensity_tolerance,
+        "pixel_size_tolerance": args.pixel_size_tolerance,
+        "method": args.uncertainty,
+        "mc_samples": args.mc_samples,
+    }
+    if all(v is None for v in given.values()):
+        return None
+    names = {"noise_sigma": "--noise-sigma", "light_tolerance_deg": "--light-tolerance-deg",
+             "light_position_tolerance_mm": "--light-position-tolerance-mm",
+             "intensity_tolerance": "--intensity-tolerance", "pixel_size_tolerance": "--pixel-size-tolerance"}
+    for key, flag in names.items():
+        if given[key] is not None and not given[key] >= 0:
+            raise ValueError(f"{flag}: must be a non-negative standard uncertainty, got {given[key]}")
+    if args.mc_samples is not None and args.mc_samples < 2:
+        raise ValueError(f"--mc-samples: need at least 2 Monte Carlo samples, got {args.mc_samples}")
+    return Tolerances(**{k: v for k, v in given.items() if v is not None})
+
+
 def register(sub) -> None:
     """Add ``reconstruct`` and ``calibrate`` to the ``photometric`` group.
 
@@ -54,7 +103,8 @@ def register(sub) -> None:
         "(filenames.txt, light_directions.txt, [light_intensities.txt], [mask.png], "
         "[normal_gt.npy]) or from --images with --lights. Writes normals.npy, albedo.npy, p.npy, "
         "q.npy, valid.npy, height.npy, normals.png, albedo.png, height.png, surface.ply, "
-        "defects.json and summary.json to --out. Convention: x right, y up (row 0 at the top), "
+        "defects.json and summary.json to --out (with an uncertainty option also p_u.npy, q_u.npy, "
+        "height_u.npy and uncertainty.json, GUM budgets with k = 2). Convention: x right, y up (row 0 at the top), "
         "z towards the camera; lights point from the surface to the light. Near-field rigs: with LED "
         "positions (--light-positions, --rig, or a folder's light_positions.txt) the point-light model "
         "(inverse-square falloff, LED lobe, optional flat field) is solved by alternating normals and "
@@ -127,6 +177,7 @@ def register(sub) -> None:
                    help="mesh subdivisions per patch side (default min(step, 8))")
     p.add_argument("--background", default="plane", choices=("plane", "smooth"),
                    help="background removed before measuring defects (default plane)")
+    _add_uncertainty(p)
     p.set_defaults(func=_reconstruct)
 
     c = sub.add_parser(
@@ -194,7 +245,16 @@ def _calibrate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _pm(value: float, expanded: float | None) -> str:
+    """``0.100 ± 0.006 mm (k = 2)``."""
+    from photometric.uncertainty import format_value
+
+    return format_value(value, expanded, "mm")
+
+
 def _reconstruct(args: argparse.Namespace) -> int:
+    import json
+
     from tqdm import tqdm
 
     from photometric.nearfield import DEFAULT_TOLERANCE_MM
@@ -209,7 +269,8 @@ def _reconstruct(args: argparse.Namespace) -> int:
     if args.images is not None and (args.triad or args.select):
         raise ValueError("--triad/--select: only apply to a folder input")
     select = "triad" if args.triad else args.select
-    stages = ["read", "normals", "height", "surface", "defects", "write"]
+    tolerances = _uncertainty_options(args)
+    stages = ["read", "normals", "height", "surface", "defects", *(["uncertainty"] if tolerances else []), "write"]
     with tqdm(total=len(stages), desc="photometric", unit="stage", leave=False) as bar:
         def progress(stage: str) -> None:
             if bar.n or stage != stages[0]:
@@ -241,6 +302,7 @@ def _reconstruct(args: argparse.Namespace) -> int:
             reference_height_mm=args.reference_height,
             tolerance_mm=DEFAULT_TOLERANCE_MM if args.tolerance is None else args.tolerance,
             max_iterations=args.max_iterations,
+            uncertainty=tolerances,
             progress=progress,
             **_camera_options(args),
         )
@@ -267,5 +329,16 @@ def _reconstruct(args: argparse.Namespace) -> int:
         f"{summary['patches'][0]} x {summary['patches'][1]} patches, "
         f"{summary['mesh']['triangles']} triangles, {summary['n_defects']} defect(s)"
     )
+    if "uncertainty" in summary:
+        unc = summary["uncertainty"]
+        print(f"uncertainty ({unc['method']}, k = 2): noise sigma {unc['noise_sigma']:.3g} "
+              f"({unc['noise_sigma_source']}), median u(height) {unc['median_height_u_mm']:.3g} {unit}")
+        with open(f"{args.out}/defects.json") as fh:
+            for rec in json.load(fh)["defects"][:5]:
+                k2 = rec.get("uncertainty_k2", {})
+                print(f"  defect {rec['id']} ({rec['kind']}): "
+                      f"depth {_pm(rec['max_depth_mm'], k2.get('max_depth_mm'))}, "
+                      f"width {_pm(rec['mean_width_mm'], k2.get('mean_width_mm'))}, "
+                      f"length {_pm(rec['length_mm'], k2.get('length_mm'))}")
     print(f"total {summary['timings_s']['total']:.2f} s; wrote {args.out} (summary.json holds every number above)")
     return 0

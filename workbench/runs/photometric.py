@@ -10,6 +10,11 @@ float64 in mm (NaN outside the solved pixels), ``normals.png``, ``albedo.png``,
 centred pixel grid of :data:`surfaces.grid.GRID_CONVENTION`), ``defects.json`` and
 ``summary.json`` (the returned dict); near-field and perspective solves add ``xy.npy``
 (H, W, 2) float64, the ``x, y`` (mm) of the point each pixel sees (:data:`NEARFIELD_FILES`).
+With ``uncertainty`` (:mod:`photometric.uncertainty`) it adds :data:`UNCERTAINTY_FILES`:
+``p_u.npy``, ``q_u.npy`` (H, W) float32 standard uncertainties of the slopes,
+``height_u.npy`` (H, W) float32 standard uncertainty of the height in mm, and
+``uncertainty.json`` (the GUM budget of every defect figure); each defect in
+``defects.json`` then carries ``uncertainty_k2`` (expanded uncertainties, k = 2).
 
 A near-field solve that does not converge writes only ``summary.json`` (with
 ``converged: false``, the iteration history and the error) and raises the
@@ -35,7 +40,8 @@ from photometric.rig import Rig, rig_to_dict
 from surfaces.io import atomic_path, save_npy, write_json, write_mesh, write_png
 from workbench import images
 
-__all__ = ["FILES", "NEARFIELD_FILES", "reconstruct_to_folder", "write_result", "write_rig", "calibrate_to_rig"]
+__all__ = ["FILES", "NEARFIELD_FILES", "UNCERTAINTY_FILES", "reconstruct_to_folder", "write_result", "write_rig",
+           "calibrate_to_rig"]
 
 #: Files written into the output folder (``summary.json`` lists them under ``files``).
 FILES = (
@@ -44,6 +50,21 @@ FILES = (
 )
 #: Files of a near-field or perspective reconstruction: :data:`FILES` and ``xy.npy``.
 NEARFIELD_FILES = (*FILES, "xy.npy")
+#: Files added when the reconstruction carries uncertainties.
+UNCERTAINTY_FILES = ("p_u.npy", "q_u.npy", "height_u.npy", "uncertainty.json")
+
+
+def _write_uncertainty(unc, defects: list, pixel: float, out: Path) -> list:
+    """``p_u.npy``, ``q_u.npy``, ``height_u.npy``, ``uncertainty.json``; the defects with their
+    ``uncertainty_k2``."""
+    save_npy(out / "p_u.npy", unc.p_u)
+    save_npy(out / "q_u.npy", unc.q_u)
+    save_npy(out / "height_u.npy", unc.height_u)
+    write_json(out / "uncertainty.json", {
+        "units": "mm", "pixel_size_mm": pixel, "guide": "GUM (ISO/IEC Guide 98-3)",
+        **unc.summary, "defects": [{"id": d["id"], "budget": d["budget"]} for d in unc.defects]})
+    k2 = {d["id"]: d["uncertainty_k2"] for d in unc.defects}
+    return [{**rec, "uncertainty_k2": k2[rec["id"]]} if rec["id"] in k2 else rec for rec in defects]
 
 
 def write_result(result: PhotometricReconstruction, out_dir) -> dict:
@@ -82,9 +103,14 @@ def write_result(result: PhotometricReconstruction, out_dir) -> dict:
     write_png(out / "height.png", images.scalar_image(
         result.height, result.valid, cmap="viridis", percentile=99.5, colorbar=False, min_height=1,
         background=(0.0, 0.0, 0.0)))
+    defects = result.defects
+    files = list(FILES if result.xy is None else NEARFIELD_FILES)
+    if result.uncertainty is not None:
+        defects = _write_uncertainty(result.uncertainty, defects, pixel, out)
+        files += UNCERTAINTY_FILES
     write_json(
         out / "defects.json",
-        {"units": "mm", "pixel_size_mm": pixel, "background": result.background, "defects": result.defects},
+        {"units": "mm", "pixel_size_mm": pixel, "background": result.background, "defects": defects},
     )
     write = time.perf_counter() - t0
     summary: dict = {}
@@ -94,7 +120,7 @@ def write_result(result: PhotometricReconstruction, out_dir) -> dict:
             value = {**stages, "write": round(write, 4), "total": round(value["total"] + write, 4)}
         summary[key] = value
         if key == "timings_s":
-            summary["files"] = sorted(FILES if result.xy is None else NEARFIELD_FILES)
+            summary["files"] = sorted(files)
     write_json(out / "summary.json", summary)
     return summary
 
@@ -110,12 +136,13 @@ def reconstruct_to_folder(source, out_dir, *, progress: Callable[[str], None] | 
         Output folder (created when missing).
     progress : callable, optional
         Called with the name of each stage as it starts: the library's ``read``,
-        ``normals``, ``height``, ``surface``, ``defects``, then ``write``.
+        ``normals``, ``height``, ``surface``, ``defects`` (and ``uncertainty``), then ``write``.
     **options
         Keyword options of :func:`photometric.pipeline.reconstruct` (``lights``,
         ``intensities``, ``mask``, ``select``, ``integrator``, ``pixel_size``,
         ``outliers``, ``dark``, ``saturation``, ``highlight``, ``step``, ``samples``,
-        ``background``).
+        ``background``, ``uncertainty``: a :class:`photometric.uncertainty.Tolerances` or
+        its dict, which adds :data:`UNCERTAINTY_FILES`).
 
     Returns
     -------

@@ -1,0 +1,304 @@
+"""photometric.uncertainty: closed forms against Monte Carlo and finite differences, the
+pipeline's budgets, bad input, and the coverage of the stated intervals."""
+
+import math
+
+import numpy as np
+import pytest
+import scipy.fft as sfft
+
+import photometric.uncertainty as U
+from datasets_synthetic.heightfields import u_scratch
+from datasets_synthetic.render import render
+from photometric.integrate import dct_poisson
+from photometric.lights import ring_lights, tangent_basis
+from photometric.normals import normals_from_slopes
+from photometric.pipeline import reconstruct
+from photometric.stereo import solve
+
+
+def _exact_slopes(L_nominal, L_true, p, q):
+    """Slopes reconstructed with the nominal lights from images of the true lights."""
+    n = np.stack([-p, -q, np.ones_like(p)], axis=-1)
+    m = n @ (np.linalg.pinv(L_nominal) @ L_true).T
+    return -m[..., 0] / m[..., 2], -m[..., 1] / m[..., 2]
+
+
+def test_slope_noise_covariance_matches_the_solver():
+    rng = np.random.default_rng(0)
+    L = ring_lights(5, 40.0)
+    E = np.array([1.0, 0.8, 1.2, 1.0, 0.9])
+    rho, p0, q0, sigma = 0.7, 0.3, -0.2, 0.01
+    clean = rho * E[:, None] * (L @ normals_from_slopes(p0, q0))[:, None] * np.ones((5, 20000))
+    res = solve((clean + rng.normal(0, sigma, clean.shape))[:, None, :], L, E)
+    vp, vq, c = U.slope_noise_covariance(L, np.full((1, 1), rho), np.full((1, 1), p0), np.full((1, 1), q0),
+                                         sigma, E)
+    assert res.p.var() / vp.item() == pytest.approx(1.0, abs=0.04)
+    assert res.q.var() / vq.item() == pytest.approx(1.0, abs=0.04)
+    assert np.cov(res.p.ravel(), res.q.ravel())[0, 1] == pytest.approx(c.item(), rel=0.15)
+    # N >= 4: the residuals give the noise back
+    assert U.estimate_noise_sigma(res.residual, res.valid, 5, E) == pytest.approx(sigma, rel=0.05)
+
+
+def test_estimate_noise_needs_four_lights():
+    with pytest.raises(ValueError, match="n_lights"):
+        U.estimate_noise_sigma(np.zeros((2, 2)), np.ones((2, 2), bool), 3)
+
+
+def test_slope_sensitivities_are_the_derivatives_of_the_exact_model():
+    L = ring_lights(4, 40.0)
+    p = np.array([[0.3, -0.5], [0.0, 0.8]])
+    q = np.array([[-0.2, 0.4], [0.0, -0.6]])
+    e_s, e_a = tangent_basis(L)
+    tol = U.Tolerances(light_tolerance_deg=1.0, intensity_tolerance=0.01)
+    eps = 1e-6
+    names = []
+    for source, name, u, dp, dq in U.slope_sensitivities(L, p, q, tol):
+        k = int(name.split()[1])
+        move = {"slant": e_s[k], "azimuth": e_a[k], "intensity": L[k]}[name.split()[2]]
+        Lt = L.copy()
+        Lt[k] = L[k] + eps * move  # an intensity error scales the light vector
+        pe, qe = _exact_slopes(L, Lt, p, q)
+        np.testing.assert_allclose(dp, (pe - p) / eps, atol=2e-5)
+        np.testing.assert_allclose(dq, (qe - q) / eps, atol=2e-5)
+        assert u == (math.radians(1.0) if source == "light_direction" else 0.01)
+        names.append(name)
+    assert len(names) == 12
+
+
+def test_slope_systematic_variance_sums_the_sensitivities():
+    rng = np.random.default_rng(1)
+    L = ring_lights(3, 45.0)
+    p, q = rng.normal(0, 0.4, (6, 7)), rng.normal(0, 0.4, (6, 7))
+    tol = U.Tolerances(light_tolerance_deg=0.7, intensity_tolerance=0.02)
+    vp, vq = np.zeros_like(p), np.zeros_like(p)
+    for _, _, u, dp, dq in U.slope_sensitivities(L, p, q, tol):
+        vp += (u * dp) ** 2
+        vq += (u * dq) ** 2
+    sp, sq = U.slope_systematic_variance(L, p, q, tol)
+    np.testing.assert_allclose(sp, vp, rtol=1e-5)
+    np.testing.assert_allclose(sq, vq, rtol=1e-5)
+
+
+def test_isotropic_direction_tolerance_matches_random_tangent_errors():
+    """Monte Carlo over the exact model: light errors of the stated size per tangent axis."""
+    rng = np.random.default_rng(2)
+    L = ring_lights(3, 45.0)
+    p, q = np.array([0.2]), np.array([-0.3])
+    u = math.radians(0.5)
+    samples = [_exact_slopes(L, U._perturbed_lights(L, u, rng), p, q) for _ in range(4000)]
+    sp, sq = U.slope_systematic_variance(L, p, q, U.Tolerances(light_tolerance_deg=0.5))
+    assert np.var([s[0] for s in samples]) / sp.item() == pytest.approx(1.0, abs=0.08)
+    assert np.var([s[1] for s in samples]) / sq.item() == pytest.approx(1.0, abs=0.08)
+
+
+@pytest.mark.parametrize("n", [7, 8, 16])
+def test_squared_basis_sum_is_the_explicit_sum(n):
+    T = np.random.default_rng(n).random((n, 5)).astype(np.float32)
+    D = sfft.dct(np.eye(n), norm="ortho", axis=0)  # D[k, r] = a_k(r)
+    np.testing.assert_allclose(U._squared_basis_sum(T, 0), (D**2).T @ T, atol=1e-6)
+    np.testing.assert_allclose(U._squared_basis_sum(T.T, 1), ((D**2).T @ T).T, atol=1e-6)
+
+
+def test_height_noise_variance_and_linear_variance_match_monte_carlo():
+    rng = np.random.default_rng(3)
+    shape, vp, vq, h = (20, 27), 0.3, 0.7, 0.5
+    v = U.height_noise_variance(shape, vp, vq, h)
+    w = rng.normal(size=shape)
+    zs = np.stack([dct_poisson(rng.normal(0, math.sqrt(vp), shape), rng.normal(0, math.sqrt(vq), shape),
+                               pixel_size=h) for _ in range(3000)])
+    ratio = zs.var(axis=0) / v
+    assert np.median(ratio) == pytest.approx(1.0, abs=0.03)
+    assert 0.85 < ratio.min() and ratio.max() < 1.15
+    assert np.var(np.einsum("nij,ij->n", zs, w)) / U.linear_variance(w, vp, vq, h) == pytest.approx(1.0, abs=0.08)
+
+
+@pytest.mark.parametrize(
+    "kwargs, message",
+    [
+        ({"light_tolerance_deg": -0.1}, "light_tolerance_deg"),
+        ({"intensity_tolerance": -1.0}, "intensity_tolerance"),
+        ({"pixel_size_tolerance": float("nan")}, "pixel_size_tolerance"),
+        ({"light_position_tolerance_mm": -2.0}, "light_position_tolerance_mm"),
+        ({"noise_sigma": -0.01}, "noise_sigma"),
+        ({"mc_samples": 0}, "mc_samples"),
+        ({"method": "bootstrap"}, "method"),
+    ],
+)
+def test_tolerances_reject_bad_input(kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        U.Tolerances(**kwargs)
+
+
+def test_format_value():
+    assert U.format_value(0.1004, 0.00612) == "0.100 ± 0.006 mm (k = 2)"
+    assert U.format_value(5.0213, 0.0238) == "5.021 ± 0.024 mm (k = 2)"
+    assert U.format_value(12.34, None) == "12.34 mm"
+
+
+def _scratch(size=160, h=0.05, seed=0, noise=0.002, deviation_deg=0.5, axis_deg=23.0, width_mm=0.4):
+    rng = np.random.default_rng(seed)
+    L = ring_lights(3, 45.0)
+    hf = u_scratch(size, h, depth_mm=0.05, width_mm=width_mm, length_mm=5.0, center_px=(80.3, 79.6),
+                   axis_deg=axis_deg)
+    images = render(hf, U._perturbed_lights(L, math.radians(deviation_deg), rng), albedo=0.8, noise=noise,
+                    seed=rng)
+    return hf, L, images
+
+
+def test_pipeline_budget_of_a_scratch_is_not_padded():
+    hf, L, images = _scratch()
+    res = reconstruct(images, lights=L, pixel_size=0.05,
+                      uncertainty={"noise_sigma": 0.002, "light_tolerance_deg": 0.5, "pixel_size_tolerance": 0.001})
+    unc = res.uncertainty
+    assert unc.p_u.shape == unc.q_u.shape == unc.height_u.shape == res.p.shape
+    assert np.all(unc.p_u[res.valid] > 0) and np.all(np.isfinite(unc.height_u[res.valid]))
+    budget = unc.defects[0]["budget"]
+    assert set(budget) == set(U.FIGURES)
+    depth = budget["max_depth_mm"]
+    assert {"image_noise", "light_direction", "pixel_size", "discretisation"} <= set(depth["sources"])
+    combined = math.sqrt(sum(s["contribution"] ** 2 for s in depth["sources"].values()))
+    assert depth["combined_standard_uncertainty"] == pytest.approx(combined)
+    assert depth["expanded_uncertainty"] == pytest.approx(2 * combined)
+    # not padded: U of a 0.05 mm scratch's depth under 0.5 deg and 0.2 % noise below 40 % of the depth
+    assert unc.defects[0]["uncertainty_k2"]["max_depth_mm"] < 0.4 * 0.05
+    assert abs(res.defects[0]["max_depth_mm"] - 0.05) < unc.defects[0]["uncertainty_k2"]["max_depth_mm"] * 2
+    assert res.summary["uncertainty"]["noise_sigma_source"] == "option"
+
+
+def test_light_tolerance_grows_the_height_uncertainty():
+    _, L, images = _scratch(size=96, noise=0.0, deviation_deg=0.0)
+    small = reconstruct(images, lights=L, pixel_size=0.05, uncertainty={"light_tolerance_deg": 0.2})
+    large = reconstruct(images, lights=L, pixel_size=0.05, uncertainty={"light_tolerance_deg": 0.4})
+    v = small.valid
+    np.testing.assert_allclose(large.uncertainty.height_u[v], 2 * small.uncertainty.height_u[v], rtol=1e-4)
+    assert small.summary["uncertainty"]["noise_sigma"] == 0.0  # a triad gives no residual to estimate from
+
+
+def test_binned_systematic_fields_agree_with_full_resolution(monkeypatch):
+    _, L, images = _scratch(size=192, h=0.05, width_mm=1.6)  # 32 pixels across: 16 blocks of 2 x 2
+    tol = {"noise_sigma": 0.002, "light_tolerance_deg": 0.5}
+    full = reconstruct(images, lights=L, pixel_size=0.05, uncertainty=tol).uncertainty
+    monkeypatch.setattr(U, "_SYSTEMATIC_PIXELS", 192 * 192 // 4)  # blocks of 2 x 2 pixels
+    binned = reconstruct(images, lights=L, pixel_size=0.05, uncertainty=tol).uncertainty
+    monkeypatch.setattr(U, "_RESOLVE", 1000)  # a defect the blocks cannot resolve: pixels again
+    again = reconstruct(images, lights=L, pixel_size=0.05, uncertainty=tol).uncertainty
+    assert again.defects == full.defects
+    for fig in ("max_depth_mm", "volume_mm3"):
+        for source in ("light_direction", "image_noise"):
+            a = full.defects[0]["budget"][fig]["sources"][source]["contribution"]
+            b = binned.defects[0]["budget"][fig]["sources"][source]["contribution"]
+            assert b == pytest.approx(a, rel=0.05)
+    np.testing.assert_allclose(np.nanmedian(binned.height_u), np.nanmedian(full.height_u), rtol=0.02)
+
+
+def test_monte_carlo_reports_the_spread():
+    _, L, images = _scratch(size=128)
+    res = reconstruct(images, lights=L, pixel_size=0.05,
+                      uncertainty={"noise_sigma": 0.002, "light_tolerance_deg": 0.5, "method": "montecarlo",
+                                   "mc_samples": 8})
+    depth = res.uncertainty.defects[0]["budget"]["max_depth_mm"]
+    assert "montecarlo" in depth["sources"] and depth["sources"]["montecarlo"]["standard_uncertainty"] > 0
+    assert res.uncertainty.summary["mc_samples"] == 8
+    assert np.all(res.uncertainty.p_u[res.valid] > 0)
+
+
+def test_noise_is_estimated_from_four_lights():
+    hf = u_scratch(96, 0.05, depth_mm=0.05, width_mm=0.4, length_mm=3.0)
+    L = ring_lights(4, 45.0)
+    images = render(hf, L, albedo=0.8, noise=0.003, seed=4)
+    res = reconstruct(images, lights=L, pixel_size=0.05, uncertainty={})
+    assert res.summary["uncertainty"]["noise_sigma"] == pytest.approx(0.003, rel=0.1)
+    assert res.summary["uncertainty"]["noise_sigma_source"] == "estimated from the residuals"
+
+
+def test_uncertainty_needs_the_pixel_size():
+    _, L, images = _scratch(size=64)
+    with pytest.raises(ValueError, match="pixel_size"):
+        reconstruct(images, lights=L, uncertainty={"light_tolerance_deg": 0.5})
+
+
+def test_light_position_tolerance_needs_point_lights():
+    _, L, images = _scratch(size=64)
+    with pytest.raises(ValueError, match="light_position_tolerance_mm"):
+        reconstruct(images, lights=L, pixel_size=0.05, uncertainty={"light_position_tolerance_mm": 0.5})
+
+
+@pytest.mark.slow
+def test_coverage_of_fifty_rendered_trials():
+    """The fast version of the benchmark's coverage study (200 trials there, 93-97 %)."""
+    from workbench.studies.uncertainty import coverage_study
+
+    out = coverage_study(50, "linear", seed=11)
+    assert out["missed"] == 0
+    for fig in ("max_depth_mm", "mean_width_mm", "length_mm", "height"):
+        assert 0.84 <= out[fig]["coverage"] <= 1.0, (fig, out[fig])
+    assert out["max_depth_mm"]["mean_U"] < 0.4 * 0.05
+
+
+def _near_scene(size=96, h=0.05):
+    from photometric.lights import light_field, point_lights
+    from surfaces.grid import pixel_grid
+
+    hf = u_scratch(size, h, depth_mm=0.05, width_mm=0.4, length_mm=3.0, axis_deg=20.0)
+    nominal = 150.0 * ring_lights(3, 45.0)
+    x, y = pixel_grid(hf.shape, h)
+    X = np.stack([x, y, hf.height], axis=-1)
+
+    def images(positions):
+        lights = point_lights(positions, point_lights(nominal).axes)
+        shading = np.einsum("khwc,hwc->khw", light_field(lights, X), hf.normals)
+        return (0.8 * np.clip(shading, 0.0, None)).astype(np.float32)
+
+    return hf, nominal, images
+
+
+def test_led_position_jacobian_matches_the_near_field_solver():
+    """Move one LED coordinate by 2 mm: the integrated sensitivity field predicts the height change."""
+    from photometric.camera import make_camera
+    from photometric.lights import point_lights
+
+    hf, nominal, images = _near_scene()
+    h = 0.05
+    base = reconstruct(images(nominal), light_positions=nominal, pixel_size=h)
+    model = U.PointLightModel(point_lights(nominal), make_camera("orthographic", pixel_size_mm=h), None, True,
+                              base.xy, np.ones(3))
+    fields, p_u, _, _, _ = U._point_fields(model, base.albedo, base.p, base.q, base.valid, base.height, 0.0,
+                                           U.Tolerances(light_position_tolerance_mm=1.0), 1)
+    assert [f[1] for f in fields][:3] == ["light 0 x", "light 0 y", "light 0 z"] and len(fields) == 9
+    for index in (1, 2, 3):
+        k, j = divmod(index, 3)
+        moved = nominal.copy()
+        moved[k, j] += 2.0
+        other = reconstruct(images(moved), light_positions=nominal, pixel_size=h)
+        v = base.valid & other.valid
+        actual = (other.height - base.height) / 2.0
+        actual -= actual[v].mean()
+        predicted = U._integrate_field(fields[index][3], fields[index][4], "dct", base.valid, h)
+        assert np.corrcoef(actual[v], predicted[v])[0, 1] > 0.999
+        assert np.sqrt(np.mean(predicted[v] ** 2)) == pytest.approx(np.sqrt(np.mean(actual[v] ** 2)), rel=0.05)
+    assert np.all(p_u[base.valid] > 0)
+
+
+def test_near_field_budget_and_errors():
+    _, nominal, images = _near_scene()
+    imgs = images(nominal)
+    res = reconstruct(imgs, light_positions=nominal, pixel_size=0.05,
+                      uncertainty={"noise_sigma": 0.002, "light_position_tolerance_mm": 0.5})
+    sources = res.uncertainty.defects[0]["budget"]["max_depth_mm"]["sources"]
+    assert {"light_position", "image_noise"} <= set(sources)
+    assert res.summary["light_model"] == "point"
+    with pytest.raises(ValueError, match="light_position_tolerance_mm"):
+        reconstruct(imgs, light_positions=nominal, pixel_size=0.05, uncertainty={"light_tolerance_deg": 0.5})
+    with pytest.raises(ValueError, match="montecarlo"):
+        reconstruct(imgs, light_positions=nominal, camera="perspective", focal_length_px=2000.0,
+                    camera_height_mm=300.0, uncertainty={"light_position_tolerance_mm": 0.5})
+
+
+def test_near_field_monte_carlo_moves_the_leds():
+    _, nominal, images = _near_scene(size=64)
+    res = reconstruct(images(nominal), light_positions=nominal, pixel_size=0.05,
+                      uncertainty={"light_position_tolerance_mm": 1.0, "noise_sigma": 0.001, "method": "montecarlo",
+                                   "mc_samples": 4})
+    assert res.uncertainty.summary["method"] == "montecarlo"
+    assert np.nanmedian(res.uncertainty.height_u[res.valid]) > 0
