@@ -237,7 +237,8 @@ def speed(shape, repeat: int) -> list:
     t_solve, c_solve, _ = _timed(lambda: solve(images, lights.directions), repeat)
     use = res.valid & ~r.hits.inside
     bg = _background_um(res.height, r.hits.height, use)
-    passes = ", ".join(f"{e['level']} {e['depth_change_mm']:.2g}" for e in res.history)
+    passes = ", ".join(f"{e['level']} {e['depth_change_mm']:.2g} ({100 * e['resolved_fraction']:.1f} % of the pixels "
+                       "re-solved)" for e in res.history)
     rows = [
         ["near field: `solve_nearfield` (alternation, heights, x, y)", f"{t_near:.2f}", f"{t_near / t_far:.2f}",
          f"{c_near:.2f}", f"{c_near / c_far:.2f}"],

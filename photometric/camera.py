@@ -377,17 +377,21 @@ def _gradient(camera: Camera, nx, ny, nz, u, v) -> tuple[np.ndarray, np.ndarray,
     f32 = np.float32
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         facing = nz > 0
+        if isinstance(camera, Orthographic):
+            inv = np.divide(f32(-1.0), nz, out=np.zeros(np.shape(nz), f32), where=facing)
+            p, q = (nx * inv).astype(f32, copy=False), (ny * inv).astype(f32, copy=False)
+            # a grazing normal (n_z a denormal) overflows: no slope there
+            for g in (p, q):
+                g[~np.isfinite(g)] = 0.0
+            return p, q, _spacing(camera)
         inv = np.where(facing, f32(1.0) / np.where(facing, nz, f32(1.0)), f32(0.0))
         a = nx * inv
         b = ny * inv
-        if isinstance(camera, Orthographic):
-            p, q = -a, -b
-        else:
-            f = f32(camera.focal_length_px)
-            den = f - u.astype(f32)[None, :] * a - v.astype(f32)[:, None] * b
-            ok = den > f32(1e-6) * f
-            inv_den = np.where(ok, f32(1.0) / np.where(ok, den, f32(1.0)), f32(0.0))
-            p, q = a * inv_den, b * inv_den
+        f = f32(camera.focal_length_px)
+        den = f - u.astype(f32)[None, :] * a - v.astype(f32)[:, None] * b
+        ok = den > f32(1e-6) * f
+        inv_den = np.where(ok, f32(1.0) / np.where(ok, den, f32(1.0)), f32(0.0))
+        p, q = a * inv_den, b * inv_den
     p = np.where(np.isfinite(p), p, f32(0.0)).astype(f32, copy=False)
     q = np.where(np.isfinite(q), q, f32(0.0)).astype(f32, copy=False)
     return p, q, _spacing(camera)

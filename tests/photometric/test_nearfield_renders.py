@@ -192,3 +192,30 @@ def test_distant_lights_with_a_perspective_lens():
     # the same normals integrated as if the lens were telecentric: the cap comes out too low
     flat = solve_nearfield(r.images, r.lights.directions, make_camera("orthographic", pixel_size_mm=px))
     assert np.sqrt(np.mean((flat.height - r.hits.height)[flat.valid] ** 2)) > 3 * rmse
+
+
+@pytest.mark.parametrize("outliers", [False, True])
+def test_partial_resolve_matches_whole_passes(monkeypatch, outliers):
+    """Later passes re-solve only the pixels whose height moved; forcing whole-image passes gives
+    the same surface, normals, albedo (colour), residual and outliers."""
+    import photometric.nearfield as nf
+
+    shape, px = (128, 128), 0.3
+    rcam, cam = _cameras(shape, px, 250.0)
+    cap = sphere_cap(shape, px, radius_mm=15.0, height_mm=6.0)
+    lights = ring_point_lights(6, 50.0, 150.0, 90.0, 1.0)
+    rgb = np.stack([np.full(shape, 0.8), np.full(shape, 0.6), np.full(shape, 0.4)], axis=-1)
+    r = render_near_field(cap, rcam, lights, rgb, shadows="cast", noise=0.003, bit_depth=16)
+    pl = point_lights(lights.positions, mu=1.0)
+    part = solve_nearfield(r.images, pl, cam, outliers=outliers)
+    assert part.iterations >= 2 and part.history[-1]["resolved_fraction"] < 0.5
+    monkeypatch.setattr(nf, "RESOLVE_FRACTION", -1.0)  # every pixel counts as moved: whole passes
+    whole = solve_nearfield(r.images, pl, cam, outliers=outliers)
+    assert all(h["resolved_fraction"] == 1.0 for h in whole.history)
+    assert np.nanmax(np.abs(part.height - whole.height)) < 1e-3
+    assert angular_error_deg(part.normals, whole.normals).max() < 0.05
+    np.testing.assert_allclose(part.albedo, whole.albedo, atol=1e-3)
+    np.testing.assert_allclose(part.residual, whole.residual, atol=1e-4)
+    np.testing.assert_array_equal(part.valid, whole.valid)
+    if outliers:
+        assert part.outliers.any() and (part.outliers != whole.outliers).mean() < 1e-3
