@@ -275,7 +275,7 @@ def shading(lights: PointLights, k: int, points: tuple, normals: tuple) -> np.nd
     >>> lights = point_lights([[0.0, 0.0, 100.0]])
     >>> x = np.array([0.0, 100.0])
     >>> shading(lights, 0, (x, 0 * x, 0 * x), (0 * x, 0 * x, 0 * x + 1)).round(6).tolist()
-    [1.0, 0.176777]
+    [1.0, 0.353553]
     """
     px, py, pz = lights.positions[k]
     dx = px - points[0]

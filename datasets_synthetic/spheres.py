@@ -35,7 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from datasets_synthetic.cameras import Camera, make_camera, project, vignetting_map
+from datasets_synthetic.cameras import Camera, make_camera, project, view_directions, vignetting_map
 from datasets_synthetic.io import ensure_dir
 from datasets_synthetic.point_lights import PointLights, _light_vector, rig_lights
 from datasets_synthetic.render import sensor
@@ -160,8 +160,7 @@ def reflection_points(camera: Camera, lights: PointLights, center_mm, radius_mm:
         mid = 0.5 * (lo + hi)
         x = point(mid)
         tangent = -np.sin(mid)[:, None] * u + np.cos(mid)[:, None] * w
-        to_cam = u if camera.model == "orthographic" else _unit(np.array([0.0, 0.0, camera.camera_height_mm]) - x)
-        g = np.sum((to_cam + _unit(lights.positions - x)) * tangent, axis=1)
+        g = np.sum((view_directions(camera, x) + _unit(lights.positions - x)) * tangent, axis=1)
         lo = np.where(g > 0, mid, lo)
         hi = np.where(g > 0, hi, mid)
     return point(0.5 * (lo + hi))

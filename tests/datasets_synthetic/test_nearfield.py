@@ -279,3 +279,19 @@ def test_cast_shadows_of_a_scratch_stay_in_the_scratch(tilt):
         np.testing.assert_array_equal(other, darkened[:, ::-1])
     overhead = render_near_field(hf, camera, point_lights([[0.0, 0.0, 200.0]]), shadows="cast", exposure=1.0)
     assert overhead.shadow_fraction[0] == 0.0
+
+
+@pytest.mark.slow
+def test_a_5_mp_4_light_set_renders_well_under_a_minute():
+    """Part and flat images of a 2048 x 2448 perspective rig with cast shadows: CPU time, so that other
+    processes on the shared machine do not count."""
+    import time
+
+    shape = (2048, 2448)
+    camera = perspective_camera(shape, 2448 * 300.0 / 60.0, 300.0)
+    part = make_scene("inspection_scratch", shape, camera.reference_pixel_mm)
+    start = time.process_time()
+    out = render_near_field(part, camera, ring_point_lights(4, 45.0, 150.0, mu=1.0), albedo=0.8, shadows="cast",
+                            noise=0.003, bit_depth=16)
+    assert time.process_time() - start < 30.0
+    assert out.images.shape == (4, 2048, 2448) and out.flats.shape == (4, 2048, 2448)

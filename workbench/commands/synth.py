@@ -12,7 +12,7 @@ import argparse
 
 import numpy as np
 
-from workbench.commands.common import add_command
+from workbench.commands.common import add_command, parse_vector
 
 
 def register(sub) -> None:
@@ -71,8 +71,9 @@ def register(sub) -> None:
         _spheres,
         help="render mirror-sphere calibration images (one folder per sphere placement) under near LEDs",
         description="Render a polished sphere at each --centers placement under N point LEDs: per light one "
-        "image with the LED's specular highlight (the LED a small emitting disc, pixels supersampled, finer "
-        "near the highlight) and a weak diffuse term. Writes OUT/sphere_01, OUT/sphere_02, ... (001.png..., "
+        "image with the LED's specular highlight (the LED a small emitting disc; the highlight traced on its own "
+        "fine grid and blurred by a Gaussian lens PSF, so its centroid is sub-pixel exact) and a weak diffuse term. "
+        "Writes OUT/sphere_01, OUT/sphere_02, ... (001.png..., "
         "filenames.txt, sphere.json with radius_mm and center_mm) and OUT/scene.json with the true rig.",
     )
     p.add_argument("--light-distance", type=float, required=True, help="distance of every LED from the origin, mm")
@@ -363,10 +364,7 @@ def _spheres(args: argparse.Namespace) -> int:
 
     _check_ring(args)
     cam = _camera_settings(args)
-    centers = [_floats(c, "--centers") for c in args.centers]
-    bad = [c for c, v in zip(args.centers, centers) if v.size != 3]
-    if bad:
-        raise ValueError(f"--centers: expected X,Y,Z in mm for each sphere, got {bad[0]!r}")
+    centers = [parse_vector(c, "--centers") for c in args.centers]
     mu = _floats(args.led_mu, "--led-mu", args.lights)
     scene = make_sphere_folders(
         args.out, centers, args.radius, size=args.size, lights=args.lights, slant=args.slant,
