@@ -80,26 +80,26 @@ def test_bad_options_exit_2(small_lot, tmp_path, capsys):
     assert "PARTS" in _error_line(capsys) and not (tmp_path / "out").exists()
 
 
-def test_guard_band_asks_for_the_uncertainty(small_lot, tmp_path, cluster, capsys):
-    """guard_band turns the stated uncertainty on; a part whose U cannot be stated is recorded, not decided."""
+def test_guard_band_states_the_uncertainty(small_lot, tmp_path, cluster, capsys):
+    """guard_band turns the stated uncertainty on: every decided value carries its U (k = 2)."""
     spec = tmp_path / "spec.json"
     spec.write_text(json.dumps({"max_depth_mm": 0.1, "decision_rule": "guard_band"}))
     parts = tmp_path / "parts"
     shutil.copytree(small_lot["parts"] / "scratch_over", parts / "p1")
     out = tmp_path / "out"
-    code = main(["inspect", "run", "--rig", str(small_lot["rig"]), "--spec", str(spec), str(parts), "--out", str(out),
-                 "--scheduler", cluster])
-    result = out / "p1" / "result.json"
-    if code == 0:
-        doc = json.loads(result.read_text())
-        checks = doc["imperfections"][0]["checks"]
-        assert checks[0]["rule"] == "guard_band" and checks[0]["U"] > 0
-        assert doc["measurement"]["uncertainty"]["method"] == "linear"
-    else:
-        # the measurement cannot state U for this rig: the part is recorded with the reason, never decided
-        assert code == 1 and not result.exists()
-        record = json.loads((out / "failed" / "p1.json").read_text())
-        assert "uncertainty" in record["error"] and record["options"]["uncertainty"] == {"method": "linear"}
+    assert main(["inspect", "run", "--rig", str(small_lot["rig"]), "--spec", str(spec), str(parts), "--out",
+                 str(out), "--scheduler", cluster, "--light-position-tolerance-mm", "0.2"]) == 0
+    doc = json.loads((out / "p1" / "result.json").read_text())
+    check = doc["imperfections"][0]["checks"][0]
+    assert check["rule"] == "guard_band" and check["U"] > 0 and check["verdict"] == "fail"
+    assert check["value"] - check["U"] > 0.1 and doc["max_depth_U_mm"] == check["U"]
+    assert doc["measurement"]["uncertainty"]["method"] == "linear"
+    with open(out / "results.csv", newline="") as fh:
+        row = next(csv.DictReader(fh))
+    assert float(row["max_depth_U_mm"]) == pytest.approx(check["U"], rel=1e-6)
+    assert main(["inspect", "run", "--rig", str(small_lot["rig"]), "--spec", str(spec), str(parts), "--out",
+                 str(tmp_path / "o2"), "--option", "uncertainty=linear"]) == 2
+    assert "give the uncertainty options instead" in _error_line(capsys)
 
 
 def test_watch_with_a_timeout(small_lot, tmp_path, cluster, capsys):

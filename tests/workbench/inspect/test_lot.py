@@ -7,7 +7,7 @@ import json
 import pytest
 
 from photometric.camera import make_camera
-from workbench.inspect.lot import lot_plan, render_lot
+from workbench.inspect.lot import LotPart, lot_plan, render_lot
 from workbench.inspect.run import run_inspection
 from workbench.runs.photometric import calibrate_to_rig
 
@@ -59,3 +59,40 @@ def test_rendered_lot_verdicts_against_truth(tmp_path, client):
             assert result["verdict"] == "fail", part
         elif part["depth_mm"] <= 0.6 * LIMIT:
             assert result["verdict"] == "pass", part
+
+
+def test_rendered_lot_under_guard_band(tmp_path, client):
+    """ISO 14253-1 on a rendered lot: clean parts pass, parts over the limit by more than 2U fail, parts under it
+    by more than 2U pass, and scratches at the limit are uncertain."""
+    plan = lot_plan(12, LIMIT, seed=2) + [LotPart("at_limit", "scratch", LIMIT, 1.0, 901),
+                                          LotPart("just_under", "scratch", 0.99 * LIMIT, 0.9, 902)]
+    truth = render_lot(tmp_path / "lot", plan, size=224, field_mm=20.0, noise=0.003)
+    flats = sorted(str(p) for p in (tmp_path / "lot" / "rig").glob("flat_*.png"))
+    rig = tmp_path / "rig.json"
+    calibrate_to_rig(rig, light_positions=tmp_path / "lot" / "rig" / "light_positions.txt",
+                     camera=make_camera("orthographic", pixel_size_mm=truth["pixel_size_mm"]), flat_field=flats,
+                     flat_albedo=truth["flat_albedo"])
+    spec = tmp_path / "spec.json"
+    spec.write_text(json.dumps({"max_depth_mm": LIMIT, "decision_rule": "guard_band"}))
+    run = run_inspection(tmp_path / "lot" / "parts", rig, spec, tmp_path / "out", client=client,
+                         options={"uncertainty": {"method": "linear", "light_position_tolerance_mm": 0.2}})
+    assert run.batch.ok == len(plan)
+    decided = {"clean": 0, "over": 0, "under": 0}
+    for part in truth["parts"]:
+        result = json.loads((tmp_path / "out" / part["id"] / "result.json").read_text())
+        assert result["decision_rule"] == "guard_band"
+        if part["defect"] is None:
+            assert result["verdict"] == "pass", part
+            decided["clean"] += 1
+            continue
+        U = result["max_depth_U_mm"]
+        assert U is not None and 0 < U < 0.4 * part["depth_mm"], (part, U)
+        if part["depth_mm"] - LIMIT > 2 * U:
+            assert result["verdict"] == "fail", (part, result["max_depth_mm"], U)
+            decided["over"] += 1
+        elif LIMIT - part["depth_mm"] > 2 * U:
+            assert result["verdict"] == "pass", (part, result["max_depth_mm"], U)
+            decided["under"] += 1
+        if part["id"] in ("at_limit", "just_under"):
+            assert result["verdict"] == "uncertain", (part, result["max_depth_mm"], U)
+    assert decided["clean"] >= 3 and decided["over"] >= 2 and decided["under"] >= 2
