@@ -97,6 +97,7 @@ def test_guard_band_states_the_uncertainty(small_lot, tmp_path, cluster, capsys)
     with open(out / "results.csv", newline="") as fh:
         row = next(csv.DictReader(fh))
     assert float(row["max_depth_U_mm"]) == pytest.approx(check["U"], rel=1e-6)
+    capsys.readouterr()
     assert main(["inspect", "run", "--rig", str(small_lot["rig"]), "--spec", str(spec), str(parts), "--out",
                  str(tmp_path / "o2"), "--option", "uncertainty=linear"]) == 2
     assert "give the uncertainty options instead" in _error_line(capsys)
