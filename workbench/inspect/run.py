@@ -182,10 +182,20 @@ class InspectionRun:
     report: Path
 
 
-def run_inspection(parts, rig, spec, out, *, keep_arrays: bool = False, options: dict | None = None,
-                   client: Any = None, scheduler: str = "local", workers: int | None = None,
-                   progress: Callable[[dict], None] | None = None, command: str = "workbench inspect run") -> \
-        InspectionRun:
+def run_inspection(
+    parts,
+    rig,
+    spec,
+    out,
+    *,
+    keep_arrays: bool = False,
+    options: dict | None = None,
+    client: Any = None,
+    scheduler: str = "local",
+    workers: int | None = None,
+    progress: Callable[[dict], None] | None = None,
+    command: str = "workbench inspect run",
+) -> InspectionRun:
     """Inspect many parts: check the spec, rig and options first, then run the parts on Dask.
 
     Parameters
