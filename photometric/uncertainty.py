@@ -39,7 +39,7 @@ The far-field solve is ``m = C x`` with ``C = L^+`` (3, N), ``x_k = I_k / E_k`` 
   ``s_k(X)`` at the solved points give ``m = M^-1 sum_k x_k s_k`` (``M = sum_k s_k s_k^T``);
   an LED coordinate moves the slopes by ``G c_k (n . ds_k/dP)`` with ``c_k = M^-1 s_k``
   (:class:`PointLightModel`); the noise covariance is ``sum_k w_k c_k c_k^T``.
-* Images above ~1 MP integrate the systematic fields on blocks of ``r x r`` pixels (the
+* Images above 0.26 MP integrate the systematic fields on blocks of ``r x r`` pixels (the
   far-field fields are linear in ``1, p, q, p^2, pq, q^2``, so the block means are exact;
   the blocks must resolve the narrowest defect) and the noise figures on block sums
   plus the peak pixel's own fine-scale variance.
@@ -106,9 +106,9 @@ _QUANTISATION_OFFSETS = 24
 _MAX_FIT_POINTS = 200_000
 #: Largest image on which the systematic fields are integrated pixel by pixel; larger
 #: images integrate them on blocks of r x r pixels (the fields are smooth at that scale).
-_SYSTEMATIC_PIXELS = 1 << 20
+_SYSTEMATIC_PIXELS = 1 << 18
 #: Blocks across the narrowest defect at least, when the fields are integrated on blocks.
-_RESOLVE = 16
+_RESOLVE = 8
 #: Pixels per row block of the per-pixel maps (fits the CPU cache with its temporaries).
 _BLOCK_PIXELS = 1 << 15
 
