@@ -18,7 +18,7 @@ from surfaces.io import atomic_write_text
 
 HERE = Path(__file__).resolve().parent
 ORDER = ["surfaces", "bspline", "photometric", "nearfield", "surface_fit", "errors", "uncertainty", "slices", "render",
-         "boolean", "batch"]
+         "boolean", "batch", "inspect"]
 
 HEADER = """# Benchmarks
 

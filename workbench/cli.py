@@ -43,6 +43,10 @@ GROUPS: dict[str, tuple[str, tuple[str, ...]]] = {
         "many photometric or slices jobs on a Dask cluster",
         ("workbench.commands.batch",),
     ),
+    "inspect": (
+        "inspection runs: calibrate a rig once, measure every part, pass or fail against a spec",
+        ("workbench.commands.inspect",),
+    ),
 }
 # modules that add top-level commands (``workbench view``, ``workbench demo``)
 TOP_LEVEL: tuple[str, ...] = ("workbench.commands.view", "workbench.commands.demo")

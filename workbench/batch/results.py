@@ -20,15 +20,20 @@ from pathlib import Path
 from typing import Any
 
 from surfaces.io import atomic_write_text, write_json
-from workbench.batch.jobs import KINDS, Job, check_kind
+from workbench.batch.jobs import Job, check_kind
 from workbench.runs.folder import COMPLETE_MARKER, is_complete  # noqa: F401 - one marker for every result folder
 
 #: key figures copied from a job's summary into its results.csv row, per kind
 FIGURES: dict[str, tuple[str, ...]] = {
     "photometric": ("n_defects", "max_depth_mm", "invalid_fraction", "light_condition_number"),
     "slices": ("volume_mm3", "volume_ml", "area_mm2", "n_bodies", "n_patches"),
+    # parts of ``workbench inspect run`` (workbench.inspect): photometric jobs with a verdict
+    "inspect": ("verdict", "n_imperfections", "n_fail", "n_uncertain", "max_depth_mm", "max_depth_U_mm",
+                "total_area_mm2", "invalid_fraction"),
 }
-RESULT_COLUMNS: tuple[str, ...] = (
+#: figures whose value is text (every other figure is a number)
+TEXT_FIGURES: tuple[str, ...] = ("verdict",)
+RESULT_COLUMNS: tuple[str, ...] = tuple(dict.fromkeys((
     "id",
     "kind",
     "status",
@@ -36,8 +41,9 @@ RESULT_COLUMNS: tuple[str, ...] = (
     "time_s",
     *FIGURES["photometric"],
     *FIGURES["slices"],
+    *FIGURES["inspect"],
     "input",
-)
+)))
 RESULTS_NAME = "results.csv"
 FAILED_DIR = "failed"
 TMP_PREFIX = ".tmp-"
@@ -82,15 +88,16 @@ def key_figures(kind: str, summary: Mapping[str, Any]) -> dict[str, Any]:
 
     Parameters
     ----------
-    kind : {"photometric", "slices"}
-        Job kind.
+    kind : {"photometric", "slices", "inspect"}
+        Job kind (``inspect``: a part of ``workbench inspect run``).
     summary : mapping
         The pipeline's summary dictionary.
 
     Returns
     -------
     dict
-        Figure name -> value (int or float); figures the summary lacks are left out.
+        Figure name -> value (int or float; text for :data:`TEXT_FIGURES`); figures the
+        summary lacks are left out.
 
     Examples
     --------
@@ -99,7 +106,8 @@ def key_figures(kind: str, summary: Mapping[str, Any]) -> dict[str, Any]:
     """
 
     def find(node: Mapping[str, Any], name: str) -> Any:
-        if name in node and isinstance(node[name], (int, float)):
+        if name in node and (isinstance(node[name], (int, float))
+                             or name in TEXT_FIGURES and isinstance(node[name], str)):
             return node[name]
         for value in node.values():
             if isinstance(value, Mapping):
@@ -109,7 +117,7 @@ def key_figures(kind: str, summary: Mapping[str, Any]) -> dict[str, Any]:
         return None
 
     figures = {}
-    for name in FIGURES[check_kind(kind)]:
+    for name in FIGURES[kind if kind in FIGURES else check_kind(kind)]:
         value = find(summary, name)
         if value is not None:
             figures[name] = int(value) if isinstance(value, bool) else value
@@ -317,7 +325,7 @@ def healed_results(
     out = Path(out)
     results = out / RESULTS_NAME
     rows = read_results(results)
-    kept = {k: r for k, r in rows.items() if r["status"] in ("ok", "failed") and r["kind"] in KINDS}
+    kept = {k: r for k, r in rows.items() if r["status"] in ("ok", "failed") and r["kind"] in FIGURES}
     changed = len(kept) != len(rows)
     for job in complete:
         if job.id not in kept:

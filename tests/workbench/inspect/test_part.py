@@ -1,0 +1,117 @@
+"""One part: images in light order, near-field reconstruction with the rig, verdict, result.json + overlay.png."""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import numpy as np
+import pytest
+
+from surfaces.io import write_png
+from workbench.inspect.part import check_options, inspect_part, load_rig, part_images
+from workbench.inspect.spec import parse_spec
+
+
+def _copy_part(small_lot, name, tmp_path):
+    dst = tmp_path / name
+    shutil.copytree(small_lot["parts"] / name, dst)
+    return dst
+
+
+def test_part_images_follow_filenames_or_sorted_names(small_lot, tmp_path):
+    part = _copy_part(small_lot, "clean", tmp_path)
+    assert [p.name for p in part_images(part, 4)] == ["001.png", "002.png", "003.png", "004.png"]
+    (part / "filenames.txt").write_text("004.png\n003.png\n002.png\n001.png\n")
+    assert [p.name for p in part_images(part, 4)][0] == "004.png"
+    (part / "filenames.txt").unlink()
+    (part / "mask.png").write_bytes((part / "001.png").read_bytes())  # not an image of a light
+    assert len(part_images(part, 4)) == 4
+
+
+@pytest.mark.parametrize("change, error, message", [
+    ("missing", ValueError, "3 image(s) for 4 lights of the rig (1 missing"),
+    ("extra", ValueError, "5 image(s) for 4 lights of the rig (1 extra"),
+    ("listed", FileNotFoundError, "image 009.png named in filenames.txt does not exist"),
+])
+def test_part_images_errors(small_lot, tmp_path, change, error, message):
+    part = _copy_part(small_lot, "clean", tmp_path)
+    if change == "missing":
+        (part / "004.png").unlink()
+        (part / "filenames.txt").unlink()
+    elif change == "extra":
+        shutil.copy(part / "001.png", part / "005.png")
+        (part / "filenames.txt").unlink()
+    else:
+        (part / "filenames.txt").write_text("001.png\n009.png\n")
+    with pytest.raises(error) as err:
+        part_images(part, 4)
+    assert message in str(err.value)
+    with pytest.raises(FileNotFoundError, match="no such folder"):
+        part_images(tmp_path / "none", 4)
+
+
+def test_check_options():
+    assert check_options({"background": "smooth", "integrator": "lsq"}) == {"background": "smooth",
+                                                                              "integrator": "lsq"}
+    with pytest.raises(ValueError, match="--option rig: set by the inspection itself"):
+        check_options({"rig": "x"})
+    with pytest.raises(ValueError, match="--option speed: not an option of photometric reconstruct"):
+        check_options({"speed": 2})
+
+
+def test_rig_is_read_once(small_lot):
+    assert load_rig(small_lot["rig"]) is load_rig(str(small_lot["rig"]))
+    with pytest.raises(FileNotFoundError, match="--rig"):
+        load_rig(small_lot["root"] / "none.json")
+
+
+def test_clean_and_defective_parts(small_lot, tmp_path):
+    spec = parse_spec({"max_depth_mm": 0.10, "max_count": 1})
+    clean = inspect_part(small_lot["parts"] / "clean", tmp_path / "clean", small_lot["rig"], spec)
+    assert clean["verdict"] == "pass" and clean["n_imperfections"] == 0 and clean["max_depth_mm"] == 0.0
+    over = inspect_part(small_lot["parts"] / "scratch_over", tmp_path / "over", small_lot["rig"], spec,
+                        part_id="p-over")
+    assert over["verdict"] == "fail" and over["n_fail"] == 1
+    assert sorted(p.name for p in (tmp_path / "over").iterdir()) == ["overlay.png", "result.json"]
+    result = json.loads((tmp_path / "over" / "result.json").read_text())
+    assert result["format"] == "workbench-inspection" and result["part"] == "p-over"
+    assert result["verdict"] == "fail" and result["decision_rule"] == "simple"
+    assert result["decided_by"] == ["imperfection 0 max_depth_mm"]
+    scratch = result["imperfections"][0]
+    truth = next(p for p in small_lot["truth"]["parts"] if p["id"] == "scratch_over")
+    assert scratch["values"]["max_depth_mm"]["value"] == pytest.approx(truth["depth_mm"], rel=0.1)
+    assert scratch["values"]["length_mm"]["value"] == pytest.approx(truth["length_mm"], rel=0.1)
+    assert scratch["values"]["max_depth_mm"]["U"] is None  # no uncertainty asked for: none stated
+    assert scratch["checks"][0] == {"quantity": "max_depth_mm", "value": scratch["values"]["max_depth_mm"]["value"],
+                                    "U": None, "limit": 0.1, "limit_kind": "max", "rule": "simple",
+                                    "verdict": "fail"}
+    # the scratch's centre (3, -2) mm and axis 25 deg, in the rig frame
+    assert np.allclose(scratch["center_mm"], [3.0, -2.0], atol=0.3) and scratch["axis_deg"] == pytest.approx(25, abs=2)
+    assert result["measurement"]["light_model"] == "point" and result["measurement"]["flat_field"] is True
+    assert result["files"] == ["overlay.png", "result.json"]
+
+
+def test_keep_arrays_writes_the_heavy_files(small_lot, tmp_path):
+    inspect_part(small_lot["parts"] / "dent_under", tmp_path / "d", small_lot["rig"], small_lot["spec"],
+                 keep_arrays=True)
+    names = {p.name for p in (tmp_path / "d").iterdir()}
+    assert {"height.npy", "albedo.npy", "surface.ply", "defects.json", "result.json", "overlay.png"} <= names
+    result = json.loads((tmp_path / "d" / "result.json").read_text())
+    assert set(result["files"]) == names and result["verdict"] == "pass"
+
+
+def test_bad_parts_write_nothing(small_lot, tmp_path):
+    small = tmp_path / "small"
+    for k in range(4):
+        write_png(small / f"{k + 1:03d}.png", np.full((100, 120), 30000, np.uint16))
+    with pytest.raises(ValueError, match="rig: calibrated for 224 x 224 px images, the images are 100 x 120 px"):
+        inspect_part(small, tmp_path / "out_small", small_lot["rig"], small_lot["spec"])
+    mixed = _copy_part(small_lot, "clean", tmp_path)
+    write_png(mixed / "002.png", np.full((100, 120), 30000, np.uint16))
+    with pytest.raises(ValueError, match=r"002.png has shape \(100, 120\), .*001.png has \(224, 224\)"):
+        inspect_part(mixed, tmp_path / "out_mixed", small_lot["rig"], small_lot["spec"])
+    guard = parse_spec({"max_depth_mm": 0.1, "decision_rule": "guard_band"})
+    with pytest.raises(ValueError, match="guard_band: imperfection 0 max_depth_mm has no expanded uncertainty"):
+        inspect_part(small_lot["parts"] / "scratch_over", tmp_path / "out_guard", small_lot["rig"], guard)
+    assert not any((tmp_path / n).exists() for n in ("out_small", "out_mixed", "out_guard"))

@@ -1,0 +1,211 @@
+"""``workbench inspect calibrate|run|watch``: calibrate a rig once, then measure and decide part after part.
+
+Thin layer over :mod:`workbench.inspect`: ``calibrate`` is ``workbench photometric
+calibrate`` with the inspection's option names; ``run`` checks the spec, the rig and the
+options before any work, then runs the parts through :mod:`workbench.batch` with a
+progress bar in parts per second; ``watch`` polls an inbox. Every number printed is also
+in ``OUT/inspect_run.json``, ``OUT/results.csv`` and each part's ``result.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import shlex
+import sys
+
+from workbench.commands.common import add_command
+
+_RUN_EPILOG = (
+    "Per part OUT/<part>/result.json (verdict pass|fail|uncertain, every imperfection with value and U, the rule "
+    "that decided) and overlay.png; OUT/results.csv gets one row per part as it finishes, OUT/report.html and "
+    "OUT/inspect_run.json are written at the end. A rerun skips finished parts and parts that failed before; a "
+    "part that cannot be measured is recorded (OUT/failed/<part>.json) and the run goes on (exit code 1). "
+    "spec.json keys: max_depth_mm, max_length_mm, max_width_mm, max_area_mm2, max_count, max_total_area_mm2, "
+    "min_distance_mm, roi_mm, exclusion_zones_mm, decision_rule (simple | guard_band), name."
+)
+
+
+def register(sub) -> None:
+    """Add ``calibrate``, ``run`` and ``watch`` to the ``inspect`` group.
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+        The group's sub-parser collection.
+    """
+    from workbench.commands.photometric import _add_camera
+
+    c = add_command(
+        sub, "calibrate", _calibrate,
+        help="calibrate the inspection rig once: LED positions, flat-field gains, camera -> rig.json",
+        description="Calibrate a near-field inspection rig (as 'workbench photometric calibrate'): LED positions "
+        "from a file or from two or more mirror-sphere folders, flat-field gains from images of a flat matte "
+        "target on the reference plane (one per light, in light order), and the camera. Writes rig.json and "
+        "<name>_gains.npz beside it.",
+    )
+    c.add_argument("--flat", dest="flat_field", nargs="+", required=True, metavar="F",
+                   help="flat-field images (flat matte target on z = 0), one per light in light order")
+    src = c.add_mutually_exclusive_group(required=True)
+    src.add_argument("--light-positions", default=None, metavar="P",
+                     help="LED positions, one 'x y z' row in mm per light")
+    src.add_argument("--spheres", nargs="+", default=None, metavar="DIR", help="two or more mirror-sphere folders")
+    _add_camera(c, "orthographic (telecentric) pixel size in mm")
+    c.add_argument("--flat-albedo", type=float, default=None, metavar="A",
+                   help="albedo of the flat-field target (default 1)")
+    c.add_argument("--led-mu", default=None, metavar="MU", help="LED lobe exponent(s) to store in the rig")
+    c.add_argument("--intensities", default=None, metavar="I", help="LED intensities to store in the rig")
+    c.add_argument("--window", type=int, default=None, metavar="PX",
+                   help="half width of the highlight centroid window, pixels (default 4)")
+    c.add_argument("--out", default="rig.json", help="rig file to write (default rig.json)")
+
+    r = add_command(
+        sub, "run", _run,
+        help="measure many parts and decide each against spec.json (pass, fail, uncertain)",
+        description="Inspect every part of PARTS (a folder of part folders, each with one image per light in "
+        "the rig's light order (filenames.txt, or the image names sorted), or a CSV / JSON-lines manifest with "
+        "'input' and an optional 'id') with the calibrated rig, on a local Dask cluster or a running scheduler.",
+        epilog=_RUN_EPILOG,
+    )
+    r.add_argument("parts", metavar="PARTS", help="folder of part folders, or a manifest")
+    _add_common(r)
+
+    w = add_command(
+        sub, "watch", _watch,
+        help="inspect new part folders as they arrive in an inbox",
+        description="Poll INBOX for part folders; a part is inspected once all its images are there and have "
+        "not changed for --settle seconds, and only once (finished and failed parts are known from OUT, so a "
+        "restarted watch goes on where it stopped).",
+        epilog=_RUN_EPILOG,
+    )
+    w.add_argument("inbox", metavar="INBOX", help="folder the part folders arrive in")
+    _add_common(w)
+    w.add_argument("--interval", type=float, default=2.0, metavar="S", help="seconds between polls (default 2)")
+    w.add_argument("--settle", type=float, default=2.0, metavar="S",
+                   help="a part's images must be unchanged this long before it counts (default 2 s)")
+    w.add_argument("--timeout", type=float, default=None, metavar="S",
+                   help="stop after this many seconds (default: run until interrupted)")
+
+
+def _add_common(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--rig", required=True, metavar="RIG", help="the calibrated rig (rig.json)")
+    p.add_argument("--spec", required=True, metavar="SPEC", help="acceptance rules in mm (spec.json)")
+    p.add_argument("--out", required=True, metavar="OUT", help="output folder (created when missing)")
+    where = p.add_mutually_exclusive_group()
+    where.add_argument("--workers", type=int, default=None, metavar="N",
+                       help="worker processes of a local Dask cluster (default: number of CPUs)")
+    where.add_argument("--scheduler", default="local", metavar="ADDRESS",
+                       help="'local' (default) or a running scheduler tcp://HOST:8786")
+    p.add_argument("--keep-arrays", action="store_true",
+                   help="also write each part's arrays (npy), previews and surface.ply")
+    p.add_argument("--option", action="append", default=[], metavar="KEY=VALUE",
+                   help="reconstruction option for every part, e.g. background=smooth (repeatable)")
+    p.add_argument("--noise-sigma", type=float, default=None, metavar="S",
+                   help="uncertainty: image noise, full-scale units (default: estimated from the residuals)")
+    p.add_argument("--light-position-tolerance-mm", type=float, default=None, metavar="MM",
+                   help="uncertainty: standard uncertainty of each LED coordinate, mm")
+    p.add_argument("--light-tolerance-deg", type=float, default=None, metavar="DEG",
+                   help="uncertainty: standard uncertainty of each light's direction, degrees")
+    p.add_argument("--intensity-tolerance", type=float, default=None, metavar="R",
+                   help="uncertainty: relative standard uncertainty of each light's intensity")
+    p.add_argument("--pixel-size-tolerance", type=float, default=None, metavar="R",
+                   help="uncertainty: relative standard uncertainty of the pixel size")
+    p.add_argument("--uncertainty", choices=("linear", "montecarlo"), default=None,
+                   help="state each imperfection's expanded uncertainty U (k = 2) by this method; on by "
+                   "default (linear) when spec.json asks for guard_band or a tolerance is given")
+
+
+_TOLERANCES = ("noise_sigma", "light_position_tolerance_mm", "light_tolerance_deg", "intensity_tolerance",
+               "pixel_size_tolerance")
+
+
+def _options(args: argparse.Namespace) -> dict:
+    """Reconstruction options: ``--option`` items and the uncertainty options."""
+    from workbench.batch import coerce_value
+    from workbench.inspect.spec import load_spec
+
+    options = {}
+    for item in args.option:
+        key, sep, value = item.partition("=")
+        if not sep or not key.strip():
+            raise ValueError(f"--option: expected KEY=VALUE, got {item!r}")
+        options[key.strip()] = coerce_value(value.strip())
+    tolerances = {k: getattr(args, k) for k in _TOLERANCES if getattr(args, k) is not None}
+    wanted = args.uncertainty is not None or tolerances or load_spec(args.spec).decision_rule == "guard_band"
+    if wanted:
+        if "uncertainty" in options:
+            raise ValueError("--option uncertainty: give the uncertainty options instead (--uncertainty, "
+                             "--noise-sigma, ...)")
+        options["uncertainty"] = {**tolerances, "method": args.uncertainty or "linear"}
+    return options
+
+
+def _calibrate(args: argparse.Namespace) -> int:
+    from workbench.commands.photometric import _calibrate as calibrate
+
+    return calibrate(args)
+
+
+def _progress_bar(total: int):
+    from tqdm import tqdm
+
+    bar = tqdm(total=total, unit="part", file=sys.stderr, dynamic_ncols=True)
+    counts = {"pass": 0, "fail": 0, "uncertain": 0, "error": 0}
+
+    def progress(row: dict) -> None:
+        key = row.get("verdict") or "error" if row["status"] == "ok" else "error"
+        counts[key] = counts.get(key, 0) + 1
+        bar.set_postfix(refresh=False, **counts)
+        bar.update(1)
+
+    return bar, progress
+
+
+def _print_run(run, out) -> None:
+    b = run.batch
+    v = run.verdicts
+    print(f"ran {b.ran}: {v['pass']} pass, {v['fail']} fail, {v['uncertain']} uncertain, {b.failed} could not be "
+          f"measured; {b.skipped} skipped; {b.wall_s:.1f} s, {run.parts_per_second:.2f} parts/s")
+    for row in b.rows:
+        if row["status"] == "failed":
+            print(f"  not measured {row['id']}: {row['error']}")
+    print(f"results: {out}/results.csv; report: {run.report}")
+
+
+def _run(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from workbench.batch import plan
+    from workbench.inspect.part import check_options, load_rig
+    from workbench.inspect.run import load_parts, make_jobs, run_inspection
+
+    options = check_options(_options(args))
+    load_rig(args.rig)
+    parts = load_parts(args.parts)
+    steps = plan(make_jobs(parts, args.rig, args.spec), Path(args.out).resolve())
+    print(f"{len(parts)} part(s): {len(steps.to_run)} to inspect, {len(steps.complete)} finished before "
+          f"(skipped), {len(steps.failed_before)} failed before (skipped)")
+    bar, progress = _progress_bar(len(steps.to_run))
+    with bar:
+        run = run_inspection(parts, args.rig, args.spec, args.out, keep_arrays=args.keep_arrays, options=options,
+                             scheduler=args.scheduler, workers=args.workers, progress=progress,
+                             command="workbench " + " ".join(shlex.quote(a) for a in sys.argv[1:]))
+    _print_run(run, args.out)
+    return 1 if run.batch.failed else 0
+
+
+def _watch(args: argparse.Namespace) -> int:
+    from workbench.inspect.watch import watch
+
+    options = _options(args)
+    print(f"watching {args.inbox} every {args.interval:g} s (a part counts after {args.settle:g} s unchanged)"
+          + (f" for {args.timeout:g} s" if args.timeout is not None else "; Ctrl-C to stop"))
+
+    def each(run) -> None:
+        _print_run(run, args.out)
+
+    total = watch(args.inbox, args.rig, args.spec, args.out, keep_arrays=args.keep_arrays, options=options,
+                  scheduler=args.scheduler, workers=args.workers, interval=args.interval, settle=args.settle,
+                  timeout=args.timeout, on_run=each,
+                  command="workbench " + " ".join(shlex.quote(a) for a in sys.argv[1:]))
+    print(f"watch ended: {total['ran']} part(s) inspected, {total['failed']} could not be measured")
+    return 1 if total["failed"] else 0

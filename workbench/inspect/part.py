@@ -1,0 +1,287 @@
+"""One inspected part: its images, the near-field reconstruction with the rig, the verdict, its files.
+
+:func:`inspect_part` reads one part folder (one image per light, in the rig's light order),
+runs :func:`photometric.pipeline.reconstruct` with the calibrated rig (point lights,
+camera, flat-field gains), measures the imperfections (:func:`photometric.defects.measure_defects`
+inside the pipeline, with their expanded uncertainties when the pipeline states them),
+decides them against the spec (:func:`workbench.inspect.decide.judge`) and writes, each
+file atomically:
+
+``result.json``
+    verdict, decision rule, the checks that decided, every imperfection with each value
+    and its U (k = 2), the part checks, the spec and the measurement's key figures.
+``overlay.png``
+    :func:`workbench.inspect.overlay.overlay_image`.
+
+With ``keep_arrays`` the reconstruction's heavy files are written too
+(:func:`workbench.runs.photometric.write_result`: npy arrays, PNG previews, ``surface.ply``,
+``defects.json``, ``summary.json``). The part folder itself appears complete or not at all
+when the part runs through :func:`workbench.batch.execute_job` (``workbench inspect run``).
+"""
+
+from __future__ import annotations
+
+import functools
+import inspect as _inspect
+import os
+import time
+from pathlib import Path
+
+from photometric.rig import Rig, read_rig
+from surfaces.io import write_json, write_png
+from workbench.inspect.decide import judge
+from workbench.inspect.overlay import overlay_image
+from workbench.inspect.spec import Spec, load_spec
+
+__all__ = ["IMAGE_SUFFIXES", "RESULT_FORMAT", "RESERVED_OPTIONS", "check_options", "part_images", "load_rig",
+           "inspect_part"]
+
+#: image files a part folder may hold (one per light)
+IMAGE_SUFFIXES = (".png", ".tif", ".tiff", ".npy")
+#: ``format`` of result.json
+RESULT_FORMAT = "workbench-inspection"
+#: reconstruct options the inspection sets itself (the rig gives lights and camera)
+RESERVED_OPTIONS = ("source", "rig", "lights", "light_positions", "mask", "progress", "select")
+# files of a captured or rendered folder that are not part images
+_NOT_IMAGES = ("mask.png",)
+
+
+def check_options(options: dict) -> dict:
+    """Check reconstruction options (``--option KEY=VALUE``) against the pipeline before any work.
+
+    Parameters
+    ----------
+    options : dict
+        Keyword options of :func:`photometric.pipeline.reconstruct` (``integrator``,
+        ``background``, ``tolerance_mm``, the uncertainty options, ...).
+
+    Returns
+    -------
+    dict
+        ``options`` unchanged.
+
+    Raises
+    ------
+    ValueError
+        An option the pipeline does not take, or one the inspection sets itself.
+    """
+    from photometric.pipeline import reconstruct
+
+    known = set(_inspect.signature(reconstruct).parameters) - set(RESERVED_OPTIONS)
+    for key in options:
+        if key in RESERVED_OPTIONS:
+            raise ValueError(f"--option {key}: set by the inspection itself (the rig and the part folder)")
+        if key not in known:
+            raise ValueError(f"--option {key}: not an option of photometric reconstruct (known: "
+                             f"{', '.join(sorted(known))})")
+    return options
+
+
+def part_images(folder, n_lights: int) -> list[Path]:
+    """The images of one part folder, in light order.
+
+    The folder's ``filenames.txt`` (one name per line) gives the order when present;
+    otherwise every image file (:data:`IMAGE_SUFFIXES`, ``mask.png`` and ``flat_*`` aside)
+    sorted by name.
+
+    Parameters
+    ----------
+    folder : str or Path
+    n_lights : int
+        Lights of the rig: the folder must hold exactly one image per light.
+
+    Returns
+    -------
+    list of Path
+
+    Raises
+    ------
+    FileNotFoundError
+        The folder, or an image named in ``filenames.txt``, does not exist.
+    ValueError
+        Fewer or more images than lights (the message names the missing or extra count).
+    """
+    root = Path(folder)
+    if not root.is_dir():
+        raise FileNotFoundError(f"part {root}: no such folder")
+    listing = root / "filenames.txt"
+    if listing.is_file():
+        names = [line.strip() for line in listing.read_text().splitlines() if line.strip()]
+        paths = [root / n for n in names]
+        missing = [p.name for p in paths if not p.is_file()]
+        if missing:
+            raise FileNotFoundError(f"part {root.name}: image {missing[0]} named in filenames.txt does not exist")
+    else:
+        paths = sorted(p for p in root.iterdir() if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES
+                       and p.name not in _NOT_IMAGES and not p.name.startswith("flat_"))
+    if len(paths) != n_lights:
+        what = "missing" if len(paths) < n_lights else "extra"
+        raise ValueError(f"part {root.name}: {len(paths)} image(s) for {n_lights} lights of the rig "
+                         f"({abs(len(paths) - n_lights)} {what}; one image per light, in light order)")
+    return paths
+
+
+@functools.lru_cache(maxsize=4)
+def _cached_rig(path: str, mtime_ns: int) -> Rig:
+    return read_rig(path)
+
+
+def load_rig(rig) -> Rig:
+    """Read ``rig.json`` once per process (its gains are large): cached by path and modification time.
+
+    Parameters
+    ----------
+    rig : str, Path or photometric.rig.Rig
+
+    Returns
+    -------
+    photometric.rig.Rig
+    """
+    if isinstance(rig, Rig):
+        return rig
+    p = Path(rig).resolve()
+    if not p.is_file():
+        raise FileNotFoundError(f"--rig: file {p} does not exist")
+    return _cached_rig(str(p), os.stat(p).st_mtime_ns)
+
+
+@functools.lru_cache(maxsize=4)
+def _cached_spec(path: str, mtime_ns: int) -> Spec:
+    return load_spec(path)
+
+
+def _spec(spec) -> Spec:
+    if isinstance(spec, Spec):
+        return spec
+    p = Path(spec).resolve()
+    if not p.is_file():
+        raise FileNotFoundError(f"--spec: file {p} does not exist")
+    return _cached_spec(str(p), os.stat(p).st_mtime_ns)
+
+
+def _summary_figures(decision) -> dict:
+    """The part's key figures (the results.csv row of :data:`workbench.batch.FIGURES` ``inspect``)."""
+    counted = [r for r in decision.imperfections if r["region"] == "inspected"]
+    deepest = max(counted, key=lambda r: r["values"]["max_depth_mm"]["value"], default=None)
+    return {
+        "verdict": decision.verdict,
+        "n_imperfections": len(counted),
+        "n_fail": sum(r["verdict"] == "fail" for r in counted),
+        "n_uncertain": sum(r["verdict"] == "uncertain" for r in counted),
+        "max_depth_mm": deepest["values"]["max_depth_mm"]["value"] if deepest else 0.0,
+        "max_depth_U_mm": deepest["values"]["max_depth_mm"]["U"] if deepest else None,
+        "total_area_mm2": float(sum(r["values"]["area_mm2"]["value"] for r in counted)),
+    }
+
+
+def inspect_part(folder, out_dir, rig, spec, *, keep_arrays: bool = False, part_id: str | None = None,
+                 **options) -> dict:
+    """Inspect one part and write ``result.json`` and ``overlay.png`` into ``out_dir``.
+
+    Parameters
+    ----------
+    folder : str or Path
+        The part folder (:func:`part_images`; a ``mask.png`` beside the images is used).
+    out_dir : str or Path
+        Output folder (created when missing).
+    rig : str, Path or photometric.rig.Rig
+        The calibrated rig (``rig.json``).
+    spec : str, Path or Spec
+        The acceptance specification (``spec.json``).
+    keep_arrays : bool, optional
+        Also write the reconstruction's arrays, previews and mesh.
+    part_id : str, optional
+        Name of the part in ``result.json`` (default: the folder's name).
+    **options
+        More keyword options of :func:`photometric.pipeline.reconstruct` (checked by
+        :func:`check_options`).
+
+    Returns
+    -------
+    dict
+        The part's key figures (``verdict``, ``n_imperfections``, ``n_fail``,
+        ``n_uncertain``, ``max_depth_mm``, ``max_depth_U_mm``, ``total_area_mm2``,
+        ``invalid_fraction``) and ``timings_s``.
+
+    Raises
+    ------
+    FileNotFoundError, ValueError
+        A missing or extra image, an image of another size than the rig's, a spec the
+        measurement cannot decide (``guard_band`` without U), ...: nothing is written.
+    """
+    from photometric.pipeline import reconstruct
+
+    t_all = time.perf_counter()
+    check_options(options)
+    rig_obj = load_rig(rig)
+    spec_obj = _spec(spec)
+    root = Path(folder)
+    paths = part_images(root, len(rig_obj.lights))
+    mask = root / "mask.png"
+    if not keep_arrays:
+        # the surface model and mesh are only written with the arrays: a coarse one is enough
+        options = {"step": max(2, -(-max(rig_obj.image_size) // 8)), "samples": 1, **options}
+    t0 = time.perf_counter()
+    res = reconstruct([str(p) for p in paths], rig=rig_obj, mask=str(mask) if mask.is_file() else None, **options)
+    t_measure = time.perf_counter() - t0
+    pixel = float(res.summary["pixel_size_mm"])
+    defects = res.defects
+    if res.uncertainty is not None:
+        stated = {d["id"]: d["uncertainty_k2"] for d in res.uncertainty.defects}
+        defects = [{**d, "uncertainty_k2": stated.get(d["id"])} for d in defects]
+    t0 = time.perf_counter()
+    decision = judge(defects, spec_obj, res.valid.shape, pixel)
+    t_decide = time.perf_counter() - t0
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
+    write_png(out / "overlay.png", overlay_image(res.albedo, res.mask, decision, spec_obj, pixel))
+    t_overlay = time.perf_counter() - t0
+    files = ["overlay.png", "result.json"]
+    t0 = time.perf_counter()
+    if keep_arrays:
+        from workbench.runs.photometric import write_result
+
+        files += write_result(res, out)["files"]
+    t_arrays = time.perf_counter() - t0
+    figures = _summary_figures(decision)
+    figures["invalid_fraction"] = res.summary["invalid_fraction"]
+    s = res.summary
+    timings = {"reconstruct": round(t_measure, 4), "decide": round(t_decide, 4), "overlay": round(t_overlay, 4)}
+    if keep_arrays:
+        timings["arrays"] = round(t_arrays, 4)
+    timings["stages"] = s["timings_s"]
+    result = {
+        "format": RESULT_FORMAT,
+        "version": 1,
+        "part": part_id or root.name,
+        "input": [str(p) for p in paths],
+        "verdict": decision.verdict,
+        "decision_rule": decision.rule,
+        "decided_by": decision.decided_by,
+        "units": "mm",
+        "coverage_factor": 2,
+        "imperfections": decision.imperfections,
+        "part_checks": decision.part_checks,
+        **{k: v for k, v in figures.items() if k != "verdict"},
+        "spec": spec_obj.to_dict(),
+        "measurement": {
+            "pixel_size_mm": pixel,
+            "light_model": s.get("light_model"),
+            "camera": s.get("camera"),
+            "converged": s.get("converged"),
+            "iterations": s.get("iterations"),
+            "flat_field": s.get("flat_field") is not None,
+            "n_defects": s.get("n_defects"),
+            "invalid_fraction": s.get("invalid_fraction"),
+            "image_size": [s["size"]["height"], s["size"]["width"]],
+            "uncertainty": s.get("uncertainty"),
+        },
+        "files": sorted(set(files)),
+    }
+    timings["total"] = round(time.perf_counter() - t_all, 4)
+    result["timings_s"] = timings
+    write_json(out / "result.json", result)
+    return {**figures, "timings_s": timings}
+

@@ -1,0 +1,246 @@
+"""Many parts through the batch driver (:mod:`workbench.batch`): plan, resume, failures, Dask.
+
+Each part is one batch job of kind ``inspect`` (:func:`run_inspect_job`, the body of one
+Dask task, calls :func:`workbench.inspect.part.inspect_part`); the driver gives it its
+folder ``OUT/<part>`` atomically, appends its row to ``OUT/results.csv`` as it finishes
+(columns :data:`workbench.batch.RESULT_COLUMNS`, the ``inspect`` figures among them),
+records a failing part in ``OUT/failed/<part>.json`` and goes on, and skips finished and
+failed parts on a rerun. After the run, ``OUT/report.html``
+(:func:`workbench.inspect.report.write_inspection_report`) and ``OUT/inspect_run.json``
+(the run's figures) are written.
+
+``PARTS`` is a folder of part folders (every sub-folder holding image files) or a manifest:
+CSV with a header, or JSON lines, with ``input`` (a part folder, relative to the
+manifest) and an optional ``id``.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import os
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from surfaces.io import write_json
+from workbench.batch import FAILED_DIR, RESULTS_NAME, BatchReport, Job, job_id, run_batch
+from workbench.inspect.part import IMAGE_SUFFIXES, check_options, load_rig
+from workbench.inspect.spec import load_spec
+
+__all__ = ["KIND", "RUN_FILE", "InspectionRun", "load_parts", "make_jobs", "run_inspect_job", "run_inspection"]
+
+#: the batch job kind of one part
+KIND = "inspect"
+#: the run's figures, beside results.csv
+RUN_FILE = "inspect_run.json"
+_RESERVED = {FAILED_DIR, RESULTS_NAME, "figures", "report.html", RUN_FILE}
+
+
+def _holds_images(folder: Path) -> bool:
+    return any(p.suffix.lower() in IMAGE_SUFFIXES for p in folder.iterdir() if p.is_file())
+
+
+def _manifest_rows(path: Path) -> list[dict]:
+    text = path.read_text()
+    if path.suffix.lower() in (".jsonl", ".json", ".ndjson"):
+        rows = []
+        for k, line in enumerate(text.splitlines(), start=1):
+            if line.strip() and not line.lstrip().startswith("#"):
+                try:
+                    row = json.loads(line)
+                except json.JSONDecodeError as exc:
+                    raise ValueError(f"manifest {path} line {k}: not JSON ({exc})") from None
+                if not isinstance(row, dict):
+                    raise ValueError(f"manifest {path} line {k}: expected an object with 'input'")
+                rows.append(row)
+        return rows
+    lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
+    return [{k.strip(): (v or "").strip() for k, v in row.items() if k} for row in csv.DictReader(io.StringIO(
+        "\n".join(lines)))]
+
+
+def load_parts(source) -> list[tuple[str, Path]]:
+    """The parts of a run: ``(id, folder)`` from a folder of part folders or a manifest.
+
+    Parameters
+    ----------
+    source : str or Path
+        A folder (every sub-folder with image files is a part, sorted by name) or a
+        manifest (CSV with a header, or JSON lines: ``input``, optional ``id``).
+
+    Returns
+    -------
+    list of (str, Path)
+        Unique, filesystem-safe ids and absolute part folders.
+
+    Raises
+    ------
+    FileNotFoundError
+        ``source`` does not exist.
+    ValueError
+        No part found, a manifest row without ``input`` or with unknown columns, or
+        repeated ids.
+    """
+    src = Path(source)
+    if not src.exists():
+        raise FileNotFoundError(f"PARTS: {src} does not exist")
+    parts: list[tuple[str, Path]] = []
+    if src.is_dir():
+        for folder in sorted(p for p in src.iterdir() if p.is_dir() and not p.name.startswith(".")):
+            if _holds_images(folder):
+                parts.append((job_id(folder, src), folder.resolve()))
+        if not parts:
+            raise ValueError(f"PARTS: {src} holds no part folder (a sub-folder with one image per light)")
+    else:
+        for k, row in enumerate(_manifest_rows(src), start=1):
+            unknown = sorted(set(row) - {"input", "id"})
+            if unknown:
+                raise ValueError(f"manifest {src} row {k}: unknown column(s) {', '.join(unknown)} (known: input, id)")
+            if not row.get("input"):
+                raise ValueError(f"manifest {src} row {k}: needs 'input' (a part folder)")
+            folder = (src.parent / str(row["input"])).resolve()
+            pid = str(row["id"]) if row.get("id") else job_id(folder, src.parent)
+            parts.append((pid, folder))
+        if not parts:
+            raise ValueError(f"manifest {src}: no part")
+    ids = [pid for pid, _ in parts]
+    dup = sorted({i for i in ids if ids.count(i) > 1})
+    if dup:
+        raise ValueError(f"PARTS: repeated part id(s) {', '.join(dup[:5])}")
+    bad = sorted(set(ids) & _RESERVED)
+    if bad:
+        raise ValueError(f"PARTS: part id {bad[0]!r} is a name the run's output folder uses")
+    return parts
+
+
+def make_jobs(parts, rig, spec, *, keep_arrays: bool = False, options: dict | None = None) -> list[Job]:
+    """One batch job per part (kind :data:`KIND`); paths absolute, so any worker reads them.
+
+    Parameters
+    ----------
+    parts : list of (str, Path)
+        :func:`load_parts`.
+    rig, spec : str or Path
+        ``rig.json`` and ``spec.json``.
+    keep_arrays : bool, optional
+    options : dict, optional
+        Reconstruction options (:func:`workbench.inspect.part.check_options`).
+
+    Returns
+    -------
+    list of Job
+    """
+    common = {"rig": str(Path(rig).resolve()), "spec": str(Path(spec).resolve()), "keep_arrays": bool(keep_arrays),
+              **(options or {})}
+    return [Job(pid, KIND, str(folder), dict(common)) for pid, folder in parts]
+
+
+def run_inspect_job(job: Job, out_dir: Path) -> dict:
+    """Inspect one part into ``out_dir`` (a batch runner: ``runner(job, out_dir) -> summary``).
+
+    Parameters
+    ----------
+    job : Job
+        A job of :func:`make_jobs`.
+    out_dir : Path
+        Empty folder (the driver renames it to ``OUT/<id>`` when complete).
+
+    Returns
+    -------
+    dict
+        :func:`workbench.inspect.part.inspect_part`'s key figures.
+    """
+    from workbench.inspect.part import inspect_part
+
+    opts = dict(job.options)
+    rig, spec = opts.pop("rig"), opts.pop("spec")
+    return inspect_part(job.input, out_dir, rig, spec, part_id=job.id, **opts)
+
+
+@dataclass(frozen=True)
+class InspectionRun:
+    """Figures of one inspection run (also in ``OUT/inspect_run.json``).
+
+    Attributes
+    ----------
+    batch : workbench.batch.BatchReport
+        Parts run, ok, failed, skipped, wall time.
+    verdicts : dict
+        ``pass``, ``fail``, ``uncertain``: counts over the parts this run finished.
+    parts_per_second : float
+        Parts finished per second of wall time (cluster start excluded).
+    report : Path
+        ``OUT/report.html``.
+    """
+
+    batch: BatchReport
+    verdicts: dict
+    parts_per_second: float
+    report: Path
+
+
+def run_inspection(
+    parts,
+    rig,
+    spec,
+    out,
+    *,
+    keep_arrays: bool = False,
+    options: dict | None = None,
+    client: Any = None,
+    scheduler: str = "local",
+    workers: int | None = None,
+    progress: Callable[[dict], None] | None = None,
+    command: str = "workbench inspect run",
+) -> InspectionRun:
+    """Inspect many parts: check the spec, rig and options first, then run the parts on Dask.
+
+    Parameters
+    ----------
+    parts : str, Path or list of (str, Path)
+        ``PARTS`` (:func:`load_parts`) or its parts.
+    rig, spec : str or Path
+        ``rig.json`` and ``spec.json`` (checked before anything is written).
+    out : str or Path
+        Output folder.
+    keep_arrays : bool, optional
+        Heavy outputs per part.
+    options : dict, optional
+        Reconstruction options for every part.
+    client : distributed.Client, optional
+        Use this client (else one is opened with ``scheduler`` and ``workers``).
+    scheduler, workers
+        :func:`workbench.batch.connect`.
+    progress : callable, optional
+        Called with each finished part's results.csv row.
+    command : str, optional
+        The command line, for the report.
+
+    Returns
+    -------
+    InspectionRun
+    """
+    spec_path = Path(spec)
+    load_spec(spec_path)
+    load_rig(rig)
+    opts = check_options(dict(options or {}))
+    found = load_parts(parts) if isinstance(parts, (str, os.PathLike)) else list(parts)
+    jobs = make_jobs(found, rig, spec_path, keep_arrays=keep_arrays, options=opts)
+    report = run_batch(jobs, out, client, scheduler=scheduler, workers=workers, runners={KIND: run_inspect_job},
+                       progress=progress)
+    verdicts = {v: sum(row.get("verdict") == v for row in report.rows) for v in ("pass", "fail", "uncertain")}
+    rate = report.ran / report.wall_s if report.wall_s > 0 else 0.0
+    from workbench.inspect.report import write_inspection_report
+
+    page = write_inspection_report(out, command)
+    write_json(Path(out) / RUN_FILE, {
+        "n_parts": report.n_jobs, "ran": report.ran, "ok": report.ok, "failed": report.failed,
+        "skipped": report.skipped, "verdicts": verdicts, "wall_s": round(report.wall_s, 3),
+        "parts_per_second": round(rate, 4), "results": RESULTS_NAME, "report": page.name,
+        "rig": str(Path(rig).resolve()), "spec": str(spec_path.resolve()), "keep_arrays": bool(keep_arrays),
+        "options": opts, "scheduler": scheduler if client is None else "client",
+    })
+    return InspectionRun(report, verdicts, rate, page)

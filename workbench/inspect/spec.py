@@ -1,0 +1,213 @@
+"""The acceptance specification of an inspection (``spec.json``): read and checked before any work.
+
+``spec.json`` holds the drawing's tolerances in mm (every key optional except that at
+least one limit must be given)::
+
+    {"max_depth_mm": 0.10, "max_length_mm": 5.0, "max_width_mm": 0.5, "max_area_mm2": 2.0,
+     "max_count": 3, "max_total_area_mm2": 4.0, "min_distance_mm": 2.0,
+     "roi_mm": [[x, y], ...], "exclusion_zones_mm": [[[x, y], ...], ...],
+     "decision_rule": "guard_band", "name": "cover plate A"}
+
+Per imperfection (ISO 8785): ``max_depth_mm`` limits its maximum depth, ``max_length_mm``
+its length along its axis, ``max_width_mm`` its mean width, ``max_area_mm2`` its area.
+Per part: ``max_count`` imperfections, ``max_total_area_mm2`` their summed area and
+``min_distance_mm`` the smallest gap between two of them. ``roi_mm`` (a polygon in the rig
+frame, mm, x right, y up) is the inspected region; imperfections whose centre lies outside
+it, or inside an exclusion zone, are listed but do not decide. ``decision_rule`` is
+``simple`` (value against limit, the default) or ``guard_band`` (ISO 14253-1, see
+:mod:`workbench.inspect.decide`).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["DECISION_RULES", "IMPERFECTION_LIMITS", "PART_LIMITS", "SPEC_KEYS", "Spec", "load_spec", "parse_spec"]
+
+#: decision rules a spec may name
+DECISION_RULES = ("simple", "guard_band")
+#: spec key -> the imperfection quantity it limits (a key of photometric.defects.measure_defects)
+IMPERFECTION_LIMITS: dict[str, str] = {
+    "max_depth_mm": "max_depth_mm",
+    "max_length_mm": "length_mm",
+    "max_width_mm": "mean_width_mm",
+    "max_area_mm2": "area_mm2",
+}
+#: spec key -> the part quantity it limits (``min_distance_mm`` is a lower limit)
+PART_LIMITS: dict[str, str] = {
+    "max_count": "count",
+    "max_total_area_mm2": "total_area_mm2",
+    "min_distance_mm": "min_distance_mm",
+}
+#: every key spec.json may hold
+SPEC_KEYS = (*IMPERFECTION_LIMITS, *PART_LIMITS, "roi_mm", "exclusion_zones_mm", "decision_rule", "name")
+
+
+@dataclass(frozen=True)
+class Spec:
+    """A checked acceptance specification.
+
+    Attributes
+    ----------
+    limits : dict
+        Spec key -> limit (mm, mm^2, or a count for ``max_count``), only the keys given.
+    roi : numpy.ndarray or None, shape (V, 2)
+        Inspected region (polygon, mm); None: the whole part.
+    exclusions : tuple of numpy.ndarray, each (V, 2)
+        Exclusion zones (polygons, mm).
+    decision_rule : {"simple", "guard_band"}
+    name : str
+        Free text naming the spec ("" when not given).
+    """
+
+    limits: dict
+    roi: np.ndarray | None
+    exclusions: tuple
+    decision_rule: str
+    name: str = ""
+
+    def to_dict(self) -> dict:
+        """Return the spec as in ``spec.json`` (JSON-ready; what ``result.json`` records)."""
+        out: dict = dict(self.limits)
+        if self.roi is not None:
+            out["roi_mm"] = self.roi.tolist()
+        if self.exclusions:
+            out["exclusion_zones_mm"] = [z.tolist() for z in self.exclusions]
+        out["decision_rule"] = self.decision_rule
+        if self.name:
+            out["name"] = self.name
+        return out
+
+
+def _limit(doc: dict, key: str, where: str) -> float:
+    value = doc[key]
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise ValueError(f"{where} {key}: expected a finite number, got {value!r}")
+    if value < 0:
+        raise ValueError(f"{where} {key}: must not be negative, got {value!r}")
+    if key == "max_count" and value != int(value):
+        raise ValueError(f"{where} {key}: expected a whole number of imperfections, got {value!r}")
+    return int(value) if key == "max_count" else float(value)
+
+
+def _segments_cross(a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """Whether segments a-b and c-d properly cross (arrays of points, broadcast)."""
+
+    def orient(p, q, r):
+        return np.sign((q[..., 0] - p[..., 0]) * (r[..., 1] - p[..., 1])
+                       - (q[..., 1] - p[..., 1]) * (r[..., 0] - p[..., 0]))
+
+    return (orient(a, b, c) * orient(a, b, d) < 0) & (orient(c, d, a) * orient(c, d, b) < 0)
+
+
+def _polygon(value, name: str) -> np.ndarray:
+    """A simple polygon of at least three finite (x, y) vertices with a non-zero area."""
+    try:
+        pts = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name}: expected a list of [x, y] vertices in mm, got {value!r}") from None
+    if pts.ndim != 2 or pts.shape[1] != 2:
+        raise ValueError(f"{name}: expected a list of [x, y] vertices in mm, got shape {pts.shape}")
+    if len(pts) >= 2 and np.array_equal(pts[0], pts[-1]):
+        pts = pts[:-1]  # a closing repeat of the first vertex
+    if len(pts) < 3:
+        raise ValueError(f"{name}: a polygon needs at least 3 vertices, got {len(pts)}")
+    if not np.isfinite(pts).all():
+        raise ValueError(f"{name}: vertices must be finite numbers")
+    nxt = np.roll(pts, -1, axis=0)
+    area = 0.5 * float(np.sum(pts[:, 0] * nxt[:, 1] - nxt[:, 0] * pts[:, 1]))
+    if abs(area) <= 1e-12 * max(1.0, float(np.ptp(pts)) ** 2):
+        raise ValueError(f"{name}: the polygon has no area (collinear or repeated vertices)")
+    n = len(pts)
+    i, j = np.triu_indices(n, k=2)
+    keep = ~((i == 0) & (j == n - 1))  # the first and last edges share a vertex
+    i, j = i[keep], j[keep]
+    if _segments_cross(pts[i], nxt[i], pts[j], nxt[j]).any():
+        raise ValueError(f"{name}: the polygon crosses itself")
+    return pts
+
+
+def parse_spec(doc, source: str = "spec") -> Spec:
+    """Check a specification given as a dict (the content of ``spec.json``).
+
+    Parameters
+    ----------
+    doc : dict
+        See the module docstring for the keys.
+    source : str
+        Where it came from, for messages (e.g. the file name).
+
+    Returns
+    -------
+    Spec
+
+    Raises
+    ------
+    ValueError
+        On an unknown key, a negative or non-numeric limit, a bad polygon, an unknown
+        ``decision_rule`` or no limit at all; the message names the key.
+
+    Examples
+    --------
+    >>> parse_spec({"max_depth_mm": 0.1, "decision_rule": "guard_band"}).limits
+    {'max_depth_mm': 0.1}
+    >>> parse_spec({"max_depth": 0.1})
+    Traceback (most recent call last):
+    ...
+    ValueError: spec: unknown key 'max_depth' (known: max_depth_mm, max_length_mm, max_width_mm, \
+max_area_mm2, max_count, max_total_area_mm2, min_distance_mm, roi_mm, exclusion_zones_mm, decision_rule, name)
+    """
+    if not isinstance(doc, dict):
+        raise ValueError(f"{source}: expected a JSON object of limits, got {type(doc).__name__}")
+    unknown = [k for k in doc if k not in SPEC_KEYS]
+    if unknown:
+        raise ValueError(f"{source}: unknown key {unknown[0]!r} (known: {', '.join(SPEC_KEYS)})")
+    limits = {k: _limit(doc, k, source) for k in (*IMPERFECTION_LIMITS, *PART_LIMITS) if k in doc}
+    if not limits:
+        raise ValueError(f"{source}: no limit given (give at least one of "
+                         f"{', '.join((*IMPERFECTION_LIMITS, *PART_LIMITS))})")
+    rule = doc.get("decision_rule", "simple")
+    if rule not in DECISION_RULES:
+        raise ValueError(f"{source} decision_rule: expected one of {', '.join(DECISION_RULES)}, got {rule!r}")
+    roi = _polygon(doc["roi_mm"], f"{source} roi_mm") if doc.get("roi_mm") is not None else None
+    zones = doc.get("exclusion_zones_mm") or []
+    if not isinstance(zones, list):
+        raise ValueError(f"{source} exclusion_zones_mm: expected a list of polygons, got {zones!r}")
+    exclusions = tuple(_polygon(z, f"{source} exclusion_zones_mm[{k}]") for k, z in enumerate(zones))
+    name = doc.get("name", "")
+    if not isinstance(name, str):
+        raise ValueError(f"{source} name: expected text, got {name!r}")
+    return Spec(limits, roi, exclusions, rule, name)
+
+
+def load_spec(path) -> Spec:
+    """Read and check ``spec.json``.
+
+    Parameters
+    ----------
+    path : str or Path
+
+    Returns
+    -------
+    Spec
+
+    Raises
+    ------
+    FileNotFoundError
+        The file does not exist.
+    ValueError
+        Not valid JSON, or a bad specification (:func:`parse_spec`).
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise FileNotFoundError(f"--spec: file {p} does not exist")
+    try:
+        doc = json.loads(p.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise ValueError(f"spec {p}: not valid JSON ({exc})") from None
+    return parse_spec(doc, f"spec {p.name}")
