@@ -313,6 +313,9 @@ class _Lookup:
         i = np.asarray(i) + self.offset
         j = np.asarray(j) + self.offset
         rows, cols = self.map.shape
+        if i.size == 0 or j.size == 0 or (i.min() >= 0 and i.max() < rows and j.min() >= 0 and j.max() < cols):
+            # the usual case: four reductions instead of a clip, a mask and a select per entry
+            return self.map[i, j]
         inside = (i >= 0) & (i < rows) & (j >= 0) & (j < cols)
         return np.where(inside, self.map[np.clip(i, 0, rows - 1), np.clip(j, 0, cols - 1)], -1)
 
@@ -336,19 +339,19 @@ def _gather(values: np.ndarray, index: np.ndarray) -> np.ndarray:
 
 
 # ----------------------------------------------------------------------------- one level
-def _assemble(level: _Level, CI, CJ, w, cell_rhs, fi, fj, missing, ridge):
+def _assemble(level: _Level, CI, CJ, n_data, wc, cell_rhs, fi, fj, missing, ridge):
     """Sparse normal equations of one level over its B-splines ``(fi, fj)``.
 
-    ``CI, CJ``: cells that carry data or smoothing; ``w`` their pixel weights ``(n, k, k)``;
+    ``CI, CJ``: cells that carry data or smoothing; ``n_data`` their numbers of fitted
+    pixels; ``wc`` the level's pixel weights as cells ``(ns, nt, k, k)`` (0 or 1);
     ``cell_rhs`` ``(d, n, 4, 4)`` each cell's share of the right-hand sides;
     ``missing`` ``(len(fi),)`` the fraction of each B-spline's support without data.
     """
     k = level.k
     n = fi.size
     lookup = _Lookup(fi, fj, (level.ns + 3, level.nt + 3))
-    flat = w.reshape(len(w), -1)
-    with_data = flat.max(axis=1) > 0.0
-    full = flat[with_data].min(axis=1) == 1.0
+    with_data = n_data > 0
+    full = n_data[with_data] == k * k
     cell_f = _window_index(lookup, CI[with_data], CJ[with_data])
     # Full cells all add the same block: B-spline (fi, fj) is piece (a, b) of cell
     # (fi - a, fj - b) and meets there piece (c, d), the B-spline at offset (c - a, d - b).
@@ -369,7 +372,7 @@ def _assemble(level: _Level, CI, CJ, w, cell_rhs, fi, fj, missing, ridge):
         # partial cells: their own blocks, scattered; entries of B-splines not solved for go
         # to a discarded slot n * 49
         part_f = cell_f[~full].astype(np.int64)  # keys reach n * 49
-        blocks = level.blocks(w[with_data][~full])
+        blocks = level.blocks(wc[CI[with_data][~full], CJ[with_data][~full]])
         row = np.broadcast_to(part_f[:, :, :, None, None], blocks.shape)
         col = np.broadcast_to(part_f[:, None, None, :, :], blocks.shape)
         da = _A4[None, :] - _A4[:, None] + 3  # [a, c] -> c - a + 3
@@ -694,13 +697,15 @@ def _fit(z, p, q, region, h, tol, k0, xy, lam) -> SurfaceFit:
             cell_rhs = np.stack([lv.project(res[0][c], V, V) + lv.lam * (lv.project(res[1][c], D, V)
                                  + lv.project(res[2][c], V, D)) for c in range(d)])
             ridge = 1e-9
-        work_w = wc[WI, WJ]
+        # data pixels per cell from block sums of the weights, instead of gathering every
+        # working cell's k x k weights (only partial cells need theirs, in _assemble)
+        n_cell = w.reshape(lv.ns, k, lv.nt, k).sum(axis=(1, 3))
+        n_data = n_cell[WI, WJ]
         counts = _Lookup(WI, WJ, (lv.ns, lv.nt))
-        n_data = work_w.reshape(len(WI), -1).sum(axis=1)
         support = counts(fi[:, None, None] - 3 + _A4[None, :, None], fj[:, None, None] - 3 + _A4[None, None, :])
         sup = _gather(n_data, support)
         missing = np.clip(1.0 - sup.reshape(len(fi), 16).mean(axis=1) / (k * k), 0.0, 1.0)
-        A, b, lookup = _assemble(lv, WI, WJ, work_w, cell_rhs, fi, fj, missing, ridge)
+        A, b, lookup = _assemble(lv, WI, WJ, n_data, wc, cell_rhs, fi, fj, missing, ridge)
         values = _solve(A, b)
         solved.append((lookup, values))
         if lev == 0:
@@ -709,13 +714,23 @@ def _fit(z, p, q, region, h, tol, k0, xy, lam) -> SurfaceFit:
             for arr, (ps, pt) in zip(fitted, ((V, V), (D, V), (V, D))):
                 for c in range(d):
                     arr[c] = lv.expand_grid(coef[..., c], ps, pt)
+            diff = fitted[0] - targets[0]
+            dist = np.abs(diff[0]) if d == 1 else np.sqrt((diff * diff).sum(axis=0))
+            dist *= w
+            worst = dist.reshape(ns, k, nt, k).max(axis=(1, 3))[CI, CJ]
         else:
             block = _gather(values, _window_index(lookup, CI, CJ))  # (n, 4, 4, d)
-            for arr, (ps, pt) in zip(fitted, ((V, V), (D, V), (V, D))):
+            for part, (arr, (ps, pt)) in enumerate(zip(fitted, ((V, V), (D, V), (V, D)))):
                 view = lv.cells(arr)
                 for c in range(d):
-                    view[c, CI, CJ] += lv.expand(block[..., c], ps, pt)
-        fail = _cell_deviation(lv, CI, CJ, targets[0], fitted[0], wc) > tol
+                    upd = lv.expand(block[..., c], ps, pt)
+                    view[c, CI, CJ] += upd
+                    if part == 0:
+                        # on the fitted pixels the new S - z is the update minus the old residual
+                        res[0][c] = (upd - res[0][c]) * ww
+            dist = np.abs(res[0][0]) if d == 1 else np.sqrt((res[0] * res[0]).sum(axis=0))
+            worst = dist.reshape(len(CI), -1).max(axis=1)
+        fail = worst > tol
         levels.append({"spacing_px": k, "cells": int(CI.size), "unknowns": int(fi.size), "refined": int(fail.sum())})
         if lev == top or not fail.any():
             leaves.append((lev, CI, CJ))
@@ -731,14 +746,17 @@ def _fit(z, p, q, region, h, tol, k0, xy, lam) -> SurfaceFit:
         CJ = (2 * CJ[refine][:, None] + np.array([0, 1, 0, 1])).ravel()
     patches = _patches(leaves, solved, k0, (H, W), h, xy is None)
     values = tuple(np.moveaxis(f[:, :H, :W], 0, -1) for f in fitted)
-    deviation = np.full((H, W), np.nan)
-    S = values[0]
+    # whole-image operations on the contiguous fitted arrays: a boolean gather from the
+    # strided (H, W, d) views of ``values`` cost more than the rest of the bookkeeping
     if xy is None:
-        deviation[region] = S[region][:, 0] - z[region]
+        diff = fitted[0][0, :H, :W] - z
+        deviation = np.where(region, diff, np.nan)
+        dv = np.abs(diff, out=diff)
     else:
-        measured = np.concatenate([xy, z[..., None]], axis=2)
-        deviation[region] = np.linalg.norm(S[region] - measured[region], axis=1)
-    dv = np.abs(deviation[region])
+        diff = fitted[0][:, :H, :W] - np.stack([xy[..., 0], xy[..., 1], z])
+        dv = np.sqrt((diff * diff).sum(axis=0))
+        deviation = np.where(region, dv, np.nan)
+    dv = dv[region]
     return SurfaceFit(
         patches=patches,
         deviation=deviation,
@@ -752,13 +770,6 @@ def _fit(z, p, q, region, h, tol, k0, xy, lam) -> SurfaceFit:
         covered=covered,
         values=values,
     )
-
-
-def _cell_deviation(lv: _Level, CI, CJ, target, fitted, wc) -> np.ndarray:
-    """Largest deviation (3-D distance over the components) on the fitted pixels of each cell ``(CI, CJ)``."""
-    diff = lv.cells(fitted)[:, CI, CJ] - lv.cells(target)[:, CI, CJ]  # (d, n, k, k)
-    dist = np.abs(diff[0]) if len(diff) == 1 else np.sqrt((diff * diff).sum(axis=0))
-    return np.where(wc[CI, CJ] > 0, dist, 0.0).reshape(len(CI), -1).max(axis=1)
 
 
 def _patches(leaves, solved, k0: int, shape, h: float, orthographic: bool) -> MixedPatches:
