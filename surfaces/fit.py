@@ -652,6 +652,13 @@ def fit_height(
         Wrong shapes, ``tolerance <= 0``, NaN heights or slopes inside the mask, an empty
         mask (each naming the input).
 
+    Notes
+    -----
+    While it runs, numpy's bundled OpenBLAS is held to one thread (the count is restored
+    after): the fit's products are thin, and threads only cost time on them.
+    ``slope_weight`` stays 1 by default: heavier weights barely move the normals while the
+    fit follows the height (see ``benchmarks/results/surface_fit.md``, slope weighting).
+
     Examples
     --------
     A plane is one patch per level-0 cell, exactly:
