@@ -73,6 +73,7 @@ stair-stepping.
 
 from __future__ import annotations
 
+from contextlib import contextmanager
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -248,6 +249,13 @@ class _Level:
         self.DD = (self.D[:, :, None] * self.D[:, None, :]).reshape(k, 16)
         ones = np.ones((1, k, k))
         self.full_block = self.blocks(ones)[0]
+        # what piece (a, b) of a full cell adds to its B-spline's 7 x 7 stencil of offsets
+        # (c - a, d - b): rows (a, b), columns the offsets from (-3, -3), row-major
+        fs = np.zeros((4, 4, 7, 7))
+        for a in range(4):
+            for b in range(4):
+                fs[a, b, 3 - a:7 - a, 3 - b:7 - b] = self.full_block[a, b]
+        self.full_stencil = fs.reshape(16, 49)
 
     def cells(self, a: np.ndarray) -> np.ndarray:
         """``(..., ns k, nt k)`` pixel array as ``(..., ns, nt, k, k)`` cells (a view)."""
@@ -313,6 +321,9 @@ class _Lookup:
         i = np.asarray(i) + self.offset
         j = np.asarray(j) + self.offset
         rows, cols = self.map.shape
+        if i.size == 0 or j.size == 0 or (i.min() >= 0 and i.max() < rows and j.min() >= 0 and j.max() < cols):
+            # the usual case: four reductions instead of a clip, a mask and a select per entry
+            return self.map[i, j]
         inside = (i >= 0) & (i < rows) & (j >= 0) & (j < cols)
         return np.where(inside, self.map[np.clip(i, 0, rows - 1), np.clip(j, 0, cols - 1)], -1)
 
@@ -336,40 +347,32 @@ def _gather(values: np.ndarray, index: np.ndarray) -> np.ndarray:
 
 
 # ----------------------------------------------------------------------------- one level
-def _assemble(level: _Level, CI, CJ, w, cell_rhs, fi, fj, missing, ridge):
+def _assemble(level: _Level, CI, CJ, n_data, wc, cell_rhs, fi, fj, missing, ridge):
     """Sparse normal equations of one level over its B-splines ``(fi, fj)``.
 
-    ``CI, CJ``: cells that carry data or smoothing; ``w`` their pixel weights ``(n, k, k)``;
+    ``CI, CJ``: cells that carry data or smoothing; ``n_data`` their numbers of fitted
+    pixels; ``wc`` the level's pixel weights as cells ``(ns, nt, k, k)`` (0 or 1);
     ``cell_rhs`` ``(d, n, 4, 4)`` each cell's share of the right-hand sides;
     ``missing`` ``(len(fi),)`` the fraction of each B-spline's support without data.
     """
     k = level.k
     n = fi.size
     lookup = _Lookup(fi, fj, (level.ns + 3, level.nt + 3))
-    flat = w.reshape(len(w), -1)
-    with_data = flat.max(axis=1) > 0.0
-    full = flat[with_data].min(axis=1) == 1.0
+    with_data = n_data > 0
+    full = n_data[with_data] == k * k
     cell_f = _window_index(lookup, CI[with_data], CJ[with_data])
     # Full cells all add the same block: B-spline (fi, fj) is piece (a, b) of cell
     # (fi - a, fj - b) and meets there piece (c, d), the B-spline at offset (c - a, d - b).
     # Summing per piece over the B-splines costs 256 vector operations, not 256 scattered
     # entries per cell (most cells of the fine levels are full).
-    stencil = np.zeros((n, 7, 7))
     is_full = _Lookup(CI[with_data][full], CJ[with_data][full], (level.ns, level.nt))
-    for a in range(4):
-        for b in range(4):
-            here = (is_full(fi - a, fj - b) >= 0).astype(float)
-            if not here.any():
-                continue
-            block = level.full_block[a, b]  # (c, d)
-            for c in range(4):
-                stencil[:, 3 + c - a, 3 - b:7 - b] += here[:, None] * block[c][None, :]
-    stencil = stencil.reshape(n, 49)
+    here = (is_full(fi[:, None, None] - _A4[None, :, None], fj[:, None, None] - _A4[None, None, :]) >= 0)
+    stencil = here.reshape(n, 16).astype(float) @ level.full_stencil  # (n, 49)
     if not full.all():
         # partial cells: their own blocks, scattered; entries of B-splines not solved for go
         # to a discarded slot n * 49
         part_f = cell_f[~full].astype(np.int64)  # keys reach n * 49
-        blocks = level.blocks(w[with_data][~full])
+        blocks = level.blocks(wc[CI[with_data][~full], CJ[with_data][~full]])
         row = np.broadcast_to(part_f[:, :, :, None, None], blocks.shape)
         col = np.broadcast_to(part_f[:, None, None, :, :], blocks.shape)
         da = _A4[None, :] - _A4[:, None] + 3  # [a, c] -> c - a + 3
@@ -379,7 +382,9 @@ def _assemble(level: _Level, CI, CJ, w, cell_rhs, fi, fj, missing, ridge):
     off = np.arange(-3, 4)
     cols = lookup(fi[:, None, None] + off[None, :, None], fj[:, None, None] + off[None, None, :]).reshape(n, 49)
     nz = cols >= 0
-    A = sp.csr_matrix((stencil[nz], (np.nonzero(nz)[0], cols[nz])), shape=(n, n))
+    # B-splines are numbered row-major, so each row's columns come out sorted: CSR directly
+    indptr = np.concatenate([[0], np.cumsum(nz.sum(axis=1))])
+    A = sp.csr_matrix((stencil[nz], cols[nz], indptr), shape=(n, n))
     d = len(cell_rhs)
     rhs = np.zeros((n, d))
     ok = cell_f >= 0
@@ -418,11 +423,62 @@ def _solve(A: sp.csr_matrix, b: np.ndarray) -> np.ndarray:
     n = A.shape[0]
     if n == 0:
         return np.zeros((0, b.shape[1]))
+    # SPD: diagonal pivots and the symmetric ordering kept (SymmetricMode) skip the
+    # partial-pivoting search; measured on the levels of a 4 MP fit, the factorisations
+    # take about half the time of the default threshold pivoting, same fill
+    opts = {"permc_spec": "MMD_AT_PLUS_A", "diag_pivot_thresh": 0.0, "options": {"SymmetricMode": True}}
     try:
-        return splu(A.tocsc(), permc_spec="MMD_AT_PLUS_A").solve(b)
+        return splu(A.tocsc(), **opts).solve(b)
     except RuntimeError:  # exactly singular: a part without data or smoothing; a ridge fixes it
         ridge = sp.diags(np.full(n, 1e-10 * max(float(A.diagonal().mean()), 1e-300)))
-        return splu((A + ridge).tocsc(), permc_spec="MMD_AT_PLUS_A").solve(b)
+        return splu((A + ridge).tocsc(), **opts).solve(b)
+
+
+# ----------------------------------------------------------------------------- BLAS threads
+def _openblas_threads():
+    """``(get, set)`` of the thread count of numpy's bundled OpenBLAS, or None where it is not found."""
+    import ctypes
+    import glob
+    import os
+
+    libs = os.path.join(os.path.dirname(os.path.dirname(np.__file__)), "numpy.libs")
+    for path in sorted(glob.glob(os.path.join(libs, "libscipy_openblas*.so*"))):
+        try:
+            lib = ctypes.CDLL(path)
+        except OSError:
+            continue
+        for suffix in ("64_", "", "_64"):
+            get = getattr(lib, f"scipy_openblas_get_num_threads{suffix}", None)
+            put = getattr(lib, f"scipy_openblas_set_num_threads{suffix}", None)
+            if get is not None and put is not None:
+                get.restype = ctypes.c_int
+                put.argtypes = [ctypes.c_int]
+                return get, put
+    return None
+
+
+_BLAS_THREADS = _openblas_threads()
+
+
+@contextmanager
+def _one_blas_thread():
+    """Numpy's products on one thread for the duration (the previous count restored after).
+
+    The fit's products are thin (inner dimension 4 to 32 pixels): OpenBLAS's threads gain
+    nothing on them, and on a busy machine each product waits for a descheduled helper
+    thread; measured on a 4 MP fit under load, the level products took 10 to 30 times
+    longer with two threads than with one.
+    """
+    if _BLAS_THREADS is None:
+        yield
+        return
+    get, put = _BLAS_THREADS
+    before = get()
+    put(1)
+    try:
+        yield
+    finally:
+        put(before)
 
 
 # ----------------------------------------------------------------------------- input
@@ -456,10 +512,8 @@ def _step(step, shape) -> int:
     return 1 << (int(step).bit_length() - 1)
 
 
-def _slope_targets(p, q, h, xy, valid):
-    """Per-pixel-step derivative targets ``(z_s, z_t)`` and, with ``xy``, those of x and y."""
-    if xy is None:
-        return -q * h, p * h, None, None
+def _slope_targets(p, q, xy, valid):
+    """Per-pixel-step derivative targets ``(z_s, z_t)`` of a perspective camera and those ``(f_s, f_t)`` of x, y."""
     fs = _differences(xy, valid, axis=0)
     ft = _differences(xy, valid, axis=1)
     zs = p * fs[..., 0] + q * fs[..., 1]
@@ -524,14 +578,20 @@ def find_discontinuities(height, p, q, mask, pixel_size: float = 1.0, jump: floa
         lo[axis], hi[axis] = slice(None, -1), slice(1, None)
         lo, hi = tuple(lo), tuple(hi)
         if xy is None:
-            dx, dy = (0.0, -h) if axis == 0 else (h, 0.0)
+            # one pixel step: along the rows y falls by h (only q counts), along the columns
+            # x grows by h (only p counts)
+            g = qq if axis == 0 else pp
+            predicted = g[lo] + g[hi]
+            predicted *= -0.5 * h if axis == 0 else 0.5 * h
         else:
             dx = xy[hi + (0,)] - xy[lo + (0,)]
             dy = xy[hi + (1,)] - xy[lo + (1,)]
-        predicted = 0.5 * (pp[lo] + pp[hi]) * dx + 0.5 * (qq[lo] + qq[hi]) * dy
+            predicted = 0.5 * (pp[lo] + pp[hi]) * dx + 0.5 * (qq[lo] + qq[hi]) * dy
         both = m[lo] & m[hi]
         with np.errstate(invalid="ignore"):
-            bad = both & (np.abs(zz[hi] - zz[lo] - predicted) > limit)
+            miss = zz[hi] - zz[lo]
+            miss -= predicted
+            bad = both & (np.abs(miss, out=miss) > limit)
         border[lo] |= bad
         border[hi] |= bad
     return border
@@ -592,6 +652,13 @@ def fit_height(
         Wrong shapes, ``tolerance <= 0``, NaN heights or slopes inside the mask, an empty
         mask (each naming the input).
 
+    Notes
+    -----
+    While it runs, numpy's bundled OpenBLAS is held to one thread (the count is restored
+    after): the fit's products are thin, and threads only cost time on them.
+    ``slope_weight`` stays 1 by default: heavier weights barely move the normals while the
+    fit follows the height (see ``benchmarks/results/surface_fit.md``, slope weighting).
+
     Examples
     --------
     A plane is one patch per level-0 cell, exactly:
@@ -634,7 +701,8 @@ def fit_height(
     region = m & ~find_discontinuities(z, pp, qq, m, h, jump, xyv)
     if not region.any():
         raise ValueError("height: every pixel of the mask lies on a depth discontinuity")
-    return _fit(z, pp, qq, region, h, tol, k0, xyv, lam)
+    with _one_blas_thread():
+        return _fit(z, pp, qq, region, h, tol, k0, xyv, lam)
 
 
 def _fit(z, p, q, region, h, tol, k0, xy, lam) -> SurfaceFit:
@@ -644,16 +712,19 @@ def _fit(z, p, q, region, h, tol, k0, xy, lam) -> SurfaceFit:
     d = 1 if xy is None else 3
     w = np.zeros((HP, WP))
     w[:H, :W] = region
-    zs, zt, fs, ft = _slope_targets(p, q, h, xy, region)
-    sources = [(z,), (zs,), (zt,)] if xy is None else [
-        (xy[..., 0], xy[..., 1], z), (fs[..., 0], fs[..., 1], zs), (ft[..., 0], ft[..., 1], zt)]
     # value, s-slope and t-slope targets, component first, zero off the fitted pixels
-    targets = []
-    for source in sources:
-        t = np.zeros((d, HP, WP))
-        for c, comp in enumerate(source):
-            np.copyto(t[c, :H, :W], comp, where=region)
-        targets.append(t)
+    targets = [np.zeros((d, HP, WP)) for _ in range(3)]
+    if xy is None:
+        # written straight into the padded arrays: z, z_s = -q h, z_t = p h
+        np.copyto(targets[0][0, :H, :W], z, where=region)
+        np.multiply(q, -h, out=targets[1][0, :H, :W], where=region)
+        np.multiply(p, h, out=targets[2][0, :H, :W], where=region)
+    else:
+        zs, zt, fs, ft = _slope_targets(p, q, xy, region)
+        sources = [(xy[..., 0], xy[..., 1], z), (fs[..., 0], fs[..., 1], zs), (ft[..., 0], ft[..., 1], zt)]
+        for t, source in zip(targets, sources):
+            for c, comp in enumerate(source):
+                np.copyto(t[c, :H, :W], comp, where=region)
     fitted = [np.zeros((d, HP, WP)) for _ in range(3)]  # running S, S_s, S_t
     levels, solved, leaves = [], [], []
     top = int(np.log2(k0))
@@ -694,13 +765,17 @@ def _fit(z, p, q, region, h, tol, k0, xy, lam) -> SurfaceFit:
             cell_rhs = np.stack([lv.project(res[0][c], V, V) + lv.lam * (lv.project(res[1][c], D, V)
                                  + lv.project(res[2][c], V, D)) for c in range(d)])
             ridge = 1e-9
-        work_w = wc[WI, WJ]
+        # data pixels per cell, without gathering every working cell's k x k weights (only
+        # partial cells need theirs, in _assemble)
+        if lev == 0:
+            n_data = w.reshape(ns, k, nt, k).sum(axis=(1, 3))[WI, WJ]
+        else:  # the refined cells' weights are at hand: no pass over the whole image
+            n_data = ww.reshape(len(WI), -1).sum(axis=1)
         counts = _Lookup(WI, WJ, (lv.ns, lv.nt))
-        n_data = work_w.reshape(len(WI), -1).sum(axis=1)
         support = counts(fi[:, None, None] - 3 + _A4[None, :, None], fj[:, None, None] - 3 + _A4[None, None, :])
         sup = _gather(n_data, support)
         missing = np.clip(1.0 - sup.reshape(len(fi), 16).mean(axis=1) / (k * k), 0.0, 1.0)
-        A, b, lookup = _assemble(lv, WI, WJ, work_w, cell_rhs, fi, fj, missing, ridge)
+        A, b, lookup = _assemble(lv, WI, WJ, n_data, wc, cell_rhs, fi, fj, missing, ridge)
         values = _solve(A, b)
         solved.append((lookup, values))
         if lev == 0:
@@ -709,13 +784,23 @@ def _fit(z, p, q, region, h, tol, k0, xy, lam) -> SurfaceFit:
             for arr, (ps, pt) in zip(fitted, ((V, V), (D, V), (V, D))):
                 for c in range(d):
                     arr[c] = lv.expand_grid(coef[..., c], ps, pt)
+            diff = fitted[0] - targets[0]
+            dist = np.abs(diff[0]) if d == 1 else np.sqrt((diff * diff).sum(axis=0))
+            dist *= w
+            worst = dist.reshape(ns, k, nt, k).max(axis=(1, 3))[CI, CJ]
         else:
             block = _gather(values, _window_index(lookup, CI, CJ))  # (n, 4, 4, d)
-            for arr, (ps, pt) in zip(fitted, ((V, V), (D, V), (V, D))):
+            for part, (arr, (ps, pt)) in enumerate(zip(fitted, ((V, V), (D, V), (V, D)))):
                 view = lv.cells(arr)
                 for c in range(d):
-                    view[c, CI, CJ] += lv.expand(block[..., c], ps, pt)
-        fail = _cell_deviation(lv, CI, CJ, targets[0], fitted[0], wc) > tol
+                    upd = lv.expand(block[..., c], ps, pt)
+                    view[c, CI, CJ] += upd
+                    if part == 0:
+                        # on the fitted pixels the new S - z is the update minus the old residual
+                        res[0][c] = (upd - res[0][c]) * ww
+            dist = np.abs(res[0][0]) if d == 1 else np.sqrt((res[0] * res[0]).sum(axis=0))
+            worst = dist.reshape(len(CI), -1).max(axis=1)
+        fail = worst > tol
         levels.append({"spacing_px": k, "cells": int(CI.size), "unknowns": int(fi.size), "refined": int(fail.sum())})
         if lev == top or not fail.any():
             leaves.append((lev, CI, CJ))
@@ -731,34 +816,31 @@ def _fit(z, p, q, region, h, tol, k0, xy, lam) -> SurfaceFit:
         CJ = (2 * CJ[refine][:, None] + np.array([0, 1, 0, 1])).ravel()
     patches = _patches(leaves, solved, k0, (H, W), h, xy is None)
     values = tuple(np.moveaxis(f[:, :H, :W], 0, -1) for f in fitted)
-    deviation = np.full((H, W), np.nan)
-    S = values[0]
+    # whole-image operations on the contiguous fitted arrays: a boolean gather from the
+    # strided (H, W, d) views of ``values`` cost more than the rest of the bookkeeping
     if xy is None:
-        deviation[region] = S[region][:, 0] - z[region]
+        dv = fitted[0][0, :H, :W] - targets[0][0, :H, :W]
     else:
-        measured = np.concatenate([xy, z[..., None]], axis=2)
-        deviation[region] = np.linalg.norm(S[region] - measured[region], axis=1)
-    dv = np.abs(deviation[region])
+        diff = fitted[0][:, :H, :W] - targets[0][:, :H, :W]
+        dv = np.sqrt((diff * diff).sum(axis=0))
+    dv[~region] = 0.0
+    deviation = np.where(region, dv, np.nan)
+    n_fitted = int(np.count_nonzero(region))
+    max_dev = max(float(dv.max()), -float(dv.min()))
+    rms_dev = float(np.sqrt(np.vdot(dv, dv) / n_fitted))
     return SurfaceFit(
         patches=patches,
         deviation=deviation,
         region=region,
         tolerance=float(tol),
-        max_deviation=float(dv.max()),
-        rms_deviation=float(np.sqrt(np.mean(dv * dv))),
+        max_deviation=max_dev,
+        rms_deviation=rms_dev,
         levels=tuple(levels),
         step=k0,
         pixel_size=float(h),
         covered=covered,
         values=values,
     )
-
-
-def _cell_deviation(lv: _Level, CI, CJ, target, fitted, wc) -> np.ndarray:
-    """Largest deviation (3-D distance over the components) on the fitted pixels of each cell ``(CI, CJ)``."""
-    diff = lv.cells(fitted)[:, CI, CJ] - lv.cells(target)[:, CI, CJ]  # (d, n, k, k)
-    dist = np.abs(diff[0]) if len(diff) == 1 else np.sqrt((diff * diff).sum(axis=0))
-    return np.where(wc[CI, CJ] > 0, dist, 0.0).reshape(len(CI), -1).max(axis=1)
 
 
 def _patches(leaves, solved, k0: int, shape, h: float, orthographic: bool) -> MixedPatches:

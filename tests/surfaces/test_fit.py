@@ -352,3 +352,45 @@ def test_level_zero_is_scipys_least_squares_spline(monkeypatch):
     point, ds, dt = _patch_values(fit, *np.nonzero(np.ones((H, W), bool)))
     np.testing.assert_allclose(point[:, 2], peer.ravel(), atol=1e-10)
     np.testing.assert_allclose(dt[:, 2], (np.kron(Bs, Dt) @ coef), atol=1e-10)
+
+
+def test_deviation_statistics_match_the_deviation_map():
+    hf = v_crack(64, 0.05, depth_mm=0.6, width_mm=2.0, length_mm=2.0, axis_deg=30.0)
+    rng = np.random.default_rng(3)
+    z = hf.height + 0.002 * rng.standard_normal(hf.height.shape)
+    mask = np.ones(z.shape, bool)
+    mask[:, :5] = False
+    fit = fit_height(z, hf.p, hf.q, mask=mask, pixel_size=0.05, tolerance=0.01)
+    assert np.isnan(fit.deviation[~fit.region]).all()
+    dev = fit.deviation[fit.region]
+    # signed: the surface minus the height
+    assert np.allclose(dev, fit.surface[..., 2][fit.region] - z[fit.region], rtol=0, atol=1e-12)
+    assert fit.max_deviation == pytest.approx(np.abs(dev).max(), rel=1e-12)
+    assert fit.rms_deviation == pytest.approx(np.sqrt(np.mean(dev**2)), rel=1e-12)
+
+
+def test_lookup_in_and_out_of_range_agree():
+    from surfaces.fit import _Lookup
+
+    i, j = np.array([0, 2, 5]), np.array([1, 3, 4])
+    look = _Lookup(i, j, (6, 6))
+    assert look(np.array([2, 5]), np.array([3, 4])).tolist() == [1, 2]
+    # queries beyond the padded map take the checked path and find nothing there
+    far = look(np.array([2, -50, 5]), np.array([3, 0, 400]))
+    assert far.tolist() == [1, -1, -1]
+    assert look(np.array([1, 2]), np.array([1, 3])).tolist() == [-1, 1]
+
+
+def test_blas_thread_count_is_restored():
+    from surfaces import fit as fitmod
+
+    if fitmod._BLAS_THREADS is None:
+        pytest.skip("numpy's OpenBLAS not found: the fit leaves threads alone")
+    get, put = fitmod._BLAS_THREADS
+    before = get()
+    with fitmod._one_blas_thread():
+        assert get() == 1
+    assert get() == before
+    r, c = np.mgrid[0:32, 0:32]
+    fit_height(0.5 * c - 0.25 * r, np.full((32, 32), 0.5), np.full((32, 32), 0.25))
+    assert get() == before
