@@ -435,50 +435,19 @@ def _solve(A: sp.csr_matrix, b: np.ndarray) -> np.ndarray:
 
 
 # ----------------------------------------------------------------------------- BLAS threads
-def _openblas_threads():
-    """``(get, set)`` of the thread count of numpy's bundled OpenBLAS, or None where it is not found."""
-    import ctypes
-    import glob
-    import os
-
-    libs = os.path.join(os.path.dirname(os.path.dirname(np.__file__)), "numpy.libs")
-    for path in sorted(glob.glob(os.path.join(libs, "libscipy_openblas*.so*"))):
-        try:
-            lib = ctypes.CDLL(path)
-        except OSError:
-            continue
-        for suffix in ("64_", "", "_64"):
-            get = getattr(lib, f"scipy_openblas_get_num_threads{suffix}", None)
-            put = getattr(lib, f"scipy_openblas_set_num_threads{suffix}", None)
-            if get is not None and put is not None:
-                get.restype = ctypes.c_int
-                put.argtypes = [ctypes.c_int]
-                return get, put
-    return None
-
-
-_BLAS_THREADS = _openblas_threads()
-
-
 @contextmanager
 def _one_blas_thread():
-    """Numpy's products on one thread for the duration (the previous count restored after).
+    """Numpy's products on one BLAS thread for the duration (threadpoolctl restores the count).
 
-    The fit's products are thin (inner dimension 4 to 32 pixels): OpenBLAS's threads gain
+    The fit's products are thin (inner dimension 4 to 32 pixels): BLAS threads gain
     nothing on them, and on a busy machine each product waits for a descheduled helper
     thread; measured on a 4 MP fit under load, the level products took 10 to 30 times
     longer with two threads than with one.
     """
-    if _BLAS_THREADS is None:
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=1, user_api="blas"):
         yield
-        return
-    get, put = _BLAS_THREADS
-    before = get()
-    put(1)
-    try:
-        yield
-    finally:
-        put(before)
 
 
 # ----------------------------------------------------------------------------- input
