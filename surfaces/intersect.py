@@ -1,9 +1,8 @@
 """Self-intersection of triangle meshes: which faces cut through other faces.
 
 A vectorised triangle-triangle test with a broad phase. The broad phase hashes
-every triangle's bounding box into a uniform grid (cell about twice the median
-triangle size), pairs the triangles that share a cell and keeps the pairs whose
-boxes overlap. The narrow phase decides each candidate pair by segment-triangle
+every triangle's bounding box into a grid over two axes and sweeps along the
+third (:func:`candidate_pairs`), keeping the pairs whose boxes overlap. The narrow phase decides each candidate pair by segment-triangle
 tests (Moller & Trumbore 1997): two triangles in general position intersect
 exactly when an edge of one crosses the other. Pairs that share an edge are
 neighbours and never count; pairs that share one vertex count when the edge
@@ -54,33 +53,32 @@ class SelfIntersections:
         return int(self.faces.sum())
 
 
-def _cells_per_triangle(c0: np.ndarray, c1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Grid cells ``c0 .. c1`` (inclusive, shape (T, 3)) of every box: (triangle, cell) rows."""
+def _cells_per_box(c0: np.ndarray, c1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Grid cells ``c0 .. c1`` (inclusive, shape (T, 2)) of every box: (box index, cell key) rows."""
     ext = c1 - c0 + 1
-    count = ext.prod(axis=1)
-    tri = np.repeat(np.arange(len(c0)), count)
-    # position of each repeated row inside its triangle's block of cells
-    local = np.arange(len(tri)) - np.repeat(np.cumsum(count) - count, count)
-    ex, ey = ext[tri, 0], ext[tri, 1]
-    offset = np.stack([local % ex, (local // ex) % ey, local // (ex * ey)], axis=1)
-    return tri, c0[tri] + offset
+    count = ext[:, 0] * ext[:, 1]
+    box = np.repeat(np.arange(len(c0)), count)
+    # position of each repeated row inside its box's block of cells
+    local = np.arange(len(box)) - np.repeat(np.cumsum(count) - count, count)
+    ey = ext[box, 1]
+    width = int(c1[:, 1].max()) + 1
+    return box, (c0[box, 0] + local // ey) * width + c0[box, 1] + local % ey
 
 
-def _cell_key(cells: np.ndarray, shape: np.ndarray) -> np.ndarray:
-    """One int64 per cell (cells counted from 0, grid ``shape`` (3,))."""
-    return (cells[:, 0] * shape[1] + cells[:, 1]) * shape[2] + cells[:, 2]
-
-
-def candidate_pairs(corners: np.ndarray, cell: float | None = None) -> np.ndarray:
+def candidate_pairs(corners: np.ndarray) -> np.ndarray:
     """Broad phase: pairs of triangles whose bounding boxes overlap.
+
+    The boxes are hashed into a grid over the two axes of smallest span (cells
+    of the median box extent), and swept along the third axis inside every
+    cell; a pair whose boxes share several cells is kept in the cell of the
+    overlap's low corner only. Long flat slivers (fans of planar caps) then
+    meet only the triangles beside them, not everything within their box's
+    extent along the sweep axis.
 
     Parameters
     ----------
     corners : array_like, shape (T, 3, 3)
         Corner positions of every triangle.
-    cell : float, optional
-        Grid cell size (same units); default the median of the
-        triangles' largest box extent.
 
     Returns
     -------
@@ -91,32 +89,27 @@ def candidate_pairs(corners: np.ndarray, cell: float | None = None) -> np.ndarra
     if len(c) < 2:
         return np.zeros((0, 2), dtype=np.int64)
     lo, hi = c.min(axis=1), c.max(axis=1)
-    size = (hi - lo).max(axis=1)
-    if cell is None:
-        cell = float(np.median(size))
-    span = float((hi.max(axis=0) - lo.min(axis=0)).max())
-    cell = max(float(cell), span * 1e-6, 1e-300)
+    span = hi.max(axis=0) - lo.min(axis=0)
+    axis = int(np.argmax(span))
+    grid = [k for k in range(3) if k != axis]
+    cell = np.maximum(np.median(hi[:, grid] - lo[:, grid], axis=0), span[grid] * 1e-6 + 1e-300)
     # a few huge triangles would otherwise cover millions of cells: coarsen until bounded
-    while True:
-        n_rows = np.prod(np.floor(hi / cell) - np.floor(lo / cell) + 1, axis=1).sum()
-        if n_rows <= 16 * len(c) + 1000:
-            break
-        cell *= 2.0
-    origin = np.floor(lo.min(axis=0) / cell)
-    c0 = (np.floor(lo / cell) - origin).astype(np.int64)
-    c1 = (np.floor(hi / cell) - origin).astype(np.int64)
-    shape = c1.max(axis=0) + 1
-    tri, cells = _cells_per_triangle(c0, c1)
-    key = _cell_key(cells, shape)
-    # sweep in x inside every cell: rows sorted by (cell, low x); a row pairs with the rows after it
-    # in its cell whose low x does not pass its high x (a fan of triangles at a pole stays cheap)
-    x0 = lo[:, 0] - lo[:, 0].min()
-    width = float(hi[:, 0].max() - lo[:, 0].min()) * (1 + 1e-9) + 1e-300
+    while np.prod(np.floor(hi[:, grid] / cell) - np.floor(lo[:, grid] / cell) + 1, axis=1).sum() > 8 * len(c) + 1000:
+        cell = cell * 2.0
+    origin = np.floor(lo[:, grid].min(axis=0) / cell)
+    c0 = (np.floor(lo[:, grid] / cell) - origin).astype(np.int64)
+    c1 = (np.floor(hi[:, grid] / cell) - origin).astype(np.int64)
+    tri, key = _cells_per_box(c0, c1)
+    width = int(c1[:, 1].max()) + 1
+    # rows sorted by (cell, low end along the sweep axis); a row pairs with the rows after it in its
+    # cell whose low end does not pass its high end
+    start = lo[:, axis].min()
+    length = float(hi[:, axis].max() - start) * (1 + 1e-9) + 1e-300
     rank = np.unique(key, return_inverse=True)[1].astype(np.float64)
-    sweep = rank + x0[tri] / width
+    sweep = rank + (lo[tri, axis] - start) / length
     order = np.argsort(sweep, kind="stable")
     tri, key, rank, sweep = tri[order], key[order], rank[order], sweep[order]
-    end = np.searchsorted(sweep, rank + (hi[tri, 0] - lo[:, 0].min()) / width, side="right")
+    end = np.searchsorted(sweep, rank + (hi[tri, axis] - start) / length, side="right")
     end = np.minimum(end, np.searchsorted(rank, rank, side="right"))
     n_after = np.maximum(end - np.arange(len(key)) - 1, 0)
     first = np.repeat(np.arange(len(key)), n_after)
@@ -125,8 +118,8 @@ def candidate_pairs(corners: np.ndarray, cell: float | None = None) -> np.ndarra
     a, b = np.minimum(a, b), np.maximum(a, b)
     overlap = np.all((lo[a] <= hi[b]) & (lo[b] <= hi[a]), axis=1)
     a, b, pair_cell = a[overlap], b[overlap], pair_cell[overlap]
-    # boxes that meet in several cells: the pair is kept once, in the cell of the overlap's low corner
-    overlap = _cell_key(np.maximum(c0[a], c0[b]), shape) == pair_cell
+    low = np.maximum(c0[a], c0[b])
+    overlap = low[:, 0] * width + low[:, 1] == pair_cell
     return np.stack([a[overlap], b[overlap]], axis=1)
 
 
