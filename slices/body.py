@@ -17,7 +17,7 @@ from slices import caps as capmod
 from slices.chaining import Body
 from slices.io import SPACING_RTOL
 from slices.options import SurfaceOptions
-from slices.surface import lattice_size, side_surface, slice_curves
+from slices.surface import blend_overshoot, lattice_size, side_surface, slice_curves
 from surfaces import measure
 from surfaces.bezier import BezierPatches
 from surfaces.mesh import TriangleMesh, tessellate
@@ -60,6 +60,11 @@ class BodySurface:
         Size of the body's common ``u`` lattice (patch rows).
     start_angle : float
         Direction of ray 0 in radians from +x.
+    n_limited : int
+        Curve Bezier points whose blend across slices was limited (monotone),
+        see :func:`slices.surface.blend_overshoot`.
+    caps_used : (str, str)
+        The caps the low and the high end got (:func:`slices.caps.end_kinds`).
     """
 
     body: Body
@@ -74,6 +79,8 @@ class BodySurface:
     n_turning: int
     n_lattice: int
     start_angle: float
+    n_limited: int = 0
+    caps_used: tuple[str, str] = ("flat", "flat")
 
 
 def _flip(mesh: TriangleMesh) -> TriangleMesh:
@@ -117,17 +124,16 @@ def build_body(body: Body, spacing: float, options: SurfaceOptions | None = None
 
     Returns
     -------
-    BodySurface or None
-        None for a single-contour body with caps none/flat at both ends (no thickness).
+    BodySurface
         Ends where the chain splits (branching or merging contours) always get
-        half caps, so neighbouring bodies meet half-way between the planes.
+        half caps, so neighbouring bodies meet half-way between the planes; a
+        single contour gets half caps where none/flat would give it no
+        thickness (the slab planning systems count), see
+        :func:`slices.caps.end_kinds`; ``caps_used`` records what each end got.
     """
     opts = SurfaceOptions() if options is None else options
     z = body.z
-    low, high = capmod.end_kinds(opts.caps, body.start, body.stop)
-    thin = ("none", "flat")
-    if len(z) == 1 and low in thin and high in thin:
-        return None
+    low, high = capmod.end_kinds(opts.caps, body.start, body.stop, n_contours=len(z))
     d = positive(spacing, "spacing")
     if len(z) > 1 and np.any(np.abs(np.diff(z) - d) > SPACING_RTOL * d):
         d = float(np.median(np.diff(z)))
@@ -137,8 +143,11 @@ def build_body(body: Body, spacing: float, options: SurfaceOptions | None = None
     curves = sc.curves
     centers = np.array([np.append(p.center, zk) for p, zk in zip(sc.params, z)])
     stack, prepend = capmod.add_dome_rings(curves, centers, d / 2, low, high)
+    n_limited = 0
     if len(stack) >= 2:
-        side, node_eval = side_surface(stack, opts.method, v=stack[:, 0, 0, 2])
+        side, node_eval = side_surface(stack, opts.method, v=stack[:, 0, 0, 2], monotone=opts.monotone)
+        if opts.monotone and opts.method == "blending":
+            n_limited = blend_overshoot(stack, stack[:, 0, 0, 2])
         side_ctrl, bottom, top = side.control, side.control[:, 0, :, 0], side.control[:, -1, :, 3]
     else:
         side_ctrl, bottom = None, curves[0]
@@ -169,5 +178,5 @@ def build_body(body: Body, spacing: float, options: SurfaceOptions | None = None
     return BodySurface(
         body, patches, grid.side_columns, tri_mesh, display, volume, area, dev,
         int(len(pts)), int(sum(int(p.turning.sum()) for p in sc.params)), int(curves.shape[1]),
-        float(sc.start_angle),
+        float(sc.start_angle), n_limited, (low, high),
     )

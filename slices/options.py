@@ -12,6 +12,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, fields, replace
 
+import numpy as np
+
 from surfaces.validate import as_array, positive
 
 
@@ -71,6 +73,7 @@ class SurfaceOptions:
     correspondence: str = "seed"
     start_angle: float | None = None
     samples: int | None = None
+    monotone: bool = True
 
     def __post_init__(self) -> None:
         # the modules that use the names hold them (imported here: they import these defaults)
@@ -89,6 +92,9 @@ class SurfaceOptions:
             object.__setattr__(self, "start_angle", float(as_array(self.start_angle, "start_angle", shape=())))
         if self.samples is not None:
             object.__setattr__(self, "samples", _whole(self.samples, "samples", 1, "subdivision per patch side"))
+        if not isinstance(self.monotone, (bool, np.bool_)):
+            raise ValueError(f"monotone: must be True or False, got {self.monotone!r}")
+        object.__setattr__(self, "monotone", bool(self.monotone))
         object.__setattr__(self, "n_rays", n_rays)
         object.__setattr__(self, "lattice_factor", factor)
 

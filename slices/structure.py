@@ -35,8 +35,6 @@ class Reconstruction:
     Attributes
     ----------
     bodies : list of BodySurface
-    skipped : list of Body
-        Single-contour bodies left out (caps none/flat give them no thickness).
     volume_mm3 : float
         Outer bodies' volumes minus the holes'.
     area_mm2 : float
@@ -51,7 +49,6 @@ class Reconstruction:
     """
 
     bodies: list
-    skipped: list
     volume_mm3: float
     area_mm2: float
     slab_volume_mm3: float
@@ -163,17 +160,16 @@ def reconstruct_contours(contours: list[Contour], *, spacing: float | None = Non
         # one tessellation density for all bodies, so the whole mesh meets the budget
         est = sum(body_lattice_size(b, opts.lattice_factor) * (len(b.contours) + 5) for b in bodies)
         build = surface_options(opts, samples=max(1, min(6, int(np.sqrt(MESH_BUDGET / max(est, 1))))))
-    built, skipped = [], []
+    built = []
     for i, body in enumerate(bodies):
-        b = build_body(body, d, build, mesh=mesh)
-        (skipped if b is None else built).append(body if b is None else b)
+        built.append(build_body(body, d, build, mesh=mesh))
         if progress is not None:
             progress(i + 1, len(bodies))
     sign = {"outer": 1.0, "hole": -1.0}
     volume = sum(sign[b.body.kind] * b.volume_mm3 for b in built)
     area = sum(b.area_mm2 for b in built)
     slab = slab_volume(contours, None if irregular else d)
-    return Reconstruction(built, skipped, float(volume), float(area), slab, d, opts)
+    return Reconstruction(built, float(volume), float(area), slab, d, opts)
 
 
 def reconstruct_roi(input_path, roi=None, *, reading: ReadOptions | None = None,
@@ -199,20 +195,11 @@ def reconstruct_roi(input_path, roi=None, *, reading: ReadOptions | None = None,
     -------
     stack : ContourStack
     reconstruction : Reconstruction
-
-    Raises
-    ------
-    ValueError
-        Besides the readers' errors: nothing to reconstruct (only single-contour
-        bodies with caps none/flat).
     """
     read = ReadOptions() if reading is None else reading
     stack = load(input_path, roi, read.hu_min, read.hu_max, read.spacing, bool(read.resample))
     rec = reconstruct_contours(stack.contours, irregular=bool(read.resample) and stack.source in ("rtstruct", "json"),
                                progress=progress, options=options)
-    if not rec.bodies:
-        raise ValueError(f"{input_path}: nothing to reconstruct in {stack.name!r} "
-                         "(only single-contour bodies; try --caps half)")
     return stack, rec
 
 

@@ -14,7 +14,7 @@ from surfaces.mesh import TriangleMesh
 
 
 def body_table(rec: Reconstruction) -> list[dict]:
-    """One row per body: kind, planes, chain ends, volume, area, patches, parameters.
+    """One row per body: kind, planes, chain ends, caps, volume, area, patches, parameters.
 
     Parameters
     ----------
@@ -23,9 +23,11 @@ def body_table(rec: Reconstruction) -> list[dict]:
     Returns
     -------
     list of dict
-        Built bodies first (``volume_mm3``, ``area_mm2``, ``n_patches``,
-        ``n_control_points``, ``n_turning_points``, ``max_control_point_deviation_mm``,
-        ``ray_start_deg``), then skipped single-contour bodies (``skipped``: why).
+        ``kind``, planes, ``start``/``stop`` (why the chain ends), ``caps`` (what
+        each end got, :func:`slices.caps.end_kinds`), ``subtracted`` (holes),
+        ``volume_mm3``, ``area_mm2``, ``n_patches``, ``n_control_points``,
+        ``n_turning_points``, ``n_blend_limited`` (tangents the monotone blend
+        shortened), ``max_control_point_deviation_mm``, ``ray_start_deg``.
     """
     out = []
     for b in rec.bodies:
@@ -35,16 +37,15 @@ def body_table(rec: Reconstruction) -> list[dict]:
             "z_min_mm": float(z.min()), "z_max_mm": float(z.max()),
             "n_slices": int(len(z)),
             "start": b.body.start, "stop": b.body.stop,
+            "caps": list(b.caps_used),
+            "subtracted": b.body.kind == "hole",
             "volume_mm3": b.volume_mm3, "area_mm2": b.area_mm2,
             "n_patches": int(b.patches.n_patches),
             "n_control_points": b.n_points, "n_turning_points": b.n_turning,
+            "n_blend_limited": b.n_limited,
             "max_control_point_deviation_mm": b.max_deviation_mm,
             "ray_start_deg": float(np.degrees(b.start_angle)),
         })
-    for body in rec.skipped:
-        out.append({"kind": body.kind, "z_min_mm": float(body.z.min()), "z_max_mm": float(body.z.max()),
-                    "n_slices": 1, "start": body.start, "stop": body.stop,
-                    "skipped": "single contour: no thickness with caps none/flat"})
     return out
 
 
@@ -66,8 +67,15 @@ def chaining_text(rec: Reconstruction) -> str:
             f"{n_out} outer, {n_hole} hole(s) (volume subtracted)")
     if splits:
         text += f"; {splits} chain(s) split at a branching or merging contour"
-    if rec.skipped:
-        text += f"; {len(rec.skipped)} single-contour body(ies) skipped (no thickness with these caps)"
+    singles = sum(len(b.body.contours) == 1 and b.caps_used == ("half", "half") and rec.options.caps in ("none", "flat")
+                  for b in rec.bodies)
+    if singles:
+        text += (f"; {singles} single-contour body(ies) given half caps (no thickness with "
+                 f"caps {rec.options.caps})")
+    limited = sum(b.n_limited for b in rec.bodies)
+    if limited:
+        text += (f"; the blend across slices was limited (monotone) at {limited} curve point(s) "
+                 "where it would overshoot")
     return text
 
 

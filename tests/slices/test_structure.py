@@ -89,13 +89,17 @@ def test_branching_splits_chain_and_separate_bodies():
 def test_single_contour_bodies():
     conts = [Contour(0.0, circle(0, 0, 10, 64)), Contour(3.0, circle(30, 0, 5, 64)),
              Contour(6.0, circle(30, 0, 5, 64))]
-    rec = reconstruct_contours(conts, spacing=3.0, caps="flat", mesh=False)
-    assert len(rec.skipped) == 1 and len(rec.bodies) == 1
-    rec = reconstruct_contours(conts, spacing=3.0, caps="half", mesh=False)
-    assert len(rec.skipped) == 0 and len(rec.bodies) == 2
-    single = next(b for b in rec.bodies if len(b.body.contours) == 1)
     area = abs(curve_area(slice_curves([circle(0, 0, 10, 64)], [0.0], 16).curves[0]))
-    assert single.volume_mm3 == pytest.approx(area * 3.0, rel=1e-9)
+    for caps in ("none", "flat", "half", "dome"):
+        # a single contour is never dropped: with none/flat it gets the planning systems' slab
+        rec = reconstruct_contours(conts, spacing=3.0, caps=caps, mesh=False)
+        assert len(rec.bodies) == 2
+        single = next(b for b in rec.bodies if len(b.body.contours) == 1)
+        if caps != "dome":
+            assert single.caps_used == ("half", "half")
+            assert single.volume_mm3 == pytest.approx(area * 3.0, rel=1e-9)
+        else:
+            assert single.caps_used == ("dome", "dome") and 0 < single.volume_mm3 < area * 3.0
 
 
 def test_bad_spacing_and_method(ellipsoid):
@@ -199,7 +203,8 @@ def test_reconstruct_roi_resample_blends_contour_files_at_their_planes(ellipsoid
 
 def test_reconstruct_roi_with_only_single_contours(tmp_path):
     path = _write_contours(tmp_path / "one.json", [Contour(0.0, circle(0, 0, 5)), Contour(3.0, circle(20, 0, 5))])
-    with pytest.raises(ValueError, match="nothing to reconstruct"):
-        reconstruct_roi(path)
+    # flat caps (the default) give a single contour no thickness: it gets the half-cap slab instead
+    _, flat = reconstruct_roi(path)
     _, rec = reconstruct_roi(path, options=SurfaceOptions(caps="half"))
-    assert len(rec.bodies) == 2 and not rec.skipped
+    assert len(rec.bodies) == len(flat.bodies) == 2
+    assert flat.volume_mm3 == pytest.approx(rec.volume_mm3) == pytest.approx(rec.slab_volume_mm3 * 2, rel=0.02)
