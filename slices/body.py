@@ -65,6 +65,10 @@ class BodySurface:
         see :func:`slices.surface.blend_overshoot`.
     caps_used : (str, str)
         The caps the low and the high end got (:func:`slices.caps.end_kinds`).
+    end_areas_mm2 : (float, float)
+        Areas enclosed by the lowest and the highest slice curve (mm^2).
+    spacing : float
+        Slice spacing used for the caps (mm).
     """
 
     body: Body
@@ -81,6 +85,34 @@ class BodySurface:
     start_angle: float
     n_limited: int = 0
     caps_used: tuple[str, str] = ("flat", "flat")
+    end_areas_mm2: tuple[float, float] = (0.0, 0.0)
+    spacing: float = 0.0
+
+    def volume_with_caps(self, caps: str) -> float | None:
+        """The body's volume had it been capped with ``caps`` (none, flat or half).
+
+        A half cap adds a prism of the end curve's area times half a spacing to
+        the flat-capped volume; ``none`` encloses what flat caps enclose. Ends
+        at a branching keep their half caps (:func:`slices.caps.end_kinds`).
+
+        Parameters
+        ----------
+        caps : {"none", "flat", "half"}
+
+        Returns
+        -------
+        float or None
+            mm^3 (positive, also for holes); None when an end has a dome (no
+            closed form: build the body again).
+        """
+        if caps not in ("none", "flat", "half"):
+            raise ValueError(f"caps: must be 'none', 'flat' or 'half', got {caps!r}")
+        if "dome" in self.caps_used:
+            return None
+        wanted = capmod.end_kinds(caps, self.body.start, self.body.stop, len(self.body.contours))
+        prism = [a * self.spacing / 2 for a in self.end_areas_mm2]
+        extra = sum(p * ((w == "half") - (u == "half")) for p, w, u in zip(prism, wanted, self.caps_used))
+        return float(self.volume_mm3 + extra)
 
 
 def _flip(mesh: TriangleMesh) -> TriangleMesh:
@@ -179,4 +211,5 @@ def build_body(body: Body, spacing: float, options: SurfaceOptions | None = None
         body, patches, grid.side_columns, tri_mesh, display, volume, area, dev,
         int(len(pts)), int(sum(int(p.turning.sum()) for p in sc.params)), int(curves.shape[1]),
         float(sc.start_angle), n_limited, (low, high),
+        (abs(capmod.curve_area(curves[0])), abs(capmod.curve_area(curves[-1]))), float(d),
     )

@@ -14,11 +14,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from slices.body import MESH_BUDGET, BodySurface, body_lattice_size, build_body
-from slices.chaining import chain, slab_volume
+from slices.chaining import chain, offset_sensitivity, slab_volume
 from slices.io import SPACING_RTOL, Contour, ContourStack, check_spacing, load
 from slices.options import ReadOptions, SurfaceOptions, surface_options
 from surfaces.mesh import TriangleMesh, merge_meshes
 from surfaces.validate import positive
+
+
+#: Outward contour offset (mm) of the volume sensitivity (issue 17: what a planning physicist compares).
+SENSITIVITY_OFFSET_MM = 0.5
 
 
 def _merged(meshes: list) -> TriangleMesh | None:
@@ -46,6 +50,9 @@ class Reconstruction:
     options : SurfaceOptions
         The options asked for (``samples=None``: the bodies got one density
         adapted to :data:`slices.body.MESH_BUDGET`).
+    sensitivity_mm3 : float
+        Change of the volume when every contour grows outward by
+        :data:`SENSITIVITY_OFFSET_MM` (:func:`slices.chaining.offset_sensitivity`).
     """
 
     bodies: list
@@ -54,6 +61,32 @@ class Reconstruction:
     slab_volume_mm3: float
     spacing: float
     options: SurfaceOptions
+    sensitivity_mm3: float = 0.0
+
+    def volume_by_caps(self) -> dict:
+        """The structure's volume under each end-slice convention, and the slab count.
+
+        Returns
+        -------
+        dict
+            ``none``, ``flat``, ``half`` (mm^3: outer bodies minus holes, every
+            body capped that way, :meth:`slices.body.BodySurface.volume_with_caps`;
+            bodies with domes are built again without a mesh) and ``slab``
+            (:attr:`slab_volume_mm3`).
+        """
+        sign = {"outer": 1.0, "hole": -1.0}
+        out = {}
+        for caps in ("none", "flat", "half"):
+            total = 0.0
+            for b in self.bodies:
+                v = b.volume_with_caps(caps)
+                if v is None:
+                    v = build_body(b.body, self.spacing, surface_options(self.options, caps=caps, samples=1),
+                                   mesh=False).volume_mm3
+                total += sign[b.body.kind] * v
+            out[caps] = float(total)
+        out["slab"] = float(self.slab_volume_mm3)
+        return out
 
     @property
     def mesh(self) -> TriangleMesh | None:
@@ -169,7 +202,8 @@ def reconstruct_contours(contours: list[Contour], *, spacing: float | None = Non
     volume = sum(sign[b.body.kind] * b.volume_mm3 for b in built)
     area = sum(b.area_mm2 for b in built)
     slab = slab_volume(contours, None if irregular else d)
-    return Reconstruction(built, float(volume), float(area), slab, d, opts)
+    sensitivity = offset_sensitivity(contours, None if irregular else d, SENSITIVITY_OFFSET_MM)
+    return Reconstruction(built, float(volume), float(area), slab, d, opts, sensitivity)
 
 
 def reconstruct_roi(input_path, roi=None, *, reading: ReadOptions | None = None,

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from slices.io import ContourStack
-from slices.structure import Reconstruction
+from slices.structure import SENSITIVITY_OFFSET_MM, Reconstruction
 from surfaces.mesh import TriangleMesh
 
 
@@ -105,14 +105,18 @@ def summarize(input_path, stack: ContourStack, rec: Reconstruction, mesh: Triang
     Returns
     -------
     dict
-        Input, options, volume, area, slab volume, counts, mesh checks, bodies,
-        chaining, notes, timings; ``composition`` and ``reference_bspline`` when given.
+        Input, options, volume, area, slab volume, the volume under each end-slice
+        convention (``volume_by_caps_mm3``: none, flat, half, slab) and their range
+        (``volume_range_mm3``), the volume's sensitivity to a 0.5 mm contour offset
+        (``volume_sensitivity_mm3_per_0.5mm`` and its method), counts, mesh checks,
+        bodies, chaining, notes, timings; ``composition`` and ``reference_bspline`` when given.
         With a composition, ``volume_mm3``, ``volume_ml`` and ``area_mm2`` are the
         composed solid's (``volume_source`` says which); the base ROI's own figures
         are under ``composition.base``.
     """
     opts = rec.options
     n_out = sum(b.body.kind == "outer" for b in rec.bodies)
+    by_caps = rec.volume_by_caps()
     volume = rec.volume_mm3 if composition is None else composition["result_volume_mm3"]
     area = rec.area_mm2 if composition is None else composition["area_mm2"]
     summary = {
@@ -130,6 +134,13 @@ def summarize(input_path, stack: ContourStack, rec: Reconstruction, mesh: Triang
         "volume_source": "patches" if composition is None else "composition",
         "slab_volume_mm3": rec.slab_volume_mm3,
         "slab_volume_ml": rec.slab_volume_mm3 / 1000.0,
+        "volume_by_caps_mm3": by_caps,
+        "volume_range_mm3": [min(by_caps.values()), max(by_caps.values())],
+        f"volume_sensitivity_mm3_per_{SENSITIVITY_OFFSET_MM:g}mm": rec.sensitivity_mm3,
+        "volume_sensitivity_method": (
+            f"every contour offset outward by {SENSITIVITY_OFFSET_MM:g} mm (holes shrink): per contour "
+            "perimeter x offset + pi x offset^2 (Steiner's formula), planes summed as the slab volume counts "
+            "them (end planes half)"),
         "spacing_mm": rec.spacing,
         "n_slices": int(len(stack.planes)),
         "n_contours": len(stack.contours),

@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import json
+import numpy as np
 
 import pytest
 
 from slices.caps import curve_area
+from slices.control_points import signed_area
 from slices.io import Contour
 from slices.options import ReadOptions, SurfaceOptions
 from slices.structure import reconstruct_contours, reconstruct_roi, solid_union
@@ -208,3 +210,26 @@ def test_reconstruct_roi_with_only_single_contours(tmp_path):
     _, rec = reconstruct_roi(path, options=SurfaceOptions(caps="half"))
     assert len(rec.bodies) == len(flat.bodies) == 2
     assert flat.volume_mm3 == pytest.approx(rec.volume_mm3) == pytest.approx(rec.slab_volume_mm3 * 2, rel=0.02)
+
+
+def test_volume_by_caps_and_offset_sensitivity():
+    from slices.chaining import offset_sensitivity
+    t = np.linspace(0, 2 * np.pi, 256, endpoint=False)
+    disc = 10 * np.stack([np.cos(t), np.sin(t)], axis=1)
+    conts = [Contour(z, disc) for z in (0.0, 5.0, 10.0, 15.0, 20.0)]
+    area = float(abs(signed_area(disc)))
+    by = {}
+    for caps in ("flat", "half", "dome"):
+        rec = reconstruct_contours(conts, caps=caps, mesh=False)
+        by[caps] = rec.volume_by_caps()
+        # whichever caps were built, the conventions agree (dome bodies are rebuilt)
+        assert by[caps]["half"] == pytest.approx(by[caps]["flat"] + area * 5.0, rel=1e-3)
+        assert by[caps]["none"] == by[caps]["flat"]
+        assert by[caps]["slab"] == pytest.approx(area * 20.0)
+    assert by["flat"]["half"] == pytest.approx(reconstruct_contours(conts, caps="half", mesh=False).volume_mm3)
+    perimeter = float(np.linalg.norm(np.roll(disc, -1, axis=0) - disc, axis=1).sum())
+    expected = (perimeter * 0.5 + np.pi * 0.25) * 20.0
+    assert rec.sensitivity_mm3 == pytest.approx(expected)
+    # the holes of a ring shrink when the contours grow: both perimeters count
+    ring = [Contour(z, c) for z in (0.0, 5.0) for c in (disc, 0.5 * disc)]
+    assert offset_sensitivity(ring, 5.0) == pytest.approx(perimeter * 1.5 * 0.5 * 5.0)
