@@ -2,12 +2,13 @@
 
 A vectorised triangle-triangle test with a broad phase. The broad phase hashes
 every triangle's bounding box into a grid over two axes and sweeps along the
-third (:func:`candidate_pairs`), keeping the pairs whose boxes overlap. The narrow phase decides each candidate pair by segment-triangle
-tests (Moller & Trumbore 1997): two triangles in general position intersect
-exactly when an edge of one crosses the other. Pairs that share an edge are
-neighbours and never count; pairs that share one vertex count when the edge
-opposite the shared vertex of one crosses the other. Contacts within a relative
-tolerance (a vertex lying on the other face, coplanar touching) do not count,
+third (:func:`candidate_pairs`), keeping the pairs whose boxes overlap. The
+narrow phase decides each candidate pair by segment-triangle tests (Moller &
+Trumbore 1997): two triangles in general position intersect exactly when an
+edge of one crosses the other. Pairs that share an edge are neighbours and
+never count; pairs that share one vertex count when the edge opposite the
+shared vertex of one crosses the other. Contacts within a relative tolerance
+(a vertex lying on the other face, coplanar touching) do not count,
 so a clean mesh welded from patches reads 0.
 
 This is the check of issue 19 ("0 self-intersecting faces"), independent of
