@@ -15,7 +15,7 @@ import numpy as np
 
 from slices.body import MESH_BUDGET, BodySurface, body_lattice_size, build_body
 from slices.chaining import chain, offset_sensitivity, slab_volume
-from slices.io import SPACING_RTOL, Contour, ContourStack, check_spacing, load
+from slices.io import SPACING_RTOL, Contour, ContourStack, check_spacing, load, parse_spacing
 from slices.options import ReadOptions, SurfaceOptions, surface_options
 from surfaces.mesh import TriangleMesh, merge_meshes
 from surfaces.validate import positive
@@ -186,7 +186,8 @@ def reconstruct_contours(contours: list[Contour], *, spacing: float | None = Non
             raise ValueError(f"spacing: {s} mm given but the planes are {d} mm apart")
         d = s
     if d == 0:
-        raise ValueError("contours: a single plane has no slice spacing; give spacing")
+        raise ValueError("contours: a single plane has no slice spacing; give spacing (--spacing z,y,x "
+                         "on the command line)")
     bodies = chain(contours, None if irregular else d)
     build = opts
     if opts.samples is None:
@@ -217,7 +218,8 @@ def reconstruct_roi(input_path, roi=None, *, reading: ReadOptions | None = None,
     roi : str or int, optional
         ROI name or number (RTSTRUCT).
     reading : ReadOptions, optional
-        Intensity window, voxel spacing, resampling. With ``resample``, contour
+        Intensity window, voxel spacing (its z is also the slab of a single
+        plane of contours), resampling. With ``resample``, contour
         inputs (RTSTRUCT, JSON) are blended at their true plane positions
         (``irregular`` of :func:`reconstruct_contours`).
     options : SurfaceOptions, optional
@@ -232,7 +234,14 @@ def reconstruct_roi(input_path, roi=None, *, reading: ReadOptions | None = None,
     """
     read = ReadOptions() if reading is None else reading
     stack = load(input_path, roi, read.hu_min, read.hu_max, read.spacing, bool(read.resample))
-    rec = reconstruct_contours(stack.contours, irregular=bool(read.resample) and stack.source in ("rtstruct", "json"),
+    spacing = None
+    if read.spacing is not None and len(stack.planes) == 1:
+        # one plane has no spacing of its own: the z of --spacing z,y,x gives its slab
+        given = read.spacing
+        single = isinstance(given, int | float) or (isinstance(given, str) and "," not in given)
+        spacing = positive(given, "--spacing") if single else parse_spacing(given)[0]
+    rec = reconstruct_contours(stack.contours, spacing=spacing,
+                               irregular=bool(read.resample) and stack.source in ("rtstruct", "json"),
                                progress=progress, options=options)
     return stack, rec
 

@@ -233,3 +233,20 @@ def test_volume_by_caps_and_offset_sensitivity():
     # the holes of a ring shrink when the contours grow: both perimeters count
     ring = [Contour(z, c) for z in (0.0, 5.0) for c in (disc, 0.5 * disc)]
     assert offset_sensitivity(ring, 5.0) == pytest.approx(perimeter * 1.5 * 0.5 * 5.0)
+
+
+def test_messages_name_the_real_problem(tmp_path):
+    disc = circle(0, 0, 10, 40)
+    far = _write_contours(tmp_path / "far.json", [Contour(z, disc + 1e9) for z in (0.0, 2.0, 4.0)])
+    with pytest.raises(ValueError, match="not patient coordinates in mm"):
+        reconstruct_roi(far)
+    tiny = _write_contours(tmp_path / "tiny.json", [Contour(z, disc * 1e-6) for z in (0.0, 2e-6, 4e-6)])
+    with pytest.raises(ValueError, match="check the units"):
+        reconstruct_roi(tiny)
+    one = _write_contours(tmp_path / "one.json", [Contour(0.0, disc)])
+    with pytest.raises(ValueError, match="give spacing"):
+        reconstruct_roi(one)
+    # --spacing given: its z is the single plane's slab (no "give spacing")
+    for given in ("2,1,1", "2", 2.0):
+        _, rec = reconstruct_roi(one, reading=ReadOptions(spacing=given), options=SurfaceOptions(samples=1))
+        assert rec.spacing == 2.0 and rec.volume_mm3 == pytest.approx(abs(signed_area(disc)) * 2.0, rel=1e-3)
