@@ -249,4 +249,4 @@ def test_messages_name_the_real_problem(tmp_path):
     # --spacing given: its z is the single plane's slab (no "give spacing")
     for given in ("2,1,1", "2", 2.0):
         _, rec = reconstruct_roi(one, reading=ReadOptions(spacing=given), options=SurfaceOptions(samples=1))
-        assert rec.spacing == 2.0 and rec.volume_mm3 == pytest.approx(abs(signed_area(disc)) * 2.0, rel=1e-3)
+        assert rec.spacing == 2.0 and rec.volume_mm3 == pytest.approx(abs(signed_area(disc)) * 2.0, rel=1e-2)
