@@ -9,7 +9,7 @@ the deviation at the control points and the triangle mesh.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -17,7 +17,7 @@ from slices import caps as capmod
 from slices.chaining import Body
 from slices.io import SPACING_RTOL
 from slices.options import SurfaceOptions
-from slices.surface import blend_overshoot, lattice_size, side_surface, slice_curves
+from slices.surface import blend_overshoot, lattice_size, ruled_surface, side_surface, slice_curves
 from surfaces import measure
 from surfaces.bezier import BezierPatches
 from surfaces.mesh import TriangleMesh, tessellate
@@ -69,6 +69,10 @@ class BodySurface:
         Areas enclosed by the lowest and the highest slice curve (mm^2).
     spacing : float
         Slice spacing used for the caps (mm).
+    surface : str
+        Which side surface was kept (:data:`FALLBACKS`; empty when not checked).
+    self_intersecting_faces : int or None
+        Self-intersecting faces of the mesh (None when not checked).
     """
 
     body: Body
@@ -87,6 +91,8 @@ class BodySurface:
     caps_used: tuple[str, str] = ("flat", "flat")
     end_areas_mm2: tuple[float, float] = (0.0, 0.0)
     spacing: float = 0.0
+    surface: str = ""
+    self_intersecting_faces: int | None = None
 
     def volume_with_caps(self, caps: str) -> float | None:
         """The body's volume had it been capped with ``caps`` (none, flat or half).
@@ -137,8 +143,50 @@ def body_lattice_size(body: Body, lattice_factor: float) -> int:
     return lattice_size(max(len(c.points) for c in body.contours), lattice_factor)
 
 
+#: Surfaces tried, in order, when a body's mesh folds (:func:`build_body` with ``options.unfold``).
+FALLBACKS = (
+    ("seed blend", {}),
+    ("arc-length blend", {"correspondence": "arc", "monotone": True}),
+    ("arc-length ruled", {"correspondence": "arc", "method": "ruled"}),
+)
+
+
 def build_body(body: Body, spacing: float, options: SurfaceOptions | None = None,
-               mesh: bool = True) -> BodySurface | None:
+               mesh: bool = True) -> BodySurface:
+    """Surface, volume and area of one body, rebuilt more conservatively while its mesh folds.
+
+    With ``options.unfold`` and a mesh, the mesh is checked for self-intersecting
+    faces (:func:`surfaces.intersect.self_intersections`); a folded body is built
+    again with the next surface of :data:`FALLBACKS` (the blend linking the
+    slices by arc length, limited to be monotone; then straight lines between
+    the slices), and the first clean one, or the one with the fewest folded
+    faces, is kept (``surface`` and ``self_intersecting_faces`` say which).
+    See :func:`build_body_once` for the parameters.
+    """
+    from surfaces.intersect import self_intersections
+
+    opts = SurfaceOptions() if options is None else options
+    first = build_body_once(body, spacing, opts, mesh=mesh)
+    if not (mesh and opts.unfold):
+        return first
+    best = None
+    for i, (name, change) in enumerate(FALLBACKS):
+        if i and opts.method != "blending":
+            break
+        b = first if i == 0 else build_body_once(body, spacing, replace(opts, **{k: v for k, v in change.items()
+                                                                                 if k != "method"}),
+                                                 mesh=True, ruled=change.get("method") == "ruled")
+        b.surface = name if i else f"{opts.method} ({opts.correspondence})"
+        b.self_intersecting_faces = self_intersections(b.mesh.vertices, b.mesh.triangles).n_faces
+        if best is None or b.self_intersecting_faces < best.self_intersecting_faces:
+            best = b
+        if best.self_intersecting_faces == 0:
+            break
+    return best
+
+
+def build_body_once(body: Body, spacing: float, options: SurfaceOptions | None = None,
+                    mesh: bool = True, ruled: bool = False) -> BodySurface:
     """Surface, volume and area of one body (seed 000 sections II-III).
 
     Parameters
@@ -153,6 +201,9 @@ def build_body(body: Body, spacing: float, options: SurfaceOptions | None = None
         when omitted). ``samples=None`` gives this body a density from :data:`MESH_BUDGET`.
     mesh : bool
         Build the triangle mesh.
+    ruled : bool
+        Straight lines between the slices (:func:`slices.surface.ruled_surface`)
+        instead of ``options.method``.
 
     Returns
     -------
@@ -177,8 +228,11 @@ def build_body(body: Body, spacing: float, options: SurfaceOptions | None = None
     stack, prepend = capmod.add_dome_rings(curves, centers, d / 2, low, high)
     n_limited = 0
     if len(stack) >= 2:
-        side, node_eval = side_surface(stack, opts.method, v=stack[:, 0, 0, 2], monotone=opts.monotone)
-        if opts.monotone and opts.method == "blending":
+        if ruled:
+            side, node_eval = ruled_surface(stack)
+        else:
+            side, node_eval = side_surface(stack, opts.method, v=stack[:, 0, 0, 2], monotone=opts.monotone)
+        if opts.monotone and opts.method == "blending" and not ruled:
             n_limited = blend_overshoot(stack, stack[:, 0, 0, 2])
         side_ctrl, bottom, top = side.control, side.control[:, 0, :, 0], side.control[:, -1, :, 3]
     else:

@@ -22,9 +22,10 @@ from slices.summary import summarize
 from surfaces.bezier import BezierPatches
 from surfaces.mesh import TriangleMesh
 
-#: Above this many triangles ``union="auto"`` concatenates the bodies instead of
-#: uniting them (manifold3d needs several seconds for large multi-body structures).
-UNION_LIMIT = 200_000
+#: Above this many triangles ``union="auto"`` concatenates the bodies instead of uniting them
+#: (a memory guard: the meshes of :data:`slices.body.MESH_BUDGET` vertices stay far below it,
+#: so every structure comes out as one solid).
+UNION_LIMIT = 2_000_000
 
 #: Values of the ``union`` option.
 UNION_MODES = ("auto", "yes", "no", True, False)

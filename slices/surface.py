@@ -237,6 +237,33 @@ def blend_overshoot(curves, v=None) -> int:
     return int(np.count_nonzero(limited[..., :2].any(axis=-1)))
 
 
+def ruled_surface(curves) -> tuple[BezierPatches, NodeEval]:
+    """Side surface of straight lines between neighbouring slice curves (linear in ``v``).
+
+    The fallback of a body whose blended surface folds: between two slices the
+    surface never leaves the convex hull of the two curves' segments.
+
+    Parameters
+    ----------
+    curves : array_like, shape (K, M, 4, 3)
+        Slice curves on a common lattice (``K >= 2``).
+
+    Returns
+    -------
+    patches : BezierPatches
+        ``M x (K - 1)`` patches, closed in ``u``.
+    node_eval : callable
+        As for :func:`side_surface`.
+    """
+    c = as_array(curves, "curves", shape=(None, None, 4, 3))
+    if len(c) < 2:
+        raise ValueError(f"curves: need at least 2 slices for a side surface, got {len(c)}")
+    w = np.arange(4) / 3.0
+    pieces = c[:-1, None] + w[None, :, None, None, None] * (c[1:] - c[:-1])[:, None]  # (K-1, 4, M, 4, 3)
+    patches = BezierPatches(np.ascontiguousarray(pieces.transpose(2, 0, 3, 1, 4)), closed_u=True)
+    return patches, _corner_eval(patches, len(c))
+
+
 def _side_coons(curves: np.ndarray, v: np.ndarray, monotone: bool = False) -> tuple[BezierPatches, NodeEval]:
     nodes = curves[:, :, 0].transpose(1, 0, 2)  # (M, K, 3); chord-length tangents follow v
     patches = coons.from_grid(nodes, closed_u=True)
