@@ -30,8 +30,8 @@ def assert_clean_solid(mesh, n_shells: int = 1):
     assert peer.volume() == pytest.approx(mesh.signed_volume(), rel=1e-6)
 
 
-def keyhole_stack() -> list[Contour]:
-    """A disc whose hole is drawn as a keyhole: one outline with a cut to the hole, on three planes."""
+def c_shape_stack() -> list[Contour]:
+    """A disc with its hole opened by a wide channel (a C, one outline), on three planes."""
     t = np.linspace(0, 2 * np.pi, 60, endpoint=False)[3:-3]
     outer = np.stack([12 * np.cos(t), 12 * np.sin(t)], 1)
     inner = np.stack([5 * np.cos(t[::-1]), 5 * np.sin(t[::-1])], 1)
@@ -67,14 +67,14 @@ def test_small_structures_report_every_convention(shape):
     assert by["slab"] < by["flat"]
 
 
-def test_branching_and_keyhole_give_one_clean_solid():
+def test_branching_and_c_shape_give_one_clean_solid():
     rec = reconstruct_contours(branching_stack(), caps="half", samples=3)
     solid, united = rec.solid_mesh()
     assert united and len(rec.bodies) == 3
     assert_clean_solid(solid)
     # the united solid has no inner caps: less area than the bodies side by side
     assert solid.surface_area() < rec.mesh.surface_area()
-    rec = reconstruct_contours(keyhole_stack(), caps="flat", samples=2)
+    rec = reconstruct_contours(c_shape_stack(), caps="flat", samples=2)
     solid, _ = rec.solid_mesh()
     assert_clean_solid(solid)
 
