@@ -25,7 +25,8 @@ def contour_json(tmp_path_factory):
 def test_reconstruct_writes_outputs(contour_json, tmp_path, caps, capsys):
     path, truth = contour_json
     out = tmp_path / "out"
-    code = main(["slices", "reconstruct", str(path), "--caps", caps, "--rays", "32", "--out", str(out)])
+    code = main(["slices", "reconstruct", str(path), "--caps", caps, "--rays", "32", "--out", str(out),
+                 "--reference"])
     assert code == 0
     for name in ("surface.ply", "surface.stl", "patches.npz", "summary.json", "render.png"):
         assert (out / name).is_file(), name
