@@ -133,6 +133,19 @@ def reconstruct(input_path, *, roi=None, union="auto", minus=(), plus=(), repair
         raise ValueError("caps: set operations need closed solids; use --caps flat, half or dome, not none")
     stack, rec = reconstruct_roi(input_path, roi, reading=read, options=opts, progress=progress)
     t_surface = time.perf_counter() - t0
+    rebuilt = [b for b in rec.bodies if b.self_intersecting_faces is not None
+               and not b.surface.startswith(opts.method)]
+    if rebuilt:
+        stack.notes.append(f"{len(rebuilt)} body(ies) folded with the seed's surface and were rebuilt "
+                           f"({', '.join(sorted({b.surface for b in rebuilt}))})")
+    folded = sum(b.self_intersecting_faces or 0 for b in rec.bodies)
+    if folded:
+        stack.notes.append(f"WARNING: {folded} self-intersecting face(s) remain in the side surfaces "
+                           "(checked one quad per patch) after every fallback")
+    limited = sum(b.n_limited for b in rec.bodies)
+    if limited:
+        stack.notes.append(f"the blend across slices was limited (monotone, shape-preserving) at {limited} "
+                           "curve point(s) where the seed's parabolic blending would overshoot")
     composition = None
     n_tri = sum(b.mesh.n_triangles for b in rec.bodies)
     if minus or plus:

@@ -27,7 +27,9 @@ def body_table(rec: Reconstruction) -> list[dict]:
         each end got, :func:`slices.caps.end_kinds`), ``subtracted`` (holes),
         ``volume_mm3``, ``area_mm2``, ``n_patches``, ``n_control_points``,
         ``n_turning_points``, ``n_blend_limited`` (tangents the monotone blend
-        shortened), ``max_control_point_deviation_mm``, ``ray_start_deg``.
+        shortened), ``surface`` and ``self_intersecting_faces`` (which side surface
+        was kept and its folded faces, :func:`slices.body.build_body`),
+        ``max_control_point_deviation_mm``, ``ray_start_deg``.
     """
     out = []
     for b in rec.bodies:
@@ -43,6 +45,8 @@ def body_table(rec: Reconstruction) -> list[dict]:
             "n_patches": int(b.patches.n_patches),
             "n_control_points": b.n_points, "n_turning_points": b.n_turning,
             "n_blend_limited": b.n_limited,
+            "surface": b.surface,
+            "self_intersecting_faces": b.self_intersecting_faces,
             "max_control_point_deviation_mm": b.max_deviation_mm,
             "ray_start_deg": float(np.degrees(b.start_angle)),
         })
