@@ -76,10 +76,6 @@ def chaining_text(rec: Reconstruction) -> str:
     if singles:
         text += (f"; {singles} single-contour body(ies) given half caps (no thickness with "
                  f"caps {rec.options.caps})")
-    limited = sum(b.n_limited for b in rec.bodies)
-    if limited:
-        text += (f"; the blend across slices was limited (monotone) at {limited} curve point(s) "
-                 "where it would overshoot")
     return text
 
 
