@@ -72,8 +72,7 @@ class BodySurface:
     surface : str
         Which side surface was kept (:data:`FALLBACKS`; empty when not checked).
     self_intersecting_faces : int or None
-        Self-intersecting faces of the side surface tessellated one quad per
-        patch (None when not checked).
+        Self-intersecting faces of the body's mesh (None when not checked).
     """
 
     body: Body
@@ -157,8 +156,7 @@ def build_body(body: Body, spacing: float, options: SurfaceOptions | None = None
     """Surface, volume and area of one body, rebuilt more conservatively while its mesh folds.
 
     With ``options.unfold`` and a mesh, the mesh is checked for self-intersecting
-    faces (:func:`surfaces.intersect.self_intersections` on the side patches
-    tessellated one quad per patch); a folded body is built
+    faces (:func:`surfaces.intersect.self_intersections`); a folded body is built
     again with the next surface of :data:`FALLBACKS` (the blend linking the
     slices by arc length, limited to be monotone; then straight lines between
     the slices), and the first clean one, or the one with the fewest folded
@@ -179,10 +177,8 @@ def build_body(body: Body, spacing: float, options: SurfaceOptions | None = None
                                                                                  if k != "method"}),
                                                  mesh=True, ruled=change.get("method") == "ruled")
         b.surface = name if i else f"{opts.method} ({opts.correspondence})"
-        # the side patches at one quad per patch: folds show at the patches' scale, at a fraction
-        # of the final mesh's cost (the written solid is checked again by the tests and the benchmark)
-        check = tessellate(BezierPatches(b.patches.control[:, b.side_columns], closed_u=True), 1)
-        b.self_intersecting_faces = self_intersections(check.vertices, check.triangles).n_faces
+        # the mesh as written: a blend can fold inside a patch, below any coarser check's resolution
+        b.self_intersecting_faces = self_intersections(b.mesh.vertices, b.mesh.triangles).n_faces
         if best is None or b.self_intersecting_faces < best.self_intersecting_faces:
             best = b
         if best.self_intersecting_faces == 0:

@@ -140,8 +140,8 @@ def reconstruct(input_path, *, roi=None, union="auto", minus=(), plus=(), repair
                            f"({', '.join(sorted({b.surface for b in rebuilt}))})")
     folded = sum(b.self_intersecting_faces or 0 for b in rec.bodies)
     if folded:
-        stack.notes.append(f"WARNING: {folded} self-intersecting face(s) remain in the side surfaces "
-                           "(checked one quad per patch) after every fallback")
+        stack.notes.append(f"WARNING: {folded} self-intersecting face(s) remain in the bodies' meshes "
+                           "after every fallback")
     limited = sum(b.n_limited for b in rec.bodies)
     if limited:
         stack.notes.append(f"the blend across slices was limited (monotone, shape-preserving) at {limited} "
