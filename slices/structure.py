@@ -21,6 +21,13 @@ from surfaces.mesh import TriangleMesh, merge_meshes
 from surfaces.validate import positive
 
 
+#: Surface area per mesh vertex (mm^2) with ``samples=None``: about 0.45 mm edges, finer than a
+#: 0.5 mm raster; large structures stop at :data:`slices.body.MESH_BUDGET` vertices.
+AREA_PER_VERTEX = 0.1
+
+#: Fewest vertices a structure's mesh aims at with ``samples=None``.
+MIN_VERTICES = 2_000
+
 #: Outward contour offset (mm) of the volume sensitivity (issue 17: what a planning physicist compares).
 SENSITIVITY_OFFSET_MM = 0.5
 
@@ -149,7 +156,8 @@ def reconstruct_contours(contours: list[Contour], *, spacing: float | None = Non
     **keywords
         Fields of :class:`slices.options.SurfaceOptions` that override ``options``.
         ``samples=None`` (default) gives all bodies one density, so that the
-        whole mesh has about :data:`slices.body.MESH_BUDGET` vertices.
+        whole mesh has about one vertex per :data:`AREA_PER_VERTEX` mm^2, at most
+        :data:`slices.body.MESH_BUDGET` vertices.
 
     Returns
     -------
@@ -193,7 +201,11 @@ def reconstruct_contours(contours: list[Contour], *, spacing: float | None = Non
     if opts.samples is None:
         # one tessellation density for all bodies, so the whole mesh meets the budget
         est = sum(body_lattice_size(b, opts.lattice_factor) * (len(b.contours) + 5) for b in bodies)
-        build = surface_options(opts, samples=max(1, min(6, int(np.sqrt(MESH_BUDGET / max(est, 1))))))
+        # small structures need fewer vertices than the budget: about one per AREA_PER_VERTEX of surface
+        # (side area estimated as perimeter x spacing per contour)
+        side = sum(float(np.linalg.norm(np.roll(c.points, -1, axis=0) - c.points, axis=1).sum()) for c in contours)
+        budget = min(MESH_BUDGET, max(MIN_VERTICES, side * d / AREA_PER_VERTEX))
+        build = surface_options(opts, samples=max(1, min(6, int(np.sqrt(budget / max(est, 1))))))
     built = []
     for i, body in enumerate(bodies):
         built.append(build_body(body, d, build, mesh=mesh))

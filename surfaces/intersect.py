@@ -113,15 +113,25 @@ def candidate_pairs(corners: np.ndarray) -> np.ndarray:
     end = np.searchsorted(sweep, rank + (hi[tri, axis] - start) / length, side="right")
     end = np.minimum(end, np.searchsorted(rank, rank, side="right"))
     n_after = np.maximum(end - np.arange(len(key)) - 1, 0)
-    first = np.repeat(np.arange(len(key)), n_after)
-    offset = np.arange(len(first)) - np.repeat(np.cumsum(n_after) - n_after, n_after)
-    a, b, pair_cell = tri[first], tri[first + 1 + offset], key[first]
-    a, b = np.minimum(a, b), np.maximum(a, b)
-    overlap = np.all((lo[a] <= hi[b]) & (lo[b] <= hi[a]), axis=1)
-    a, b, pair_cell = a[overlap], b[overlap], pair_cell[overlap]
-    low = np.maximum(c0[a], c0[b])
-    overlap = low[:, 0] * width + low[:, 1] == pair_cell
-    return np.stack([a[overlap], b[overlap]], axis=1)
+    # raw pairs are made block by block of rows, so memory stays bounded however many there are
+    bounds = np.searchsorted(np.cumsum(n_after), np.arange(_BLOCK, int(n_after.sum()) + _BLOCK, _BLOCK))
+    found = []
+    start = 0
+    for stop in np.unique(np.minimum(np.append(bounds + 1, len(key)), len(key))):
+        rows = np.arange(start, stop)
+        k = n_after[rows]
+        first = np.repeat(rows, k)
+        offset = np.arange(len(first)) - np.repeat(np.cumsum(k) - k, k)
+        a, b, pair_cell = tri[first], tri[first + 1 + offset], key[first]
+        a, b = np.minimum(a, b), np.maximum(a, b)
+        keep = np.all((lo[a] <= hi[b]) & (lo[b] <= hi[a]), axis=1)
+        a, b, pair_cell = a[keep], b[keep], pair_cell[keep]
+        corner = np.maximum(c0[a], c0[b])
+        # boxes that meet in several cells: the pair is kept once, in the cell of the overlap's low corner
+        keep = corner[:, 0] * width + corner[:, 1] == pair_cell
+        found.append(np.stack([a[keep], b[keep]], axis=1))
+        start = stop
+    return np.concatenate(found) if found else np.zeros((0, 2), dtype=np.int64)
 
 
 def _segment_hits(p: np.ndarray, q: np.ndarray, tri: np.ndarray, eps: float) -> np.ndarray:
