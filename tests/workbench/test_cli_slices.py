@@ -102,7 +102,7 @@ def test_reconstruct_minus_composes(shared_data, tmp_path, capsys):
     assert comp["watertight"] and summary["mesh_watertight"] and summary["mesh_oriented"]
     mesh = read_mesh(out / "surface.ply")
     assert mesh.is_watertight() and mesh.is_oriented()
-    assert mesh.signed_volume() == pytest.approx(summary["volume_mm3"], rel=1e-5)  # float32 PLY
+    assert mesh.signed_volume() == pytest.approx(comp["result_mesh_volume_mm3"], rel=1e-5)  # float32 PLY
     info = check_solid(mesh)
     assert info["solid"], info["problems"]
     printed = capsys.readouterr().out
