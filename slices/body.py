@@ -9,7 +9,7 @@ the deviation at the control points and the triangle mesh.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -17,7 +17,7 @@ from slices import caps as capmod
 from slices.chaining import Body
 from slices.io import SPACING_RTOL
 from slices.options import SurfaceOptions
-from slices.surface import lattice_size, side_surface, slice_curves
+from slices.surface import blend_overshoot, lattice_size, ruled_surface, side_surface, slice_curves
 from surfaces import measure
 from surfaces.bezier import BezierPatches
 from surfaces.mesh import TriangleMesh, tessellate
@@ -60,6 +60,19 @@ class BodySurface:
         Size of the body's common ``u`` lattice (patch rows).
     start_angle : float
         Direction of ray 0 in radians from +x.
+    n_limited : int
+        Curve Bezier points whose blend across slices was limited (monotone),
+        see :func:`slices.surface.blend_overshoot`.
+    caps_used : (str, str)
+        The caps the low and the high end got (:func:`slices.caps.end_kinds`).
+    end_areas_mm2 : (float, float)
+        Areas enclosed by the lowest and the highest slice curve (mm^2).
+    spacing : float
+        Slice spacing used for the caps (mm).
+    surface : str
+        Which side surface was kept (:data:`FALLBACKS`; empty when not checked).
+    self_intersecting_faces : int or None
+        Self-intersecting faces of the body's mesh (None when not checked).
     """
 
     body: Body
@@ -74,6 +87,38 @@ class BodySurface:
     n_turning: int
     n_lattice: int
     start_angle: float
+    n_limited: int = 0
+    caps_used: tuple[str, str] = ("flat", "flat")
+    end_areas_mm2: tuple[float, float] = (0.0, 0.0)
+    spacing: float = 0.0
+    surface: str = ""
+    self_intersecting_faces: int | None = None
+
+    def volume_with_caps(self, caps: str) -> float | None:
+        """The body's volume had it been capped with ``caps`` (none, flat or half).
+
+        A half cap adds a prism of the end curve's area times half a spacing to
+        the flat-capped volume; ``none`` encloses what flat caps enclose. Ends
+        at a branching keep their half caps (:func:`slices.caps.end_kinds`).
+
+        Parameters
+        ----------
+        caps : {"none", "flat", "half"}
+
+        Returns
+        -------
+        float or None
+            mm^3 (positive, also for holes); None when an end has a dome (no
+            closed form: build the body again).
+        """
+        if caps not in ("none", "flat", "half"):
+            raise ValueError(f"caps: must be 'none', 'flat' or 'half', got {caps!r}")
+        if "dome" in self.caps_used:
+            return None
+        wanted = capmod.end_kinds(caps, self.body.start, self.body.stop, len(self.body.contours))
+        prism = [a * self.spacing / 2 for a in self.end_areas_mm2]
+        extra = sum(p * ((w == "half") - (u == "half")) for p, w, u in zip(prism, wanted, self.caps_used))
+        return float(self.volume_mm3 + extra)
 
 
 def _flip(mesh: TriangleMesh) -> TriangleMesh:
@@ -98,8 +143,51 @@ def body_lattice_size(body: Body, lattice_factor: float) -> int:
     return lattice_size(max(len(c.points) for c in body.contours), lattice_factor)
 
 
+#: Surfaces tried, in order, when a body's mesh folds (:func:`build_body` with ``options.unfold``).
+FALLBACKS = (
+    ("seed blend", {}),
+    ("arc-length blend", {"correspondence": "arc", "monotone": True}),
+    ("arc-length ruled", {"correspondence": "arc", "method": "ruled"}),
+)
+
+
 def build_body(body: Body, spacing: float, options: SurfaceOptions | None = None,
-               mesh: bool = True) -> BodySurface | None:
+               mesh: bool = True) -> BodySurface:
+    """Surface, volume and area of one body, rebuilt more conservatively while its mesh folds.
+
+    With ``options.unfold`` and a mesh, the mesh is checked for self-intersecting
+    faces (:func:`surfaces.intersect.self_intersections`); a folded body is built
+    again with the next surface of :data:`FALLBACKS` (the blend linking the
+    slices by arc length, limited to be monotone; then straight lines between
+    the slices), and the first clean one, or the one with the fewest folded
+    faces, is kept (``surface`` and ``self_intersecting_faces`` say which).
+    See :func:`build_body_once` for the parameters.
+    """
+    from surfaces.intersect import self_intersections
+
+    opts = SurfaceOptions() if options is None else options
+    first = build_body_once(body, spacing, opts, mesh=mesh)
+    if not (mesh and opts.unfold):
+        return first
+    best = None
+    for i, (name, change) in enumerate(FALLBACKS):
+        if i and opts.method != "blending":
+            break
+        b = first if i == 0 else build_body_once(body, spacing, replace(opts, **{k: v for k, v in change.items()
+                                                                                 if k != "method"}),
+                                                 mesh=True, ruled=change.get("method") == "ruled")
+        b.surface = name if i else f"{opts.method} ({opts.correspondence})"
+        # the mesh as written: a blend can fold inside a patch, below any coarser check's resolution
+        b.self_intersecting_faces = self_intersections(b.mesh.vertices, b.mesh.triangles).n_faces
+        if best is None or b.self_intersecting_faces < best.self_intersecting_faces:
+            best = b
+        if best.self_intersecting_faces == 0:
+            break
+    return best
+
+
+def build_body_once(body: Body, spacing: float, options: SurfaceOptions | None = None,
+                    mesh: bool = True, ruled: bool = False) -> BodySurface:
     """Surface, volume and area of one body (seed 000 sections II-III).
 
     Parameters
@@ -114,20 +202,22 @@ def build_body(body: Body, spacing: float, options: SurfaceOptions | None = None
         when omitted). ``samples=None`` gives this body a density from :data:`MESH_BUDGET`.
     mesh : bool
         Build the triangle mesh.
+    ruled : bool
+        Straight lines between the slices (:func:`slices.surface.ruled_surface`)
+        instead of ``options.method``.
 
     Returns
     -------
-    BodySurface or None
-        None for a single-contour body with caps none/flat at both ends (no thickness).
+    BodySurface
         Ends where the chain splits (branching or merging contours) always get
-        half caps, so neighbouring bodies meet half-way between the planes.
+        half caps, so neighbouring bodies meet half-way between the planes; a
+        single contour gets half caps where none/flat would give it no
+        thickness (the slab planning systems count), see
+        :func:`slices.caps.end_kinds`; ``caps_used`` records what each end got.
     """
     opts = SurfaceOptions() if options is None else options
     z = body.z
-    low, high = capmod.end_kinds(opts.caps, body.start, body.stop)
-    thin = ("none", "flat")
-    if len(z) == 1 and low in thin and high in thin:
-        return None
+    low, high = capmod.end_kinds(opts.caps, body.start, body.stop, n_contours=len(z))
     d = positive(spacing, "spacing")
     if len(z) > 1 and np.any(np.abs(np.diff(z) - d) > SPACING_RTOL * d):
         d = float(np.median(np.diff(z)))
@@ -137,8 +227,14 @@ def build_body(body: Body, spacing: float, options: SurfaceOptions | None = None
     curves = sc.curves
     centers = np.array([np.append(p.center, zk) for p, zk in zip(sc.params, z)])
     stack, prepend = capmod.add_dome_rings(curves, centers, d / 2, low, high)
+    n_limited = 0
     if len(stack) >= 2:
-        side, node_eval = side_surface(stack, opts.method, v=stack[:, 0, 0, 2])
+        if ruled:
+            side, node_eval = ruled_surface(stack)
+        else:
+            side, node_eval = side_surface(stack, opts.method, v=stack[:, 0, 0, 2], monotone=opts.monotone)
+        if opts.monotone and opts.method == "blending" and not ruled:
+            n_limited = blend_overshoot(stack, stack[:, 0, 0, 2])
         side_ctrl, bottom, top = side.control, side.control[:, 0, :, 0], side.control[:, -1, :, 3]
     else:
         side_ctrl, bottom = None, curves[0]
@@ -169,5 +265,6 @@ def build_body(body: Body, spacing: float, options: SurfaceOptions | None = None
     return BodySurface(
         body, patches, grid.side_columns, tri_mesh, display, volume, area, dev,
         int(len(pts)), int(sum(int(p.turning.sum()) for p in sc.params)), int(curves.shape[1]),
-        float(sc.start_angle),
+        float(sc.start_angle), n_limited, (low, high),
+        (abs(capmod.curve_area(curves[0])), abs(capmod.curve_area(curves[-1]))), float(d),
     )

@@ -217,7 +217,7 @@ def planar_cap_mesh(curve, samples: int, outward_z: float) -> TriangleMesh:
     return TriangleMesh(ring, tri, normal)
 
 
-def end_kinds(caps: str, start: str, stop: str) -> tuple[str, str]:
+def end_kinds(caps: str, start: str, stop: str, n_contours: int = 2) -> tuple[str, str]:
     """Cap of the low and the high end of a body.
 
     Parameters
@@ -227,6 +227,11 @@ def end_kinds(caps: str, start: str, stop: str) -> tuple[str, str]:
     start, stop : str
         Why the body's chain starts and stops (:class:`slices.chaining.Body`):
         ``"end"``, ``"branch"`` or ``"merge"``.
+    n_contours : int
+        Contours in the body. A single contour has no thickness with none/flat
+        caps; it gets half caps there instead (the slab of one spacing that
+        planning systems count), so no body is dropped and holes are always
+        subtracted.
 
     Returns
     -------
@@ -239,10 +244,15 @@ def end_kinds(caps: str, start: str, stop: str) -> tuple[str, str]:
     --------
     >>> end_kinds("flat", "end", "branch")
     ('flat', 'half')
+    >>> end_kinds("flat", "end", "end", n_contours=1)
+    ('half', 'half')
     """
     if caps not in CAP_KINDS:
         raise ValueError(f"caps: must be one of {CAP_KINDS}, got {caps!r}")
-    return (caps if start == "end" else "half"), (caps if stop == "end" else "half")
+    low, high = (caps if start == "end" else "half"), (caps if stop == "end" else "half")
+    if int(n_contours) == 1 and low in ("none", "flat") and high in ("none", "flat"):
+        return "half", "half"
+    return low, high
 
 
 def add_dome_rings(curves, centers, height: float, low: str, high: str) -> tuple[np.ndarray, int]:

@@ -205,3 +205,51 @@ def slab_volume(contours: list[Contour], spacing: float | None) -> float:
     weight = np.ones(len(planes))
     weight[[0, -1]] = 0.5
     return float(np.sum(area * weight) * spacing)
+
+
+def offset_sensitivity(contours: list[Contour], spacing: float | None, offset: float = 0.5) -> float:
+    """Change of the slab volume when every contour grows outward by ``offset``.
+
+    Steiner's formula per contour: an outer contour's area grows by
+    ``perimeter * offset + pi * offset**2``, a hole's shrinks by
+    ``perimeter * offset - pi * offset**2`` (exact for convex outlines with
+    rounded corners, first-order exact for any outline); the planes are summed
+    as :func:`slab_volume` sums them. This is the figure a planning physicist
+    uses to judge whether two systems' volumes really differ.
+
+    Parameters
+    ----------
+    contours : list of Contour
+    spacing : float or None
+        Slice spacing in mm (None: unequally spaced planes, trapezoid rule).
+    offset : float
+        Outward offset of every contour in mm.
+
+    Returns
+    -------
+    float
+        Volume change in mm^3 (positive for a positive offset).
+
+    Examples
+    --------
+    A disc of radius 10 mm on two planes 2 mm apart: ``(2 pi 10 * 0.5 + pi 0.25) * 2``.
+
+    >>> t = np.linspace(0, 2 * np.pi, 2000, endpoint=False)
+    >>> disc = 10 * np.stack([np.cos(t), np.sin(t)], axis=1)
+    >>> round(offset_sensitivity([Contour(0.0, disc), Contour(2.0, disc)], 2.0), 2)
+    64.4
+    """
+    hole = classify_holes(contours)
+    z = np.round([c.z for c in contours], 6)
+    planes = np.unique(z)
+    grow = np.zeros(len(planes))
+    for c, h, zz in zip(contours, hole, z):
+        perimeter = float(np.linalg.norm(np.roll(c.points, -1, axis=0) - c.points, axis=1).sum())
+        grow[np.searchsorted(planes, zz)] += perimeter * offset + (-1.0 if h else 1.0) * np.pi * offset**2
+    if spacing is None:
+        if len(planes) < 2:
+            return 0.0
+        return float(np.sum((grow[1:] + grow[:-1]) / 2 * np.diff(planes)))
+    weight = np.ones(len(planes))
+    weight[[0, -1]] = 0.5
+    return float(np.sum(grow * weight) * spacing)

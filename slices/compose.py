@@ -78,7 +78,9 @@ def compose_rois(input_path, base_stack: ContourStack, base_rec: Reconstruction,
         ``operation`` (text), ``base``/``minus``/``plus`` entries with ``roi``,
         ``volume_mm3``/``volume_ml`` (patch model), ``mesh_volume_mm3`` (the
         triangles that entered the set operation), ``n_bodies``; and
-        ``result_volume_mm3``/``_ml``, ``removed_volume_mm3`` (of base u plus),
+        ``result_volume_mm3``/``_ml`` (the base's patch volume plus added minus
+        removed: never above the minuend), ``result_mesh_volume_mm3``/``_ml`` (the
+        result triangles'), ``removed_volume_mm3`` (of base u plus),
         ``added_volume_mm3`` (plus beyond the base), ``area_mm2`` (result
         triangles), ``watertight``, ``oriented``, ``n_triangles``, ``repairs``, ``time_s``. Volumes are
         those of the triangle meshes (inscribed in the patch surfaces).
@@ -114,26 +116,35 @@ def compose_rois(input_path, base_stack: ContourStack, base_rec: Reconstruction,
     # base u plus as the engine built it (without --plus it is the base, added nothing by definition;
     # the engine's copy can differ from the input mesh in the last digits)
     grown = volume + float(summ["removed_volume"]) if plus else float(summ["volume_base"])
+    added = grown - float(summ["volume_base"])
+    removed = max(float(summ["removed_volume"]), 0.0)
+    # the figure reported next to the base's patch volume: the base's patch volume changed by what the set
+    # operation added and removed on the triangle meshes (both at one resolution), so a difference can
+    # never exceed its minuend, whatever the meshes' inscribed-volume bias
+    result = max(base_rec.volume_mm3 + max(added, 0.0) - removed, 0.0) if volume > 0 else 0.0
     composition = {
         "operation": text,
         "engine": "manifold3d via surfaces.boolean.compose",
         "base": _entry(base_stack, base_rec, base_mesh),
         "minus": entries["minus"],
         "plus": entries["plus"],
-        "result_volume_mm3": volume,
-        "result_volume_ml": volume / 1000.0,
+        "result_volume_mm3": result,
+        "result_volume_ml": result / 1000.0,
+        "result_mesh_volume_mm3": volume,
+        "result_mesh_volume_ml": volume / 1000.0,
         "removed_volume_mm3": float(summ["removed_volume"]),
         "removed_volume_ml": float(summ["removed_volume"]) / 1000.0,
-        "added_volume_mm3": grown - float(summ["volume_base"]),
-        "added_volume_ml": (grown - float(summ["volume_base"])) / 1000.0,
+        "added_volume_mm3": added,
+        "added_volume_ml": added / 1000.0,
         "area_mm2": mesh.surface_area(),
         "watertight": bool(summ["watertight"]),
         "oriented": bool(mesh.is_oriented()),
         "n_triangles": int(summ["n_triangles"]),
         "flat_shells_removed": int(summ["flat_shells_removed"]),
         "repairs": summ["repairs"],
-        "volume_note": "result, removed and added volumes are those of the triangle meshes (inscribed in "
-                       "the patch surfaces, so slightly below the patch-model volumes)",
+        "volume_note": "removed and added volumes are those of the triangle meshes (one resolution for all "
+                       "ROIs); result_volume is the base's patch volume plus added minus removed, so a "
+                       "difference never exceeds its minuend; result_mesh_volume is the result mesh's own",
         "time_s": time.perf_counter() - t0,
     }
     return mesh, composition

@@ -166,6 +166,14 @@ def _candidate_pairs(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarr
     return i[box], j[box]
 
 
+#: Largest |coordinate| of a contour point in mm: beyond it, float64 cannot resolve a contour's shape
+#: against its offset, and it is no patient coordinate (a wrong unit or origin).
+MAX_COORDINATE_MM = 1e6
+
+#: Smallest extent of a contour in mm: below it, a contour is a unit mistake (metres, not mm).
+MIN_EXTENT_MM = 1e-3
+
+
 def clean_contour(points, name: str = "contour") -> np.ndarray:
     """Validate a closed planar contour and orient it counter-clockwise.
 
@@ -186,7 +194,8 @@ def clean_contour(points, name: str = "contour") -> np.ndarray:
     Raises
     ------
     ValueError
-        Fewer than 3 distinct points, zero area, or self-intersecting edges.
+        Fewer than 3 distinct points, coordinates beyond :data:`MAX_COORDINATE_MM`,
+        an extent below :data:`MIN_EXTENT_MM`, zero area, or self-intersecting edges.
 
     Examples
     --------
@@ -209,8 +218,15 @@ def clean_contour(points, name: str = "contour") -> np.ndarray:
         p = p[keep] if np.any(keep) else p[:1]
     if len(p) < 3:
         raise ValueError(f"{name}: needs at least 3 distinct points, got {len(p)}")
-    area = signed_area(p)
     extent = float(np.ptp(p, axis=0).max())
+    far = float(np.abs(p).max())
+    if far > MAX_COORDINATE_MM:
+        raise ValueError(f"{name}: coordinates reach {far:.3g} mm, beyond +-{MAX_COORDINATE_MM:g} mm; these "
+                         "are not patient coordinates in mm (check the units and the origin)")
+    if 0 < extent < MIN_EXTENT_MM:
+        raise ValueError(f"{name}: spans only {extent:.3g} mm, less than {MIN_EXTENT_MM:g} mm; contours are "
+                         "read in mm (check the units)")
+    area = signed_area(p)
     d, e = p[1:] - p[0], p[-1] - p[0]
     if extent == 0 or np.all(np.abs(d[:, 0] * e[1] - d[:, 1] * e[0]) <= 1e-12 * extent**2):
         raise ValueError(f"{name}: has zero area (all points on one line)")

@@ -141,13 +141,22 @@ def _damaged_rtstruct_is_bad_input(read):
     return wrapper
 
 
+#: What pydicom raises on a dataset whose elements a truncated file cut off or left garbled.
+_INCOMPLETE = (AttributeError, KeyError, TypeError, ValueError, IndexError, EOFError, OSError)
+
+
 def _open_rtstruct(path):
-    """Path and dataset of an RT Structure Set file (checked: it exists and holds ROIs)."""
+    """Path, dataset and ROI table of an RT Structure Set file (checked: it exists, holds ROIs, is whole)."""
     path = _existing(path, "RT structure set file")
     ds = _read_dicom(path)
     if "StructureSetROISequence" not in ds:
         raise ValueError(f"{path}: not an RT Structure Set (no StructureSetROISequence)")
-    return path, ds
+    try:
+        table = _roi_table(ds)
+    except _INCOMPLETE as exc:
+        raise ValueError(f"{path}: the RT Structure Set is truncated or incomplete "
+                         f"({type(exc).__name__}: {exc})") from None
+    return path, ds, table
 
 
 @_damaged_rtstruct_is_bad_input
@@ -165,7 +174,7 @@ def list_rois(path) -> list[dict]:
         ``number`` (int), ``name`` (str), ``n_contours`` (int), ``n_planes`` (int),
         ``max_points`` (int) per ROI, in file order.
     """
-    return _roi_table(_open_rtstruct(path)[1])
+    return _open_rtstruct(path)[2]
 
 
 def _roi_table(ds) -> list[dict]:
@@ -209,8 +218,7 @@ def read_rtstruct(path, roi) -> ContourStack:
         contours, non-planar or non-axial contours, fewer than 3 points,
         self-intersecting contours.
     """
-    path, ds = _open_rtstruct(path)
-    rois = _roi_table(ds)
+    path, ds, rois = _open_rtstruct(path)
     if roi is None:
         raise ValueError(
             f"{path}: choose an ROI with --roi; existing: " + ", ".join(r["name"] for r in rois)
@@ -223,6 +231,23 @@ def read_rtstruct(path, roi) -> ContourStack:
         names = ", ".join(f"{r['number']}: {r['name']}" for r in rois)
         raise ValueError(f"{path}: no ROI named {roi!r}; existing ROIs are {names}")
     number, name = match[0]["number"], match[0]["name"]
+    try:
+        items, skipped = _roi_contours(ds, number, name)
+    except _INCOMPLETE as exc:
+        if isinstance(exc, ValueError) and str(exc).startswith("ROI "):
+            raise
+        raise ValueError(f"{path}: the RT Structure Set is truncated or incomplete in ROI {name!r} "
+                         f"({type(exc).__name__}: {exc})") from None
+    if not items:
+        raise ValueError(f"{path}: ROI {name!r} has no CLOSED_PLANAR contours")
+    stack = ContourStack(_contours_from_list(items, f"ROI {name!r}"), "rtstruct", name)
+    if skipped:
+        stack.notes.append(f"skipped {skipped} contour(s) that are not CLOSED_PLANAR")
+    return stack
+
+
+def _roi_contours(ds, number: int, name: str) -> tuple[list, int]:
+    """(z, points) of every CLOSED_PLANAR contour of one ROI, and how many other contours were skipped."""
     items = []
     skipped = 0
     for rc in ds.get("ROIContourSequence", []):
@@ -246,12 +271,7 @@ def read_rtstruct(path, roi) -> ContourStack:
                     f"{z.min():.3f} to {z.max():.3f} mm); non-axial planes are not supported"
                 )
             items.append((float(z.mean()), xyz[:, :2]))
-    if not items:
-        raise ValueError(f"{path}: ROI {name!r} has no CLOSED_PLANAR contours")
-    stack = ContourStack(_contours_from_list(items, f"ROI {name!r}"), "rtstruct", name)
-    if skipped:
-        stack.notes.append(f"skipped {skipped} contour(s) that are not CLOSED_PLANAR")
-    return stack
+    return items, skipped
 
 
 # ------------------------------------------------------------------ volumes

@@ -12,6 +12,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, fields, replace
 
+import numpy as np
+
 from surfaces.validate import as_array, positive
 
 
@@ -71,6 +73,8 @@ class SurfaceOptions:
     correspondence: str = "seed"
     start_angle: float | None = None
     samples: int | None = None
+    monotone: bool = True
+    unfold: bool = True
 
     def __post_init__(self) -> None:
         # the modules that use the names hold them (imported here: they import these defaults)
@@ -89,6 +93,10 @@ class SurfaceOptions:
             object.__setattr__(self, "start_angle", float(as_array(self.start_angle, "start_angle", shape=())))
         if self.samples is not None:
             object.__setattr__(self, "samples", _whole(self.samples, "samples", 1, "subdivision per patch side"))
+        for flag in ("monotone", "unfold"):
+            if not isinstance(getattr(self, flag), bool | np.bool_):
+                raise ValueError(f"{flag}: must be True or False, got {getattr(self, flag)!r}")
+            object.__setattr__(self, flag, bool(getattr(self, flag)))
         object.__setattr__(self, "n_rays", n_rays)
         object.__setattr__(self, "lattice_factor", factor)
 

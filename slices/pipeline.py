@@ -22,9 +22,10 @@ from slices.summary import summarize
 from surfaces.bezier import BezierPatches
 from surfaces.mesh import TriangleMesh
 
-#: Above this many triangles ``union="auto"`` concatenates the bodies instead of
-#: uniting them (manifold3d needs several seconds for large multi-body structures).
-UNION_LIMIT = 200_000
+#: Above this many triangles ``union="auto"`` concatenates the bodies instead of uniting them
+#: (a memory guard: the meshes of :data:`slices.body.MESH_BUDGET` vertices stay far below it,
+#: so every structure comes out as one solid).
+UNION_LIMIT = 2_000_000
 
 #: Values of the ``union`` option.
 UNION_MODES = ("auto", "yes", "no", True, False)
@@ -132,6 +133,19 @@ def reconstruct(input_path, *, roi=None, union="auto", minus=(), plus=(), repair
         raise ValueError("caps: set operations need closed solids; use --caps flat, half or dome, not none")
     stack, rec = reconstruct_roi(input_path, roi, reading=read, options=opts, progress=progress)
     t_surface = time.perf_counter() - t0
+    rebuilt = [b for b in rec.bodies if b.self_intersecting_faces is not None
+               and not b.surface.startswith(opts.method)]
+    if rebuilt:
+        stack.notes.append(f"{len(rebuilt)} body(ies) folded with the seed's surface and were rebuilt "
+                           f"({', '.join(sorted({b.surface for b in rebuilt}))})")
+    folded = sum(b.self_intersecting_faces or 0 for b in rec.bodies)
+    if folded:
+        stack.notes.append(f"WARNING: {folded} self-intersecting face(s) remain in the bodies' meshes "
+                           "after every fallback")
+    limited = sum(b.n_limited for b in rec.bodies)
+    if limited:
+        stack.notes.append(f"the blend across slices was limited (monotone, shape-preserving) at {limited} "
+                           "curve point(s) where the seed's parabolic blending would overshoot")
     composition = None
     n_tri = sum(b.mesh.n_triangles for b in rec.bodies)
     if minus or plus:

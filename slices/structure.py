@@ -14,11 +14,22 @@ from dataclasses import dataclass
 import numpy as np
 
 from slices.body import MESH_BUDGET, BodySurface, body_lattice_size, build_body
-from slices.chaining import chain, slab_volume
-from slices.io import SPACING_RTOL, Contour, ContourStack, check_spacing, load
+from slices.chaining import chain, offset_sensitivity, slab_volume
+from slices.io import SPACING_RTOL, Contour, ContourStack, check_spacing, load, parse_spacing
 from slices.options import ReadOptions, SurfaceOptions, surface_options
 from surfaces.mesh import TriangleMesh, merge_meshes
 from surfaces.validate import positive
+
+
+#: Surface area per mesh vertex (mm^2) with ``samples=None``: about 0.45 mm edges, finer than a
+#: 0.5 mm raster; large structures stop at :data:`slices.body.MESH_BUDGET` vertices.
+AREA_PER_VERTEX = 0.1
+
+#: Fewest vertices a structure's mesh aims at with ``samples=None``.
+MIN_VERTICES = 2_000
+
+#: Outward contour offset (mm) of the volume sensitivity (issue 17: what a planning physicist compares).
+SENSITIVITY_OFFSET_MM = 0.5
 
 
 def _merged(meshes: list) -> TriangleMesh | None:
@@ -35,8 +46,6 @@ class Reconstruction:
     Attributes
     ----------
     bodies : list of BodySurface
-    skipped : list of Body
-        Single-contour bodies left out (caps none/flat give them no thickness).
     volume_mm3 : float
         Outer bodies' volumes minus the holes'.
     area_mm2 : float
@@ -48,15 +57,43 @@ class Reconstruction:
     options : SurfaceOptions
         The options asked for (``samples=None``: the bodies got one density
         adapted to :data:`slices.body.MESH_BUDGET`).
+    sensitivity_mm3 : float
+        Change of the volume when every contour grows outward by
+        :data:`SENSITIVITY_OFFSET_MM` (:func:`slices.chaining.offset_sensitivity`).
     """
 
     bodies: list
-    skipped: list
     volume_mm3: float
     area_mm2: float
     slab_volume_mm3: float
     spacing: float
     options: SurfaceOptions
+    sensitivity_mm3: float = 0.0
+
+    def volume_by_caps(self) -> dict:
+        """The structure's volume under each end-slice convention, and the slab count.
+
+        Returns
+        -------
+        dict
+            ``none``, ``flat``, ``half`` (mm^3: outer bodies minus holes, every
+            body capped that way, :meth:`slices.body.BodySurface.volume_with_caps`;
+            bodies with domes are built again without a mesh) and ``slab``
+            (:attr:`slab_volume_mm3`).
+        """
+        sign = {"outer": 1.0, "hole": -1.0}
+        out = {}
+        for caps in ("none", "flat", "half"):
+            total = 0.0
+            for b in self.bodies:
+                v = b.volume_with_caps(caps)
+                if v is None:
+                    v = build_body(b.body, self.spacing, surface_options(self.options, caps=caps, samples=1),
+                                   mesh=False).volume_mm3
+                total += sign[b.body.kind] * v
+            out[caps] = float(total)
+        out["slab"] = float(self.slab_volume_mm3)
+        return out
 
     @property
     def mesh(self) -> TriangleMesh | None:
@@ -119,7 +156,8 @@ def reconstruct_contours(contours: list[Contour], *, spacing: float | None = Non
     **keywords
         Fields of :class:`slices.options.SurfaceOptions` that override ``options``.
         ``samples=None`` (default) gives all bodies one density, so that the
-        whole mesh has about :data:`slices.body.MESH_BUDGET` vertices.
+        whole mesh has about one vertex per :data:`AREA_PER_VERTEX` mm^2, at most
+        :data:`slices.body.MESH_BUDGET` vertices.
 
     Returns
     -------
@@ -156,24 +194,29 @@ def reconstruct_contours(contours: list[Contour], *, spacing: float | None = Non
             raise ValueError(f"spacing: {s} mm given but the planes are {d} mm apart")
         d = s
     if d == 0:
-        raise ValueError("contours: a single plane has no slice spacing; give spacing")
+        raise ValueError("contours: a single plane has no slice spacing; give spacing (--spacing z,y,x "
+                         "on the command line)")
     bodies = chain(contours, None if irregular else d)
     build = opts
     if opts.samples is None:
         # one tessellation density for all bodies, so the whole mesh meets the budget
         est = sum(body_lattice_size(b, opts.lattice_factor) * (len(b.contours) + 5) for b in bodies)
-        build = surface_options(opts, samples=max(1, min(6, int(np.sqrt(MESH_BUDGET / max(est, 1))))))
-    built, skipped = [], []
+        # small structures need fewer vertices than the budget: about one per AREA_PER_VERTEX of surface
+        # (side area estimated as perimeter x spacing per contour)
+        side = sum(float(np.linalg.norm(np.roll(c.points, -1, axis=0) - c.points, axis=1).sum()) for c in contours)
+        budget = min(MESH_BUDGET, max(MIN_VERTICES, side * d / AREA_PER_VERTEX))
+        build = surface_options(opts, samples=max(1, min(6, int(np.sqrt(budget / max(est, 1))))))
+    built = []
     for i, body in enumerate(bodies):
-        b = build_body(body, d, build, mesh=mesh)
-        (skipped if b is None else built).append(body if b is None else b)
+        built.append(build_body(body, d, build, mesh=mesh))
         if progress is not None:
             progress(i + 1, len(bodies))
     sign = {"outer": 1.0, "hole": -1.0}
     volume = sum(sign[b.body.kind] * b.volume_mm3 for b in built)
     area = sum(b.area_mm2 for b in built)
     slab = slab_volume(contours, None if irregular else d)
-    return Reconstruction(built, skipped, float(volume), float(area), slab, d, opts)
+    sensitivity = offset_sensitivity(contours, None if irregular else d, SENSITIVITY_OFFSET_MM)
+    return Reconstruction(built, float(volume), float(area), slab, d, opts, sensitivity)
 
 
 def reconstruct_roi(input_path, roi=None, *, reading: ReadOptions | None = None,
@@ -187,7 +230,8 @@ def reconstruct_roi(input_path, roi=None, *, reading: ReadOptions | None = None,
     roi : str or int, optional
         ROI name or number (RTSTRUCT).
     reading : ReadOptions, optional
-        Intensity window, voxel spacing, resampling. With ``resample``, contour
+        Intensity window, voxel spacing (its z is also the slab of a single
+        plane of contours), resampling. With ``resample``, contour
         inputs (RTSTRUCT, JSON) are blended at their true plane positions
         (``irregular`` of :func:`reconstruct_contours`).
     options : SurfaceOptions, optional
@@ -199,20 +243,18 @@ def reconstruct_roi(input_path, roi=None, *, reading: ReadOptions | None = None,
     -------
     stack : ContourStack
     reconstruction : Reconstruction
-
-    Raises
-    ------
-    ValueError
-        Besides the readers' errors: nothing to reconstruct (only single-contour
-        bodies with caps none/flat).
     """
     read = ReadOptions() if reading is None else reading
     stack = load(input_path, roi, read.hu_min, read.hu_max, read.spacing, bool(read.resample))
-    rec = reconstruct_contours(stack.contours, irregular=bool(read.resample) and stack.source in ("rtstruct", "json"),
+    spacing = None
+    if read.spacing is not None and len(stack.planes) == 1:
+        # one plane has no spacing of its own: the z of --spacing z,y,x gives its slab
+        given = read.spacing
+        single = isinstance(given, int | float) or (isinstance(given, str) and "," not in given)
+        spacing = positive(given, "--spacing") if single else parse_spacing(given)[0]
+    rec = reconstruct_contours(stack.contours, spacing=spacing,
+                               irregular=bool(read.resample) and stack.source in ("rtstruct", "json"),
                                progress=progress, options=options)
-    if not rec.bodies:
-        raise ValueError(f"{input_path}: nothing to reconstruct in {stack.name!r} "
-                         "(only single-contour bodies; try --caps half)")
     return stack, rec
 
 

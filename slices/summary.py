@@ -9,12 +9,12 @@ from __future__ import annotations
 import numpy as np
 
 from slices.io import ContourStack
-from slices.structure import Reconstruction
+from slices.structure import SENSITIVITY_OFFSET_MM, Reconstruction
 from surfaces.mesh import TriangleMesh
 
 
 def body_table(rec: Reconstruction) -> list[dict]:
-    """One row per body: kind, planes, chain ends, volume, area, patches, parameters.
+    """One row per body: kind, planes, chain ends, caps, volume, area, patches, parameters.
 
     Parameters
     ----------
@@ -23,9 +23,13 @@ def body_table(rec: Reconstruction) -> list[dict]:
     Returns
     -------
     list of dict
-        Built bodies first (``volume_mm3``, ``area_mm2``, ``n_patches``,
-        ``n_control_points``, ``n_turning_points``, ``max_control_point_deviation_mm``,
-        ``ray_start_deg``), then skipped single-contour bodies (``skipped``: why).
+        ``kind``, planes, ``start``/``stop`` (why the chain ends), ``caps`` (what
+        each end got, :func:`slices.caps.end_kinds`), ``subtracted`` (holes),
+        ``volume_mm3``, ``area_mm2``, ``n_patches``, ``n_control_points``,
+        ``n_turning_points``, ``n_blend_limited`` (tangents the monotone blend
+        shortened), ``surface`` and ``self_intersecting_faces`` (which side surface
+        was kept and its folded faces, :func:`slices.body.build_body`),
+        ``max_control_point_deviation_mm``, ``ray_start_deg``.
     """
     out = []
     for b in rec.bodies:
@@ -35,16 +39,17 @@ def body_table(rec: Reconstruction) -> list[dict]:
             "z_min_mm": float(z.min()), "z_max_mm": float(z.max()),
             "n_slices": int(len(z)),
             "start": b.body.start, "stop": b.body.stop,
+            "caps": list(b.caps_used),
+            "subtracted": b.body.kind == "hole",
             "volume_mm3": b.volume_mm3, "area_mm2": b.area_mm2,
             "n_patches": int(b.patches.n_patches),
             "n_control_points": b.n_points, "n_turning_points": b.n_turning,
+            "n_blend_limited": b.n_limited,
+            "surface": b.surface,
+            "self_intersecting_faces": b.self_intersecting_faces,
             "max_control_point_deviation_mm": b.max_deviation_mm,
             "ray_start_deg": float(np.degrees(b.start_angle)),
         })
-    for body in rec.skipped:
-        out.append({"kind": body.kind, "z_min_mm": float(body.z.min()), "z_max_mm": float(body.z.max()),
-                    "n_slices": 1, "start": body.start, "stop": body.stop,
-                    "skipped": "single contour: no thickness with caps none/flat"})
     return out
 
 
@@ -66,8 +71,11 @@ def chaining_text(rec: Reconstruction) -> str:
             f"{n_out} outer, {n_hole} hole(s) (volume subtracted)")
     if splits:
         text += f"; {splits} chain(s) split at a branching or merging contour"
-    if rec.skipped:
-        text += f"; {len(rec.skipped)} single-contour body(ies) skipped (no thickness with these caps)"
+    singles = sum(len(b.body.contours) == 1 and b.caps_used == ("half", "half") and rec.options.caps in ("none", "flat")
+                  for b in rec.bodies)
+    if singles:
+        text += (f"; {singles} single-contour body(ies) given half caps (no thickness with "
+                 f"caps {rec.options.caps})")
     return text
 
 
@@ -97,14 +105,18 @@ def summarize(input_path, stack: ContourStack, rec: Reconstruction, mesh: Triang
     Returns
     -------
     dict
-        Input, options, volume, area, slab volume, counts, mesh checks, bodies,
-        chaining, notes, timings; ``composition`` and ``reference_bspline`` when given.
+        Input, options, volume, area, slab volume, the volume under each end-slice
+        convention (``volume_by_caps_mm3``: none, flat, half, slab) and their range
+        (``volume_range_mm3``), the volume's sensitivity to a 0.5 mm contour offset
+        (``volume_sensitivity_mm3_per_0.5mm`` and its method), counts, mesh checks,
+        bodies, chaining, notes, timings; ``composition`` and ``reference_bspline`` when given.
         With a composition, ``volume_mm3``, ``volume_ml`` and ``area_mm2`` are the
         composed solid's (``volume_source`` says which); the base ROI's own figures
         are under ``composition.base``.
     """
     opts = rec.options
     n_out = sum(b.body.kind == "outer" for b in rec.bodies)
+    by_caps = rec.volume_by_caps()
     volume = rec.volume_mm3 if composition is None else composition["result_volume_mm3"]
     area = rec.area_mm2 if composition is None else composition["area_mm2"]
     summary = {
@@ -122,6 +134,13 @@ def summarize(input_path, stack: ContourStack, rec: Reconstruction, mesh: Triang
         "volume_source": "patches" if composition is None else "composition",
         "slab_volume_mm3": rec.slab_volume_mm3,
         "slab_volume_ml": rec.slab_volume_mm3 / 1000.0,
+        "volume_by_caps_mm3": by_caps,
+        "volume_range_mm3": [min(by_caps.values()), max(by_caps.values())],
+        f"volume_sensitivity_mm3_per_{SENSITIVITY_OFFSET_MM:g}mm": rec.sensitivity_mm3,
+        "volume_sensitivity_method": (
+            f"every contour offset outward by {SENSITIVITY_OFFSET_MM:g} mm (holes shrink): per contour "
+            "perimeter x offset + pi x offset^2 (Steiner's formula), planes summed as the slab volume counts "
+            "them (end planes half)"),
         "spacing_mm": rec.spacing,
         "n_slices": int(len(stack.planes)),
         "n_contours": len(stack.contours),

@@ -205,18 +205,72 @@ def _corner_eval(patches: BezierPatches, n_slices: int) -> NodeEval:
     return at
 
 
-def _side_blending(curves: np.ndarray, v: np.ndarray) -> tuple[BezierPatches, NodeEval]:
-    patches = blending.blend_curves(curves, closed_u=True, params=v)
+def _side_blending(curves: np.ndarray, v: np.ndarray, monotone: bool = False) -> tuple[BezierPatches, NodeEval]:
+    patches = blending.blend_curves(curves, closed_u=True, params=v, monotone=monotone)
     return patches, _corner_eval(patches, len(curves))
 
 
-def _side_coons(curves: np.ndarray, v: np.ndarray) -> tuple[BezierPatches, NodeEval]:
+def blend_overshoot(curves, v=None) -> int:
+    """How many tangents the monotone limit of the blend in ``v`` shortens.
+
+    Parameters
+    ----------
+    curves : array_like, shape (K, M, 4, 3)
+        Slice curves on a common lattice (``K >= 2``).
+    v : array_like, shape (K,), optional
+        Slice positions (uniform when omitted).
+
+    Returns
+    -------
+    int
+        (slice, Bezier point of a curve) pairs whose x or y tangent
+        :func:`surfaces.blending.limit_monotone` shortens or zeroes: where the
+        seed's parabolic blend would overshoot between slices.
+    """
+    c = as_array(curves, "curves", shape=(None, None, 4, 3))
+    k = len(c)
+    if k < 3:
+        return 0
+    w = blending.blend_weights(k, v)
+    pieces = (w.reshape(-1, k) @ c.reshape(k, -1)).reshape(k - 1, 4, -1)
+    limited = blending.limit_monotone(pieces).limited.reshape(k, -1, 3)
+    return int(np.count_nonzero(limited[..., :2].any(axis=-1)))
+
+
+def ruled_surface(curves) -> tuple[BezierPatches, NodeEval]:
+    """Side surface of straight lines between neighbouring slice curves (linear in ``v``).
+
+    The fallback of a body whose blended surface folds: between two slices the
+    surface never leaves the convex hull of the two curves' segments.
+
+    Parameters
+    ----------
+    curves : array_like, shape (K, M, 4, 3)
+        Slice curves on a common lattice (``K >= 2``).
+
+    Returns
+    -------
+    patches : BezierPatches
+        ``M x (K - 1)`` patches, closed in ``u``.
+    node_eval : callable
+        As for :func:`side_surface`.
+    """
+    c = as_array(curves, "curves", shape=(None, None, 4, 3))
+    if len(c) < 2:
+        raise ValueError(f"curves: need at least 2 slices for a side surface, got {len(c)}")
+    w = np.arange(4) / 3.0
+    pieces = c[:-1, None] + w[None, :, None, None, None] * (c[1:] - c[:-1])[:, None]  # (K-1, 4, M, 4, 3)
+    patches = BezierPatches(np.ascontiguousarray(pieces.transpose(2, 0, 3, 1, 4)), closed_u=True)
+    return patches, _corner_eval(patches, len(c))
+
+
+def _side_coons(curves: np.ndarray, v: np.ndarray, monotone: bool = False) -> tuple[BezierPatches, NodeEval]:
     nodes = curves[:, :, 0].transpose(1, 0, 2)  # (M, K, 3); chord-length tangents follow v
     patches = coons.from_grid(nodes, closed_u=True)
     return patches, _corner_eval(patches, len(curves))
 
 
-def _side_bspline(curves: np.ndarray, v: np.ndarray) -> tuple[BezierPatches, NodeEval]:
+def _side_bspline(curves: np.ndarray, v: np.ndarray, monotone: bool = False) -> tuple[BezierPatches, NodeEval]:
     from surfaces import bspline  # scipy.interpolate: loaded when this method is used
 
     nodes = curves[:, :, 0].transpose(1, 0, 2)
@@ -232,14 +286,15 @@ def _side_bspline(curves: np.ndarray, v: np.ndarray) -> tuple[BezierPatches, Nod
 
 
 #: Surface methods over the slice curves; adding one is one line here.
-METHODS: dict[str, Callable[[np.ndarray, np.ndarray], tuple[BezierPatches, NodeEval]]] = {
+#: ``monotone`` (limit the blend in ``v``) applies to blending; Coons and B-spline ignore it.
+METHODS: dict[str, Callable[..., tuple[BezierPatches, NodeEval]]] = {
     "blending": _side_blending,
     "coons": _side_coons,
     "bspline": _side_bspline,
 }
 
 
-def side_surface(curves, method: str = "blending", v=None) -> tuple[BezierPatches, NodeEval]:
+def side_surface(curves, method: str = "blending", v=None, monotone: bool = False) -> tuple[BezierPatches, NodeEval]:
     """Side surface through a stack of slice curves.
 
     Parameters
@@ -252,6 +307,10 @@ def side_surface(curves, method: str = "blending", v=None) -> tuple[BezierPatche
     v : array_like, shape (K,), optional
         Slice positions (strictly increasing); uniform when omitted. Unequal
         positions give the non-uniform parabolas in ``v``.
+    monotone : bool
+        Blending only: limit the blend in ``v`` where it would overshoot between
+        slices (:func:`surfaces.blending.limit_monotone`), so a protrusion present
+        on one slice only does not fold the surface.
 
     Returns
     -------
@@ -268,4 +327,4 @@ def side_surface(curves, method: str = "blending", v=None) -> tuple[BezierPatche
     vv = np.arange(len(c), dtype=np.float64) if v is None else as_array(v, "v", shape=(len(c),))
     if np.any(np.diff(vv) <= 0):
         raise ValueError("v: slice positions must increase strictly")
-    return METHODS[method](c, vv)
+    return METHODS[method](c, vv, monotone=bool(monotone))

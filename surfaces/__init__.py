@@ -14,7 +14,8 @@ ways in             ``coons`` (grids, seed 001), ``blending`` (parabolic blendin
 measures            ``measure`` (area and volume by quadrature), ``distance``
                     (signed deviation from a reference surface)
 meshes              ``mesh`` (:class:`TriangleMesh`, tessellation, welding, signed
-                    volume), ``topology`` (edges, shells, chains)
+                    volume), ``topology`` (edges, shells, chains), ``intersect``
+                    (self-intersecting faces), ``voxelize`` (a solid onto a voxel grid)
 solids              ``boolean`` (set operations, seed 002b), ``repair`` (checks and
                     repair of solid boundaries), ``smooth`` (Loop subdivision)
 files               ``io`` (meshes, patch files, PNG, JSON; atomic writes)
@@ -56,6 +57,7 @@ _MODULES = (
     "distance",
     "frames",
     "grid",
+    "intersect",
     "io",
     "kinematic",
     "knots",
@@ -67,6 +69,7 @@ _MODULES = (
     "topology",
     "validate",
     "vectors",
+    "voxelize",
 )
 
 # public name -> the module that holds it

@@ -31,6 +31,8 @@ Bezier patches (:func:`blend_curves`).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from surfaces.bezier import BezierPatches, bernstein
@@ -289,7 +291,7 @@ def blend_weights(n_curves: int, params=None) -> np.ndarray:
     )
 
 
-def blend_curves(curves, closed_u: bool = True, params=None) -> BezierPatches:
+def blend_curves(curves, closed_u: bool = True, params=None, monotone: bool = False) -> BezierPatches:
     """Surface through a stack of curves by uniform parabolic blending in ``v``.
 
     Seed 000, eqs. 13-19: ``S(u, v) = (1 - v) Pc(v) + v Pd(v)`` between
@@ -306,6 +308,10 @@ def blend_curves(curves, closed_u: bool = True, params=None) -> BezierPatches:
         The curves are closed (segment ``M - 1`` ends where segment 0 starts).
     params : array_like, shape (K,), optional
         ``v`` of the curves for unequal spacing (see :func:`blend_weights`).
+    monotone : bool
+        Limit the blend in ``v`` so it never overshoots between curves
+        (:func:`limit_monotone`, per control point and coordinate); the
+        surface still passes through every curve.
 
     Returns
     -------
@@ -320,8 +326,83 @@ def blend_curves(curves, closed_u: bool = True, params=None) -> BezierPatches:
     w = blend_weights(k, params)
     # one matrix product over all curves (faster than einsum's batched path)
     mixed = (w.reshape(-1, k) @ c.reshape(k, -1)).reshape(k - 1, 4, m, 4, 3)
+    if monotone:
+        mixed = limit_monotone(mixed.reshape(k - 1, 4, -1)).control.reshape(mixed.shape)
     control = np.ascontiguousarray(mixed.transpose(2, 0, 3, 1, 4))
     return BezierPatches(control, closed_u=closed_u)
+
+
+@dataclass(frozen=True)
+class LimitedBlend:
+    """Cubic pieces in ``v`` with their tangents limited to stay monotone (:func:`limit_monotone`).
+
+    Attributes
+    ----------
+    control : numpy.ndarray, shape (K - 1, 4, F)
+        Bezier points of the ``K - 1`` pieces along ``v``, every column one coordinate.
+    limited : numpy.ndarray, shape (K, F) bool
+        Tangents (node ``k``, coordinate) that were shortened or zeroed.
+    """
+
+    control: np.ndarray
+    limited: np.ndarray
+
+
+def limit_monotone(pieces) -> LimitedBlend:
+    """Shape-preserving limit of a C1 chain of cubic pieces (Fritsch & Carlson 1980, per coordinate).
+
+    Between two nodes the parabolic blend overshoots where the data turn (a
+    protrusion present on one slice only, a sharp turn): its inner Bezier
+    points leave the interval of the piece's end values. Each node's tangent
+    is scaled, per coordinate, so that both inner Bezier points next to it
+    stay between the end values of their piece; where the neighbouring
+    differences change sign (a local extremum of the data) the tangent
+    becomes zero. The same factor applies on both sides of the node, so the
+    chain stays C1 and passes through every node; each piece is then
+    monotone in every coordinate (its Bezier points are), and so never
+    leaves the box spanned by its two nodes.
+
+    Parameters
+    ----------
+    pieces : array_like, shape (K - 1, 4, F)
+        Bezier points ``P_k, P_k + a_k, P_{k+1} - b_k, P_{k+1}`` of consecutive
+        pieces (piece ``k`` ends where piece ``k + 1`` starts), any number ``F``
+        of coordinates.
+
+    Returns
+    -------
+    LimitedBlend
+
+    Examples
+    --------
+    A step 0, 0, 1: the parabolic blend dips below 0 on the flat piece and
+    overshoots nowhere else; the limit flattens the first piece:
+
+    >>> w = blend_weights(3)
+    >>> pieces = (w.reshape(-1, 3) @ np.array([[0.0], [0.0], [1.0]])).reshape(2, 4, 1)
+    >>> pieces[0, :, 0].round(3).tolist()
+    [0.0, -0.167, -0.167, 0.0]
+    >>> r = limit_monotone(pieces)
+    >>> r.control[:, :, 0].round(3).tolist(), r.limited[:, 0].tolist()
+    ([[0.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.5, 1.0]], [True, True, False])
+    """
+    p = as_array(pieces, "pieces", shape=(None, 4, None))
+    d = p[:, 3] - p[:, 0]
+    out = p[:, 1] - p[:, 0]  # a_k: leaves node k into piece k
+    inn = p[:, 3] - p[:, 2]  # b_k: enters node k + 1 from piece k
+    n = len(p) + 1
+    scale = np.ones((n,) + d.shape[1:])
+    tiny = 1e-12 * (np.abs(p).max() + 1.0)
+    for side, diff, sl in ((out, d, slice(0, n - 1)), (inn, d, slice(1, n))):
+        # a tangent against the piece's own direction, or longer than its rise, overshoots
+        wrong = (side * diff < 0) | ((np.abs(diff) <= tiny) & (np.abs(side) > tiny))
+        ratio = np.where(np.abs(side) > np.abs(diff), np.abs(diff) / np.maximum(np.abs(side), 1e-300), 1.0)
+        scale[sl] = np.minimum(scale[sl], np.where(wrong, 0.0, ratio))
+    limited = scale < 1.0
+    q = p.copy()
+    q[:, 1] = p[:, 0] + out * scale[:-1]
+    q[:, 2] = p[:, 3] - inn * scale[1:]
+    return LimitedBlend(q, limited)
 
 
 def from_grid(points, u_params=None, closed_u: bool = False, closed_v: bool = False) -> BezierPatches:

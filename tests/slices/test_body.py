@@ -65,11 +65,14 @@ def test_flat_capped_mesh_is_watertight_and_display_keeps_caps_apart(ellipsoid_b
 
 def test_single_contour_body():
     body = Body("outer", (Contour(0.0, circle(0, 0, 10, 64)),), "end", "end")
-    assert build_body(body, 3.0, SurfaceOptions(caps="flat")) is None
-    assert build_body(body, 3.0, SurfaceOptions(caps="none")) is None
     half = build_body(body, 3.0, SurfaceOptions(caps="half", samples=2))
     area = abs(curve_area(slice_curves([body.contours[0].points], [0.0], 64).curves[0]))
     assert half.volume_mm3 == pytest.approx(area * 3.0, rel=1e-9)
+    for caps in ("flat", "none"):
+        # no thickness with these caps: the body gets the slab of one spacing, not dropped
+        thin = build_body(body, 3.0, SurfaceOptions(caps=caps, samples=2))
+        assert thin.caps_used == ("half", "half") and thin.volume_mm3 == pytest.approx(half.volume_mm3)
+        assert thin.mesh.is_watertight()
     assert half.mesh.is_watertight()
     dome = build_body(body, 3.0, SurfaceOptions(caps="dome"), mesh=False)
     assert 0 < dome.volume_mm3 < half.volume_mm3

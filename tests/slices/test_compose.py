@@ -47,8 +47,11 @@ def test_difference_equals_base_minus_intersection(shared_data, breast, other):
     assert comp["base"]["mesh_volume_mm3"] == pytest.approx(vol_a, rel=1e-12)
     # the other ROI is built with the base's options
     assert comp["minus"][0]["mesh_volume_mm3"] == pytest.approx(vol_b, rel=1e-12)
-    assert comp["result_volume_mm3"] == pytest.approx(vol_a - inter, rel=1e-6)
+    assert comp["result_mesh_volume_mm3"] == pytest.approx(vol_a - inter, rel=1e-6)
     assert comp["removed_volume_mm3"] == pytest.approx(inter, rel=1e-6)
+    # the reported difference: the base's patch volume less what the meshes remove, never above the minuend
+    assert comp["result_volume_mm3"] == pytest.approx(rec.volume_mm3 - inter, rel=1e-6)
+    assert comp["result_volume_mm3"] < rec.volume_mm3
     assert comp["added_volume_mm3"] == pytest.approx(0.0, abs=1e-6 * vol_a)
     assert comp["watertight"] and comp["oriented"]
     assert comp["base"]["volume_ml"] == pytest.approx(rec.volume_mm3 / 1000)
@@ -62,7 +65,8 @@ def test_union_with_plus_adds_the_outside_part(shared_data, breast):
     b = _other(shared_data, "Nodes")
     inter = boolean.boolean(a, b, "intersection").volume
     assert comp["added_volume_mm3"] == pytest.approx(b.signed_volume() - inter, rel=1e-6)
-    assert comp["result_volume_mm3"] == pytest.approx(a.signed_volume() + b.signed_volume() - inter, rel=1e-6)
+    assert comp["result_mesh_volume_mm3"] == pytest.approx(a.signed_volume() + b.signed_volume() - inter, rel=1e-6)
+    assert comp["result_volume_mm3"] == pytest.approx(rec.volume_mm3 + b.signed_volume() - inter, rel=1e-6)
     _assert_solid(mesh, "Breast + Nodes")
 
 

@@ -151,6 +151,16 @@ def test_rtstruct_breast(shared_data):
         io.load(path)
 
 
+@pytest.mark.parametrize("size", [30_000, 500_000, 1_500_000])
+def test_truncated_rtstruct_is_a_clear_error(shared_data, tmp_path, size):
+    data = (shared_data / "rtstruct_breast" / "rtss.dcm").read_bytes()
+    cut = tmp_path / "rtss.dcm"
+    cut.write_bytes(data[:size])
+    for read in (io.list_rois, lambda p: io.load(p, roi="BODY")):
+        with pytest.raises(ValueError, match="truncated or incomplete"):
+            read(cut)
+
+
 def test_structure_set_readers_check_their_file(phantom_dicom, tmp_path):
     src, _ = phantom_dicom
     ct_slice = next((src / "ct").iterdir())

@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import json
+import numpy as np
 
 import pytest
 
 from slices.caps import curve_area
+from slices.control_points import signed_area
 from slices.io import Contour
 from slices.options import ReadOptions, SurfaceOptions
 from slices.structure import reconstruct_contours, reconstruct_roi, solid_union
@@ -48,8 +50,11 @@ def test_adaptive_samples_meet_the_mesh_budget(ellipsoid):
 
     rec = reconstruct_contours(conts)
     assert rec.options.samples is None  # what was asked for; the bodies got one adapted density
-    # a small structure gets the finest density (6 per patch side), still below the budget
-    assert rec.mesh.n_vertices == reconstruct_contours(conts, samples=6).mesh.n_vertices < MESH_BUDGET
+    # a structure gets about one vertex per AREA_PER_VERTEX of its surface (at most 6 per patch side)
+    from slices.structure import AREA_PER_VERTEX
+    area = rec.area_mm2
+    assert rec.mesh.n_vertices <= reconstruct_contours(conts, samples=6).mesh.n_vertices < MESH_BUDGET
+    assert 0.25 * area / AREA_PER_VERTEX < rec.mesh.n_vertices < 1.5 * area / AREA_PER_VERTEX
     # a larger one (four times the points per contour and the planes) gets fewer samples per patch
     _, dense, _ = phantom_stack("ellipsoid", spacing=0.5, a=15.0, b=10.0, c=12.0, n_points=192)
     big = reconstruct_contours(dense, mesh=True)
@@ -89,13 +94,17 @@ def test_branching_splits_chain_and_separate_bodies():
 def test_single_contour_bodies():
     conts = [Contour(0.0, circle(0, 0, 10, 64)), Contour(3.0, circle(30, 0, 5, 64)),
              Contour(6.0, circle(30, 0, 5, 64))]
-    rec = reconstruct_contours(conts, spacing=3.0, caps="flat", mesh=False)
-    assert len(rec.skipped) == 1 and len(rec.bodies) == 1
-    rec = reconstruct_contours(conts, spacing=3.0, caps="half", mesh=False)
-    assert len(rec.skipped) == 0 and len(rec.bodies) == 2
-    single = next(b for b in rec.bodies if len(b.body.contours) == 1)
     area = abs(curve_area(slice_curves([circle(0, 0, 10, 64)], [0.0], 16).curves[0]))
-    assert single.volume_mm3 == pytest.approx(area * 3.0, rel=1e-9)
+    for caps in ("none", "flat", "half", "dome"):
+        # a single contour is never dropped: with none/flat it gets the planning systems' slab
+        rec = reconstruct_contours(conts, spacing=3.0, caps=caps, mesh=False)
+        assert len(rec.bodies) == 2
+        single = next(b for b in rec.bodies if len(b.body.contours) == 1)
+        if caps != "dome":
+            assert single.caps_used == ("half", "half")
+            assert single.volume_mm3 == pytest.approx(area * 3.0, rel=1e-9)
+        else:
+            assert single.caps_used == ("dome", "dome") and 0 < single.volume_mm3 < area * 3.0
 
 
 def test_bad_spacing_and_method(ellipsoid):
@@ -199,7 +208,48 @@ def test_reconstruct_roi_resample_blends_contour_files_at_their_planes(ellipsoid
 
 def test_reconstruct_roi_with_only_single_contours(tmp_path):
     path = _write_contours(tmp_path / "one.json", [Contour(0.0, circle(0, 0, 5)), Contour(3.0, circle(20, 0, 5))])
-    with pytest.raises(ValueError, match="nothing to reconstruct"):
-        reconstruct_roi(path)
+    # flat caps (the default) give a single contour no thickness: it gets the half-cap slab instead
+    _, flat = reconstruct_roi(path)
     _, rec = reconstruct_roi(path, options=SurfaceOptions(caps="half"))
-    assert len(rec.bodies) == 2 and not rec.skipped
+    assert len(rec.bodies) == len(flat.bodies) == 2
+    assert flat.volume_mm3 == pytest.approx(rec.volume_mm3) == pytest.approx(rec.slab_volume_mm3 * 2, rel=0.02)
+
+
+def test_volume_by_caps_and_offset_sensitivity():
+    from slices.chaining import offset_sensitivity
+    t = np.linspace(0, 2 * np.pi, 256, endpoint=False)
+    disc = 10 * np.stack([np.cos(t), np.sin(t)], axis=1)
+    conts = [Contour(z, disc) for z in (0.0, 5.0, 10.0, 15.0, 20.0)]
+    area = float(abs(signed_area(disc)))
+    by = {}
+    for caps in ("flat", "half", "dome"):
+        rec = reconstruct_contours(conts, caps=caps, mesh=False)
+        by[caps] = rec.volume_by_caps()
+        # whichever caps were built, the conventions agree (dome bodies are rebuilt)
+        assert by[caps]["half"] == pytest.approx(by[caps]["flat"] + area * 5.0, rel=1e-3)
+        assert by[caps]["none"] == by[caps]["flat"]
+        assert by[caps]["slab"] == pytest.approx(area * 20.0)
+    assert by["flat"]["half"] == pytest.approx(reconstruct_contours(conts, caps="half", mesh=False).volume_mm3)
+    perimeter = float(np.linalg.norm(np.roll(disc, -1, axis=0) - disc, axis=1).sum())
+    expected = (perimeter * 0.5 + np.pi * 0.25) * 20.0
+    assert rec.sensitivity_mm3 == pytest.approx(expected)
+    # the holes of a ring shrink when the contours grow: both perimeters count
+    ring = [Contour(z, c) for z in (0.0, 5.0) for c in (disc, 0.5 * disc)]
+    assert offset_sensitivity(ring, 5.0) == pytest.approx(perimeter * 1.5 * 0.5 * 5.0)
+
+
+def test_messages_name_the_real_problem(tmp_path):
+    disc = circle(0, 0, 10, 40)
+    far = _write_contours(tmp_path / "far.json", [Contour(z, disc + 1e9) for z in (0.0, 2.0, 4.0)])
+    with pytest.raises(ValueError, match="not patient coordinates in mm"):
+        reconstruct_roi(far)
+    tiny = _write_contours(tmp_path / "tiny.json", [Contour(z, disc * 1e-6) for z in (0.0, 2e-6, 4e-6)])
+    with pytest.raises(ValueError, match="check the units"):
+        reconstruct_roi(tiny)
+    one = _write_contours(tmp_path / "one.json", [Contour(0.0, disc)])
+    with pytest.raises(ValueError, match="give spacing"):
+        reconstruct_roi(one)
+    # --spacing given: its z is the single plane's slab (no "give spacing")
+    for given in ("2,1,1", "2", 2.0):
+        _, rec = reconstruct_roi(one, reading=ReadOptions(spacing=given), options=SurfaceOptions(samples=1))
+        assert rec.spacing == 2.0 and rec.volume_mm3 == pytest.approx(abs(signed_area(disc)) * 2.0, rel=1e-2)

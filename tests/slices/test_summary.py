@@ -23,20 +23,22 @@ def fork():
 def test_body_table(fork):
     _, rec = fork
     rows = body_table(rec)
-    assert len(rows) == len(rec.bodies) + len(rec.skipped) == 4
+    assert len(rows) == len(rec.bodies) == 4
     first = rows[0]
     assert (first["kind"], first["start"], first["stop"], first["n_slices"]) == ("outer", "end", "branch", 2)
     assert first["volume_mm3"] == rec.bodies[0].volume_mm3
     assert first["ray_start_deg"] == pytest.approx(np.degrees(0.1))
-    assert rows[-1]["skipped"].startswith("single contour") and rows[-1]["z_min_mm"] == 10.0
+    single = next(r for r in rows if r["n_slices"] == 1)
+    assert single["caps"] == ["half", "half"] and single["z_min_mm"] == 10.0 and single["volume_mm3"] > 0
+    assert first["caps"] == ["flat", "half"] and first["subtracted"] is False
 
 
 def test_chaining_text(fork):
     _, rec = fork
     assert chaining_text(rec) == (
-        "3 body(ies) chained by overlap of contours on neighbouring planes: 3 outer, 0 hole(s) (volume "
-        "subtracted); 1 chain(s) split at a branching or merging contour; 1 single-contour body(ies) skipped "
-        "(no thickness with these caps)")
+        "4 body(ies) chained by overlap of contours on neighbouring planes: 4 outer, 0 hole(s) (volume "
+        "subtracted); 1 chain(s) split at a branching or merging contour; 1 single-contour body(ies) given "
+        "half caps (no thickness with caps flat)")
 
 
 def test_summarize(fork):
@@ -46,7 +48,7 @@ def test_summarize(fork):
                   {"surface_time_s": 1.0})
     assert (s["input"], s["source"], s["roi"], s["rays"], s["ray_start"]) == ("fork.json", "json", "fork", 64,
                                                                            pytest.approx(np.degrees(0.1)))
-    assert s["n_slices"] == 5 and s["n_contours"] == 7 and s["n_bodies"] == 3 and s["n_outer_bodies"] == 3
+    assert s["n_slices"] == 5 and s["n_contours"] == 7 and s["n_bodies"] == 4 and s["n_outer_bodies"] == 4
     assert s["volume_source"] == "patches" and s["mesh_union"] and s["surface_time_s"] == 1.0
     assert s["n_patches"] == sum(b.patches.n_patches for b in rec.bodies)
     assert s["notes"] == ["read from memory"] and s["reference_bspline"]["max_control_point_deviation_mm"] == 0.5

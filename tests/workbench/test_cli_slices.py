@@ -25,7 +25,8 @@ def contour_json(tmp_path_factory):
 def test_reconstruct_writes_outputs(contour_json, tmp_path, caps, capsys):
     path, truth = contour_json
     out = tmp_path / "out"
-    code = main(["slices", "reconstruct", str(path), "--caps", caps, "--rays", "32", "--out", str(out)])
+    code = main(["slices", "reconstruct", str(path), "--caps", caps, "--rays", "32", "--out", str(out),
+                 "--reference"])
     assert code == 0
     for name in ("surface.ply", "surface.stl", "patches.npz", "summary.json", "render.png"):
         assert (out / name).is_file(), name
@@ -94,12 +95,15 @@ def test_reconstruct_minus_composes(shared_data, tmp_path, capsys):
     assert comp["base"]["volume_ml"] == pytest.approx(comp["base"]["volume_mm3"] / 1000)
     # nearly all of the bed lies inside the block
     assert 0.99 * comp["minus"][0]["mesh_volume_mm3"] < comp["removed_volume_mm3"] < comp["minus"][0]["mesh_volume_mm3"]
-    assert comp["result_volume_mm3"] == pytest.approx(comp["base"]["mesh_volume_mm3"] - comp["removed_volume_mm3"],
-                                                      rel=1e-9)
+    assert comp["result_mesh_volume_mm3"] == pytest.approx(
+        comp["base"]["mesh_volume_mm3"] - comp["removed_volume_mm3"], rel=1e-9)
+    # a difference never exceeds its minuend (issue 20): the base's own volume less what is removed
+    assert comp["result_volume_mm3"] == pytest.approx(comp["base"]["volume_mm3"] - comp["removed_volume_mm3"])
+    assert comp["result_volume_mm3"] <= comp["base"]["volume_mm3"]
     assert comp["watertight"] and summary["mesh_watertight"] and summary["mesh_oriented"]
     mesh = read_mesh(out / "surface.ply")
     assert mesh.is_watertight() and mesh.is_oriented()
-    assert mesh.signed_volume() == pytest.approx(summary["volume_mm3"], rel=1e-5)  # float32 PLY
+    assert mesh.signed_volume() == pytest.approx(comp["result_mesh_volume_mm3"], rel=1e-5)  # float32 PLY
     info = check_solid(mesh)
     assert info["solid"], info["problems"]
     printed = capsys.readouterr().out

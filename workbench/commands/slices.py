@@ -86,6 +86,12 @@ def register(sub) -> None:
                    help="tessellation subdivisions per patch side (default: adapted so that the mesh "
                    f"has about {MESH_BUDGET:,} vertices)")
     p.add_argument("--no-render", action="store_true", help="skip render.png")
+    p.add_argument("--reference", action="store_true",
+                   help="also compare with the smoothing B-spline reference (seed 000, ref. [5]; adds its time)")
+    p.add_argument("--export-mask", default=None, metavar="OUT.nii.gz",
+                   help="also write the solid rasterised onto a voxel grid as a NIfTI mask")
+    p.add_argument("--mask-spacing", default=None, metavar="X,Y,Z",
+                   help="voxel size of --export-mask in mm (default 1,1 and the slice spacing)")
 
     r = add_command(sub, "rois", _rois, help="list the ROIs of an RT structure set",
                     description="List ROI numbers, names, contour and plane counts.")
@@ -111,7 +117,8 @@ def _reconstruct(args: argparse.Namespace) -> int:
             hu_min=args.hu_min, hu_max=args.hu_max, spacing=args.spacing, resample=args.resample,
             lattice=args.lattice, render=not args.no_render, samples=args.samples, progress=progress,
             correspondence=args.correspondence, union=args.union, minus=args.minus, plus=args.plus,
-            repair=args.repair, ray_start=args.ray_start,
+            repair=args.repair, ray_start=args.ray_start, reference=args.reference, export_mask=args.export_mask,
+            mask_spacing=args.mask_spacing,
         )
     ref = summary.get("reference_bspline", {})
     print(f"{summary['roi']}: {summary['n_contours']} contours on {summary['n_slices']} planes, "

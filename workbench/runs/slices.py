@@ -22,12 +22,13 @@ import numpy as np
 
 from slices.pipeline import SlicesReconstruction, reconstruct
 from surfaces.io import atomic_path, jsonable, write_json, write_mesh, write_png
+from surfaces.validate import positive
 from workbench.runs.folder import result_folder
 
 #: The options :func:`reconstruct_to_folder` accepts (command-line and manifest names).
 OPTIONS = frozenset({
     "method", "rays", "caps", "hu_min", "hu_max", "spacing", "resample", "lattice", "samples", "correspondence",
-    "ray_start", "union", "minus", "plus", "repair", "render", "reference",
+    "ray_start", "union", "minus", "plus", "repair", "render", "reference", "export_mask", "mask_spacing",
 })
 
 #: Files written into the output folder (``render.png`` only when rendering).
@@ -112,6 +113,47 @@ def save_body_patches(result: SlicesReconstruction, path) -> None:
             np.savez(fh, **arrays)
 
 
+def export_mask(result: SlicesReconstruction, path, spacing=None) -> dict:
+    """Write the solid rasterised onto a voxel grid as a NIfTI mask (nibabel).
+
+    Parameters
+    ----------
+    result : SlicesReconstruction
+    path : str or os.PathLike
+        ``.nii`` or ``.nii.gz`` file.
+    spacing : str or sequence of float, optional
+        Voxel size ``x,y,z`` in mm; default 1 mm in-plane and the slice spacing
+        along z.
+
+    Returns
+    -------
+    dict
+        ``path``, ``shape``, ``spacing_mm``, ``n_voxels`` (inside) and
+        ``voxel_volume_mm3`` (voxels x voxel volume; ``volume_mm3`` stays the
+        patch volume).
+    """
+    import nibabel
+
+    from surfaces.voxelize import occupancy
+
+    path = Path(path)
+    if not (path.name.endswith(".nii") or path.name.endswith(".nii.gz")):
+        raise ValueError(f"--export-mask: must end in .nii or .nii.gz, got {str(path)!r}")
+    if spacing is None:
+        sp = (1.0, 1.0, float(result.reconstruction.spacing))
+    else:
+        parts = str(spacing).split(",") if isinstance(spacing, str) else list(spacing)
+        if len(parts) != 3:
+            raise ValueError(f"--mask-spacing: expected x,y,z in mm, got {spacing!r}")
+        sp = tuple(positive(v, "--mask-spacing") for v in parts)
+    mask, affine = occupancy(result.mesh, sp, margin=max(sp))
+    with atomic_path(path, suffix=".nii.gz" if path.name.endswith(".gz") else ".nii") as tmp:
+        nibabel.save(nibabel.Nifti1Image(mask, affine), str(tmp))
+    n = int(mask.sum())
+    return {"path": str(path), "shape": list(mask.shape), "spacing_mm": list(sp), "n_voxels": n,
+            "voxel_volume_mm3": n * float(np.prod(sp))}
+
+
 def write_result(result: SlicesReconstruction, out_dir, *, render: bool = True) -> dict:
     """Write a reconstruction's files into ``out_dir`` and return the content of ``summary.json``.
 
@@ -185,8 +227,10 @@ def reconstruct_to_folder(input_path, out_dir, *, roi=None, progress=None, atomi
         ``correspondence``, ``ray_start`` (direction of ray 0 in degrees from
         +x for every body, or "auto" (default): per body the rotation that keeps
         support points steadiest), ``union``, ``minus``, ``plus``, ``repair``,
-        ``reference`` (see :func:`slices.pipeline.reconstruct`) and ``render``
-        (default True). Defaults are those of :class:`slices.options.SurfaceOptions`
+        ``reference`` (see :func:`slices.pipeline.reconstruct`), ``render``
+        (default True), ``export_mask`` (a ``.nii``/``.nii.gz`` path: the solid
+        rasterised, :func:`export_mask`) and ``mask_spacing`` (its voxel size
+        x,y,z mm). Defaults are those of :class:`slices.options.SurfaceOptions`
         and :func:`slices.pipeline.reconstruct`.
 
     Returns
@@ -198,12 +242,19 @@ def reconstruct_to_folder(input_path, out_dir, *, roi=None, progress=None, atomi
     if unknown:
         raise ValueError(f"options: unknown {sorted(unknown)}")
     render = bool(options.pop("render", True))
-    if not atomic:
+    mask_path, mask_spacing = options.pop("export_mask", None), options.pop("mask_spacing", None)
+    if mask_path is not None and not (str(mask_path).endswith(".nii") or str(mask_path).endswith(".nii.gz")):
+        raise ValueError(f"--export-mask: must end in .nii or .nii.gz, got {str(mask_path)!r}")
+
+    def run():
         result = reconstruct(input_path, roi=roi, progress=progress, **library_options(options))
         result.summary["ray_start"] = options.get("ray_start") or "auto"
-        return write_result(result, out_dir, render=render)
+        if mask_path is not None:
+            result.summary["export_mask"] = export_mask(result, mask_path, mask_spacing)
+        return result
+
+    if not atomic:
+        return write_result(run(), out_dir, render=render)
     # the folder is checked and locked before the work, so a bad --out or a second writer is refused at once
     with result_folder(out_dir, owned=FILES) as tmp:
-        result = reconstruct(input_path, roi=roi, progress=progress, **library_options(options))
-        result.summary["ray_start"] = options.get("ray_start") or "auto"
-        return write_result(result, tmp, render=render)
+        return write_result(run(), tmp, render=render)
