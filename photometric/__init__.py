@@ -1,11 +1,14 @@
 """Lambertian photometric stereo: lights, normals and albedo, height, defects, error analysis.
 
 Modules: ``lights`` (the convention, slant and azimuth, validation, reading,
-mirror-sphere calibration), ``normals`` (normals from slopes, the angular error), ``io``
-(images and DiLiGenT-style folders), ``stereo`` (normals and albedo), ``integrate``
-(height from gradients, height field to Bezier patches), ``defects`` (crack/dent
-measures), ``pipeline`` (input to measured surface, no files) and the package
-``errors`` (accuracy against deviated lights).
+mirror-sphere calibration of directions, point lights), ``camera`` (orthographic and
+perspective cameras of a near-field rig), ``normals`` (normals from slopes, the angular
+error), ``io`` (images and DiLiGenT-style folders), ``stereo`` (normals and albedo under
+distant lights), ``nearfield`` (point lights: the alternation of normals and depth),
+``rig`` (flat-field gains, ``rig.json``), ``calibrate`` (LED positions from mirror
+spheres), ``integrate`` (height from gradients, height field to Bezier patches),
+``defects`` (crack/dent measures), ``pipeline`` (input to measured surface, no files) and
+the package ``errors`` (accuracy against deviated lights).
 
 The names users call are importable from here (``photometric.solve``); each is loaded
 with its module on first use, so ``import photometric`` stays light. The integrator is
@@ -20,8 +23,13 @@ _HOMES = {
     "lights": (
         "CONVENTION", "validate_lights", "condition_number", "lights_from_angles", "light_angles",
         "ring_lights", "tangent_basis", "deviate_lights", "rotate_lights", "load_lights",
-        "as_intensities", "load_intensities", "calibrate_mirror_sphere",
+        "as_intensities", "load_intensities", "calibrate_mirror_sphere", "PointLights", "point_lights",
+        "load_light_positions", "light_field",
     ),
+    "camera": ("Orthographic", "Perspective", "make_camera"),
+    "nearfield": ("NearFieldResult", "NotConvergedError", "solve_nearfield"),
+    "rig": ("Rig", "flat_field_gains", "read_rig"),
+    "calibrate": ("calibrate_positions", "calibrate_rig"),
     "normals": ("normals_from_slopes", "angular_error_deg"),
     "io": ("PhotometricData", "read_folder", "read_image", "read_images", "read_mask"),
     "stereo": ("StereoResult", "solve"),

@@ -13,7 +13,12 @@ turns the height field into numbers an inspector uses:
    the footprints that reach the detection depth;
 3. measure each connected region (scikit-image ``regionprops``) in physical units.
 
-Directions follow :data:`photometric.lights.CONVENTION` (x right, y up).
+Directions follow :data:`photometric.lights.CONVENTION` (x right, y up). On a regular
+pixel grid (orthographic camera) positions are the pixel centres times the pixel size.
+With a perspective camera each pixel sees its own point: given ``xy`` (the ``x, y`` of
+each pixel's surface point, mm) and ``area`` (each pixel's footprint on the ``x, y``
+plane, mm^2), the background is fitted over those positions and lengths, widths, areas
+and volumes are measured on them.
 """
 
 from __future__ import annotations
@@ -33,15 +38,26 @@ def _scaled(rows: np.ndarray, cols: np.ndarray, shape) -> tuple[np.ndarray, np.n
     return 2.0 * cols / max(shape[1] - 1, 1) - 1.0, 1.0 - 2.0 * rows / max(shape[0] - 1, 1)
 
 
-def _design(rows: np.ndarray, cols: np.ndarray, shape, degree: int) -> np.ndarray:
+def _design(rows: np.ndarray, cols: np.ndarray, shape, degree: int, coords=None) -> np.ndarray:
     """Monomials ``x^a y^b`` (a + b <= degree) in coordinates scaled to [-1, 1]."""
-    x, y = _scaled(rows, cols, shape)
+    x, y = _scaled(rows, cols, shape) if coords is None else (coords[0][rows, cols], coords[1][rows, cols])
     terms = [x**a * y ** (d - a) for d in range(degree + 1) for a in range(d + 1)]
     return np.stack(terms, axis=1)
 
 
+def _scaled_xy(xy: np.ndarray, usable: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """x and y of each pixel's point scaled to [-1, 1] over the usable pixels."""
+    out = []
+    for c in range(2):
+        v = xy[..., c]
+        lo, hi = float(v[usable].min()), float(v[usable].max())
+        half = max(0.5 * (hi - lo), 1e-12)
+        out.append((v - 0.5 * (lo + hi)) / half)
+    return out[0], out[1]
+
+
 def fit_background(
-    height, mask=None, method: str = "plane", *, degree: int = 3, iterations: int = 6
+    height, mask=None, method: str = "plane", *, degree: int = 3, iterations: int = 6, xy=None
 ) -> tuple[np.ndarray, float]:
     """Robust background of a height field (plane or smooth polynomial).
 
@@ -57,6 +73,9 @@ def fit_background(
         Degree of the smooth background.
     iterations : int, optional
         Refits; each excludes points with ``|r| > 3 sigma``, ``sigma = 1.4826 MAD``.
+    xy : array_like, shape (H, W, 2), optional
+        ``x, y`` (mm) of each pixel's point (perspective camera); the background is a
+        polynomial in these instead of the pixel grid.
 
     Returns
     -------
@@ -74,6 +93,13 @@ def fit_background(
     ok = np.isfinite(z)
     if mask is not None:
         ok &= as_array(mask, "mask", shape=z.shape, dtype=bool)
+    coords = None
+    if xy is not None:
+        pts = as_array(xy, "xy", shape=z.shape + (2,), finite=False)
+        ok &= np.isfinite(pts).all(axis=2)
+        if not ok.any():
+            raise ValueError("height: no usable pixel for the background")
+        coords = _scaled_xy(pts, ok)
     rows, cols = np.nonzero(ok)
     n_terms = (deg + 1) * (deg + 2) // 2
     if rows.size < 3 * n_terms:
@@ -81,7 +107,7 @@ def fit_background(
     if rows.size > _MAX_FIT_POINTS:
         pick = np.linspace(0, rows.size - 1, _MAX_FIT_POINTS).astype(np.int64)
         rows, cols = rows[pick], cols[pick]
-    A = _design(rows, cols, z.shape, deg)
+    A = _design(rows, cols, z.shape, deg, coords)
     values = z[rows, cols]
     use = np.ones(values.size, bool)
     sigma = 0.0
@@ -93,6 +119,20 @@ def fit_background(
         if new.sum() < 3 * n_terms or np.array_equal(new, use):
             break
         use = new
+    if coords is not None:
+        # powers built by repeated products (no pow on whole images, no ones for x^0 y^0)
+        xs, ys = [None, coords[0]], [None, coords[1]]
+        for _ in range(2, deg + 1):
+            xs.append(xs[-1] * coords[0])
+            ys.append(ys[-1] * coords[1])
+        background = np.full(z.shape, float(coef[0]))
+        k = 1
+        for d in range(1, deg + 1):
+            for a in range(d + 1):
+                term = ys[d] if a == 0 else xs[a] if a == d else xs[a] * ys[d - a]
+                background += coef[k] * term
+                k += 1
+        return background, sigma
     # Evaluate term by term as outer products: no (H * W, terms) design matrix in memory.
     x, _ = _scaled(0.0, np.arange(z.shape[1], dtype=float), z.shape)
     _, y = _scaled(np.arange(z.shape[0], dtype=float), 0.0, z.shape)
@@ -119,6 +159,8 @@ def measure_defects(
     p=None,
     q=None,
     slope_threshold: float | None = None,
+    xy=None,
+    area=None,
 ) -> list[dict]:
     """Segment and measure defects of a height field.
 
@@ -153,6 +195,12 @@ def measure_defects(
         detection depth.
     slope_threshold : float, optional
         Default ``max(0.02, 6 sigma)`` of the background slope residual.
+    xy : array_like, shape (H, W, 2), optional
+        ``x, y`` (mm) of the point each pixel sees (perspective camera); positions,
+        lengths and widths are measured on these, and each defect gets ``center_mm``.
+    area : float or array_like, shape (H, W), optional
+        Each pixel's footprint on the ``x, y`` plane, mm^2 (with ``xy``; default
+        ``pixel_size^2``); areas and volumes sum it.
 
     Returns
     -------
@@ -164,7 +212,8 @@ def measure_defects(
         principal axis), ``area_mm2``, ``volume_mm3`` (``sum depth * h^2``),
         ``axis_deg`` (principal axis, from +x towards +y, in (-90, 90]),
         ``center_px`` (row, col, depth-weighted), ``bbox_px`` (min_row, min_col,
-        max_row, max_col), ``area_px`` and the thresholds used.
+        max_row, max_col), ``area_px`` and the thresholds used; with ``xy`` also
+        ``center_mm`` (x, y, depth-weighted).
     """
     z = as_array(height, "height", ndim=2, finite=False)
     h = positive(pixel_size, "pixel_size")
@@ -175,12 +224,22 @@ def measure_defects(
         inspect &= as_array(mask, "mask", shape=z.shape, dtype=bool)
     if not inspect.any():
         raise ValueError("height: no finite pixel to inspect")
+    pts = foot = None
+    if xy is not None:
+        pts = as_array(xy, "xy", shape=z.shape + (2,), finite=False)
+        foot = np.full(z.shape, h * h) if area is None else np.broadcast_to(
+            as_array(area, "area", ndim=(0, 2), finite=False), z.shape)
+        inspect &= np.isfinite(pts).all(axis=2) & np.isfinite(foot)
+        if not inspect.any():
+            raise ValueError("xy: no finite point to inspect")
+    elif area is not None:
+        raise ValueError("area: per-pixel footprints need xy (the points they belong to)")
     if background == "none":
         bg = np.zeros_like(z)  # flat: the slopes' background is zero
         residual = z - np.nanmedian(z[inspect])
         sigma = _MAD_TO_SIGMA * float(np.median(np.abs(residual[inspect])))
     elif background in ("plane", "smooth"):
-        bg, sigma = fit_background(z, inspect, background, degree=degree)
+        bg, sigma = fit_background(z, inspect, background, degree=degree, xy=pts)
         residual = z - bg
     else:
         raise ValueError(f"background: expected 'plane', 'smooth' or 'none', got {background!r}")
@@ -193,7 +252,7 @@ def measure_defects(
         footprint = _slope_footprint(
             as_array(p, "p", shape=z.shape, finite=False),
             as_array(q, "q", shape=z.shape, finite=False),
-            bg, inspect, h, slope_threshold,
+            bg, inspect, h, slope_threshold, pts,
         )
 
     signs = {"depression": (-1.0,), "bump": (1.0,), "both": (-1.0, 1.0)}[polarity]
@@ -218,22 +277,32 @@ def measure_defects(
         for prop in regionprops(labels, intensity_image=depth):
             if prop.area < min_area_px:
                 continue
-            results.append(
-                _measure(prop, h, "depression" if sign < 0 else "bump", low, high, sigma)
-            )
+            kind = "depression" if sign < 0 else "bump"
+            if pts is None:
+                results.append(_measure(prop, h, kind, low, high, sigma))
+            else:
+                results.append(_measure_points(prop, pts, foot, kind, low, high, sigma))
     results.sort(key=lambda d: -d["max_depth_mm"])
     for i, rec in enumerate(results):
         rec["id"] = i
     return results
 
 
-def _slope_footprint(p, q, background, inspect, h, slope_threshold) -> np.ndarray:
+def _slope_footprint(p, q, background, inspect, h, slope_threshold, xy=None) -> np.ndarray:
     """Pixels whose slope differs from the background's; enclosed flat parts included."""
     from scipy import ndimage
 
     d_row, d_col = np.gradient(background)
-    dp = np.nan_to_num(p - d_col / h)
-    dq = np.nan_to_num(q + d_row / h)
+    if xy is None:
+        dx_col, dy_row = h, -h
+    else:
+        # chain rule on the pixel grid: x runs along the columns, y (up) against the rows
+        dx_col = np.gradient(np.nan_to_num(xy[..., 0]), axis=1)
+        dy_row = np.gradient(np.nan_to_num(xy[..., 1]), axis=0)
+        dx_col = np.where(np.abs(dx_col) > 0, dx_col, h)
+        dy_row = np.where(np.abs(dy_row) > 0, dy_row, -h)
+    dp = np.nan_to_num(p - d_col / dx_col)
+    dq = np.nan_to_num(q - d_row / dy_row)
     slope = np.hypot(dp, dq)
     if slope_threshold is None:
         med = np.median(slope[inspect])
@@ -272,6 +341,45 @@ def _measure(prop, h: float, kind: str, low: float, high: float, sigma: float) -
         "volume_mm3": wsum * h * h,
         "axis_deg": angle,
         "center_px": [float((rows * depth).sum() / wsum), float((cols * depth).sum() / wsum)],
+        "bbox_px": [int(v) for v in prop.bbox],
+        "area_px": int(prop.area),
+        "threshold_mm": float(high),
+        "extent_mm": float(low),
+        "background_sigma_mm": float(sigma),
+    }
+
+
+def _measure_points(prop, xy: np.ndarray, foot: np.ndarray, kind: str, low: float, high: float,
+                    sigma: float) -> dict:
+    """:func:`_measure` on each pixel's own point ``xy`` and footprint area ``foot`` (perspective)."""
+    rows, cols = prop.coords[:, 0], prop.coords[:, 1]
+    depth = prop.image_intensity[prop.image]
+    px, py = xy[rows, cols, 0], xy[rows, cols, 1]
+    a = foot[rows, cols]
+    side = float(np.sqrt(a.mean()))
+    x, y = px - px.mean(), py - py.mean()
+    cov = np.cov(np.stack([x, y])) if rows.size > 1 else np.eye(2)
+    axis = np.linalg.eigh(cov)[1][:, 1]
+    s = x * axis[0] + y * axis[1]
+    t = -x * axis[1] + y * axis[0]
+    length = float(s.max() - s.min()) + side
+    central = np.abs(s - 0.5 * (s.max() + s.min())) <= 0.25 * length
+    angle = float(np.degrees(np.arctan2(axis[1], axis[0])))
+    angle = (angle + 90.0) % 180.0 - 90.0
+    if angle == -90.0:
+        angle = 90.0
+    wsum = float(depth.sum())
+    return {
+        "kind": kind,
+        "max_depth_mm": float(depth.max()),
+        "mean_width_mm": float(a[central].sum()) / max(0.5 * length, side),
+        "max_width_mm": float(t.max() - t.min()) + side,
+        "length_mm": length,
+        "area_mm2": float(a.sum()),
+        "volume_mm3": float((depth * a).sum()),
+        "axis_deg": angle,
+        "center_px": [float((rows * depth).sum() / wsum), float((cols * depth).sum() / wsum)],
+        "center_mm": [float((px * depth).sum() / wsum), float((py * depth).sum() / wsum)],
         "bbox_px": [int(v) for v in prop.bbox],
         "area_px": int(prop.area),
         "threshold_mm": float(high),

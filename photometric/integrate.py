@@ -44,10 +44,10 @@ if TYPE_CHECKING:
 METHODS = ("dct", "fc", "lsq")
 
 
-def _validated(p, q, mask, pixel_size):
-    """Checked ``p``, ``q`` (float64, at least 2x2), the domain mask (all True when None) and ``h``."""
-    pp = as_array(p, "p", ndim=2)
-    qq = as_array(q, "q", shape=pp.shape)
+def _validated(p, q, mask, pixel_size, dtype: DTypeLike = np.float64):
+    """Checked ``p``, ``q`` (``dtype``, at least 2x2), the domain mask (all True when None) and ``h``."""
+    pp = as_array(p, "p", ndim=2, dtype=dtype)
+    qq = as_array(q, "q", shape=pp.shape, dtype=dtype)
     if min(pp.shape) < 2:
         raise ValueError(f"p: the gradient field must be at least 2x2, got {pp.shape}")
     h = positive(pixel_size, "pixel_size")
@@ -150,9 +150,10 @@ def dct_poisson(
         free-boundary grid Laplacian, eigenvalues ``4 sin^2(pi k / 2H) + 4 sin^2(pi l / 2W)``
         on the DCT-II basis. Zero mean over the domain, NaN outside it.
     """
-    pp, qq, m, h = _validated(p, q, mask, pixel_size)
+    # float32 transforms take float32 slopes: no float64 copies of large images
+    pp, qq, m, h = _validated(p, q, mask, pixel_size, np.float32 if np.dtype(dtype) == np.float32 else np.float64)
     if mask is not None:
-        pp, qq = np.where(m, pp, 0.0), np.where(m, qq, 0.0)
+        pp, qq = np.where(m, pp, pp.dtype.type(0)), np.where(m, qq, qq.dtype.type(0))
     height, width = pp.shape
     rhs = _divergence(pp, qq, dtype)
     # A^T b = (h / 2) * rhs (zc = p h, zr = -q h, trapezoidal edges): fold h / 2 into the

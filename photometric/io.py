@@ -3,7 +3,11 @@
 A DiLiGenT-style folder holds ``filenames.txt`` (image files in light order),
 ``light_directions.txt`` (``x y z`` per row), optionally ``light_intensities.txt``
 (``r g b`` per row), ``mask.png``, ``normal_gt.npy`` (or DiLiGenT's ``Normal_gt.mat``)
-and ``triad.txt`` (three of the file names). The RobustPhotometricStereo layout
+and ``triad.txt`` (three of the file names). A near-field folder (the rig contract of
+:mod:`photometric.rig`) adds ``light_positions.txt`` (``x y z`` in mm per image),
+``flat_001.png ...`` (flat-field images, one per light; named in ``scene.json``
+``flat_field.files`` or found as ``flat_*.png``) and, in ``scene.json``, ``lights`` (``model:
+"point"``, ``axes``, ``mu``), ``camera`` and ``flat_field.albedo``. The RobustPhotometricStereo layout
 (``imageNNN.npy`` files, ``lights.npy`` whose row NNN is image NNN's light,
 ``gt_normal.npy``) is read too; its lights are in the same frame as DiLiGenT's (checked on
 the shared ``rps_bunny``: of the eight axis-sign choices only the identity makes least
@@ -14,6 +18,7 @@ and converted BGR -> RGB) or ``.npy``.
 
 from __future__ import annotations
 
+import json
 import re
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -22,7 +27,15 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from photometric.lights import load_intensities, load_lights, validate_lights
+from photometric.camera import Camera, camera_from_dict
+from photometric.lights import (
+    PointLights,
+    load_intensities,
+    load_light_positions,
+    load_lights,
+    point_lights,
+    validate_lights,
+)
 
 IMAGE_SUFFIXES = (".png", ".tif", ".tiff", ".bmp", ".jpg", ".jpeg", ".npy", ".exr")
 
@@ -46,6 +59,15 @@ class PhotometricData:
         Ground-truth normals when the folder has them.
     names : tuple of str
         Image file names, in light order.
+    point_lights : photometric.lights.PointLights or None
+        LED positions (``light_positions.txt``) with the axes and lobe exponents of
+        ``scene.json`` when it states them (near-field folders).
+    flat_images : numpy.ndarray or None, shape like ``images``
+        Flat-field images in light order.
+    flat_albedo : float or None
+        The flat target's albedo (``scene.json`` ``flat_field.albedo``).
+    camera : photometric.camera.Orthographic, Perspective or None
+        ``scene.json`` ``camera``.
     """
 
     images: np.ndarray
@@ -54,6 +76,10 @@ class PhotometricData:
     mask: np.ndarray
     normal_gt: np.ndarray | None
     names: tuple[str, ...]
+    point_lights: PointLights | None = None
+    flat_images: np.ndarray | None = None
+    flat_albedo: float | None = None
+    camera: Camera | None = None
 
 
 def _read_array(path, name: str) -> np.ndarray:
@@ -209,6 +235,7 @@ def read_folder(folder, select: str | Sequence[str] | None = None) -> Photometri
         raise FileNotFoundError(
             f"folder: {d} has neither filenames.txt + light_directions.txt nor lights.npy"
         )
+    all_names = list(names)
     intens_file = d / "light_intensities.txt"
     intens = load_intensities(intens_file, len(names)) if intens_file.is_file() else np.ones((len(names), 3))
 
@@ -231,6 +258,7 @@ def read_folder(folder, select: str | Sequence[str] | None = None) -> Photometri
     images = read_images([d / n for n in names])
     shape = images.shape[1:3]
     mask = read_mask(d / "mask.png", shape) if (d / "mask.png").is_file() else np.ones(shape, bool)
+    near = _read_nearfield(d, all_names, names, images.shape)
     return PhotometricData(
         images=images,
         lights=lights,
@@ -238,4 +266,69 @@ def read_folder(folder, select: str | Sequence[str] | None = None) -> Photometri
         mask=mask,
         normal_gt=_read_normal_gt(d, shape),
         names=tuple(names),
+        **near,
     )
+
+
+def read_scene(folder) -> dict:
+    """A folder's ``scene.json`` as a dict (empty when there is none).
+
+    Parameters
+    ----------
+    folder : str or Path
+
+    Returns
+    -------
+    dict
+    """
+    path = Path(folder) / "scene.json"
+    if not path.is_file():
+        return {}
+    try:
+        scene = json.loads(path.read_text())
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"input: {path} is not valid JSON ({exc})") from None
+    return scene if isinstance(scene, dict) else {}
+
+
+def _read_nearfield(d: Path, all_names: list[str], names: list[str], image_shape) -> dict:
+    """The near-field parts of a folder, in the (selected) light order of ``names``."""
+    scene = read_scene(d)
+    order = [all_names.index(n) for n in names]
+    out: dict = {}
+    if isinstance(scene.get("camera"), dict):
+        out["camera"] = camera_from_dict(scene["camera"], f"camera ({d / 'scene.json'})")
+    pos_file = d / "light_positions.txt"
+    if pos_file.is_file():
+        positions = load_light_positions(pos_file)
+        if positions.shape[0] != len(all_names):
+            raise ValueError(f"folder: {pos_file.name} has {positions.shape[0]} rows for {len(all_names)} images")
+        lights = scene.get("lights")
+        axes = mu = None
+        if isinstance(lights, dict) and lights.get("model") == "point":
+            if lights.get("axes") is not None:
+                axes = np.asarray(lights["axes"], float)
+            if lights.get("mu") is not None:
+                mu = np.broadcast_to(np.asarray(lights["mu"], float), (len(all_names),))
+        for value, what in ((axes, "lights.axes"), (mu, "lights.mu")):
+            if value is not None and len(value) != len(all_names):
+                raise ValueError(f"folder: scene.json {what} has {len(value)} entries for {len(all_names)} images")
+        out["point_lights"] = point_lights(positions[order], None if axes is None else axes[order],
+                                           None if mu is None else mu[order], name=f"light_positions ({pos_file})")
+    flat = scene.get("flat_field") if isinstance(scene.get("flat_field"), dict) else {}
+    if flat.get("files"):
+        flat_names = [str(f) for f in flat["files"]]
+    else:
+        flat_names = sorted(f.name for f in d.glob("flat_*.png"))
+    if flat_names:
+        if len(flat_names) != len(all_names):
+            raise ValueError(f"flat_field: {d} has {len(flat_names)} flat-field image(s) for {len(all_names)} "
+                             "images (one per light)")
+        flats = read_images([d / flat_names[k] for k in order])
+        if flats.shape != tuple(image_shape):
+            raise ValueError(f"flat_field: flat-field images of {d} are {flats.shape[1:]}, the images "
+                             f"{tuple(image_shape[1:])}")
+        out["flat_images"] = flats
+        if flat.get("albedo") is not None:
+            out["flat_albedo"] = float(flat["albedo"])
+    return out

@@ -10,6 +10,15 @@ batch jobs write the result files with ``workbench.runs.photometric.reconstruct_
 Input is validated once, here where it enters: lights and intensities by their readers
 (:mod:`photometric.lights`), images and masks by :mod:`photometric.io`, the options
 before any file is read; the solver and integrator then take the checked arrays.
+
+Light model and camera: distant lights and an orthographic camera (the far-field path of
+:func:`photometric.stereo.solve`) unless LED positions are known (``light_positions``, a
+``rig``, or a folder's ``light_positions.txt``): then the near-field alternation of
+:mod:`photometric.nearfield` with point lights, an orthographic or perspective camera
+(:mod:`photometric.camera`) and, when given, flat-field gains (:mod:`photometric.rig`).
+A perspective camera with distant lights integrates the log-depth once. A near-field solve
+that does not converge raises :class:`photometric.nearfield.NotConvergedError` carrying
+the summary (nothing else is returned).
 """
 
 from __future__ import annotations
@@ -22,17 +31,37 @@ from pathlib import Path
 
 import numpy as np
 
+from photometric.camera import Camera, Orthographic, Perspective, make_camera
 from photometric.io import PhotometricData, read_folder, read_images, read_mask
-from photometric.lights import _condition, as_intensities, load_intensities, load_lights, validate_lights
+from photometric.lights import (
+    PointLights,
+    _condition,
+    as_intensities,
+    load_intensities,
+    load_light_positions,
+    load_lights,
+    point_lights,
+    validate_lights,
+)
+from photometric.nearfield import (
+    COARSE_PIXELS,
+    DEFAULT_TOLERANCE_MM,
+    NearFieldResult,
+    NotConvergedError,
+    _solve_nearfield,
+)
+from photometric.rig import FLAT_SMOOTHING_PX, Rig, check_rig, flat_field_gains, read_rig
 from photometric.stereo import _check_images, _check_options, _solve
 from surfaces.bezier import BezierPatches
 from surfaces.mesh import TriangleMesh
 from surfaces.validate import as_array, positive
 
-__all__ = ["TARGET_PATCHES", "PhotometricReconstruction", "reconstruct"]
+__all__ = ["TARGET_PATCHES", "LIGHT_MODELS", "PhotometricReconstruction", "reconstruct"]
 
 #: Patches per image side aimed at when ``step`` is not given.
 TARGET_PATCHES = 64
+#: ``light_model`` choices: from the input (point lights when LED positions are known), or forced.
+LIGHT_MODELS = ("auto", "point", "directional")
 
 
 @dataclass(frozen=True)
@@ -52,7 +81,8 @@ class PhotometricReconstruction:
     mask : numpy.ndarray, shape (H, W), bool
         The object mask of the input.
     height : numpy.ndarray, shape (H, W), float64
-        Height in mm (NaN outside the valid pixels).
+        Height in mm (NaN outside the valid pixels); near-field: ``z`` of the point each
+        pixel sees, in the rig frame.
     patches : surfaces.bezier.BezierPatches
         The bicubic surface through the height (:func:`photometric.integrate.height_to_patches`).
     mesh : surfaces.mesh.TriangleMesh
@@ -63,11 +93,18 @@ class PhotometricReconstruction:
     background : str
         Background removed before measuring the defects.
     summary : dict
-        Input, sizes, options, light condition number, invalid fraction, timings (s) of
-        the stages ``read``, ``solve``, ``integrate``, ``surface``, ``defects``, mesh
-        size, number of defects and, with ground truth, ``mean_angular_error_deg``,
-        ``median_angular_error_deg`` (over the mask) and ``height_rmse_mm`` (over valid
-        pixels, means removed). JSON-ready.
+        Input, sizes, options, ``light_model`` ("directional" or "point") and ``camera``,
+        light condition number, invalid fraction, timings (s) of the stages ``read``,
+        ``solve``, ``integrate``, ``surface``, ``defects``, mesh size, number of defects
+        and, with ground truth, ``mean_angular_error_deg``, ``median_angular_error_deg``
+        (over the mask) and ``height_rmse_mm`` (over valid pixels, means removed).
+        Near-field and perspective solves add ``light_positions_mm``, ``led_mu``,
+        ``flat_field``, ``iterations``, ``final_depth_change_mm``, ``converged``,
+        ``tolerance_mm``, ``anchor``, ``iteration_history`` and, with ground truth,
+        ``height_bias_mm`` (mean height error, the anchor's) and ``xy_rmse_mm``. JSON-ready.
+    xy : numpy.ndarray or None, shape (H, W, 2), float64
+        ``x, y`` (mm) of the point each pixel sees (near-field and perspective solves;
+        None on the far-field orthographic path, whose points are the pixel grid).
     """
 
     normals: np.ndarray
@@ -82,6 +119,7 @@ class PhotometricReconstruction:
     defects: list
     background: str
     summary: dict
+    xy: np.ndarray | None = None
 
 
 def _lights(lights) -> np.ndarray:
@@ -106,8 +144,9 @@ def _load_input(source, lights, intensities, mask, select) -> tuple[PhotometricD
         data = read_folder(source, select=select)
         folder = Path(source)
         extra = {}
-        if (folder / "height_gt.npy").is_file():
-            extra["height_gt"] = np.load(folder / "height_gt.npy", allow_pickle=False)
+        for truth in ("height_gt", "xy_gt"):
+            if (folder / f"{truth}.npy").is_file():
+                extra[truth] = np.load(folder / f"{truth}.npy", allow_pickle=False)
         if (folder / "scene.json").is_file():
             # datasets_synthetic folders state their pixel size
             try:
@@ -171,6 +210,169 @@ def _trimmed_mesh(patches, region: np.ndarray, pixel_size: float, samples: int):
     return TriangleMesh(mesh.vertices[used], remap[tri], normals)
 
 
+@dataclass(frozen=True)
+class _Near:
+    """The light model and camera of a near-field or perspective solve (checked)."""
+
+    model: str  # "point" or "directional"
+    lights: PointLights | np.ndarray
+    camera: Camera
+    camera_source: str  # where the camera came from: "option", "rig" or "scene.json"
+    gains: np.ndarray | None
+    flat: dict | None  # source, albedo, smoothing_px of the gains
+    intensities: np.ndarray
+    rig: str | None
+
+
+def _light_positions(value, n: int, led_mu) -> PointLights:
+    pos = load_light_positions(value) if isinstance(value, (str, Path)) else value
+    lights = point_lights(pos, mu=led_mu)
+    if len(lights) != n:
+        raise ValueError(f"light_positions: {len(lights)} LED positions for {n} images")
+    return lights
+
+
+def _with_mu(lights: PointLights, led_mu) -> PointLights:
+    return lights if led_mu is None else point_lights(lights.positions, lights.axes, led_mu)
+
+
+def _flat_images(flat_field, n: int, shape) -> np.ndarray:
+    """Flat-field images from files or an array: one per light, the images' size."""
+    if isinstance(flat_field, (str, Path)):
+        flat_field = [flat_field]
+    if isinstance(flat_field, Sequence) and all(isinstance(f, (str, Path)) for f in flat_field):
+        if len(flat_field) != n:
+            raise ValueError(f"flat_field: {len(flat_field)} flat-field image(s) for {n} lights (one per light)")
+        flats = read_images(list(flat_field))
+    else:
+        flats = _check_images(flat_field)
+        if flats.shape[0] != n:
+            raise ValueError(f"flat_field: {flats.shape[0]} flat-field image(s) for {n} lights (one per light)")
+    if flats.shape[1:3] != tuple(shape):
+        raise ValueError(f"flat_field: flat-field images are {flats.shape[1]} x {flats.shape[2]} px, the images "
+                         f"{shape[0]} x {shape[1]} px")
+    return flats
+
+
+def _near_setup(data: PhotometricData, *, light_model, light_positions, led_mu, flat_field, flat_albedo, camera,
+                pixel_size, scene_h, focal_length_px, camera_height_mm, principal_point_px, rig,
+                intensities) -> _Near | None:
+    """Decide the light model and camera; None means the far-field orthographic path of today.
+
+    Precedence: the options, then ``rig.json``, then the folder's own files
+    (``light_positions.txt``, ``scene.json`` lights and camera, ``flat_*.png``).
+    """
+    n, shape = data.images.shape[0], data.images.shape[1:3]
+    rig_obj = None
+    if rig is not None:
+        rig_obj = rig if isinstance(rig, Rig) else read_rig(rig)
+        check_rig(rig_obj, n, shape)
+    if light_positions is not None:
+        lights = _light_positions(light_positions, n, led_mu)
+    elif rig_obj is not None:
+        lights = _with_mu(rig_obj.lights, led_mu)
+    elif data.point_lights is not None:
+        lights = _with_mu(data.point_lights, led_mu)
+    else:
+        lights = None
+    if led_mu is not None and lights is None:
+        raise ValueError("led_mu: the LED lobe needs LED positions (--light-positions or --rig)")
+
+    explicit = [v is not None for v in (camera, focal_length_px, camera_height_mm, principal_point_px)]
+    cam_source = "option"
+    if isinstance(camera, (Orthographic, Perspective)):
+        cam = camera
+    elif any(explicit):
+        model = camera or ("perspective" if any(explicit[1:]) else "orthographic")
+        ortho = model == "orthographic"
+        cam = make_camera(model, pixel_size_mm=(pixel_size if pixel_size is not None else scene_h) if ortho
+                          else pixel_size, focal_length_px=focal_length_px, camera_height_mm=camera_height_mm,
+                          principal_point_px=principal_point_px)
+    elif pixel_size is not None and (lights is not None or rig_obj is not None):
+        cam = make_camera("orthographic", pixel_size_mm=pixel_size)
+    elif rig_obj is not None:
+        cam, cam_source = rig_obj.camera, "rig"
+    elif data.camera is not None:
+        cam, cam_source = data.camera, "scene.json"
+    elif scene_h is not None and lights is not None:
+        cam, cam_source = make_camera("orthographic", pixel_size_mm=scene_h), "scene.json"
+    else:
+        cam = None
+
+    if light_model == "directional" or lights is None:
+        if light_model == "point":
+            raise ValueError("light_model: 'point' needs LED positions (--light-positions, --rig or the "
+                             "folder's light_positions.txt)")
+        if flat_field is not None and flat_field is not False:
+            raise ValueError("flat_field: flat-field gains need the point-light model (LED positions from "
+                             "--light-positions, --rig or the folder, and not --light-model directional)")
+        if cam is None or isinstance(cam, Orthographic):
+            return None
+        return _Near("directional", data.lights, cam, cam_source, None, None, data.intensities, None)
+    if cam is None:
+        raise ValueError("camera: point lights need the camera's scale in mm: --pixel-size (orthographic) or "
+                         "--camera perspective --focal-length-px F --camera-height MM")
+    gains, flat = None, None
+    if flat_field is not None and flat_field is not False:
+        albedo = 1.0 if flat_albedo is None else flat_albedo
+        gains = flat_field_gains(_flat_images(flat_field, n, shape), lights, cam, albedo)
+        flat = {"source": "option", "albedo": float(albedo)}
+    elif flat_field is None and rig_obj is not None and rig_obj.gains is not None:
+        gains = rig_obj.gains
+        flat = {"source": "rig", "albedo": rig_obj.flat_albedo, "smoothing_px": rig_obj.flat_smoothing_px}
+    elif flat_field is None and data.flat_images is not None:
+        albedo = flat_albedo if flat_albedo is not None else (data.flat_albedo or 1.0)
+        gains = flat_field_gains(data.flat_images, lights, cam, albedo)
+        flat = {"source": "folder", "albedo": float(albedo)}
+    if flat is not None and flat["source"] != "rig":
+        flat["smoothing_px"] = FLAT_SMOOTHING_PX
+    intens = data.intensities
+    if intensities is None and rig_obj is not None and rig_obj.intensities is not None:
+        intens = rig_obj.intensities
+    rig_name = None if rig is None or isinstance(rig, Rig) else str(rig)
+    return _Near("point", lights, cam, cam_source, gains, flat, intens, rig_name)
+
+
+def _near_summary(near: _Near, res: NearFieldResult, tolerance_mm: float) -> dict:
+    """The light model, camera and convergence record of ``summary.json``."""
+    out: dict = {"light_model": near.model, "camera": near.camera.to_dict(res.valid.shape)}
+    if near.model == "point":
+        out["light_positions_mm"] = near.lights.positions.tolist()
+        out["led_mu"] = near.lights.mu.tolist() if near.lights.mu_known else None
+        out["flat_field"] = near.flat
+        out["rig"] = near.rig
+    out.update({
+        "iterations": res.iterations,
+        "final_depth_change_mm": res.depth_change_mm,
+        "converged": True,
+        "tolerance_mm": tolerance_mm,
+        "anchor": res.anchor,
+        "iteration_history": list(res.history),
+    })
+    return out
+
+
+def _nearfield(data: PhotometricData, near: _Near, *, outliers, dark, saturation, highlight, integrator,
+               reference_height_mm, tolerance_mm, max_iterations, base: dict) -> NearFieldResult:
+    """The near-field (or perspective) solve; no convergence raises with the summary so far."""
+    ref = float(reference_height_mm)
+    if isinstance(near.camera, Perspective) and ref >= near.camera.camera_height_mm:
+        raise ValueError(f"reference_height_mm: {ref:g} mm is not below the camera "
+                         f"({near.camera.camera_height_mm:g} mm)")
+    if near.model == "point" and np.any(near.lights.positions[:, 2] <= ref):
+        raise ValueError(f"reference_height_mm: {ref:g} mm is not below every light")
+    try:
+        return _solve_nearfield(
+            data.images, near.lights, near.camera, near.intensities, data.mask, near.gains, outliers, dark,
+            saturation, highlight, integrator, float(reference_height_mm), float(tolerance_mm),
+            int(max_iterations), COARSE_PIXELS, None,
+        )
+    except NotConvergedError as exc:
+        summary = {**base, "light_model": near.model, "camera": near.camera.to_dict(data.images.shape[1:3]),
+                   **exc.summary, "error": str(exc)}
+        raise NotConvergedError(str(exc), summary) from None
+
+
 def reconstruct(
     source,
     *,
@@ -187,6 +389,19 @@ def reconstruct(
     step: int | None = None,
     samples: int | None = None,
     background: str = "plane",
+    light_positions=None,
+    led_mu=None,
+    flat_field=None,
+    flat_albedo: float | None = None,
+    camera=None,
+    focal_length_px: float | None = None,
+    camera_height_mm: float | None = None,
+    principal_point_px=None,
+    rig=None,
+    light_model: str = "auto",
+    reference_height_mm: float = 0.0,
+    tolerance_mm: float = DEFAULT_TOLERANCE_MM,
+    max_iterations: int = 30,
     progress: Callable[[str], None] | None = None,
 ) -> PhotometricReconstruction:
     """Run photometric stereo end to end and return every result (writes nothing).
@@ -219,6 +434,37 @@ def reconstruct(
         pixel).
     background : {"plane", "smooth"}
         Background removed before measuring defects.
+    light_positions : str, Path or array_like, shape (N, 3), optional
+        LED positions in mm (``light_positions.txt``: ``x y z`` per image); selects the
+        near-field model (:mod:`photometric.nearfield`). Default: the rig's, else a
+        folder's ``light_positions.txt``.
+    led_mu : float or array_like, shape (N,), optional
+        LED lobe exponents ``mu`` (0: isotropic); default the rig's or the folder's
+        ``scene.json``, else unknown (isotropic; a flat field measures the lobe).
+    flat_field : sequence of paths, array_like (N, H, W[, 3]) or False, optional
+        Flat-field images (a flat matte target in the reference plane, one per light);
+        default the rig's gains, else a folder's ``flat_*.png``; False: none.
+    flat_albedo : float, optional
+        The flat target's albedo (default the folder's ``scene.json``, else 1).
+    camera : {"orthographic", "perspective"} or camera object, optional
+        Camera model (:mod:`photometric.camera`); default the rig's or the folder's
+        ``scene.json``, else orthographic with ``pixel_size``.
+    focal_length_px, camera_height_mm : float, optional
+        Perspective focal length (pixels) and camera height above the reference plane
+        (mm), both required for a perspective camera.
+    principal_point_px : (cx, cy), optional
+        Perspective principal point (column, row); default the image centre.
+    rig : str, Path or photometric.rig.Rig, optional
+        A calibrated rig (``rig.json``): LED positions, camera, flat-field gains; must
+        match the images' count and size.
+    light_model : {"auto", "point", "directional"}
+        ``auto``: point lights when LED positions are known; ``directional``: today's
+        far-field model even then (directions from the origin to the LEDs).
+    reference_height_mm : float
+        Near-field anchor: the median height of the valid pixels, mm
+        (:func:`photometric.camera.depth_from_field`).
+    tolerance_mm, max_iterations :
+        Near-field convergence (:func:`photometric.nearfield.solve_nearfield`).
     progress : callable, optional
         Called with the name of each stage as it starts (``read``, ``normals``,
         ``height``, ``surface``, ``defects``; the command line's progress bar).
@@ -239,19 +485,48 @@ def reconstruct(
     if samples is not None and int(samples) < 1:
         raise ValueError(f"samples: must be at least 1, got {samples}")
     _check_options(dark, saturation, highlight, 2)
+    if light_model not in LIGHT_MODELS:
+        raise ValueError(f"light_model: expected one of {LIGHT_MODELS}, got {light_model!r}")
+    positive(tolerance_mm, "tolerance_mm")
+    if int(max_iterations) < 1:
+        raise ValueError(f"max_iterations: must be at least 1, got {max_iterations}")
+    if not np.isfinite(float(reference_height_mm)):
+        raise ValueError(f"reference_height_mm: must be finite, got {reference_height_mm}")
     say = progress or (lambda _stage: None)
     timings: dict[str, float] = {}
     t_all = time.perf_counter()
 
     say("read")
     t0 = time.perf_counter()
+    if lights is None and not (isinstance(source, (str, Path)) and Path(source).is_dir()):
+        # point lights give the far-field directions (from the origin to each LED)
+        if light_positions is not None:
+            pos = load_light_positions(light_positions) if isinstance(light_positions, (str, Path)) else light_positions
+            lights, name = point_lights(pos).directions, "light_positions"
+        elif rig is not None:
+            lights, name = (rig if isinstance(rig, Rig) else read_rig(rig)).lights.directions, "rig"
+        if lights is not None and isinstance(source, (Sequence, np.ndarray)) and not isinstance(source, str) \
+                and len(source) != len(lights):
+            raise ValueError(f"{name}: {len(lights)} LEDs for {len(source)} images")
     data, input_info = _load_input(source, lights, intensities, mask, select)
     height_gt = input_info.pop("height_gt", None)
+    xy_gt = input_info.pop("xy_gt", None)
     scene_h = input_info.pop("scene_pixel_size_mm", None)
-    if pixel_size is not None:
+    near = _near_setup(data, light_model=light_model, light_positions=light_positions, led_mu=led_mu,
+                       flat_field=flat_field, flat_albedo=flat_albedo, camera=camera, pixel_size=pixel_size,
+                       scene_h=scene_h, focal_length_px=focal_length_px, camera_height_mm=camera_height_mm,
+                       principal_point_px=principal_point_px, rig=rig, intensities=intensities)
+    if near is not None:
+        h = near.camera.nominal_pixel_mm()
+        h_source = near.camera_source
+        if isinstance(near.camera, Perspective):
+            h_source = f"camera_height_mm / focal_length_px at the reference plane ({near.camera_source})"
+    elif pixel_size is not None:
         h, h_source = float(pixel_size), "option"
     elif scene_h is not None:
         h, h_source = positive(scene_h, "scene.json pixel_size_mm"), "scene.json"
+    elif isinstance(data.camera, Orthographic):
+        h, h_source = data.camera.pixel_size_mm, "scene.json"
     else:
         h, h_source = 1.0, "default (1 unit per pixel)"
     timings["read"] = time.perf_counter() - t0
@@ -262,13 +537,24 @@ def reconstruct(
     t0 = time.perf_counter()
     if not data.mask.any():
         raise ValueError("mask: no pixel is selected")
-    res = _solve(data.images, data.lights, data.intensities, data.mask, outliers, dark, saturation, highlight, 2)
-    timings["solve"] = time.perf_counter() - t0
+    if near is None:
+        res = _solve(data.images, data.lights, data.intensities, data.mask, outliers, dark, saturation, highlight, 2)
+        timings["solve"] = time.perf_counter() - t0
 
-    say("height")
-    t0 = time.perf_counter()
-    height = integrate(res.p, res.q, integrator, mask=res.valid, pixel_size=h)
-    timings["integrate"] = time.perf_counter() - t0
+        say("height")
+        t0 = time.perf_counter()
+        height = integrate(res.p, res.q, integrator, mask=res.valid, pixel_size=h)
+        timings["integrate"] = time.perf_counter() - t0
+    else:
+        base = {"input": input_info, "images": list(data.names),
+                "size": {"height": rows, "width": cols, "images": n_img, "channels": channels}}
+        res = _nearfield(data, near, outliers=outliers, dark=dark, saturation=saturation, highlight=highlight,
+                         integrator=integrator, reference_height_mm=reference_height_mm, tolerance_mm=tolerance_mm,
+                         max_iterations=max_iterations, base=base)
+        say("height")
+        height = res.height
+        timings["solve"] = res.timings_s["solve"]
+        timings["integrate"] = res.timings_s["integrate"]
 
     say("surface")
     t0 = time.perf_counter()
@@ -280,7 +566,9 @@ def reconstruct(
 
     say("defects")
     t0 = time.perf_counter()
-    defects = measure_defects(height, h, res.valid, background=background, p=res.p, q=res.q)
+    on_points = {} if near is None or isinstance(near.camera, Orthographic) else {
+        "xy": res.xy, "area": res.footprint_mm2}
+    defects = measure_defects(height, h, res.valid, background=background, p=res.p, q=res.q, **on_points)
     timings["defects"] = time.perf_counter() - t0
     timings["total"] = time.perf_counter() - t_all
 
@@ -293,8 +581,11 @@ def reconstruct(
         "pixel_size_source": h_source,
         "integrator": integrator,
         "outliers": bool(outliers),
-        "light_condition_number": _condition(data.lights),
-        "lights": data.lights.tolist(),
+        "light_model": "directional",
+        "camera": {"model": "orthographic", "pixel_size_mm": h},
+        "light_condition_number": _condition(data.lights if near is None or near.model == "directional"
+                                             else near.lights.directions),
+        "lights": (data.lights if near is None or near.model == "directional" else near.lights.directions).tolist(),
         "mask_pixels": n_mask,
         "valid_pixels": int(res.valid.sum()),
         "invalid_fraction": float(1.0 - res.valid[data.mask].sum() / max(n_mask, 1)),
@@ -307,6 +598,8 @@ def reconstruct(
         "n_defects": len(defects),
         "timings_s": {k: round(v, 4) for k, v in timings.items()},
     }
+    if near is not None:
+        summary.update(_near_summary(near, res, float(tolerance_mm)))
     if data.normal_gt is not None:
         err = angular_error_deg(res.normals, data.normal_gt)[data.mask]
         summary["mean_angular_error_deg"] = float(err.mean())
@@ -315,6 +608,10 @@ def reconstruct(
         v = res.valid & np.isfinite(height)
         diff = (height[v] - height[v].mean()) - (height_gt[v] - height_gt[v].mean())
         summary["height_rmse_mm"] = float(np.sqrt(np.mean(diff**2)))
+        if near is not None:
+            summary["height_bias_mm"] = float(np.mean(height[v] - height_gt[v]))
+            if xy_gt is not None and np.shape(xy_gt) == (rows, cols, 2):
+                summary["xy_rmse_mm"] = float(np.sqrt(np.mean(np.sum((res.xy[v] - xy_gt[v]) ** 2, axis=1))))
     return PhotometricReconstruction(
         normals=res.normals,
         albedo=res.albedo,
@@ -328,4 +625,5 @@ def reconstruct(
         defects=defects,
         background=background,
         summary=summary,
+        xy=None if near is None else res.xy,
     )

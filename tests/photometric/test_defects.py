@@ -86,3 +86,37 @@ def test_bad_input():
         measure_defects(np.zeros((10, 10)), -1.0)
     with pytest.raises(ValueError, match="p, q"):
         measure_defects(np.zeros((10, 10)), 1.0, p=np.zeros((10, 10)))
+
+
+def _grid_xy(shape, h):
+    x = (np.arange(shape[1]) - (shape[1] - 1) / 2) * h
+    y = ((shape[0] - 1) / 2 - np.arange(shape[0])) * h
+    return np.stack(np.broadcast_arrays(x[None, :], y[:, None]), axis=-1)
+
+
+@pytest.mark.parametrize("method, degree", [("plane", 3), ("smooth", 2), ("smooth", 3)])
+def test_fit_background_on_points_matches_the_grid(method, degree):
+    """On the pixel grid's own points the point-based fit is the grid fit (a polynomial space
+    does not depend on the affine scaling of its coordinates)."""
+    rows, cols = np.indices((60, 70)).astype(float)
+    z = 0.3 + 0.01 * cols - 0.02 * rows + 1e-5 * (cols - 20) ** 2 - 2e-6 * rows * cols
+    z[20:30, 10:40] -= 0.2
+    mask = np.ones(z.shape, bool)
+    mask[:5] = False  # the point coordinates are scaled over the usable pixels only
+    bg_grid, s_grid = fit_background(z, mask, method, degree=degree)
+    bg_pts, s_pts = fit_background(z, mask, method, degree=degree, xy=_grid_xy(z.shape, 0.05))
+    np.testing.assert_allclose(bg_pts, bg_grid, atol=1e-9)
+    assert s_pts == pytest.approx(s_grid, abs=1e-12)
+
+
+def test_measure_defects_on_points_matches_the_grid():
+    hf = v_crack(200, 0.05, depth_mm=0.2, width_mm=0.8, length_mm=6.0, axis_deg=25.0)
+    grid = measure_defects(hf.height, 0.05)
+    pts = measure_defects(hf.height, 0.05, xy=_grid_xy(hf.height.shape, 0.05), area=0.05**2)
+    assert len(grid) == len(pts) == 1
+    for key in ("max_depth_mm", "length_mm", "max_width_mm", "area_mm2", "volume_mm3", "axis_deg"):
+        assert pts[0][key] == pytest.approx(grid[0][key], rel=0.02, abs=1e-6), key
+    cx, cy = pts[0]["center_mm"]
+    assert (cx, cy) == pytest.approx(tuple(hf.defects[0]["center_mm"]), abs=0.05)
+    with pytest.raises(ValueError, match="area: per-pixel footprints need xy"):
+        measure_defects(hf.height, 0.05, area=0.05**2)

@@ -283,3 +283,69 @@ def test_sphere_from_mask_recovers_the_circle(r0, c0, radius):
     assert rad == pytest.approx(radius, abs=0.1)
     with pytest.raises(ValueError, match="mask"):
         lt.sphere_from_mask(np.zeros((10, 10), bool))
+
+
+# ----------------------------------------------------------------------------- point lights
+
+
+def test_point_lights_defaults_and_directions():
+    pos = 150.0 * ring(3, 45.0)
+    lights = lt.point_lights(pos)
+    np.testing.assert_allclose(lights.axes, -ring(3, 45.0))
+    np.testing.assert_allclose(lights.d0, 150.0)
+    np.testing.assert_allclose(lights.directions, ring(3, 45.0))
+    assert lights.mu.tolist() == [0.0, 0.0, 0.0] and not lights.mu_known and len(lights) == 3
+    known = lt.point_lights(pos, axes=[[0, 0, -1]] * 3, mu=[1.0, 2.0, 0.0])
+    assert known.mu_known and known.mu.tolist() == [1.0, 2.0, 0.0]
+    np.testing.assert_allclose(known.axes, [[0, 0, -1]] * 3)
+
+
+@pytest.mark.parametrize(
+    "kwargs, message",
+    [
+        ({"positions": [[100, 0, 100], [0, 100, 100], [-100, 0, -5]]}, "light 2 at z = -5 mm is at or below"),
+        ({"positions": [[100, 0, 100], [0, 100, 100]]}, "at least 3 lights"),
+        ({"positions": [[100, 0, 100], [200, 0, 200], [300, 0, 300]]}, "coplanar"),
+        ({"positions": [[100, 0, 100], [0, 100, 100], [-100, 0, 100]], "mu": -1.0}, "led_mu"),
+        ({"positions": [[100, 0, 100], [0, 100, 100], [-100, 0, 100]], "mu": [1.0, 2.0]}, "led_mu"),
+        ({"positions": [[100, 0, 100], [0, 100, 100], [-100, 0, 100]], "axes": [[0, 0, 1]] * 3}, "point down"),
+        ({"positions": [[100, 0, 100], [0, 100, 100], [-100, 0, 100]], "axes": [[0, 0, 0]] * 3}, "zero-length"),
+        ({"positions": [[100, 0, np.nan], [0, 100, 100], [-100, 0, 100]]}, "NaN"),
+    ],
+)
+def test_point_lights_errors(kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        lt.point_lights(**kwargs)
+
+
+def test_light_field_falloff_and_lobe():
+    lights = lt.point_lights([[0, 0, 100], [100, 0, 100], [0, 100, 100]], mu=2.0)
+    # straight below the first LED at 50 and 200 mm: inverse square, lobe 1
+    s = lt.light_field(lights, [[0, 0, 50], [0, 0, -100]], intensities=[2.0, 1.0, 1.0])
+    np.testing.assert_allclose(s[0], [[0, 0, 8.0], [0, 0, 0.5]])
+    # off axis: cos of the angle to the LED axis, squared
+    s = lt.light_field(lights, [[100, 0, 0]])
+    d = np.array([-100.0, 0.0, 100.0])
+    r = np.linalg.norm(d)
+    expect = (100.0 / r) ** 2 * (np.cos(np.pi / 4) ** 2) * d / r
+    np.testing.assert_allclose(s[0, 0], expect)
+    with pytest.raises(ValueError, match="at or above the height of a light"):
+        lt.light_field(lights, [[0, 0, 100]])
+    with pytest.raises(ValueError, match="PointLights"):
+        lt.light_field(np.eye(3), [[0, 0, 0]])
+
+
+def test_load_light_positions(tmp_path):
+    pos = 150.0 * ring(4, 30.0)
+    np.savetxt(tmp_path / "light_positions.txt", pos)
+    np.testing.assert_allclose(lt.load_light_positions(tmp_path / "light_positions.txt"), pos)
+    (tmp_path / "p.json").write_text(json.dumps({"positions_mm": pos.tolist()}))
+    np.testing.assert_allclose(lt.load_light_positions(tmp_path / "p.json"), pos)
+    np.savetxt(tmp_path / "low.txt", pos * [1, 1, -1])
+    with pytest.raises(ValueError, match=r"light_positions \(low.txt\): light 0 .* below the reference plane"):
+        lt.load_light_positions(tmp_path / "low.txt")
+    with pytest.raises(FileNotFoundError, match="light_positions"):
+        lt.load_light_positions(tmp_path / "missing.txt")
+    (tmp_path / "bad.json").write_text(json.dumps({"lights": []}))
+    with pytest.raises(ValueError, match="positions_mm"):
+        lt.load_light_positions(tmp_path / "bad.json")

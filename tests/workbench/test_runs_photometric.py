@@ -8,11 +8,21 @@ import numpy as np
 import pytest
 
 from datasets_synthetic.render import make_triad_folder
+from photometric.camera import make_camera
+from photometric.nearfield import NotConvergedError
 from photometric.pipeline import reconstruct
+from photometric.rig import read_rig
 from surfaces.grid import pixel_grid
 from surfaces.io import read_mesh
 from workbench.runs.folder import COMPLETE_MARKER
-from workbench.runs.photometric import FILES, reconstruct_to_folder, write_result
+from workbench.runs.photometric import (
+    FILES,
+    NEARFIELD_FILES,
+    calibrate_to_rig,
+    reconstruct_to_folder,
+    write_result,
+    write_rig,
+)
 
 
 @pytest.fixture(scope="module")
@@ -94,3 +104,67 @@ def test_out_dir_that_is_a_file(plate_folder, tmp_path):
     (tmp_path / "f").write_text("x")
     with pytest.raises(NotADirectoryError, match="out_dir"):
         reconstruct_to_folder(plate_folder, tmp_path / "f")
+
+
+# ----------------------------------------------------------------------------- near-field
+
+
+def _near_plane_images(shape=(40, 48), ps=0.5):
+    """Closed-form images of the plane z = 0 under three isotropic LEDs 150 mm away (0.5 mm pixels)."""
+    a = np.radians([90.0, 210.0, 330.0])
+    pos = 150.0 * np.stack([np.sin(np.pi / 4) * np.cos(a), np.sin(np.pi / 4) * np.sin(a),
+                            np.full(3, np.cos(np.pi / 4))], axis=1)
+    x, y = pixel_grid(shape, ps)
+    X = np.stack([x, y, np.zeros(shape)], axis=-1)
+    images = []
+    for P in pos:
+        d = P - X
+        r = np.linalg.norm(d, axis=-1)
+        images.append(0.7 * (150.0 / r) ** 2 * d[..., 2] / r)
+    return np.array(images, np.float32), pos, X
+
+
+def test_near_field_folder_has_xy(tmp_path):
+    images, pos, X = _near_plane_images()
+    summary = reconstruct_to_folder(images, tmp_path / "o", light_positions=pos, pixel_size=0.5)
+    out = tmp_path / "o"
+    assert sorted(p.name for p in out.iterdir()) == sorted(NEARFIELD_FILES) == summary["files"]
+    xy = np.load(out / "xy.npy")
+    assert xy.shape == (40, 48, 2) and xy.dtype == np.float64
+    np.testing.assert_allclose(xy, X[..., :2])
+    np.testing.assert_allclose(np.load(out / "height.npy"), 0.0, atol=1e-4)
+    assert summary["light_model"] == "point" and summary["converged"] is True
+
+
+def test_near_field_no_convergence_writes_only_the_summary(tmp_path):
+    images, pos, _ = _near_plane_images()
+    images[:, :, :20] *= 1.3  # inconsistent shading: the height keeps changing
+    with pytest.raises(NotConvergedError, match="nothing else written") as info:
+        reconstruct_to_folder(images, tmp_path / "o", light_positions=pos, pixel_size=0.5, max_iterations=1,
+                              tolerance_mm=1e-9)
+    assert [p.name for p in (tmp_path / "o").iterdir()] == ["summary.json"]
+    summary = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert summary == json.loads(json.dumps({**info.value.summary, "files": ["summary.json"]}))
+    assert summary["converged"] is False and summary["size"]["images"] == 3
+
+
+def test_write_rig_and_calibrate_to_rig(tmp_path):
+    images, pos, X = _near_plane_images()
+    np.savetxt(tmp_path / "P.txt", pos)
+    flats = []
+    for k, img in enumerate(images):
+        flats.append(tmp_path / f"flat{k}.npy")
+        np.save(flats[-1], img / 0.7 * 0.5)  # the same plane as a target of albedo 0.5
+    doc = calibrate_to_rig(tmp_path / "cal" / "my_rig.json", light_positions=tmp_path / "P.txt",
+                           camera=make_camera("orthographic", pixel_size_mm=0.5), flat_field=flats,
+                           flat_albedo=0.5)
+    assert doc["flat_field"]["gains"] == "my_rig_gains.npz"
+    assert sorted(p.name for p in (tmp_path / "cal").iterdir()) == ["my_rig.json", "my_rig_gains.npz"]
+    rig = read_rig(tmp_path / "cal" / "my_rig.json")
+    assert rig.image_size == (40, 48) and rig.gains.shape == (3, 40, 48)
+    res = reconstruct(images, rig=tmp_path / "cal" / "my_rig.json")
+    np.testing.assert_allclose(res.albedo[3:-3, 3:-3], 0.7, rtol=2e-3)
+    again = write_rig(rig, tmp_path / "again.json")
+    assert again == json.loads((tmp_path / "again.json").read_text())
+    with pytest.raises(IsADirectoryError, match="rig.json file name"):
+        write_rig(rig, tmp_path / "cal")

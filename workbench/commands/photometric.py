@@ -1,12 +1,46 @@
-"""``workbench photometric reconstruct``: images under known lights to a measured surface."""
+"""``workbench photometric reconstruct`` and ``calibrate``: images under known lights to a
+measured surface, and the calibration of a near-field rig (LEDs, camera, flat field)."""
 
 from __future__ import annotations
 
 import argparse
 
 
+def _numbers(text: str, name: str) -> float | list[float]:
+    """One number, or comma-separated numbers (one per light)."""
+    try:
+        values = [float(v) for v in text.split(",")]
+    except ValueError:
+        raise ValueError(f"{name}: expected a number or comma-separated numbers, got {text!r}") from None
+    return values[0] if len(values) == 1 else values
+
+
+def _add_camera(p: argparse.ArgumentParser, pixel_help: str) -> None:
+    p.add_argument("--camera", default=None, choices=("orthographic", "perspective"),
+                   help="camera model (default: the rig's or the folder's scene.json, else orthographic): "
+                   "orthographic = telecentric (--pixel-size), perspective = pinhole looking down from "
+                   "--camera-height with --focal-length-px")
+    p.add_argument("--pixel-size", type=float, default=None, metavar="MM", help=pixel_help)
+    p.add_argument("--focal-length-px", type=float, default=None, metavar="F",
+                   help="perspective: focal length in pixels")
+    p.add_argument("--camera-height", type=float, default=None, metavar="MM",
+                   help="perspective: camera centre height above the reference plane z = 0, mm")
+    p.add_argument("--principal-point", default=None, metavar="CX,CY",
+                   help="perspective: principal point (column, row) in pixels (default the image centre)")
+
+
+def _camera_options(args: argparse.Namespace) -> dict:
+    pp = None
+    if args.principal_point is not None:
+        pp = _numbers(args.principal_point, "--principal-point")
+        if not isinstance(pp, list) or len(pp) != 2:
+            raise ValueError(f"--principal-point: expected 'CX,CY', got {args.principal_point!r}")
+    return {"camera": args.camera, "focal_length_px": args.focal_length_px,
+            "camera_height_mm": args.camera_height, "principal_point_px": pp}
+
+
 def register(sub) -> None:
-    """Add ``reconstruct`` to the ``photometric`` group.
+    """Add ``reconstruct`` and ``calibrate`` to the ``photometric`` group.
 
     Parameters
     ----------
@@ -21,7 +55,13 @@ def register(sub) -> None:
         "[normal_gt.npy]) or from --images with --lights. Writes normals.npy, albedo.npy, p.npy, "
         "q.npy, valid.npy, height.npy, normals.png, albedo.png, height.png, surface.ply, "
         "defects.json and summary.json to --out. Convention: x right, y up (row 0 at the top), "
-        "z towards the camera; lights point from the surface to the light.",
+        "z towards the camera; lights point from the surface to the light. Near-field rigs: with LED "
+        "positions (--light-positions, --rig, or a folder's light_positions.txt) the point-light model "
+        "(inverse-square falloff, LED lobe, optional flat field) is solved by alternating normals and "
+        "depth; heights are z in mm in the rig frame (origin on the optical axis in the reference plane "
+        "z = 0) with the median height of the valid pixels at --reference-height, and xy.npy holds x, y "
+        "of each pixel's point. A solve that does not converge writes only summary.json "
+        "(converged: false) and exits with code 2.",
     )
     p.add_argument("folder", nargs="?", default=None, metavar="DIR",
                    help="DiLiGenT-style folder (omit when giving --images)")
@@ -36,8 +76,34 @@ def register(sub) -> None:
     p.add_argument("--integrator", default="dct", choices=("dct", "fc", "lsq"),
                    help="height integrator: dct (Simchony, free boundary; default), fc "
                    "(Frankot-Chellappa, periodic), lsq (masked least squares, multigrid CG)")
-    p.add_argument("--pixel-size", type=float, default=None, metavar="MM",
-                   help="pixel size in mm (default: the folder's scene.json, else 1)")
+    _add_camera(p, "orthographic pixel size in mm (default: the folder's scene.json, else 1; required "
+                "with point lights unless the rig or folder states the camera)")
+    p.add_argument("--light-positions", default=None, metavar="P",
+                   help="LED positions, one 'x y z' row in mm per image (rig frame: origin on the optical "
+                   "axis in the reference plane, z towards the camera): the near-field model")
+    p.add_argument("--led-mu", default=None, metavar="MU",
+                   help="LED lobe exponent mu (cos^mu about the LED axis; 0 isotropic), one value or one "
+                   "per light 'm1,m2,...' (default: the rig's or scene.json's, else unknown)")
+    p.add_argument("--flat-field", nargs="+", default=None, metavar="F",
+                   help="flat-field images (flat matte target in the reference plane), one per light in "
+                   "light order")
+    p.add_argument("--flat-albedo", type=float, default=None, metavar="A",
+                   help="albedo of the flat-field target (default: the folder's scene.json, else 1)")
+    p.add_argument("--no-flat-field", action="store_true",
+                   help="ignore the rig's gains and the folder's flat_*.png (modelled falloff and lobe only)")
+    p.add_argument("--rig", default=None, metavar="RIG",
+                   help="calibrated rig (rig.json of 'workbench photometric calibrate'): LED positions, "
+                   "camera, flat-field gains")
+    p.add_argument("--light-model", default="auto", choices=("auto", "point", "directional"),
+                   help="auto (default): point lights when LED positions are known; directional: today's "
+                   "far-field model even then")
+    p.add_argument("--reference-height", type=float, default=0.0, metavar="MM",
+                   help="near-field anchor: median height of the valid pixels, mm (default 0: the part lies "
+                   "on the reference plane)")
+    p.add_argument("--tolerance", type=float, default=None, metavar="MM",
+                   help="near-field convergence: largest height change between passes, mm (default 0.001)")
+    p.add_argument("--max-iterations", type=int, default=30, metavar="N",
+                   help="near-field: most passes per resolution (default 30)")
     p.add_argument("--out", default="photometric_out", help="output folder (default photometric_out)")
     sel = p.add_mutually_exclusive_group()
     sel.add_argument("--triad", action="store_true",
@@ -63,16 +129,83 @@ def register(sub) -> None:
                    help="background removed before measuring defects (default plane)")
     p.set_defaults(func=_reconstruct)
 
+    c = sub.add_parser(
+        "calibrate",
+        help="near-field rig: LED positions from mirror spheres, flat-field gains, camera -> rig.json",
+        description="Calibrate a near-field rig. Each --spheres folder holds one image per LED "
+        "(filenames.txt, light order) of a mirror sphere and sphere.json ({'radius_mm': R, 'center_mm': "
+        "[x, y, z]}; without it the sphere is found from its outline and taken to rest on z = 0). Each "
+        "highlight gives a ray towards its LED (r = 2 (n.v) n - v); the LED is the least-squares nearest "
+        "point of its rays from two or more folders (spheres at different places or heights). Flat-field "
+        "images add per-light gain maps. Writes rig.json and, with a flat field, <name>_gains.npz beside "
+        "it; prints each LED's position, residuals and uncertainty.",
+    )
+    src = c.add_mutually_exclusive_group(required=True)
+    src.add_argument("--spheres", nargs="+", default=None, metavar="DIR",
+                     help="two or more mirror-sphere folders")
+    src.add_argument("--light-positions", default=None, metavar="P",
+                     help="known LED positions ('x y z' mm per light) instead of spheres (needs --flat-field)")
+    _add_camera(c, "orthographic pixel size in mm (default: the sphere folders' scene.json)")
+    c.add_argument("--flat-field", nargs="+", default=None, metavar="F",
+                   help="flat-field images (flat matte target on z = 0), one per light in light order")
+    c.add_argument("--flat-albedo", type=float, default=None, metavar="A",
+                   help="albedo of the flat-field target (default 1)")
+    c.add_argument("--led-mu", default=None, metavar="MU", help="LED lobe exponent(s) to store in the rig")
+    c.add_argument("--intensities", default=None, metavar="I", help="LED intensities to store in the rig")
+    c.add_argument("--window", type=int, default=None, metavar="PX",
+                   help="half width of the highlight centroid window, pixels (default 4)")
+    c.add_argument("--out", default="rig.json", help="rig file to write (default rig.json)")
+    c.set_defaults(func=_calibrate)
+
+
+def _calibrate(args: argparse.Namespace) -> int:
+    from photometric.camera import make_camera
+    from workbench.runs.photometric import calibrate_to_rig
+
+    opts = _camera_options(args)
+    camera = None
+    if any(v is not None for v in (*opts.values(), args.pixel_size)):
+        model = opts["camera"] or ("perspective" if args.focal_length_px or args.camera_height else "orthographic")
+        camera = make_camera(model, pixel_size_mm=args.pixel_size, focal_length_px=args.focal_length_px,
+                             camera_height_mm=args.camera_height, principal_point_px=opts["principal_point_px"])
+    rig = calibrate_to_rig(
+        args.out,
+        spheres=args.spheres,
+        light_positions=args.light_positions,
+        camera=camera,
+        flat_field=args.flat_field,
+        flat_albedo=args.flat_albedo,
+        led_mu=None if args.led_mu is None else _numbers(args.led_mu, "--led-mu"),
+        intensities=args.intensities,
+        window_px=args.window,
+    )
+    cal = rig["calibration"]
+    print(f"{len(rig['lights']['positions_mm'])} LEDs, {rig['camera']['model']} camera, "
+          f"{rig['image_size'][0]} x {rig['image_size'][1]} px, flat field "
+          f"{'yes' if rig['flat_field'] else 'no'} ({cal['method']})")
+    for k, pos in enumerate(rig["lights"]["positions_mm"]):
+        line = f"LED {k}: ({pos[0]:.2f}, {pos[1]:.2f}, {pos[2]:.2f}) mm"
+        if "residuals_mm" in cal:
+            sd = cal["uncertainty_mm"][k]
+            line += (f", ray residuals {', '.join(f'{r:.3f}' for r in cal['residuals_mm'][k])} mm, "
+                     f"uncertainty ({sd[0]:.3f}, {sd[1]:.3f}, {sd[2]:.3f}) mm")
+        print(line)
+    print(f"wrote {args.out} (every number above is in it)")
+    return 0
+
 
 def _reconstruct(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
+    from photometric.nearfield import DEFAULT_TOLERANCE_MM
     from workbench.runs.photometric import reconstruct_to_folder
 
     if (args.folder is None) == (args.images is None):
         raise ValueError("input: give either a folder DIR or --images (with --lights), not both")
-    if args.images is not None and args.lights is None:
-        raise ValueError("--lights: required with --images")
+    if args.images is not None and args.lights is None and args.light_positions is None and args.rig is None:
+        raise ValueError("--lights: required with --images (or --light-positions, or --rig)")
+    if args.no_flat_field and args.flat_field is not None:
+        raise ValueError("--no-flat-field: cannot be combined with --flat-field")
     if args.images is not None and (args.triad or args.select):
         raise ValueError("--triad/--select: only apply to a folder input")
     select = "triad" if args.triad else args.select
@@ -99,7 +232,17 @@ def _reconstruct(args: argparse.Namespace) -> int:
             step=args.step,
             samples=args.samples,
             background=args.background,
+            light_positions=args.light_positions,
+            led_mu=None if args.led_mu is None else _numbers(args.led_mu, "--led-mu"),
+            flat_field=False if args.no_flat_field else args.flat_field,
+            flat_albedo=args.flat_albedo,
+            rig=args.rig,
+            light_model=args.light_model,
+            reference_height_mm=args.reference_height,
+            tolerance_mm=DEFAULT_TOLERANCE_MM if args.tolerance is None else args.tolerance,
+            max_iterations=args.max_iterations,
             progress=progress,
+            **_camera_options(args),
         )
         bar.update(bar.total - bar.n)
     size = summary["size"]
@@ -108,6 +251,11 @@ def _reconstruct(args: argparse.Namespace) -> int:
         f"light condition number {summary['light_condition_number']:.3f}, "
         f"invalid {100 * summary['invalid_fraction']:.2f} % of the mask"
     )
+    if summary.get("light_model") == "point" or summary.get("camera", {}).get("model") == "perspective":
+        print(f"{summary['light_model']} lights, {summary['camera']['model']} camera: "
+              f"{summary['iterations']} pass(es), final height change "
+              + ("-" if summary["final_depth_change_mm"] is None else f"{summary['final_depth_change_mm']:.2g} mm")
+              + f" (tolerance {summary['tolerance_mm']:g} mm)")
     if "mean_angular_error_deg" in summary:
         print(f"mean angular error vs normal_gt: {summary['mean_angular_error_deg']:.3f} deg")
     # Without a pixel size the heights are in pixel units, not mm.

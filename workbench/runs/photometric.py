@@ -10,7 +10,16 @@ swap, ``_COMPLETE`` marker last):
 float64 in mm (NaN outside the solved pixels), ``normals.png``, ``albedo.png``,
 ``height.png`` (previews of :mod:`workbench.images`), ``surface.ply`` (mm, on the
 centred pixel grid of :data:`surfaces.grid.GRID_CONVENTION`), ``defects.json`` and
-``summary.json`` (the returned dict).
+``summary.json`` (the returned dict); near-field and perspective solves add ``xy.npy``
+(H, W, 2) float64, the ``x, y`` (mm) of the point each pixel sees (:data:`NEARFIELD_FILES`).
+
+A near-field solve that does not converge writes only ``summary.json`` (with
+``converged: false``, the iteration history and the error) and raises the
+:class:`photometric.nearfield.NotConvergedError` on: no result file is written from an
+unconverged solve, and the command line ends with one line on stderr and exit code 2.
+
+:func:`write_rig` writes a calibrated rig (``rig.json`` and its gains file) and
+:func:`calibrate_to_rig` is what ``workbench photometric calibrate`` calls.
 """
 
 from __future__ import annotations
@@ -20,18 +29,24 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
+import numpy as np
+
+from photometric.nearfield import NotConvergedError
 from photometric.pipeline import PhotometricReconstruction, reconstruct
-from surfaces.io import save_npy, write_json, write_mesh, write_png
+from photometric.rig import Rig, rig_to_dict
+from surfaces.io import atomic_path, save_npy, write_json, write_mesh, write_png
 from workbench import images
 from workbench.runs.folder import result_folder
 
-__all__ = ["FILES", "reconstruct_to_folder", "write_result"]
+__all__ = ["FILES", "NEARFIELD_FILES", "reconstruct_to_folder", "write_result", "write_rig", "calibrate_to_rig"]
 
 #: Files written into the output folder (``summary.json`` lists them under ``files``).
 FILES = (
     "normals.npy", "albedo.npy", "p.npy", "q.npy", "valid.npy", "height.npy", "normals.png",
     "albedo.png", "height.png", "surface.ply", "defects.json", "summary.json",
 )
+#: Files of a near-field or perspective reconstruction: :data:`FILES` and ``xy.npy``.
+NEARFIELD_FILES = (*FILES, "xy.npy")
 
 
 def write_result(result: PhotometricReconstruction, out_dir) -> dict:
@@ -63,6 +78,8 @@ def write_result(result: PhotometricReconstruction, out_dir) -> dict:
     save_npy(out / "q.npy", result.q)
     save_npy(out / "valid.npy", result.valid)
     save_npy(out / "height.npy", result.height)
+    if result.xy is not None:
+        save_npy(out / "xy.npy", result.xy)
     write_png(out / "normals.png", images.normal_map(result.normals, result.valid))
     write_png(out / "albedo.png", images.albedo_image(result.albedo, result.mask))
     write_png(out / "height.png", images.scalar_image(
@@ -80,7 +97,7 @@ def write_result(result: PhotometricReconstruction, out_dir) -> dict:
             value = {**stages, "write": round(write, 4), "total": round(value["total"] + write, 4)}
         summary[key] = value
         if key == "timings_s":
-            summary["files"] = sorted(FILES)
+            summary["files"] = sorted(FILES if result.xy is None else NEARFIELD_FILES)
     write_json(out / "summary.json", summary)
     return summary
 
@@ -113,22 +130,44 @@ def reconstruct_to_folder(
     Returns
     -------
     dict
-        The content of ``summary.json``: input, sizes, options, light condition number,
-        invalid fraction, timings (s), files, mesh size, number of defects and, when the
-        folder has ground truth, ``mean_angular_error_deg`` (over the mask) and
-        ``height_rmse_mm`` (over valid pixels, means removed).
+        The content of ``summary.json``: input, sizes, options, light model and camera,
+        light condition number, invalid fraction, timings (s), files, mesh size, number
+        of defects and, when the folder has ground truth, ``mean_angular_error_deg``
+        (over the mask) and ``height_rmse_mm`` (over valid pixels, means removed).
+
+    Raises
+    ------
+    photometric.nearfield.NotConvergedError
+        After writing only ``summary.json`` (``converged: false``).
     """
     if not atomic:
-        result = reconstruct(source, progress=progress, **options)
-        if progress is not None:
-            progress("write")
-        return write_result(result, out_dir)
+        out = Path(out_dir)
+        if out.exists() and not out.is_dir():
+            raise NotADirectoryError(f"out_dir: {out} exists and is not a folder")
+        out.mkdir(parents=True, exist_ok=True)
+        return _reconstruct_into(source, out, out, progress, options)
     # the folder is checked and locked before the work, so a bad --out or a second writer is refused at once
-    with result_folder(out_dir, owned=FILES) as tmp:
+    with result_folder(out_dir, owned=NEARFIELD_FILES) as tmp:
+        summary = _reconstruct_into(source, tmp, Path(out_dir), progress, options)
+    if "_message" in summary:
+        raise NotConvergedError(summary.pop("_message"), summary)
+    return summary
+
+
+def _reconstruct_into(source, folder: Path, out: Path, progress, options) -> dict:
+    """Reconstruct and write into ``folder``; a solver that did not converge leaves only ``summary.json``."""
+    try:
         result = reconstruct(source, progress=progress, **options)
-        if progress is not None:
-            progress("write")
-        return write_result(result, tmp)
+    except NotConvergedError as exc:
+        # the summary of a failed solve is kept (swapped in) so the user can see why it failed
+        write_json(folder / "summary.json", {**exc.summary, "files": ["summary.json"]})
+        message = f"{exc} (nothing else written; see {out / 'summary.json'})"
+        if folder == out:
+            raise NotConvergedError(message, exc.summary) from None
+        return {**exc.summary, "_message": message}
+    if progress is not None:
+        progress("write")
+    return write_result(result, folder)
 
 
 def _signature() -> inspect.Signature:
@@ -140,3 +179,68 @@ def _signature() -> inspect.Signature:
 
 
 reconstruct_to_folder.__signature__ = _signature()
+
+
+def write_rig(rig: Rig, path) -> dict:
+    """Write ``rig.json`` and, with a flat field, its gains file ``<stem>_gains.npz`` beside it.
+
+    Parameters
+    ----------
+    rig : photometric.rig.Rig
+    path : str or Path
+        The ``rig.json`` file (its folder is created when missing).
+
+    Returns
+    -------
+    dict
+        The content of ``rig.json`` (:func:`photometric.rig.rig_to_dict`).
+    """
+    target = Path(path)
+    if target.exists() and target.is_dir():
+        raise IsADirectoryError(f"--out: {target} is a folder; give the rig.json file name")
+    target.parent.mkdir(parents=True, exist_ok=True)
+    gains_file = f"{target.stem}_gains.npz"
+    content = rig_to_dict(rig, gains_file)
+    if rig.gains is not None:
+        with atomic_path(target.parent / gains_file, suffix=".npz") as tmp:
+            np.savez(tmp, gains=np.asarray(rig.gains, np.float32))
+    write_json(target, content)
+    return content
+
+
+def calibrate_to_rig(out, *, spheres=None, light_positions=None, camera=None, flat_field=None,
+                     flat_albedo: float | None = None, led_mu=None, intensities=None,
+                     window_px: int | None = None) -> dict:
+    """Calibrate a near-field rig and write it (``rig.json`` + gains): what ``calibrate`` runs.
+
+    Parameters
+    ----------
+    out : str or Path
+        The ``rig.json`` to write.
+    spheres : sequence of str or Path, optional
+        Two or more mirror-sphere folders (:func:`photometric.calibrate.read_sphere_set`).
+    light_positions : str, Path or array_like, shape (N, 3), optional
+        Known LED positions instead of spheres (mm).
+    camera : photometric.camera camera, optional
+        Default: the first sphere folder's ``scene.json`` camera.
+    flat_field : sequence of paths, optional
+        Flat-field images, one per light (:func:`photometric.rig.flat_field_gains`).
+    flat_albedo : float, optional
+        The flat target's albedo (default 1).
+    led_mu : float or sequence, optional
+        LED lobe exponents to store (unknown when omitted).
+    intensities : str, Path, float or array_like, optional
+        LED intensities to store.
+    window_px : int, optional
+        Highlight centroid window (:func:`photometric.calibrate.highlight_centroids`).
+
+    Returns
+    -------
+    dict
+        The content of ``rig.json``.
+    """
+    from photometric.calibrate import calibrate_rig
+
+    rig = calibrate_rig(spheres=spheres, light_positions=light_positions, camera=camera, flat_field=flat_field,
+                        flat_albedo=flat_albedo, led_mu=led_mu, intensities=intensities, window_px=window_px)
+    return write_rig(rig, out)

@@ -1,0 +1,487 @@
+"""Camera models of the photometric rig: orthographic (telecentric) and perspective (pinhole).
+
+Rig frame (the near-field contract): millimetres, origin on the optical axis in the
+reference plane ``z = 0`` (the nominal part surface), x right, y up, z towards the
+camera (:data:`photometric.lights.CONVENTION`). Pixel ``(row, col)`` of an ``H x W``
+image sees the ray through its centre:
+
+* ``orthographic`` (telecentric; ``pixel_size_mm`` ``h``): the vertical ray through
+  ``x = (col - (W - 1) / 2) h``, ``y = ((H - 1) / 2 - row) h``, the project's pixel grid
+  (:data:`surfaces.grid.GRID_CONVENTION`).
+* ``perspective`` (pinhole; focal length ``f`` in pixels, principal point ``(cx, cy)``
+  (column, row), by default ``((W - 1) / 2, (H - 1) / 2)``, camera centre
+  ``C = (0, 0, H_c)`` with ``H_c`` = ``camera_height_mm``, looking down ``-z``): the ray
+  from ``C`` along ``(u / f, v / f, -1)`` with the pixel offsets ``u = col - cx`` and
+  ``v = cy - row``. The surface point at depth ``w = H_c - z`` below the camera is
+  ``X = (u w / f, v w / f, z)``; the reference plane is seen at ``H_c / f`` mm per pixel
+  at the principal point.
+
+A surface seen by every pixel is one depth per pixel: ``height.npy`` holds ``z`` (mm) of
+the point each pixel sees and ``xy.npy`` its ``x, y`` (:func:`surface_xy`). Normals come
+from photometric stereo; :func:`gradient_field` turns them into the field that the
+normal integrators of :mod:`photometric.integrate` integrate (``z`` itself for the
+orthographic camera, ``log w`` for the perspective one) and :func:`depth_from_field`
+turns the integral back into ``z``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from surfaces.grid import image_shape
+from surfaces.validate import as_array, positive
+
+__all__ = [
+    "MODELS",
+    "Orthographic",
+    "Perspective",
+    "make_camera",
+    "camera_from_dict",
+    "pixel_offsets",
+    "surface_xy",
+    "plane_points",
+    "pixel_rays",
+    "gradient_field",
+    "depth_from_field",
+    "footprint_area",
+]
+
+#: Camera model names (``--camera``; ``"model"`` in ``scene.json`` and ``rig.json``).
+MODELS = ("orthographic", "perspective")
+
+
+@dataclass(frozen=True)
+class Orthographic:
+    """A telecentric camera: every pixel sees a vertical ray.
+
+    Attributes
+    ----------
+    pixel_size_mm : float
+        Pixel pitch on the part, mm (> 0).
+    """
+
+    pixel_size_mm: float
+
+    model = "orthographic"
+
+    def to_dict(self, shape=None) -> dict:
+        """The ``camera`` entry of ``scene.json``/``rig.json`` (``shape`` is not needed)."""
+        return {"model": self.model, "pixel_size_mm": float(self.pixel_size_mm)}
+
+    def nominal_pixel_mm(self) -> float:
+        """Pixel size on the reference plane, mm."""
+        return float(self.pixel_size_mm)
+
+
+@dataclass(frozen=True)
+class Perspective:
+    """A pinhole camera looking down ``-z`` from ``(0, 0, camera_height_mm)``.
+
+    Attributes
+    ----------
+    focal_length_px : float
+        Focal length ``f`` in pixels (> 0).
+    camera_height_mm : float
+        Height ``H_c`` of the camera centre above the reference plane, mm (> 0).
+    principal_point_px : tuple of float or None
+        ``(cx, cy)`` (column, row) in pixels; ``None``: the image centre
+        ``((W - 1) / 2, (H - 1) / 2)``.
+    """
+
+    focal_length_px: float
+    camera_height_mm: float
+    principal_point_px: tuple[float, float] | None = None
+
+    model = "perspective"
+
+    def centre(self, shape) -> tuple[float, float]:
+        """``(cx, cy)`` for an image of ``shape`` (H, W)."""
+        if self.principal_point_px is not None:
+            return float(self.principal_point_px[0]), float(self.principal_point_px[1])
+        h, w = image_shape(shape, "shape")
+        return (w - 1) / 2.0, (h - 1) / 2.0
+
+    def to_dict(self, shape=None) -> dict:
+        """The ``camera`` entry of ``scene.json``/``rig.json``; the principal point is
+        written out when ``shape`` (H, W) is given or it was set."""
+        out = {"model": self.model, "focal_length_px": float(self.focal_length_px),
+               "camera_height_mm": float(self.camera_height_mm)}
+        if self.principal_point_px is not None or shape is not None:
+            out["principal_point_px"] = list(self.centre(shape))
+        return out
+
+    def nominal_pixel_mm(self) -> float:
+        """Pixel size on the reference plane at the principal point, ``H_c / f`` mm."""
+        return float(self.camera_height_mm) / float(self.focal_length_px)
+
+
+Camera = Orthographic | Perspective
+
+
+def make_camera(
+    model: str = "orthographic",
+    *,
+    pixel_size_mm: float | None = None,
+    focal_length_px: float | None = None,
+    camera_height_mm: float | None = None,
+    principal_point_px=None,
+) -> Camera:
+    """Build and check a camera from the user's options.
+
+    Parameters
+    ----------
+    model : {"orthographic", "perspective"}
+        Camera model.
+    pixel_size_mm : float, optional
+        Orthographic pixel size, mm (required for ``"orthographic"``).
+    focal_length_px, camera_height_mm : float, optional
+        Perspective focal length (pixels) and camera height above the reference plane
+        (mm); both required for ``"perspective"``.
+    principal_point_px : (cx, cy), optional
+        Perspective principal point (column, row); default the image centre.
+
+    Returns
+    -------
+    Orthographic or Perspective
+
+    Raises
+    ------
+    ValueError
+        Unknown model, a missing or non-positive value, options of the other model.
+
+    Examples
+    --------
+    >>> make_camera("perspective", focal_length_px=2400, camera_height_mm=300).nominal_pixel_mm()
+    0.125
+    >>> make_camera("perspective", focal_length_px=2400)
+    Traceback (most recent call last):
+    ...
+    ValueError: camera: a perspective camera needs --focal-length-px and --camera-height (missing: camera-height)
+    """
+    if model not in MODELS:
+        raise ValueError(f"camera: expected one of {MODELS}, got {model!r}")
+    if model == "orthographic":
+        if focal_length_px is not None or camera_height_mm is not None or principal_point_px is not None:
+            raise ValueError("camera: --focal-length-px, --camera-height and a principal point need "
+                             "--camera perspective")
+        if pixel_size_mm is None:
+            raise ValueError("camera: an orthographic camera with point lights needs --pixel-size (mm)")
+        return Orthographic(positive(pixel_size_mm, "pixel_size"))
+    missing = [n for n, v in (("focal-length-px", focal_length_px), ("camera-height", camera_height_mm))
+               if v is None]
+    if missing:
+        raise ValueError("camera: a perspective camera needs --focal-length-px and --camera-height "
+                         f"(missing: {', '.join(missing)})")
+    if pixel_size_mm is not None:
+        raise ValueError("camera: --pixel-size is for the orthographic camera; a perspective camera "
+                         "takes --focal-length-px and --camera-height")
+    pp = None
+    if principal_point_px is not None:
+        pp = tuple(float(c) for c in as_array(principal_point_px, "principal_point_px", shape=(2,)))
+    return Perspective(positive(focal_length_px, "focal_length_px"),
+                       positive(camera_height_mm, "camera_height_mm"), pp)
+
+
+def camera_from_dict(entry, name: str = "camera") -> Camera:
+    """The camera of a ``scene.json`` or ``rig.json`` ``camera`` entry.
+
+    Parameters
+    ----------
+    entry : dict
+        ``{"model": "orthographic", "pixel_size_mm": h}`` or ``{"model": "perspective",
+        "focal_length_px": f, "camera_height_mm": H, "principal_point_px": [cx, cy]}``
+        (principal point optional).
+    name : str, optional
+        Where the entry came from, for messages.
+
+    Returns
+    -------
+    Orthographic or Perspective
+    """
+    if not isinstance(entry, dict) or "model" not in entry:
+        raise ValueError(f"{name}: expected an object with a 'model' ({' or '.join(MODELS)})")
+    try:
+        return make_camera(
+            entry["model"],
+            pixel_size_mm=entry.get("pixel_size_mm") if entry["model"] == "orthographic" else None,
+            focal_length_px=entry.get("focal_length_px") if entry["model"] == "perspective" else None,
+            camera_height_mm=entry.get("camera_height_mm") if entry["model"] == "perspective" else None,
+            principal_point_px=entry.get("principal_point_px") if entry["model"] == "perspective" else None,
+        )
+    except ValueError as exc:
+        raise ValueError(f"{name}: {exc}") from None
+
+
+def pixel_offsets(camera: Camera, shape) -> tuple[np.ndarray, np.ndarray]:
+    """Per-column and per-row offsets of the pixel centres from the optical axis.
+
+    Parameters
+    ----------
+    camera : Orthographic or Perspective
+    shape : (H, W)
+        Image size.
+
+    Returns
+    -------
+    u : numpy.ndarray, shape (W,), float64
+        ``col - cx`` (right); for the orthographic camera multiplied by the pixel size
+        (mm, so ``u`` is ``x``).
+    v : numpy.ndarray, shape (H,), float64
+        ``cy - row`` (up); orthographic: ``y`` in mm.
+    """
+    h, w = image_shape(shape, "shape")
+    if isinstance(camera, Orthographic):
+        ps = camera.pixel_size_mm
+        return (np.arange(w) - (w - 1) / 2.0) * ps, ((h - 1) / 2.0 - np.arange(h)) * ps
+    cx, cy = camera.centre((h, w))
+    return np.arange(w) - cx, cy - np.arange(h, dtype=np.float64)
+
+
+def surface_xy(camera: Camera, z) -> np.ndarray:
+    """``x, y`` (mm) of the surface point each pixel sees, given its height ``z``.
+
+    Parameters
+    ----------
+    camera : Orthographic or Perspective
+    z : array_like, shape (H, W)
+        Height of the seen point above the reference plane, mm (NaN stays NaN in
+        perspective ``xy``).
+
+    Returns
+    -------
+    numpy.ndarray, shape (H, W, 2), float64
+        Orthographic: the pixel grid (independent of ``z``); perspective:
+        ``(u w / f, v w / f)`` with ``w = H_c - z``.
+
+    Examples
+    --------
+    >>> cam = make_camera("perspective", focal_length_px=100.0, camera_height_mm=200.0)
+    >>> surface_xy(cam, np.zeros((2, 3)))[0].tolist()  # 2 mm per pixel on z = 0
+    [[-2.0, 1.0], [0.0, 1.0], [2.0, 1.0]]
+    """
+    zz = as_array(z, "z", ndim=2, finite=False)
+    u, v = pixel_offsets(camera, zz.shape)
+    if isinstance(camera, Orthographic):
+        row = np.stack([u, np.zeros_like(u)], axis=1)  # (W, 2): x, then y added per row
+        out = np.broadcast_to(row, zz.shape + (2,)).copy()
+        out[..., 1] = v[:, None]
+        return out
+    scale = (camera.camera_height_mm - zz) * (1.0 / camera.focal_length_px)
+    return np.stack([u[None, :] * scale, v[:, None] * scale], axis=2)
+
+
+def plane_points(camera: Camera, shape, z0: float = 0.0) -> np.ndarray:
+    """Points where each pixel's ray meets the horizontal plane ``z = z0`` (mm).
+
+    Parameters
+    ----------
+    camera : Orthographic or Perspective
+    shape : (H, W)
+    z0 : float, optional
+        Plane height, mm (below a perspective camera).
+
+    Returns
+    -------
+    numpy.ndarray, shape (H, W, 3), float64
+    """
+    h, w = image_shape(shape, "shape")
+    if isinstance(camera, Perspective) and z0 >= camera.camera_height_mm:
+        raise ValueError(f"z0: the plane z = {z0} mm is not below the camera ({camera.camera_height_mm} mm)")
+    z = np.full((h, w), float(z0))
+    return np.concatenate([surface_xy(camera, z), z[..., None]], axis=2)
+
+
+def pixel_rays(camera: Camera, shape, rows, cols) -> tuple[np.ndarray, np.ndarray]:
+    """Rays through fractional pixel positions (sub-pixel highlight centroids).
+
+    Parameters
+    ----------
+    camera : Orthographic or Perspective
+    shape : (H, W)
+        Image size (for the default principal point and the orthographic grid).
+    rows, cols : array_like, shape (K,)
+        Fractional pixel indices (pixel centres at integers).
+
+    Returns
+    -------
+    origins : numpy.ndarray, shape (K, 3), float64
+        Orthographic: the point of the ray on the plane ``z = 0``; perspective: the
+        camera centre.
+    directions : numpy.ndarray, shape (K, 3), float64
+        Unit directions into the scene (``d_z < 0``).
+    """
+    h, w = image_shape(shape, "shape")
+    r = as_array(rows, "rows", ndim=1)
+    c = as_array(cols, "cols", shape=r.shape)
+    if isinstance(camera, Orthographic):
+        ps = camera.pixel_size_mm
+        origins = np.stack([(c - (w - 1) / 2.0) * ps, ((h - 1) / 2.0 - r) * ps, np.zeros_like(r)], axis=1)
+        return origins, np.tile([0.0, 0.0, -1.0], (r.size, 1))
+    cx, cy = camera.centre((h, w))
+    f = camera.focal_length_px
+    d = np.stack([(c - cx) / f, (cy - r) / f, -np.ones_like(r)], axis=1)
+    origins = np.tile([0.0, 0.0, camera.camera_height_mm], (r.size, 1))
+    return origins, d / np.linalg.norm(d, axis=1, keepdims=True)
+
+
+def gradient_field(camera: Camera, normals) -> tuple[np.ndarray, np.ndarray, float]:
+    """The gradient that the normal integrators integrate, from unit normals.
+
+    Parameters
+    ----------
+    camera : Orthographic or Perspective
+    normals : array_like, shape (H, W, 3)
+        Unit normals facing the camera (``n_z > 0``).
+
+    Returns
+    -------
+    p, q : numpy.ndarray, shape (H, W), float32
+        Orthographic: ``p = dz/dx = -n_x / n_z``, ``q = dz/dy = -n_y / n_z``.
+        Perspective: the derivatives of the log-depth ``l = log w`` (``w = H_c - z``)
+        per pixel along ``u`` (right) and ``v`` (up): with ``a = n_x / n_z``,
+        ``b = n_y / n_z``, ``l_u = a / (f - u a - v b)``, ``l_v = b / (f - u a - v b)``.
+        They follow from ``n ~ (f l_u, f l_v, 1 + u l_u + v l_v)``, the cross product of
+        the derivatives of ``X = (u w / f, v w / f, H_c - w)`` along ``u`` and ``v``.
+    spacing : float
+        The ``pixel_size`` to integrate with: the orthographic pixel size (mm), or 1
+        (offsets in pixels) for the perspective camera.
+
+    Notes
+    -----
+    Where ``n_z <= 0`` or ``f - u a - v b <= 0`` the surface is seen edge-on or from
+    behind; ``p, q`` are 0 there (such pixels are not valid normals).
+
+    Examples
+    --------
+    A plane rising 0.1 mm per mm to the right, seen at the principal point by a camera
+    300 mm above it: ``l_u = -0.1 / f``.
+
+    >>> cam = make_camera("perspective", focal_length_px=1000.0, camera_height_mm=300.0)
+    >>> n = np.array([-0.1, 0.0, 1.0]) / np.sqrt(1.01)
+    >>> p, q, spacing = gradient_field(cam, np.broadcast_to(n, (3, 3, 3)))
+    >>> round(float(p[1, 1]) * 1000.0, 6), float(q[1, 1]), spacing
+    (-0.1, 0.0, 1.0)
+    """
+    n = as_array(normals, "normals", dtype=np.float32, finite=False)
+    if n.ndim != 3 or n.shape[2] != 3:
+        raise ValueError(f"normals: expected shape (H, W, 3), got {n.shape}")
+    u, v = pixel_offsets(camera, n.shape[:2])
+    return _gradient(camera, n[..., 0], n[..., 1], n[..., 2], u, v)
+
+
+def _gradient(camera: Camera, nx, ny, nz, u, v) -> tuple[np.ndarray, np.ndarray, float]:
+    """:func:`gradient_field` from normal planes (h, w) and the offsets ``u`` (w,), ``v`` (h,) of
+    the grid (a coarse grid's block centres, in full-resolution pixels)."""
+    f32 = np.float32
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        facing = nz > 0
+        if isinstance(camera, Orthographic):
+            inv = np.divide(f32(-1.0), nz, out=np.zeros(np.shape(nz), f32), where=facing)
+            p, q = (nx * inv).astype(f32, copy=False), (ny * inv).astype(f32, copy=False)
+            # a grazing normal (n_z a denormal) overflows: no slope there
+            for g in (p, q):
+                g[~np.isfinite(g)] = 0.0
+            return p, q, _spacing(camera)
+        inv = np.where(facing, f32(1.0) / np.where(facing, nz, f32(1.0)), f32(0.0))
+        a = nx * inv
+        b = ny * inv
+        f = f32(camera.focal_length_px)
+        den = f - u.astype(f32)[None, :] * a - v.astype(f32)[:, None] * b
+        ok = den > f32(1e-6) * f
+        inv_den = np.where(ok, f32(1.0) / np.where(ok, den, f32(1.0)), f32(0.0))
+        p, q = a * inv_den, b * inv_den
+    p = np.where(np.isfinite(p), p, f32(0.0)).astype(f32, copy=False)
+    q = np.where(np.isfinite(q), q, f32(0.0)).astype(f32, copy=False)
+    return p, q, _spacing(camera)
+
+
+def _spacing(camera: Camera) -> float:
+    return camera.pixel_size_mm if isinstance(camera, Orthographic) else 1.0
+
+
+def depth_from_field(camera: Camera, field, *, valid=None, reference_height_mm: float = 0.0,
+                     sample_step: int = 1) -> tuple[np.ndarray, float]:
+    """Height ``z`` from an integrated field, anchored to the reference height.
+
+    The integral of :func:`gradient_field` is known up to a constant (an offset of
+    ``z``, or a scale of the perspective depth ``w = exp(l)``), which the normals do not
+    determine. The anchoring rule: the **median height of the valid pixels is**
+    ``reference_height_mm`` (0: the part's surface lies, robustly, on the reference
+    plane; a dent or scratch does not move the median).
+
+    Parameters
+    ----------
+    camera : Orthographic or Perspective
+    field : array_like, shape (H, W)
+        Orthographic: ``z`` up to a constant (mm); perspective: ``log w`` up to a
+        constant. NaN outside the integration domain (kept NaN).
+    valid : array_like, shape (H, W), optional
+        Pixels whose median is anchored (default: the finite ones).
+    reference_height_mm : float, optional
+        Median height of the valid pixels, mm (below a perspective camera).
+    sample_step : int, optional
+        Take the median over every ``sample_step``-th row and column (speed on large
+        images; 1 = all pixels).
+
+    Returns
+    -------
+    z : numpy.ndarray, shape (H, W), float64
+        Height of the point each pixel sees, mm.
+    constant : float
+        The constant added to ``field`` (orthographic, mm) or to ``log w``
+        (perspective).
+    """
+    fld = as_array(field, "field", ndim=2, finite=False)
+    use = np.isfinite(fld)
+    if valid is not None:
+        use &= as_array(valid, "valid", shape=fld.shape, dtype=bool)
+    s = max(1, int(sample_step))
+    sample = fld[::s, ::s][use[::s, ::s]]
+    if sample.size == 0:
+        sample = fld[use]
+    if sample.size == 0:
+        raise ValueError("field: no valid pixel to anchor the height")
+    med = float(np.median(sample))
+    if isinstance(camera, Orthographic):
+        c = float(reference_height_mm) - med
+        return fld + c, c
+    depth = camera.camera_height_mm - float(reference_height_mm)
+    if depth <= 0:
+        raise ValueError(f"reference_height_mm: {reference_height_mm} mm is not below the camera")
+    # exp is monotone, so the median of w = exp(l + c) is exp(median(l) + c)
+    c = float(np.log(depth)) - med
+    return camera.camera_height_mm - np.exp(fld + c), c
+
+
+def footprint_area(camera: Camera, z, p=None, q=None) -> np.ndarray | float:
+    """Area of each pixel's footprint projected on the ``x, y`` plane, mm^2.
+
+    Parameters
+    ----------
+    camera : Orthographic or Perspective
+    z : array_like, shape (H, W)
+        Height of the seen point, mm.
+    p, q : array_like, shape (H, W), optional
+        Perspective: the log-depth derivatives ``l_u``, ``l_v`` of
+        :func:`gradient_field` (per pixel); omitted, the surface is taken as locally
+        parallel to the image plane.
+
+    Returns
+    -------
+    float or numpy.ndarray, shape (H, W)
+        Orthographic: ``h^2``. Perspective: ``|det d(x, y)/d(u, v)| = (w / f)^2
+        (1 + u l_u + v l_v)`` with ``w = H_c - z`` (the derivative of
+        ``(u w / f, v w / f)``).
+    """
+    if isinstance(camera, Orthographic):
+        return camera.pixel_size_mm**2
+    zz = as_array(z, "z", ndim=2, finite=False)
+    scale = ((camera.camera_height_mm - zz) / camera.focal_length_px) ** 2
+    if p is None or q is None:
+        return scale
+    u, v = pixel_offsets(camera, zz.shape)
+    lu = as_array(p, "p", shape=zz.shape, finite=False)
+    lv = as_array(q, "q", shape=zz.shape, finite=False)
+    return scale * np.abs(1.0 + u[None, :] * lu + v[:, None] * lv)

@@ -1,0 +1,771 @@
+"""Near-field photometric stereo: point lights (LEDs) and an orthographic or perspective camera.
+
+Model
+-----
+An LED ``k`` at ``P_k`` lights the surface point ``X`` that a pixel sees with the scaled
+light vector ``s_k(X) = E_k(X) l_k(X)`` of :func:`photometric.lights.light_field`
+(inverse-square falloff, LED lobe ``cos^mu``), so a Lambertian pixel reads
+``I_k = albedo * max(0, s_k(X) . n)`` (Mecca et al., "Near field photometric stereo with
+point light sources", SIAM J. Imaging Sci. 2014; Queau et al., "LED-based photometric
+stereo: modeling, calibration and numerical solution", JMIV 2018). With a flat field
+(:func:`photometric.rig.flat_field_gains`) the measured gain ``G_k`` of each pixel
+replaces ``e_k``, the lobe on the reference plane, vignetting and unequal LED power:
+``E_k(X) = G_k |P_k - X0|^2 / |P_k - X|^2`` (times the lobe ratio
+``lobe_k(X) / lobe_k(X0)`` when the exponents are known), ``X0`` the point of the
+reference plane that the pixel sees.
+
+Solution (the alternation of the papers above)
+----------------------------------------------
+1. Start on the reference plane, ``z = reference_height_mm`` everywhere.
+2. Normals: per pixel the least-squares ``albedo * n`` over the lights, from the 3 x 3
+   normal equations ``(sum_k s_k s_k^T) g = sum_k I_k s_k`` solved in closed form for
+   every pixel at once (float32, image blocks on two threads); the outlier mode drops
+   dark, saturated (and, optionally, too bright) observations per pixel and re-solves
+   from the rest, as :func:`photometric.stereo.solve` does for distant lights.
+3. Integrate (:mod:`photometric.integrate`): ``z`` for the orthographic camera, the
+   log-depth ``log(H_c - z)`` for the perspective one (:func:`photometric.camera.gradient_field`).
+4. Anchor the unknown constant (:func:`photometric.camera.depth_from_field`): the
+   median height of the valid pixels is ``reference_height_mm``.
+5. Move the points to the new heights and repeat from 2 until the largest height change
+   of a pixel valid in both passes is below ``tolerance_mm``. After the first pass at a
+   resolution, step 2 re-solves only the pixels whose height moved by more than
+   :data:`RESOLVE_FRACTION` of the tolerance since their normal was solved; the others
+   keep their normals (a height error ``dz`` turns a light vector by about
+   ``dz / |P_k - X|``: 1e-6 rad for 0.1 um at 100 mm). Every pass integrates the whole
+   image; ``resolved_fraction`` in the history says how many pixels were re-solved.
+
+Light vectors change slowly with depth, so the passes run first on a block-averaged copy
+of the images (at most ``coarse_pixels`` pixels) until they converge there, and then at
+full resolution from the upsampled depth until the full-resolution change is below the
+tolerance too (typically two full passes). Distant (directional) lights need no
+alternation: with a perspective camera one far-field solve and one log-depth
+integration give the surface.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+from photometric.camera import (
+    Camera,
+    Orthographic,
+    Perspective,
+    _gradient,
+    depth_from_field,
+    footprint_area,
+    pixel_offsets,
+    plane_points,
+    surface_xy,
+)
+from photometric.lights import PointLights, _scaled_vectors, as_intensities, validate_lights
+from photometric.stereo import MAX_CONDITION, _check_images, _check_options, _grey_planes, _solve
+from surfaces.validate import as_array, positive
+
+__all__ = [
+    "DEFAULT_TOLERANCE_MM",
+    "COARSE_PIXELS",
+    "ANCHOR_RULE",
+    "NearFieldResult",
+    "NotConvergedError",
+    "solve_nearfield",
+]
+
+#: Default convergence tolerance: largest height change of a pixel between passes, mm.
+DEFAULT_TOLERANCE_MM = 1e-3
+#: Most pixels of the coarse copy the alternation starts on.
+COARSE_PIXELS = 1 << 18
+#: Pixels per image block of a whole-image pass (fits the CPU cache with its temporaries).
+BLOCK_PIXELS = 1 << 15
+#: Passes after the first at a level re-solve the normals only of the pixels whose height moved by more
+#: than this fraction of the tolerance since their normal was solved (the others keep theirs).
+RESOLVE_FRACTION = 0.1
+#: The anchoring rule, as stated in ``summary.json``.
+ANCHOR_RULE = "median height of the valid pixels = reference_height_mm"
+INTEGRATORS = ("dct", "fc", "lsq")
+
+
+class NotConvergedError(ValueError):
+    """The alternation stopped before the height change fell below the tolerance.
+
+    Attributes
+    ----------
+    summary : dict
+        What the caller reports (the pipeline's summary with ``converged: false`` and
+        the iteration history); nothing else is returned.
+    """
+
+    def __init__(self, message: str, summary: dict | None = None):
+        super().__init__(message)
+        self.summary = summary or {}
+
+
+@dataclass(frozen=True)
+class NearFieldResult:
+    """Everything :func:`solve_nearfield` computes.
+
+    Attributes
+    ----------
+    normals : numpy.ndarray, shape (H, W, 3), float32
+        Unit normals; ``(0, 0, 1)`` where no solution exists.
+    albedo : numpy.ndarray, shape (H, W) or (H, W, 3), float32
+        Albedo (images divided by the irradiance ``E_k``); zero where no solution exists.
+    valid : numpy.ndarray, shape (H, W), bool
+        In the mask, positive albedo, ``n_z > 0``, enough well-conditioned inliers in
+        the outlier mode.
+    residual : numpy.ndarray, shape (H, W), float32
+        RMS of ``x_k - s_k . (albedo n)`` over the observations used (intensity-divided
+        image units).
+    p, q : numpy.ndarray, shape (H, W), float32
+        Surface slopes ``dz/dx = -n_x / n_z``, ``dz/dy = -n_y / n_z`` (y up) in the rig
+        frame; zero where not valid.
+    height : numpy.ndarray, shape (H, W), float64
+        ``z`` (mm) of the point each pixel sees; NaN where not valid.
+    xy : numpy.ndarray, shape (H, W, 2), float64
+        ``x, y`` (mm) of that point (invalid pixels: at the interpolated height).
+    footprint_mm2 : float or numpy.ndarray, shape (H, W)
+        Each pixel's footprint projected on the ``x, y`` plane (mm^2,
+        :func:`photometric.camera.footprint_area`).
+    outliers : numpy.ndarray or None, shape (N, H, W), bool
+        Dropped observations (outlier mode).
+    depth_change_mm : float or None
+        The last pass's largest height change, below the tolerance (None: distant
+        lights, no alternation).
+    iterations : int
+        Passes run (coarse and full resolution).
+    history : tuple of dict
+        One entry per pass: ``level`` ("coarse"/"full"), ``step`` (pixels per block),
+        ``depth_change_mm``, ``valid_fraction``, ``resolved_fraction`` (pixels whose
+        normals the pass solved, of the mask).
+    anchor : dict
+        ``rule`` (:data:`ANCHOR_RULE`) and ``reference_height_mm``.
+    timings_s : dict
+        ``solve`` (light vectors and normals) and ``integrate`` (integration and
+        anchoring), s.
+    """
+
+    normals: np.ndarray
+    albedo: np.ndarray
+    valid: np.ndarray
+    residual: np.ndarray
+    p: np.ndarray
+    q: np.ndarray
+    height: np.ndarray
+    xy: np.ndarray
+    footprint_mm2: float | np.ndarray
+    outliers: np.ndarray | None
+    depth_change_mm: float | None
+    iterations: int
+    history: tuple = ()
+    anchor: dict = field(default_factory=dict)
+    timings_s: dict = field(default_factory=dict)
+
+
+@dataclass
+class _Level:
+    """One resolution of the alternation: observations and geometry per pixel."""
+
+    planes: np.ndarray  # (N, h, w) float32 intensity-divided grey observations
+    strength: list  # N scalars or (h, w) float32 maps: E_k = strength * lobe / r^2
+    mask: np.ndarray  # (h, w) bool
+    saturated: np.ndarray | None  # (N, h, w) bool, outlier mode
+    u: np.ndarray  # (w,) offsets (orthographic: x in mm; perspective: pixels)
+    v: np.ndarray  # (h,)
+    step: int  # full-resolution pixels per level pixel
+    colour: np.ndarray | None = None  # (N, h, w, 3) intensity-divided channels (albedo only)
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self.mask.shape
+
+
+@dataclass(frozen=True)
+class _Options:
+    outliers: bool
+    dark: float
+    saturation: float
+    highlight: float | None
+    rounds: int
+    lobe: bool  # apply the modelled LED lobe to the strength
+
+
+def _check_camera(camera) -> Camera:
+    if not isinstance(camera, (Orthographic, Perspective)):
+        raise ValueError("camera: expected photometric.camera.Orthographic or Perspective "
+                         f"(photometric.camera.make_camera), got {type(camera).__name__}")
+    return camera
+
+
+def solve_nearfield(
+    images,
+    lights,
+    camera,
+    *,
+    intensities=None,
+    mask=None,
+    gains=None,
+    outliers: bool = False,
+    dark: float = 0.1,
+    saturation: float = 0.99,
+    highlight: float | None = None,
+    integrator: str = "dct",
+    reference_height_mm: float = 0.0,
+    tolerance_mm: float = DEFAULT_TOLERANCE_MM,
+    max_iterations: int = 30,
+    coarse_pixels: int = COARSE_PIXELS,
+    threads: int | None = None,
+) -> NearFieldResult:
+    """Normals, albedo and the surface from images under point lights (or distant ones).
+
+    Parameters
+    ----------
+    images : array_like, shape (N, H, W) or (N, H, W, 3)
+        Linear images; colour in RGB order (one normal from the channel mean, albedo per
+        channel).
+    lights : PointLights or array_like, shape (N, 3)
+        LEDs (:func:`photometric.lights.point_lights`), or unit directions of distant
+        lights (then one solve and one integration, no alternation).
+    camera : Orthographic or Perspective
+        :func:`photometric.camera.make_camera`.
+    intensities : None, float or array_like, shape (N,) or (N, 3), optional
+        ``e_k``, divided out per channel; not used with ``gains`` (the flat field
+        measures the LED power).
+    mask : array_like, shape (H, W), optional
+        Pixels to solve.
+    gains : array_like, shape (N, H, W), optional
+        Flat-field gains ``G_k`` (:func:`photometric.rig.flat_field_gains`); only with
+        point lights.
+    outliers, dark, saturation, highlight :
+        Shadow/highlight handling as in :func:`photometric.stereo.solve`, with the
+        observations divided by the irradiance: an observation is dark when
+        ``x_k < dark * albedo * E_k``.
+    integrator : {"dct", "fc", "lsq"}
+        Normal integrator (:func:`photometric.integrate.integrate`).
+    reference_height_mm : float, optional
+        The anchor: median height of the valid pixels, mm (see
+        :func:`photometric.camera.depth_from_field`); also the start plane.
+    tolerance_mm : float, optional
+        Convergence: largest height change of a pixel between two passes, mm.
+    max_iterations : int, optional
+        Most passes at each resolution.
+    coarse_pixels : int, optional
+        Pixels of the coarse copy the alternation starts on (the images are averaged in
+        ``r x r`` blocks, ``r = ceil(sqrt(H W / coarse_pixels))``; ``r = 1``: no coarse
+        stage).
+    threads : int, optional
+        Threads of the whole-image passes (default: the CPU count, at most 4).
+
+    Returns
+    -------
+    NearFieldResult
+
+    Raises
+    ------
+    NotConvergedError
+        ``max_iterations`` passes at one level did not bring the height change below
+        the tolerance, or the heights diverged; its ``summary`` holds the history.
+        Nothing is returned half-way.
+
+    Examples
+    --------
+    A plate lit by three LEDs 150 mm away, seen by a 0.5 mm-pixel telecentric camera:
+
+    >>> from photometric.camera import make_camera
+    >>> from photometric.lights import light_field, point_lights
+    >>> lights = point_lights(150 * np.array([[0.7071, 0, 0.7071], [-0.3536, 0.6124, 0.7071],
+    ...                                       [-0.3536, -0.6124, 0.7071]]))
+    >>> cam = make_camera("orthographic", pixel_size_mm=0.5)
+    >>> X = plane_points(cam, (32, 32))
+    >>> images = 0.8 * light_field(lights, X)[..., 2]  # a flat plate, n = (0, 0, 1)
+    >>> res = solve_nearfield(images, lights, cam)
+    >>> float(np.abs(res.height).max()) < 1e-4, round(float(res.albedo.mean()), 4)
+    (True, 0.8)
+    """
+    imgs = _check_images(images)
+    n_img, height, width = imgs.shape[:3]
+    camera = _check_camera(camera)
+    if isinstance(lights, PointLights):
+        if len(lights) != n_img:
+            raise ValueError(f"lights: {len(lights)} LED positions for {n_img} images")
+    else:
+        lights = validate_lights(lights)
+        if lights.shape[0] != n_img:
+            raise ValueError(f"lights: {lights.shape[0]} directions for {n_img} images")
+        if gains is not None:
+            raise ValueError("gains: a flat field needs point lights (LED positions)")
+    intens = as_intensities(intensities, n_img)
+    m = None if mask is None else as_array(mask, "mask", shape=(height, width), dtype=bool)
+    if m is not None and not m.any():
+        raise ValueError("mask: no pixel is selected")
+    g = None
+    if gains is not None:
+        g = as_array(gains, "gains", shape=(n_img, height, width), dtype=np.float32)
+        if np.any(g < 0):
+            raise ValueError("gains: flat-field gains must be >= 0")
+    _check_options(dark, saturation, highlight, 2)
+    if integrator not in INTEGRATORS:
+        raise ValueError(f"integrator: expected one of {INTEGRATORS}, got {integrator!r}")
+    positive(tolerance_mm, "tolerance_mm")
+    if int(max_iterations) < 1:
+        raise ValueError(f"max_iterations: must be at least 1, got {max_iterations}")
+    if int(coarse_pixels) < 1:
+        raise ValueError(f"coarse_pixels: must be at least 1, got {coarse_pixels}")
+    ref = float(reference_height_mm)
+    if not np.isfinite(ref):
+        raise ValueError(f"reference_height_mm: must be finite, got {reference_height_mm}")
+    if isinstance(camera, Perspective) and ref >= camera.camera_height_mm:
+        raise ValueError(f"reference_height_mm: {ref} mm is not below the camera ({camera.camera_height_mm} mm)")
+    if isinstance(lights, PointLights) and np.any(lights.positions[:, 2] <= ref):
+        raise ValueError(f"reference_height_mm: {ref} mm is not below every light")
+    return _solve_nearfield(
+        imgs, lights, camera, intens, m, g, outliers, dark, saturation, highlight, integrator, ref,
+        float(tolerance_mm), int(max_iterations), int(coarse_pixels), threads,
+    )
+
+
+def _solve_nearfield(
+    imgs: np.ndarray,
+    lights,
+    camera: Camera,
+    intens: np.ndarray,
+    mask: np.ndarray | None,
+    gains: np.ndarray | None,
+    outliers: bool,
+    dark: float,
+    saturation: float,
+    highlight: float | None,
+    integrator: str,
+    reference_height_mm: float,
+    tolerance_mm: float,
+    max_iterations: int,
+    coarse_pixels: int,
+    threads: int | None,
+) -> NearFieldResult:
+    """:func:`solve_nearfield` on checked input (the pipeline calls this)."""
+    if not isinstance(lights, PointLights):
+        return _directional(imgs, lights, camera, intens, mask, outliers, dark, saturation, highlight,
+                            integrator, reference_height_mm)
+    n_img, height, width = imgs.shape[:3]
+    shape = (height, width)
+    m = np.ones(shape, bool) if mask is None else mask
+    opts = _Options(outliers, dark, saturation, highlight, 2, lights.mu_known or gains is None)
+    u, v = pixel_offsets(camera, shape)
+    fine = _Level(
+        planes=np.stack(_grey_planes(imgs, np.ones_like(intens) if gains is not None else intens)),
+        strength=_strengths(lights, camera, shape, gains, intens),
+        mask=m,
+        saturated=_saturated(imgs, saturation) if outliers else None,
+        u=u,
+        v=v,
+        step=1,
+        colour=None,
+    )
+    if imgs.ndim == 4:
+        divide = np.ones_like(intens) if gains is not None else intens
+        fine.colour = imgs / divide[:, None, None, :].astype(np.float32)
+    workers = threads if threads is not None else min(4, os.cpu_count() or 1)
+    timings = {"solve": 0.0, "integrate": 0.0}
+    history: list[dict] = []
+    z = np.full(shape, reference_height_mm)
+    r = int(np.ceil(np.sqrt(height * width / coarse_pixels)))
+    args = (lights, camera, opts, integrator, reference_height_mm, tolerance_mm, max_iterations)
+    with ThreadPoolExecutor(max_workers=max(1, int(workers))) as pool:
+        if r > 1 and min(height, width) >= 4 * r:
+            coarse = _coarsen(fine, r)
+            state = _alternate(coarse, *args, np.full(coarse.shape, reference_height_mm), pool, timings, history)
+            z = _upsample(state["z"], r, shape)
+        state = _alternate(fine, *args, z, pool, timings, history)
+    sol, z = state["sol"], state["z"]
+    valid = sol["valid"]
+    normals = cv2.merge(list(sol["normals"]))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        p = np.where(valid, -sol["normals"][0] / sol["normals"][2], np.float32(0.0)).astype(np.float32)
+        q = np.where(valid, -sol["normals"][1] / sol["normals"][2], np.float32(0.0)).astype(np.float32)
+    lu, lv = state["grad"]
+    return NearFieldResult(
+        normals=normals,
+        albedo=sol["albedo"] if sol["albedo"] is not None else sol["rho"],
+        valid=valid,
+        residual=sol["residual"],
+        p=p,
+        q=q,
+        height=np.where(valid, z, np.nan),
+        xy=surface_xy(camera, z),
+        footprint_mm2=footprint_area(camera, z, lu, lv),
+        outliers=sol["outliers"],
+        depth_change_mm=state["change"],
+        iterations=len(history),
+        history=tuple(history),
+        anchor={"rule": ANCHOR_RULE, "reference_height_mm": reference_height_mm},
+        timings_s=timings,
+    )
+
+
+def _directional(imgs, L, camera, intens, mask, outliers, dark, saturation, highlight, integrator,
+                 ref) -> NearFieldResult:
+    """Distant lights: the far-field solve (:func:`photometric.stereo.solve`), then one
+    integration in the camera's field and the anchor."""
+    shape = imgs.shape[1:3]
+    t0 = time.perf_counter()
+    res = _solve(imgs, L, intens, mask, outliers, dark, saturation, highlight, 2)
+    t1 = time.perf_counter()
+    u, v = pixel_offsets(camera, shape)
+    level = _Level([], [], np.ones(shape, bool) if mask is None else mask, None, u, v, 1)
+    if not res.valid.any():
+        raise ValueError("images: no pixel has a valid normal (check the lights, the mask and the images)")
+    planes = np.moveaxis(res.normals, -1, 0)
+    z, (lu, lv) = _height(level, camera, planes, res.valid, integrator, ref,
+                          max(1, int(np.sqrt(res.valid.size / 250_000))))
+    t2 = time.perf_counter()
+    return NearFieldResult(
+        normals=res.normals,
+        albedo=res.albedo,
+        valid=res.valid,
+        residual=res.residual,
+        p=res.p,
+        q=res.q,
+        height=np.where(res.valid, z, np.nan),
+        xy=surface_xy(camera, z),
+        footprint_mm2=footprint_area(camera, z, lu, lv),
+        outliers=res.outliers,
+        depth_change_mm=None,
+        iterations=1,
+        history=({"level": "full", "step": 1, "depth_change_mm": None,
+                  "valid_fraction": float(res.valid.sum() / max(int(level.mask.sum()), 1))},),
+        anchor={"rule": ANCHOR_RULE, "reference_height_mm": ref},
+        timings_s={"solve": t1 - t0, "integrate": t2 - t1},
+    )
+
+
+def _strengths(lights: PointLights, camera: Camera, shape, gains, intens) -> list:
+    """``E_k = strength_k * lobe_k(X) / |P_k - X|^2``: ``d0_k^2`` (intensities divided out), or
+    with a flat field ``G_k |P_k - X0|^2`` (divided by the lobe at ``X0`` when it is known)."""
+    if gains is None:
+        return [float(d * d) for d in lights.d0]
+    X0 = plane_points(camera, shape).astype(np.float32)
+    out = []
+    for k in range(len(lights)):
+        d = lights.positions[k].astype(np.float32)[None, None, :] - X0
+        r2 = np.einsum("hwc,hwc->hw", d, d)
+        q = gains[k] * r2
+        if lights.mu_known and lights.mu[k] > 0:
+            cos = -(d @ lights.axes[k].astype(np.float32)) / np.sqrt(r2)
+            lobe = np.maximum(cos, 0.0) ** np.float32(lights.mu[k])
+            q = np.divide(q, lobe, out=np.zeros_like(q), where=lobe > 0)
+        out.append(q.astype(np.float32))
+    return out
+
+
+def _saturated(imgs: np.ndarray, saturation: float) -> np.ndarray:
+    src = imgs.max(axis=3) if imgs.ndim == 4 else imgs
+    return src >= saturation
+
+
+def _block_mean(a: np.ndarray, r: int) -> np.ndarray:
+    h, w = a.shape[0] // r, a.shape[1] // r
+    return a[: h * r, : w * r].reshape(h, r, w, r, *a.shape[2:]).mean(axis=(1, 3), dtype=np.float32)
+
+
+def _coarsen(fine: _Level, r: int) -> _Level:
+    """The level averaged in ``r x r`` blocks (trailing rows/columns dropped); a block is in
+    the mask when all its pixels are, saturated when any is."""
+    h, w = fine.shape[0] // r, fine.shape[1] // r
+    mask = fine.mask[: h * r, : w * r].reshape(h, r, w, r).all(axis=(1, 3))
+    sat = None
+    if fine.saturated is not None:
+        sat = fine.saturated[:, : h * r, : w * r].reshape(-1, h, r, w, r).any(axis=(2, 4))
+    return _Level(
+        planes=np.stack([_block_mean(pl, r) for pl in fine.planes]),
+        strength=[s if np.ndim(s) == 0 else _block_mean(s, r) for s in fine.strength],
+        mask=mask,
+        saturated=sat,
+        u=fine.u[: w * r].reshape(w, r).mean(axis=1),
+        v=fine.v[: h * r].reshape(h, r).mean(axis=1),
+        step=r,
+    )
+
+
+def _upsample(z: np.ndarray, r: int, shape) -> np.ndarray:
+    """Bilinear from block centres to pixel centres (cv2 maps ``(i + 0.5) / r - 0.5``),
+    edge values carried into the dropped rows and columns."""
+    up = cv2.resize(z, (z.shape[1] * r, z.shape[0] * r), interpolation=cv2.INTER_LINEAR)
+    return np.pad(up, ((0, shape[0] - up.shape[0]), (0, shape[1] - up.shape[1])), mode="edge")
+
+
+def _alternate(level, lights, camera, opts, integrator, ref, tol, max_iterations, z, pool, timings,
+               history) -> dict:
+    """Passes at one level from heights ``z`` until the largest change of a pixel valid in both
+    passes is below ``tol``; :class:`NotConvergedError` after ``max_iterations`` passes, or
+    when the heights are no longer finite or reach a light."""
+    name = "full" if level.step == 1 else "coarse"
+    prev_valid = None
+    sample = max(1, int(np.sqrt(level.mask.size / 250_000)))
+    top = float(lights.positions[:, 2].min())
+    sol = z_solved = None  # the normals and the heights they were solved at
+    in_mask = max(np.count_nonzero(level.mask), 1)
+    for _ in range(max_iterations):
+        t0 = time.perf_counter()
+        moved = None if z_solved is None else level.mask & (np.abs(z - z_solved) > RESOLVE_FRACTION * tol)
+        n_moved = in_mask if moved is None else np.count_nonzero(moved)
+        if moved is None or n_moved > in_mask // 2:
+            sol = _normals(level, lights, camera, z, opts, pool, final=name == "full")
+            z_solved = z
+        elif n_moved:
+            rows, cols = np.nonzero(moved)
+            part = _normals(_gather(level, rows, cols), lights, camera, z[rows, cols][None, :], opts, pool,
+                            final=name == "full")
+            _scatter(sol, part, rows, cols)
+            z_solved = np.where(moved, z, z_solved)
+        timings["solve"] += time.perf_counter() - t0
+        t0 = time.perf_counter()
+        valid = sol["valid"]
+        if not valid.any():
+            raise ValueError("images: no pixel has a valid normal (check the lights, the mask and the images)")
+        z_new, grad = _height(level, camera, sol["normals"], valid, integrator, ref, sample)
+        timings["integrate"] += time.perf_counter() - t0
+        both = valid if prev_valid is None else valid & prev_valid
+        if not both.any():
+            both = valid
+        change = float(np.max(np.abs(z_new - z), where=both, initial=0.0))
+        history.append({"level": name, "step": level.step, "depth_change_mm": change,
+                        "valid_fraction": float(np.count_nonzero(valid) / in_mask),
+                        "resolved_fraction": float(n_moved / in_mask)})
+        z, prev_valid = z_new, valid.copy()  # the next pass updates sol in place
+        highest = float(z.max())  # NaN when any height is not finite
+        if not (np.isfinite(change) and np.isfinite(highest)) or highest >= top:
+            raise NotConvergedError(
+                f"near-field solve diverged at pass {len(history)} ({name} level): the heights "
+                + ("reach a light" if np.isfinite(highest) else "are not finite"),
+                _history_summary(history, tol, False),
+            )
+        if change < tol:
+            return {"z": z, "sol": sol, "grad": grad, "change": change}
+    raise NotConvergedError(
+        f"near-field solve did not converge: height change {change:.3g} mm after {max_iterations} passes "
+        f"at the {name} level (tolerance {tol:g} mm)",
+        _history_summary(history, tol, False),
+    )
+
+
+def _gather(level: _Level, rows: np.ndarray, cols: np.ndarray) -> _Level:
+    """The pixels ``(rows, cols)`` of a level as one row ``(1, P)`` with per-pixel offsets (all in
+    the mask: they were selected from it)."""
+    def take(a):
+        return a[:, rows, cols][:, None]
+
+    return _Level(
+        planes=take(level.planes),
+        strength=[s if np.ndim(s) == 0 else s[rows, cols][None, :] for s in level.strength],
+        mask=np.ones((1, rows.size), bool),
+        saturated=None if level.saturated is None else take(level.saturated),
+        u=level.u[cols][None, :],
+        v=level.v[rows][None, :],
+        step=level.step,
+        colour=None if level.colour is None else take(level.colour),
+    )
+
+
+def _scatter(sol: dict, part: dict, rows: np.ndarray, cols: np.ndarray) -> None:
+    """Write the solve of gathered pixels (:func:`_gather`) back into a whole-level solve."""
+    for key, value in part.items():
+        if value is None:
+            continue
+        if key in ("normals", "outliers"):
+            sol[key][:, rows, cols] = value[:, 0]
+        else:
+            sol[key][rows, cols] = value[0]
+
+
+def _history_summary(history: list, tol: float, converged: bool) -> dict:
+    """The convergence record of ``summary.json``."""
+    return {
+        "converged": converged,
+        "iterations": len(history),
+        "final_depth_change_mm": history[-1]["depth_change_mm"] if history else None,
+        "tolerance_mm": tol,
+        "history": list(history),
+    }
+
+
+def _height(level: _Level, camera: Camera, normals: np.ndarray, valid: np.ndarray, integrator: str, ref: float,
+            sample: int):
+    """Integrate the normals of a level and anchor the heights (filled where not valid)."""
+    from photometric.integrate import dct_poisson, frankot_chellappa, least_squares
+
+    p, q, spacing = _gradient(camera, normals[0], normals[1], normals[2], level.u, level.v)
+    spacing *= level.step
+    if integrator == "lsq":
+        fld = least_squares(p, q, valid, spacing)
+    else:
+        pz = np.where(valid, p, np.float32(0.0))
+        qz = np.where(valid, q, np.float32(0.0))
+        if integrator == "dct":
+            fld = dct_poisson(pz, qz, None, spacing, dtype=np.float32)
+        else:
+            fld = frankot_chellappa(pz, qz, None, spacing)
+    z, _ = depth_from_field(camera, fld, valid=valid, reference_height_mm=ref, sample_step=sample)
+    if integrator == "lsq":
+        z = np.where(np.isfinite(z), z, ref)
+    return z, (p, q)
+
+
+def _normals(level: _Level, lights: PointLights, camera: Camera, z: np.ndarray, opts: _Options, pool,
+             final: bool) -> dict:
+    """One whole-image solve at the points of heights ``z``: blocks of rows on the pool."""
+    h, w = level.shape
+    n = len(lights)
+    out = {
+        "normals": np.empty((3, h, w), np.float32),
+        "rho": np.empty((h, w), np.float32),
+        "valid": np.empty((h, w), bool),
+        "residual": np.zeros((h, w), np.float32) if final else None,
+        "outliers": np.zeros((n, h, w), bool) if (final and opts.outliers) else None,
+        "albedo": np.empty((h, w, 3), np.float32) if (final and level.colour is not None) else None,
+    }
+    rows = max(1, BLOCK_PIXELS // w)
+    blocks = [(r0, min(h, r0 + rows)) for r0 in range(0, h, rows)]
+    list(pool.map(lambda b: _block(level, lights, camera, z, opts, b[0], b[1], out, final), blocks))
+    return out
+
+
+def _block(level: _Level, lights: PointLights, camera: Camera, z: np.ndarray, opts: _Options, r0: int, r1: int,
+           out: dict, final: bool) -> None:
+    """Light vectors, normal equations and the closed-form 3 x 3 solve for rows ``r0:r1``."""
+    f32 = np.float32
+    zz = z[r0:r1].astype(f32)
+    # offsets per column and row, or per pixel for a gathered level (:func:`_gather`)
+    u = level.u[None, :] if level.u.ndim == 1 else level.u[r0:r1]
+    v = level.v[r0:r1, None] if level.v.ndim == 1 else level.v[r0:r1]
+    x, y = u.astype(f32), v.astype(f32)
+    if isinstance(camera, Perspective):
+        scale = (f32(camera.camera_height_mm) - zz) * f32(1.0 / camera.focal_length_px)
+        x, y = x * scale, y * scale
+    n = len(lights)
+    S = np.empty((n, 3) + zz.shape, f32)
+    for k in range(n):
+        strength = level.strength[k]
+        if np.ndim(strength):
+            strength = strength[r0:r1]
+        S[k, 0], S[k, 1], S[k, 2] = _scaled_vectors(lights.positions[k], lights.axes[k], float(lights.mu[k]),
+                                                    strength, x, y, zz, lobe=opts.lobe)
+    X = level.planes[:, r0:r1]
+    mask = level.mask[r0:r1]
+    g_all, ok_all = _solve3(S, X, None)
+    g, ok = g_all, ok_all & mask
+    weights = None
+    if opts.outliers:
+        E = np.sqrt(_kdot(S, S, axis=1))
+        sat = level.saturated[:, r0:r1]
+        for _ in range(opts.rounds):
+            rho = np.sqrt(_kdot(g, g))
+            bad = (X < f32(opts.dark) * rho * E) | sat
+            if opts.highlight is not None:
+                bad |= (X - _kdot(S, g[None], axis=1)) > f32(opts.highlight) * rho * E
+            if n == 3:
+                ok = ok_all & mask & ~bad.any(axis=0)
+                break
+            weights = (~bad).astype(f32)
+            g_new, ok_new = _solve3(S, X, weights)
+            ok = ok_new & mask & (weights.sum(axis=0) >= 3)
+            some = ok & bad.any(axis=0)
+            if some.any():
+                ok[some] = _conditioned(S[:, :, some], E[:, some], weights[:, some])
+            # pixels left without a trustworthy re-solve keep the all-lights normal (marked invalid)
+            g = np.where(ok[None], g_new, g_all)
+        if out["outliers"] is not None:
+            out["outliers"][:, r0:r1] = bad & mask[None]
+    rho = np.sqrt(_kdot(g, g))
+    blank = ~mask | ~(rho > 0) | ~np.isfinite(rho)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        nrm = g / rho[None]
+    nrm[:, blank] = 0.0
+    nrm[2, blank] = 1.0
+    rho[blank] = 0.0
+    ok &= ~blank & (nrm[2] > 0)
+    out["normals"][:, r0:r1] = nrm
+    out["rho"][r0:r1] = rho
+    out["valid"][r0:r1] = ok
+    if not final:
+        return
+    g = nrm * rho[None]
+    err = X - _kdot(S, g[None], axis=1)
+    if weights is not None:
+        err *= weights
+        count = np.maximum(weights.sum(axis=0), 1.0)
+    else:
+        count = f32(n)
+    res = np.sqrt(_kdot(err, err) / count)
+    res[blank] = 0.0
+    out["residual"][r0:r1] = res
+    if out["albedo"] is not None:
+        shade = _kdot(S, nrm[None], axis=1)
+        if weights is not None:
+            shade *= weights
+        num = np.einsum("khwc,khw->hwc", level.colour[:, r0:r1], shade)
+        den = _kdot(shade, shade)
+        alb = np.divide(num, den[..., None], out=np.zeros_like(num), where=den[..., None] > 0)
+        alb[blank] = 0.0
+        out["albedo"][r0:r1] = alb
+
+
+def _solve3(S: np.ndarray, X: np.ndarray, weights: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    """Per pixel ``g`` of ``(sum_k w_k s_k s_k^T) g = sum_k w_k x_k s_k`` (cofactors; float32).
+
+    ``S`` (N, 3, h, w), ``X`` (N, h, w), ``weights`` (N, h, w) or None. Returns ``g``
+    (3, h, w) and where the system is regular (positive determinant).
+    """
+    sx, sy, sz = S[:, 0], S[:, 1], S[:, 2]
+    if weights is not None:
+        wx, wy, wz = sx * weights, sy * weights, sz * weights
+    else:
+        wx, wy, wz = sx, sy, sz
+    a00 = _kdot(wx, sx)
+    a01 = _kdot(wx, sy)
+    a02 = _kdot(wx, sz)
+    a11 = _kdot(wy, sy)
+    a12 = _kdot(wy, sz)
+    a22 = _kdot(wz, sz)
+    b0 = _kdot(wx, X)
+    b1 = _kdot(wy, X)
+    b2 = _kdot(wz, X)
+    c00 = a11 * a22 - a12 * a12
+    c01 = a02 * a12 - a01 * a22
+    c02 = a01 * a12 - a02 * a11
+    c11 = a00 * a22 - a02 * a02
+    c12 = a01 * a02 - a00 * a12
+    c22 = a00 * a11 - a01 * a01
+    det = a00 * c00 + a01 * c01 + a02 * c02
+    trace = a00 + a11 + a22
+    ok = det > np.float32(1e-9) * trace * trace * trace
+    inv = np.divide(np.float32(1.0), det, out=np.zeros_like(det), where=ok)
+    g = np.empty((3,) + det.shape, np.float32)
+    np.multiply(c00 * b0 + c01 * b1 + c02 * b2, inv, out=g[0])
+    np.multiply(c01 * b0 + c11 * b1 + c12 * b2, inv, out=g[1])
+    np.multiply(c02 * b0 + c12 * b1 + c22 * b2, inv, out=g[2])
+    return g, ok
+
+
+def _kdot(a: np.ndarray, b: np.ndarray, axis: int = 0) -> np.ndarray:
+    """``sum(a * b, axis)`` over a short axis (lights or components), accumulated in place:
+    twice as fast as ``einsum`` on float32 image blocks."""
+    if axis:
+        a, b = np.moveaxis(a, axis, 0), np.moveaxis(b, axis, 0)
+    out = np.multiply(a[0], b[0])
+    tmp = np.empty_like(out)
+    for i in range(1, max(a.shape[0], b.shape[0])):
+        out += np.multiply(a[i if a.shape[0] > 1 else 0], b[i if b.shape[0] > 1 else 0], out=tmp)
+    return out
+
+
+def _conditioned(S: np.ndarray, E: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """Inlier light directions of each pixel conditioned as :data:`photometric.stereo.MAX_CONDITION`
+    asks (singular values of the unit directions used). ``S`` (N, 3, P), ``E``, ``weights`` (N, P)."""
+    unit = S / np.where(E > 0, E, 1.0)[:, None]
+    M = np.einsum("kp,kip,kjp->pij", weights, unit, unit).astype(np.float64)
+    lam = np.linalg.eigvalsh(M)
+    return (lam[:, 0] > 0) & (lam[:, 2] <= MAX_CONDITION**2 * lam[:, 0])
