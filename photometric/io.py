@@ -21,7 +21,7 @@ from __future__ import annotations
 import json
 import re
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import cv2
@@ -68,6 +68,9 @@ class PhotometricData:
         The flat target's albedo (``scene.json`` ``flat_field.albedo``).
     camera : photometric.camera.Orthographic, Perspective or None
         ``scene.json`` ``camera``.
+    full_scale : float or None
+        The value at which the sensor saturates: 1 for integer image files (8/16-bit
+        PNG/TIFF/...), None for float files and arrays (no saturation level known).
     """
 
     images: np.ndarray
@@ -80,6 +83,30 @@ class PhotometricData:
     flat_images: np.ndarray | None = None
     flat_albedo: float | None = None
     camera: Camera | None = None
+    full_scale: float | None = None
+
+    def subset(self, keep) -> PhotometricData:
+        """The same data with only the images ``keep`` selects (and their lights).
+
+        Parameters
+        ----------
+        keep : array_like, shape (N,), bool
+            Images to keep, in light order.
+
+        Returns
+        -------
+        PhotometricData
+            Images, lights, intensities, names, LED positions and flat-field images
+            reduced to the kept ones; mask, ground truth and camera shared.
+        """
+        k = np.flatnonzero(np.asarray(keep, bool))
+        pl = self.point_lights
+        if pl is not None:
+            pl = replace(pl, positions=pl.positions[k], axes=pl.axes[k], mu=pl.mu[k])
+        return replace(
+            self, images=self.images[k], lights=self.lights[k], intensities=self.intensities[k],
+            names=tuple(self.names[i] for i in k), point_lights=pl,
+            flat_images=None if self.flat_images is None else self.flat_images[k])
 
 
 def _read_array(path, name: str) -> np.ndarray:
@@ -93,6 +120,25 @@ def _read_array(path, name: str) -> np.ndarray:
     if arr is None:
         raise ValueError(f"{name}: OpenCV cannot read {p}")
     return arr
+
+
+#: Image files that hold floats: no saturation level is known for them.
+FLOAT_SUFFIXES = (".npy", ".exr")
+
+
+def full_scale_of(paths: Sequence) -> float | None:
+    """1.0 when every file is an integer image format (scaled to full scale 1 when read), else None.
+
+    Parameters
+    ----------
+    paths : sequence of str or Path
+        Image files.
+
+    Returns
+    -------
+    float or None
+    """
+    return None if any(Path(p).suffix.lower() in FLOAT_SUFFIXES for p in paths) else 1.0
 
 
 def read_image(path) -> np.ndarray:
@@ -267,6 +313,7 @@ def read_folder(folder, select: str | Sequence[str] | None = None) -> Photometri
         normal_gt=_read_normal_gt(d, shape),
         names=tuple(names),
         **near,
+        full_scale=full_scale_of(names),
     )
 
 
