@@ -8,6 +8,7 @@ import pytest
 from datasets_synthetic.render import make_triad_folder
 from photometric.lights import light_angles
 from workbench.cli import main
+from workbench.runs.folder import COMPLETE_MARKER
 
 
 @pytest.fixture(scope="module")
@@ -256,7 +257,7 @@ def test_cli_no_convergence_writes_only_the_summary(near_plane, tmp_path, capsys
     assert main(args) == 2
     err = _error_line(capsys)
     assert "did not converge" in err and "summary.json" in err
-    assert sorted(p.name for p in (tmp_path / "o").iterdir()) == ["summary.json"]
+    assert sorted(p.name for p in (tmp_path / "o").iterdir()) == sorted([COMPLETE_MARKER, "summary.json"])
     summary = json.loads((tmp_path / "o" / "summary.json").read_text())
     assert summary["converged"] is False and summary["iterations"] == 1 and summary["files"] == ["summary.json"]
     assert summary["light_model"] == "point" and summary["final_depth_change_mm"] > 1e-9
