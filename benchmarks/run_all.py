@@ -17,7 +17,7 @@ from pathlib import Path
 from surfaces.io import atomic_write_text
 
 HERE = Path(__file__).resolve().parent
-ORDER = ["surfaces", "bspline", "photometric", "nearfield", "errors", "slices", "render", "boolean", "batch"]
+ORDER = ["surfaces", "bspline", "photometric", "nearfield", "errors", "slices", "render", "boolean", "batch", "memory"]
 
 HEADER = """# Benchmarks
 
