@@ -56,3 +56,28 @@ def test_is_oriented_is_fast_on_a_large_mesh():
     t0 = time.perf_counter()
     assert mesh.is_oriented()
     assert time.perf_counter() - t0 < 5.0
+
+
+def _sphere_patches():
+    theta = np.linspace(0, np.pi, 9)[:, None]
+    phi = np.linspace(0, 2 * np.pi, 12, endpoint=False)[None, :]
+    grid = np.stack([np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), np.cos(theta) * np.ones_like(phi)], -1)
+    return from_grid(grid, closed_v=True)
+
+
+@pytest.mark.parametrize("make", [lambda: _grid_mesh(7), _sphere_patches])
+@pytest.mark.parametrize("samples", [1, 3, 8])
+def test_tessellation_in_blocks_equals_one_block(monkeypatch, make, samples):
+    import surfaces.mesh as mesh_module
+
+    patches = make()
+    if isinstance(patches, TriangleMesh):
+        u, v = np.meshgrid(np.linspace(0, 1, 7), np.linspace(0, 2, 5), indexing="ij")
+        patches = from_grid(np.stack([u, v, np.sin(3 * u) * v], -1))
+    whole = tessellate(patches, samples)
+    monkeypatch.setattr(mesh_module, "TESSELLATE_BLOCK", 1)  # one patch row per block
+    blocks = tessellate(patches, samples)
+    np.testing.assert_array_equal(blocks.triangles, whole.triangles)
+    np.testing.assert_allclose(blocks.vertices, whole.vertices, rtol=0, atol=1e-14)
+    np.testing.assert_allclose(blocks.vertex_normals, whole.vertex_normals, rtol=0, atol=1e-12)
+    assert blocks.is_oriented() == whole.is_oriented()
