@@ -121,8 +121,8 @@ def screen_images(images, mask=None, saturation: float = SATURATED, floor: float
 
     Notes
     -----
-    One pass per image over one plane (no copy of the stack), so the memory is a few
-    (H, W) planes whatever N is.
+    One pass per image (no copy of the stack, no plane kept per image), so the memory
+    is a few (H, W) planes whatever N is.
 
     Examples
     --------
@@ -138,17 +138,22 @@ def screen_images(images, mask=None, saturation: float = SATURATED, floor: float
     m = None if mask is None else as_array(mask, "mask", shape=(height, width), dtype=bool)
     n_mask = max(int(m.sum()) if m is not None else height * width, 1)
     sat_frac, black_frac = np.zeros(n_img), np.zeros(n_img)
-    bad_planes = []
-    for k in range(n_img):
+    count = np.zeros((height, width), np.uint16)
+
+    def bad(k):
         top = imgs[k].max(axis=2) if imgs.ndim == 4 else imgs[k]
-        sat, black = top >= saturation, top < floor
+        return top >= saturation, top < floor
+
+    for k in range(n_img):
+        sat, black = bad(k)
         sat_frac[k] = np.count_nonzero(sat if m is None else sat & m) / n_mask
         black_frac[k] = np.count_nonzero(black if m is None else black & m) / n_mask
-        bad_planes.append(sat | black)
+        count += ~(sat | black)
     usable = sat_frac + black_frac < UNUSABLE_FRACTION
-    count = np.zeros((height, width), np.uint16)
-    for k in np.flatnonzero(usable):
-        count += ~bad_planes[k]
+    # an unusable image's few valid pixels are taken back out (recomputed: no plane is kept per image)
+    for k in np.flatnonzero(~usable):
+        sat, black = bad(k)
+        count -= ~(sat | black)
     return InputScreen(sat_frac, black_frac, usable, count >= 3)
 
 
