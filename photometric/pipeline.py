@@ -52,7 +52,9 @@ from photometric.nearfield import (
 )
 from photometric.rig import FLAT_SMOOTHING_PX, Rig, check_rig, flat_field_gains, read_rig
 from photometric.stereo import (
+    MAX_CONDITION,
     SATURATED,
+    WARN_CONDITION,
     _check_images,
     _check_options,
     _solve,
@@ -627,6 +629,7 @@ def reconstruct(
         "light_model": "directional",
         "camera": {"model": "orthographic", "pixel_size_mm": h},
         "light_condition_number": cond,
+        "light_condition_limits": {"warn": WARN_CONDITION, "refuse_without_force": MAX_CONDITION},
         "lights": (data.lights if near is None or near.model == "directional" else near.lights.directions).tolist(),
         "mask_pixels": n_mask,
         "valid_pixels": int(res.valid.sum()),

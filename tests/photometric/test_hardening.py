@@ -171,6 +171,7 @@ def test_nearly_coplanar_lights_refused_unless_forced(tmp_path, capsys):
     assert "workbench: warning: lights: condition number" in err
     summary = json.loads((tmp_path / "b" / "summary.json").read_text())
     assert summary["light_condition_number"] > MAX_CONDITION
+    assert summary["light_condition_limits"] == {"warn": 10.0, "refuse_without_force": 100.0}
     assert any("condition number" in w for w in summary["warnings"])
 
 
