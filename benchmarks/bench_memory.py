@@ -216,9 +216,10 @@ def main(argv: list[str] | None = None) -> int:
         "### `workbench photometric reconstruct` (far field, 3 16-bit images)",
         Table(head, photo, "lrrrrr"),
         *notes,
-        "Goal of issue 20: at most 6x the raw pixels. The float32 stack alone is 2x the 16-bit pixels and "
-        "the result arrays kept for writing (normals 3, albedo, p, q 1 each, height 2 as float64, valid and "
-        "mask 0.25 float32 planes) are another 4.5x of the input.",
+        "Goal of issue 20: at most 6x the raw pixels (6 bytes per pixel for 3 16-bit images). The float32 "
+        "stack alone is 12 bytes per pixel (2x) and the result arrays the command holds until it writes them "
+        "(normals 12, albedo, p, q 4 each, height 8, valid and mask 1 each) are 34 bytes per pixel (5.7x), so "
+        "the goal needs the results streamed to their files as they are made.",
         "### `workbench slices reconstruct` (CT phantom series)",
         Table(head, slices, "lrrrrr"),
         "### `workbench surfaces coons` (8 samples per patch, PLY)",
