@@ -144,7 +144,6 @@ def reconstruct_to_folder(
         out = Path(out_dir)
         if out.exists() and not out.is_dir():
             raise NotADirectoryError(f"out_dir: {out} exists and is not a folder")
-        out.mkdir(parents=True, exist_ok=True)
         return _reconstruct_into(source, out, out, progress, options)
     # the folder is checked and locked before the work, so a bad --out or a second writer is refused at once
     with result_folder(out_dir, owned=NEARFIELD_FILES) as tmp:
@@ -160,6 +159,7 @@ def _reconstruct_into(source, folder: Path, out: Path, progress, options) -> dic
         result = reconstruct(source, progress=progress, **options)
     except NotConvergedError as exc:
         # the summary of a failed solve is kept (swapped in) so the user can see why it failed
+        folder.mkdir(parents=True, exist_ok=True)
         write_json(folder / "summary.json", {**exc.summary, "files": ["summary.json"]})
         message = f"{exc} (nothing else written; see {out / 'summary.json'})"
         if folder == out:
