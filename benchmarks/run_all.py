@@ -18,7 +18,7 @@ from surfaces.io import atomic_write_text
 
 HERE = Path(__file__).resolve().parent
 ORDER = ["surfaces", "bspline", "photometric", "nearfield", "surface_fit", "errors", "uncertainty", "slices",
-         "ct_peers", "render", "boolean", "batch", "inspect"]
+         "ct_peers", "render", "boolean", "batch", "inspect", "memory"]
 
 HEADER = """# Benchmarks
 

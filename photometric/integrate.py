@@ -85,13 +85,15 @@ def _zero_mean(z: np.ndarray, m: np.ndarray) -> np.ndarray:
         z -= z.mean()
         return z
     labels, n = ndimage.label(m)
+    # in place on the integrator's own array: no further (H, W) float64 copies
     if n == 1:
-        z = z - z[m].mean()
+        z -= z[m].mean()
     else:
         sums = np.bincount(labels.ravel(), weights=z.ravel(), minlength=n + 1)
         counts = np.bincount(labels.ravel(), minlength=n + 1)
-        z = z - (sums / np.maximum(counts, 1))[labels]
-    return np.where(m, z, np.nan)
+        z -= (sums / np.maximum(counts, 1))[labels]
+    z[~m] = np.nan
+    return z
 
 
 def frankot_chellappa(p, q, mask=None, pixel_size: float = 1.0) -> np.ndarray:

@@ -21,7 +21,7 @@ from __future__ import annotations
 import json
 import re
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import cv2
@@ -68,6 +68,9 @@ class PhotometricData:
         The flat target's albedo (``scene.json`` ``flat_field.albedo``).
     camera : photometric.camera.Orthographic, Perspective or None
         ``scene.json`` ``camera``.
+    full_scale : float or None
+        The value at which the sensor saturates: 1 for integer image files (8/16-bit
+        PNG/TIFF/...), None for float files and arrays (no saturation level known).
     """
 
     images: np.ndarray
@@ -80,6 +83,30 @@ class PhotometricData:
     flat_images: np.ndarray | None = None
     flat_albedo: float | None = None
     camera: Camera | None = None
+    full_scale: float | None = None
+
+    def subset(self, keep) -> PhotometricData:
+        """The same data with only the images ``keep`` selects (and their lights).
+
+        Parameters
+        ----------
+        keep : array_like, shape (N,), bool
+            Images to keep, in light order.
+
+        Returns
+        -------
+        PhotometricData
+            Images, lights, intensities, names, LED positions and flat-field images
+            reduced to the kept ones; mask, ground truth and camera shared.
+        """
+        k = np.flatnonzero(np.asarray(keep, bool))
+        pl = self.point_lights
+        if pl is not None:
+            pl = replace(pl, positions=pl.positions[k], axes=pl.axes[k], mu=pl.mu[k])
+        return replace(
+            self, images=self.images[k], lights=self.lights[k], intensities=self.intensities[k],
+            names=tuple(self.names[i] for i in k), point_lights=pl,
+            flat_images=None if self.flat_images is None else self.flat_images[k])
 
 
 def _read_array(path, name: str) -> np.ndarray:
@@ -93,6 +120,25 @@ def _read_array(path, name: str) -> np.ndarray:
     if arr is None:
         raise ValueError(f"{name}: OpenCV cannot read {p}")
     return arr
+
+
+#: Image files that hold floats: no saturation level is known for them.
+FLOAT_SUFFIXES = (".npy", ".exr")
+
+
+def full_scale_of(paths: Sequence) -> float | None:
+    """1.0 when every file is an integer image format (scaled to full scale 1 when read), else None.
+
+    Parameters
+    ----------
+    paths : sequence of str or Path
+        Image files.
+
+    Returns
+    -------
+    float or None
+    """
+    return None if any(Path(p).suffix.lower() in FLOAT_SUFFIXES for p in paths) else 1.0
 
 
 def read_image(path) -> np.ndarray:
@@ -109,6 +155,12 @@ def read_image(path) -> np.ndarray:
     numpy.ndarray, shape (H, W) or (H, W, 3), float32
     """
     p = Path(path)
+    arr = _read_raw(p)
+    return _scaled(arr, p, np.empty(arr.shape, np.float32))
+
+
+def _read_raw(p: Path) -> np.ndarray:
+    """The stored pixels of one image file in RGB order, (H, W) or (H, W, 3), any dtype."""
     arr = _read_array(p, "image")
     if arr.ndim == 3 and p.suffix.lower() != ".npy":
         arr = arr[..., :3][..., ::-1]  # OpenCV's BGR(A) to RGB
@@ -116,10 +168,21 @@ def read_image(path) -> np.ndarray:
         arr = arr[..., 0]
     if arr.ndim not in (2, 3) or (arr.ndim == 3 and arr.shape[2] != 3):
         raise ValueError(f"image: {p} has unsupported shape {arr.shape}")
+    return arr
+
+
+def _scaled(arr: np.ndarray, p: Path, out: np.ndarray) -> np.ndarray:
+    """``arr`` as float32 into ``out`` (integers divided by their type's maximum), checked finite.
+
+    One pass straight from the stored type into ``out``: no float32 or float64
+    temporaries of the image (the values equal ``arr.astype(float32) / float32(max)``).
+    """
     if np.issubdtype(arr.dtype, np.integer):
-        return (arr.astype(np.float32) / np.float32(np.iinfo(arr.dtype).max)).astype(np.float32)
-    out = np.ascontiguousarray(arr, dtype=np.float32)
-    if not np.all(np.isfinite(out)):
+        np.divide(arr, np.float32(np.iinfo(arr.dtype).max), out=out, dtype=np.float32)
+        return out
+    np.copyto(out, arr, casting="unsafe")
+    # a float64 sum of float32 values cannot overflow: it is finite exactly when every value is
+    if not np.isfinite(np.sum(out, dtype=np.float64)):
         raise ValueError(f"image: {p} contains NaN or infinite values")
     return out
 
@@ -138,14 +201,17 @@ def read_images(paths: Sequence) -> np.ndarray:
     """
     if len(paths) == 0:
         raise ValueError("images: no image files given")
-    first = read_image(paths[0])
+    # each file is converted straight into its plane of the stack: the peak is the stack
+    # plus one stored (e.g. uint16) image, not a float copy per image
+    first = _read_raw(Path(paths[0]))
     out = np.empty((len(paths),) + first.shape, np.float32)
-    out[0] = first
+    _scaled(first, Path(paths[0]), out[0])
+    del first
     for k, path in enumerate(paths[1:], start=1):
-        img = read_image(path)
-        if img.shape != first.shape:
-            raise ValueError(f"images: {path} has shape {img.shape}, {paths[0]} has {first.shape}")
-        out[k] = img
+        img = _read_raw(Path(path))
+        if img.shape != out.shape[1:]:
+            raise ValueError(f"images: {path} has shape {img.shape}, {paths[0]} has {out.shape[1:]}")
+        _scaled(img, Path(path), out[k])
     return out
 
 
@@ -267,6 +333,7 @@ def read_folder(folder, select: str | Sequence[str] | None = None) -> Photometri
         normal_gt=_read_normal_gt(d, shape),
         names=tuple(names),
         **near,
+        full_scale=full_scale_of(names),
     )
 
 

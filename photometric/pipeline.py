@@ -25,17 +25,17 @@ from __future__ import annotations
 
 import json
 import time
+import warnings
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
 from photometric.camera import Camera, Orthographic, Perspective, make_camera
-from photometric.io import PhotometricData, read_folder, read_images, read_mask
+from photometric.io import PhotometricData, full_scale_of, read_folder, read_images, read_mask
 from photometric.lights import (
     PointLights,
-    _condition,
     as_intensities,
     load_intensities,
     load_light_positions,
@@ -51,7 +51,17 @@ from photometric.nearfield import (
     _solve_nearfield,
 )
 from photometric.rig import FLAT_SMOOTHING_PX, Rig, check_rig, flat_field_gains, read_rig
-from photometric.stereo import _check_images, _check_options, _solve
+from photometric.stereo import (
+    MAX_CONDITION,
+    SATURATED,
+    WARN_CONDITION,
+    _check_images,
+    _check_options,
+    _solve,
+    check_light_matrix,
+    restrict,
+    screen_images,
+)
 from photometric.uncertainty import Tolerances, UncertaintyResult
 from surfaces.bezier import BezierPatches
 from surfaces.mesh import TriangleMesh
@@ -203,7 +213,8 @@ def _load_input(source, lights, intensities, mask, select) -> tuple[PhotometricD
     n = images.shape[0]
     shape = images.shape[1:3]
     m = np.ones(shape, bool) if mask is None else _mask(mask, shape)
-    return PhotometricData(images, L, _intensities(intensities, n), m, None, names), kind
+    full_scale = full_scale_of(source) if kind["kind"] == "files" else None
+    return PhotometricData(images, L, _intensities(intensities, n), m, None, names, full_scale=full_scale), kind
 
 
 def _trimmed_mesh(patches, region: np.ndarray, pixel_size: float, samples: int):
@@ -463,6 +474,7 @@ def reconstruct(
     tolerance_mm: float = DEFAULT_TOLERANCE_MM,
     max_iterations: int = 30,
     uncertainty: Tolerances | dict | None = None,
+    force: bool = False,
     progress: Callable[[str], None] | None = None,
 ) -> PhotometricReconstruction:
     """Run photometric stereo end to end and return every result (writes nothing).
@@ -539,6 +551,10 @@ def reconstruct(
     uncertainty : photometric.uncertainty.Tolerances or dict, optional
         Input standard uncertainties and the method (:mod:`photometric.uncertainty`); when
         given, the result carries ``uncertainty`` and the summary an ``uncertainty`` key.
+    force : bool
+        Solve even when the light matrix's condition number is above
+        :data:`photometric.stereo.MAX_CONDITION` (100; above
+        :data:`photometric.stereo.WARN_CONDITION`, 10, it is a warning).
     progress : callable, optional
         Called with the name of each stage as it starts (``read``, ``normals``,
         ``height``, ``surface``, ``defects``, ``uncertainty`` when asked; the command line's progress bar).
@@ -546,7 +562,18 @@ def reconstruct(
     Returns
     -------
     PhotometricReconstruction
-        Arrays, surface, mesh, defects and the summary.
+        Arrays, surface, mesh, defects and the summary (``warnings``: one line each, also
+        issued as ``UserWarning``).
+
+    Notes
+    -----
+    Inputs that cannot give a result (:func:`photometric.stereo.screen_images`):
+    observations at or above :data:`photometric.stereo.SATURATED` (integer image files:
+    within half an 8-bit step of full scale 1) or below
+    :data:`photometric.stereo.BLACK_FLOOR` are invalid, a pixel with fewer than 3 valid
+    observations is invalid (counted in ``invalid_fraction``); an image that is saturated
+    or black over the mask is left out with a warning, and fewer than 3 usable images is
+    an error. Lights with ``z < 0`` are an error.
     """
     from photometric.defects import measure_defects
     from photometric.integrate import METHODS, integrate
@@ -621,8 +648,25 @@ def reconstruct(
     t0 = time.perf_counter()
     if not data.mask.any():
         raise ValueError("mask: no pixel is selected")
+    notes = []
+    # float input has no known full scale: only black pixels are screened there
+    screen = screen_images(data.images, data.mask, SATURATED if data.full_scale else np.inf)
+    if not screen.usable.all():
+        bad = "; ".join(screen.problems(data.names))
+        if screen.usable.sum() < 3:
+            raise ValueError(f"images: only {int(screen.usable.sum())} of {n_img} images are usable ({bad}); "
+                             "photometric stereo needs 3")
+        notes.append(f"images: {bad}: left out of the solve")
+        if near is None:
+            data = data.subset(screen.usable)
+    cond, light_notes = check_light_matrix(
+        data.lights if near is None or near.model == "directional" else near.lights.directions, force)
+    notes += light_notes
+    for note in notes:
+        warnings.warn(note, UserWarning, stacklevel=2)
     if near is None:
         res = _solve(data.images, data.lights, data.intensities, data.mask, outliers, dark, saturation, highlight, 2)
+        res = restrict(res, screen.enough)
         timings["solve"] = time.perf_counter() - t0
 
         say("height")
@@ -632,7 +676,8 @@ def reconstruct(
     else:
         base = {"input": input_info, "images": list(data.names),
                 "size": {"height": rows, "width": cols, "images": n_img, "channels": channels}}
-        res = _nearfield(data, near, outliers=outliers, dark=dark, saturation=saturation, highlight=highlight,
+        res = _nearfield(replace(data, mask=data.mask & screen.enough), near, outliers=outliers, dark=dark,
+                         saturation=saturation, highlight=highlight,
                          integrator=integrator, reference_height_mm=reference_height_mm, tolerance_mm=tolerance_mm,
                          max_iterations=max_iterations, base=base)
         say("height")
@@ -676,8 +721,8 @@ def reconstruct(
         "outliers": bool(outliers),
         "light_model": "directional",
         "camera": {"model": "orthographic", "pixel_size_mm": h},
-        "light_condition_number": _condition(data.lights if near is None or near.model == "directional"
-                                             else near.lights.directions),
+        "light_condition_number": cond,
+        "light_condition_limits": {"warn": WARN_CONDITION, "refuse_without_force": MAX_CONDITION},
         "lights": (data.lights if near is None or near.model == "directional" else near.lights.directions).tolist(),
         "mask_pixels": n_mask,
         "valid_pixels": int(res.valid.sum()),
@@ -691,6 +736,7 @@ def reconstruct(
         **surface_info,
         "n_defects": len(defects),
         "timings_s": {k: round(v, 4) for k, v in timings.items()},
+        "warnings": notes,
     }
     if near is not None:
         summary.update(_near_summary(near, res, float(tolerance_mm)))

@@ -18,8 +18,17 @@ import numpy as np
 from photometric.lights import as_intensities, validate_lights
 from surfaces.validate import as_array
 
-#: Light sub-matrices worse conditioned than this give no trustworthy normal.
+#: Light sub-matrices worse conditioned than this give no trustworthy normal; a light
+#: matrix above it is refused unless forced (8-bit noise of 0.4 % becomes ~40 % in ``rho n``).
 MAX_CONDITION = 100.0
+#: A light matrix worse conditioned than this is warned about (errors grow ~10x the noise).
+WARN_CONDITION = 10.0
+#: Values (full scale 1) below this are black: half an 8-bit step, no signal to solve with.
+BLACK_FLOOR = 0.5 / 255
+#: Values (full scale 1) at or above this are saturated: within half an 8-bit step of full scale.
+SATURATED = 1.0 - 0.5 / 255
+#: An image is unusable when at least this fraction of its mask pixels is saturated or black.
+UNUSABLE_FRACTION = 0.99
 
 
 @dataclass(frozen=True)
@@ -55,6 +64,163 @@ class StereoResult:
     p: np.ndarray
     q: np.ndarray
     outliers: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class InputScreen:
+    """Which observations can carry information (:func:`screen_images`).
+
+    Attributes
+    ----------
+    saturated : numpy.ndarray, shape (N,), float
+        Fraction of each image's mask pixels at or above the saturation level.
+    black : numpy.ndarray, shape (N,), float
+        Fraction of each image's mask pixels below :data:`BLACK_FLOOR`.
+    usable : numpy.ndarray, shape (N,), bool
+        Images with less than :data:`UNUSABLE_FRACTION` of their mask saturated or black.
+    enough : numpy.ndarray, shape (H, W), bool
+        Pixels with at least 3 valid observations among the usable images.
+    """
+
+    saturated: np.ndarray
+    black: np.ndarray
+    usable: np.ndarray
+    enough: np.ndarray
+
+    def problems(self, names) -> list[str]:
+        """One phrase per unusable image, e.g. ``"'b.png' is saturated (100 % of the mask)"``."""
+        out = []
+        for k in np.flatnonzero(~self.usable):
+            kind, frac = ("saturated", self.saturated[k]) if self.saturated[k] >= self.black[k] else (
+                "black", self.black[k])
+            out.append(f"{names[k]!r} is {kind} ({100 * frac:.0f} % of the mask)")
+        return out
+
+
+def screen_images(images, mask=None, saturation: float = SATURATED, floor: float = BLACK_FLOOR) -> InputScreen:
+    """Find saturated and black observations, the images they ruin and the pixels left unsolvable.
+
+    Parameters
+    ----------
+    images : array_like, shape (N, H, W) or (N, H, W, 3)
+        Linear images scaled to full scale 1 (:func:`photometric.io.read_image`).
+    mask : array_like, shape (H, W), bool, optional
+        Pixels that count (default all).
+    saturation : float
+        An observation is saturated when any channel is at or above this (default
+        :data:`SATURATED`: full scale 1 minus half an 8-bit step; ``inf``: no test).
+    floor : float
+        An observation is black when every channel is below this (default
+        :data:`BLACK_FLOOR`, half an 8-bit step).
+
+    Returns
+    -------
+    InputScreen
+        Per-image fractions, usable images and the pixels with at least 3 valid
+        observations among the usable images.
+
+    Notes
+    -----
+    One pass per image (no copy of the stack, no plane kept per image), so the memory
+    is a few (H, W) planes whatever N is.
+
+    Examples
+    --------
+    >>> imgs = np.full((4, 2, 2), 0.5, np.float32)
+    >>> imgs[1] = 1.0
+    >>> imgs[2, 0, 0] = 0.0
+    >>> s = screen_images(imgs)
+    >>> s.usable.tolist(), s.enough.tolist()
+    ([True, False, True, True], [[False, True], [True, True]])
+    """
+    imgs = _check_images(images)
+    n_img, height, width = imgs.shape[:3]
+    m = None if mask is None else as_array(mask, "mask", shape=(height, width), dtype=bool)
+    n_mask = max(int(m.sum()) if m is not None else height * width, 1)
+    sat_frac, black_frac = np.zeros(n_img), np.zeros(n_img)
+    count = np.zeros((height, width), np.uint16)
+
+    def bad(k):
+        top = imgs[k].max(axis=2) if imgs.ndim == 4 else imgs[k]
+        return top >= saturation, top < floor
+
+    for k in range(n_img):
+        sat, black = bad(k)
+        sat_frac[k] = np.count_nonzero(sat if m is None else sat & m) / n_mask
+        black_frac[k] = np.count_nonzero(black if m is None else black & m) / n_mask
+        count += ~(sat | black)
+    usable = sat_frac + black_frac < UNUSABLE_FRACTION
+    # an unusable image's few valid pixels are taken back out (recomputed: no plane is kept per image)
+    for k in np.flatnonzero(~usable):
+        sat, black = bad(k)
+        count -= ~(sat | black)
+    return InputScreen(sat_frac, black_frac, usable, count >= 3)
+
+
+def restrict(result: StereoResult, enough: np.ndarray) -> StereoResult:
+    """Mark pixels outside ``enough`` invalid (``p = q = 0`` there); normals and albedo are kept.
+
+    Parameters
+    ----------
+    result : StereoResult
+        A solve (its arrays are changed in place).
+    enough : numpy.ndarray, shape (H, W), bool
+        Pixels that may stay valid (:attr:`InputScreen.enough`).
+
+    Returns
+    -------
+    StereoResult
+        ``result`` with ``valid &= enough``.
+    """
+    drop = result.valid & ~enough
+    if drop.any():
+        result.valid[drop] = False
+        result.p[drop] = 0.0
+        result.q[drop] = 0.0
+    return result
+
+
+def check_light_matrix(lights, force: bool = False) -> tuple[float, list[str]]:
+    """Condition number of the light matrix; refuse nearly coplanar or backward lights.
+
+    Parameters
+    ----------
+    lights : array_like, shape (N, 3)
+        Unit light directions (:data:`photometric.lights.CONVENTION`, z towards the camera).
+    force : bool
+        Solve even above :data:`MAX_CONDITION` (100); the result is then a warning.
+
+    Returns
+    -------
+    condition : float
+        Ratio of the extreme singular values (1 is ideal, a 45 deg triad about 2.7).
+    warnings : list of str
+        One line each: condition above :data:`WARN_CONDITION` (10), or above
+        :data:`MAX_CONDITION` when forced.
+
+    Raises
+    ------
+    ValueError
+        A light with ``z < 0`` (from behind the surface), or a condition number above
+        :data:`MAX_CONDITION` (nearly coplanar lights: the error of ``rho n`` is that
+        many times the image noise) unless ``force``.
+    """
+    L = validate_lights(lights)
+    back = np.flatnonzero(L[:, 2] < 0)
+    if back.size:
+        raise ValueError(
+            f"lights: {back.size} light(s) with z < 0 (rows {back[:5].tolist()}, z = "
+            f"{np.round(L[back[:5], 2], 4).tolist()}): they point away from the camera and light the surface "
+            "from behind; z is towards the camera (flip the sign of z, or check the axes)")
+    s = np.linalg.svd(L, compute_uv=False)
+    cond = float(s[0] / s[-1])
+    what = (f"lights: condition number {cond:,.0f} of the light matrix (nearly coplanar lights; errors in the "
+            f"normals are up to {cond:,.0f}x the image noise)")
+    if cond > MAX_CONDITION and not force:
+        raise ValueError(f"{what} is above {MAX_CONDITION:g}; spread the lights or use --force")
+    if cond > WARN_CONDITION:
+        return cond, [f"{what} is above {WARN_CONDITION:g}" + (" (forced)" if cond > MAX_CONDITION else "")]
+    return cond, []
 
 
 def _check_images(images) -> np.ndarray:

@@ -111,7 +111,13 @@ def register(sub) -> None:
         "depth; heights are z in mm in the rig frame (origin on the optical axis in the reference plane "
         "z = 0) with the median height of the valid pixels at --reference-height, and xy.npy holds x, y "
         "of each pixel's point. A solve that does not converge writes only summary.json "
-        "(converged: false) and exits with code 2.",
+        "(converged: false) and exits with code 2. Inputs that cannot give a result: values of "
+        "8/16-bit images within 0.5/255 of full scale (saturated) or below 0.5/255 (black) are invalid in "
+        "that image and a pixel with fewer than 3 valid images is invalid (summary.json invalid_fraction); "
+        "a saturated or black image is left out with a "
+        "warning (summary.json warnings), fewer than 3 usable images is an error; a light matrix with "
+        "condition number above 10 is a warning, above 100 an error unless --force; lights with z < 0 are "
+        "an error.",
     )
     p.add_argument("folder", nargs="?", default=None, metavar="DIR",
                    help="DiLiGenT-style folder (omit when giving --images)")
@@ -178,6 +184,9 @@ def register(sub) -> None:
     p.add_argument("--surface-tolerance", type=float, default=None, metavar="MM",
                    help="fit: largest deviation of the surface from the integrated height, mm "
                    "(default 0.5 %% of the height range)")
+    p.add_argument("--force", action="store_true",
+                   help="solve even when the light matrix's condition number is above 100 (nearly coplanar "
+                   "lights; above 10 it is a warning; summary.json light_condition_number)")
     p.add_argument("--step", type=int, default=None,
                    help="pixels per surface patch: the largest fitted patch (a power of two) or the "
                    "coons grid step (default: about 64 patches across)")
@@ -313,6 +322,7 @@ def _reconstruct(args: argparse.Namespace) -> int:
             tolerance_mm=DEFAULT_TOLERANCE_MM if args.tolerance is None else args.tolerance,
             max_iterations=args.max_iterations,
             uncertainty=tolerances,
+            force=args.force,
             progress=progress,
             **_camera_options(args),
         )
