@@ -102,7 +102,7 @@ FIGURES = ("max_depth_mm", "mean_width_mm", "length_mm", "area_mm2", "volume_mm3
 COVERAGE_FACTOR = 2.0
 #: Powers of the pixel size in each figure (heights scale with ``h`` like lengths).
 _H_POWER = {"max_depth_mm": 1, "mean_width_mm": 1, "length_mm": 1, "area_mm2": 2, "volume_mm3": 3}
-_QUANTISATION_OFFSETS = 24
+_QUANTISATION_OFFSETS = 96
 _MAX_FIT_POINTS = 200_000
 #: Largest image on which the systematic fields are integrated pixel by pixel; larger
 #: images integrate them on blocks of r x r pixels (the fields are smooth at that scale).
@@ -849,29 +849,50 @@ def _noise_functionals(fig: _Figures, bg: _Background, h: float, r: int, T: np.n
 
 def _rasterised(width: float, length: float, axis_deg: float, h: float, offsets: np.ndarray) -> dict:
     """Width, length and area (as :func:`photometric.defects.measure_defects` measures them)
-    of a stadium (``width``, ``length`` in pixels, axis in degrees) rasterised at each
-    sub-pixel offset."""
-    from skimage.measure import regionprops
+    of stadiums (``width``, ``length`` in pixels, axis in degrees) rasterised at sub-pixel
+    offsets; the pixel centres inside a stadium are the region, measured by
+    :func:`photometric.defects._measure` itself.
+
+    ``offsets`` is (n, 2) (``dx, dy``, pixels) or (n, 4) (also ``dwidth, dlength`` added to
+    the stadium's width and length, pixels). Returns the measures and, under ``"model"``,
+    each stadium's own ``(width, length, area)`` in mm units."""
+    from types import SimpleNamespace
 
     from photometric.defects import _measure
 
+    offsets = np.asarray(offsets, float)
+    if offsets.shape[1] == 2:
+        offsets = np.concatenate([offsets, np.zeros_like(offsets)], axis=1)
+    widths = np.maximum(width + offsets[:, 2], 1.0)
+    lengths = np.maximum(length + offsets[:, 3], widths)
+    width, length = float(widths.max()), float(lengths.max())
     a = math.radians(axis_deg)
     ux, uy = math.cos(a), math.sin(a)
-    seg = 0.5 * (length - width)
+    seg = 0.5 * (length - width) + 0.5 * (width - widths.min())
     half_x = int(math.ceil(abs(ux) * seg + 0.5 * width)) + 2
     half_y = int(math.ceil(abs(uy) * seg + 0.5 * width)) + 2
     y0, x0 = np.meshgrid(-np.arange(-half_y, half_y + 1.0), np.arange(-half_x, half_x + 1.0),
                          indexing="ij")  # y up, rows down
-    values = {"mean_width_mm": [], "length_mm": [], "area_mm2": []}
-    for off in offsets:
-        x, y = x0 - off[0], y0 - off[1]
-        s = np.clip(x * ux + y * uy, -seg, seg)
-        inside = np.hypot(x - s * ux, y - s * uy) < 0.5 * width
-        if inside.sum() < 2:
+    # only the pixels near the axis can be inside at any offset
+    s0 = x0 * ux + y0 * uy
+    near = np.abs(-x0 * uy + y0 * ux) < 0.5 * width + 1.0
+    near &= np.abs(s0) < seg + 0.5 * width + 1.0
+    rows, cols = np.nonzero(near)
+    xs, ys = x0[near], y0[near]
+    values = {"mean_width_mm": [], "length_mm": [], "area_mm2": [], "model": []}
+    for off, wi, li in zip(offsets, widths, lengths):
+        x, y = xs - off[0], ys - off[1]
+        half = 0.5 * (li - wi)
+        s = np.clip(x * ux + y * uy, -half, half)
+        inside = np.hypot(x - s * ux, y - s * uy) < 0.5 * wi
+        n = int(inside.sum())
+        if n < 2:
             continue
-        prop = regionprops(inside.astype(np.int32), intensity_image=np.ones(inside.shape))[0]
+        values["model"].append((wi * h, li * h, ((li - wi) * wi + 0.25 * math.pi * wi * wi) * h * h))
+        prop = SimpleNamespace(coords=np.stack([rows[inside], cols[inside]], axis=1), image=slice(None),
+                               image_intensity=np.ones(n), area=n, bbox=(0, 0, 0, 0))
         m = _measure(prop, h, "depression", 0.0, 0.0, 0.0)
-        for key in values:
+        for key in ("mean_width_mm", "length_mm", "area_mm2"):
             values[key].append(m[key])
     return values
 
@@ -879,29 +900,38 @@ def _rasterised(width: float, length: float, axis_deg: float, h: float, offsets:
 def _quantisation(rec: dict, h: float, rng: np.random.Generator) -> dict:
     """Pixel quantisation of the outline: width, length and area measured (as
     :func:`photometric.defects.measure_defects` does) on a stadium of the defect's axis
-    rasterised at random sub-pixel offsets. The stadium's width is first set so that its
-    mean width measure equals the defect's (one correction from a few offsets: the mean
-    width of a round dent is below its diameter).
+    rasterised at random sub-pixel offsets.
 
-    Returns ``{figure: (spread, bias)}``: the standard deviation over the offsets and the
-    mean minus the stadium's own value (the measures' bias, e.g. the ``+ 1`` pixel of the
-    extent along the axis, or the mean width of a round dent below its diameter).
+    The stadium stands for the true outline, so its width and length are first set so that
+    their mean measures over a few offsets equal the defect's (one correction: the extent
+    along the axis adds up to a pixel, the mean width of a round dent is below its
+    diameter). The measures' errors over the offsets are discrete and skewed (the extent
+    moves in steps of the pixel pitch projected on the axis), so the 95 % half-width is
+    their 95th percentile of ``|measure - stadium|``, not twice a standard deviation.
+
+    Returns ``{figure: (spread, half95)}``: the standard deviation of the measures over the
+    offsets and the 95th percentile of their absolute error.
     """
     width = max(float(rec["mean_width_mm"]) / h, 1.0)
     length = max(float(rec["length_mm"]) / h, width)
     axis = float(rec["axis_deg"])
-    first = _rasterised(width, length, axis, h, rng.uniform(-0.5, 0.5, (8, 2)))
+    first = _rasterised(width, length, axis, h, rng.uniform(-0.5, 0.5, (16, 4)))
     if len(first["mean_width_mm"]) > 2:
-        width = min(max(width + (float(rec["mean_width_mm"]) - np.mean(first["mean_width_mm"])) / h, 1.0), length)
-    values = _rasterised(width, length, axis, h, rng.uniform(-0.5, 0.5, (_QUANTISATION_OFFSETS, 2)))
-    model = {"mean_width_mm": width * h, "length_mm": length * h,
-             "area_mm2": ((length - width) * width + 0.25 * math.pi * width * width) * h * h}
+        bias_w, bias_l, _ = np.mean(np.asarray([first["mean_width_mm"], first["length_mm"], first["area_mm2"]]).T
+                                    - np.asarray(first["model"]), axis=0)
+        width = min(max(width - bias_w / h, 1.0), length)
+        length = max(length - bias_l / h, width)
+    # the true width and length are known to about a pixel only, and how the outline
+    # falls on the grid depends on their fractions of a pixel: each stadium draws them
+    values = _rasterised(width, length, axis, h, rng.uniform(-0.5, 0.5, (_QUANTISATION_OFFSETS, 4)))
+    model = dict(zip(("mean_width_mm", "length_mm", "area_mm2"), np.asarray(values.pop("model")).T))
     out = {}
     for key, v in values.items():
         if len(v) > 2:
-            out[key] = (float(np.std(v, ddof=1)), float(np.mean(v) - model[key]))
+            err = np.asarray(v) - model[key]
+            out[key] = (float(np.std(err, ddof=1)), float(np.percentile(np.abs(err), 95.0)))
         else:
-            out[key] = (0.5 * h ** _H_POWER[key], 0.0)
+            out[key] = (0.5 * h ** _H_POWER[key], h ** _H_POWER[key])
     return out
 
 
@@ -1203,10 +1233,11 @@ def propagate(
         if tol.pixel_size_tolerance > 0:
             for figname in FIGURES:
                 terms[figname]["pixel_size"] = _entry(tol.pixel_size_tolerance, _H_POWER[figname] * rec[figname])
-        for figname, (spread, bias) in _quantisation(rec, h, rng).items():
+        for figname, (spread, half95) in _quantisation(rec, h, rng).items():
+            # the outline's 95 % half-width stands for 2 u of the quantisation: its spread,
+            # and the rest (bias, skew) as the method's term
             terms[figname]["discretisation"] = _entry(spread, 1.0)
-            others = math.sqrt(sum(e["contribution"] ** 2 for e in terms[figname].values()))
-            terms[figname]["method_bias"] = _entry(_bias_term(others, bias), 1.0)
+            terms[figname]["method_bias"] = _entry(math.sqrt(max(0.25 * half95**2 - spread**2, 0.0)), 1.0)
         terms["max_depth_mm"]["discretisation"] = _entry(
             _depth_sampling(z, fig, bg, coef0, lab, rec["id"] + 1), 1.0)
         terms["volume_mm3"]["discretisation"] = _entry(_volume_edge(z, fig, bg, coef0, h), 1.0)
