@@ -824,27 +824,30 @@ def _noise_functionals(fig: _Figures, bg: _Background, h: float, r: int, T: np.n
     background fit and the region; the depth adds the peak pixel's own variance at full
     resolution minus its block's (:func:`_point_variance`).
     """
-    w_depth, w_vol = _noise_weights(fig, bg, h)
     if r == 1:
+        w_depth, w_vol = _noise_weights(fig, bg, h)
         return _linear_variance(w_depth, T), _linear_variance(w_vol, T)
     shape = (T.shape[0] // r, T.shape[1] // r)
     if "T" not in cache:
         cache["T"] = _mode_variance(shape, var_p / r**2, var_q / r**2, h * r)
     Tc = cache["T"]
+    hc, wc = shape
+    # block of each weighted pixel (trailing rows and columns belong to the last blocks)
+    bg_block = np.minimum(bg.rows // r, hc - 1) * wc + np.minimum(bg.cols // r, wc - 1)
+    region_block = (np.minimum(fig.region[:, 0] // r, hc - 1) * wc + np.minimum(fig.region[:, 1] // r, wc - 1))
 
-    def blocks(w):
-        hc, wc = shape
-        out = w[: hc * r, : wc * r].reshape(hc, r, wc, r).sum(axis=(1, 3), dtype=np.float64)
-        # trailing rows and columns belong to the last blocks
-        out[-1, :] += w[hc * r:, : wc * r].reshape(-1, wc, r).sum(axis=(0, 2))
-        out[:, -1] += w[: hc * r, wc * r:].sum(axis=1).reshape(hc, r).sum(axis=1)
-        out[-1, -1] += w[hc * r:, wc * r:].sum()
-        return out
+    def blocks(fit_weights, own_blocks, own_weight):
+        out = np.bincount(bg_block, weights=fit_weights, minlength=hc * wc)
+        out += np.bincount(own_blocks, minlength=hc * wc) * own_weight
+        return out.reshape(hc, wc)
 
     pr, pc = fig.peak
+    peak_block = np.array([min(pr // r, hc - 1) * wc + min(pc // r, wc - 1)])
+    b_depth = blocks(-fig.sign * (bg.A @ (bg.gram_inv @ fig.d_peak)), peak_block, fig.sign)
+    b_vol = blocks(-fig.sign * h * h * (bg.A @ (bg.gram_inv @ fig.d_region)), region_block, fig.sign * h * h)
     rc, cc = min(pr // r, shape[0] - 1), min(pc // r, shape[1] - 1)
-    vd = _linear_variance(blocks(w_depth), Tc) + _point_variance(T, pr, pc) - _point_variance(Tc, rc, cc)
-    return max(vd, 0.0), _linear_variance(blocks(w_vol), Tc)
+    vd = _linear_variance(b_depth, Tc) + _point_variance(T, pr, pc) - _point_variance(Tc, rc, cc)
+    return max(vd, 0.0), _linear_variance(b_vol, Tc)
 
 
 def _rasterised(width: float, length: float, axis_deg: float, h: float, offsets: np.ndarray) -> dict:
