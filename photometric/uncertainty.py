@@ -103,6 +103,8 @@ COVERAGE_FACTOR = 2.0
 #: Powers of the pixel size in each figure (heights scale with ``h`` like lengths).
 _H_POWER = {"max_depth_mm": 1, "mean_width_mm": 1, "length_mm": 1, "area_mm2": 2, "volume_mm3": 3}
 _QUANTISATION_OFFSETS = 96
+#: Pixel-stadium evaluations of the quantisation of one defect, at most (bounds its cost).
+_QUANTISATION_WORK = 1 << 20
 _MAX_FIT_POINTS = 200_000
 #: Largest image on which the systematic fields are integrated pixel by pixel; larger
 #: images integrate them on blocks of r x r pixels (the fields are smooth at that scale).
@@ -933,7 +935,10 @@ def _quantisation(rec: dict, h: float, rng: np.random.Generator) -> dict:
         length = max(length - bias_l / h, width)
     # the true width and length are known to about a pixel only, and how the outline
     # falls on the grid depends on their fractions of a pixel: each stadium draws them
-    values = _rasterised(width, length, axis, h, rng.uniform(-0.5, 0.5, (_QUANTISATION_OFFSETS, 4)))
+    # large outlines (many pixels) quantise finely: fewer stadiums bound the work
+    count = int(np.clip(_QUANTISATION_WORK / ((length + 4.0) * (width + 3.0)), _QUANTISATION_OFFSETS // 3,
+                        _QUANTISATION_OFFSETS))
+    values = _rasterised(width, length, axis, h, rng.uniform(-0.5, 0.5, (count, 4)))
     model = dict(zip(("mean_width_mm", "length_mm", "area_mm2"), np.asarray(values.pop("model")).T))
     out = {}
     for key, v in values.items():
