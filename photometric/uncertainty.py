@@ -882,7 +882,8 @@ def _rasterised(width: float, length: float, axis_deg: float, h: float, offsets:
     half = (0.5 * (lengths - widths)).astype(np.float32)[:, None]
     x, y = xs - dx, ys - dy
     along = np.clip(x * np.float32(ux) + y * np.float32(uy), -half, half)
-    inside = np.hypot(x - along * np.float32(ux), y - along * np.float32(uy)) < (0.5 * widths).astype(np.float32)[:, None]
+    radius = (0.5 * widths).astype(np.float32)[:, None]
+    inside = np.hypot(x - along * np.float32(ux), y - along * np.float32(uy)) < radius
     n = inside.sum(axis=1)
     keep = n >= 2
     inside, n, widths, lengths = inside[keep], n[keep], widths[keep], lengths[keep]
@@ -905,7 +906,8 @@ def _rasterised(width: float, length: float, axis_deg: float, h: float, offsets:
     values["mean_width_mm"] = list(central.sum(axis=1) / np.maximum(0.5 * length_px, 1.0) * h)
     values["length_mm"] = list(length_px * h)
     values["area_mm2"] = list(n * h * h)
-    values["model"] = list(zip(widths * h, lengths * h, ((lengths - widths) * widths + 0.25 * math.pi * widths**2) * h * h))
+    areas = ((lengths - widths) * widths + 0.25 * math.pi * widths**2) * h * h
+    values["model"] = list(zip(widths * h, lengths * h, areas))
     return values
 
 
