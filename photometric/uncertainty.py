@@ -102,7 +102,9 @@ FIGURES = ("max_depth_mm", "mean_width_mm", "length_mm", "area_mm2", "volume_mm3
 COVERAGE_FACTOR = 2.0
 #: Powers of the pixel size in each figure (heights scale with ``h`` like lengths).
 _H_POWER = {"max_depth_mm": 1, "mean_width_mm": 1, "length_mm": 1, "area_mm2": 2, "volume_mm3": 3}
-_QUANTISATION_OFFSETS = 24
+_QUANTISATION_OFFSETS = 96
+#: Pixel-stadium evaluations of the quantisation of one defect, at most (bounds its cost).
+_QUANTISATION_WORK = 1 << 20
 _MAX_FIT_POINTS = 200_000
 #: Largest image on which the systematic fields are integrated pixel by pixel; larger
 #: images integrate them on blocks of r x r pixels (the fields are smooth at that scale).
@@ -824,84 +826,129 @@ def _noise_functionals(fig: _Figures, bg: _Background, h: float, r: int, T: np.n
     background fit and the region; the depth adds the peak pixel's own variance at full
     resolution minus its block's (:func:`_point_variance`).
     """
-    w_depth, w_vol = _noise_weights(fig, bg, h)
     if r == 1:
+        w_depth, w_vol = _noise_weights(fig, bg, h)
         return _linear_variance(w_depth, T), _linear_variance(w_vol, T)
     shape = (T.shape[0] // r, T.shape[1] // r)
     if "T" not in cache:
         cache["T"] = _mode_variance(shape, var_p / r**2, var_q / r**2, h * r)
     Tc = cache["T"]
+    hc, wc = shape
+    # block of each weighted pixel (trailing rows and columns belong to the last blocks)
+    bg_block = np.minimum(bg.rows // r, hc - 1) * wc + np.minimum(bg.cols // r, wc - 1)
+    region_block = (np.minimum(fig.region[:, 0] // r, hc - 1) * wc + np.minimum(fig.region[:, 1] // r, wc - 1))
 
-    def blocks(w):
-        hc, wc = shape
-        out = w[: hc * r, : wc * r].reshape(hc, r, wc, r).sum(axis=(1, 3), dtype=np.float64)
-        # trailing rows and columns belong to the last blocks
-        out[-1, :] += w[hc * r:, : wc * r].reshape(-1, wc, r).sum(axis=(0, 2))
-        out[:, -1] += w[: hc * r, wc * r:].sum(axis=1).reshape(hc, r).sum(axis=1)
-        out[-1, -1] += w[hc * r:, wc * r:].sum()
-        return out
+    def blocks(fit_weights, own_blocks, own_weight):
+        out = np.bincount(bg_block, weights=fit_weights, minlength=hc * wc)
+        out += np.bincount(own_blocks, minlength=hc * wc) * own_weight
+        return out.reshape(hc, wc)
 
     pr, pc = fig.peak
+    peak_block = np.array([min(pr // r, hc - 1) * wc + min(pc // r, wc - 1)])
+    b_depth = blocks(-fig.sign * (bg.A @ (bg.gram_inv @ fig.d_peak)), peak_block, fig.sign)
+    b_vol = blocks(-fig.sign * h * h * (bg.A @ (bg.gram_inv @ fig.d_region)), region_block, fig.sign * h * h)
     rc, cc = min(pr // r, shape[0] - 1), min(pc // r, shape[1] - 1)
-    vd = _linear_variance(blocks(w_depth), Tc) + _point_variance(T, pr, pc) - _point_variance(Tc, rc, cc)
-    return max(vd, 0.0), _linear_variance(blocks(w_vol), Tc)
+    vd = _linear_variance(b_depth, Tc) + _point_variance(T, pr, pc) - _point_variance(Tc, rc, cc)
+    return max(vd, 0.0), _linear_variance(b_vol, Tc)
 
 
 def _rasterised(width: float, length: float, axis_deg: float, h: float, offsets: np.ndarray) -> dict:
     """Width, length and area (as :func:`photometric.defects.measure_defects` measures them)
-    of a stadium (``width``, ``length`` in pixels, axis in degrees) rasterised at each
-    sub-pixel offset."""
-    from skimage.measure import regionprops
+    of stadiums (``width``, ``length`` in pixels, axis in degrees) rasterised at sub-pixel
+    offsets: the pixel centres inside a stadium are its region, measured as
+    :func:`photometric.defects._measure` does (principal axis, extent along it plus one
+    pixel, pixels of the central half per pixel of half the length), all stadiums at once.
 
-    from photometric.defects import _measure
-
+    ``offsets`` is (n, 2) (``dx, dy``, pixels) or (n, 4) (also ``dwidth, dlength`` added to
+    the stadium's width and length, pixels). Returns lists of the measures (mm, mm^2) and,
+    under ``"model"``, each stadium's own ``(width, length, area)``; stadiums with fewer than
+    two pixels are left out."""
+    offsets = np.asarray(offsets, float)
+    if offsets.shape[1] == 2:
+        offsets = np.concatenate([offsets, np.zeros_like(offsets)], axis=1)
+    widths = np.maximum(width + offsets[:, 2], 1.0)
+    lengths = np.maximum(length + offsets[:, 3], widths)
     a = math.radians(axis_deg)
     ux, uy = math.cos(a), math.sin(a)
-    seg = 0.5 * (length - width)
-    half_x = int(math.ceil(abs(ux) * seg + 0.5 * width)) + 2
-    half_y = int(math.ceil(abs(uy) * seg + 0.5 * width)) + 2
+    reach = 0.5 * float(lengths.max()) + 2.0
+    half_x = int(math.ceil(abs(ux) * reach + 0.5 * widths.max())) + 2
+    half_y = int(math.ceil(abs(uy) * reach + 0.5 * widths.max())) + 2
     y0, x0 = np.meshgrid(-np.arange(-half_y, half_y + 1.0), np.arange(-half_x, half_x + 1.0),
                          indexing="ij")  # y up, rows down
-    values = {"mean_width_mm": [], "length_mm": [], "area_mm2": []}
-    for off in offsets:
-        x, y = x0 - off[0], y0 - off[1]
-        s = np.clip(x * ux + y * uy, -seg, seg)
-        inside = np.hypot(x - s * ux, y - s * uy) < 0.5 * width
-        if inside.sum() < 2:
-            continue
-        prop = regionprops(inside.astype(np.int32), intensity_image=np.ones(inside.shape))[0]
-        m = _measure(prop, h, "depression", 0.0, 0.0, 0.0)
-        for key in values:
-            values[key].append(m[key])
+    # only the pixels near the axis can be inside at any offset
+    near = (np.abs(-x0 * uy + y0 * ux) < 0.5 * widths.max() + 1.0) & (np.abs(x0 * ux + y0 * uy) < reach)
+    xs, ys = x0[near].astype(np.float32), y0[near].astype(np.float32)
+    dx, dy = offsets[:, :1].astype(np.float32), offsets[:, 1:2].astype(np.float32)
+    half = (0.5 * (lengths - widths)).astype(np.float32)[:, None]
+    x, y = xs - dx, ys - dy
+    along = np.clip(x * np.float32(ux) + y * np.float32(uy), -half, half)
+    radius = (0.5 * widths).astype(np.float32)[:, None]
+    inside = np.hypot(x - along * np.float32(ux), y - along * np.float32(uy)) < radius
+    n = inside.sum(axis=1)
+    keep = n >= 2
+    inside, n, widths, lengths = inside[keep], n[keep], widths[keep], lengths[keep]
+    values = {"mean_width_mm": [], "length_mm": [], "area_mm2": [], "model": []}
+    if not keep.any():
+        return values
+    # the region's own principal axis (rows, cols of the pixel grid, as _measure takes them)
+    w = inside.astype(np.float64)
+    X, Y = xs.astype(np.float64), ys.astype(np.float64)
+    mx, my = w @ X / n, w @ Y / n
+    cxx = w @ (X * X) / n - mx * mx
+    cyy = w @ (Y * Y) / n - my * my
+    cxy = w @ (X * Y) / n - mx * my
+    angle = 0.5 * np.arctan2(2.0 * cxy, cxx - cyy)
+    s = np.cos(angle)[:, None] * X + np.sin(angle)[:, None] * Y
+    s_max = np.where(inside, s, -np.inf).max(axis=1)
+    s_min = np.where(inside, s, np.inf).min(axis=1)
+    length_px = s_max - s_min + 1.0
+    central = inside & (np.abs(s - 0.5 * (s_max + s_min)[:, None]) <= 0.25 * length_px[:, None])
+    values["mean_width_mm"] = list(central.sum(axis=1) / np.maximum(0.5 * length_px, 1.0) * h)
+    values["length_mm"] = list(length_px * h)
+    values["area_mm2"] = list(n * h * h)
+    areas = ((lengths - widths) * widths + 0.25 * math.pi * widths**2) * h * h
+    values["model"] = list(zip(widths * h, lengths * h, areas))
     return values
 
 
 def _quantisation(rec: dict, h: float, rng: np.random.Generator) -> dict:
     """Pixel quantisation of the outline: width, length and area measured (as
     :func:`photometric.defects.measure_defects` does) on a stadium of the defect's axis
-    rasterised at random sub-pixel offsets. The stadium's width is first set so that its
-    mean width measure equals the defect's (one correction from a few offsets: the mean
-    width of a round dent is below its diameter).
+    rasterised at random sub-pixel offsets.
 
-    Returns ``{figure: (spread, bias)}``: the standard deviation over the offsets and the
-    mean minus the stadium's own value (the measures' bias, e.g. the ``+ 1`` pixel of the
-    extent along the axis, or the mean width of a round dent below its diameter).
+    The stadium stands for the true outline, so its width and length are first set so that
+    their mean measures over a few offsets equal the defect's (one correction: the extent
+    along the axis adds up to a pixel, the mean width of a round dent is below its
+    diameter). The measures' errors over the offsets are discrete and skewed (the extent
+    moves in steps of the pixel pitch projected on the axis), so the 95 % half-width is
+    their 95th percentile of ``|measure - stadium|``, not twice a standard deviation.
+
+    Returns ``{figure: (spread, half95)}``: the standard deviation of the measures over the
+    offsets and the 95th percentile of their absolute error.
     """
     width = max(float(rec["mean_width_mm"]) / h, 1.0)
     length = max(float(rec["length_mm"]) / h, width)
     axis = float(rec["axis_deg"])
-    first = _rasterised(width, length, axis, h, rng.uniform(-0.5, 0.5, (8, 2)))
+    first = _rasterised(width, length, axis, h, rng.uniform(-0.5, 0.5, (16, 4)))
     if len(first["mean_width_mm"]) > 2:
-        width = min(max(width + (float(rec["mean_width_mm"]) - np.mean(first["mean_width_mm"])) / h, 1.0), length)
-    values = _rasterised(width, length, axis, h, rng.uniform(-0.5, 0.5, (_QUANTISATION_OFFSETS, 2)))
-    model = {"mean_width_mm": width * h, "length_mm": length * h,
-             "area_mm2": ((length - width) * width + 0.25 * math.pi * width * width) * h * h}
+        bias_w, bias_l, _ = np.mean(np.asarray([first["mean_width_mm"], first["length_mm"], first["area_mm2"]]).T
+                                    - np.asarray(first["model"]), axis=0)
+        width = min(max(width - bias_w / h, 1.0), length)
+        length = max(length - bias_l / h, width)
+    # the true width and length are known to about a pixel only, and how the outline
+    # falls on the grid depends on their fractions of a pixel: each stadium draws them
+    # large outlines (many pixels) quantise finely: fewer stadiums bound the work
+    count = int(np.clip(_QUANTISATION_WORK / ((length + 4.0) * (width + 3.0)), _QUANTISATION_OFFSETS // 3,
+                        _QUANTISATION_OFFSETS))
+    values = _rasterised(width, length, axis, h, rng.uniform(-0.5, 0.5, (count, 4)))
+    model = dict(zip(("mean_width_mm", "length_mm", "area_mm2"), np.asarray(values.pop("model")).T))
     out = {}
     for key, v in values.items():
         if len(v) > 2:
-            out[key] = (float(np.std(v, ddof=1)), float(np.mean(v) - model[key]))
+            err = np.asarray(v) - model[key]
+            out[key] = (float(np.std(err, ddof=1)), float(np.percentile(np.abs(err), 95.0)))
         else:
-            out[key] = (0.5 * h ** _H_POWER[key], 0.0)
+            out[key] = (0.5 * h ** _H_POWER[key], h ** _H_POWER[key])
     return out
 
 
@@ -1203,10 +1250,11 @@ def propagate(
         if tol.pixel_size_tolerance > 0:
             for figname in FIGURES:
                 terms[figname]["pixel_size"] = _entry(tol.pixel_size_tolerance, _H_POWER[figname] * rec[figname])
-        for figname, (spread, bias) in _quantisation(rec, h, rng).items():
+        for figname, (spread, half95) in _quantisation(rec, h, rng).items():
+            # the outline's 95 % half-width stands for 2 u of the quantisation: its spread,
+            # and the rest (bias, skew) as the method's term
             terms[figname]["discretisation"] = _entry(spread, 1.0)
-            others = math.sqrt(sum(e["contribution"] ** 2 for e in terms[figname].values()))
-            terms[figname]["method_bias"] = _entry(_bias_term(others, bias), 1.0)
+            terms[figname]["method_bias"] = _entry(math.sqrt(max(0.25 * half95**2 - spread**2, 0.0)), 1.0)
         terms["max_depth_mm"]["discretisation"] = _entry(
             _depth_sampling(z, fig, bg, coef0, lab, rec["id"] + 1), 1.0)
         terms["volume_mm3"]["discretisation"] = _entry(_volume_edge(z, fig, bg, coef0, h), 1.0)

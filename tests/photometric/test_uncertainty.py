@@ -175,6 +175,15 @@ def test_light_tolerance_grows_the_height_uncertainty():
     assert small.summary["uncertainty"]["noise_sigma"] == 0.0  # a triad gives no residual to estimate from
 
 
+def _flat(tree, key="") -> dict:
+    """Leaves of nested dicts and lists, by their path."""
+    if isinstance(tree, dict):
+        return {k: v for name, sub in tree.items() for k, v in _flat(sub, f"{key}/{name}").items()}
+    if isinstance(tree, list):
+        return {k: v for i, sub in enumerate(tree) for k, v in _flat(sub, f"{key}/{i}").items()}
+    return {key: tree}
+
+
 def test_binned_systematic_fields_agree_with_full_resolution(monkeypatch):
     _, L, images = _scratch(size=192, h=0.05, width_mm=1.6)  # 32 pixels across: 16 blocks of 2 x 2
     tol = {"noise_sigma": 0.002, "light_tolerance_deg": 0.5}
@@ -183,7 +192,8 @@ def test_binned_systematic_fields_agree_with_full_resolution(monkeypatch):
     binned = reconstruct(images, lights=L, pixel_size=0.05, uncertainty=tol).uncertainty
     monkeypatch.setattr(U, "_RESOLVE", 1000)  # a defect the blocks cannot resolve: pixels again
     again = reconstruct(images, lights=L, pixel_size=0.05, uncertainty=tol).uncertainty
-    assert again.defects == full.defects
+    # the same computation (BLAS reductions may differ in the last bits between runs)
+    assert _flat(again.defects) == pytest.approx(_flat(full.defects), rel=1e-9)
     for fig in ("max_depth_mm", "volume_mm3"):
         for source in ("light_direction", "image_noise"):
             a = full.defects[0]["budget"][fig]["sources"][source]["contribution"]

@@ -10,6 +10,7 @@ from scipy import ndimage
 from datasets_synthetic.render import make_triad_folder
 from photometric.io import read_folder
 from photometric.normals import angular_error_deg
+from photometric.uncertainty import Tolerances
 from surfaces.fit import fit_height, fit_mesh
 from surfaces.grid import xy_to_pixel
 from surfaces.io import read_mesh
@@ -19,11 +20,16 @@ from workbench import images as im
 from workbench.demo.context import Context
 from workbench.demo.meshes import heightfield_mesh
 from workbench.runs.photometric import reconstruct_to_folder
+from workbench.studies.uncertainty import FIGURE_LABELS, draw_budget, uncertainty_budget
 
 #: light direction of the ray-cast pictures (from the upper left, towards the camera)
 PICTURE_LIGHT = (-0.45, 0.5, 0.74)
 #: vertical exaggeration of the plate's pictures
 EXAGGERATION = 10.0
+#: the tolerances the inspector states: image noise (full scale, the render's) and each
+#: light's direction (deg per tangent axis)
+STATED_NOISE = 0.005
+STATED_LIGHT_TOLERANCE_DEG = 0.5
 
 
 def match_defects(found: list[dict], truth: list[dict], pixel_size: float) -> list[dict]:
@@ -128,7 +134,8 @@ def section_inspection(ctx: Context) -> None:
                "colour = true height in mm). Crack upper left, dent right, scratch at the bottom.",
                triad_cmd)
     recon = ctx.out / "inspection" / "reconstruction"
-    recon_cmd = ctx.cmd("photometric", "reconstruct", str(folder), "--out", str(recon))
+    recon_cmd = ctx.cmd("photometric", "reconstruct", str(folder), "--out", str(recon), "--noise-sigma",
+                        str(STATED_NOISE), "--light-tolerance-deg", str(STATED_LIGHT_TOLERANCE_DEG))
 
     data = read_folder(folder)
     lights = np.asarray(scene["lights_nominal"], float)
@@ -140,7 +147,8 @@ def section_inspection(ctx: Context) -> None:
     rep.figure(im.montage(pics, cols=3, labels=labels), "inspection-images",
                "The three rendered images (16-bit PNG, shown linearly); the shadows are cast "
                "by the defects' walls.", triad_cmd)
-    summary = reconstruct_to_folder(folder, recon)
+    summary = reconstruct_to_folder(folder, recon, uncertainty=Tolerances(
+        noise_sigma=STATED_NOISE, light_tolerance_deg=STATED_LIGHT_TOLERANCE_DEG))
     ctx.step("inspection: photometric pipeline")
     normals = np.load(recon / "normals.npy")
     albedo = np.load(recon / "albedo.npy")
@@ -236,6 +244,7 @@ def section_inspection(ctx: Context) -> None:
               caption=f"Defects measured by the pipeline (photometric.defects.measure_defects on "
               f"the reconstructed height, {len(found)} region(s) found; defects.json) against "
               "the scene's truth (scene.json).", digits=3)
+    section_uncertainty(ctx, recon, matched, recon_cmd)
     rep.table(["quantity", "value"], [
         ["mean angular error of the normals (deg)", nums["normal_error_mean_deg"]],
         ["median angular error (deg)", nums["normal_error_median_deg"]],
@@ -246,3 +255,51 @@ def section_inspection(ctx: Context) -> None:
         ["mesh triangles (surface.ply)", nums["mesh_triangles"]],
         ["pipeline time (s)", nums["pipeline_seconds"]],
     ], caption="Inspection accuracy against the synthetic truth.")
+
+
+def section_uncertainty(ctx: Context, recon, matched: list[dict], command: str) -> None:
+    """The measured defects with their expanded uncertainty (k = 2) and the deepest one's budget chart.
+
+    Parameters
+    ----------
+    ctx : Context
+        The run; ``ctx.numbers["inspection"]["uncertainty"]`` gets, per matched defect,
+        ``kind``, ``id`` and ``text`` (figure -> ``"0.100 ± 0.006 mm (k = 2)"``).
+    recon : Path
+        The reconstruction folder (written with stated tolerances: ``uncertainty.json``).
+    matched : list of dict
+        :func:`match_defects` of the folder's defects.
+    command : str
+        The command line of the reconstruction.
+    """
+    import matplotlib.pyplot as plt
+
+    budget = uncertainty_budget(recon)
+    by_id = {row["id"]: row for row in budget["defects"]}
+    rows, nums = [], []
+    for m in matched:
+        row = by_id.get(m["measured"]["id"]) if m["measured"] else None
+        if row is None:
+            rows.append([m["kind"], *["not found"] * len(FIGURE_LABELS)])
+            continue
+        nums.append({"kind": m["kind"], "id": row["id"], "text": row["text"]})
+        rows.append([m["kind"], *(row["text"][f] for f in FIGURE_LABELS)])
+    ctx.numbers["inspection"]["uncertainty"] = nums
+    tol = budget["tolerances"]
+    ctx.report.table(["defect", *(f"{label} ({unit})" for label, unit in FIGURE_LABELS.values())], rows,
+                     caption=f"The measured defects with their expanded uncertainty U (k = 2, about 95 %; GUM) "
+                     f"under the stated tolerances: image noise {budget['noise_sigma']:g} (full scale), "
+                     f"{tol['light_tolerance_deg']:g} deg per light direction; {budget['method']} propagation "
+                     "(defects.json, uncertainty.json).")
+    deepest = budget["defects"][0]
+    kind = next((r["kind"] for r in nums if r["id"] == deepest["id"]), deepest["kind"])
+    fig = draw_budget(uncertainty_budget(recon, defect=deepest["id"])["budget"],
+                      f"Uncertainty budget of the deepest defect ({kind.replace('_', ' ')}), k = 2")
+    fig.canvas.draw()
+    picture = np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()
+    plt.close(fig)
+    ctx.report.figure(picture, "inspection-budget",
+                      "Uncertainty budget of the deepest defect: each source's share of the combined "
+                      "variance u_c^2 of each figure (image noise, light directions, the pixel grid's "
+                      "discretisation and the measures' own bias), with the value and U (k = 2) beside "
+                      "each bar (workbench.studies.uncertainty.draw_budget).", command)

@@ -63,7 +63,7 @@ def test_section_on_a_small_plate(quick_inspection):
     assert all(d["depth_measured_mm"] is not None for d in nums["defects"])
     names = [f.file for f in ctx.report.figures]
     assert names == [f"figures/inspection-{n}.png" for n in
-                     ("truth", "images", "normals", "height", "bezier", "deviation", "bezier-net")]
+                     ("truth", "images", "normals", "height", "bezier", "deviation", "bezier-net", "budget")]
     assert all(parses(f.command) for f in ctx.report.figures)
     assert (ctx.out / "inspection" / "reconstruction" / "defects.json").is_file()
     assert not ctx.unavailable
@@ -85,3 +85,37 @@ def test_truth_picture_is_on_the_same_grid_as_the_reconstruction(quick_inspectio
     lo, hi = truth.vertices[:, :2].min(0), truth.vertices[:, :2].max(0)
     assert np.all((recon.vertices[:, :2].min(0) >= lo - half - 1e-9) & (recon.vertices[:, :2].min(0) <= lo))
     assert np.all((recon.vertices[:, :2].max(0) <= hi + half + 1e-9) & (recon.vertices[:, :2].max(0) >= hi))
+
+
+def test_section_states_each_defect_with_its_expanded_uncertainty(quick_inspection):
+    """The defect figures read ``value ± U unit (k = 2)``, U from the reconstruction's budget,
+    and the budget chart is a real picture."""
+    import json
+    import re
+
+    from workbench.studies.uncertainty import FIGURE_LABELS
+
+    ctx = quick_inspection
+    recon = ctx.out / "inspection" / "reconstruction"
+    assert (recon / "uncertainty.json").is_file() and (recon / "height_u.npy").is_file()
+    rows = ctx.numbers["inspection"]["uncertainty"]
+    assert {r["kind"] for r in rows} == {"v_crack", "spherical_dent", "u_scratch"}
+    found = {d["id"]: d for d in json.loads((recon / "defects.json").read_text())["defects"]}
+    pattern = re.compile(r"^(\d+\.\d+) ± (\d+\.\d+) (mm|mm²|mm³) \(k = 2\)$")
+    for r in rows:
+        for fig, (_, unit) in FIGURE_LABELS.items():
+            m = pattern.match(r["text"][fig])
+            assert m, r["text"][fig]
+            assert m.group(3) == unit
+            value, U = float(m.group(1)), float(m.group(2))
+            k2 = found[r["id"]]["uncertainty_k2"][fig]
+            assert abs(value - found[r["id"]][fig]) <= 10 ** -len(m.group(1).split(".")[1])
+            assert 0 < U and abs(U - k2) <= 0.5 * 10 ** -len(m.group(2).split(".")[1]) + 1e-12
+    # the depth of each found defect is stated tighter than the depth itself (not padded)
+    assert all(found[r["id"]]["uncertainty_k2"]["max_depth_mm"] < found[r["id"]]["max_depth_mm"] for r in rows)
+    chart = next(f for f in ctx.report.figures if f.file.endswith("inspection-budget.png"))
+    from PIL import Image
+
+    picture = np.asarray(Image.open(ctx.out / chart.file).convert("RGB"))
+    assert picture.shape[0] > 150 and picture.shape[1] > 400
+    assert len(np.unique(picture.reshape(-1, 3), axis=0)) > 8  # bars in several colours, not a blank
