@@ -84,6 +84,17 @@ def fit_background(
     sigma : float
         Robust standard deviation of the background residual (same unit as height).
     """
+    background, sigma, _ = _fit(height, mask, method, degree, iterations, xy)
+    return background, sigma
+
+
+def _fit(height, mask, method, degree, iterations, xy):
+    """:func:`fit_background`, also returning the grid background's separable terms.
+
+    The terms are pairs ``(column, row)`` of 1-D arrays, shapes (H,) and (W,), with
+    ``background = sum(outer(column, row))`` (``None`` with ``xy``): its slopes follow
+    from 1-D gradients without a full-image :func:`numpy.gradient`.
+    """
     z = as_array(height, "height", ndim=2, finite=False)
     if method not in ("plane", "smooth"):
         raise ValueError(f"method: expected 'plane' or 'smooth', got {method!r}")
@@ -100,15 +111,16 @@ def fit_background(
         if not ok.any():
             raise ValueError("height: no usable pixel for the background")
         coords = _scaled_xy(pts, ok)
-    rows, cols = np.nonzero(ok)
+    # flat indices: one array instead of two (H * W) index arrays before the subsample
+    flat = np.flatnonzero(ok)
     n_terms = (deg + 1) * (deg + 2) // 2
-    if rows.size < 3 * n_terms:
-        raise ValueError(f"height: only {rows.size} usable pixels for a degree-{deg} background")
-    if rows.size > _MAX_FIT_POINTS:
-        pick = np.linspace(0, rows.size - 1, _MAX_FIT_POINTS).astype(np.int64)
-        rows, cols = rows[pick], cols[pick]
+    if flat.size < 3 * n_terms:
+        raise ValueError(f"height: only {flat.size} usable pixels for a degree-{deg} background")
+    if flat.size > _MAX_FIT_POINTS:
+        flat = flat[np.linspace(0, flat.size - 1, _MAX_FIT_POINTS).astype(np.int64)]
+    rows, cols = np.divmod(flat, z.shape[1])
     A = _design(rows, cols, z.shape, deg, coords)
-    values = z[rows, cols]
+    values = z.ravel()[flat]
     use = np.ones(values.size, bool)
     sigma = 0.0
     for _ in range(int(iterations)):
@@ -132,17 +144,22 @@ def fit_background(
                 term = ys[d] if a == 0 else xs[a] if a == d else xs[a] * ys[d - a]
                 background += coef[k] * term
                 k += 1
-        return background, sigma
-    # Evaluate term by term as outer products: no (H * W, terms) design matrix in memory.
+        return background, sigma, None
+    # Grouped by the power of y, term = outer(y^b, sum_a c x^a): deg + 1 full-image
+    # products and no (H * W, terms) design matrix in memory.
     x, _ = _scaled(0.0, np.arange(z.shape[1], dtype=float), z.shape)
     _, y = _scaled(np.arange(z.shape[0], dtype=float), 0.0, z.shape)
-    background = np.zeros(z.shape)
+    rows_of = [np.zeros(z.shape[1]) for _ in range(deg + 1)]
     k = 0
     for d in range(deg + 1):
         for a in range(d + 1):
-            background += coef[k] * np.outer(y ** (d - a), x**a)
+            rows_of[d - a] += coef[k] * x**a
             k += 1
-    return background, sigma
+    terms = [(y**b, rows_of[b]) for b in range(deg + 1)]
+    background = np.outer(terms[0][0], terms[0][1])
+    for col, row in terms[1:]:
+        background += np.outer(col, row)
+    return background, sigma, terms
 
 
 def measure_defects(
@@ -238,15 +255,15 @@ def measure_defects(
     elif area is not None:
         raise ValueError("area: per-pixel footprints need xy (the points they belong to)")
     if background == "none":
-        bg = np.zeros_like(z)  # flat: the slopes' background is zero
+        bg, terms = None, []  # flat: the slopes' background is zero
         residual = z - np.nanmedian(z[inspect])
         sigma = _MAD_TO_SIGMA * float(np.median(np.abs(residual[inspect])))
     elif background in ("plane", "smooth"):
-        bg, sigma = fit_background(z, inspect, background, degree=degree, xy=pts)
+        bg, sigma, terms = _fit(z, inspect, background, degree, 6, pts)
         residual = z - bg
     else:
         raise ValueError(f"background: expected 'plane', 'smooth' or 'none', got {background!r}")
-    residual = np.where(inspect, residual, 0.0)
+    residual[~inspect] = 0.0
 
     footprint = None
     if p is not None or q is not None:
@@ -255,7 +272,7 @@ def measure_defects(
         footprint = _slope_footprint(
             as_array(p, "p", shape=z.shape, finite=False),
             as_array(q, "q", shape=z.shape, finite=False),
-            bg, inspect, h, slope_threshold, pts,
+            _background_slopes(bg, terms), inspect, h, slope_threshold, pts,
         )
 
     signs = {"depression": (-1.0,), "bump": (1.0,), "both": (-1.0, 1.0)}[polarity]
@@ -299,11 +316,34 @@ def measure_defects(
     return results, out
 
 
-def _slope_footprint(p, q, background, inspect, h, slope_threshold, xy=None) -> np.ndarray:
-    """Pixels whose slope differs from the background's; enclosed flat parts included."""
+def _background_slopes(background, terms):
+    """``d/d row`` and ``d/d col`` of the background, as :func:`numpy.gradient` on the pixel grid.
+
+    With the separable terms of :func:`_fit` the gradient of each term is the outer product
+    of a 1-D gradient with the other factor (central differences are linear); constant
+    factors stay scalars, so a plane's slopes broadcast from one row and one column
+    instead of two full images. Without terms (a background on points): ``np.gradient``.
+    """
+    if terms is None:
+        return np.gradient(background)
+    d_row = d_col = 0.0
+    for col, row in terms:
+        g_col, g_row = np.gradient(col), np.gradient(row)
+        col_c = col[0] if np.all(col == col[0]) else col[:, None]
+        row_c = row[0] if np.all(row == row[0]) else row[None, :]
+        if g_row.any():
+            d_col = d_col + col_c * g_row[None, :]
+        if g_col.any():
+            d_row = d_row + g_col[:, None] * row_c
+    return d_row, d_col
+
+
+def _slope_footprint(p, q, slopes, inspect, h, slope_threshold, xy=None) -> np.ndarray:
+    """Pixels whose slope differs from the background's (``slopes``: its ``d/d row, d/d col``);
+    enclosed flat parts included."""
     from scipy import ndimage
 
-    d_row, d_col = np.gradient(background)
+    d_row, d_col = slopes
     if xy is None:
         dx_col, dy_row = h, -h
     else:
@@ -312,12 +352,16 @@ def _slope_footprint(p, q, background, inspect, h, slope_threshold, xy=None) -> 
         dy_row = np.gradient(np.nan_to_num(xy[..., 1]), axis=0)
         dx_col = np.where(np.abs(dx_col) > 0, dx_col, h)
         dy_row = np.where(np.abs(dy_row) > 0, dy_row, -h)
-    dp = np.nan_to_num(p - d_col / dx_col)
-    dq = np.nan_to_num(q - d_row / dy_row)
-    slope = np.hypot(dp, dq)
+    dp = np.nan_to_num(np.subtract(p, d_col / dx_col, dtype=float), copy=False)
+    dq = np.nan_to_num(np.subtract(q, d_row / dy_row, dtype=float), copy=False)
+    slope = np.hypot(dp, dq, out=dp)
+    del dq
     if slope_threshold is None:
-        med = np.median(slope[inspect])
-        sigma = _MAD_TO_SIGMA * float(np.median(np.abs(slope[inspect] - med)))
+        # one copy of the inspected slopes, partitioned in place by both medians
+        values = slope.ravel().copy() if inspect.all() else slope[inspect]
+        med = np.median(values, overwrite_input=True)
+        values -= med
+        sigma = _MAD_TO_SIGMA * float(np.median(np.abs(values, out=values), overwrite_input=True))
         slope_threshold = max(0.02, med + 6.0 * sigma)
     thr = positive(slope_threshold, "slope_threshold")
     return ndimage.binary_fill_holes((slope > thr) & inspect)

@@ -447,17 +447,29 @@ def _strengths(lights: PointLights, camera: Camera, shape, gains, intens) -> lis
     with a flat field ``G_k |P_k - X0|^2`` (divided by the lobe at ``X0`` when it is known)."""
     if gains is None:
         return [float(d * d) for d in lights.d0]
-    X0 = plane_points(camera, shape).astype(np.float32)
+    X0 = plane_points(camera, shape)
+    # one contiguous float32 plane per coordinate: elementwise sums instead of an einsum and a
+    # matrix product over an interleaved (H, W, 3) array per light
+    planes = [np.ascontiguousarray(X0[..., c], dtype=np.float32) for c in range(3)]
+    del X0
     out = []
     for k in range(len(lights)):
-        d = lights.positions[k].astype(np.float32)[None, None, :] - X0
-        r2 = np.einsum("hwc,hwc->hw", d, d)
+        pos = lights.positions[k].astype(np.float32)
+        d = [pos[c] - planes[c] for c in range(3)]
+        r2 = d[0] * d[0]
+        r2 += d[1] * d[1]
+        r2 += d[2] * d[2]
         q = gains[k] * r2
         if lights.mu_known and lights.mu[k] > 0:
-            cos = -(d @ lights.axes[k].astype(np.float32)) / np.sqrt(r2)
-            lobe = np.maximum(cos, 0.0) ** np.float32(lights.mu[k])
+            axis = lights.axes[k].astype(np.float32)
+            cos = d[0] * axis[0]
+            cos += d[1] * axis[1]
+            cos += d[2] * axis[2]
+            cos /= np.sqrt(r2)
+            np.negative(cos, out=cos)
+            lobe = np.maximum(cos, 0.0, out=cos) ** np.float32(lights.mu[k])
             q = np.divide(q, lobe, out=np.zeros_like(q), where=lobe > 0)
-        out.append(q.astype(np.float32))
+        out.append(q.astype(np.float32, copy=False))
     return out
 
 

@@ -120,3 +120,36 @@ def test_measure_defects_on_points_matches_the_grid():
     assert (cx, cy) == pytest.approx(tuple(hf.defects[0]["center_mm"]), abs=0.05)
     with pytest.raises(ValueError, match="area: per-pixel footprints need xy"):
         measure_defects(hf.height, 0.05, area=0.05**2)
+
+
+@pytest.mark.parametrize("background", ["plane", "smooth", "none"])
+def test_fast_slope_footprint_matches_the_full_image_gradient(monkeypatch, background):
+    """The background's slopes from its separable 1-D terms give the figures and labels that
+    ``numpy.gradient`` of the whole background image gave (the previous path), on a rendered,
+    tilted part: equal to 1e-9 relative (only the rounding of the gradient differs)."""
+    import photometric.defects as defects
+
+    hf = inspection_plate(256, 0.08, seed=2)
+    images = render(hf, ring_lights(4, 40.0), albedo=0.8, noise=0.003, seed=5)
+    res = solve(images, ring_lights(4, 40.0))
+    # a tilted, slightly bowed part (every background term has slopes); flat without a background
+    rows, cols = np.indices(hf.height.shape)
+    x, y = cols * hf.pixel_size, -rows * hf.pixel_size
+    bow = 0.0 if background == "none" else 1.0
+    z = integrate(res.p, res.q, "dct", pixel_size=hf.pixel_size) + bow * (0.01 * x + 0.006 * y
+                                                                          + 2e-4 * (x - 10.0) ** 2)
+    p, q = res.p + bow * (0.01 + 4e-4 * (x - 10.0)), res.q + bow * 0.006
+    kw = dict(background=background, degree=3, p=p, q=q, return_labels=True)
+    fast, fast_labels = measure_defects(z, hf.pixel_size, **kw)
+    monkeypatch.setattr(defects, "_background_slopes",
+                        lambda bg, terms: np.gradient(bg) if bg is not None else (0.0, 0.0))
+    slow, slow_labels = measure_defects(z, hf.pixel_size, **kw)
+    assert len(fast) == len(slow) >= 1
+    np.testing.assert_array_equal(fast_labels, slow_labels)
+    for a, b in zip(fast, slow):
+        assert a.keys() == b.keys()
+        for key, value in a.items():
+            if isinstance(value, str):
+                assert value == b[key]
+            else:
+                np.testing.assert_allclose(value, b[key], rtol=1e-9, atol=1e-12, err_msg=key)

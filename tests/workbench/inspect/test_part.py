@@ -101,6 +101,19 @@ def test_keep_arrays_writes_the_heavy_files(small_lot, tmp_path):
     assert set(result["files"]) == names and result["verdict"] == "pass"
 
 
+def test_without_arrays_the_coarse_surface_leaves_the_figures_unchanged(small_lot, tmp_path):
+    """Without --keep-arrays the part skips the adaptive surface fit (a coarse Coons grid instead):
+    the imperfections and the verdict are those of the run with the fit, exactly."""
+    spec = parse_spec({"max_depth_mm": 0.10})
+    fast = inspect_part(small_lot["parts"] / "scratch_over", tmp_path / "fast", small_lot["rig"], spec)
+    fitted = inspect_part(small_lot["parts"] / "scratch_over", tmp_path / "fit", small_lot["rig"], spec,
+                          surface="fit")
+    a, b = (json.loads((tmp_path / name / "result.json").read_text()) for name in ("fast", "fit"))
+    assert a["imperfections"] and a["imperfections"] == b["imperfections"]
+    assert {k: v for k, v in fast.items() if k != "timings_s"} == {k: v for k, v in fitted.items()
+                                                                   if k != "timings_s"}
+
+
 def test_bad_parts_write_nothing(small_lot, tmp_path):
     small = tmp_path / "small"
     for k in range(4):
