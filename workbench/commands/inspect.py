@@ -87,6 +87,8 @@ def register(sub) -> None:
 
 
 def _add_common(p: argparse.ArgumentParser) -> None:
+    from workbench.commands.photometric import add_uncertainty_options
+
     p.add_argument("--rig", required=True, metavar="RIG", help="the calibrated rig (rig.json)")
     p.add_argument("--spec", required=True, metavar="SPEC", help="acceptance rules in mm (spec.json)")
     p.add_argument("--out", required=True, metavar="OUT", help="output folder (created when missing)")
@@ -99,23 +101,15 @@ def _add_common(p: argparse.ArgumentParser) -> None:
                    help="also write each part's arrays (npy), previews and surface.ply")
     p.add_argument("--option", action="append", default=[], metavar="KEY=VALUE",
                    help="reconstruction option for every part, e.g. background=smooth (repeatable)")
-    p.add_argument("--noise-sigma", type=float, default=None, metavar="S",
-                   help="uncertainty: image noise, full-scale units (default: estimated from the residuals)")
-    p.add_argument("--light-position-tolerance-mm", type=float, default=None, metavar="MM",
-                   help="uncertainty: standard uncertainty of each LED coordinate, mm")
-    p.add_argument("--light-tolerance-deg", type=float, default=None, metavar="DEG",
-                   help="uncertainty: standard uncertainty of each light's direction, degrees")
-    p.add_argument("--intensity-tolerance", type=float, default=None, metavar="R",
-                   help="uncertainty: relative standard uncertainty of each light's intensity")
-    p.add_argument("--pixel-size-tolerance", type=float, default=None, metavar="R",
-                   help="uncertainty: relative standard uncertainty of the pixel size")
-    p.add_argument("--uncertainty", choices=("linear", "montecarlo"), default=None,
-                   help="state each imperfection's expanded uncertainty U (k = 2) by this method; on by "
-                   "default (linear) when spec.json asks for guard_band or a tolerance is given")
+    add_uncertainty_options(
+        p, note="Each imperfection's expanded uncertainty U (k = 2) goes into result.json; the guard_band "
+        "rule needs it.",
+        method_help="state each imperfection's expanded uncertainty U (k = 2) by this method; on by default "
+        "(linear) when spec.json asks for guard_band or a tolerance is given")
 
 
 _TOLERANCES = ("noise_sigma", "light_position_tolerance_mm", "light_tolerance_deg", "intensity_tolerance",
-               "pixel_size_tolerance")
+               "pixel_size_tolerance", "mc_samples")
 
 
 def _options(args: argparse.Namespace) -> dict:

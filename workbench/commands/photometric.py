@@ -39,11 +39,26 @@ def _camera_options(args: argparse.Namespace) -> dict:
             "camera_height_mm": args.camera_height, "principal_point_px": pp}
 
 
-def _add_uncertainty(p: argparse.ArgumentParser) -> None:
-    g = p.add_argument_group(
-        "uncertainty (GUM, k = 2)",
-        "Any of these options adds p_u.npy, q_u.npy, height_u.npy (standard uncertainties), uncertainty.json "
-        "(the budget of every defect figure) and uncertainty_k2 per defect in defects.json; needs the pixel size.")
+#: what the uncertainty options add to ``photometric reconstruct``'s result folder
+UNCERTAINTY_NOTE = ("Any of these options adds p_u.npy, q_u.npy, height_u.npy (standard uncertainties), "
+                    "uncertainty.json (the budget of every defect figure) and uncertainty_k2 per defect in "
+                    "defects.json; needs the pixel size.")
+
+
+def add_uncertainty_options(p: argparse.ArgumentParser, note: str = UNCERTAINTY_NOTE,
+                            method_help: str | None = None) -> None:
+    """Add the GUM uncertainty options (one group) to a command's parser.
+
+    Parameters
+    ----------
+    p : argparse.ArgumentParser
+        The command's parser (``photometric reconstruct``, ``inspect run|watch``).
+    note : str
+        The group's description: what the options add to the command's output.
+    method_help : str, optional
+        Help of ``--uncertainty`` (default: the choice of propagation).
+    """
+    g = p.add_argument_group("uncertainty (GUM, k = 2)", note)
     g.add_argument("--noise-sigma", type=float, default=None, metavar="S",
                    help="image noise, standard deviation in full-scale units 0-1 (default: estimated from the "
                    "residuals with 4 or more lights, none with a triad)")
@@ -56,8 +71,8 @@ def _add_uncertainty(p: argparse.ArgumentParser) -> None:
     g.add_argument("--pixel-size-tolerance", type=float, default=None, metavar="R",
                    help="relative standard uncertainty of the pixel size")
     g.add_argument("--uncertainty", default=None, choices=("linear", "montecarlo"),
-                   help="propagation: linear (default; closed form) or montecarlo (repeat the fast solve with "
-                   "perturbed inputs)")
+                   help=method_help or "propagation: linear (default; closed form) or montecarlo (repeat the "
+                   "fast solve with perturbed inputs)")
     g.add_argument("--mc-samples", type=int, default=None, metavar="N",
                    help="Monte Carlo repetitions (default 50)")
 
@@ -194,7 +209,7 @@ def register(sub) -> None:
                    help="mesh subdivisions per (largest) patch side (default min(step, 8))")
     p.add_argument("--background", default="plane", choices=("plane", "smooth"),
                    help="background removed before measuring defects (default plane)")
-    _add_uncertainty(p)
+    add_uncertainty_options(p)
     p.set_defaults(func=_reconstruct)
 
     c = sub.add_parser(
