@@ -396,3 +396,30 @@ def test_blas_thread_count_is_restored():
     r, c = np.mgrid[0:32, 0:32]
     fit_height(0.5 * c - 0.25 * r, np.full((32, 32), 0.5), np.full((32, 32), 0.25))
     assert blas_threads() == before
+
+
+def test_default_tolerance_stays_above_the_height_noise():
+    """A noisy measured height is fitted with large patches, not chased down to single pixels."""
+    from surfaces.fit import MIN_TOLERANCE_PX, NOISE_TOLERANCE, height_noise
+
+    rng = np.random.default_rng(3)
+    r, c = np.mgrid[0:256, 0:256].astype(float)
+    clean = 0.002 * c - 0.001 * r
+    noisy = clean + rng.normal(0.0, 0.004, clean.shape)
+    p, q = np.full(clean.shape, 0.002), np.full(clean.shape, 0.001)
+    quiet = fit_height(clean, p, q)
+    assert quiet.tolerance == pytest.approx(max(0.005 * np.ptp(np.percentile(clean, [0.5, 99.5])),
+                                                MIN_TOLERANCE_PX))
+    fit = fit_height(noisy, p, q)
+    sigma = height_noise(noisy, np.ones(clean.shape, bool), fit.step / 2.0)
+    assert 0.003 < sigma < 0.005
+    assert fit.tolerance == pytest.approx(NOISE_TOLERANCE * sigma)
+    # hardly a cell chases the noise (a few pixels beyond 4 sigma refine theirs); at the
+    # tolerance without the noise floor the fit breaks up into many more patches
+    sizes = fit.patch_sizes()
+    assert sizes[fit.step] * fit.step**2 >= 0.95 * clean.size
+    chased = fit_height(noisy, p, q, tolerance=quiet.tolerance)
+    assert chased.patches.n_patches > 5 * fit.patches.n_patches
+    # and the surface follows the plane more closely than the noisy heights do
+    off_plane = (fit.deviation + (noisy - clean))[fit.region]  # deviation = surface - noisy height
+    assert np.sqrt(np.mean(off_plane**2)) < 0.7 * np.sqrt(np.mean((noisy - clean) ** 2))
