@@ -152,10 +152,47 @@ def _segment_hits(p: np.ndarray, q: np.ndarray, tri: np.ndarray, eps: float) -> 
     return ok & (u > eps) & (v > eps) & (u + v < 1 - eps) & (t > eps) & (t < 1 - eps)
 
 
-def _pairs_intersect(ta: np.ndarray, tb: np.ndarray, ia: np.ndarray, ib: np.ndarray, eps: float) -> np.ndarray:
-    """Narrow phase for pairs of triangles (corners (N, 3, 3), indices (N, 3))."""
+def _one_side(corners: np.ndarray, origin: np.ndarray, normal: np.ndarray, tol: np.ndarray,
+              shared: np.ndarray) -> np.ndarray:
+    """Whether every corner (N, 3, 3) not ``shared`` (N, 3) lies beyond ``tol`` (N,) on one side of a plane.
+
+    The plane passes through ``origin`` (N, 3) with ``normal`` (N, 3, not unit; ``tol`` in the
+    same scale). No segment between two such corners crosses the plane, so no edge of the
+    triangle can pierce the other one.
+    """
+    d = np.einsum("nij,nj->ni", corners - origin[:, None], normal)
+    return np.all((d > tol[:, None]) | shared, axis=1) | np.all((d < -tol[:, None]) | shared, axis=1)
+
+
+def _pairs_intersect(ta: np.ndarray, tb: np.ndarray, ia: np.ndarray, ib: np.ndarray, eps: float,
+                     na: np.ndarray, nb: np.ndarray, size: np.ndarray) -> np.ndarray:
+    """Narrow phase for pairs of triangles (corners (N, 3, 3), indices (N, 3), normals (N, 3) of
+    length twice the area, ``size`` (N,) the pair's extent)."""
     same = ia[:, :, None] == ib[:, None, :]  # (N, 3, 3): corner i of a equals corner j of b
-    n_shared = same.any(axis=2).sum(axis=1)
+    in_b, in_a = same.any(axis=2), same.any(axis=1)
+    n_shared = in_b.sum(axis=1)
+    hit = np.zeros(len(ta), dtype=bool)
+    # plane test first (Moller 1997): an edge of one triangle can pierce the other only if the
+    # triangle's corners (the shared one aside) straddle the other's plane; for pairs apart, a
+    # crossing needs both to straddle, for pairs sharing a corner one straddling opposite edge
+    maybe = n_shared < 2
+    if maybe.any():
+        k = np.flatnonzero(maybe)
+        # a tolerance far above the rounding of the distances, far below any crossing the segment tests accept
+        tol = (eps * 1e-3) * size[k]
+        a_apart = _one_side(ta[k], tb[k, 0], nb[k], tol * np.linalg.norm(nb[k], axis=1), in_b[k])
+        b_apart = _one_side(tb[k], ta[k, 0], na[k], tol * np.linalg.norm(na[k], axis=1), in_a[k])
+        maybe[k] = np.where(n_shared[k] == 0, ~(a_apart | b_apart), ~(a_apart & b_apart))
+    if not maybe.any():
+        return hit
+    sub = np.flatnonzero(maybe)
+    hit[sub] = _pairs_intersect_exact(ta[sub], tb[sub], same[sub], n_shared[sub], eps)
+    return hit
+
+
+def _pairs_intersect_exact(ta: np.ndarray, tb: np.ndarray, same: np.ndarray, n_shared: np.ndarray,
+                           eps: float) -> np.ndarray:
+    """Segment-triangle tests for pairs of triangles (corners (N, 3, 3), shared corners (N, 3, 3))."""
     hit = np.zeros(len(ta), dtype=bool)
     free = n_shared == 0
     if free.any():
@@ -217,7 +254,8 @@ def self_intersections(vertices, triangles, *, eps: float = 1e-9) -> SelfInterse
     faces = np.zeros(len(t), dtype=bool)
     # degenerate (zero-area) faces cannot be pierced in the interior; they are left out
     corners = v[t]
-    area2 = np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1)
+    normal = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    area2 = np.linalg.norm(normal, axis=1)
     size = np.ptp(corners, axis=1).max(axis=1)
     good = np.flatnonzero(area2 > 1e-12 * np.maximum(size, 1e-300) ** 2)
     pairs = candidate_pairs(corners[good])
@@ -225,7 +263,8 @@ def self_intersections(vertices, triangles, *, eps: float = 1e-9) -> SelfInterse
     found = []
     for i in range(0, len(pairs), _BLOCK):
         p = pairs[i:i + _BLOCK]
-        hit = _pairs_intersect(corners[p[:, 0]], corners[p[:, 1]], t[p[:, 0]], t[p[:, 1]], eps)
+        hit = _pairs_intersect(corners[p[:, 0]], corners[p[:, 1]], t[p[:, 0]], t[p[:, 1]], eps,
+                               normal[p[:, 0]], normal[p[:, 1]], size[p[:, 0]] + size[p[:, 1]])
         found.append(p[hit])
     hits = np.concatenate(found) if found else np.zeros((0, 2), dtype=np.int64)
     faces[hits.ravel()] = True
