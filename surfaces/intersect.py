@@ -115,6 +115,8 @@ def candidate_pairs(corners: np.ndarray) -> np.ndarray:
     n_after = np.maximum(end - np.arange(len(key)) - 1, 0)
     # raw pairs are made block by block of rows, so memory stays bounded however many there are
     bounds = np.searchsorted(np.cumsum(n_after), np.arange(_BLOCK, int(n_after.sum()) + _BLOCK, _BLOCK))
+    cx, cy = c0[:, 0].copy(), c0[:, 1].copy()
+    axes = [(lo[:, k].copy(), hi[:, k].copy()) for k in range(3)]
     found = []
     start = 0
     for stop in np.unique(np.minimum(np.append(bounds + 1, len(key)), len(key))):
@@ -122,14 +124,16 @@ def candidate_pairs(corners: np.ndarray) -> np.ndarray:
         k = n_after[rows]
         first = np.repeat(rows, k)
         offset = np.arange(len(first)) - np.repeat(np.cumsum(k) - k, k)
-        a, b, pair_cell = tri[first], tri[first + 1 + offset], key[first]
-        a, b = np.minimum(a, b), np.maximum(a, b)
-        keep = np.all((lo[a] <= hi[b]) & (lo[b] <= hi[a]), axis=1)
-        a, b, pair_cell = a[keep], b[keep], pair_cell[keep]
-        corner = np.maximum(c0[a], c0[b])
+        a, b = tri[first], tri[first + 1 + offset]
         # boxes that meet in several cells: the pair is kept once, in the cell of the overlap's low corner
-        keep = corner[:, 0] * width + corner[:, 1] == pair_cell
-        found.append(np.stack([a[keep], b[keep]], axis=1))
+        # (tested first: most raw rows are such repeats, and the test needs two integer columns only)
+        keep = np.maximum(cx[a], cx[b]) * width + np.maximum(cy[a], cy[b]) == key[first]
+        a, b = a[keep], b[keep]
+        keep = np.ones(len(a), dtype=bool)
+        for lo_k, hi_k in axes:
+            keep &= (lo_k[a] <= hi_k[b]) & (lo_k[b] <= hi_k[a])
+        a, b = a[keep], b[keep]
+        found.append(np.stack([np.minimum(a, b), np.maximum(a, b)], axis=1))
         start = stop
     return np.concatenate(found) if found else np.zeros((0, 2), dtype=np.int64)
 
