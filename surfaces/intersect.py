@@ -156,41 +156,52 @@ def _segment_hits(p: np.ndarray, q: np.ndarray, tri: np.ndarray, eps: float) -> 
     return ok & (u > eps) & (v > eps) & (u + v < 1 - eps) & (t > eps) & (t < 1 - eps)
 
 
-def _one_side(corners: np.ndarray, origin: np.ndarray, normal: np.ndarray, tol: np.ndarray,
+def _one_side(corners: np.ndarray, face: np.ndarray, plane: np.ndarray, tol: np.ndarray,
               shared: np.ndarray) -> np.ndarray:
-    """Whether every corner (N, 3, 3) not ``shared`` (N, 3) lies beyond ``tol`` (N,) on one side of a plane.
+    """Whether the corners of ``face`` (P,), the ``shared`` ones (P, 3) aside, lie beyond ``tol`` on one side.
 
-    The plane passes through ``origin`` (N, 3) with ``normal`` (N, 3, not unit; ``tol`` in the
-    same scale). No segment between two such corners crosses the plane, so no edge of the
-    triangle can pierce the other one.
+    ``corners`` (T, 3, 3) and ``plane`` (T, 5: normal of length twice the area, the plane's
+    offset along it, the normal's length) are per face; ``plane`` is gathered for the other triangle of every pair.
+    No segment between two such corners crosses the plane, so no edge of ``face`` can pierce the
+    other triangle.
     """
-    d = np.einsum("nij,nj->ni", corners - origin[:, None], normal)
-    return np.all((d > tol[:, None]) | shared, axis=1) | np.all((d < -tol[:, None]) | shared, axis=1)
+    c = corners[face]
+    pos = neg = None
+    for i in range(3):
+        d = c[:, i, 0] * plane[:, 0] + c[:, i, 1] * plane[:, 1] + c[:, i, 2] * plane[:, 2] - plane[:, 3]
+        p_i, n_i = (d > tol) | shared[:, i], (d < -tol) | shared[:, i]
+        pos, neg = (p_i, n_i) if pos is None else (pos & p_i, neg & n_i)
+    return pos | neg
 
 
-def _pairs_intersect(ta: np.ndarray, tb: np.ndarray, ia: np.ndarray, ib: np.ndarray, eps: float,
-                     na: np.ndarray, nb: np.ndarray, size: np.ndarray) -> np.ndarray:
-    """Narrow phase for pairs of triangles (corners (N, 3, 3), indices (N, 3), normals (N, 3) of
-    length twice the area, ``size`` (N,) the pair's extent)."""
-    same = ia[:, :, None] == ib[:, None, :]  # (N, 3, 3): corner i of a equals corner j of b
-    in_b, in_a = same.any(axis=2), same.any(axis=1)
-    n_shared = in_b.sum(axis=1)
-    hit = np.zeros(len(ta), dtype=bool)
+def _pairs_intersect(corners: np.ndarray, t: np.ndarray, plane: np.ndarray, tol: np.ndarray,
+                     a: np.ndarray, b: np.ndarray, eps: float) -> np.ndarray:
+    """Narrow phase for pairs ``a``, ``b`` (P,) of faces: which intersect.
+
+    ``corners`` (T, 3, 3), ``t`` (T, 3) vertex indices, ``plane`` (T, 5) normals (length twice
+    the area), offsets and normal lengths, ``tol`` (T,) relative plane-distance tolerances, all per face.
+    """
+    ia, ib = t[a], t[b]
+    # corner i of a is a corner of b (and the other way round)
+    in_b = np.stack([(ia[:, i] == ib[:, 0]) | (ia[:, i] == ib[:, 1]) | (ia[:, i] == ib[:, 2]) for i in range(3)], 1)
+    in_a = np.stack([(ib[:, j] == ia[:, 0]) | (ib[:, j] == ia[:, 1]) | (ib[:, j] == ia[:, 2]) for j in range(3)], 1)
+    n_shared = in_b[:, 0].astype(np.int8) + in_b[:, 1] + in_b[:, 2]
+    hit = np.zeros(len(a), dtype=bool)
     # plane test first (Moller 1997): an edge of one triangle can pierce the other only if the
     # triangle's corners (the shared one aside) straddle the other's plane; for pairs apart, a
-    # crossing needs both to straddle, for pairs sharing a corner one straddling opposite edge
-    maybe = n_shared < 2
-    if maybe.any():
-        k = np.flatnonzero(maybe)
-        # a tolerance far above the rounding of the distances, far below any crossing the segment tests accept
-        tol = (eps * 1e-3) * size[k]
-        a_apart = _one_side(ta[k], tb[k, 0], nb[k], tol * np.linalg.norm(nb[k], axis=1), in_b[k])
-        b_apart = _one_side(tb[k], ta[k, 0], na[k], tol * np.linalg.norm(na[k], axis=1), in_a[k])
-        maybe[k] = np.where(n_shared[k] == 0, ~(a_apart | b_apart), ~(a_apart & b_apart))
-    if not maybe.any():
+    # crossing needs both to straddle, for pairs sharing a corner one straddling opposite edge;
+    # neighbours across an edge never count
+    k = np.flatnonzero(n_shared < 2)
+    if not len(k):
         return hit
-    sub = np.flatnonzero(maybe)
-    hit[sub] = _pairs_intersect_exact(ta[sub], tb[sub], same[sub], n_shared[sub], eps)
+    ak, bk = a[k], b[k]
+    tol_k = tol[ak] + tol[bk]
+    a_apart = _one_side(corners, ak, plane[bk], tol_k * plane[bk, 4], in_b[k])
+    b_apart = _one_side(corners, bk, plane[ak], tol_k * plane[ak, 4], in_a[k])
+    sub = k[np.where(n_shared[k] == 0, ~(a_apart | b_apart), ~(a_apart & b_apart))]
+    if len(sub):
+        same = ia[sub][:, :, None] == ib[sub][:, None, :]  # (N, 3, 3): corner i of a equals corner j of b
+        hit[sub] = _pairs_intersect_exact(corners[a[sub]], corners[b[sub]], same, n_shared[sub], eps)
     return hit
 
 
@@ -261,14 +272,17 @@ def self_intersections(vertices, triangles, *, eps: float = 1e-9) -> SelfInterse
     normal = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
     area2 = np.linalg.norm(normal, axis=1)
     size = np.ptp(corners, axis=1).max(axis=1)
+    # per face: normal, offset, |normal| (the plane test's scale)
+    plane = np.column_stack([normal, np.einsum("ij,ij->i", normal, corners[:, 0]), area2])
+    # a plane-distance tolerance far above rounding, far below any crossing the segment tests accept
+    tol = (eps * 1e-3) * size
     good = np.flatnonzero(area2 > 1e-12 * np.maximum(size, 1e-300) ** 2)
     pairs = candidate_pairs(corners[good])
     pairs = good[pairs] if len(pairs) else pairs
     found = []
     for i in range(0, len(pairs), _BLOCK):
         p = pairs[i:i + _BLOCK]
-        hit = _pairs_intersect(corners[p[:, 0]], corners[p[:, 1]], t[p[:, 0]], t[p[:, 1]], eps,
-                               normal[p[:, 0]], normal[p[:, 1]], size[p[:, 0]] + size[p[:, 1]])
+        hit = _pairs_intersect(corners, t, plane, tol, p[:, 0], p[:, 1], eps)
         found.append(p[hit])
     hits = np.concatenate(found) if found else np.zeros((0, 2), dtype=np.int64)
     faces[hits.ravel()] = True
