@@ -230,7 +230,7 @@ def _pairs_intersect_exact(ta: np.ndarray, tb: np.ndarray, same: np.ndarray, n_s
     return hit
 
 
-def self_intersections(vertices, triangles, *, eps: float = 1e-9) -> SelfIntersections:
+def self_intersections(vertices, triangles, *, eps: float = 1e-9, first: bool = False) -> SelfIntersections:
     """Faces of a triangle mesh that intersect other faces.
 
     Parameters
@@ -242,6 +242,10 @@ def self_intersections(vertices, triangles, *, eps: float = 1e-9) -> SelfInterse
     eps : float
         Relative tolerance of the segment-triangle tests (barycentric and
         segment parameters); contacts within it do not count.
+    first : bool
+        Stop at the first block of candidate pairs that holds an intersection
+        (whether the mesh folds at all): ``faces`` and ``pairs`` then hold some
+        of the intersections, not necessarily all; 0 faces still means none.
 
     Returns
     -------
@@ -284,6 +288,8 @@ def self_intersections(vertices, triangles, *, eps: float = 1e-9) -> SelfInterse
         p = pairs[i:i + _BLOCK]
         hit = _pairs_intersect(corners, t, plane, tol, p[:, 0], p[:, 1], eps)
         found.append(p[hit])
+        if first and hit.any():
+            break
     hits = np.concatenate(found) if found else np.zeros((0, 2), dtype=np.int64)
     faces[hits.ravel()] = True
     return SelfIntersections(faces, hits, int(len(pairs)))
