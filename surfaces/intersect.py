@@ -157,8 +157,10 @@ def _segment_hits(p: np.ndarray, q: np.ndarray, tri: np.ndarray, eps: float) -> 
 
 
 def _one_side(corners: np.ndarray, face: np.ndarray, plane: np.ndarray, tol: np.ndarray,
-              shared: np.ndarray) -> np.ndarray:
+              shared: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Whether the corners of ``face`` (P,), the ``shared`` ones (P, 3) aside, lie beyond ``tol`` on one side.
+
+    Also returns the side of every corner (P, 3) int8: +1 or -1 beyond ``tol``, 0 within it.
 
     ``corners`` (T, 3, 3) and ``plane`` (T, 5: normal of length twice the area, the plane's
     offset along it, the normal's length) are per face; ``plane`` is gathered for the other triangle of every pair.
@@ -167,11 +169,14 @@ def _one_side(corners: np.ndarray, face: np.ndarray, plane: np.ndarray, tol: np.
     """
     c = corners[face]
     pos = neg = None
+    side = np.zeros((len(face), 3), dtype=np.int8)
     for i in range(3):
         d = c[:, i, 0] * plane[:, 0] + c[:, i, 1] * plane[:, 1] + c[:, i, 2] * plane[:, 2] - plane[:, 3]
-        p_i, n_i = (d > tol) | shared[:, i], (d < -tol) | shared[:, i]
+        above, below = d > tol, d < -tol
+        side[:, i] = above.astype(np.int8) - below
+        p_i, n_i = above | shared[:, i], below | shared[:, i]
         pos, neg = (p_i, n_i) if pos is None else (pos & p_i, neg & n_i)
-    return pos | neg
+    return pos | neg, side
 
 
 def _pairs_intersect(corners: np.ndarray, t: np.ndarray, plane: np.ndarray, tol: np.ndarray,
@@ -196,36 +201,54 @@ def _pairs_intersect(corners: np.ndarray, t: np.ndarray, plane: np.ndarray, tol:
         return hit
     ak, bk = a[k], b[k]
     tol_k = tol[ak] + tol[bk]
-    a_apart = _one_side(corners, ak, plane[bk], tol_k * plane[bk, 4], in_b[k])
-    b_apart = _one_side(corners, bk, plane[ak], tol_k * plane[ak, 4], in_a[k])
-    sub = k[np.where(n_shared[k] == 0, ~(a_apart | b_apart), ~(a_apart & b_apart))]
+    a_apart, side_a = _one_side(corners, ak, plane[bk], tol_k * plane[bk, 4], in_b[k])
+    b_apart, side_b = _one_side(corners, bk, plane[ak], tol_k * plane[ak, 4], in_a[k])
+    keep = np.where(n_shared[k] == 0, ~(a_apart | b_apart), ~(a_apart & b_apart))
+    sub = k[keep]
     if len(sub):
         same = ia[sub][:, :, None] == ib[sub][:, None, :]  # (N, 3, 3): corner i of a equals corner j of b
-        hit[sub] = _pairs_intersect_exact(corners[a[sub]], corners[b[sub]], same, n_shared[sub], eps)
+        hit[sub] = _pairs_intersect_exact(corners[a[sub]], corners[b[sub]], same, n_shared[sub], eps,
+                                          side_a[keep], side_b[keep])
     return hit
 
 
+def _edge_hits(p: np.ndarray, q: np.ndarray, tri: np.ndarray, crosses: np.ndarray, eps: float) -> np.ndarray:
+    """:func:`_segment_hits` on the rows where the segment ``crosses`` (N,) the triangle's plane; False elsewhere."""
+    h = np.zeros(len(p), dtype=bool)
+    m = np.flatnonzero(crosses)
+    if len(m):
+        h[m] = _segment_hits(p[m], q[m], tri[m], eps)
+    return h
+
+
 def _pairs_intersect_exact(ta: np.ndarray, tb: np.ndarray, same: np.ndarray, n_shared: np.ndarray,
-                           eps: float) -> np.ndarray:
-    """Segment-triangle tests for pairs of triangles (corners (N, 3, 3), shared corners (N, 3, 3))."""
+                           eps: float, side_a: np.ndarray, side_b: np.ndarray) -> np.ndarray:
+    """Segment-triangle tests for pairs of triangles (corners (N, 3, 3), shared corners (N, 3, 3)).
+
+    ``side_a`` (N, 3) is the side of a's corners of b's plane (+1, -1, or 0 on it), ``side_b`` the
+    other way round: an edge whose ends lie beyond the plane on one side cannot cross the triangle.
+    """
     hit = np.zeros(len(ta), dtype=bool)
     free = n_shared == 0
     if free.any():
-        a, b = ta[free], tb[free]
+        a, b, sa, sb = ta[free], tb[free], side_a[free], side_b[free]
         h = np.zeros(len(a), dtype=bool)
         for k in range(3):
-            h |= _segment_hits(a[:, k], a[:, (k + 1) % 3], b, eps)
-            h |= _segment_hits(b[:, k], b[:, (k + 1) % 3], a, eps)
+            n = (k + 1) % 3
+            h |= _edge_hits(a[:, k], a[:, n], b, sa[:, k] * sa[:, n] <= 0, eps)
+            h |= _edge_hits(b[:, k], b[:, n], a, sb[:, k] * sb[:, n] <= 0, eps)
         hit[free] = h
     one = n_shared == 1
     if one.any():
         a, b, s = ta[one], tb[one], same[one]
+        side1, side2 = side_a[one], side_b[one]
         rows = np.arange(len(a))
         sa = np.argmax(s.any(axis=2), axis=1)  # shared corner of a
         sb = np.argmax(s.any(axis=1), axis=1)  # shared corner of b
         # the edge opposite the shared corner
-        h = _segment_hits(a[rows, (sa + 1) % 3], a[rows, (sa + 2) % 3], b, eps)
-        h |= _segment_hits(b[rows, (sb + 1) % 3], b[rows, (sb + 2) % 3], a, eps)
+        a1, a2, b1, b2 = (sa + 1) % 3, (sa + 2) % 3, (sb + 1) % 3, (sb + 2) % 3
+        h = _edge_hits(a[rows, a1], a[rows, a2], b, side1[rows, a1] * side1[rows, a2] <= 0, eps)
+        h |= _edge_hits(b[rows, b1], b[rows, b2], a, side2[rows, b1] * side2[rows, b2] <= 0, eps)
         hit[one] = h
     return hit
 
