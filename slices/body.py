@@ -169,7 +169,7 @@ def build_body(body: Body, spacing: float, options: SurfaceOptions | None = None
     first = build_body_once(body, spacing, opts, mesh=mesh)
     if not (mesh and opts.unfold):
         return first
-    best = None
+    folded = []
     for i, (name, change) in enumerate(FALLBACKS):
         if i and opts.method != "blending":
             break
@@ -177,13 +177,16 @@ def build_body(body: Body, spacing: float, options: SurfaceOptions | None = None
                                                                                  if k != "method"}),
                                                  mesh=True, ruled=change.get("method") == "ruled")
         b.surface = name if i else f"{opts.method} ({opts.correspondence})"
-        # the mesh as written: a blend can fold inside a patch, below any coarser check's resolution
+        # the mesh as written: a blend can fold inside a patch, below any coarser check's resolution;
+        # a surface that folds is passed over at its first fold, its folds are counted only if all fold
+        if self_intersections(b.mesh.vertices, b.mesh.triangles, first=True).n_faces == 0:
+            b.self_intersecting_faces = 0
+            return b
+        folded.append(b)
+    for b in folded:
         b.self_intersecting_faces = self_intersections(b.mesh.vertices, b.mesh.triangles).n_faces
-        if best is None or b.self_intersecting_faces < best.self_intersecting_faces:
-            best = b
-        if best.self_intersecting_faces == 0:
-            break
-    return best
+    # the first of the fewest folded faces
+    return min(folded, key=lambda b: b.self_intersecting_faces)
 
 
 def build_body_once(body: Body, spacing: float, options: SurfaceOptions | None = None,

@@ -115,6 +115,8 @@ def candidate_pairs(corners: np.ndarray) -> np.ndarray:
     n_after = np.maximum(end - np.arange(len(key)) - 1, 0)
     # raw pairs are made block by block of rows, so memory stays bounded however many there are
     bounds = np.searchsorted(np.cumsum(n_after), np.arange(_BLOCK, int(n_after.sum()) + _BLOCK, _BLOCK))
+    cx, cy = c0[:, 0].copy(), c0[:, 1].copy()
+    axes = [(lo[:, k].copy(), hi[:, k].copy()) for k in range(3)]
     found = []
     start = 0
     for stop in np.unique(np.minimum(np.append(bounds + 1, len(key)), len(key))):
@@ -122,14 +124,16 @@ def candidate_pairs(corners: np.ndarray) -> np.ndarray:
         k = n_after[rows]
         first = np.repeat(rows, k)
         offset = np.arange(len(first)) - np.repeat(np.cumsum(k) - k, k)
-        a, b, pair_cell = tri[first], tri[first + 1 + offset], key[first]
-        a, b = np.minimum(a, b), np.maximum(a, b)
-        keep = np.all((lo[a] <= hi[b]) & (lo[b] <= hi[a]), axis=1)
-        a, b, pair_cell = a[keep], b[keep], pair_cell[keep]
-        corner = np.maximum(c0[a], c0[b])
+        a, b = tri[first], tri[first + 1 + offset]
         # boxes that meet in several cells: the pair is kept once, in the cell of the overlap's low corner
-        keep = corner[:, 0] * width + corner[:, 1] == pair_cell
-        found.append(np.stack([a[keep], b[keep]], axis=1))
+        # (tested first: most raw rows are such repeats, and the test needs two integer columns only)
+        keep = np.maximum(cx[a], cx[b]) * width + np.maximum(cy[a], cy[b]) == key[first]
+        a, b = a[keep], b[keep]
+        keep = np.ones(len(a), dtype=bool)
+        for lo_k, hi_k in axes:
+            keep &= (lo_k[a] <= hi_k[b]) & (lo_k[b] <= hi_k[a])
+        a, b = a[keep], b[keep]
+        found.append(np.stack([np.minimum(a, b), np.maximum(a, b)], axis=1))
         start = stop
     return np.concatenate(found) if found else np.zeros((0, 2), dtype=np.int64)
 
@@ -152,33 +156,104 @@ def _segment_hits(p: np.ndarray, q: np.ndarray, tri: np.ndarray, eps: float) -> 
     return ok & (u > eps) & (v > eps) & (u + v < 1 - eps) & (t > eps) & (t < 1 - eps)
 
 
-def _pairs_intersect(ta: np.ndarray, tb: np.ndarray, ia: np.ndarray, ib: np.ndarray, eps: float) -> np.ndarray:
-    """Narrow phase for pairs of triangles (corners (N, 3, 3), indices (N, 3))."""
-    same = ia[:, :, None] == ib[:, None, :]  # (N, 3, 3): corner i of a equals corner j of b
-    n_shared = same.any(axis=2).sum(axis=1)
+def _one_side(corners: np.ndarray, face: np.ndarray, plane: np.ndarray, tol: np.ndarray,
+              shared: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Whether the corners of ``face`` (P,), the ``shared`` ones (P, 3) aside, lie beyond ``tol`` on one side.
+
+    Also returns the side of every corner (P, 3) int8: +1 or -1 beyond ``tol``, 0 within it.
+
+    ``corners`` (T, 3, 3) and ``plane`` (T, 5: normal of length twice the area, the plane's
+    offset along it, the normal's length) are per face; ``plane`` is gathered for the other triangle of every pair.
+    No segment between two such corners crosses the plane, so no edge of ``face`` can pierce the
+    other triangle.
+    """
+    c = corners[face]
+    pos = neg = None
+    side = np.zeros((len(face), 3), dtype=np.int8)
+    for i in range(3):
+        d = c[:, i, 0] * plane[:, 0] + c[:, i, 1] * plane[:, 1] + c[:, i, 2] * plane[:, 2] - plane[:, 3]
+        above, below = d > tol, d < -tol
+        side[:, i] = above.astype(np.int8) - below
+        p_i, n_i = above | shared[:, i], below | shared[:, i]
+        pos, neg = (p_i, n_i) if pos is None else (pos & p_i, neg & n_i)
+    return pos | neg, side
+
+
+def _pairs_intersect(corners: np.ndarray, t: np.ndarray, plane: np.ndarray, tol: np.ndarray,
+                     a: np.ndarray, b: np.ndarray, eps: float) -> np.ndarray:
+    """Narrow phase for pairs ``a``, ``b`` (P,) of faces: which intersect.
+
+    ``corners`` (T, 3, 3), ``t`` (T, 3) vertex indices, ``plane`` (T, 5) normals (length twice
+    the area), offsets and normal lengths, ``tol`` (T,) relative plane-distance tolerances, all per face.
+    """
+    ia, ib = t[a], t[b]
+    # corner i of a is a corner of b (and the other way round)
+    in_b = np.stack([(ia[:, i] == ib[:, 0]) | (ia[:, i] == ib[:, 1]) | (ia[:, i] == ib[:, 2]) for i in range(3)], 1)
+    in_a = np.stack([(ib[:, j] == ia[:, 0]) | (ib[:, j] == ia[:, 1]) | (ib[:, j] == ia[:, 2]) for j in range(3)], 1)
+    n_shared = in_b[:, 0].astype(np.int8) + in_b[:, 1] + in_b[:, 2]
+    hit = np.zeros(len(a), dtype=bool)
+    # plane test first (Moller 1997): an edge of one triangle can pierce the other only if the
+    # triangle's corners (the shared one aside) straddle the other's plane; for pairs apart, a
+    # crossing needs both to straddle, for pairs sharing a corner one straddling opposite edge;
+    # neighbours across an edge never count
+    k = np.flatnonzero(n_shared < 2)
+    if not len(k):
+        return hit
+    ak, bk = a[k], b[k]
+    tol_k = tol[ak] + tol[bk]
+    a_apart, side_a = _one_side(corners, ak, plane[bk], tol_k * plane[bk, 4], in_b[k])
+    b_apart, side_b = _one_side(corners, bk, plane[ak], tol_k * plane[ak, 4], in_a[k])
+    keep = np.where(n_shared[k] == 0, ~(a_apart | b_apart), ~(a_apart & b_apart))
+    sub = k[keep]
+    if len(sub):
+        same = ia[sub][:, :, None] == ib[sub][:, None, :]  # (N, 3, 3): corner i of a equals corner j of b
+        hit[sub] = _pairs_intersect_exact(corners[a[sub]], corners[b[sub]], same, n_shared[sub], eps,
+                                          side_a[keep], side_b[keep])
+    return hit
+
+
+def _edge_hits(p: np.ndarray, q: np.ndarray, tri: np.ndarray, crosses: np.ndarray, eps: float) -> np.ndarray:
+    """:func:`_segment_hits` on the rows where the segment ``crosses`` (N,) the triangle's plane; False elsewhere."""
+    h = np.zeros(len(p), dtype=bool)
+    m = np.flatnonzero(crosses)
+    if len(m):
+        h[m] = _segment_hits(p[m], q[m], tri[m], eps)
+    return h
+
+
+def _pairs_intersect_exact(ta: np.ndarray, tb: np.ndarray, same: np.ndarray, n_shared: np.ndarray,
+                           eps: float, side_a: np.ndarray, side_b: np.ndarray) -> np.ndarray:
+    """Segment-triangle tests for pairs of triangles (corners (N, 3, 3), shared corners (N, 3, 3)).
+
+    ``side_a`` (N, 3) is the side of a's corners of b's plane (+1, -1, or 0 on it), ``side_b`` the
+    other way round: an edge whose ends lie beyond the plane on one side cannot cross the triangle.
+    """
     hit = np.zeros(len(ta), dtype=bool)
     free = n_shared == 0
     if free.any():
-        a, b = ta[free], tb[free]
+        a, b, sa, sb = ta[free], tb[free], side_a[free], side_b[free]
         h = np.zeros(len(a), dtype=bool)
         for k in range(3):
-            h |= _segment_hits(a[:, k], a[:, (k + 1) % 3], b, eps)
-            h |= _segment_hits(b[:, k], b[:, (k + 1) % 3], a, eps)
+            n = (k + 1) % 3
+            h |= _edge_hits(a[:, k], a[:, n], b, sa[:, k] * sa[:, n] <= 0, eps)
+            h |= _edge_hits(b[:, k], b[:, n], a, sb[:, k] * sb[:, n] <= 0, eps)
         hit[free] = h
     one = n_shared == 1
     if one.any():
         a, b, s = ta[one], tb[one], same[one]
+        side1, side2 = side_a[one], side_b[one]
         rows = np.arange(len(a))
         sa = np.argmax(s.any(axis=2), axis=1)  # shared corner of a
         sb = np.argmax(s.any(axis=1), axis=1)  # shared corner of b
         # the edge opposite the shared corner
-        h = _segment_hits(a[rows, (sa + 1) % 3], a[rows, (sa + 2) % 3], b, eps)
-        h |= _segment_hits(b[rows, (sb + 1) % 3], b[rows, (sb + 2) % 3], a, eps)
+        a1, a2, b1, b2 = (sa + 1) % 3, (sa + 2) % 3, (sb + 1) % 3, (sb + 2) % 3
+        h = _edge_hits(a[rows, a1], a[rows, a2], b, side1[rows, a1] * side1[rows, a2] <= 0, eps)
+        h |= _edge_hits(b[rows, b1], b[rows, b2], a, side2[rows, b1] * side2[rows, b2] <= 0, eps)
         hit[one] = h
     return hit
 
 
-def self_intersections(vertices, triangles, *, eps: float = 1e-9) -> SelfIntersections:
+def self_intersections(vertices, triangles, *, eps: float = 1e-9, first: bool = False) -> SelfIntersections:
     """Faces of a triangle mesh that intersect other faces.
 
     Parameters
@@ -190,6 +265,10 @@ def self_intersections(vertices, triangles, *, eps: float = 1e-9) -> SelfInterse
     eps : float
         Relative tolerance of the segment-triangle tests (barycentric and
         segment parameters); contacts within it do not count.
+    first : bool
+        Stop at the first block of candidate pairs that holds an intersection
+        (whether the mesh folds at all): ``faces`` and ``pairs`` then hold some
+        of the intersections, not necessarily all; 0 faces still means none.
 
     Returns
     -------
@@ -217,16 +296,23 @@ def self_intersections(vertices, triangles, *, eps: float = 1e-9) -> SelfInterse
     faces = np.zeros(len(t), dtype=bool)
     # degenerate (zero-area) faces cannot be pierced in the interior; they are left out
     corners = v[t]
-    area2 = np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1)
+    normal = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    area2 = np.linalg.norm(normal, axis=1)
     size = np.ptp(corners, axis=1).max(axis=1)
+    # per face: normal, offset, |normal| (the plane test's scale)
+    plane = np.column_stack([normal, np.einsum("ij,ij->i", normal, corners[:, 0]), area2])
+    # a plane-distance tolerance far above rounding, far below any crossing the segment tests accept
+    tol = (eps * 1e-3) * size
     good = np.flatnonzero(area2 > 1e-12 * np.maximum(size, 1e-300) ** 2)
     pairs = candidate_pairs(corners[good])
     pairs = good[pairs] if len(pairs) else pairs
     found = []
     for i in range(0, len(pairs), _BLOCK):
         p = pairs[i:i + _BLOCK]
-        hit = _pairs_intersect(corners[p[:, 0]], corners[p[:, 1]], t[p[:, 0]], t[p[:, 1]], eps)
+        hit = _pairs_intersect(corners, t, plane, tol, p[:, 0], p[:, 1], eps)
         found.append(p[hit])
+        if first and hit.any():
+            break
     hits = np.concatenate(found) if found else np.zeros((0, 2), dtype=np.int64)
     faces[hits.ravel()] = True
     return SelfIntersections(faces, hits, int(len(pairs)))

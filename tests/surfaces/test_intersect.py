@@ -80,3 +80,13 @@ def test_bad_input():
     with pytest.raises(ValueError, match="vertices"):
         self_intersections(np.zeros((3, 2)), np.array([[0, 1, 2]]))
     assert self_intersections(np.zeros((0, 3)), np.zeros((0, 3), dtype=int)).n_faces == 0
+
+
+def test_first_stops_at_a_fold_and_keeps_clean_meshes_clean():
+    v1, t1 = uv_sphere(40)
+    v2, t2 = uv_sphere(40, 0.8, (1.0, 0.1, 0.05))
+    v, t = np.vstack([v1, v2]), np.vstack([t1, t2 + len(v1)])
+    full = self_intersections(v, t)
+    some = self_intersections(v, t, first=True)
+    assert 0 < some.n_faces <= full.n_faces and not np.any(some.faces & ~full.faces)
+    assert self_intersections(v1, t1, first=True).n_faces == 0
