@@ -24,8 +24,11 @@ from workbench.cli import main
 from workbench.runs.folder import COMPLETE_MARKER
 
 # Run ``workbench ARGS`` with WRITER (module.function of workbench.runs) pausing after its first call.
+# Ctrl-C as a user's terminal delivers it: a test run started in the background (a
+# non-interactive shell's `cmd &`) passes SIGINT on ignored, so the writer restores it
 PAUSING = textwrap.dedent("""
-    import sys, time, importlib
+    import sys, time, importlib, signal
+    signal.signal(signal.SIGINT, signal.default_int_handler)
     flag, module, func, *argv = sys.argv[1:]
     mod = importlib.import_module(module)
     real = getattr(mod, func)
