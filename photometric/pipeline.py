@@ -58,6 +58,7 @@ from photometric.stereo import (
     _check_images,
     _check_options,
     _solve,
+    _solve_rows,
     check_light_matrix,
     restrict,
     screen_images,
@@ -84,17 +85,18 @@ class PhotometricReconstruction:
 
     Attributes
     ----------
-    normals : numpy.ndarray, shape (H, W, 3), float32
-        Unit normals (:attr:`photometric.stereo.StereoResult.normals`).
-    albedo : numpy.ndarray, shape (H, W) or (H, W, 3), float32
-        Albedo.
+    normals : numpy.ndarray or None, shape (H, W, 3), float32
+        Unit normals (:attr:`photometric.stereo.StereoResult.normals`); None when
+        :func:`reconstruct` passed them to its ``out`` arrays.
+    albedo : numpy.ndarray or None, shape (H, W) or (H, W, 3), float32
+        Albedo; None like ``normals``.
     p, q : numpy.ndarray, shape (H, W), float32
         Slopes ``dz/dx``, ``dz/dy`` (y up); zero where not valid.
     valid : numpy.ndarray, shape (H, W), bool
         Pixels with a trustworthy normal.
     mask : numpy.ndarray, shape (H, W), bool
         The object mask of the input.
-    height : numpy.ndarray, shape (H, W), float64
+    height : numpy.ndarray, shape (H, W), float32 (far field) or float64 (near field)
         Height in mm (NaN outside the valid pixels); near-field: ``z`` of the point each
         pixel sees, in the rig frame.
     patches : surfaces.bezier.BezierPatches
@@ -132,8 +134,8 @@ class PhotometricReconstruction:
         ``uncertainty`` was given.
     """
 
-    normals: np.ndarray
-    albedo: np.ndarray
+    normals: np.ndarray | None
+    albedo: np.ndarray | None
     p: np.ndarray
     q: np.ndarray
     valid: np.ndarray
@@ -476,6 +478,7 @@ def reconstruct(
     uncertainty: Tolerances | dict | None = None,
     force: bool = False,
     progress: Callable[[str], None] | None = None,
+    out: Callable[[str, tuple[int, ...], np.dtype], object] | None = None,
 ) -> PhotometricReconstruction:
     """Run photometric stereo end to end and return every result (writes nothing).
 
@@ -558,6 +561,15 @@ def reconstruct(
     progress : callable, optional
         Called with the name of each stage as it starts (``read``, ``normals``,
         ``height``, ``surface``, ``defects``, ``uncertainty`` when asked; the command line's progress bar).
+    out : callable, optional
+        Where the normals and albedo go instead of the result (bounded memory):
+        ``out(name, shape, dtype)`` is called once for ``"normals"`` (H, W, 3) and
+        ``"albedo"`` (H, W[, 3]), both float32, and returns an object that takes the
+        rows in order by slice assignment, ``obj[rows] = block`` (an array, a memmap or
+        :func:`surfaces.io.npy_row_writer`'s writer). The far-field solve without
+        ``uncertainty`` runs in blocks of rows (:func:`photometric.stereo.solve`'s
+        ``on_block``), the image stack is dropped once solved, and the result's
+        ``normals`` and ``albedo`` are None; other solves pass their whole arrays as one block.
 
     Returns
     -------
@@ -664,14 +676,37 @@ def reconstruct(
     notes += light_notes
     for note in notes:
         warnings.warn(note, UserWarning, stacklevel=2)
+    sinks = None
+    if out is not None:
+        shape3 = (rows, cols, 3)
+        sinks = (out("normals", shape3, np.dtype(np.float32)),
+                 out("albedo", shape3 if channels == 3 else (rows, cols), np.dtype(np.float32)))
+    gt_errors: list[np.ndarray] = []
     if near is None:
-        res = _solve(data.images, data.lights, data.intensities, data.mask, outliers, dark, saturation, highlight, 2)
+        if sinks is not None and uncertainty is None:
+            def block(part_rows: slice, part) -> None:
+                if data.normal_gt is not None:
+                    gt_errors.append(angular_error_deg(part.normals, data.normal_gt[part_rows])[data.mask[part_rows]])
+                sinks[0][part_rows] = part.normals
+                sinks[1][part_rows] = part.albedo
+
+            res = _solve_rows(data.images, data.lights, data.intensities, data.mask, outliers, dark, saturation,
+                              highlight, 2, block)
+            # the image stack is not needed after the solve: the later stages fit in its place
+            data = replace(data, images=None, flat_images=None)
+        else:
+            res = _solve(data.images, data.lights, data.intensities, data.mask, outliers, dark, saturation,
+                         highlight, 2)
         res = restrict(res, screen.enough)
+        del screen
+        mean_residual = _mean_residual(res)
+        if uncertainty is None:
+            res = replace(res, residual=None)  # only its mean is reported
         timings["solve"] = time.perf_counter() - t0
 
         say("height")
         t0 = time.perf_counter()
-        height = integrate(res.p, res.q, integrator, mask=res.valid, pixel_size=h)
+        height = integrate(res.p, res.q, integrator, mask=res.valid, pixel_size=h, dtype=np.float32)
         timings["integrate"] = time.perf_counter() - t0
     else:
         base = {"input": input_info, "images": list(data.names),
@@ -684,6 +719,10 @@ def reconstruct(
         height = res.height
         timings["solve"] = res.timings_s["solve"]
         timings["integrate"] = res.timings_s["integrate"]
+        mean_residual = _mean_residual(res)
+    if sinks is not None and res.normals is not None:
+        sinks[0][0:rows] = res.normals
+        sinks[1][0:rows] = res.albedo
 
     say("surface")
     t0 = time.perf_counter()
@@ -727,7 +766,7 @@ def reconstruct(
         "mask_pixels": n_mask,
         "valid_pixels": int(res.valid.sum()),
         "invalid_fraction": float(1.0 - res.valid[data.mask].sum() / max(n_mask, 1)),
-        "mean_residual": float(res.residual[res.valid].mean()) if res.valid.any() else 0.0,
+        "mean_residual": mean_residual,
         "height_range_mm": float(np.nanmax(height) - np.nanmin(height)) if res.valid.any() else 0.0,
         "patches": list(patches.shape),
         "patch_step_px": step_px,
@@ -743,20 +782,21 @@ def reconstruct(
     if unc is not None:
         summary["uncertainty"] = unc.summary
     if data.normal_gt is not None:
-        err = angular_error_deg(res.normals, data.normal_gt)[data.mask]
+        err = np.concatenate(gt_errors) if gt_errors else angular_error_deg(res.normals, data.normal_gt)[data.mask]
         summary["mean_angular_error_deg"] = float(err.mean())
         summary["median_angular_error_deg"] = float(np.median(err))
     if height_gt is not None and np.shape(height_gt) == (rows, cols) and res.valid.any():
         v = res.valid & np.isfinite(height)
-        diff = (height[v] - height[v].mean()) - (height_gt[v] - height_gt[v].mean())
+        hv = height[v].astype(np.float64)
+        diff = (hv - hv.mean()) - (height_gt[v] - height_gt[v].mean())
         summary["height_rmse_mm"] = float(np.sqrt(np.mean(diff**2)))
         if near is not None:
-            summary["height_bias_mm"] = float(np.mean(height[v] - height_gt[v]))
+            summary["height_bias_mm"] = float(np.mean(hv - height_gt[v]))
             if xy_gt is not None and np.shape(xy_gt) == (rows, cols, 2):
                 summary["xy_rmse_mm"] = float(np.sqrt(np.mean(np.sum((res.xy[v] - xy_gt[v]) ** 2, axis=1))))
     return PhotometricReconstruction(
-        normals=res.normals,
-        albedo=res.albedo,
+        normals=None if sinks is not None else res.normals,
+        albedo=None if sinks is not None else res.albedo,
         p=res.p,
         q=res.q,
         valid=res.valid,
@@ -770,6 +810,11 @@ def reconstruct(
         xy=None if near is None else res.xy,
         uncertainty=unc,
     )
+
+
+def _mean_residual(res) -> float:
+    """Mean of a solve's residual over its valid pixels (0 when none is valid)."""
+    return float(res.residual[res.valid].mean()) if res.valid.any() else 0.0
 
 
 def _uncertainty(tol: Tolerances, data: PhotometricData, near, res, height, defects, labels, h, h_source,

@@ -10,6 +10,7 @@ Coordinates follow :data:`photometric.lights.CONVENTION`.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import cv2
@@ -29,6 +30,9 @@ BLACK_FLOOR = 0.5 / 255
 SATURATED = 1.0 - 0.5 / 255
 #: An image is unusable when at least this fraction of its mask pixels is saturated or black.
 UNUSABLE_FRACTION = 0.99
+#: Pixels per row block of a solve with ``on_block`` (:func:`solve`): the block's working
+#: arrays are a few MB, whatever the image size.
+BLOCK_PIXELS = 1 << 16
 
 
 @dataclass(frozen=True)
@@ -37,12 +41,13 @@ class StereoResult:
 
     Attributes
     ----------
-    normals : numpy.ndarray, shape (H, W, 3), float32
+    normals : numpy.ndarray or None, shape (H, W, 3), float32
         Unit normals in the lights' frame; ``(0, 0, 1)`` where no solution exists
-        (outside the mask, or zero albedo).
-    albedo : numpy.ndarray, shape (H, W) or (H, W, 3), float32
+        (outside the mask, or zero albedo). None when a solve with ``on_block`` passed
+        them on block by block.
+    albedo : numpy.ndarray or None, shape (H, W) or (H, W, 3), float32
         ``rho`` in image units divided by light intensity; RGB for colour input.
-        Zero where no solution exists.
+        Zero where no solution exists. None like ``normals``.
     valid : numpy.ndarray, shape (H, W), bool
         Inside the mask, positive albedo, normal facing the camera (``n_z > 0``), and,
         in outlier mode, at least 3 well-conditioned inlier observations (triad: none
@@ -54,11 +59,11 @@ class StereoResult:
         ``p = dz/dx = -n_x / n_z`` and ``q = dz/dy = -n_y / n_z`` (y up); zero where
         not valid.
     outliers : numpy.ndarray or None, shape (N, H, W), bool
-        Observations flagged as shadow/highlight (outlier mode only).
+        Observations flagged as shadow/highlight (outlier mode only; None with ``on_block``).
     """
 
-    normals: np.ndarray
-    albedo: np.ndarray
+    normals: np.ndarray | None
+    albedo: np.ndarray | None
     valid: np.ndarray
     residual: np.ndarray
     p: np.ndarray
@@ -316,6 +321,7 @@ def solve(
     saturation: float = 0.99,
     highlight: float | None = None,
     iterations: int = 2,
+    on_block: Callable[[slice, StereoResult], None] | None = None,
 ) -> StereoResult:
     """Per-pixel normals and albedo from N >= 3 images under known lights.
 
@@ -341,6 +347,13 @@ def solve(
     iterations : int, optional
         Detect/re-solve rounds in outlier mode (the albedo estimate improves after the
         first).
+    on_block : callable, optional
+        Solve in blocks of rows (about :data:`BLOCK_PIXELS` pixels each) and call
+        ``on_block(rows, part)`` with each block's row slice and its
+        :class:`StereoResult` (arrays of ``rows`` only) as soon as it is solved; the
+        returned result then keeps only ``valid``, ``residual``, ``p`` and ``q``
+        (normals, albedo and outlier flags are None), so the caller can stream the
+        rest to files. Every pixel is solved on its own, so the values are the same.
 
     Returns
     -------
@@ -379,6 +392,8 @@ def solve(
     if m is not None and not m.any():
         raise ValueError("mask: no pixel is selected")
     _check_options(dark, saturation, highlight, iterations)
+    if on_block is not None:
+        return _solve_rows(imgs, L, intens, m, outliers, dark, saturation, highlight, int(iterations), on_block)
     return _solve(imgs, L, intens, m, outliers, dark, saturation, highlight, int(iterations))
 
 
@@ -496,6 +511,44 @@ def _solve(
     return StereoResult(
         normals=normals, albedo=albedo, valid=ok, residual=residual, p=p, q=q, outliers=out_flags
     )
+
+
+def _solve_rows(
+    imgs: np.ndarray,
+    L: np.ndarray,
+    intens: np.ndarray,
+    m: np.ndarray | None,
+    outliers: bool,
+    dark: float,
+    saturation: float,
+    highlight: float | None,
+    iterations: int,
+    on_block: Callable[[slice, StereoResult], None],
+) -> StereoResult:
+    """:func:`_solve` block of rows by block of rows (see ``on_block`` of :func:`solve`).
+
+    Only the four planes the later stages need are kept (10 bytes per pixel); a block's
+    normals, albedo and working arrays are dropped once ``on_block`` has them.
+    """
+    height, width = imgs.shape[1:3]
+    valid = np.empty((height, width), bool)
+    residual = np.empty((height, width), np.float32)
+    p = np.empty((height, width), np.float32)
+    q = np.empty((height, width), np.float32)
+    step = max(1, BLOCK_PIXELS // width)
+    for r0 in range(0, height, step):
+        rows = slice(r0, min(r0 + step, height))
+        try:
+            part = _solve(imgs[:, rows], L, intens, None if m is None else m[rows], outliers, dark, saturation,
+                          highlight, iterations)
+        except ValueError:
+            # name the whole input's count of bad values, not the block's
+            _check_finite(np.full(1, np.nan, np.float32), imgs)
+            raise
+        valid[rows], residual[rows], p[rows], q[rows] = part.valid, part.residual, part.p, part.q
+        on_block(rows, part)
+        del part
+    return StereoResult(normals=None, albedo=None, valid=valid, residual=residual, p=p, q=q)
 
 
 def _colour_albedo(imgs, intens, L, normals, inliers, idx, blank) -> np.ndarray:

@@ -232,6 +232,134 @@ def save_npy(path, array) -> Path:
     return Path(path)
 
 
+class NpyRowWriter:
+    """Appends row blocks of one array to an ``.npy`` file (see :func:`npy_row_writer`)."""
+
+    def __init__(self, fh, shape: tuple[int, ...], dtype: np.dtype, name: str) -> None:
+        self._fh, self.shape, self.dtype, self._name = fh, shape, dtype, name
+        self.rows_written = 0
+
+    def __setitem__(self, rows: slice, block) -> None:
+        """``writer[rows] = block``: :meth:`write`, for callers that fill arrays by row slices.
+
+        Raises
+        ------
+        ValueError
+            When ``rows`` is not the next slice of rows (the file is written in order).
+        """
+        ordered = isinstance(rows, slice) and (rows.start or 0) == self.rows_written and rows.step in (None, 1)
+        if not ordered:
+            raise ValueError(f"{self._name}: rows must be written in order; expected a slice from row "
+                             f"{self.rows_written}, got {rows!r}")
+        self.write(block)
+
+    def write(self, block) -> None:
+        """Append ``block``, shape ``(k, *shape[1:])``: the next ``k`` rows of the array.
+
+        Raises
+        ------
+        ValueError
+            When the block's trailing shape differs or it runs past the last row.
+        """
+        arr = np.ascontiguousarray(block, dtype=self.dtype)
+        if arr.shape[1:] != self.shape[1:] or self.rows_written + arr.shape[0] > self.shape[0]:
+            raise ValueError(f"{self._name}: block of shape {arr.shape} does not continue an array of shape "
+                             f"{self.shape} at row {self.rows_written}")
+        arr.tofile(self._fh)
+        self.rows_written += arr.shape[0]
+
+
+@contextmanager
+def npy_row_writer(path, shape, dtype):
+    """Write an ``.npy`` file block by block of rows, atomically (only the block is in memory).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Destination file; its folder must exist.
+    shape : tuple of int
+        Shape of the whole array; rows are its first axis.
+    dtype : numpy dtype
+        Stored dtype (blocks are converted to it).
+
+    Yields
+    ------
+    NpyRowWriter
+        Its ``write(block)`` appends the next rows (C order), as does
+        ``writer[rows] = block`` for the next slice of rows. The file appears at
+        ``path`` when the block ends with every row written.
+
+    Raises
+    ------
+    ValueError
+        When fewer rows than ``shape[0]`` were written (the file is not created).
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> path = Path(tempfile.mkdtemp()) / "a.npy"
+    >>> with npy_row_writer(path, (3, 2), np.float32) as out:
+    ...     out.write(np.zeros((2, 2)))
+    ...     out.write(np.ones((1, 2)))
+    >>> np.load(path).tolist()
+    [[0.0, 0.0], [0.0, 0.0], [1.0, 1.0]]
+    """
+    shape = tuple(int(n) for n in shape)
+    dtype = np.dtype(dtype)
+    with atomic_path(path, suffix=".npy") as tmp:
+        with open(tmp, "wb") as fh:
+            header = {"descr": np.lib.format.dtype_to_descr(dtype), "fortran_order": False, "shape": shape}
+            if _needs_v2(header):
+                np.lib.format.write_array_header_2_0(fh, header)
+            else:
+                np.lib.format.write_array_header_1_0(fh, header)
+            writer = NpyRowWriter(fh, shape, dtype, str(path))
+            yield writer
+        if writer.rows_written != shape[0]:
+            raise ValueError(f"{path}: {writer.rows_written} of {shape[0]} rows written")
+
+
+def _needs_v2(header: dict) -> bool:
+    """Version 1.0 headers hold at most 65535 bytes (numpy's own rule)."""
+    return len(repr(header)) > 65000
+
+
+def read_npy_rows(path, start: int, stop: int) -> np.ndarray:
+    """Rows ``start:stop`` of a C-order ``.npy`` file, read without mapping the file.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        An ``.npy`` file (no pickles, C order).
+    start, stop : int
+        Row range, ``0 <= start <= stop <= shape[0]``.
+
+    Returns
+    -------
+    numpy.ndarray, shape (stop - start, *shape[1:])
+        A fresh array (only these rows are read into memory).
+
+    Raises
+    ------
+    ValueError
+        When the file is Fortran ordered, holds objects, or the range is outside its rows.
+    """
+    with open(path, "rb") as fh:
+        version = np.lib.format.read_magic(fh)
+        if version not in ((1, 0), (2, 0)):
+            raise ValueError(f"{path}: .npy format version {version} is not supported here")
+        read = np.lib.format.read_array_header_1_0 if version == (1, 0) else np.lib.format.read_array_header_2_0
+        shape, fortran, dtype = read(fh)
+        if fortran or dtype.hasobject or len(shape) == 0:
+            raise ValueError(f"{path}: expected a C-order numeric array of at least one axis")
+        if not 0 <= start <= stop <= shape[0]:
+            raise ValueError(f"rows: {start}:{stop} is outside the {shape[0]} rows of {path}")
+        row = int(np.prod(shape[1:], dtype=np.int64))
+        fh.seek(start * row * dtype.itemsize, os.SEEK_CUR)
+        out = np.fromfile(fh, dtype=dtype, count=(stop - start) * row)
+    return out.reshape((stop - start, *shape[1:]))
+
+
 #: records per block when a mesh file is written (bounds the extra memory of writing to ~50 MB)
 WRITE_BLOCK = 1 << 21
 

@@ -95,7 +95,8 @@ def test_signature_lists_the_library_options():
     """Batch manifests check option names against this signature."""
     params = list(inspect.signature(reconstruct_to_folder).parameters)
     assert params[:2] == ["source", "out_dir"]
-    assert set(params[2:]) == set(inspect.signature(reconstruct).parameters) - {"source"}
+    # out: the streamed normals and albedo, which reconstruct_to_folder passes itself
+    assert set(params[2:]) == set(inspect.signature(reconstruct).parameters) - {"source", "out"}
     with pytest.raises(TypeError):
         reconstruct_to_folder("x", "y", no_such_option=1)
 

@@ -7,7 +7,7 @@ swap, ``_COMPLETE`` marker last):
 
 ``normals.npy`` (H, W, 3) float32 unit, ``albedo.npy`` (H, W[, 3]) float32,
 ``p.npy``, ``q.npy`` (H, W) float32, ``valid.npy`` (H, W) bool, ``height.npy`` (H, W)
-float64 in mm (NaN outside the solved pixels), ``normals.png``, ``albedo.png``,
+float32 in mm (float64 from near-field solves; NaN outside the solved pixels), ``normals.png``, ``albedo.png``,
 ``height.png`` (previews of :mod:`workbench.images`), ``surface.ply`` (mm, on the
 centred pixel grid of :data:`surfaces.grid.GRID_CONVENTION`), ``defects.json`` and
 ``summary.json`` (the returned dict); near-field and perspective solves add ``xy.npy``
@@ -17,6 +17,11 @@ With ``uncertainty`` (:mod:`photometric.uncertainty`) it adds :data:`UNCERTAINTY
 ``height_u.npy`` (H, W) float32 standard uncertainty of the height in mm, and
 ``uncertainty.json`` (the GUM budget of every defect figure); each defect in
 ``defects.json`` then carries ``uncertainty_k2`` (expanded uncertainties, k = 2).
+
+Memory: the normals and albedo are written block by block of rows as they are solved
+(the library's ``out`` arrays are :func:`surfaces.io.npy_row_writer` files in the
+temporary result folder), and the previews are drawn from blocks of rows, so the
+peak is the image stack and a few (H, W) planes, not every result at once.
 
 A near-field solve that does not converge writes only ``summary.json`` (with
 ``converged: false``, the iteration history and the error) and raises the
@@ -32,6 +37,7 @@ from __future__ import annotations
 import inspect
 import time
 from collections.abc import Callable
+from contextlib import ExitStack
 from pathlib import Path
 
 import numpy as np
@@ -39,7 +45,8 @@ import numpy as np
 from photometric.nearfield import NotConvergedError
 from photometric.pipeline import PhotometricReconstruction, reconstruct
 from photometric.rig import Rig, rig_to_dict
-from surfaces.io import atomic_path, save_npy, write_json, write_mesh, write_png
+from surfaces.colormap import scalar_range
+from surfaces.io import atomic_path, npy_row_writer, read_npy_rows, save_npy, write_json, write_mesh, write_png
 from workbench import images
 from workbench.runs.folder import result_folder
 
@@ -55,6 +62,8 @@ FILES = (
 NEARFIELD_FILES = (*FILES, "xy.npy")
 #: Files added when the reconstruction carries uncertainties.
 UNCERTAINTY_FILES = ("p_u.npy", "q_u.npy", "height_u.npy", "uncertainty.json")
+#: Pixels per block of rows when the previews are drawn (a few MB of working arrays).
+PREVIEW_PIXELS = 1 << 18
 
 
 def _write_uncertainty(unc, defects: list, pixel: float, out: Path) -> list:
@@ -76,7 +85,10 @@ def write_result(result: PhotometricReconstruction, out_dir) -> dict:
     Parameters
     ----------
     result : photometric.pipeline.PhotometricReconstruction
-        What :func:`photometric.pipeline.reconstruct` returned.
+        What :func:`photometric.pipeline.reconstruct` returned. When its ``normals``
+        and ``albedo`` are None, they were streamed to ``normals.npy`` and
+        ``albedo.npy`` in ``out_dir`` already (the ``out`` arrays of
+        :func:`reconstruct_to_folder`), and their previews are drawn from those files.
     out_dir : str or Path
         Output folder (created when missing).
 
@@ -93,19 +105,20 @@ def write_result(result: PhotometricReconstruction, out_dir) -> dict:
     out.mkdir(parents=True, exist_ok=True)
     pixel = result.summary["pixel_size_mm"]
     write_mesh(result.mesh, out / "surface.ply")
-    save_npy(out / "normals.npy", result.normals)
-    save_npy(out / "albedo.npy", result.albedo)
+    streamed = result.normals is None
+    if streamed and not ((out / "normals.npy").is_file() and (out / "albedo.npy").is_file()):
+        raise FileNotFoundError(f"out_dir: the result carries no normals and albedo, and {out} has no "
+                                "normals.npy and albedo.npy (run reconstruct with out= arrays in this folder)")
+    if not streamed:
+        save_npy(out / "normals.npy", result.normals)
+        save_npy(out / "albedo.npy", result.albedo)
     save_npy(out / "p.npy", result.p)
     save_npy(out / "q.npy", result.q)
     save_npy(out / "valid.npy", result.valid)
     save_npy(out / "height.npy", result.height)
     if result.xy is not None:
         save_npy(out / "xy.npy", result.xy)
-    write_png(out / "normals.png", images.normal_map(result.normals, result.valid))
-    write_png(out / "albedo.png", images.albedo_image(result.albedo, result.mask))
-    write_png(out / "height.png", images.scalar_image(
-        result.height, result.valid, cmap="viridis", percentile=99.5, colorbar=False, min_height=1,
-        background=(0.0, 0.0, 0.0)))
+    _write_previews(result, out)
     defects = result.defects
     files = list(FILES if result.xy is None else NEARFIELD_FILES)
     if result.uncertainty is not None:
@@ -126,6 +139,52 @@ def write_result(result: PhotometricReconstruction, out_dir) -> dict:
             summary["files"] = sorted(files)
     write_json(out / "summary.json", summary)
     return summary
+
+
+def _write_previews(result: PhotometricReconstruction, out: Path) -> None:
+    """``normals.png``, ``albedo.png``, ``height.png``: the pictures of :mod:`workbench.images`, drawn in
+    blocks of rows.
+
+    Each picture is what its :mod:`workbench.images` function gives for the whole image: the
+    scale (albedo percentile, height percentiles) is taken over the whole image first, and
+    the per-pixel drawing then runs on blocks of rows (the whole-image functions hold a few
+    float64 copies of the image, 24 bytes per pixel for the normals).
+    """
+    rows, cols = result.valid.shape
+    step = max(1, PREVIEW_PIXELS // cols)
+
+    def blocks(name: str, array):
+        for r0 in range(0, rows, step):
+            r1 = min(r0 + step, rows)
+            yield slice(r0, r1), (read_npy_rows(out / f"{name}.npy", r0, r1) if array is None else array[r0:r1])
+
+    pic = np.empty((rows, cols, 3), np.uint8)
+    for r, block in blocks("normals", result.normals):
+        pic[r] = images.normal_map(block, result.valid[r])
+    write_png(out / "normals.png", pic)
+
+    # images.albedo_image: white at the 99.5th percentile of the finite albedo inside the mask (float64)
+    vals = np.concatenate([block[result.mask[r]].ravel() for r, block in blocks("albedo", result.albedo)])
+    vals = vals[np.isfinite(vals)].astype(np.float64)
+    top = float(np.percentile(vals, 99.5, overwrite_input=True)) if vals.size else 1.0
+    del vals
+    for r, block in blocks("albedo", result.albedo):
+        pic[r] = images.to_uint8(block.astype(np.float64), vmax=top if top > 0 else 1.0)
+        pic[r][~result.mask[r]] = 0
+    write_png(out / "albedo.png", pic)
+
+    # images.scalar_image(height, valid, percentile=99.5): its colour range over the valid finite heights
+    shown = result.valid & np.isfinite(result.height)
+    vals = result.height[shown].astype(np.float64)
+    vmin = vmax = None
+    if vals.size:
+        vmin, vmax = (float(v) for v in np.percentile(vals, [0.5, 99.5], overwrite_input=True))
+    lo, hi = scalar_range(vals, vmin, vmax)
+    del vals, shown
+    for r, block in blocks("height", result.height):
+        pic[r] = images.scalar_image(block, result.valid[r], cmap="viridis", vmin=lo, vmax=hi, colorbar=False,
+                                     min_height=1, background=(0.0, 0.0, 0.0))
+    write_png(out / "height.png", pic)
 
 
 def reconstruct_to_folder(
@@ -192,9 +251,15 @@ def reconstruct_to_folder(
 
 
 def _reconstruct_or_summary(source, out: Path, progress, options) -> PhotometricReconstruction:
-    """Run the reconstruction; when it does not converge, write only ``summary.json`` into ``out`` and re-raise."""
+    """Run the reconstruction, its normals and albedo streamed into ``out``; when it does not converge,
+    write only ``summary.json`` into ``out`` and re-raise."""
     try:
-        result = reconstruct(source, progress=progress, **options)
+        # each file appears (renamed into place) once all its rows are written; a failure removes it
+        with ExitStack() as files:
+            def stream(name: str, shape: tuple[int, ...], dtype) -> object:
+                return files.enter_context(npy_row_writer(out / f"{name}.npy", shape, dtype))
+
+            result = reconstruct(source, progress=progress, out=stream, **options)
     except NotConvergedError as exc:
         write_json(out / "summary.json", {**exc.summary, "files": ["summary.json"]})
         raise
@@ -207,7 +272,7 @@ def _signature() -> inspect.Signature:
     """The library's keyword options, so callers (batch manifests) can check option names."""
     lib = inspect.signature(reconstruct)
     head = [inspect.Parameter(name, inspect.Parameter.POSITIONAL_OR_KEYWORD) for name in ("source", "out_dir")]
-    options = [p for name, p in lib.parameters.items() if name != "source"]
+    options = [p for name, p in lib.parameters.items() if name not in ("source", "out")]
     return lib.replace(parameters=head + options, return_annotation=dict)
 
 
