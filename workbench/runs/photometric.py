@@ -158,14 +158,15 @@ def _write_previews(result: PhotometricReconstruction, out: Path) -> None:
             r1 = min(r0 + step, rows)
             yield slice(r0, r1), (read_npy_rows(out / f"{name}.npy", r0, r1) if array is None else array[r0:r1])
 
-    pic = np.empty((rows, cols, 3), np.uint8)
+    # filled in RGB through a view of a BGR buffer: the PNG encoder's BGR copy is then this buffer itself
+    bgr = np.empty((rows, cols, 3), np.uint8)
+    pic = bgr[..., ::-1]
     for r, block in blocks("normals", result.normals):
         pic[r] = images.normal_map(block, result.valid[r])
     write_png(out / "normals.png", pic)
 
     # images.albedo_image: white at the 99.5th percentile of the finite albedo inside the mask (float64)
-    vals = np.concatenate([block[result.mask[r]].ravel() for r, block in blocks("albedo", result.albedo)])
-    vals = vals[np.isfinite(vals)].astype(np.float64)
+    vals = _gather(lambda: blocks("albedo", result.albedo), lambda r: result.mask[r])
     top = float(np.percentile(vals, 99.5, overwrite_input=True)) if vals.size else 1.0
     del vals
     for r, block in blocks("albedo", result.albedo):
@@ -174,17 +175,33 @@ def _write_previews(result: PhotometricReconstruction, out: Path) -> None:
     write_png(out / "albedo.png", pic)
 
     # images.scalar_image(height, valid, percentile=99.5): its colour range over the valid finite heights
-    shown = result.valid & np.isfinite(result.height)
-    vals = result.height[shown].astype(np.float64)
+    vals = _gather(lambda: blocks("height", result.height), lambda r: result.valid[r])
     vmin = vmax = None
     if vals.size:
         vmin, vmax = (float(v) for v in np.percentile(vals, [0.5, 99.5], overwrite_input=True))
     lo, hi = scalar_range(vals, vmin, vmax)
-    del vals, shown
+    del vals
     for r, block in blocks("height", result.height):
         pic[r] = images.scalar_image(block, result.valid[r], cmap="viridis", vmin=lo, vmax=hi, colorbar=False,
                                      min_height=1, background=(0.0, 0.0, 0.0))
     write_png(out / "height.png", pic)
+
+
+def _gather(blocks: Callable, select: Callable) -> np.ndarray:
+    """The finite values ``block[select(rows)]`` of all blocks, in order, as one float64 array.
+
+    Two passes over ``blocks()`` (a fresh iterator of ``(rows, block)`` each call), so only
+    the float64 result is the size of the selection.
+    """
+    count = sum(int(np.count_nonzero(np.isfinite(b[select(r)]))) for r, b in blocks())
+    vals = np.empty(count, np.float64)
+    at = 0
+    for r, b in blocks():
+        part = b[select(r)]
+        part = part[np.isfinite(part)]
+        vals[at : at + part.size] = part
+        at += part.size
+    return vals
 
 
 def reconstruct_to_folder(
