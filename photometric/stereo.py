@@ -534,7 +534,9 @@ def _solve_rows(
     """
     height, width = imgs.shape[1:3]
     valid = np.empty((height, width), bool)
-    residual = np.empty((height, width), np.float32)
+    # a triad's residual is zero: left as calloc'ed pages that are never touched (no memory)
+    residual = np.zeros((height, width), np.float32)
+    exact = imgs.shape[0] == 3
     p = np.empty((height, width), np.float32)
     q = np.empty((height, width), np.float32)
     step = max(1, BLOCK_PIXELS // width)
@@ -547,7 +549,9 @@ def _solve_rows(
             # name the whole input's count of bad values, not the block's
             _check_finite(np.full(1, np.nan, np.float32), imgs)
             raise
-        valid[rows], residual[rows], p[rows], q[rows] = part.valid, part.residual, part.p, part.q
+        valid[rows], p[rows], q[rows] = part.valid, part.p, part.q
+        if not exact:
+            residual[rows] = part.residual
         on_block(rows, part)
         del part
     return StereoResult(normals=None, albedo=None, valid=valid, residual=residual, p=p, q=q)

@@ -1,0 +1,131 @@
+"""Bounded memory of ``photometric reconstruct`` (issue 20): streamed ``.npy`` files and the stages' peaks.
+
+The peak of each stage is measured in a fresh process with the kernel's own high-water
+mark (``VmHWM``), reset at every stage by ``/proc/self/clear_refs``; the stages this
+work bounds (read, normals, height) must stay within 6x the raw input bytes (the goal
+of the issue for the whole command; the surface fit and the defect measures are
+measured in ``benchmarks/bench_memory.py``).
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+
+from surfaces.io import npy_row_writer, read_npy_rows
+
+
+@pytest.mark.parametrize("shape, dtype", [((7, 5, 3), np.float32), ((4, 6), bool), ((3,), np.float64)])
+def test_row_writer_round_trip(tmp_path, shape, dtype):
+    rng = np.random.default_rng(0)
+    a = (rng.uniform(size=shape) > 0.5) if dtype is bool else rng.uniform(size=shape).astype(dtype)
+    path = tmp_path / "a.npy"
+    with npy_row_writer(path, shape, dtype) as out:
+        assert not path.exists()  # appears whole, at the end
+        out[0:2] = a[:2]
+        out.write(a[2:])
+    assert np.array_equal(np.load(path), a) and np.load(path).dtype == dtype
+    assert np.array_equal(read_npy_rows(path, 1, shape[0]), a[1:])
+    assert read_npy_rows(path, 2, 2).shape == (0, *shape[1:])
+    assert [p.name for p in tmp_path.iterdir()] == ["a.npy"]
+
+
+def test_row_writer_refuses_out_of_order_and_missing_rows(tmp_path):
+    path = tmp_path / "a.npy"
+    with pytest.raises(ValueError, match="rows must be written in order"):
+        with npy_row_writer(path, (4, 2), np.float32) as out:
+            out[1:3] = np.zeros((2, 2))
+    with pytest.raises(ValueError, match="does not continue"):
+        with npy_row_writer(path, (4, 2), np.float32) as out:
+            out.write(np.zeros((2, 3)))
+    with pytest.raises(ValueError, match="does not continue"):
+        with npy_row_writer(path, (4, 2), np.float32) as out:
+            out.write(np.zeros((5, 2)))
+    with pytest.raises(ValueError, match="3 of 4 rows written"):
+        with npy_row_writer(path, (4, 2), np.float32) as out:
+            out.write(np.zeros((3, 2)))
+    assert list(tmp_path.iterdir()) == []  # nothing left behind
+
+
+def test_read_rows_checks_its_range(tmp_path):
+    np.save(tmp_path / "a.npy", np.zeros((3, 2)))
+    with pytest.raises(ValueError, match="outside the 3 rows"):
+        read_npy_rows(tmp_path / "a.npy", 2, 4)
+    np.save(tmp_path / "f.npy", np.asfortranarray(np.zeros((3, 2))))
+    with pytest.raises(ValueError, match="C-order"):
+        read_npy_rows(tmp_path / "f.npy", 0, 1)
+
+
+STAGES = textwrap.dedent("""
+    import json, sys
+    # the modules the stages import lazily, so that their code is not counted as a stage's memory
+    import cv2, scipy.fft, scipy.ndimage, scipy.sparse.linalg, skimage.measure, skimage.filters
+    import photometric.defects, photometric.integrate, photometric.normals, surfaces.fit
+    from workbench.runs.photometric import reconstruct_to_folder
+
+    def status(key):
+        with open("/proc/self/status") as f:
+            return int(next(line for line in f if line.startswith(key)).split()[1]) * 1024
+
+    folder = sys.argv[1]
+    peaks, stage = {}, ["start"]
+    base = status("VmRSS")
+
+    def enter(name):
+        peaks[stage[0]] = status("VmHWM") - base
+        with open("/proc/self/clear_refs", "w") as f:
+            f.write("5")
+        stage[0] = name
+
+    enter("start")
+    reconstruct_to_folder([f"{folder}/{k}.png" for k in range(3)], f"{folder}/out", lights=f"{folder}/L.txt",
+                          progress=enter)
+    enter("end")
+    print(json.dumps(peaks))
+""")
+
+
+def _can_reset_peak() -> bool:
+    try:
+        with open("/proc/self/clear_refs", "w") as f:
+            f.write("5")
+        return True
+    except OSError:
+        return False
+
+
+@pytest.mark.skipif(not _can_reset_peak(), reason="needs Linux /proc/self/clear_refs to reset the peak RSS")
+def test_solve_and_integration_stay_within_six_times_the_input(tmp_path):
+    import cv2
+
+    from photometric.lights import ring_lights
+
+    side = 1000
+    L = ring_lights(3, 45.0)
+    y, x = np.mgrid[-1 : 1 : side * 1j, -1 : 1 : side * 1j]
+    r2 = x * x + y * y
+    inside = r2 < 0.64
+    n = np.stack([np.where(inside, x / 0.8, 0), np.where(inside, -y / 0.8, 0),
+                  np.where(inside, np.sqrt(np.clip(0.64 - r2, 0, None)) / 0.8, 1)], axis=-1)
+    for k, light in enumerate(L):
+        img = np.clip(0.6 * (n @ light) + 0.05, 0, 1)
+        cv2.imwrite(str(tmp_path / f"{k}.png"), np.round(img * 65535).astype(np.uint16))
+    np.savetxt(tmp_path / "L.txt", L)
+    out = subprocess.run([sys.executable, "-c", STAGES, str(tmp_path)], capture_output=True, text=True,
+                         check=True, cwd=tmp_path)
+    peaks = json.loads(out.stdout)
+    raw = 3 * side * side * 2
+    ratios = {k: v / raw for k, v in peaks.items()}
+    assert {"read", "normals", "height", "surface", "defects", "write"} <= set(ratios)
+    for stage in ("read", "normals", "height"):
+        assert ratios[stage] <= 6.0, ratios
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == sorted(
+        json.loads((tmp_path / "out" / "summary.json").read_text())["files"] + ["_COMPLETE"])
+    assert np.load(tmp_path / "out" / "height.npy").dtype == np.float32
+    assert np.load(tmp_path / "out" / "normals.npy", mmap_mode="r").shape == (side, side, 3)
+
