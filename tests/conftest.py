@@ -28,6 +28,17 @@ def shared_data() -> Path:
     return SHARED_DATA
 
 
+@pytest.fixture(scope="session", autouse=True)
+def _session_working_directory(tmp_path_factory):
+    """Session- and module-scoped fixtures run before the per-test directory below exists (and the
+    Dask workers of the ``cluster`` fixture keep the directory they start in): they run here, so that
+    nothing a test run starts writes a default output folder into the repository."""
+    before = os.getcwd()
+    os.chdir(tmp_path_factory.mktemp("session_cwd"))
+    yield
+    os.chdir(before)
+
+
 @pytest.fixture(autouse=True)
 def _fresh_working_directory(tmp_path_factory, monkeypatch) -> None:
     """Run the test in its own empty working directory (not the test's ``tmp_path``, which stays empty)."""

@@ -175,3 +175,31 @@ def test_signal_free_rerun_replaces_a_result_whole(inputs, tmp_path):
     assert main(argv) == 0
     assert not (out / "render.png").exists() and (out / COMPLETE_MARKER).is_file()
     assert os.listdir(tmp_path) == ["out"]
+
+
+REPO = Path(__file__).resolve().parents[2]
+
+
+@pytest.fixture(scope="module")
+def module_cwd() -> Path:
+    """The working directory module-scoped fixtures run in (before any test's own)."""
+    return Path.cwd()
+
+
+def test_fixtures_never_run_in_the_repository(module_cwd):
+    """``make test`` once left an empty ``photometric_out/`` in the repository root: a fixture set up
+    before the per-test working directory ran in the directory pytest started in."""
+    assert REPO != module_cwd and REPO not in module_cwd.parents
+
+
+def test_cli_runs_leave_the_repository_root_alone(inputs, tmp_path, monkeypatch, capsys):
+    """The default ``--out`` (``photometric_out``) lands in the working directory, never in the repository."""
+    before = sorted(p.name for p in REPO.iterdir())
+    monkeypatch.chdir(tmp_path)
+    assert main(inputs["photometric"]) == 0
+    assert main(["photometric", "reconstruct", str(tmp_path / "missing")]) == 2
+    assert main(["photometric", "reconstruct"]) == 2
+    capsys.readouterr()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["photometric_out"]
+    assert (tmp_path / "photometric_out" / COMPLETE_MARKER).is_file()
+    assert sorted(p.name for p in REPO.iterdir()) == before
