@@ -62,27 +62,28 @@ for k, l in enumerate(L):
 np.savetxt(f"{out}/L.txt", L)
 """
 
-# peak RSS above the start of each stage's run, sampled every 5 ms in a thread of the same process
+# peak RSS of each stage above the interpreter with the stages' modules imported: the kernel's high-water
+# mark (VmHWM), reset at every stage change through /proc/self/clear_refs (no sampling gaps)
 PROFILE = """
-import os, sys, threading, time
+import sys
+import cv2, scipy.fft, scipy.ndimage, scipy.sparse.linalg, skimage.measure, skimage.filters
+import photometric.defects, photometric.integrate, photometric.normals, surfaces.fit
 from workbench.runs.photometric import reconstruct_to_folder
-page = os.sysconf("SC_PAGE_SIZE")
-def rss():
-    with open("/proc/self/statm") as f:
-        return int(f.read().split()[1]) * page
-stage, peaks, done = ["imports"], {}, []
-def sample():
-    while not done:
-        peaks[stage[0]] = max(peaks.get(stage[0], 0), rss())
-        time.sleep(0.005)
-base = rss()
-threading.Thread(target=sample, daemon=True).start()
+def status(key):
+    with open("/proc/self/status") as f:
+        return int(next(line for line in f if line.startswith(key)).split()[1]) * 1024
+stage, peaks = ["start"], {}
+base = status("VmRSS")
+def enter(name):
+    peaks[stage[0]] = status("VmHWM") - base
+    with open("/proc/self/clear_refs", "w") as f:
+        f.write("5")
+    stage[0] = name
+enter("start")
 d = sys.argv[1]
-reconstruct_to_folder([f"{d}/{k}.png" for k in range(3)], f"{d}/profile", lights=f"{d}/L.txt",
-                      progress=lambda s: stage.__setitem__(0, s))
-time.sleep(0.05)
-done.append(1)
-print(" ".join(f"{k}={v - base}" for k, v in peaks.items()))
+reconstruct_to_folder([f"{d}/{k}.png" for k in range(3)], f"{d}/profile", lights=f"{d}/L.txt", progress=enter)
+enter("end")
+print(" ".join(f"{k}={v}" for k, v in peaks.items() if k != "start"))
 """
 
 
@@ -133,8 +134,10 @@ def photometric_rows(sizes: list[int], tmp: Path, baseline: int) -> tuple[list, 
             out = subprocess.run([sys.executable, "-c", PROFILE, str(folder)], capture_output=True, text=True,
                                  check=True).stdout.split()
             stages = ", ".join(f"{k} {int(v) / raw:.1f}x" for k, v in (item.split("=") for item in out))
-            notes.append(f"Where it goes at 4 MP (peak RSS of each stage above the interpreter with the "
-                         f"pipeline imported, sampled every 5 ms; lazy imports count to the first stage): {stages}.")
+            notes.append(f"Where it goes at 4 MP (peak RSS of each stage above the interpreter with the stages' "
+                         f"modules imported; the kernel's high-water mark, reset at each stage): {stages}. A stage's "
+                         "peak includes what earlier stages hold and the heap the C library keeps after a "
+                         "larger earlier stage frees its arrays.")
         rows.append([f"{mp} MP ({side} x {side})", mib(raw), mib(rss), mib(rss - baseline), f"{ratio:.1f}",
                      f"{wall:.1f}"])
         for p in folder.rglob("*"):

@@ -231,7 +231,7 @@ def helix(radius: float, pitch: float, turns: float, center=(0.0, 0.0, 0.0)) -> 
     return ParametricCurve(point, (lambda t: point(t, 1), lambda t: point(t, 2)), False, "helix")
 
 
-def thread_profile(minor_radius: float, depth: float, pitch: float) -> ParametricCurve:
+def thread_profile(minor_radius: float, depth: float, pitch: float, closed: bool = False) -> ParametricCurve:
     """One pitch of a round (sinusoidal) screw-thread profile in the ``(r, z)`` plane.
 
     ``r(t) = minor_radius + depth (1 - cos 2 pi t) / 2``, ``z(t) = pitch * t``: root at
@@ -246,11 +246,17 @@ def thread_profile(minor_radius: float, depth: float, pitch: float) -> Parametri
         Thread depth (> 0): the crest lies at ``minor_radius + depth``.
     pitch : float
         Rise per pitch, same unit (any sign).
+    closed : bool
+        Close the profile along its axis-side chord (the root line ``r = minor_radius``
+        from ``z = pitch`` back to 0): the cross-section of the thread's ridge, a closed
+        curve whose helical sweep is a tube that flat end caps make a solid. The
+        parameter runs over the tooth, then the chord, in proportion to their lengths.
 
     Returns
     -------
     ParametricCurve
-        ``evaluate(t)`` and exact ``derivative(t, k)`` for ``t`` in ``[0, 1]``, shape ``(M, d)``.
+        ``evaluate(t)`` and exact ``derivative(t, k)`` for ``t`` in ``[0, 1]``, shape ``(M, d)``
+        (piecewise for ``closed``: one-sided at the two corners).
     """
     r0, h, p = positive(minor_radius, "minor_radius"), positive(depth, "depth"), float(pitch)
     w = 2 * np.pi
@@ -262,7 +268,23 @@ def thread_profile(minor_radius: float, depth: float, pitch: float) -> Parametri
             return np.stack([h * w * np.sin(w * t) / 2, np.full_like(t, p)], axis=1)
         return np.stack([h * w * w * np.cos(w * t) / 2, np.zeros_like(t)], axis=1)
 
-    return ParametricCurve(point, (lambda t: point(t, 1), lambda t: point(t, 2)), False, "thread")
+    if not closed:
+        return ParametricCurve(point, (lambda t: point(t, 1), lambda t: point(t, 2)), False, "thread")
+    t = np.linspace(0.0, 1.0, 257)
+    tooth = float(np.trapezoid(np.linalg.norm(point(t, 1), axis=1), t))
+    f = tooth / (tooth + abs(p))  # share of the parameter on the tooth
+
+    def closed_point(u, k=0):
+        u = np.asarray(u, np.float64)
+        on_tooth = u <= f
+        tooth_part = point(np.minimum(u / f, 1.0), k) / f**k
+        s = np.clip((u - f) / (1 - f), 0.0, 1.0)
+        chord = np.stack([np.full_like(s, r0), p * (1 - s)], axis=1) if k == 0 else \
+            np.stack([np.zeros_like(s), np.full_like(s, -p / (1 - f) if k == 1 else 0.0)], axis=1)
+        return np.where(on_tooth[:, None], tooth_part, chord)
+
+    return ParametricCurve(closed_point, (lambda u: closed_point(u, 1), lambda u: closed_point(u, 2)), True,
+                           "thread (closed along the root)")
 
 
 def as_curve(obj) -> Curve:

@@ -415,7 +415,8 @@ def coil_spring(radius: float, pitch: float, turns: float, wire_radius: float) -
     return pipe(helix(r, pitch, turns), a)
 
 
-def screw_thread(major_radius: float, pitch: float, turns: float, depth: float) -> KinematicSurface:
+def screw_thread(major_radius: float, pitch: float, turns: float, depth: float,
+                 closed: bool = False) -> KinematicSurface:
     """Screw-thread surface: :func:`thread_profile` swept helically with its own pitch.
 
     Parameters
@@ -428,6 +429,12 @@ def screw_thread(major_radius: float, pitch: float, turns: float, depth: float) 
         Number of turns (> 0).
     depth : float
         Thread depth (``0 < depth < major_radius``).
+    closed : bool
+        Sweep the profile closed along its root chord (``thread_profile(..., closed=True)``):
+        a tube around the thread's ridge, which :func:`cap_ends` closes into a solid of
+        volume ``pi turns pitch ((r0 + depth / 2)^2 + depth^2 / 8 - r0^2)``
+        (``r0 = major_radius - depth``; the screw motion keeps volume, so it is
+        ``2 pi turns`` times the profile's ``integral r dr dz``).
 
     Returns
     -------
@@ -437,7 +444,7 @@ def screw_thread(major_radius: float, pitch: float, turns: float, depth: float) 
     big, h = positive(major_radius, "major_radius"), positive(depth, "depth")
     if h >= big:
         raise ValueError(f"depth: must be smaller than the major radius {big}, got {h}")
-    return helical_sweep(thread_profile(big - h, h, pitch), pitch, turns)
+    return helical_sweep(thread_profile(big - h, h, pitch, closed=closed), pitch, turns)
 
 
 # ----------------------------------------------------------------------------- end caps

@@ -147,6 +147,26 @@ def test_screw_thread_profile_radii():
     np.testing.assert_allclose(x1 - x0, [[0, 0, pitch]], atol=1e-12)
 
 
+def test_closed_thread_profile_runs_back_along_the_root():
+    from surfaces.curves import thread_profile
+
+    open_, closed = thread_profile(2.0, 0.3, 0.5), thread_profile(2.0, 0.3, 0.5, closed=True)
+    assert not open_.closed and closed.closed
+    t = np.linspace(0, 1, 2001)
+    pts = closed.evaluate(t)
+    np.testing.assert_allclose(pts[0], pts[-1], atol=1e-12)
+    np.testing.assert_allclose(pts[0], [2.0, 0.0], atol=1e-12)
+    chord = pts[:, 0] <= 2.0 + 1e-12
+    assert chord.sum() > 100 and np.all(np.diff(pts[chord & (t > 0.5), 1]) < 0)  # down along r = r0
+    # the tooth part is the open profile, reparametrised; derivatives agree with differences away from the corners
+    assert np.ptp(pts[:, 0]) == pytest.approx(0.3, rel=1e-4) and np.ptp(pts[:, 1]) == pytest.approx(0.5)
+    u = np.array([0.2, 0.5, 0.9])
+    fd = (closed.evaluate(u + 1e-6) - closed.evaluate(u - 1e-6)) / 2e-6
+    np.testing.assert_allclose(closed.derivative(u), fd, rtol=1e-5, atol=1e-6)
+    surface = K.screw_thread(2.3, 0.5, 2.0, 0.3, closed=True)
+    assert surface.closed_u and not surface.closed_v
+
+
 def test_closed_directrix_rmf_closes():
     """Pipe around a non-planar closed curve: the corrected RMF closes, C0 seam in v."""
     phi = np.linspace(0, 2 * np.pi, 12, endpoint=False)

@@ -123,7 +123,33 @@ def test_sweep_with_caps_is_a_closed_cylinder(tmp_path):
 
 
 def test_caps_on_an_open_cross_section_is_a_clear_error(tmp_path, capsys):
+    """An open generatrix of a sweep is refused (the thread's own profile is closed, see below)."""
+    g = _write(tmp_path / "g.json", {"type": "line", "start": [0.2, 0.0], "end": [0.5, 0.0]})
+    d = _write(tmp_path / "d.json", {"type": "line", "start": [0, 0, 0], "end": [0, 0, 2]})
     out = tmp_path / "t.ply"
-    assert main(["surfaces", "helix", "--radius", "2", "--pitch", "1", "--turns", "1", "--profile", "thread",
-                 "--caps", "--out", str(out)]) == 2
-    assert "--caps: flat caps close a tube" in capsys.readouterr().err and not out.exists()
+    assert main(["surfaces", "sweep", "--generatrix", g, "--directrix", d, "--caps", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "--caps: flat caps close a tube" in err and "cross-section (generatrix) is open" in err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("radius, pitch, turns, depth", [(2.0, 1.0, 1.0, None), (5.0, 2.0, 3.0, 0.8)])
+def test_thread_with_caps_is_its_ridge_closed_along_the_root(tmp_path, capsys, radius, pitch, turns, depth):
+    """The open thread profile is closed along its root chord; the capped ridge has the closed-form volume
+    ``pi n P ((r0 + h/2)^2 + h^2/8 - r0^2)`` (screw motion keeps volume: 2 pi n times integral r dr dz)."""
+    out = tmp_path / "t.ply"
+    argv = ["surfaces", "helix", "--radius", str(radius), "--pitch", str(pitch), "--turns", str(turns),
+            "--profile", "thread", "--caps", "--out", str(out)]
+    assert main(argv + (["--depth", str(depth)] if depth else [])) == 0
+    assert "closed along its root chord" in capsys.readouterr().out
+    summary = json.loads(out.with_suffix(".json").read_text())
+    h = depth if depth else 0.3 * pitch
+    r0 = radius - h
+    exact = np.pi * turns * pitch * ((r0 + h / 2) ** 2 + h * h / 8 - r0**2)
+    assert summary["closed_form_volume"] == pytest.approx(exact, rel=1e-12)
+    assert summary["caps"] == "flat" and summary["watertight"] and "root chord" in summary["profile_closed"]
+    assert summary["mesh_volume"] == pytest.approx(exact, rel=5e-3)
+    # the caps are the closed profile's area, integral (r - r0) dz = P h / 2, at each end
+    assert summary["cap_area"] == pytest.approx(2 * pitch * h / 2, rel=1e-2)
+    mesh = read_mesh(out)
+    assert mesh.is_watertight() and mesh.is_oriented()

@@ -132,8 +132,15 @@ def _helix(args: argparse.Namespace) -> int:
         )
     else:
         depth = args.depth if args.depth is not None else 0.3 * args.pitch
-        surface = kinematic.screw_thread(args.radius, args.pitch, args.turns, depth)
+        # the thread's profile is open: with --caps it is closed along its root chord (the ridge's section)
+        surface = kinematic.screw_thread(args.radius, args.pitch, args.turns, depth, closed=args.caps)
         info.update(depth=depth)
+        if args.caps:
+            r0 = args.radius - depth
+            info.update(profile_closed="along the root chord (r = major radius - depth): the solid is the "
+                        "thread's ridge, without the core cylinder",
+                        closed_form_volume=math.pi * args.turns * args.pitch
+                        * ((r0 + depth / 2) ** 2 + depth**2 / 8 - r0**2))
     samples_v = args.samples_v or max(8, int(math.ceil(24 * args.turns)))
     return _finish(surface, args, out, info, samples_v)
 
@@ -181,6 +188,8 @@ def _finish(surface, args: argparse.Namespace, out: Path, info: dict, samples_v:
         f"area {summary['area']:.6g}, volume "
         + (f"{volume:.6g}" if volume is not None else "n/a (open surface)")
         + (f", closed by flat caps (mesh volume {caps['mesh_volume']:.6g})" if caps else "")
+        + ("; the open thread profile was closed along its root chord (the ridge alone)"
+           if "profile_closed" in summary else "")
         + f"; wrote {out}, {npz}, {json_path}"
     )
     return 0
