@@ -159,7 +159,7 @@ def test_closed_thread_profile_runs_back_along_the_root():
     chord = pts[:, 0] <= 2.0 + 1e-12
     assert chord.sum() > 100 and np.all(np.diff(pts[chord & (t > 0.5), 1]) < 0)  # down along r = r0
     # the tooth part is the open profile, reparametrised; derivatives agree with differences away from the corners
-    assert np.ptp(pts[:, 0]) == pytest.approx(0.3, rel=1e-4) and np.ptp(pts[:, 1]) == pytest.approx(0.5)
+    assert np.ptp(pts[:, 0]) == pytest.approx(0.3, rel=1e-3) and np.ptp(pts[:, 1]) == pytest.approx(0.5, rel=1e-3)
     u = np.array([0.2, 0.5, 0.9])
     fd = (closed.evaluate(u + 1e-6) - closed.evaluate(u - 1e-6)) / 2e-6
     np.testing.assert_allclose(closed.derivative(u), fd, rtol=1e-5, atol=1e-6)
