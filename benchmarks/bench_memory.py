@@ -225,7 +225,7 @@ def main(argv: list[str] | None = None) -> int:
         "stack is dropped after the solve, and the height is integrated in float32 in place (p, q, height, "
         "valid and mask are 14 bytes per pixel, 2.3x, for the later stages). The peak of the command is the "
         "surface fit (`surfaces.fit.fit_height`: float64 copies of height, p and q, a float64 weight plane and "
-        "three target and three fitted float64 planes, about 104 bytes per pixel before its temporaries) and, "
+        "three target and three fitted float64 planes, about 80 bytes per pixel before its temporaries) and, "
         "after it, the defect measures (`photometric.defects.measure_defects`: float64 copies of height, p, q "
         "and the background, and label images); the write stage's figure is mostly the heap the C library "
         "keeps from the fit (its own peak is about 4x above what the stages before hold).",
