@@ -159,7 +159,7 @@ def _trial(rng: np.random.Generator, opts: dict, method: str, mc_samples: int) -
     from datasets_synthetic.render import render
     from photometric.lights import light_field, point_lights, ring_lights
     from photometric.pipeline import reconstruct
-    from photometric.uncertainty import _perturbed_lights
+    from photometric.uncertainty.propagation import _perturbed_lights
 
     size, h = opts["size"], opts["pixel_size"]
     L = ring_lights(opts["n_lights"], opts["slant_deg"])
