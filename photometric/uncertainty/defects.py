@@ -21,6 +21,10 @@ _QUANTISATION_WORK = 1 << 20
 
 
 _MAX_FIT_POINTS = 200_000
+#: Sub-pixel placements of the groove model of the depth's grid error, and the pixels they
+#: may integrate together at most (bounds its cost on large defects).
+_DEPTH_GRID_OFFSETS = 24
+_DEPTH_GRID_WORK = 1 << 21
 
 
 @dataclass
@@ -292,30 +296,74 @@ def _bias_term(spread: float, bias: float) -> float:
     return float(math.sqrt(max((0.25 * (lo + hi)) ** 2 - s * s, 0.0)))
 
 
-def _depth_sampling(z: np.ndarray, fig: _Figures, bg: _Background, coef: np.ndarray, labels: np.ndarray,
-                    label: int) -> float:
-    """Standard uncertainty of the depth's pixel sampling and integration on the pixel grid:
-    ``a / sqrt(3)`` with ``a`` half the mean depth drop to the two row or column neighbours
-    of the deepest pixel (the larger), i.e. the drop over half a pixel (rectangular)."""
-    r, c = fig.peak
+def _groove_depth_errors(depth: float, width: float, length: float, axis_deg: float, h: float,
+                         offsets: np.ndarray, integrator: str = "dct") -> np.ndarray:
+    """Errors of the measured depth (mm) of a parabolic-section groove on the pixel grid.
 
-    def depth(rr, cc):
-        return fig.sign * (z[rr, cc] - float((bg.design(rr, cc) @ coef)[0]))
+    The groove ``z = -D (1 - (2 d / w)^2)`` for ``d < w / 2`` (``d`` the distance to its
+    central segment of length ``L - w``; a stadium outline, ``width``, ``length`` in pixels)
+    is sampled as the solve sees it: its exact slopes at the pixel centres, integrated by
+    ``integrator`` on a window with an 8-pixel flat margin (at least a width), and measured as
+    :func:`photometric.defects.measure_defects` does: the deepest pixel against a plane fitted
+    to the flat plate (3 pixels clear of the rim). Both grid effects are in the error: the
+    deepest pixel centre misses the bottom line by up to half a pixel (shallower), and the
+    slope's step at the rim, sampled at pixel centres, integrates with a first-order error
+    that depends on where the rim falls between two centres; it wanders along the groove
+    and the deepest pixel picks its largest excursion (deeper on average; strongest for
+    axes near 45 deg and other small rational slopes of the grid).
 
-    top = depth(r, c)
-    drops = []
-    for dr, dc in ((0, 1), (1, 0)):
-        pair = []
-        for sgn in (-1, 1):
-            rr, cc = r + sgn * dr, c + sgn * dc
-            if 0 <= rr < z.shape[0] and 0 <= cc < z.shape[1] and labels[rr, cc] == label:
-                pair.append(top - depth(rr, cc))
-        if pair:
-            drops.append(np.mean(pair))
-    if not drops:
-        return 0.0
-    return float(0.5 * max(max(drops), 0.0) / math.sqrt(3.0))
+    ``offsets`` is (n, 4): ``dx, dy`` of the centre and ``dwidth, dlength`` (pixels).
+    Returns the n errors (measured minus ``depth``).
+    """
+    from photometric.integrate import dct_poisson, integrate
 
+    offsets = np.asarray(offsets, float)
+    a = math.radians(axis_deg)
+    ux, uy = math.cos(a), math.sin(a)
+    w_max = width + max(float(offsets[:, 2].max()), 0.0)
+    l_max = max(length + max(float(offsets[:, 3].max()), 0.0), w_max)
+    margin = int(math.ceil(max(8.0, w_max)))
+    hx = int(math.ceil(abs(ux) * 0.5 * (l_max - w_max) + 0.5 * w_max)) + margin + 1
+    hy = int(math.ceil(abs(uy) * 0.5 * (l_max - w_max) + 0.5 * w_max)) + margin + 1
+    ys, xs = np.meshgrid(-np.arange(-hy, hy + 1.0), np.arange(-hx, hx + 1.0), indexing="ij")  # y up, rows down
+    errors = np.empty(offsets.shape[0])
+    for i, (dx, dy, dw, dl) in enumerate(offsets):
+        w = max(width + dw, 1.0)
+        half = 0.5 * (max(length + dl, w) - w)
+        x, y = xs - dx, ys - dy
+        along = np.clip(x * ux + y * uy, -half, half)
+        ex, ey = x - along * ux, y - along * uy
+        d2 = ex * ex + ey * ey
+        inside = d2 < 0.25 * w * w
+        # dz/dd = 8 D d / w^2 along (ex, ey) / d: the slope per pixel is 8 D / w^2 (ex, ey) / h
+        g = np.where(inside, 8.0 * depth / (w * w * h), 0.0)
+        if integrator == "dct":
+            z = dct_poisson(g * ex, g * ey, None, h, dtype=np.float32)
+        else:
+            z = integrate(g * ex, g * ey, integrator, pixel_size=h)
+        plate = d2 > (0.5 * w + 3.0) ** 2
+        A = np.stack([np.ones(int(plate.sum())), xs[plate], ys[plate]], axis=1)
+        coef = np.linalg.lstsq(A, z[plate], rcond=None)[0]
+        measured = coef[0] + coef[1] * xs[inside] + coef[2] * ys[inside] - z[inside]
+        errors[i] = float(measured.max()) - depth
+    return errors
+
+
+def _depth_grid(rec: dict, h: float, integrator: str, rng: np.random.Generator) -> tuple[float, float]:
+    """The depth's pixel-grid error on the model of the defect (:func:`_groove_depth_errors`
+    with the measured depth, mean width, length and axis; random sub-pixel centre, width and
+    length): ``(mean, spread)``, mm. The mean is the method's bias at this axis (not
+    corrected: the model's section is an assumption), the spread the discretisation's
+    standard uncertainty."""
+    width = max(float(rec["mean_width_mm"]) / h, 1.0)
+    length = max(float(rec["length_mm"]) / h, width)
+    a = math.radians(float(rec["axis_deg"]))
+    frame = width + 2.0 * max(8.0, width) + 4.0
+    window = (abs(math.cos(a)) * (length - width) + frame) * (abs(math.sin(a)) * (length - width) + frame)
+    count = int(np.clip(_DEPTH_GRID_WORK / window, _DEPTH_GRID_OFFSETS // 3, _DEPTH_GRID_OFFSETS))
+    errors = _groove_depth_errors(float(rec["max_depth_mm"]), width, length, float(rec["axis_deg"]), h,
+                                  rng.uniform(-0.5, 0.5, (count, 4)), integrator)
+    return float(errors.mean()), float(errors.std(ddof=1))
 
 def _volume_edge(z: np.ndarray, fig: _Figures, bg: _Background, coef: np.ndarray, h: float) -> float:
     """Standard uncertainty of the volume from the outline's place: the outline moves together

@@ -20,7 +20,8 @@ from photometric.uncertainty.budget import (
 )
 from photometric.uncertainty.defects import (
     _Background,
-    _depth_sampling,
+    _bias_term,
+    _depth_grid,
     _figures,
     _grown,
     _noise_functionals,
@@ -268,8 +269,13 @@ def propagate(
             # and the rest (bias, skew) as the method's term
             terms[figname]["discretisation"] = _entry(spread, 1.0)
             terms[figname]["method_bias"] = _entry(math.sqrt(max(0.25 * half95**2 - spread**2, 0.0)), 1.0)
-        terms["max_depth_mm"]["discretisation"] = _entry(
-            _depth_sampling(z, fig, bg, coef0, lab, rec["id"] + 1), 1.0)
+        # the deepest pixel's grid error on the defect's model: its spread, and its mean
+        # (a bias that depends on the axis) stated as the uncorrected bias that, with every
+        # other term, a k = 2 interval must still cover (GUM F.2.4.5)
+        bias, spread = _depth_grid(rec, h, integrator, rng)
+        others = math.sqrt(sum(e["contribution"] ** 2 for e in terms["max_depth_mm"].values()) + spread**2)
+        terms["max_depth_mm"]["discretisation"] = _entry(spread, 1.0)
+        terms["max_depth_mm"]["method_bias"] = _entry(_bias_term(others, bias), 1.0)
         terms["volume_mm3"]["discretisation"] = _entry(_volume_edge(z, fig, bg, coef0, h), 1.0)
         budget, expanded = _budget(rec, terms)
         out_defects.append({"id": rec["id"], "uncertainty_k2": expanded, "budget": budget})
