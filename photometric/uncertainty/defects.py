@@ -8,6 +8,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.fft as sfft
 from scipy import ndimage
 
 from photometric.uncertainty.budget import _H_POWER
@@ -24,7 +25,7 @@ _MAX_FIT_POINTS = 200_000
 #: Sub-pixel placements of the groove model of the depth's grid error, and the pixels they
 #: may integrate together at most (bounds its cost on large defects).
 _DEPTH_GRID_OFFSETS = 24
-_DEPTH_GRID_WORK = 1 << 21
+_DEPTH_GRID_WORK = 1 << 20
 
 
 @dataclass
@@ -303,7 +304,7 @@ def _groove_depth_errors(depth: float, width: float, length: float, axis_deg: fl
     The groove ``z = -D (1 - (2 d / w)^2)`` for ``d < w / 2`` (``d`` the distance to its
     central segment of length ``L - w``; a stadium outline, ``width``, ``length`` in pixels)
     is sampled as the solve sees it: its exact slopes at the pixel centres, integrated by
-    ``integrator`` on a window with an 8-pixel flat margin (at least a width), and measured as
+    ``integrator`` on a window with a flat margin of 8 pixels (at least half a width), measured as
     :func:`photometric.defects.measure_defects` does: the deepest pixel against a plane fitted
     to the flat plate (3 pixels clear of the rim). Both grid effects are in the error: the
     deepest pixel centre misses the bottom line by up to half a pixel (shallower), and the
@@ -322,28 +323,34 @@ def _groove_depth_errors(depth: float, width: float, length: float, axis_deg: fl
     ux, uy = math.cos(a), math.sin(a)
     w_max = width + max(float(offsets[:, 2].max()), 0.0)
     l_max = max(length + max(float(offsets[:, 3].max()), 0.0), w_max)
-    margin = int(math.ceil(max(8.0, w_max)))
+    margin = int(math.ceil(max(8.0, 0.5 * w_max)))
     hx = int(math.ceil(abs(ux) * 0.5 * (l_max - w_max) + 0.5 * w_max)) + margin + 1
     hy = int(math.ceil(abs(uy) * 0.5 * (l_max - w_max) + 0.5 * w_max)) + margin + 1
-    ys, xs = np.meshgrid(-np.arange(-hy, hy + 1.0), np.arange(-hx, hx + 1.0), indexing="ij")  # y up, rows down
+    # fast transform lengths: the window grows by a few flat pixels on one side
+    rows, cols = sfft.next_fast_len(2 * hy + 1, real=True), sfft.next_fast_len(2 * hx + 1, real=True)
+    f = np.float32
+    ys, xs = np.meshgrid(f(hy) - np.arange(rows, dtype=f), np.arange(cols, dtype=f) - f(hx),
+                         indexing="ij")  # y up, rows down
     errors = np.empty(offsets.shape[0])
     for i, (dx, dy, dw, dl) in enumerate(offsets):
         w = max(width + dw, 1.0)
-        half = 0.5 * (max(length + dl, w) - w)
-        x, y = xs - dx, ys - dy
-        along = np.clip(x * ux + y * uy, -half, half)
-        ex, ey = x - along * ux, y - along * uy
+        half = f(0.5 * (max(length + dl, w) - w))
+        x, y = xs - f(dx), ys - f(dy)
+        along = np.clip(x * f(ux) + y * f(uy), -half, half)
+        ex, ey = x - along * f(ux), y - along * f(uy)
         d2 = ex * ex + ey * ey
-        inside = d2 < 0.25 * w * w
-        # dz/dd = 8 D d / w^2 along (ex, ey) / d: the slope per pixel is 8 D / w^2 (ex, ey) / h
-        g = np.where(inside, 8.0 * depth / (w * w * h), 0.0)
+        inside = d2 < f(0.25 * w * w)
+        # dz/dd = 8 D d / w^2 along (ex, ey) / d: the slope is 8 D / (w^2 h) (ex, ey)
+        g = np.where(inside, f(8.0 * depth / (w * w * h)), f(0.0))
         if integrator == "dct":
             z = dct_poisson(g * ex, g * ey, None, h, dtype=np.float32)
         else:
             z = integrate(g * ex, g * ey, integrator, pixel_size=h)
-        plate = d2 > (0.5 * w + 3.0) ** 2
-        A = np.stack([np.ones(int(plate.sum())), xs[plate], ys[plate]], axis=1)
-        coef = np.linalg.lstsq(A, z[plate], rcond=None)[0]
+        plate = d2 > f((0.5 * w + 3.0) ** 2)
+        # the plane's normal equations (the window's coordinates are centred: well conditioned)
+        px, py, pz = xs[plate].astype(float), ys[plate].astype(float), z[plate].astype(float)
+        gram = np.array([[px.size, px.sum(), py.sum()], [px.sum(), px @ px, px @ py], [py.sum(), px @ py, py @ py]])
+        coef = np.linalg.solve(gram, [pz.sum(), px @ pz, py @ pz])
         measured = coef[0] + coef[1] * xs[inside] + coef[2] * ys[inside] - z[inside]
         errors[i] = float(measured.max()) - depth
     return errors
