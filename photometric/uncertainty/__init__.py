@@ -51,8 +51,17 @@ The far-field solve is ``m = C x`` with ``C = L^+`` (3, N), ``x_k = I_k / E_k`` 
   measured outline, a stadium, rasterised at random sub-pixel offsets) and the measures'
   own bias found the same way (``method_bias``: e.g. the ``+ 1`` pixel of the extent,
   stated as the standard uncertainty whose k = 2 interval holds 95 % of the biased
-  spread). The depth gets its sampling term (the deepest point lies up to half a pixel
-  from the deepest pixel) and the volume the place of its outline.
+  spread). The volume gets the place of its outline.
+* The depth's pixel-grid error comes from a model of the defect: a parabolic-section
+  groove of the measured depth, width, length and axis whose exact slopes at the pixel
+  centres are integrated and measured like the solve, at random sub-pixel placements
+  (``defects._groove_depth_errors``). The slope's step at the rim integrates with a
+  first-order error that depends on where the rim falls between two pixel centres; it
+  wanders along the groove and the deepest pixel picks its largest excursion (a bias that
+  depends on the axis, largest near 45 deg), and the deepest centre misses the bottom by
+  up to half a pixel. The spread is the depth's ``discretisation``; the mean is stated,
+  not corrected (the section is an assumption), as ``method_bias``: the ``u_b`` whose
+  k = 2 interval, with every other term, holds 95 % of the shifted errors (GUM F.2.4.5).
 
 Monte Carlo (``method="montecarlo"``) repeats the fast solve (normals, integration,
 defects) with perturbed lights, intensities and noise added to the images, and reports
