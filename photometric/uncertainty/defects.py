@@ -365,7 +365,7 @@ def _depth_grid(rec: dict, h: float, integrator: str, rng: np.random.Generator) 
     width = max(float(rec["mean_width_mm"]) / h, 1.0)
     length = max(float(rec["length_mm"]) / h, width)
     a = math.radians(float(rec["axis_deg"]))
-    frame = width + 2.0 * max(8.0, width) + 4.0
+    frame = width + 2.0 * max(8.0, 0.5 * width) + 4.0
     window = (abs(math.cos(a)) * (length - width) + frame) * (abs(math.sin(a)) * (length - width) + frame)
     count = int(np.clip(_DEPTH_GRID_WORK / window, _DEPTH_GRID_OFFSETS // 3, _DEPTH_GRID_OFFSETS))
     errors = _groove_depth_errors(float(rec["max_depth_mm"]), width, length, float(rec["axis_deg"]), h,
