@@ -18,7 +18,7 @@
 4. Cost: a 4 MP reconstruction with and without the linear uncertainty, same run, best of 3.
 
 Run: ``.venv/bin/python benchmarks/bench_uncertainty.py [--trials 200] [--mc-trials 200]
-[--mc-samples 30] [--near-trials 200] [--size-trials 100]``
+[--mc-samples 30] [--near-trials 200] [--size-trials 100] [--workers 1]``
 """
 
 from __future__ import annotations
@@ -101,6 +101,11 @@ def cost(size: int = 2048, repeat: int = 3) -> tuple[float, float, dict]:
     return min(plain), min(extra), stages
 
 
+def _study(spec: tuple[str, dict]) -> tuple[str, dict]:
+    name, kwargs = spec
+    return name, coverage_study(**kwargs)
+
+
 def main(argv=None) -> str:
     ap = argparse.ArgumentParser()
     ap.add_argument("--trials", type=int, default=200)
@@ -109,12 +114,25 @@ def main(argv=None) -> str:
     ap.add_argument("--near-trials", type=int, default=200)
     ap.add_argument("--size-trials", type=int, default=100, help="trials of the 0.10 and 0.02 mm scratches")
     ap.add_argument("--size", type=int, default=2048, help="image side of the cost benchmark")
+    ap.add_argument("--workers", type=int, default=1, help="processes for the coverage studies (the cost runs alone)")
     args = ap.parse_args(argv)
 
-    far = [("linear", coverage_study(args.trials, "linear", seed=17))]
-    far.append(("Monte Carlo", coverage_study(args.mc_trials, "montecarlo", mc_samples=args.mc_samples, seed=17)))
-    near = [("linear", coverage_study(args.near_trials, "linear", rig="near", seed=18))]
-    sizes = [(f"{d} mm", coverage_study(args.size_trials, "linear", depth_mm=d, seed=19)) for d in (0.10, 0.02)]
+    specs = [("far linear", {"n_trials": args.trials, "method": "linear", "seed": 17}),
+             ("far mc", {"n_trials": args.mc_trials, "method": "montecarlo", "mc_samples": args.mc_samples,
+                         "seed": 17}),
+             ("near", {"n_trials": args.near_trials, "method": "linear", "rig": "near", "seed": 18}),
+             *[(f"{d} mm", {"n_trials": args.size_trials, "method": "linear", "depth_mm": d, "seed": 19})
+               for d in (0.10, 0.02)]]
+    if args.workers > 1:
+        from concurrent.futures import ProcessPoolExecutor
+
+        with ProcessPoolExecutor(max_workers=args.workers) as pool:
+            done = dict(pool.map(_study, specs))
+    else:
+        done = dict(map(_study, specs))
+    far = [("linear", done["far linear"]), ("Monte Carlo", done["far mc"])]
+    near = [("linear", done["near"])]
+    sizes = [(f"{d} mm", done[f"{d} mm"]) for d in (0.10, 0.02)]
     by_axis, by_size = grid_model_rows()
     t_plain, t_unc, stages = cost(args.size)
 
