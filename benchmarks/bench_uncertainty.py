@@ -201,7 +201,8 @@ def main(argv=None) -> str:
         "sd above), and the extra Monte Carlo samples cannot change them. Their coverages differ only by the "
         "random sub-pixel draws of the quantisation model that sets U (the 95th percentile of |error| over 96 "
         "placements varies by about 4 % of U between draws; 256 placements bring that to 3 % at three times the "
-        "cost), and by the binomial spread of 200 trials (about ±1.5 %). The extent along the axis plus one pixel "
+        "cost), and by the binomial spread of the trials (their 95 % intervals above; about ±1.5 % at 200). "
+        "The extent along the axis plus one pixel "
         "reads about 0.4 pixel long on average; the budget states that as the length's `method_bias`.",
         "## Near field (LEDs 150 mm away, 0.5 mm standard uncertainty per coordinate, orthographic camera)",
         Table(head(near), coverage_rows(near), "l" + "rrrr" * len(near)),
