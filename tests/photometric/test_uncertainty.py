@@ -8,6 +8,7 @@ import pytest
 import scipy.fft as sfft
 
 import photometric.uncertainty as U
+from photometric.uncertainty import defects, heights, propagation, slopes
 from datasets_synthetic.heightfields import u_scratch
 from datasets_synthetic.render import render
 from photometric.integrate import dct_poisson
@@ -86,7 +87,7 @@ def test_isotropic_direction_tolerance_matches_random_tangent_errors():
     L = ring_lights(3, 45.0)
     p, q = np.array([0.2]), np.array([-0.3])
     u = math.radians(0.5)
-    samples = [_exact_slopes(L, U._perturbed_lights(L, u, rng), p, q) for _ in range(4000)]
+    samples = [_exact_slopes(L, propagation._perturbed_lights(L, u, rng), p, q) for _ in range(4000)]
     sp, sq = U.slope_systematic_variance(L, p, q, U.Tolerances(light_tolerance_deg=0.5))
     assert np.var([s[0] for s in samples]) / sp.item() == pytest.approx(1.0, abs=0.08)
     assert np.var([s[1] for s in samples]) / sq.item() == pytest.approx(1.0, abs=0.08)
@@ -96,8 +97,8 @@ def test_isotropic_direction_tolerance_matches_random_tangent_errors():
 def test_squared_basis_sum_is_the_explicit_sum(n):
     T = np.random.default_rng(n).random((n, 5)).astype(np.float32)
     D = sfft.dct(np.eye(n), norm="ortho", axis=0)  # D[k, r] = a_k(r)
-    np.testing.assert_allclose(U._squared_basis_sum(T, 0), (D**2).T @ T, atol=1e-6)
-    np.testing.assert_allclose(U._squared_basis_sum(T.T, 1), ((D**2).T @ T).T, atol=1e-6)
+    np.testing.assert_allclose(heights._squared_basis_sum(T, 0), (D**2).T @ T, atol=1e-6)
+    np.testing.assert_allclose(heights._squared_basis_sum(T.T, 1), ((D**2).T @ T).T, atol=1e-6)
 
 
 def test_height_noise_variance_and_linear_variance_match_monte_carlo():
@@ -141,7 +142,7 @@ def _scratch(size=160, h=0.05, seed=0, noise=0.002, deviation_deg=0.5, axis_deg=
     L = ring_lights(3, 45.0)
     hf = u_scratch(size, h, depth_mm=0.05, width_mm=width_mm, length_mm=5.0, center_px=(80.3, 79.6),
                    axis_deg=axis_deg)
-    images = render(hf, U._perturbed_lights(L, math.radians(deviation_deg), rng), albedo=0.8, noise=noise,
+    images = render(hf, propagation._perturbed_lights(L, math.radians(deviation_deg), rng), albedo=0.8, noise=noise,
                     seed=rng)
     return hf, L, images
 
@@ -166,6 +167,37 @@ def test_pipeline_budget_of_a_scratch_is_not_padded():
     assert res.summary["uncertainty"]["noise_sigma_source"] == "option"
 
 
+@pytest.mark.parametrize("axis_deg", [0.0, 10.0, 30.0, 44.0, 80.0])
+def test_groove_depth_model_matches_the_rendered_scratch(axis_deg):
+    """The depth's grid model (the exact slopes of a parabolic groove at the pixel centres,
+    integrated and measured like the solve) gives the depth error of the noise-free rendered
+    U-scratch through the whole pipeline, axis by axis (at 44 deg it is about +5 % of the
+    depth, elsewhere a few tenths of a micrometre either way)."""
+    L = ring_lights(3, 45.0)
+    centre = (80.3, 77.6)
+    hf = u_scratch(160, 0.05, depth_mm=0.05, width_mm=0.4, length_mm=5.0, center_px=centre, axis_deg=axis_deg)
+    measured = reconstruct(render(hf, L, albedo=0.8), lights=L, pixel_size=0.05).defects[0]["max_depth_mm"] - 0.05
+    offset = [centre[1] - round(centre[1]), round(centre[0]) - centre[0], 0.0, 0.0]  # x right, y up
+    model = defects._groove_depth_errors(0.05, 8.0, 100.0, axis_deg, 0.05, np.array([offset]))[0]
+    assert model == pytest.approx(measured, abs=4e-4)
+    if axis_deg == 44.0:
+        assert model > 0.002
+    # linear in the depth (the integration is linear; the deepest pixel stays the deepest)
+    doubled = defects._groove_depth_errors(0.1, 8.0, 100.0, axis_deg, 0.05, np.array([offset]))[0]
+    assert doubled == pytest.approx(2.0 * model, rel=1e-4, abs=1e-9)
+
+
+def test_depth_budget_states_the_grid_bias_of_the_axis():
+    """A 44 deg scratch's depth carries the grid's bias as its own source; a 30 deg one hardly."""
+    out = {}
+    for axis in (30.0, 44.0):
+        _, L, images = _scratch(axis_deg=axis, deviation_deg=0.0)
+        res = reconstruct(images, lights=L, pixel_size=0.05, uncertainty={"noise_sigma": 0.002})
+        out[axis] = res.uncertainty.defects[0]["budget"]["max_depth_mm"]["sources"]
+        assert out[axis]["discretisation"]["contribution"] > 0
+    assert out[44.0]["method_bias"]["contribution"] > 0.001 > out[30.0]["method_bias"]["contribution"]
+
+
 def test_light_tolerance_grows_the_height_uncertainty():
     _, L, images = _scratch(size=96, noise=0.0, deviation_deg=0.0)
     small = reconstruct(images, lights=L, pixel_size=0.05, uncertainty={"light_tolerance_deg": 0.2})
@@ -188,9 +220,9 @@ def test_binned_systematic_fields_agree_with_full_resolution(monkeypatch):
     _, L, images = _scratch(size=192, h=0.05, width_mm=1.6)  # 32 pixels across: 16 blocks of 2 x 2
     tol = {"noise_sigma": 0.002, "light_tolerance_deg": 0.5}
     full = reconstruct(images, lights=L, pixel_size=0.05, uncertainty=tol).uncertainty
-    monkeypatch.setattr(U, "_SYSTEMATIC_PIXELS", 192 * 192 // 4)  # blocks of 2 x 2 pixels
+    monkeypatch.setattr(propagation, "_SYSTEMATIC_PIXELS", 192 * 192 // 4)  # blocks of 2 x 2 pixels
     binned = reconstruct(images, lights=L, pixel_size=0.05, uncertainty=tol).uncertainty
-    monkeypatch.setattr(U, "_RESOLVE", 1000)  # a defect the blocks cannot resolve: pixels again
+    monkeypatch.setattr(propagation, "_RESOLVE", 1000)  # a defect the blocks cannot resolve: pixels again
     again = reconstruct(images, lights=L, pixel_size=0.05, uncertainty=tol).uncertainty
     # the same computation (BLAS reductions may differ in the last bits between runs)
     assert _flat(again.defects) == pytest.approx(_flat(full.defects), rel=1e-9)
@@ -273,7 +305,7 @@ def test_led_position_jacobian_matches_the_near_field_solver():
     base = reconstruct(images(nominal), light_positions=nominal, pixel_size=h)
     model = U.PointLightModel(point_lights(nominal), make_camera("orthographic", pixel_size_mm=h), None, True,
                               base.xy, np.ones(3))
-    fields, p_u, _, _, _ = U._point_fields(model, base.albedo, base.p, base.q, base.valid, base.height, 0.0,
+    fields, p_u, _, _, _ = slopes._point_fields(model, base.albedo, base.p, base.q, base.valid, base.height, 0.0,
                                            U.Tolerances(light_position_tolerance_mm=1.0), 1)
     assert [f[1] for f in fields][:3] == ["light 0 x", "light 0 y", "light 0 z"] and len(fields) == 9
     for index in (1, 2, 3):
@@ -284,7 +316,7 @@ def test_led_position_jacobian_matches_the_near_field_solver():
         v = base.valid & other.valid
         actual = (other.height - base.height) / 2.0
         actual -= actual[v].mean()
-        predicted = U._integrate_field(fields[index][3], fields[index][4], "dct", base.valid, h)
+        predicted = heights._integrate_field(fields[index][3], fields[index][4], "dct", base.valid, h)
         assert np.corrcoef(actual[v], predicted[v])[0, 1] > 0.999
         assert np.sqrt(np.mean(predicted[v] ** 2)) == pytest.approx(np.sqrt(np.mean(actual[v] ** 2)), rel=0.05)
     assert np.all(p_u[base.valid] > 0)
@@ -312,3 +344,13 @@ def test_near_field_monte_carlo_moves_the_leds():
                                    "mc_samples": 4})
     assert res.uncertainty.summary["method"] == "montecarlo"
     assert np.nanmedian(res.uncertainty.height_u[res.valid]) > 0
+
+
+def test_public_names_import_from_the_package():
+    """The package keeps every public name of the former module at ``photometric.uncertainty.X``."""
+    from photometric.uncertainty import budget
+
+    assert all(hasattr(U, name) for name in U.__all__)
+    assert U.propagate is propagation.propagate and U.Tolerances is budget.Tolerances
+    assert U.slope_noise_covariance is slopes.slope_noise_covariance
+    assert U.height_noise_variance is heights.height_noise_variance

@@ -5,7 +5,7 @@ import pytest
 
 from datasets_synthetic.render import make_triad_folder
 from workbench.runs.photometric import reconstruct_to_folder
-from workbench.studies.uncertainty import coverage_study, uncertainty_budget
+from workbench.studies.uncertainty import coverage_interval, coverage_study, uncertainty_budget
 
 
 @pytest.fixture(scope="module")
@@ -44,3 +44,27 @@ def test_coverage_study_reports_every_figure():
     assert out["height"]["samples"] == 10
     with pytest.raises(ValueError, match="n_trials"):
         coverage_study(0)
+
+
+def test_coverage_interval_is_the_wilson_interval():
+    # closed forms: 0 of n gives [0, z^2 / (n + z^2)]; p = 1/2 is symmetric about 1/2
+    z2 = 1.959963984540054**2
+    assert coverage_interval(0, 10) == pytest.approx((0.0, z2 / (10 + z2)))
+    low, high = coverage_interval(100, 200)
+    assert low + high == pytest.approx(1.0)
+    # 200 trials at 95 %: the band the 93-97 % target is judged against
+    assert coverage_interval(190, 200) == pytest.approx((0.9104, 0.9726), abs=5e-4)
+    assert coverage_interval(50, 50)[1] == 1.0
+    with pytest.raises(ValueError, match="hits"):
+        coverage_interval(11, 10)
+    with pytest.raises(ValueError, match="confidence"):
+        coverage_interval(1, 10, confidence=1.0)
+
+
+def test_coverage_study_states_the_interval_of_each_figure():
+    out = coverage_study(3, "linear", size=96, pixels_per_trial=4, seed=2, length_mm=3.0)
+    for key in ("max_depth_mm", "length_mm", "height"):
+        low, high = out[key]["coverage_interval"]
+        assert 0.0 <= low <= out[key]["coverage"] <= high <= 1.0
+        # three trials cannot rule out the 93-97 % target
+        assert out[key]["missed_target"] is False

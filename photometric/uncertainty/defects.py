@@ -1,0 +1,388 @@
+"""Defect figures as functionals of the height: depth and volume against the fitted
+background, their noise variance, and the pixel-grid terms of the budget (the outline's
+quantisation, the depth's sampling, the outline's place in the volume)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.fft as sfft
+from scipy import ndimage
+
+from photometric.uncertainty.budget import _H_POWER
+from photometric.uncertainty.heights import _linear_variance, _mode_variance, _point_variance
+
+_QUANTISATION_OFFSETS = 96
+
+
+#: Pixel-stadium evaluations of the quantisation of one defect, at most (bounds its cost).
+_QUANTISATION_WORK = 1 << 20
+
+
+_MAX_FIT_POINTS = 200_000
+#: Sub-pixel placements of the groove model of the depth's grid error, and the pixels they
+#: may integrate together at most (bounds its cost on large defects).
+_DEPTH_GRID_OFFSETS = 24
+_DEPTH_GRID_WORK = 1 << 20
+
+
+@dataclass
+class _Figures:
+    """The linear functionals of one defect: depth and volume against the background fit."""
+
+    sign: float
+    peak: tuple[int, int]
+    region: np.ndarray  # (n, 2) pixel indices
+    d_peak: np.ndarray  # design row at the peak (terms,)
+    d_region: np.ndarray  # summed design rows over the region (terms,)
+
+
+class _Background:
+    """A least-squares background (plane or polynomial) over fixed pixels: a linear projector."""
+
+    def __init__(self, usable: np.ndarray, degree: int, shape):
+        from photometric.defects import _design
+
+        rows, cols = np.nonzero(usable)
+        if rows.size > _MAX_FIT_POINTS:
+            pick = np.linspace(0, rows.size - 1, _MAX_FIT_POINTS).astype(np.int64)
+            rows, cols = rows[pick], cols[pick]
+        self.rows, self.cols, self.shape, self.degree = rows, cols, shape, degree
+        self.A = _design(rows, cols, shape, degree)
+        self.gram_inv = np.linalg.pinv(self.A.T @ self.A)
+
+    def design(self, rows, cols) -> np.ndarray:
+        from photometric.defects import _design
+
+        return _design(np.atleast_1d(rows), np.atleast_1d(cols), self.shape, self.degree)
+
+    def coef(self, z: np.ndarray) -> np.ndarray:
+        return self.gram_inv @ (self.A.T @ z[self.rows, self.cols])
+
+    def weights(self, d: np.ndarray) -> np.ndarray:
+        """Image of the weights with which the fit's value ``d . coef`` takes each pixel."""
+        w = np.zeros(self.shape, np.float32)
+        w[self.rows, self.cols] = self.A @ (self.gram_inv @ d)  # the fit's pixels are distinct
+        return w
+
+
+def _grown(labels: np.ndarray, defects: list, margin: int) -> np.ndarray:
+    """The defects' pixels grown by ``margin`` pixels (dilated within each bounding box)."""
+    out = np.zeros(labels.shape, bool)
+    for rec in defects:
+        r0, c0, r1, c1 = rec["bbox_px"]
+        r0, c0 = max(r0 - margin, 0), max(c0 - margin, 0)
+        r1, c1 = min(r1 + margin, labels.shape[0]), min(c1 + margin, labels.shape[1])
+        window = labels[r0:r1, c0:c1] == rec["id"] + 1
+        out[r0:r1, c0:c1] |= ndimage.binary_dilation(window, iterations=margin)
+    return out
+
+
+def _figures(labels: np.ndarray, defects: list, height: np.ndarray, bg: _Background) -> list[_Figures]:
+    coef = bg.coef(np.nan_to_num(height))
+    out = []
+    for rec in defects:
+        region = np.argwhere(labels == rec["id"] + 1)
+        sign = -1.0 if rec.get("kind", "depression") == "depression" else 1.0
+        design = bg.design(region[:, 0], region[:, 1])
+        depth = sign * (height[region[:, 0], region[:, 1]] - design @ coef)
+        i = int(np.argmax(depth))
+        out.append(_Figures(sign, (int(region[i, 0]), int(region[i, 1])), region, design[i], design.sum(axis=0)))
+    return out
+
+
+def _points(bg: _Background, figs: list) -> tuple[np.ndarray, np.ndarray, list]:
+    """Every pixel a systematic field is read at: the background's, then per defect its peak
+    and its region; with the slices of each defect's part."""
+    rows, cols, parts = [bg.rows], [bg.cols], []
+    start = bg.rows.size
+    for fig in figs:
+        rows += [np.array([fig.peak[0]]), fig.region[:, 0]]
+        cols += [np.array([fig.peak[1]]), fig.region[:, 1]]
+        parts.append((start, start + 1 + fig.region.shape[0]))
+        start = parts[-1][1]
+    return np.concatenate(rows), np.concatenate(cols), parts
+
+
+def _sampler(rows: np.ndarray, cols: np.ndarray, r: int, coarse_shape) -> tuple[np.ndarray, np.ndarray]:
+    """Flat indices (n, 4) and weights (n, 4) that read a field of ``r x r`` block means at
+    full-resolution pixels bilinearly, as :func:`photometric.nearfield._upsample` does."""
+    hc, wc = coarse_shape
+    out_i, out_w = [], []
+    for pix, n in ((rows, hc), (cols, wc)):
+        x = np.clip((pix + 0.5) / r - 0.5, 0.0, n - 1)
+        i0 = np.floor(x).astype(np.int64)
+        i1 = np.minimum(i0 + 1, n - 1)
+        f = x - i0
+        out_i.append((i0, i1))
+        out_w.append((1.0 - f, f))
+    (r0, r1), (c0, c1) = out_i
+    (wr0, wr1), (wc0, wc1) = out_w
+    idx = np.stack([r0 * wc + c0, r0 * wc + c1, r1 * wc + c0, r1 * wc + c1], axis=1)
+    w = np.stack([wr0 * wc0, wr0 * wc1, wr1 * wc0, wr1 * wc1], axis=1)
+    return idx, w
+
+
+def _systematic(fig: _Figures, values: np.ndarray, part: tuple, coef: np.ndarray, h: float) -> tuple[float, float]:
+    """Change of (depth, volume) for a systematic height field read at the defect's pixels
+    (``values[part]``: peak, then region) with background ``coef``."""
+    v = values[part[0]:part[1]]
+    depth = fig.sign * (v[0] - fig.d_peak @ coef)
+    volume = fig.sign * h * h * (v[1:].sum() - fig.d_region @ coef)
+    return float(depth), float(volume)
+
+
+def _noise_weights(fig: _Figures, bg: _Background, h: float) -> tuple[np.ndarray, np.ndarray]:
+    w_depth = -fig.sign * bg.weights(fig.d_peak)
+    w_depth[fig.peak] += fig.sign
+    w_vol = -fig.sign * h * h * bg.weights(fig.d_region)
+    w_vol[fig.region[:, 0], fig.region[:, 1]] += fig.sign * h * h  # distinct pixels
+    return w_depth, w_vol
+
+
+def _noise_functionals(fig: _Figures, bg: _Background, h: float, r: int, T: np.ndarray, var_p: float,
+                       var_q: float, cache: dict) -> tuple[float, float]:
+    """Noise variance of a defect's depth and volume against the background fit.
+
+    ``r = 1``: exact (:func:`linear_variance` of the weights). Large images (``r > 1``):
+    the weights summed over ``r x r`` blocks against the mode variances of the block-mean
+    slopes (variance ``/ r^2`` on pixels ``r h``), which hold every scale of the
+    background fit and the region; the depth adds the peak pixel's own variance at full
+    resolution minus its block's (:func:`_point_variance`).
+    """
+    if r == 1:
+        w_depth, w_vol = _noise_weights(fig, bg, h)
+        return _linear_variance(w_depth, T), _linear_variance(w_vol, T)
+    shape = (T.shape[0] // r, T.shape[1] // r)
+    if "T" not in cache:
+        cache["T"] = _mode_variance(shape, var_p / r**2, var_q / r**2, h * r)
+    Tc = cache["T"]
+    hc, wc = shape
+    # block of each weighted pixel (trailing rows and columns belong to the last blocks)
+    bg_block = np.minimum(bg.rows // r, hc - 1) * wc + np.minimum(bg.cols // r, wc - 1)
+    region_block = (np.minimum(fig.region[:, 0] // r, hc - 1) * wc + np.minimum(fig.region[:, 1] // r, wc - 1))
+
+    def blocks(fit_weights, own_blocks, own_weight):
+        out = np.bincount(bg_block, weights=fit_weights, minlength=hc * wc)
+        out += np.bincount(own_blocks, minlength=hc * wc) * own_weight
+        return out.reshape(hc, wc)
+
+    pr, pc = fig.peak
+    peak_block = np.array([min(pr // r, hc - 1) * wc + min(pc // r, wc - 1)])
+    b_depth = blocks(-fig.sign * (bg.A @ (bg.gram_inv @ fig.d_peak)), peak_block, fig.sign)
+    b_vol = blocks(-fig.sign * h * h * (bg.A @ (bg.gram_inv @ fig.d_region)), region_block, fig.sign * h * h)
+    rc, cc = min(pr // r, shape[0] - 1), min(pc // r, shape[1] - 1)
+    vd = _linear_variance(b_depth, Tc) + _point_variance(T, pr, pc) - _point_variance(Tc, rc, cc)
+    return max(vd, 0.0), _linear_variance(b_vol, Tc)
+
+
+def _rasterised(width: float, length: float, axis_deg: float, h: float, offsets: np.ndarray) -> dict:
+    """Width, length and area (as :func:`photometric.defects.measure_defects` measures them)
+    of stadiums (``width``, ``length`` in pixels, axis in degrees) rasterised at sub-pixel
+    offsets: the pixel centres inside a stadium are its region, measured as
+    :func:`photometric.defects._measure` does (principal axis, extent along it plus one
+    pixel, pixels of the central half per pixel of half the length), all stadiums at once.
+
+    ``offsets`` is (n, 2) (``dx, dy``, pixels) or (n, 4) (also ``dwidth, dlength`` added to
+    the stadium's width and length, pixels). Returns lists of the measures (mm, mm^2) and,
+    under ``"model"``, each stadium's own ``(width, length, area)``; stadiums with fewer than
+    two pixels are left out."""
+    offsets = np.asarray(offsets, float)
+    if offsets.shape[1] == 2:
+        offsets = np.concatenate([offsets, np.zeros_like(offsets)], axis=1)
+    widths = np.maximum(width + offsets[:, 2], 1.0)
+    lengths = np.maximum(length + offsets[:, 3], widths)
+    a = math.radians(axis_deg)
+    ux, uy = math.cos(a), math.sin(a)
+    reach = 0.5 * float(lengths.max()) + 2.0
+    half_x = int(math.ceil(abs(ux) * reach + 0.5 * widths.max())) + 2
+    half_y = int(math.ceil(abs(uy) * reach + 0.5 * widths.max())) + 2
+    y0, x0 = np.meshgrid(-np.arange(-half_y, half_y + 1.0), np.arange(-half_x, half_x + 1.0),
+                         indexing="ij")  # y up, rows down
+    # only the pixels near the axis can be inside at any offset
+    near = (np.abs(-x0 * uy + y0 * ux) < 0.5 * widths.max() + 1.0) & (np.abs(x0 * ux + y0 * uy) < reach)
+    xs, ys = x0[near].astype(np.float32), y0[near].astype(np.float32)
+    dx, dy = offsets[:, :1].astype(np.float32), offsets[:, 1:2].astype(np.float32)
+    half = (0.5 * (lengths - widths)).astype(np.float32)[:, None]
+    x, y = xs - dx, ys - dy
+    along = np.clip(x * np.float32(ux) + y * np.float32(uy), -half, half)
+    radius = (0.5 * widths).astype(np.float32)[:, None]
+    inside = np.hypot(x - along * np.float32(ux), y - along * np.float32(uy)) < radius
+    n = inside.sum(axis=1)
+    keep = n >= 2
+    inside, n, widths, lengths = inside[keep], n[keep], widths[keep], lengths[keep]
+    values = {"mean_width_mm": [], "length_mm": [], "area_mm2": [], "model": []}
+    if not keep.any():
+        return values
+    # the region's own principal axis (rows, cols of the pixel grid, as _measure takes them)
+    w = inside.astype(np.float64)
+    X, Y = xs.astype(np.float64), ys.astype(np.float64)
+    mx, my = w @ X / n, w @ Y / n
+    cxx = w @ (X * X) / n - mx * mx
+    cyy = w @ (Y * Y) / n - my * my
+    cxy = w @ (X * Y) / n - mx * my
+    angle = 0.5 * np.arctan2(2.0 * cxy, cxx - cyy)
+    s = np.cos(angle)[:, None] * X + np.sin(angle)[:, None] * Y
+    s_max = np.where(inside, s, -np.inf).max(axis=1)
+    s_min = np.where(inside, s, np.inf).min(axis=1)
+    length_px = s_max - s_min + 1.0
+    central = inside & (np.abs(s - 0.5 * (s_max + s_min)[:, None]) <= 0.25 * length_px[:, None])
+    values["mean_width_mm"] = list(central.sum(axis=1) / np.maximum(0.5 * length_px, 1.0) * h)
+    values["length_mm"] = list(length_px * h)
+    values["area_mm2"] = list(n * h * h)
+    areas = ((lengths - widths) * widths + 0.25 * math.pi * widths**2) * h * h
+    values["model"] = list(zip(widths * h, lengths * h, areas))
+    return values
+
+
+def _quantisation(rec: dict, h: float, rng: np.random.Generator) -> dict:
+    """Pixel quantisation of the outline: width, length and area measured (as
+    :func:`photometric.defects.measure_defects` does) on a stadium of the defect's axis
+    rasterised at random sub-pixel offsets.
+
+    The stadium stands for the true outline, so its width and length are first set so that
+    their mean measures over a few offsets equal the defect's (one correction: the extent
+    along the axis adds up to a pixel, the mean width of a round dent is below its
+    diameter). The measures' errors over the offsets are discrete and skewed (the extent
+    moves in steps of the pixel pitch projected on the axis), so the 95 % half-width is
+    their 95th percentile of ``|measure - stadium|``, not twice a standard deviation.
+
+    Returns ``{figure: (spread, half95)}``: the standard deviation of the measures over the
+    offsets and the 95th percentile of their absolute error.
+    """
+    width = max(float(rec["mean_width_mm"]) / h, 1.0)
+    length = max(float(rec["length_mm"]) / h, width)
+    axis = float(rec["axis_deg"])
+    first = _rasterised(width, length, axis, h, rng.uniform(-0.5, 0.5, (16, 4)))
+    if len(first["mean_width_mm"]) > 2:
+        bias_w, bias_l, _ = np.mean(np.asarray([first["mean_width_mm"], first["length_mm"], first["area_mm2"]]).T
+                                    - np.asarray(first["model"]), axis=0)
+        width = min(max(width - bias_w / h, 1.0), length)
+        length = max(length - bias_l / h, width)
+    # the true width and length are known to about a pixel only, and how the outline
+    # falls on the grid depends on their fractions of a pixel: each stadium draws them
+    # large outlines (many pixels) quantise finely: fewer stadiums bound the work
+    count = int(np.clip(_QUANTISATION_WORK / ((length + 4.0) * (width + 3.0)), _QUANTISATION_OFFSETS // 3,
+                        _QUANTISATION_OFFSETS))
+    values = _rasterised(width, length, axis, h, rng.uniform(-0.5, 0.5, (count, 4)))
+    model = dict(zip(("mean_width_mm", "length_mm", "area_mm2"), np.asarray(values.pop("model")).T))
+    out = {}
+    for key, v in values.items():
+        if len(v) > 2:
+            err = np.asarray(v) - model[key]
+            out[key] = (float(np.std(err, ddof=1)), float(np.percentile(np.abs(err), 95.0)))
+        else:
+            out[key] = (0.5 * h ** _H_POWER[key], h ** _H_POWER[key])
+    return out
+
+
+def _bias_term(spread: float, bias: float) -> float:
+    """Standard uncertainty of an uncorrected bias ``b`` next to a spread ``s``: the ``u_b`` for
+    which ``2 sqrt(s^2 + u_b^2)`` is the half-width that holds 95 % of ``Normal(b, s)``."""
+    b, s = abs(bias), spread
+    if b == 0.0:
+        return 0.0
+    if s <= 0.0:
+        return 0.5 * b
+
+    def held(U):
+        return 0.5 * (math.erf((U - b) / (s * math.sqrt(2.0))) - math.erf((-U - b) / (s * math.sqrt(2.0))))
+
+    lo, hi = 0.0, b + 10.0 * s
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if held(mid) < 0.95 else (lo, mid)
+    return float(math.sqrt(max((0.25 * (lo + hi)) ** 2 - s * s, 0.0)))
+
+
+def _groove_depth_errors(depth: float, width: float, length: float, axis_deg: float, h: float,
+                         offsets: np.ndarray, integrator: str = "dct") -> np.ndarray:
+    """Errors of the measured depth (mm) of a parabolic-section groove on the pixel grid.
+
+    The groove ``z = -D (1 - (2 d / w)^2)`` for ``d < w / 2`` (``d`` the distance to its
+    central segment of length ``L - w``; a stadium outline, ``width``, ``length`` in pixels)
+    is sampled as the solve sees it: its exact slopes at the pixel centres, integrated by
+    ``integrator`` on a window with a flat margin of 8 pixels (at least half a width), measured as
+    :func:`photometric.defects.measure_defects` does: the deepest pixel against a plane fitted
+    to the flat plate (3 pixels clear of the rim). Both grid effects are in the error: the
+    deepest pixel centre misses the bottom line by up to half a pixel (shallower), and the
+    slope's step at the rim, sampled at pixel centres, integrates with a first-order error
+    that depends on where the rim falls between two centres; it wanders along the groove
+    and the deepest pixel picks its largest excursion (deeper on average; strongest for
+    axes near 45 deg and other small rational slopes of the grid).
+
+    ``offsets`` is (n, 4): ``dx, dy`` of the centre and ``dwidth, dlength`` (pixels).
+    Returns the n errors (measured minus ``depth``).
+    """
+    from photometric.integrate import dct_poisson, integrate
+
+    offsets = np.asarray(offsets, float)
+    a = math.radians(axis_deg)
+    ux, uy = math.cos(a), math.sin(a)
+    w_max = width + max(float(offsets[:, 2].max()), 0.0)
+    l_max = max(length + max(float(offsets[:, 3].max()), 0.0), w_max)
+    margin = int(math.ceil(max(8.0, 0.5 * w_max)))
+    hx = int(math.ceil(abs(ux) * 0.5 * (l_max - w_max) + 0.5 * w_max)) + margin + 1
+    hy = int(math.ceil(abs(uy) * 0.5 * (l_max - w_max) + 0.5 * w_max)) + margin + 1
+    # fast transform lengths: the window grows by a few flat pixels on one side
+    rows, cols = sfft.next_fast_len(2 * hy + 1, real=True), sfft.next_fast_len(2 * hx + 1, real=True)
+    f = np.float32
+    ys, xs = np.meshgrid(f(hy) - np.arange(rows, dtype=f), np.arange(cols, dtype=f) - f(hx),
+                         indexing="ij")  # y up, rows down
+    errors = np.empty(offsets.shape[0])
+    for i, (dx, dy, dw, dl) in enumerate(offsets):
+        w = max(width + dw, 1.0)
+        half = f(0.5 * (max(length + dl, w) - w))
+        x, y = xs - f(dx), ys - f(dy)
+        along = np.clip(x * f(ux) + y * f(uy), -half, half)
+        ex, ey = x - along * f(ux), y - along * f(uy)
+        d2 = ex * ex + ey * ey
+        inside = d2 < f(0.25 * w * w)
+        # dz/dd = 8 D d / w^2 along (ex, ey) / d: the slope is 8 D / (w^2 h) (ex, ey)
+        g = np.where(inside, f(8.0 * depth / (w * w * h)), f(0.0))
+        if integrator == "dct":
+            z = dct_poisson(g * ex, g * ey, None, h, dtype=np.float32)
+        else:
+            z = integrate(g * ex, g * ey, integrator, pixel_size=h)
+        plate = d2 > f((0.5 * w + 3.0) ** 2)
+        # the plane's normal equations (the window's coordinates are centred: well conditioned)
+        px, py, pz = xs[plate].astype(float), ys[plate].astype(float), z[plate].astype(float)
+        gram = np.array([[px.size, px.sum(), py.sum()], [px.sum(), px @ px, px @ py], [py.sum(), px @ py, py @ py]])
+        coef = np.linalg.solve(gram, [pz.sum(), px @ pz, py @ pz])
+        measured = coef[0] + coef[1] * xs[inside] + coef[2] * ys[inside] - z[inside]
+        errors[i] = float(measured.max()) - depth
+    return errors
+
+
+def _depth_grid(rec: dict, h: float, integrator: str, rng: np.random.Generator) -> tuple[float, float]:
+    """The depth's pixel-grid error on the model of the defect (:func:`_groove_depth_errors`
+    with the measured depth, mean width, length and axis; random sub-pixel centre, width and
+    length): ``(mean, spread)``, mm. The mean is the method's bias at this axis (not
+    corrected: the model's section is an assumption), the spread the discretisation's
+    standard uncertainty."""
+    width = max(float(rec["mean_width_mm"]) / h, 1.0)
+    length = max(float(rec["length_mm"]) / h, width)
+    a = math.radians(float(rec["axis_deg"]))
+    frame = width + 2.0 * max(8.0, 0.5 * width) + 4.0
+    window = (abs(math.cos(a)) * (length - width) + frame) * (abs(math.sin(a)) * (length - width) + frame)
+    count = int(np.clip(_DEPTH_GRID_WORK / window, _DEPTH_GRID_OFFSETS // 3, _DEPTH_GRID_OFFSETS))
+    errors = _groove_depth_errors(float(rec["max_depth_mm"]), width, length, float(rec["axis_deg"]), h,
+                                  rng.uniform(-0.5, 0.5, (count, 4)), integrator)
+    return float(errors.mean()), float(errors.std(ddof=1))
+
+def _volume_edge(z: np.ndarray, fig: _Figures, bg: _Background, coef: np.ndarray, h: float) -> float:
+    """Standard uncertainty of the volume from the outline's place: the outline moves together
+    by up to a quarter of a pixel (rectangular; it is where the slope crosses its
+    threshold, inside a pixel), each outline pixel's volume with it:
+    ``h^2 sum(depth) / (4 sqrt(3))`` over the outline pixels, mm^3."""
+    rows, cols = fig.region[:, 0], fig.region[:, 1]
+    r0, c0 = rows.min() - 1, cols.min() - 1
+    inside = np.zeros((rows.max() - r0 + 2, cols.max() - c0 + 2), bool)
+    inside[rows - r0, cols - c0] = True
+    edge = inside & ~ndimage.binary_erosion(inside)
+    er, ec = np.nonzero(edge)
+    er, ec = er + r0, ec + c0
+    depth = fig.sign * (z[er, ec] - bg.design(er, ec) @ coef)
+    return float(0.25 * h * h * np.clip(np.nan_to_num(depth), 0.0, None).sum() / math.sqrt(3.0))
