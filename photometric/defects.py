@@ -59,6 +59,25 @@ def _scaled_xy(xy: np.ndarray, usable: np.ndarray) -> tuple[np.ndarray, np.ndarr
     return out[0], out[1]
 
 
+def _spread_sample(ok: np.ndarray, most: int) -> np.ndarray:
+    """Flat indices of the ``ok`` pixels, or of ``most`` of them evenly spread in raster order
+    (``linspace`` over their ranks), found row block by row block: no index array of every
+    pixel (8 bytes each) in memory."""
+    n = int(np.count_nonzero(ok))
+    if n <= most:
+        return np.flatnonzero(ok)
+    ranks = np.linspace(0, n - 1, most).astype(np.int64)
+    out = np.empty(most, np.int64)
+    seen = done = 0
+    for rows in _row_blocks(ok.shape):
+        idx = np.flatnonzero(ok[rows])
+        stop = int(np.searchsorted(ranks, seen + idx.size))
+        out[done:stop] = idx[ranks[done:stop] - seen] + rows.start * ok.shape[1]
+        seen += idx.size
+        done = stop
+    return out
+
+
 def fit_background(
     height, mask=None, method: str = "plane", *, degree: int = 3, iterations: int = 6, xy=None
 ) -> tuple[np.ndarray, float]:
@@ -115,13 +134,10 @@ def _fit(height, mask, method, degree, iterations, xy, full: bool = True):
         if not ok.any():
             raise ValueError("height: no usable pixel for the background")
         coords = _scaled_xy(pts, ok)
-    # flat indices: one array instead of two (H * W) index arrays before the subsample
-    flat = np.flatnonzero(ok)
+    flat = _spread_sample(ok, _MAX_FIT_POINTS)
     n_terms = (deg + 1) * (deg + 2) // 2
     if flat.size < 3 * n_terms:
         raise ValueError(f"height: only {flat.size} usable pixels for a degree-{deg} background")
-    if flat.size > _MAX_FIT_POINTS:
-        flat = flat[np.linspace(0, flat.size - 1, _MAX_FIT_POINTS).astype(np.int64)]
     rows, cols = np.divmod(flat, z.shape[1])
     A = _design(rows, cols, z.shape, deg, coords)
     values = z.ravel()[flat]
@@ -276,8 +292,7 @@ def measure_defects(
         if p is None or q is None:
             raise ValueError("p, q: give both slopes or neither")
         footprint = _slope_footprint(
-            as_array(p, "p", shape=z.shape, finite=False),
-            as_array(q, "q", shape=z.shape, finite=False),
+            _slopes(p, "p", z.shape), _slopes(q, "q", z.shape),
             _background_slopes(base.image, terms), inspect, h, slope_threshold, pts,
         )
 
@@ -364,6 +379,13 @@ class _Region:
     @property
     def area(self) -> int:
         return int(self.coords.shape[0])
+
+
+def _slopes(value, name: str, shape) -> np.ndarray:
+    """Slopes checked for shape, kept in their float type (a float32 map is not copied to float64:
+    the excess over the background is formed in float64 block by block)."""
+    arr = as_array(value, name, shape=shape, dtype=None, finite=False)
+    return arr if np.issubdtype(arr.dtype, np.floating) else arr.astype(np.float64)
 
 
 def _row_blocks(shape):
@@ -482,9 +504,14 @@ def _slope_footprint(p, q, slopes, inspect, h, slope_threshold, xy=None) -> np.n
         return a[rows] if np.ndim(a) == 2 and a.shape[0] != 1 else a
 
     def excess(rows):
-        dp = np.nan_to_num(np.subtract(p[rows], part(d_col, rows) / part(dx_col, rows), dtype=float), copy=False)
-        dq = np.nan_to_num(np.subtract(q[rows], part(d_row, rows) / part(dy_row, rows), dtype=float), copy=False)
-        return np.hypot(dp, dq, out=dp)
+        dp = np.subtract(p[rows], part(d_col, rows) / part(dx_col, rows), dtype=float)
+        dq = np.subtract(q[rows], part(d_row, rows) / part(dy_row, rows), dtype=float)
+        out = np.hypot(dp, dq, out=dp)
+        # one finiteness test instead of nan_to_num's three passes (solvers give finite slopes)
+        if not np.isfinite(out.sum()):
+            out = np.hypot(np.nan_to_num(np.subtract(p[rows], part(d_col, rows) / part(dx_col, rows), dtype=float)),
+                           np.nan_to_num(dq))
+        return out
 
     blocks = _row_blocks(p.shape)
     if slope_threshold is None:
@@ -493,7 +520,8 @@ def _slope_footprint(p, q, slopes, inspect, h, slope_threshold, xy=None) -> np.n
         n = 0
         for rows in blocks:
             v = excess(rows)[inspect[rows]]
-            values[n:n + v.size] = v
+            with np.errstate(over="ignore"):  # a huge (non-finite input) excess is inf in float32
+                values[n:n + v.size] = v
             n += v.size
         med = float(np.median(values, overwrite_input=True))
         values -= np.float32(med)
