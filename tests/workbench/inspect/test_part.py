@@ -102,8 +102,9 @@ def test_keep_arrays_writes_the_heavy_files(small_lot, tmp_path):
 
 
 def test_without_arrays_the_coarse_surface_leaves_the_figures_unchanged(small_lot, tmp_path):
-    """Without --keep-arrays the part skips the adaptive surface fit (a coarse Coons grid instead):
-    the imperfections and the verdict are those of the run with the fit, exactly."""
+    """Without --keep-arrays the part composes the library stages itself and builds no surface model
+    (a pipeline-only option such as ``surface`` runs photometric.pipeline.reconstruct): the
+    imperfections and the verdict are those of the run with the adaptive fit, exactly."""
     spec = parse_spec({"max_depth_mm": 0.10})
     fast = inspect_part(small_lot["parts"] / "scratch_over", tmp_path / "fast", small_lot["rig"], spec)
     fitted = inspect_part(small_lot["parts"] / "scratch_over", tmp_path / "fit", small_lot["rig"], spec,
@@ -112,6 +113,9 @@ def test_without_arrays_the_coarse_surface_leaves_the_figures_unchanged(small_lo
     assert a["imperfections"] and a["imperfections"] == b["imperfections"]
     assert {k: v for k, v in fast.items() if k != "timings_s"} == {k: v for k, v in fitted.items()
                                                                    if k != "timings_s"}
+    assert "surface" not in fast["timings_s"]["stages"] and "surface" in fitted["timings_s"]["stages"]
+    assert {"read", "nearfield", "defects"} <= set(fast["timings_s"]["stages"])
+    assert a["measurement"] == b["measurement"]
 
 
 def test_bad_parts_write_nothing(small_lot, tmp_path):
