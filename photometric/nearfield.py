@@ -464,8 +464,11 @@ def _solve_nearfield(
     flat = gains is not None or (setup is not None and setup.flat_field)
     opts = _Options(outliers, dark, saturation, highlight, 2, lights.mu_known or not flat)
     u, v = pixel_offsets(camera, shape)
+    divide = np.ones_like(intens) if flat else intens
+    own = imgs.ndim == 3 and bool(np.all(divide.mean(axis=1) == 1.0))
     fine = _Level(
-        planes=np.stack(_grey_planes(imgs, np.ones_like(intens) if flat else intens)),
+        # grey images with unit intensities are their own planes: no copy of the stack
+        planes=imgs if own else np.stack(_grey_planes(imgs, divide)),
         strength=setup.strength if setup is not None else _strengths(lights, camera, shape, gains, intens),
         mask=m,
         saturated=_saturated(imgs, saturation) if outliers else None,
@@ -475,7 +478,6 @@ def _solve_nearfield(
         colour=None,
     )
     if imgs.ndim == 4:
-        divide = np.ones_like(intens) if flat else intens
         fine.colour = imgs / divide[:, None, None, :].astype(np.float32)
     workers = threads if threads is not None else min(4, os.cpu_count() or 1)
     timings = {"solve": 0.0, "integrate": 0.0}
