@@ -23,9 +23,12 @@ and volumes are measured on them.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
+import cv2
 import numpy as np
+from scipy import ndimage
 from skimage.filters import apply_hysteresis_threshold
-from skimage.measure import label, regionprops
 
 from surfaces.validate import as_array, positive
 
@@ -54,6 +57,25 @@ def _scaled_xy(xy: np.ndarray, usable: np.ndarray) -> tuple[np.ndarray, np.ndarr
         half = max(0.5 * (hi - lo), 1e-12)
         out.append((v - 0.5 * (lo + hi)) / half)
     return out[0], out[1]
+
+
+def _spread_sample(ok: np.ndarray, most: int) -> np.ndarray:
+    """Flat indices of the ``ok`` pixels, or of ``most`` of them evenly spread in raster order
+    (``linspace`` over their ranks), found row block by row block: no index array of every
+    pixel (8 bytes each) in memory."""
+    n = int(np.count_nonzero(ok))
+    if n <= most:
+        return np.flatnonzero(ok)
+    ranks = np.linspace(0, n - 1, most).astype(np.int64)
+    out = np.empty(most, np.int64)
+    seen = done = 0
+    for rows in _row_blocks(ok.shape):
+        idx = np.flatnonzero(ok[rows])
+        stop = int(np.searchsorted(ranks, seen + idx.size))
+        out[done:stop] = idx[ranks[done:stop] - seen] + rows.start * ok.shape[1]
+        seen += idx.size
+        done = stop
+    return out
 
 
 def fit_background(
@@ -88,12 +110,13 @@ def fit_background(
     return background, sigma
 
 
-def _fit(height, mask, method, degree, iterations, xy):
+def _fit(height, mask, method, degree, iterations, xy, full: bool = True):
     """:func:`fit_background`, also returning the grid background's separable terms.
 
     The terms are pairs ``(column, row)`` of 1-D arrays, shapes (H,) and (W,), with
     ``background = sum(outer(column, row))`` (``None`` with ``xy``): its slopes follow
-    from 1-D gradients without a full-image :func:`numpy.gradient`.
+    from 1-D gradients without a full-image :func:`numpy.gradient`. ``full=False`` on the
+    grid: the background image is not built (None), only its terms.
     """
     z = as_array(height, "height", ndim=2, finite=False)
     if method not in ("plane", "smooth"):
@@ -111,13 +134,10 @@ def _fit(height, mask, method, degree, iterations, xy):
         if not ok.any():
             raise ValueError("height: no usable pixel for the background")
         coords = _scaled_xy(pts, ok)
-    # flat indices: one array instead of two (H * W) index arrays before the subsample
-    flat = np.flatnonzero(ok)
+    flat = _spread_sample(ok, _MAX_FIT_POINTS)
     n_terms = (deg + 1) * (deg + 2) // 2
     if flat.size < 3 * n_terms:
         raise ValueError(f"height: only {flat.size} usable pixels for a degree-{deg} background")
-    if flat.size > _MAX_FIT_POINTS:
-        flat = flat[np.linspace(0, flat.size - 1, _MAX_FIT_POINTS).astype(np.int64)]
     rows, cols = np.divmod(flat, z.shape[1])
     A = _design(rows, cols, z.shape, deg, coords)
     values = z.ravel()[flat]
@@ -156,6 +176,8 @@ def _fit(height, mask, method, degree, iterations, xy):
             rows_of[d - a] += coef[k] * x**a
             k += 1
     terms = [(y**b, rows_of[b]) for b in range(deg + 1)]
+    if not full:
+        return None, sigma, terms
     background = np.outer(terms[0][0], terms[0][1])
     for col, row in terms[1:]:
         background += np.outer(col, row)
@@ -255,55 +277,58 @@ def measure_defects(
     elif area is not None:
         raise ValueError("area: per-pixel footprints need xy (the points they belong to)")
     if background == "none":
-        bg, terms = None, []  # flat: the slopes' background is zero
-        residual = z - np.nanmedian(z[inspect])
-        sigma = _MAD_TO_SIGMA * float(np.median(np.abs(residual[inspect])))
+        terms = []  # flat: the slopes' background is zero
+        base = _Background(None, [], float(np.nanmedian(z[inspect])))
+        sigma = _MAD_TO_SIGMA * float(np.median(np.abs(z[inspect] - base.constant)))
     elif background in ("plane", "smooth"):
-        bg, sigma, terms = _fit(z, inspect, background, degree, 6, pts)
-        residual = z - bg
+        # on the pixel grid only the separable terms: residuals are formed block by block
+        bg, sigma, terms = _fit(z, inspect, background, degree, 6, pts, full=pts is not None)
+        base = _Background(bg, terms or [], 0.0)
     else:
         raise ValueError(f"background: expected 'plane', 'smooth' or 'none', got {background!r}")
-    residual[~inspect] = 0.0
 
     footprint = None
     if p is not None or q is not None:
         if p is None or q is None:
             raise ValueError("p, q: give both slopes or neither")
         footprint = _slope_footprint(
-            as_array(p, "p", shape=z.shape, finite=False),
-            as_array(q, "q", shape=z.shape, finite=False),
-            _background_slopes(bg, terms), inspect, h, slope_threshold, pts,
+            _slopes(p, "p", z.shape), _slopes(q, "q", z.shape),
+            _background_slopes(base.image, terms), inspect, h, slope_threshold, pts,
         )
 
     signs = {"depression": (-1.0,), "bump": (1.0,), "both": (-1.0, 1.0)}[polarity]
     results: list[dict] = []
     pixels: list[np.ndarray] = []
+    candidates = objects = None
+    if footprint is not None:
+        candidates = _label(footprint)
+        del footprint
+        objects = ndimage.find_objects(candidates)
     for sign in signs:
-        depth = sign * residual
-        deepest = float(depth.max())
+        deepest = max((float(np.max(sign * r, where=ok, initial=-np.inf)) for r, ok, _ in
+                       _residual_blocks(z, base, inspect)), default=-np.inf)
+        if not inspect.all():
+            deepest = max(deepest, 0.0)  # pixels outside the inspected area count as depth 0
         if deepest <= 0:
             continue
         high = threshold_mm if threshold_mm is not None else max(6.0 * sigma, 0.05 * deepest)
         low = extent_mm if extent_mm is not None else max(2.0 * sigma, 0.005 * deepest)
         high = positive(high, "threshold_mm")
         low = min(positive(low, "extent_mm"), high)
-        if footprint is None:
-            regions = apply_hysteresis_threshold(depth, low, high) & inspect
+        if candidates is None:
+            regions = _hysteresis_regions(z, base, inspect, sign, low, high)
         else:
-            # Footprint components that reach the detection depth, on the right side.
-            candidates = label(footprint & inspect, connectivity=2)
-            hit = np.unique(candidates[(depth > high) & (candidates > 0)])
-            regions = np.isin(candidates, hit) & (depth > 0)
-        labels = label(regions, connectivity=2)
-        for prop in regionprops(labels, intensity_image=depth):
-            if prop.area < min_area_px:
+            regions = _footprint_regions(z, base, inspect, sign, high, candidates, objects)
+        kind = "depression" if sign < 0 else "bump"
+        for rows, cols, depth, bbox in regions:
+            if rows.size < min_area_px:
                 continue
-            kind = "depression" if sign < 0 else "bump"
+            reg = _Region(np.stack([rows, cols], axis=1), depth, bbox)
             if pts is None:
-                results.append(_measure(prop, h, kind, low, high, sigma))
+                results.append(_measure(reg, h, kind, low, high, sigma))
             else:
-                results.append(_measure_points(prop, pts, foot, kind, low, high, sigma))
-            pixels.append(prop.coords)
+                results.append(_measure_points(reg, pts, foot, kind, low, high, sigma))
+            pixels.append(reg.coords)
     order = sorted(range(len(results)), key=lambda i: -results[i]["max_depth_mm"])
     results = [results[i] for i in order]
     for i, rec in enumerate(results):
@@ -314,6 +339,126 @@ def measure_defects(
     for i, k in enumerate(order):
         out[pixels[k][:, 0], pixels[k][:, 1]] = i + 1
     return results, out
+
+
+#: pixels per row block of the whole-image passes (their float64 temporaries stay in the CPU cache)
+_BLOCK_PIXELS = 1 << 16
+# 8-connected regions, as skimage's label(connectivity=2)
+_EIGHT = np.ones((3, 3), bool)
+
+
+@dataclass(frozen=True)
+class _Background:
+    """The removed background: a full image (on points), separable grid terms, or a constant."""
+
+    image: np.ndarray | None
+    terms: list
+    constant: float
+
+    def block(self, rows: slice, cols: slice = slice(None)):
+        """The background over ``[rows, cols]`` (float64, or the constant)."""
+        if self.image is not None:
+            return self.image[rows, cols]
+        if not self.terms:
+            return self.constant
+        (col, row), *rest = self.terms
+        out = np.outer(col[rows], row[cols])
+        for col, row in rest:
+            out += np.outer(col[rows], row[cols])
+        return out
+
+
+@dataclass(frozen=True)
+class _Region:
+    """One connected defect region: its pixels (row, col), their float64 depths, its bounding box."""
+
+    coords: np.ndarray  # (n, 2) int
+    depth: np.ndarray  # (n,) float64
+    bbox: tuple  # (min_row, min_col, max_row + 1, max_col + 1)
+
+    @property
+    def area(self) -> int:
+        return int(self.coords.shape[0])
+
+
+def _slopes(value, name: str, shape) -> np.ndarray:
+    """Slopes checked for shape, kept in their float type (a float32 map is not copied to float64:
+    the excess over the background is formed in float64 block by block)."""
+    arr = as_array(value, name, shape=shape, dtype=None, finite=False)
+    return arr if np.issubdtype(arr.dtype, np.floating) else arr.astype(np.float64)
+
+
+def _row_blocks(shape):
+    step = max(1, _BLOCK_PIXELS // max(shape[1], 1))
+    return [slice(r0, min(shape[0], r0 + step)) for r0 in range(0, shape[0], step)]
+
+
+def _residual_blocks(z: np.ndarray, base: _Background, inspect: np.ndarray):
+    """``(z - background, inspect, rows)`` over blocks of rows (float64, NaN where not inspected):
+    no full-image residual or background in memory."""
+    for rows in _row_blocks(z.shape):
+        yield z[rows] - base.block(rows), inspect[rows], rows
+
+
+def _label(mask: np.ndarray) -> np.ndarray:
+    """8-connected labels of a mask, int32 (half of skimage's int64)."""
+    return ndimage.label(mask, structure=_EIGHT, output=np.int32)[0]
+
+
+def _fill_holes(mask: np.ndarray) -> np.ndarray:
+    """:func:`scipy.ndimage.binary_fill_holes` (4-connected background) by one OpenCV flood fill
+    of the background from outside the image: one pass instead of iterated dilations."""
+    h, w = mask.shape
+    pad = np.zeros((h + 2, w + 2), np.uint8)
+    pad[1:-1, 1:-1] = mask
+    cv2.floodFill(pad, None, (0, 0), 2, flags=4)
+    return pad[1:-1, 1:-1] != 2
+
+
+def _regions_in(labels: np.ndarray, objects: list, ids, z: np.ndarray, base: _Background, sign: float,
+                within=None):
+    """``(rows, cols, depth, bbox)`` of each region ``k`` in ``ids`` of ``labels``, measured in its bounding
+    box; ``within``: split region ``k`` into the 8-connected parts where ``sign (z - bg) > 0``."""
+    for k in ids:
+        box = objects[k - 1]
+        if box is None:
+            continue
+        depth_box = sign * (z[box] - base.block(*box))
+        part = labels[box] == k
+        if within is None:
+            pieces = [part]
+        else:
+            sub = _label(part & (depth_box > 0))
+            pieces = [sub == j for j in range(1, int(sub.max()) + 1)]
+        for piece in pieces:
+            r, c = np.nonzero(piece)
+            if r.size == 0:
+                continue
+            rows, cols = r + box[0].start, c + box[1].start
+            bbox = (int(rows.min()), int(cols.min()), int(rows.max()) + 1, int(cols.max()) + 1)
+            yield rows, cols, depth_box[r, c], bbox
+
+
+def _footprint_regions(z, base, inspect, sign, high, candidates, objects):
+    """Slope-footprint components that reach the detection depth, split to where they lie on the
+    right side of the background."""
+    hit = set()
+    for res, ok, rows in _residual_blocks(z, base, inspect):
+        cand = candidates[rows]
+        hit.update(np.unique(cand[(sign * res > high) & ok & (cand > 0)]).tolist())
+    return list(_regions_in(candidates, objects, sorted(hit), z, base, sign, within=True))
+
+
+def _hysteresis_regions(z, base, inspect, sign, low, high):
+    """Depth hysteresis: regions deeper than ``low`` that reach ``high`` somewhere."""
+    depth = np.zeros(z.shape, np.float32)
+    for res, ok, rows in _residual_blocks(z, base, inspect):
+        np.multiply(sign, res, out=depth[rows], where=ok, casting="unsafe")
+    regions = apply_hysteresis_threshold(depth, low, high) & inspect
+    del depth
+    labels = _label(regions)
+    objects = ndimage.find_objects(labels)
+    return list(_regions_in(labels, objects, range(1, len(objects) + 1), z, base, sign))
 
 
 def _background_slopes(background, terms):
@@ -339,10 +484,12 @@ def _background_slopes(background, terms):
 
 
 def _slope_footprint(p, q, slopes, inspect, h, slope_threshold, xy=None) -> np.ndarray:
-    """Pixels whose slope differs from the background's (``slopes``: its ``d/d row, d/d col``);
-    enclosed flat parts included."""
-    from scipy import ndimage
+    """Pixels whose slope differs from the background's (``slopes``: its ``d/d row, d/d col``,
+    broadcastable); enclosed flat parts included.
 
+    Row block by row block: the slope excess is formed twice (for the threshold's medians and
+    for the comparison) instead of being kept as a full float64 image.
+    """
     d_row, d_col = slopes
     if xy is None:
         dx_col, dy_row = h, -h
@@ -352,25 +499,47 @@ def _slope_footprint(p, q, slopes, inspect, h, slope_threshold, xy=None) -> np.n
         dy_row = np.gradient(np.nan_to_num(xy[..., 1]), axis=0)
         dx_col = np.where(np.abs(dx_col) > 0, dx_col, h)
         dy_row = np.where(np.abs(dy_row) > 0, dy_row, -h)
-    dp = np.nan_to_num(np.subtract(p, d_col / dx_col, dtype=float), copy=False)
-    dq = np.nan_to_num(np.subtract(q, d_row / dy_row, dtype=float), copy=False)
-    slope = np.hypot(dp, dq, out=dp)
-    del dq
+
+    def part(a, rows):
+        return a[rows] if np.ndim(a) == 2 and a.shape[0] != 1 else a
+
+    def excess(rows):
+        dp = np.subtract(p[rows], part(d_col, rows) / part(dx_col, rows), dtype=float)
+        dq = np.subtract(q[rows], part(d_row, rows) / part(dy_row, rows), dtype=float)
+        out = np.hypot(dp, dq, out=dp)
+        # one finiteness test instead of nan_to_num's three passes (solvers give finite slopes)
+        if not np.isfinite(out.sum()):
+            out = np.hypot(np.nan_to_num(np.subtract(p[rows], part(d_col, rows) / part(dx_col, rows), dtype=float)),
+                           np.nan_to_num(dq))
+        return out
+
+    blocks = _row_blocks(p.shape)
     if slope_threshold is None:
-        # one copy of the inspected slopes, partitioned in place by both medians
-        values = slope.ravel().copy() if inspect.all() else slope[inspect]
-        med = np.median(values, overwrite_input=True)
-        values -= med
+        # the inspected slopes once, compact float32, partitioned in place by both medians
+        values = np.empty(np.count_nonzero(inspect), np.float32)
+        n = 0
+        for rows in blocks:
+            v = excess(rows)[inspect[rows]]
+            with np.errstate(over="ignore"):  # a huge (non-finite input) excess is inf in float32
+                values[n:n + v.size] = v
+            n += v.size
+        med = float(np.median(values, overwrite_input=True))
+        values -= np.float32(med)
         sigma = _MAD_TO_SIGMA * float(np.median(np.abs(values, out=values), overwrite_input=True))
+        del values
         slope_threshold = max(0.02, med + 6.0 * sigma)
     thr = positive(slope_threshold, "slope_threshold")
-    return ndimage.binary_fill_holes((slope > thr) & inspect)
+    above = np.empty(p.shape, bool)
+    for rows in blocks:
+        np.greater(excess(rows), thr, out=above[rows])
+    above &= inspect
+    return _fill_holes(above)
 
 
 def _measure(prop, h: float, kind: str, low: float, high: float, sigma: float) -> dict:
-    """Physical measures of one region (its pixels' depths are ``prop.image_intensity``)."""
+    """Physical measures of one region (:class:`_Region`: its pixels and their depths)."""
     rows, cols = prop.coords[:, 0].astype(float), prop.coords[:, 1].astype(float)
-    depth = prop.image_intensity[prop.image]
+    depth = prop.depth
     # Principal axis in the (x right, y up) frame.
     x, y = cols - cols.mean(), -(rows - rows.mean())
     cov = np.cov(np.stack([x, y])) if rows.size > 1 else np.eye(2)
@@ -408,7 +577,7 @@ def _measure_points(prop, xy: np.ndarray, foot: np.ndarray, kind: str, low: floa
                     sigma: float) -> dict:
     """:func:`_measure` on each pixel's own point ``xy`` and footprint area ``foot`` (perspective)."""
     rows, cols = prop.coords[:, 0], prop.coords[:, 1]
-    depth = prop.image_intensity[prop.image]
+    depth = prop.depth
     px, py = xy[rows, cols, 0], xy[rows, cols, 1]
     a = foot[rows, cols]
     side = float(np.sqrt(a.mean()))

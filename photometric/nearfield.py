@@ -72,7 +72,9 @@ __all__ = [
     "COARSE_PIXELS",
     "ANCHOR_RULE",
     "NearFieldResult",
+    "NearFieldSetup",
     "NotConvergedError",
+    "nearfield_setup",
     "solve_nearfield",
 ]
 
@@ -194,6 +196,104 @@ class _Options:
     lobe: bool  # apply the modelled LED lobe to the strength
 
 
+@dataclass(frozen=True)
+class NearFieldSetup:
+    """What a near-field solve computes from the rig alone, to reuse over many parts.
+
+    The irradiance strengths ``E_k = strength_k lobe_k(X) / |P_k - X|^2`` of the flat
+    field depend on the LEDs, the camera, the gains and the image size, not on the
+    images: an inspection computes them once per rig (:func:`nearfield_setup`) and hands
+    them to every :func:`solve_nearfield` of its parts.
+
+    Attributes
+    ----------
+    lights : PointLights
+    camera : Orthographic or Perspective
+    shape : tuple of int
+        ``(H, W)`` of the images.
+    flat_field : bool
+        The strengths come from flat-field gains.
+    strength : list
+        Per light a scalar ``d0_k^2`` or an ``(H, W)`` float32 map ``G_k |P_k - X0|^2``.
+    coarse : dict
+        Block size ``r`` of the coarse stage -> the strengths averaged in ``r x r`` blocks.
+    """
+
+    lights: PointLights
+    camera: Camera
+    shape: tuple
+    flat_field: bool
+    strength: list
+    coarse: dict
+
+
+def nearfield_setup(lights: PointLights, camera, shape, gains=None, *,
+                    coarse_pixels: int = COARSE_PIXELS) -> NearFieldSetup:
+    """The part-independent set-up of :func:`solve_nearfield` (pass it as ``setup``).
+
+    Parameters
+    ----------
+    lights : PointLights
+        LEDs (:func:`photometric.lights.point_lights`).
+    camera : Orthographic or Perspective
+    shape : (H, W)
+        Image size, pixels.
+    gains : array_like, shape (N, H, W), optional
+        Flat-field gains (:func:`photometric.rig.flat_field_gains`).
+    coarse_pixels : int, optional
+        As in :func:`solve_nearfield`: the coarse stage's block size is prepared too.
+
+    Returns
+    -------
+    NearFieldSetup
+
+    Examples
+    --------
+    >>> from photometric.camera import make_camera
+    >>> from photometric.lights import point_lights
+    >>> lights = point_lights([[100.0, 0, 150], [-50, 87, 150], [-50, -87, 150]])
+    >>> cam = make_camera("orthographic", pixel_size_mm=0.5)
+    >>> s = nearfield_setup(lights, cam, (64, 64), np.ones((3, 64, 64), np.float32), coarse_pixels=256)
+    >>> s.strength[0].shape, sorted(s.coarse), s.coarse[4][0].shape
+    ((64, 64), [4], (16, 16))
+    """
+    if not isinstance(lights, PointLights):
+        raise ValueError(f"lights: expected PointLights (photometric.lights.point_lights), got {type(lights).__name__}")
+    camera = _check_camera(camera)
+    if len(shape) != 2 or min(int(shape[0]), int(shape[1])) < 1:
+        raise ValueError(f"shape: expected (H, W) with H, W >= 1, got {shape}")
+    shape = (int(shape[0]), int(shape[1]))
+    g = None
+    if gains is not None:
+        g = as_array(gains, "gains", shape=(len(lights),) + shape, dtype=np.float32)
+        if np.any(g < 0):
+            raise ValueError("gains: flat-field gains must be >= 0")
+    strength = _strengths(lights, camera, shape, g, None)
+    r = _coarse_step(shape, int(coarse_pixels))
+    coarse = {} if r == 1 else {r: [s if np.ndim(s) == 0 else _block_mean(s, r) for s in strength]}
+    return NearFieldSetup(lights, camera, shape, g is not None, strength, coarse)
+
+
+def _coarse_step(shape, coarse_pixels: int) -> int:
+    """Block size of the coarse stage (1: none)."""
+    r = int(np.ceil(np.sqrt(shape[0] * shape[1] / coarse_pixels)))
+    return r if r > 1 and min(shape) >= 4 * r else 1
+
+
+def _check_setup(setup, lights, camera, shape, gains) -> None:
+    if not isinstance(setup, NearFieldSetup):
+        raise ValueError(f"setup: expected NearFieldSetup (nearfield_setup), got {type(setup).__name__}")
+    if gains is not None:
+        raise ValueError("setup: give the flat-field gains to nearfield_setup, not with setup")
+    if (tuple(setup.shape) != tuple(shape) or setup.camera != camera or not isinstance(lights, PointLights)
+            or len(lights) != len(setup.lights)
+            or not np.array_equal(setup.lights.positions, lights.positions)
+            or not np.array_equal(setup.lights.axes, lights.axes)
+            or not np.array_equal(setup.lights.mu, lights.mu) or setup.lights.mu_known != lights.mu_known):
+        raise ValueError(f"setup: prepared for other lights, camera or image size ({setup.shape[0]} x "
+                         f"{setup.shape[1]} px) than this solve's ({shape[0]} x {shape[1]} px)")
+
+
 def _check_camera(camera) -> Camera:
     if not isinstance(camera, (Orthographic, Perspective)):
         raise ValueError("camera: expected photometric.camera.Orthographic or Perspective "
@@ -219,6 +319,7 @@ def solve_nearfield(
     max_iterations: int = 30,
     coarse_pixels: int = COARSE_PIXELS,
     threads: int | None = None,
+    setup: NearFieldSetup | None = None,
 ) -> NearFieldResult:
     """Normals, albedo and the surface from images under point lights (or distant ones).
 
@@ -259,6 +360,9 @@ def solve_nearfield(
         stage).
     threads : int, optional
         Threads of the whole-image passes (default: the CPU count, at most 4).
+    setup : NearFieldSetup, optional
+        The rig's strengths prepared once (:func:`nearfield_setup`, with the gains given
+        there instead of ``gains``); the result is the same as with ``gains``.
 
     Returns
     -------
@@ -303,7 +407,9 @@ def solve_nearfield(
     if m is not None and not m.any():
         raise ValueError("mask: no pixel is selected")
     g = None
-    if gains is not None:
+    if setup is not None:
+        _check_setup(setup, lights, camera, (height, width), gains)
+    elif gains is not None:
         g = as_array(gains, "gains", shape=(n_img, height, width), dtype=np.float32)
         if np.any(g < 0):
             raise ValueError("gains: flat-field gains must be >= 0")
@@ -324,7 +430,7 @@ def solve_nearfield(
         raise ValueError(f"reference_height_mm: {ref} mm is not below every light")
     return _solve_nearfield(
         imgs, lights, camera, intens, m, g, outliers, dark, saturation, highlight, integrator, ref,
-        float(tolerance_mm), int(max_iterations), int(coarse_pixels), threads,
+        float(tolerance_mm), int(max_iterations), int(coarse_pixels), threads, setup=setup,
     )
 
 
@@ -345,6 +451,8 @@ def _solve_nearfield(
     max_iterations: int,
     coarse_pixels: int,
     threads: int | None,
+    *,
+    setup: NearFieldSetup | None = None,
 ) -> NearFieldResult:
     """:func:`solve_nearfield` on checked input (the pipeline calls this)."""
     if not isinstance(lights, PointLights):
@@ -353,11 +461,15 @@ def _solve_nearfield(
     n_img, height, width = imgs.shape[:3]
     shape = (height, width)
     m = np.ones(shape, bool) if mask is None else mask
-    opts = _Options(outliers, dark, saturation, highlight, 2, lights.mu_known or gains is None)
+    flat = gains is not None or (setup is not None and setup.flat_field)
+    opts = _Options(outliers, dark, saturation, highlight, 2, lights.mu_known or not flat)
     u, v = pixel_offsets(camera, shape)
+    divide = np.ones_like(intens) if flat else intens
+    own = imgs.ndim == 3 and bool(np.all(divide.mean(axis=1) == 1.0))
     fine = _Level(
-        planes=np.stack(_grey_planes(imgs, np.ones_like(intens) if gains is not None else intens)),
-        strength=_strengths(lights, camera, shape, gains, intens),
+        # grey images with unit intensities are their own planes: no copy of the stack
+        planes=imgs if own else np.stack(_grey_planes(imgs, divide)),
+        strength=setup.strength if setup is not None else _strengths(lights, camera, shape, gains, intens),
         mask=m,
         saturated=_saturated(imgs, saturation) if outliers else None,
         u=u,
@@ -366,17 +478,16 @@ def _solve_nearfield(
         colour=None,
     )
     if imgs.ndim == 4:
-        divide = np.ones_like(intens) if gains is not None else intens
         fine.colour = imgs / divide[:, None, None, :].astype(np.float32)
     workers = threads if threads is not None else min(4, os.cpu_count() or 1)
     timings = {"solve": 0.0, "integrate": 0.0}
     history: list[dict] = []
     z = np.full(shape, reference_height_mm)
-    r = int(np.ceil(np.sqrt(height * width / coarse_pixels)))
+    r = _coarse_step(shape, coarse_pixels)
     args = (lights, camera, opts, integrator, reference_height_mm, tolerance_mm, max_iterations)
     with ThreadPoolExecutor(max_workers=max(1, int(workers))) as pool:
-        if r > 1 and min(height, width) >= 4 * r:
-            coarse = _coarsen(fine, r)
+        if r > 1:
+            coarse = _coarsen(fine, r, None if setup is None else setup.coarse.get(r))
             state = _alternate(coarse, *args, np.full(coarse.shape, reference_height_mm), pool, timings, history)
             z = _upsample(state["z"], r, shape)
         state = _alternate(fine, *args, z, pool, timings, history)
@@ -483,9 +594,10 @@ def _block_mean(a: np.ndarray, r: int) -> np.ndarray:
     return a[: h * r, : w * r].reshape(h, r, w, r, *a.shape[2:]).mean(axis=(1, 3), dtype=np.float32)
 
 
-def _coarsen(fine: _Level, r: int) -> _Level:
+def _coarsen(fine: _Level, r: int, strength: list | None = None) -> _Level:
     """The level averaged in ``r x r`` blocks (trailing rows/columns dropped); a block is in
-    the mask when all its pixels are, saturated when any is."""
+    the mask when all its pixels are, saturated when any is (``strength``: the block-averaged
+    strengths when prepared, :class:`NearFieldSetup`)."""
     h, w = fine.shape[0] // r, fine.shape[1] // r
     mask = fine.mask[: h * r, : w * r].reshape(h, r, w, r).all(axis=(1, 3))
     sat = None
@@ -493,7 +605,8 @@ def _coarsen(fine: _Level, r: int) -> _Level:
         sat = fine.saturated[:, : h * r, : w * r].reshape(-1, h, r, w, r).any(axis=(2, 4))
     return _Level(
         planes=np.stack([_block_mean(pl, r) for pl in fine.planes]),
-        strength=[s if np.ndim(s) == 0 else _block_mean(s, r) for s in fine.strength],
+        strength=strength if strength is not None else [s if np.ndim(s) == 0 else _block_mean(s, r)
+                                                        for s in fine.strength],
         mask=mask,
         saturated=sat,
         u=fine.u[: w * r].reshape(w, r).mean(axis=1),

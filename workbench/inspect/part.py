@@ -1,10 +1,8 @@
-"""One inspected part: its images, the near-field reconstruction with the rig, the verdict, its files.
+"""One inspected part: its images, the near-field solve with the rig, the verdict, its files.
 
 :func:`inspect_part` reads one part folder (one image per light, in the rig's light order),
-runs :func:`photometric.pipeline.reconstruct` with the calibrated rig (point lights,
-camera, flat-field gains), measures the imperfections (:func:`photometric.defects.measure_defects`
-inside the pipeline, with their expanded uncertainties when the pipeline states them),
-decides them against the spec (:func:`workbench.inspect.decide.judge`) and writes, each
+measures it with the calibrated rig (point lights, camera, flat-field gains), decides the
+imperfections against the spec (:func:`workbench.inspect.decide.judge`) and writes, each
 file atomically:
 
 ``result.json``
@@ -13,10 +11,19 @@ file atomically:
 ``overlay.png``
     :func:`workbench.inspect.overlay.overlay_image`.
 
-With ``keep_arrays`` the reconstruction's heavy files are written too
-(:func:`workbench.runs.photometric.write_result`: npy arrays, PNG previews, ``surface.ply``,
-``defects.json``, ``summary.json``). The part folder itself appears complete or not at all
-when the part runs through :func:`workbench.batch.execute_job` (``workbench inspect run``).
+The measurement is composed here from the library's stages, only those an inspection
+needs: :func:`photometric.io.read_images`, :func:`photometric.stereo.screen_images`,
+:func:`photometric.nearfield.solve_nearfield` (with the rig's strengths prepared once per
+process, :func:`photometric.nearfield.nearfield_setup`) and
+:func:`photometric.defects.measure_defects`; no surface model and no mesh, which nothing of
+``result.json`` uses. The same stages and options as :func:`photometric.pipeline.reconstruct`
+with the rig, so the figures are the same. With ``keep_arrays``, or with an option only the
+pipeline takes (``uncertainty``, ``surface``, ...), the part runs through
+:func:`photometric.pipeline.reconstruct` instead, and ``keep_arrays`` writes its heavy files
+(:func:`workbench.runs.photometric.write_result`: npy arrays, PNG previews,
+``surface.ply``, ``defects.json``, ``summary.json``). The part folder itself appears
+complete or not at all when the part runs through :func:`workbench.batch.execute_job`
+(``workbench inspect run``).
 """
 
 from __future__ import annotations
@@ -25,16 +32,20 @@ import functools
 import inspect as _inspect
 import os
 import time
+import warnings
+from dataclasses import dataclass
 from pathlib import Path
 
-from photometric.rig import Rig, read_rig
+import numpy as np
+
+from photometric.rig import Rig, check_rig, read_rig
 from surfaces.io import write_json, write_png
 from workbench.inspect.decide import judge
 from workbench.inspect.overlay import overlay_image
 from workbench.inspect.spec import Spec, load_spec
 
-__all__ = ["IMAGE_SUFFIXES", "RESULT_FORMAT", "RESERVED_OPTIONS", "check_options", "part_images", "load_rig",
-           "inspect_part"]
+__all__ = ["IMAGE_SUFFIXES", "RESULT_FORMAT", "RESERVED_OPTIONS", "DIRECT_OPTIONS", "check_options", "part_images",
+           "load_rig", "inspect_part"]
 
 #: image files a part folder may hold (one per light)
 IMAGE_SUFFIXES = (".png", ".tif", ".tiff", ".npy")
@@ -42,6 +53,10 @@ IMAGE_SUFFIXES = (".png", ".tif", ".tiff", ".npy")
 RESULT_FORMAT = "workbench-inspection"
 #: reconstruct options the inspection sets itself (the rig gives lights and camera)
 RESERVED_OPTIONS = ("source", "rig", "lights", "light_positions", "mask", "progress", "select")
+#: reconstruct options the inspection's own composition of the stages takes (any other option, or
+#: ``keep_arrays``, runs :func:`photometric.pipeline.reconstruct`)
+DIRECT_OPTIONS = ("integrator", "background", "outliers", "dark", "saturation", "highlight", "reference_height_mm",
+                  "tolerance_mm", "max_iterations", "force")
 # files of a captured or rendered folder that are not part images
 _NOT_IMAGES = ("mask.png",)
 
@@ -159,6 +174,132 @@ def _spec(spec) -> Spec:
     return _cached_spec(str(p), os.stat(p).st_mtime_ns)
 
 
+# (rig, its near-field set-up) of the rigs this process measured with, newest last
+_SETUPS: list = []
+
+
+def _setup(rig: Rig):
+    """The rig's near-field strengths, once per process and rig (a 5 MP flat field takes about 2 s)."""
+    from photometric.nearfield import nearfield_setup
+
+    for known, setup in _SETUPS:
+        if known is rig:
+            return setup
+    setup = nearfield_setup(rig.lights, rig.camera, rig.image_size, rig.gains)
+    _SETUPS[:] = _SETUPS[-1:] + [(rig, setup)]
+    return setup
+
+
+@dataclass(frozen=True)
+class _Measured:
+    """What the verdict, the overlay and result.json need of one part's measurement."""
+
+    albedo: np.ndarray
+    mask: np.ndarray
+    valid: np.ndarray
+    defects: list
+    pixel_size_mm: float
+    summary: dict  # the pipeline summary's keys that result.json reports, and timings_s
+    result: object = None  # the full PhotometricReconstruction (pipeline path only)
+
+
+def _measure_direct(paths: list, mask_path, rig: Rig, options: dict, threads: int | None) -> _Measured:
+    """Read, screen, solve and measure one part with the library stages the inspection needs.
+
+    The same stages, checks and options as :func:`photometric.pipeline.reconstruct` with
+    ``rig`` (its near-field path), without the surface model and the mesh.
+    """
+    from photometric.defects import measure_defects
+    from photometric.io import full_scale_of, read_images, read_mask
+    from photometric.lights import as_intensities
+    from photometric.nearfield import solve_nearfield
+    from photometric.stereo import SATURATED, check_light_matrix, screen_images
+
+    opts = {"integrator": "dct", "background": "plane", "outliers": False, "dark": 0.1, "saturation": 0.99,
+            "highlight": None, "reference_height_mm": 0.0, "tolerance_mm": None, "max_iterations": 30,
+            "force": False, **options}
+    timings = {}
+    t_all = t0 = time.perf_counter()
+    images = read_images([str(p) for p in paths])
+    n_img, shape = images.shape[0], images.shape[1:3]
+    check_rig(rig, n_img, shape)
+    mask = np.ones(shape, bool) if mask_path is None else read_mask(mask_path, shape)
+    if not mask.any():
+        raise ValueError("mask: no pixel is selected")
+    timings["read"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    names = [Path(p).name for p in paths]
+    screen = screen_images(images, mask, SATURATED if full_scale_of(paths) else np.inf)
+    notes = []
+    if not screen.usable.all():
+        bad = "; ".join(screen.problems(names))
+        if screen.usable.sum() < 3:
+            raise ValueError(f"images: only {int(screen.usable.sum())} of {n_img} images are usable ({bad}); "
+                             "photometric stereo needs 3")
+        notes.append(f"images: {bad}: left out of the solve")
+    notes += check_light_matrix(rig.lights.directions, opts["force"])[1]
+    for note in notes:
+        warnings.warn(note, UserWarning, stacklevel=3)
+    timings["screen"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    near = {} if opts["tolerance_mm"] is None else {"tolerance_mm": opts["tolerance_mm"]}
+    res = solve_nearfield(
+        images, rig.lights, rig.camera, intensities=rig.intensities if rig.intensities is not None
+        else as_intensities(None, n_img), mask=mask & screen.enough, outliers=opts["outliers"], dark=opts["dark"],
+        saturation=opts["saturation"], highlight=opts["highlight"], integrator=opts["integrator"],
+        reference_height_mm=opts["reference_height_mm"], max_iterations=opts["max_iterations"], threads=threads,
+        setup=_setup(rig) if rig.gains is not None else None, gains=None, **near)
+    del images
+    timings["nearfield"] = time.perf_counter() - t0
+    timings["solve"] = res.timings_s["solve"]
+    timings["integrate"] = res.timings_s["integrate"]
+    t0 = time.perf_counter()
+    h = rig.camera.nominal_pixel_mm()
+    on_points = {} if rig.camera.model == "orthographic" else {"xy": res.xy, "area": res.footprint_mm2}
+    defects = measure_defects(res.height, h, res.valid, background=opts["background"], p=res.p, q=res.q,
+                              **on_points)
+    timings["defects"] = time.perf_counter() - t0
+    timings["total"] = time.perf_counter() - t_all
+    n_mask = int(mask.sum())
+    summary = {
+        "pixel_size_mm": h,
+        "light_model": "point",
+        "camera": rig.camera.to_dict(shape),
+        "converged": True,
+        "iterations": res.iterations,
+        "flat_field": rig.gains is not None,
+        "n_defects": len(defects),
+        "invalid_fraction": float(1.0 - res.valid[mask].sum() / max(n_mask, 1)),
+        "size": {"height": shape[0], "width": shape[1]},
+        "uncertainty": None,
+        "timings_s": {k: round(v, 4) for k, v in timings.items()},
+    }
+    return _Measured(res.albedo, mask, res.valid, defects, h, summary)
+
+
+def _measure_pipeline(paths: list, mask_path, rig: Rig, options: dict, keep_arrays: bool) -> _Measured:
+    """One part through :func:`photometric.pipeline.reconstruct` (the uncertainty, a surface, the arrays)."""
+    from photometric.pipeline import reconstruct
+
+    if not keep_arrays:
+        # The surface model and mesh are only written with the arrays: a coarse Coons grid is enough.
+        # The adaptive least-squares fit refines to its tolerance whatever the start step (over 3 min
+        # on a 5 MP part) and nothing of it reaches result.json.
+        options = {"surface": "coons", "step": max(2, -(-max(rig.image_size) // 8)), "samples": 1, **options}
+    res = reconstruct([str(p) for p in paths], rig=rig, mask=None if mask_path is None else str(mask_path),
+                      **options)
+    s = res.summary
+    defects = res.defects
+    if res.uncertainty is not None:
+        stated = {d["id"]: d["uncertainty_k2"] for d in res.uncertainty.defects}
+        defects = [{**d, "uncertainty_k2": stated.get(d["id"])} for d in defects]
+    summary = {k: s.get(k) for k in ("light_model", "camera", "converged", "iterations", "n_defects",
+                                      "invalid_fraction", "size", "uncertainty", "timings_s")}
+    summary["pixel_size_mm"] = float(s["pixel_size_mm"])
+    summary["flat_field"] = s.get("flat_field") is not None
+    return _Measured(res.albedo, res.mask, res.valid, defects, float(s["pixel_size_mm"]), summary, res)
+
+
 def _summary_figures(decision) -> dict:
     """The part's key figures (the results.csv row of :data:`workbench.batch.FIGURES` ``inspect``)."""
     counted = [r for r in decision.imperfections if r["region"] == "inspected"]
@@ -175,7 +316,7 @@ def _summary_figures(decision) -> dict:
 
 
 def inspect_part(folder, out_dir, rig, spec, *, keep_arrays: bool = False, part_id: str | None = None,
-                 **options) -> dict:
+                 threads: int | None = None, **options) -> dict:
     """Inspect one part and write ``result.json`` and ``overlay.png`` into ``out_dir``.
 
     Parameters
@@ -192,16 +333,22 @@ def inspect_part(folder, out_dir, rig, spec, *, keep_arrays: bool = False, part_
         Also write the reconstruction's arrays, previews and mesh.
     part_id : str, optional
         Name of the part in ``result.json`` (default: the folder's name).
+    threads : int, optional
+        Threads of the near-field solve (default: its own, the CPU count up to 4); a batch
+        worker sharing the machine with others runs 1.
     **options
         More keyword options of :func:`photometric.pipeline.reconstruct` (checked by
-        :func:`check_options`).
+        :func:`check_options`); those of :data:`DIRECT_OPTIONS` keep the inspection's own
+        composition of the stages, any other runs the pipeline.
 
     Returns
     -------
     dict
         The part's key figures (``verdict``, ``n_imperfections``, ``n_fail``,
         ``n_uncertain``, ``max_depth_mm``, ``max_depth_U_mm``, ``total_area_mm2``,
-        ``invalid_fraction``) and ``timings_s``.
+        ``invalid_fraction``) and ``timings_s`` (wall seconds of ``reconstruct`` (the
+        measurement), ``decide``, ``overlay``, ``arrays`` (with ``keep_arrays``), the
+        measurement's ``stages``, ``total``, and ``cpu``: the process's CPU seconds over the part).
 
     Raises
     ------
@@ -209,48 +356,40 @@ def inspect_part(folder, out_dir, rig, spec, *, keep_arrays: bool = False, part_
         A missing or extra image, an image of another size than the rig's, a spec the
         measurement cannot decide (``guard_band`` without U), ...: nothing is written.
     """
-    from photometric.pipeline import reconstruct
-
-    t_all = time.perf_counter()
+    t_all, cpu_all = time.perf_counter(), time.process_time()
     check_options(options)
     rig_obj = load_rig(rig)
     spec_obj = _spec(spec)
     root = Path(folder)
     paths = part_images(root, len(rig_obj.lights))
     mask = root / "mask.png"
-    if not keep_arrays:
-        # The surface model and mesh are only written with the arrays: a coarse Coons grid is enough.
-        # The adaptive least-squares fit refines to its tolerance whatever the start step (over 3 min
-        # on a 5 MP part) and nothing of it reaches result.json.
-        options = {"surface": "coons", "step": max(2, -(-max(rig_obj.image_size) // 8)), "samples": 1,
-                   **options}
+    mask = mask if mask.is_file() else None
     t0 = time.perf_counter()
-    res = reconstruct([str(p) for p in paths], rig=rig_obj, mask=str(mask) if mask.is_file() else None, **options)
+    if keep_arrays or set(options) - set(DIRECT_OPTIONS):
+        m = _measure_pipeline(paths, mask, rig_obj, options, keep_arrays)
+    else:
+        m = _measure_direct(paths, mask, rig_obj, options, threads)
     t_measure = time.perf_counter() - t0
-    pixel = float(res.summary["pixel_size_mm"])
-    defects = res.defects
-    if res.uncertainty is not None:
-        stated = {d["id"]: d["uncertainty_k2"] for d in res.uncertainty.defects}
-        defects = [{**d, "uncertainty_k2": stated.get(d["id"])} for d in defects]
+    pixel = m.pixel_size_mm
     t0 = time.perf_counter()
-    decision = judge(defects, spec_obj, res.valid.shape, pixel)
+    decision = judge(m.defects, spec_obj, m.valid.shape, pixel)
     t_decide = time.perf_counter() - t0
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
-    write_png(out / "overlay.png", overlay_image(res.albedo, res.mask, decision, spec_obj, pixel))
+    write_png(out / "overlay.png", overlay_image(m.albedo, m.mask, decision, spec_obj, pixel))
     t_overlay = time.perf_counter() - t0
     files = ["overlay.png", "result.json"]
     t0 = time.perf_counter()
     if keep_arrays:
         from workbench.runs.photometric import write_result
 
-        files += write_result(res, out)["files"]
+        files += write_result(m.result, out)["files"]
     t_arrays = time.perf_counter() - t0
     figures = _summary_figures(decision)
-    figures["invalid_fraction"] = res.summary["invalid_fraction"]
-    s = res.summary
+    s = m.summary
+    figures["invalid_fraction"] = s["invalid_fraction"]
     timings = {"reconstruct": round(t_measure, 4), "decide": round(t_decide, 4), "overlay": round(t_overlay, 4)}
     if keep_arrays:
         timings["arrays"] = round(t_arrays, 4)
@@ -275,7 +414,7 @@ def inspect_part(folder, out_dir, rig, spec, *, keep_arrays: bool = False, part_
             "camera": s.get("camera"),
             "converged": s.get("converged"),
             "iterations": s.get("iterations"),
-            "flat_field": s.get("flat_field") is not None,
+            "flat_field": s.get("flat_field"),
             "n_defects": s.get("n_defects"),
             "invalid_fraction": s.get("invalid_fraction"),
             "image_size": [s["size"]["height"], s["size"]["width"]],
@@ -284,7 +423,8 @@ def inspect_part(folder, out_dir, rig, spec, *, keep_arrays: bool = False, part_
         "files": sorted(set(files)),
     }
     timings["total"] = round(time.perf_counter() - t_all, 4)
+    # CPU of this process (all its threads) while the part ran: on a shared machine wall time is not the cost
+    timings["cpu"] = round(time.process_time() - cpu_all, 4)
     result["timings_s"] = timings
     write_json(out / "result.json", result)
     return {**figures, "timings_s": timings}
-

@@ -152,12 +152,27 @@ def run_inspect_job(job: Job, out_dir: Path) -> dict:
     -------
     dict
         :func:`workbench.inspect.part.inspect_part`'s key figures.
+
+    Notes
+    -----
+    The workers of a run share the machine's cores (one worker per core by default): the
+    part runs on one thread, BLAS/OpenMP pools and OpenCV held to 1 thread too
+    (restored afterwards), so that workers do not oversubscribe the cores.
     """
+    import cv2
+    from threadpoolctl import threadpool_limits
+
     from workbench.inspect.part import inspect_part
 
     opts = dict(job.options)
     rig, spec = opts.pop("rig"), opts.pop("spec")
-    return inspect_part(job.input, out_dir, rig, spec, part_id=job.id, **opts)
+    before = cv2.getNumThreads()
+    cv2.setNumThreads(1)
+    try:
+        with threadpool_limits(limits=1):
+            return inspect_part(job.input, out_dir, rig, spec, part_id=job.id, threads=1, **opts)
+    finally:
+        cv2.setNumThreads(before)
 
 
 @dataclass(frozen=True)

@@ -102,8 +102,9 @@ def test_keep_arrays_writes_the_heavy_files(small_lot, tmp_path):
 
 
 def test_without_arrays_the_coarse_surface_leaves_the_figures_unchanged(small_lot, tmp_path):
-    """Without --keep-arrays the part skips the adaptive surface fit (a coarse Coons grid instead):
-    the imperfections and the verdict are those of the run with the fit, exactly."""
+    """Without --keep-arrays the part composes the library stages itself and builds no surface model
+    (a pipeline-only option such as ``surface`` runs photometric.pipeline.reconstruct): the
+    imperfections and the verdict are those of the run with the adaptive fit, exactly."""
     spec = parse_spec({"max_depth_mm": 0.10})
     fast = inspect_part(small_lot["parts"] / "scratch_over", tmp_path / "fast", small_lot["rig"], spec)
     fitted = inspect_part(small_lot["parts"] / "scratch_over", tmp_path / "fit", small_lot["rig"], spec,
@@ -112,6 +113,9 @@ def test_without_arrays_the_coarse_surface_leaves_the_figures_unchanged(small_lo
     assert a["imperfections"] and a["imperfections"] == b["imperfections"]
     assert {k: v for k, v in fast.items() if k != "timings_s"} == {k: v for k, v in fitted.items()
                                                                    if k != "timings_s"}
+    assert "surface" not in fast["timings_s"]["stages"] and "surface" in fitted["timings_s"]["stages"]
+    assert {"read", "nearfield", "defects"} <= set(fast["timings_s"]["stages"])
+    assert a["measurement"] == b["measurement"]
 
 
 def test_bad_parts_write_nothing(small_lot, tmp_path):
@@ -128,3 +132,24 @@ def test_bad_parts_write_nothing(small_lot, tmp_path):
     with pytest.raises(ValueError, match="guard_band: imperfection 0 max_depth_mm has no expanded uncertainty"):
         inspect_part(small_lot["parts"] / "scratch_over", tmp_path / "out_guard", small_lot["rig"], guard)
     assert not any((tmp_path / n).exists() for n in ("out_small", "out_mixed", "out_guard"))
+
+
+def test_uncompressed_16_bit_tiff_parts_measure_as_png(small_lot, tmp_path):
+    """Industrial cameras write uncompressed 16-bit TIFF: the same pixels give the same result.json figures."""
+    import cv2
+
+    tif = tmp_path / "tif"
+    tif.mkdir()
+    names = []
+    for png in sorted((small_lot["parts"] / "scratch_over").glob("[0-9]*.png")):
+        img = cv2.imread(str(png), cv2.IMREAD_UNCHANGED)
+        assert img.dtype == np.uint16
+        cv2.imwrite(str(tif / png.with_suffix(".tif").name), img, [cv2.IMWRITE_TIFF_COMPRESSION, 1])
+        names.append(png.with_suffix(".tif").name)
+    (tif / "filenames.txt").write_text("\n".join(names) + "\n")
+    spec = parse_spec({"max_depth_mm": 0.10})
+    a = inspect_part(small_lot["parts"] / "scratch_over", tmp_path / "png_out", small_lot["rig"], spec)
+    b = inspect_part(tif, tmp_path / "tif_out", small_lot["rig"], spec)
+    assert {k: v for k, v in a.items() if k != "timings_s"} == {k: v for k, v in b.items() if k != "timings_s"}
+    ra, rb = (json.loads((tmp_path / n / "result.json").read_text()) for n in ("png_out", "tif_out"))
+    assert ra["imperfections"] == rb["imperfections"] and rb["input"][0].endswith("001.tif")

@@ -154,3 +154,28 @@ def test_inspect_figures_in_the_batch_rows():
     assert key_figures("inspect", summary) == {k: summary[k] for k in FIGURES["inspect"]}
     assert set(FIGURES["inspect"]) <= set(RESULT_COLUMNS) and len(set(RESULT_COLUMNS)) == len(RESULT_COLUMNS)
     assert RESULT_COLUMNS[:5] == ("id", "kind", "status", "error", "time_s") and RESULT_COLUMNS[-1] == "input"
+
+
+def test_a_part_job_runs_on_one_thread_and_restores_opencv(monkeypatch, tmp_path):
+    """Workers share the cores: the part's near-field pool, BLAS/OpenMP and OpenCV run 1 thread each
+    while the job runs, and OpenCV's own setting is back afterwards."""
+    import cv2
+    from threadpoolctl import threadpool_info
+
+    import workbench.inspect.part as part
+    from workbench.batch import Job
+    from workbench.inspect.run import KIND, run_inspect_job
+
+    seen = {}
+
+    def fake(folder, out_dir, rig, spec, **kw):
+        seen.update(kw, cv2=cv2.getNumThreads(), pools={p["num_threads"] for p in threadpool_info()})
+        return {"verdict": "pass"}
+
+    monkeypatch.setattr(part, "inspect_part", fake)
+    before = cv2.getNumThreads()
+    job = Job("p1", KIND, str(tmp_path), {"rig": "r.json", "spec": "s.json", "keep_arrays": False})
+    assert run_inspect_job(job, tmp_path / "out") == {"verdict": "pass"}
+    assert seen["threads"] == 1 and seen["cv2"] == 1 and seen["pools"] <= {1}
+    assert seen["part_id"] == "p1" and seen["keep_arrays"] is False
+    assert cv2.getNumThreads() == before
