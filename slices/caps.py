@@ -49,6 +49,60 @@ def _bezier_points(curve: np.ndarray, s: np.ndarray) -> np.ndarray:
     )
 
 
+#: Points per Bezier segment at which :func:`fan_apex` tests that a fan does not fold.
+APEX_SAMPLES = 8
+
+
+def fan_apex(curve, hint) -> np.ndarray:
+    """Apex of a flat cap's fan from which the closed curve is seen turning one way.
+
+    A fan of straight lines from the apex to a curve covers the enclosed region
+    once only when every tangent turns the same way seen from the apex (the apex
+    lies in the curve's kernel). Otherwise the fan folds over itself: its
+    volume stays exact (signed), but the area of the patches counts the fold
+    twice and their normals flip there.
+
+    Parameters
+    ----------
+    curve : array_like, shape (M, 4, 3)
+        Closed planar Bezier curve.
+    hint : array_like, shape (2,)
+        Preferred apex x, y in mm (the contour's centre).
+
+    Returns
+    -------
+    numpy.ndarray, shape (2,)
+        ``hint`` when it sees the whole curve (at :data:`APEX_SAMPLES` points
+        per segment), else the point deepest inside the kernel (a linear
+        programme: the largest distance to every tangent line), else ``hint``
+        (an outline with an empty kernel, such as a deep notch).
+    """
+    from scipy.optimize import linprog
+
+    c = as_array(curve, "curve", shape=(None, 4, 3))
+    p = as_array(hint, "hint", shape=(2,))
+    s = np.arange(APEX_SAMPLES) / APEX_SAMPLES
+    q = _bezier_points(c, s).reshape(-1, 3)[:, :2]
+    t = 3 * ((1 - s)[None, :, None] ** 2 * (c[:, None, 1] - c[:, None, 0])
+             + (2 * s * (1 - s))[None, :, None] * (c[:, None, 2] - c[:, None, 1])
+             + (s**2)[None, :, None] * (c[:, None, 3] - c[:, None, 2])).reshape(-1, 3)[:, :2]
+    length = np.linalg.norm(t, axis=1)
+    keep = length > 1e-12 * max(1.0, float(length.max(initial=0.0)))
+    q, t = q[keep], t[keep] / length[keep, None]
+    orient = 1.0 if curve_area(c) > 0 else -1.0
+    # seen from p, the curve turns counter-clockwise (for a counter-clockwise curve) where
+    # cross(q - p, t) > 0, i.e. a . p < b with a = (t_y, -t_x), b = cross(q, t)
+    a = orient * np.stack([t[:, 1], -t[:, 0]], axis=1)
+    b = orient * (q[:, 0] * t[:, 1] - q[:, 1] * t[:, 0])
+    if np.all(a @ p < b):
+        return p
+    res = linprog([0.0, 0.0, -1.0], A_ub=np.hstack([a, np.ones((len(a), 1))]), b_ub=b,
+                  bounds=[(None, None), (None, None), (None, float(np.ptp(q, axis=0).max()))], method="highs")
+    if res.status == 0 and res.x[2] > 0:
+        return np.asarray(res.x[:2], dtype=np.float64)
+    return p
+
+
 def fan_column(curve, center, toward_center: bool) -> np.ndarray:
     """One patch column of degenerate fan patches between a closed curve and a point.
 
@@ -160,6 +214,86 @@ def curve_area(curve) -> float:
     return float(0.25 * np.sum(integrand * w[None, :]))
 
 
+#: Width of the flat band round a flat cap's inner ring, as a fraction of the median boundary edge.
+CAP_INSET = 0.05
+
+
+def _triangulate_ccw(xy: np.ndarray) -> np.ndarray:
+    """Triangles of a counter-clockwise simple polygon, counter-clockwise, shape (T, 3).
+
+    A fan from an extra vertex ``len(xy)`` at the vertex mean when the outline
+    is star-shaped about it (then the last returned row of points is needed:
+    see :func:`_cap_polygon`), else a constrained triangulation (manifold3d).
+    """
+    import manifold3d
+
+    n = len(xy)
+    rel = xy - xy.mean(axis=0)
+    ang = np.arctan2(rel[:, 1], rel[:, 0])
+    turn = (ang - np.roll(ang, 1) + np.pi) % (2 * np.pi) - np.pi
+    if np.all(turn > 0) and turn.sum() > np.pi:
+        i = np.arange(n)
+        return np.stack([np.full(n, n), i, (i + 1) % n], axis=1)
+    return np.asarray(manifold3d.triangulate([xy]), dtype=np.int64).reshape(-1, 3)
+
+
+def _signed_areas(xy: np.ndarray, tri: np.ndarray) -> np.ndarray:
+    """Twice the signed area of every triangle of a planar mesh, shape (T,)."""
+    a, b, c = xy[tri[:, 0]], xy[tri[:, 1]], xy[tri[:, 2]]
+    e1, e2 = b - a, c - a
+    return e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
+
+
+def _inset_ring(xy: np.ndarray, distance: float) -> np.ndarray:
+    """A counter-clockwise ring moved inward by ``distance`` (mitred, the mitre limited to 4x)."""
+    t_out = np.roll(xy, -1, axis=0) - xy
+    t_out /= np.maximum(np.linalg.norm(t_out, axis=1), 1e-300)[:, None]
+    t_in = np.roll(t_out, 1, axis=0)
+    # inward (left) normals of the incoming and outgoing edges
+    n_in = np.stack([-t_in[:, 1], t_in[:, 0]], axis=1)
+    n_out = np.stack([-t_out[:, 1], t_out[:, 0]], axis=1)
+    bis = n_in + n_out
+    half = np.linalg.norm(bis, axis=1) / 2
+    direction = np.where(half[:, None] > 1e-9, bis / np.maximum(2 * half, 1e-300)[:, None], n_out)
+    return xy + direction * (distance / np.maximum(half, 0.25))[:, None]
+
+
+def _cap_polygon(xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Points and counter-clockwise triangles of a flat cap over a counter-clockwise ring.
+
+    The ring's own points come first (``n``), then an inner ring moved inward
+    by :data:`CAP_INSET` of the median edge and any fan centre. The inner ring
+    is what makes the written mesh shade flat: every boundary vertex is shared
+    with the side surface and carries its normal, so a cap made of boundary
+    vertices only interpolates the side's normals over the whole cap; the
+    inner ring carries the cap's own normal, and the band of side normals is
+    a twentieth of an edge wide. Where the inset is not a valid polygon
+    (outlines narrower than the band) the band is halved, and at last left out.
+    """
+    n = len(xy)
+    edge = np.linalg.norm(np.roll(xy, -1, axis=0) - xy, axis=1)
+    total = 0.5 * float(np.sum(_signed_areas(np.vstack([xy, xy.mean(axis=0)]),
+                                             np.stack([np.full(n, n), np.arange(n), (np.arange(n) + 1) % n], 1))))
+    distance = CAP_INSET * float(np.median(edge))
+    i = np.arange(n)
+    for _ in range(4):
+        if distance <= 1e-9 * max(1.0, float(np.abs(xy).max())):
+            break
+        inner = _inset_ring(xy, distance)
+        strip = np.concatenate([np.stack([i, (i + 1) % n, n + (i + 1) % n], 1),
+                                np.stack([i, n + (i + 1) % n, n + i], 1)])
+        tri = _triangulate_ccw(inner)
+        pts = np.vstack([xy, inner, inner.mean(axis=0)[None]]) if tri.max(initial=0) >= n else np.vstack([xy, inner])
+        tri = np.concatenate([strip, tri + n])
+        s = _signed_areas(pts, tri)
+        # a valid inset: no triangle turned over and no overlap (the areas add up to the outline's)
+        if np.all(s > 0) and abs(0.5 * float(s.sum()) - total) <= 1e-9 * abs(total) + 1e-12:
+            return pts, tri
+        distance /= 2
+    tri = _triangulate_ccw(xy)
+    return (np.vstack([xy, xy.mean(axis=0)[None]]) if tri.max(initial=0) >= n else xy), tri
+
+
 def planar_cap_mesh(curve, samples: int, outward_z: float) -> TriangleMesh:
     """Triangles of a flat cap whose boundary matches a tessellated surface edge.
 
@@ -175,46 +309,36 @@ def planar_cap_mesh(curve, samples: int, outward_z: float) -> TriangleMesh:
     Returns
     -------
     TriangleMesh
-        Boundary vertices at ``u = j + a / samples`` (the tessellation's); a fan
-        from one centre vertex when the outline is star-shaped about its vertex
-        mean, else a constrained triangulation of the boundary polygon.
+        Boundary vertices first, at ``u = j + a / samples`` (the tessellation's),
+        then a ring just inside them (a band of :data:`CAP_INSET` of an edge) and
+        the inside: a fan from one centre vertex when the inner ring is
+        star-shaped about its vertex mean, else a constrained triangulation.
+        Every vertex normal is ``(0, 0, outward_z)``; once the boundary is welded
+        to the side (:func:`weld_flat_caps`) the inner ring keeps the cap's normal.
     """
-    import manifold3d
-
     c = as_array(curve, "curve", shape=(None, 4, 3))
     s = np.arange(int(samples)) / int(samples)
     ring = _bezier_points(c, s).reshape(-1, 3)
     xy = ring[:, :2]
-    area = 0.5 * float(np.dot(xy[:, 0], np.roll(xy[:, 1], -1)) - np.dot(xy[:, 1], np.roll(xy[:, 0], -1)))
     n = len(xy)
-    center = xy.mean(axis=0)
-    rel = xy - center
-    ang = np.arctan2(rel[:, 1], rel[:, 0])
-    turn = (ang - np.roll(ang, 1) + np.pi) % (2 * np.pi) - np.pi
-    if np.all(turn * np.sign(area) > 0) and abs(turn.sum()) > np.pi:
-        # star-shaped about the vertex mean: a fan from an extra centre vertex
-        ring = np.vstack([ring, np.append(center, ring[0, 2])])
-        i = np.arange(n)
-        tri = np.stack([np.full(n, n), i, (i + 1) % n], axis=1)
-    else:
-        tri = np.asarray(manifold3d.triangulate([xy if area > 0 else xy[::-1]]), dtype=np.int64)
-        if area <= 0:
-            tri = n - 1 - tri
+    area = 0.5 * float(np.dot(xy[:, 0], np.roll(xy[:, 1], -1)) - np.dot(xy[:, 1], np.roll(xy[:, 0], -1)))
+    # work on a counter-clockwise copy; the boundary vertices keep the curve's order
+    order = np.arange(n) if area > 0 else np.arange(n)[::-1]
+    pts, tri = _cap_polygon(xy[order])
     if len(tri) == 0:
         raise ValueError("cap: the end contour could not be triangulated")
-    xy = ring[:, :2]
-    # Both triangulations are consistently oriented as a whole; decide the orientation of all
-    # triangles at once from their total signed area. Deciding per triangle would flip the
-    # (near-)degenerate slivers a straight run of the outline can give the wrong way round, and
-    # their edges would then disagree with the neighbouring triangles.
-    corners = xy[tri]
-    e1, e2 = corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]
-    up = float(np.sum(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])) > 0
-    if up != (outward_z > 0):
+    index = np.concatenate([order, np.arange(n, len(pts))])
+    tri = index[tri]
+    vertices = np.empty((len(pts), 3))
+    vertices[index, :2] = pts
+    vertices[:, 2] = ring[0, 2]
+    vertices[:n] = ring
+    # every triangle is counter-clockwise seen from +z: one flip for a bottom cap
+    if outward_z < 0:
         tri = tri[:, ::-1].copy()
-    normal = np.zeros_like(ring)
+    normal = np.zeros_like(vertices)
     normal[:, 2] = 1.0 if outward_z > 0 else -1.0
-    return TriangleMesh(ring, tri, normal)
+    return TriangleMesh(vertices, tri, normal)
 
 
 def end_kinds(caps: str, start: str, stop: str, n_contours: int = 2) -> tuple[str, str]:
@@ -327,7 +451,8 @@ def close_side(side, bottom, top, low_center, high_center, height: float, low: s
         The side's lowest and highest boundary curves (the single slice curve
         when ``side`` is None).
     low_center, high_center : array_like, shape (2,)
-        x, y of the fan apex of the low and the high cap (mm).
+        x, y of the preferred fan apex of the low and the high cap (mm); moved
+        into the end curve's kernel where the fan would fold (:func:`fan_apex`).
     height : float
         Extrusion of half caps in mm (half a slice spacing).
     low, high : str
@@ -355,12 +480,12 @@ def close_side(side, bottom, top, low_center, high_center, height: float, low: s
     flat = []
     first = 0
     if low != "dome":
-        full.insert(0, fan_column(bottom, np.append(low_center, bottom[0, 0, 2]), False))
+        full.insert(0, fan_column(bottom, np.append(fan_apex(bottom, low_center), bottom[0, 0, 2]), False))
         first = 1
         if low != "none":
             flat.append((bottom, -1.0))
     if high != "dome":
-        full.append(fan_column(top, np.append(high_center, top[0, 0, 2]), True))
+        full.append(fan_column(top, np.append(fan_apex(top, high_center), top[0, 0, 2]), True))
         if high != "none":
             flat.append((top, 1.0))
     return CappedGrid(np.concatenate(full, axis=1), slice(first, first + side_ctrl.shape[1]), tuple(flat),
