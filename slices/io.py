@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from slices.control_points import clean_contour
+from slices.control_points import clean_contour, signed_area
 from surfaces.validate import as_array, positive
 
 #: Relative tolerance on slice spacing (a fraction of the spacing).
@@ -64,12 +64,81 @@ class ContourStack:
         return np.unique(np.round([c.z for c in self.contours], 6))
 
 
-def _contours_from_list(items, label: str) -> list[Contour]:
+#: Vertices closer than this fraction of a contour's extent are one point (a keyhole's zero-width cut).
+KEYHOLE_RTOL = 1e-6
+
+
+def open_keyholes(points) -> list[np.ndarray]:
+    """Split a contour at the points it passes twice (keyholes) into simple loops.
+
+    A keyhole contour reaches a hole through a zero-width cut: it runs in along
+    the cut, round the hole and back along the cut, so the cut's vertices come
+    twice. Cutting the vertex sequence at every such pair (``p[i] == p[j]``,
+    not neighbours) gives the loops ``p[i:j]`` and ``p[j:] + p[:i]``, repeated
+    until no point comes twice; the cut itself leaves loops of zero area,
+    which are dropped. A contour touching itself at one point (two islands
+    joined at a corner) opens into its two islands.
+
+    Parameters
+    ----------
+    points : array_like, shape (n, 2)
+        Vertices in mm, in order (a repeated closing vertex is allowed).
+
+    Returns
+    -------
+    list of numpy.ndarray, each shape (m, 2)
+        The loops, largest area first; the contour itself (as given) when no
+        vertex comes twice. Orientations as traversed (a hole runs the other way round).
+
+    Examples
+    --------
+    A 4 mm square with a 2 mm square hole reached along y = 2 from the right:
+
+    >>> keyhole = [[0, 0], [4, 0], [4, 2], [3, 2], [3, 1], [1, 1], [1, 3], [3, 3], [3, 2], [4, 2], [4, 4], [0, 4]]
+    >>> [signed_area(loop) for loop in open_keyholes(keyhole)]
+    [16.0, -4.0]
+    """
+    from scipy.spatial import cKDTree
+
+    p = np.asarray(points, dtype=np.float64)
+    if p.ndim != 2 or len(p) < 4:
+        return [p]
+    tol = KEYHOLE_RTOL * max(float(np.ptp(p, axis=0).max()), 1e-300)
+
+    def dedup(q: np.ndarray) -> np.ndarray:
+        keep = np.linalg.norm(q - np.roll(q, 1, axis=0), axis=1) > tol
+        return q[keep] if np.any(keep) else q[:1]
+
+    todo, loops, opened = [dedup(p)], [], False
+    while todo:
+        q = todo.pop()
+        pairs = cKDTree(q).query_pairs(tol, output_type="ndarray") if len(q) > 3 else np.zeros((0, 2), int)
+        if not len(pairs):
+            loops.append(q)
+            continue
+        opened = True
+        i, j = sorted(int(v) for v in pairs[0])
+        todo += [dedup(q[i:j]), dedup(np.concatenate([q[j:], q[:i]]))]
+    if not opened:
+        return [p]
+    area = np.array([abs(signed_area(q)) if len(q) >= 3 else 0.0 for q in loops])
+    order = np.argsort(-area, kind="stable")
+    return [loops[k] for k in order if area[k] > 1e-9 * max(float(area.max()), 1e-300)]
+
+
+def _contours_from_list(items, label: str, notes: list | None = None) -> list[Contour]:
+    """Validated contours from ``(z, points)`` pairs, keyholes opened (said in ``notes``)."""
     out = []
+    keyholes = 0
     for i, (z, pts) in enumerate(items):
         name = f"{label} contour {i} at z={z:.2f} mm"
-        out.append(Contour(float(z), clean_contour(pts, name)))
+        loops = open_keyholes(pts)
+        keyholes += len(loops) > 1
+        out += [Contour(float(z), clean_contour(q, name)) for q in loops]
     out.sort(key=lambda c: c.z)
+    if keyholes and notes is not None:
+        notes.append(f"{keyholes} keyhole contour(s) (a hole reached by a zero-width cut) opened into "
+                     "separate outer and inner contours")
     return out
 
 
@@ -240,7 +309,8 @@ def read_rtstruct(path, roi) -> ContourStack:
                          f"({type(exc).__name__}: {exc})") from None
     if not items:
         raise ValueError(f"{path}: ROI {name!r} has no CLOSED_PLANAR contours")
-    stack = ContourStack(_contours_from_list(items, f"ROI {name!r}"), "rtstruct", name)
+    notes: list[str] = []
+    stack = ContourStack(_contours_from_list(items, f"ROI {name!r}", notes), "rtstruct", name, notes)
     if skipped:
         stack.notes.append(f"skipped {skipped} contour(s) that are not CLOSED_PLANAR")
     return stack
@@ -741,7 +811,8 @@ def read_contour_json(path) -> ContourStack:
         items.append((float(c["z"]), pts[:, :2]))
     if not items:
         raise ValueError(f"{path}: holds no contours")
-    return ContourStack(_contours_from_list(items, path.name), "json", path.stem)
+    notes: list[str] = []
+    return ContourStack(_contours_from_list(items, path.name, notes), "json", path.stem, notes)
 
 
 def load(path, roi=None, hu_min=None, hu_max=None, spacing=None, resample: bool = False) -> ContourStack:
