@@ -258,7 +258,7 @@ def _inset_ring(xy: np.ndarray, distance: float) -> np.ndarray:
     return xy + direction * (distance / np.maximum(half, 0.25))[:, None]
 
 
-def _cap_polygon(xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _cap_polygon(xy: np.ndarray, inset: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """Points and counter-clockwise triangles of a flat cap over a counter-clockwise ring.
 
     The ring's own points come first (``n``), then an inner ring moved inward
@@ -274,7 +274,7 @@ def _cap_polygon(xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     edge = np.linalg.norm(np.roll(xy, -1, axis=0) - xy, axis=1)
     total = 0.5 * float(np.sum(_signed_areas(np.vstack([xy, xy.mean(axis=0)]),
                                              np.stack([np.full(n, n), np.arange(n), (np.arange(n) + 1) % n], 1))))
-    distance = CAP_INSET * float(np.median(edge))
+    distance = CAP_INSET * float(np.median(edge)) if inset else 0.0
     i = np.arange(n)
     for _ in range(4):
         if distance <= 1e-9 * max(1.0, float(np.abs(xy).max())):
@@ -294,7 +294,7 @@ def _cap_polygon(xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return (np.vstack([xy, xy.mean(axis=0)[None]]) if tri.max(initial=0) >= n else xy), tri
 
 
-def planar_cap_mesh(curve, samples: int, outward_z: float) -> TriangleMesh:
+def planar_cap_mesh(curve, samples: int, outward_z: float, inset: bool = True) -> TriangleMesh:
     """Triangles of a flat cap whose boundary matches a tessellated surface edge.
 
     Parameters
@@ -305,6 +305,8 @@ def planar_cap_mesh(curve, samples: int, outward_z: float) -> TriangleMesh:
         Points per Bezier segment, as used by :func:`surfaces.mesh.tessellate`.
     outward_z : float
         +1 for a top cap (normal +z), -1 for a bottom cap.
+    inset : bool
+        Add the inner ring (False: boundary vertices and any fan centre only).
 
     Returns
     -------
@@ -324,7 +326,7 @@ def planar_cap_mesh(curve, samples: int, outward_z: float) -> TriangleMesh:
     area = 0.5 * float(np.dot(xy[:, 0], np.roll(xy[:, 1], -1)) - np.dot(xy[:, 1], np.roll(xy[:, 0], -1)))
     # work on a counter-clockwise copy; the boundary vertices keep the curve's order
     order = np.arange(n) if area > 0 else np.arange(n)[::-1]
-    pts, tri = _cap_polygon(xy[order])
+    pts, tri = _cap_polygon(xy[order], inset)
     if len(tri) == 0:
         raise ValueError("cap: the end contour could not be triangulated")
     index = np.concatenate([order, np.arange(n, len(pts))])
@@ -492,7 +494,8 @@ def close_side(side, bottom, top, low_center, high_center, height: float, low: s
                       (float(bottom[0, 0, 2]), float(top[0, 0, 2])))
 
 
-def weld_flat_caps(side: TriangleMesh, grid: CappedGrid, samples: int) -> tuple[TriangleMesh, TriangleMesh]:
+def weld_flat_caps(side: TriangleMesh, grid: CappedGrid, samples: int,
+                   inset: bool = True) -> tuple[TriangleMesh, TriangleMesh]:
     """The side's triangles with the flat caps' triangles joined to them.
 
     Parameters
@@ -503,6 +506,11 @@ def weld_flat_caps(side: TriangleMesh, grid: CappedGrid, samples: int) -> tuple[
         The body's grid (its flat caps and end planes).
     samples : int
         Subdivisions per patch side used for ``side`` (the caps' boundary matches it).
+    inset : bool
+        Give the caps the inner ring that shades them flat (:func:`planar_cap_mesh`).
+        Holes go without: their caps are cut away or hidden inside the solid, and
+        where they lie in an outer body's cap plane the extra ring only gives the
+        set operations coplanar slivers to resolve.
 
     Returns
     -------
@@ -519,6 +527,6 @@ def weld_flat_caps(side: TriangleMesh, grid: CappedGrid, samples: int) -> tuple[
     tol = 1e-7 * max(1.0, float(np.abs(side.vertices).max()))
     low, high = grid.end_planes
     rim = np.flatnonzero((np.abs(zv - low) < tol) | (np.abs(zv - high) < tol))
-    merged = merge_meshes([side] + [planar_cap_mesh(c, samples, s) for c, s in grid.flat_caps])
+    merged = merge_meshes([side] + [planar_cap_mesh(c, samples, s, inset) for c, s in grid.flat_caps])
     candidates = np.concatenate([rim, np.arange(side.n_vertices, merged.n_vertices)])
     return weld(merged, candidates=candidates), merged
