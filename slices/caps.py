@@ -352,7 +352,7 @@ def end_kinds(caps: str, start: str, stop: str, n_contours: int = 2) -> tuple[st
         The requested caps.
     start, stop : str
         Why the body's chain starts and stops (:class:`slices.chaining.Body`):
-        ``"end"``, ``"branch"`` or ``"merge"``.
+        ``"end"``, ``"branch"``, ``"merge"`` or ``"split"``.
     n_contours : int
         Contours in the body. A single contour has no thickness with none/flat
         caps; it gets half caps there instead (the slab of one spacing that
@@ -363,8 +363,12 @@ def end_kinds(caps: str, start: str, stop: str, n_contours: int = 2) -> tuple[st
     -------
     (str, str)
         The requested caps at a true end; ``"half"`` where the chain splits
-        (branching or merging contours), so neighbouring bodies meet half-way
-        between the planes.
+        without a split contour (branching or merging contours), so
+        neighbouring bodies meet half-way between the planes; ``"flat"`` at a
+        split joint (the parts of a split contour and the contour itself meet in
+        one plane, and the union removes the coincident caps). A single contour
+        with a flat joint at one end gets a half cap at its other end where the
+        requested cap would leave it without thickness.
 
     Examples
     --------
@@ -372,11 +376,19 @@ def end_kinds(caps: str, start: str, stop: str, n_contours: int = 2) -> tuple[st
     ('flat', 'half')
     >>> end_kinds("flat", "end", "end", n_contours=1)
     ('half', 'half')
+    >>> end_kinds("dome", "split", "end"), end_kinds("none", "end", "split", n_contours=1)
+    (('flat', 'dome'), ('half', 'flat'))
     """
     if caps not in CAP_KINDS:
         raise ValueError(f"caps: must be one of {CAP_KINDS}, got {caps!r}")
-    low, high = (caps if start == "end" else "half"), (caps if stop == "end" else "half")
+
+    def kind(why: str) -> str:
+        return caps if why == "end" else ("flat" if why == "split" else "half")
+
+    low, high = kind(start), kind(stop)
     if int(n_contours) == 1 and low in ("none", "flat") and high in ("none", "flat"):
+        if "split" in (start, stop) and start != stop:
+            return ("flat", "half") if start == "split" else ("half", "flat")
         return "half", "half"
     return low, high
 
