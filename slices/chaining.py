@@ -36,6 +36,11 @@ _RASTER = 256
 #: Pixels along the longer side of the raster that finds the mid-line of a split contour.
 SPLIT_RASTER = 512
 
+#: Largest ratio between a child's area and its part of a split contour (either way round). Beyond
+#: it the child does not continue its part (a small lobe tip beside a large parent would have to
+#: loft from a wide wedge into a small outline, and such lofts fold); the half caps stay.
+SPLIT_AREA_RATIO = 2.5
+
 
 @dataclass(frozen=True)
 class Body:
@@ -154,7 +159,8 @@ def split_contour(parent: np.ndarray, children: list[np.ndarray]) -> list[np.nda
     -------
     list of numpy.ndarray or None
         One counter-clockwise part per child, in the children's order; None
-        when a child's part is empty or not one piece (then the caller keeps
+        when a child's part is empty, not one piece, or its area differs from
+        the child's by more than :data:`SPLIT_AREA_RATIO` (then the caller keeps
         the half caps that meet half-way between the planes).
     """
     import cv2
@@ -209,9 +215,13 @@ def split_contour(parent: np.ndarray, children: list[np.ndarray]) -> list[np.nda
         _, where = cKDTree(loop).query(points)
         points = points[np.argsort(where, kind="stable")]
         try:
-            parts.append(clean_contour(points, f"part {i} of a split contour"))
+            part = clean_contour(points, f"part {i} of a split contour")
         except ValueError:
             return None
+        ratio = signed_area(part) / max(abs(signed_area(children[i])), 1e-300)
+        if not 1 / SPLIT_AREA_RATIO <= ratio <= SPLIT_AREA_RATIO:
+            return None
+        parts.append(part)
     return parts
 
 
