@@ -12,10 +12,15 @@
 Planar caps are patch columns of degenerate fan patches from the cap centre to
 the boundary curve, so the divergence-theorem volume of the patch grid is
 exact for any outline (the flux through a fan over a plane is the signed area
-it sweeps, also where the fan overlaps itself on a folded outline). Their area
-is computed from the boundary curve with Green's theorem, and their triangles
-by a constrained triangulation of the boundary polygon (manifold3d), which
-stays inside non-convex outlines.
+it sweeps, also where the fan overlaps itself on a folded outline). The apex
+is moved into the outline's kernel where the centre does not see the whole
+outline (:func:`fan_apex`), so the fan covers the cap once and the patches'
+area is the cap's; an outline without a kernel (a deep notch) still folds
+there. The cap's area is computed from the boundary curve with Green's
+theorem, and its triangles by a constrained triangulation of the boundary
+polygon (manifold3d), which stays inside non-convex outlines, with a ring of
+vertices just inside the boundary that carries the cap's own normal (so the
+written mesh shades flat caps flat).
 
 A body's caps are put together in three steps: :func:`end_kinds` (which cap
 each end gets), :func:`add_dome_rings` (virtual slices of dome caps, before
