@@ -260,7 +260,8 @@ def build_body_once(body: Body, spacing: float, options: SurfaceOptions | None =
     tri_mesh = display = None
     if mesh:
         n_s = opts.samples or max(1, min(6, int(np.sqrt(MESH_BUDGET / side_patches.n_patches))))
-        tri_mesh, display = capmod.weld_flat_caps(tessellate(side_patches, n_s), grid, n_s)
+        tri_mesh, display = capmod.weld_flat_caps(tessellate(side_patches, n_s), grid, n_s,
+                                                  inset=body.kind == "outer")
     if body.kind == "hole":
         patches = patches.flipped()
         if tri_mesh is not None:

@@ -12,10 +12,15 @@
 Planar caps are patch columns of degenerate fan patches from the cap centre to
 the boundary curve, so the divergence-theorem volume of the patch grid is
 exact for any outline (the flux through a fan over a plane is the signed area
-it sweeps, also where the fan overlaps itself on a folded outline). Their area
-is computed from the boundary curve with Green's theorem, and their triangles
-by a constrained triangulation of the boundary polygon (manifold3d), which
-stays inside non-convex outlines.
+it sweeps, also where the fan overlaps itself on a folded outline). The apex
+is moved into the outline's kernel where the centre does not see the whole
+outline (:func:`fan_apex`), so the fan covers the cap once and the patches'
+area is the cap's; an outline without a kernel (a deep notch) still folds
+there. The cap's area is computed from the boundary curve with Green's
+theorem, and its triangles by a constrained triangulation of the boundary
+polygon (manifold3d), which stays inside non-convex outlines, with a ring of
+vertices just inside the boundary that carries the cap's own normal (so the
+written mesh shades flat caps flat).
 
 A body's caps are put together in three steps: :func:`end_kinds` (which cap
 each end gets), :func:`add_dome_rings` (virtual slices of dome caps, before
@@ -47,6 +52,60 @@ def _bezier_points(curve: np.ndarray, s: np.ndarray) -> np.ndarray:
         (1 - s) ** 3 * c[:, :, 0] + 3 * s * (1 - s) ** 2 * c[:, :, 1]
         + 3 * s**2 * (1 - s) * c[:, :, 2] + s**3 * c[:, :, 3]
     )
+
+
+#: Points per Bezier segment at which :func:`fan_apex` tests that a fan does not fold.
+APEX_SAMPLES = 8
+
+
+def fan_apex(curve, hint) -> np.ndarray:
+    """Apex of a flat cap's fan from which the closed curve is seen turning one way.
+
+    A fan of straight lines from the apex to a curve covers the enclosed region
+    once only when every tangent turns the same way seen from the apex (the apex
+    lies in the curve's kernel). Otherwise the fan folds over itself: its
+    volume stays exact (signed), but the area of the patches counts the fold
+    twice and their normals flip there.
+
+    Parameters
+    ----------
+    curve : array_like, shape (M, 4, 3)
+        Closed planar Bezier curve.
+    hint : array_like, shape (2,)
+        Preferred apex x, y in mm (the contour's centre).
+
+    Returns
+    -------
+    numpy.ndarray, shape (2,)
+        ``hint`` when it sees the whole curve (at :data:`APEX_SAMPLES` points
+        per segment), else the point deepest inside the kernel (a linear
+        programme: the largest distance to every tangent line), else ``hint``
+        (an outline with an empty kernel, such as a deep notch).
+    """
+    from scipy.optimize import linprog
+
+    c = as_array(curve, "curve", shape=(None, 4, 3))
+    p = as_array(hint, "hint", shape=(2,))
+    s = np.arange(APEX_SAMPLES) / APEX_SAMPLES
+    q = _bezier_points(c, s).reshape(-1, 3)[:, :2]
+    t = 3 * ((1 - s)[None, :, None] ** 2 * (c[:, None, 1] - c[:, None, 0])
+             + (2 * s * (1 - s))[None, :, None] * (c[:, None, 2] - c[:, None, 1])
+             + (s**2)[None, :, None] * (c[:, None, 3] - c[:, None, 2])).reshape(-1, 3)[:, :2]
+    length = np.linalg.norm(t, axis=1)
+    keep = length > 1e-12 * max(1.0, float(length.max(initial=0.0)))
+    q, t = q[keep], t[keep] / length[keep, None]
+    orient = 1.0 if curve_area(c) > 0 else -1.0
+    # seen from p, the curve turns counter-clockwise (for a counter-clockwise curve) where
+    # cross(q - p, t) > 0, i.e. a . p < b with a = (t_y, -t_x), b = cross(q, t)
+    a = orient * np.stack([t[:, 1], -t[:, 0]], axis=1)
+    b = orient * (q[:, 0] * t[:, 1] - q[:, 1] * t[:, 0])
+    if np.all(a @ p < b):
+        return p
+    res = linprog([0.0, 0.0, -1.0], A_ub=np.hstack([a, np.ones((len(a), 1))]), b_ub=b,
+                  bounds=[(None, None), (None, None), (None, float(np.ptp(q, axis=0).max()))], method="highs")
+    if res.status == 0 and res.x[2] > 0:
+        return np.asarray(res.x[:2], dtype=np.float64)
+    return p
 
 
 def fan_column(curve, center, toward_center: bool) -> np.ndarray:
@@ -160,7 +219,87 @@ def curve_area(curve) -> float:
     return float(0.25 * np.sum(integrand * w[None, :]))
 
 
-def planar_cap_mesh(curve, samples: int, outward_z: float) -> TriangleMesh:
+#: Width of the flat band round a flat cap's inner ring, as a fraction of the median boundary edge.
+CAP_INSET = 0.05
+
+
+def _triangulate_ccw(xy: np.ndarray) -> np.ndarray:
+    """Triangles of a counter-clockwise simple polygon, counter-clockwise, shape (T, 3).
+
+    A fan from an extra vertex ``len(xy)`` at the vertex mean when the outline
+    is star-shaped about it (then the last returned row of points is needed:
+    see :func:`_cap_polygon`), else a constrained triangulation (manifold3d).
+    """
+    import manifold3d
+
+    n = len(xy)
+    rel = xy - xy.mean(axis=0)
+    ang = np.arctan2(rel[:, 1], rel[:, 0])
+    turn = (ang - np.roll(ang, 1) + np.pi) % (2 * np.pi) - np.pi
+    if np.all(turn > 0) and turn.sum() > np.pi:
+        i = np.arange(n)
+        return np.stack([np.full(n, n), i, (i + 1) % n], axis=1)
+    return np.asarray(manifold3d.triangulate([xy]), dtype=np.int64).reshape(-1, 3)
+
+
+def _signed_areas(xy: np.ndarray, tri: np.ndarray) -> np.ndarray:
+    """Twice the signed area of every triangle of a planar mesh, shape (T,)."""
+    a, b, c = xy[tri[:, 0]], xy[tri[:, 1]], xy[tri[:, 2]]
+    e1, e2 = b - a, c - a
+    return e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
+
+
+def _inset_ring(xy: np.ndarray, distance: float) -> np.ndarray:
+    """A counter-clockwise ring moved inward by ``distance`` (mitred, the mitre limited to 4x)."""
+    t_out = np.roll(xy, -1, axis=0) - xy
+    t_out /= np.maximum(np.linalg.norm(t_out, axis=1), 1e-300)[:, None]
+    t_in = np.roll(t_out, 1, axis=0)
+    # inward (left) normals of the incoming and outgoing edges
+    n_in = np.stack([-t_in[:, 1], t_in[:, 0]], axis=1)
+    n_out = np.stack([-t_out[:, 1], t_out[:, 0]], axis=1)
+    bis = n_in + n_out
+    half = np.linalg.norm(bis, axis=1) / 2
+    direction = np.where(half[:, None] > 1e-9, bis / np.maximum(2 * half, 1e-300)[:, None], n_out)
+    return xy + direction * (distance / np.maximum(half, 0.25))[:, None]
+
+
+def _cap_polygon(xy: np.ndarray, inset: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """Points and counter-clockwise triangles of a flat cap over a counter-clockwise ring.
+
+    The ring's own points come first (``n``), then an inner ring moved inward
+    by :data:`CAP_INSET` of the median edge and any fan centre. The inner ring
+    is what makes the written mesh shade flat: every boundary vertex is shared
+    with the side surface and carries its normal, so a cap made of boundary
+    vertices only interpolates the side's normals over the whole cap; the
+    inner ring carries the cap's own normal, and the band of side normals is
+    a twentieth of an edge wide. Where the inset is not a valid polygon
+    (outlines narrower than the band) the band is halved, and at last left out.
+    """
+    n = len(xy)
+    edge = np.linalg.norm(np.roll(xy, -1, axis=0) - xy, axis=1)
+    total = 0.5 * float(np.sum(_signed_areas(np.vstack([xy, xy.mean(axis=0)]),
+                                             np.stack([np.full(n, n), np.arange(n), (np.arange(n) + 1) % n], 1))))
+    distance = CAP_INSET * float(np.median(edge)) if inset else 0.0
+    i = np.arange(n)
+    for _ in range(4):
+        if distance <= 1e-9 * max(1.0, float(np.abs(xy).max())):
+            break
+        inner = _inset_ring(xy, distance)
+        strip = np.concatenate([np.stack([i, (i + 1) % n, n + (i + 1) % n], 1),
+                                np.stack([i, n + (i + 1) % n, n + i], 1)])
+        tri = _triangulate_ccw(inner)
+        pts = np.vstack([xy, inner, inner.mean(axis=0)[None]]) if tri.max(initial=0) >= n else np.vstack([xy, inner])
+        tri = np.concatenate([strip, tri + n])
+        s = _signed_areas(pts, tri)
+        # a valid inset: no triangle turned over and no overlap (the areas add up to the outline's)
+        if np.all(s > 0) and abs(0.5 * float(s.sum()) - total) <= 1e-9 * abs(total) + 1e-12:
+            return pts, tri
+        distance /= 2
+    tri = _triangulate_ccw(xy)
+    return (np.vstack([xy, xy.mean(axis=0)[None]]) if tri.max(initial=0) >= n else xy), tri
+
+
+def planar_cap_mesh(curve, samples: int, outward_z: float, inset: bool = True) -> TriangleMesh:
     """Triangles of a flat cap whose boundary matches a tessellated surface edge.
 
     Parameters
@@ -171,50 +310,42 @@ def planar_cap_mesh(curve, samples: int, outward_z: float) -> TriangleMesh:
         Points per Bezier segment, as used by :func:`surfaces.mesh.tessellate`.
     outward_z : float
         +1 for a top cap (normal +z), -1 for a bottom cap.
+    inset : bool
+        Add the inner ring (False: boundary vertices and any fan centre only).
 
     Returns
     -------
     TriangleMesh
-        Boundary vertices at ``u = j + a / samples`` (the tessellation's); a fan
-        from one centre vertex when the outline is star-shaped about its vertex
-        mean, else a constrained triangulation of the boundary polygon.
+        Boundary vertices first, at ``u = j + a / samples`` (the tessellation's),
+        then a ring just inside them (a band of :data:`CAP_INSET` of an edge) and
+        the inside: a fan from one centre vertex when the inner ring is
+        star-shaped about its vertex mean, else a constrained triangulation.
+        Every vertex normal is ``(0, 0, outward_z)``; once the boundary is welded
+        to the side (:func:`weld_flat_caps`) the inner ring keeps the cap's normal.
     """
-    import manifold3d
-
     c = as_array(curve, "curve", shape=(None, 4, 3))
     s = np.arange(int(samples)) / int(samples)
     ring = _bezier_points(c, s).reshape(-1, 3)
     xy = ring[:, :2]
-    area = 0.5 * float(np.dot(xy[:, 0], np.roll(xy[:, 1], -1)) - np.dot(xy[:, 1], np.roll(xy[:, 0], -1)))
     n = len(xy)
-    center = xy.mean(axis=0)
-    rel = xy - center
-    ang = np.arctan2(rel[:, 1], rel[:, 0])
-    turn = (ang - np.roll(ang, 1) + np.pi) % (2 * np.pi) - np.pi
-    if np.all(turn * np.sign(area) > 0) and abs(turn.sum()) > np.pi:
-        # star-shaped about the vertex mean: a fan from an extra centre vertex
-        ring = np.vstack([ring, np.append(center, ring[0, 2])])
-        i = np.arange(n)
-        tri = np.stack([np.full(n, n), i, (i + 1) % n], axis=1)
-    else:
-        tri = np.asarray(manifold3d.triangulate([xy if area > 0 else xy[::-1]]), dtype=np.int64)
-        if area <= 0:
-            tri = n - 1 - tri
+    area = 0.5 * float(np.dot(xy[:, 0], np.roll(xy[:, 1], -1)) - np.dot(xy[:, 1], np.roll(xy[:, 0], -1)))
+    # work on a counter-clockwise copy; the boundary vertices keep the curve's order
+    order = np.arange(n) if area > 0 else np.arange(n)[::-1]
+    pts, tri = _cap_polygon(xy[order], inset)
     if len(tri) == 0:
         raise ValueError("cap: the end contour could not be triangulated")
-    xy = ring[:, :2]
-    # Both triangulations are consistently oriented as a whole; decide the orientation of all
-    # triangles at once from their total signed area. Deciding per triangle would flip the
-    # (near-)degenerate slivers a straight run of the outline can give the wrong way round, and
-    # their edges would then disagree with the neighbouring triangles.
-    corners = xy[tri]
-    e1, e2 = corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]
-    up = float(np.sum(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])) > 0
-    if up != (outward_z > 0):
+    index = np.concatenate([order, np.arange(n, len(pts))])
+    tri = index[tri]
+    vertices = np.empty((len(pts), 3))
+    vertices[index, :2] = pts
+    vertices[:, 2] = ring[0, 2]
+    vertices[:n] = ring
+    # every triangle is counter-clockwise seen from +z: one flip for a bottom cap
+    if outward_z < 0:
         tri = tri[:, ::-1].copy()
-    normal = np.zeros_like(ring)
+    normal = np.zeros_like(vertices)
     normal[:, 2] = 1.0 if outward_z > 0 else -1.0
-    return TriangleMesh(ring, tri, normal)
+    return TriangleMesh(vertices, tri, normal)
 
 
 def end_kinds(caps: str, start: str, stop: str, n_contours: int = 2) -> tuple[str, str]:
@@ -226,7 +357,7 @@ def end_kinds(caps: str, start: str, stop: str, n_contours: int = 2) -> tuple[st
         The requested caps.
     start, stop : str
         Why the body's chain starts and stops (:class:`slices.chaining.Body`):
-        ``"end"``, ``"branch"`` or ``"merge"``.
+        ``"end"``, ``"branch"``, ``"merge"`` or ``"split"``.
     n_contours : int
         Contours in the body. A single contour has no thickness with none/flat
         caps; it gets half caps there instead (the slab of one spacing that
@@ -237,8 +368,12 @@ def end_kinds(caps: str, start: str, stop: str, n_contours: int = 2) -> tuple[st
     -------
     (str, str)
         The requested caps at a true end; ``"half"`` where the chain splits
-        (branching or merging contours), so neighbouring bodies meet half-way
-        between the planes.
+        without a split contour (branching or merging contours), so
+        neighbouring bodies meet half-way between the planes; ``"flat"`` at a
+        split joint (the parts of a split contour and the contour itself meet in
+        one plane, and the union removes the coincident caps). A single contour
+        with a flat joint at one end gets a half cap at its other end where the
+        requested cap would leave it without thickness.
 
     Examples
     --------
@@ -246,11 +381,19 @@ def end_kinds(caps: str, start: str, stop: str, n_contours: int = 2) -> tuple[st
     ('flat', 'half')
     >>> end_kinds("flat", "end", "end", n_contours=1)
     ('half', 'half')
+    >>> end_kinds("dome", "split", "end"), end_kinds("none", "end", "split", n_contours=1)
+    (('flat', 'dome'), ('half', 'flat'))
     """
     if caps not in CAP_KINDS:
         raise ValueError(f"caps: must be one of {CAP_KINDS}, got {caps!r}")
-    low, high = (caps if start == "end" else "half"), (caps if stop == "end" else "half")
+
+    def kind(why: str) -> str:
+        return caps if why == "end" else ("flat" if why == "split" else "half")
+
+    low, high = kind(start), kind(stop)
     if int(n_contours) == 1 and low in ("none", "flat") and high in ("none", "flat"):
+        if "split" in (start, stop) and start != stop:
+            return ("flat", "half") if start == "split" else ("half", "flat")
         return "half", "half"
     return low, high
 
@@ -327,7 +470,8 @@ def close_side(side, bottom, top, low_center, high_center, height: float, low: s
         The side's lowest and highest boundary curves (the single slice curve
         when ``side`` is None).
     low_center, high_center : array_like, shape (2,)
-        x, y of the fan apex of the low and the high cap (mm).
+        x, y of the preferred fan apex of the low and the high cap (mm); moved
+        into the end curve's kernel where the fan would fold (:func:`fan_apex`).
     height : float
         Extrusion of half caps in mm (half a slice spacing).
     low, high : str
@@ -355,19 +499,20 @@ def close_side(side, bottom, top, low_center, high_center, height: float, low: s
     flat = []
     first = 0
     if low != "dome":
-        full.insert(0, fan_column(bottom, np.append(low_center, bottom[0, 0, 2]), False))
+        full.insert(0, fan_column(bottom, np.append(fan_apex(bottom, low_center), bottom[0, 0, 2]), False))
         first = 1
         if low != "none":
             flat.append((bottom, -1.0))
     if high != "dome":
-        full.append(fan_column(top, np.append(high_center, top[0, 0, 2]), True))
+        full.append(fan_column(top, np.append(fan_apex(top, high_center), top[0, 0, 2]), True))
         if high != "none":
             flat.append((top, 1.0))
     return CappedGrid(np.concatenate(full, axis=1), slice(first, first + side_ctrl.shape[1]), tuple(flat),
                       (float(bottom[0, 0, 2]), float(top[0, 0, 2])))
 
 
-def weld_flat_caps(side: TriangleMesh, grid: CappedGrid, samples: int) -> tuple[TriangleMesh, TriangleMesh]:
+def weld_flat_caps(side: TriangleMesh, grid: CappedGrid, samples: int,
+                   inset: bool = True) -> tuple[TriangleMesh, TriangleMesh]:
     """The side's triangles with the flat caps' triangles joined to them.
 
     Parameters
@@ -378,6 +523,11 @@ def weld_flat_caps(side: TriangleMesh, grid: CappedGrid, samples: int) -> tuple[
         The body's grid (its flat caps and end planes).
     samples : int
         Subdivisions per patch side used for ``side`` (the caps' boundary matches it).
+    inset : bool
+        Give the caps the inner ring that shades them flat (:func:`planar_cap_mesh`).
+        Holes go without: their caps are cut away or hidden inside the solid, and
+        where they lie in an outer body's cap plane the extra ring only gives the
+        set operations coplanar slivers to resolve.
 
     Returns
     -------
@@ -394,6 +544,6 @@ def weld_flat_caps(side: TriangleMesh, grid: CappedGrid, samples: int) -> tuple[
     tol = 1e-7 * max(1.0, float(np.abs(side.vertices).max()))
     low, high = grid.end_planes
     rim = np.flatnonzero((np.abs(zv - low) < tol) | (np.abs(zv - high) < tol))
-    merged = merge_meshes([side] + [planar_cap_mesh(c, samples, s) for c, s in grid.flat_caps])
+    merged = merge_meshes([side] + [planar_cap_mesh(c, samples, s, inset) for c, s in grid.flat_caps])
     candidates = np.concatenate([rim, np.arange(side.n_vertices, merged.n_vertices)])
     return weld(merged, candidates=candidates), merged

@@ -9,6 +9,16 @@ successor exactly one linked predecessor; a branching (two successors), a
 merge (two predecessors), a gap in the planes or the end of the structure ends
 it. Every chain is one body, reconstructed on its own; hole bodies are
 subtracted.
+
+Branchings and merges are joined as SlicerRT joins them, without a shelf: where
+one contour overlaps several on the next plane (and each of those overlaps it
+alone), the contour is split along the mid-line between the others'
+projections (:func:`split_contour`: every point of the parent goes to the
+nearest child), and each part starts its child's chain on the parent's plane.
+The parent's chain and the children's meet there in flat, coincident caps
+(chain ends ``"split"``), which the union of the bodies removes. A merge is the
+mirror image. Contours that both merge and branch keep the half caps that meet
+half-way between the planes (ends ``"branch"``/``"merge"``).
 """
 
 from __future__ import annotations
@@ -23,6 +33,14 @@ from slices.io import SPACING_RTOL, Contour
 #: Pixels along the longer side of the raster used for overlap tests.
 _RASTER = 256
 
+#: Pixels along the longer side of the raster that finds the mid-line of a split contour.
+SPLIT_RASTER = 512
+
+#: Largest ratio between a child's area and its part of a split contour (either way round). Beyond
+#: it the child does not continue its part (a small lobe tip beside a large parent would have to
+#: loft from a wide wedge into a small outline, and such lofts fold); the half caps stay.
+SPLIT_AREA_RATIO = 2.5
+
 
 @dataclass(frozen=True)
 class Body:
@@ -36,9 +54,11 @@ class Body:
         One per plane, increasing ``z``.
     start : str
         Why the chain starts: ``"end"`` (nothing below), ``"branch"`` (the contour
-        below splits), ``"merge"``.
+        below splits), ``"merge"``, or ``"split"`` (its first contour is this
+        chain's part of a contour split at a branching or merge, or the chain
+        continues from such a split above its first plane: a flat joint).
     stop : str
-        Why it stops: ``"end"``, ``"branch"``, ``"merge"``.
+        Why it stops: ``"end"``, ``"branch"``, ``"merge"``, ``"split"``.
     """
 
     kind: str
@@ -109,6 +129,102 @@ def overlaps(a: np.ndarray, b: np.ndarray) -> bool:
     return bool(np.any(masks[0] & masks[1]))
 
 
+def _segment_distance(points: np.ndarray, polygon: np.ndarray) -> np.ndarray:
+    """Distance of every point to a closed polygon's boundary, shape (N,)."""
+    a, b = polygon, np.roll(polygon, -1, axis=0)
+    d = b - a
+    t = np.einsum("pkj,kj->pk", points[:, None, :] - a[None], d) / np.maximum(np.einsum("kj,kj->k", d, d), 1e-300)
+    foot = a[None] + np.clip(t, 0.0, 1.0)[..., None] * d[None]
+    return np.linalg.norm(points[:, None, :] - foot, axis=2).min(axis=1)
+
+
+def split_contour(parent: np.ndarray, children: list[np.ndarray]) -> list[np.ndarray] | None:
+    """Split a contour along the mid-lines between the projections of the contours it branches into.
+
+    Every point of the parent goes to the nearest child (a Voronoi partition
+    of the children's rasterised projections, by a Euclidean distance
+    transform); child ``i``'s part is bounded by the parent's own vertices
+    nearest to it and by the mid-line to its neighbours. The parts cover the
+    parent once, so each child's surface rises from its own part of the parent
+    (no flat shelf, nothing detached), as SlicerRT's branching does.
+
+    Parameters
+    ----------
+    parent : numpy.ndarray, shape (n, 2)
+        Counter-clockwise contour in mm.
+    children : list of numpy.ndarray, each shape (m, 2)
+        The contours it overlaps on the neighbouring plane (two or more).
+
+    Returns
+    -------
+    list of numpy.ndarray or None
+        One counter-clockwise part per child, in the children's order; None
+        when a child's part is empty, not one piece, or its area differs from
+        the child's by more than :data:`SPLIT_AREA_RATIO` (then the caller keeps
+        the half caps that meet half-way between the planes).
+    """
+    import cv2
+    from scipy import ndimage
+    from scipy.spatial import cKDTree
+    from skimage.measure import find_contours
+
+    from slices.control_points import clean_contour
+
+    everything = np.vstack([parent, *children])
+    lo = everything.min(axis=0)
+    h = float((everything.max(axis=0) - lo).max()) / (SPLIT_RASTER - 1)
+    shape = tuple(int(v) for v in np.ceil((everything.max(axis=0) - lo) / h)[::-1] + 3)
+
+    def fill(poly, value, img):
+        cv2.fillPoly(img, [np.round((poly - lo) / h * 16 + 16).astype(np.int32)], value, shift=4)
+        return img
+
+    inside = fill(parent, 1, np.zeros(shape, np.uint8)).astype(bool)
+    ids = np.zeros(shape, np.int32)
+    for i, c in enumerate(children):
+        fill(c, i + 1, ids)
+    if not ids.any():
+        return None
+    _, (ri, ci) = ndimage.distance_transform_edt(ids == 0, return_indices=True)
+    nearest = ids[ri, ci] - 1
+
+    def to_mm(rc):
+        return lo + (rc[:, ::-1] - 1.0) * h
+
+    px = np.clip(np.round((parent - lo) / h + 1).astype(int), 0, np.array(shape[::-1]) - 1)
+    vertex_owner = nearest[px[:, 1], px[:, 0]]
+    step = max(1, int(round(float(np.median(np.linalg.norm(np.diff(parent, axis=0), axis=1))) / h)))
+    parts = []
+    for i in range(len(children)):
+        region = inside & (nearest == i)
+        loops = [c for c in find_contours(np.pad(region.astype(np.float64), 1), 0.5) if len(c) > 3]
+        if not loops:
+            return None
+        sizes = np.array([abs(np.sum(c[:-1, 0] * c[1:, 1] - c[1:, 0] * c[:-1, 1])) for c in loops])
+        if np.sum(sizes > 0.02 * sizes.max()) > 1:
+            return None  # the child's share of the parent is in pieces
+        loop = to_mm(loops[int(np.argmax(sizes))][:-1] - 1.0)
+        # the loop's points off the parent's outline lie on the mid-line; on the outline, the parent's
+        # own vertices are used, so the part keeps the parent's shape exactly there
+        mid = np.flatnonzero(_segment_distance(loop, parent) > 2.0 * h)
+        mid = mid[::step] if len(mid) else mid
+        own = np.flatnonzero(vertex_owner == i)
+        points = np.vstack([parent[own], loop[mid]])
+        if len(points) < 3:
+            return None
+        _, where = cKDTree(loop).query(points)
+        points = points[np.argsort(where, kind="stable")]
+        try:
+            part = clean_contour(points, f"part {i} of a split contour")
+        except ValueError:
+            return None
+        ratio = signed_area(part) / max(abs(signed_area(children[i])), 1e-300)
+        if not 1 / SPLIT_AREA_RATIO <= ratio <= SPLIT_AREA_RATIO:
+            return None
+        parts.append(part)
+    return parts
+
+
 def chain(contours: list[Contour], spacing: float | None) -> list[Body]:
     """Group contours into bodies (see module docstring).
 
@@ -152,6 +268,7 @@ def chain(contours: list[Contour], spacing: float | None) -> list[Body]:
                     pred[j].append(i)
     linked = [len(succ[i]) == 1 and len(pred[succ[i][0]]) == 1 for i in range(n)]
     starts = [i for i in range(n) if not (len(pred[i]) == 1 and linked[pred[i][0]])]
+    below, above = _split_joints(contours, succ, pred)
     bodies = []
     for s in starts:
         members = [s]
@@ -165,11 +282,50 @@ def chain(contours: list[Contour], spacing: float | None) -> list[Body]:
             stop = "branch"
         else:
             stop = "merge"
-        bodies.append(
-            Body("hole" if hole[first] else "outer", tuple(contours[m] for m in members), start, stop)
-        )
+        chained = [contours[m] for m in members]
+        if first in below:
+            chained = ([] if below[first] is None else [below[first]]) + chained
+            start = "split"
+        if last in above:
+            chained += [] if above[last] is None else [above[last]]
+            stop = "split"
+        bodies.append(Body("hole" if hole[first] else "outer", tuple(chained), start, stop))
     bodies.sort(key=lambda b: (b.kind != "outer", b.contours[0].z))
     return bodies
+
+
+def _split_joints(contours: list[Contour], succ: list, pred: list) -> tuple[dict, dict]:
+    """The parts of split contours that start or end chains (:func:`split_contour`).
+
+    Returns
+    -------
+    below : dict
+        Contour index -> the part (a Contour on the plane below) its chain starts
+        with, or None when the chain starts on the split contour itself (a merge's
+        result: its chain starts there with a flat joint).
+    above : dict
+        Contour index -> the part its chain ends with, or None when the chain ends on
+        the split contour itself (a branching's parent).
+    """
+    below: dict = {}
+    above: dict = {}
+    for i in range(len(contours)):
+        # a branching whose children come from this contour alone, and a merge whose parents go
+        # into this contour alone; a contour that does both keeps the half caps
+        branch = len(succ[i]) > 1 and all(len(pred[j]) == 1 for j in succ[i])
+        merge = len(pred[i]) > 1 and all(len(succ[j]) == 1 for j in pred[i])
+        if branch == merge:
+            continue
+        others = succ[i] if branch else pred[i]
+        if any(j in below or j in above for j in others):
+            continue
+        parts = split_contour(contours[i].points, [contours[j].points for j in others])
+        if parts is None:
+            continue
+        for j, part in zip(others, parts):
+            (below if branch else above)[j] = Contour(contours[i].z, part)
+        (above if branch else below)[i] = None
+    return below, above
 
 
 def slab_volume(contours: list[Contour], spacing: float | None) -> float:
@@ -205,6 +361,61 @@ def slab_volume(contours: list[Contour], spacing: float | None) -> float:
     weight = np.ones(len(planes))
     weight[[0, -1]] = 0.5
     return float(np.sum(area * weight) * spacing)
+
+
+#: Contours up to which a structure counts as small (lens, chiasm): there the end convention dominates.
+SMALL_STRUCTURE_CONTOURS = 5
+
+
+def planning_volumes(contours: list[Contour], spacing: float | None) -> dict:
+    """The volume as treatment-planning systems count it, under both end conventions.
+
+    Planning systems give every contour a slab of one slice spacing (area x
+    spacing, outer contours minus holes) and differ at the ends of the
+    structure: ``slab_full_ends`` keeps the end contours' whole slabs (the
+    structure reaches half a spacing beyond its end planes), ``slab_half_ends``
+    keeps half of them (:func:`slab_volume`, the trapezoid rule between the end
+    planes, dicompyler-core's count). For small structures (lens, chiasm:
+    1-5 contours) the two differ by tens of percent, and an interpolating
+    surface, which bulges between the planes, lies between or above them.
+
+    Parameters
+    ----------
+    contours : list of Contour
+    spacing : float or None
+        Slice spacing in mm; None for unequally spaced planes (then each plane's
+        slab reaches half-way to its neighbours, and the end planes' outer halves
+        use the median spacing).
+
+    Returns
+    -------
+    dict
+        ``slab_full_ends`` and ``slab_half_ends`` in mm^3, ``n_planes``, and
+        ``small_structure`` (True for at most :data:`SMALL_STRUCTURE_CONTOURS` planes).
+
+    Examples
+    --------
+    A 10 mm square on three planes 2 mm apart: 3 x 100 x 2 with full end slabs, 2 x 100 x 2 with half:
+
+    >>> square = np.array([[0.0, 0.0], [10.0, 0.0], [10.0, 10.0], [0.0, 10.0]])
+    >>> planning_volumes([Contour(z, square) for z in (0.0, 2.0, 4.0)], 2.0)
+    {'slab_full_ends': 600.0, 'slab_half_ends': 400.0, 'n_planes': 3, 'small_structure': True}
+    """
+    hole = classify_holes(contours)
+    z = np.round([c.z for c in contours], 6)
+    planes = np.unique(z)
+    area = np.zeros(len(planes))
+    np.add.at(area, np.searchsorted(planes, z),
+              np.where(hole, -1.0, 1.0) * np.array([abs(signed_area(c.points)) for c in contours]))
+    if spacing is None:
+        gaps = np.diff(planes)
+        d = float(np.median(gaps)) if len(gaps) else 0.0
+        thickness = np.concatenate([[d / 2], gaps / 2]) + np.concatenate([gaps / 2, [d / 2]])
+    else:
+        thickness = np.full(len(planes), float(spacing))
+    return {"slab_full_ends": float(np.sum(area * thickness)), "slab_half_ends": slab_volume(contours, spacing),
+            "n_planes": int(len(planes)),
+            "small_structure": bool(len(planes) <= SMALL_STRUCTURE_CONTOURS)}
 
 
 def offset_sensitivity(contours: list[Contour], spacing: float | None, offset: float = 0.5) -> float:

@@ -1,4 +1,4 @@
-"""Reading contour stacks: RT structure sets, CT series, mask stacks, contour JSON.
+"""Reading contour stacks: RT structure sets, CT series, mask stacks, NIfTI label volumes, contour JSON.
 
 Everything ends in a :class:`ContourStack`: planar closed contours in mm with
 the slice position ``z`` along the slice normal. Contours are validated here
@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from slices.control_points import clean_contour
+from slices.control_points import clean_contour, signed_area
 from surfaces.validate import as_array, positive
 
 #: Relative tolerance on slice spacing (a fraction of the spacing).
@@ -46,7 +46,7 @@ class ContourStack:
     contours : list of Contour
         In increasing ``z``.
     source : str
-        Kind of input (``"rtstruct"``, ``"ct"``, ``"mask"``, ``"json"``).
+        Kind of input (``"rtstruct"``, ``"ct"``, ``"mask"``, ``"nifti"``, ``"json"``).
     name : str
         ROI or file name.
     notes : list of str
@@ -64,12 +64,81 @@ class ContourStack:
         return np.unique(np.round([c.z for c in self.contours], 6))
 
 
-def _contours_from_list(items, label: str) -> list[Contour]:
+#: Vertices closer than this fraction of a contour's extent are one point (a keyhole's zero-width cut).
+KEYHOLE_RTOL = 1e-6
+
+
+def open_keyholes(points) -> list[np.ndarray]:
+    """Split a contour at the points it passes twice (keyholes) into simple loops.
+
+    A keyhole contour reaches a hole through a zero-width cut: it runs in along
+    the cut, round the hole and back along the cut, so the cut's vertices come
+    twice. Cutting the vertex sequence at every such pair (``p[i] == p[j]``,
+    not neighbours) gives the loops ``p[i:j]`` and ``p[j:] + p[:i]``, repeated
+    until no point comes twice; the cut itself leaves loops of zero area,
+    which are dropped. A contour touching itself at one point (two islands
+    joined at a corner) opens into its two islands.
+
+    Parameters
+    ----------
+    points : array_like, shape (n, 2)
+        Vertices in mm, in order (a repeated closing vertex is allowed).
+
+    Returns
+    -------
+    list of numpy.ndarray, each shape (m, 2)
+        The loops, largest area first; the contour itself (as given) when no
+        vertex comes twice. Orientations as traversed (a hole runs the other way round).
+
+    Examples
+    --------
+    A 4 mm square with a 2 mm square hole reached along y = 2 from the right:
+
+    >>> keyhole = [[0, 0], [4, 0], [4, 2], [3, 2], [3, 1], [1, 1], [1, 3], [3, 3], [3, 2], [4, 2], [4, 4], [0, 4]]
+    >>> [signed_area(loop) for loop in open_keyholes(keyhole)]
+    [16.0, -4.0]
+    """
+    from scipy.spatial import cKDTree
+
+    p = np.asarray(points, dtype=np.float64)
+    if p.ndim != 2 or len(p) < 4:
+        return [p]
+    tol = KEYHOLE_RTOL * max(float(np.ptp(p, axis=0).max()), 1e-300)
+
+    def dedup(q: np.ndarray) -> np.ndarray:
+        keep = np.linalg.norm(q - np.roll(q, 1, axis=0), axis=1) > tol
+        return q[keep] if np.any(keep) else q[:1]
+
+    todo, loops, opened = [dedup(p)], [], False
+    while todo:
+        q = todo.pop()
+        pairs = cKDTree(q).query_pairs(tol, output_type="ndarray") if len(q) > 3 else np.zeros((0, 2), int)
+        if not len(pairs):
+            loops.append(q)
+            continue
+        opened = True
+        i, j = sorted(int(v) for v in pairs[0])
+        todo += [dedup(q[i:j]), dedup(np.concatenate([q[j:], q[:i]]))]
+    if not opened:
+        return [p]
+    area = np.array([abs(signed_area(q)) if len(q) >= 3 else 0.0 for q in loops])
+    order = np.argsort(-area, kind="stable")
+    return [loops[k] for k in order if area[k] > 1e-9 * max(float(area.max()), 1e-300)]
+
+
+def _contours_from_list(items, label: str, notes: list | None = None) -> list[Contour]:
+    """Validated contours from ``(z, points)`` pairs, keyholes opened (said in ``notes``)."""
     out = []
+    keyholes = 0
     for i, (z, pts) in enumerate(items):
         name = f"{label} contour {i} at z={z:.2f} mm"
-        out.append(Contour(float(z), clean_contour(pts, name)))
+        loops = open_keyholes(pts)
+        keyholes += len(loops) > 1
+        out += [Contour(float(z), clean_contour(q, name)) for q in loops]
     out.sort(key=lambda c: c.z)
+    if keyholes and notes is not None:
+        notes.append(f"{keyholes} keyhole contour(s) (a hole reached by a zero-width cut) opened into "
+                     "separate outer and inner contours")
     return out
 
 
@@ -240,7 +309,8 @@ def read_rtstruct(path, roi) -> ContourStack:
                          f"({type(exc).__name__}: {exc})") from None
     if not items:
         raise ValueError(f"{path}: ROI {name!r} has no CLOSED_PLANAR contours")
-    stack = ContourStack(_contours_from_list(items, f"ROI {name!r}"), "rtstruct", name)
+    notes: list[str] = []
+    stack = ContourStack(_contours_from_list(items, f"ROI {name!r}", notes), "rtstruct", name, notes)
     if skipped:
         stack.notes.append(f"skipped {skipped} contour(s) that are not CLOSED_PLANAR")
     return stack
@@ -578,6 +648,134 @@ def read_mask_stack(path, spacing, hu_min=None, hu_max=None) -> ContourStack:
     return ContourStack(contours, "mask", path.name, [note])
 
 
+def is_nifti(path) -> bool:
+    """Whether a path names a NIfTI file (``.nii`` or ``.nii.gz``).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+
+    Returns
+    -------
+    bool
+    """
+    name = Path(path).name.lower()
+    return name.endswith(".nii") or name.endswith(".nii.gz")
+
+
+def _nifti_volume(path: Path):
+    """Data (3-D) and affine of a NIfTI file, with a clear error for unreadable or non-3-D files."""
+    import nibabel
+
+    try:
+        img = nibabel.load(str(path))
+        data = np.asanyarray(img.dataobj)
+    except Exception as exc:  # nibabel raises many kinds for damaged files
+        raise ValueError(f"{path}: not a readable NIfTI file ({type(exc).__name__}: {exc})") from None
+    if data.ndim == 4 and data.shape[3] == 1:
+        data = data[..., 0]
+    if data.ndim != 3:
+        raise ValueError(f"{path}: a label or mask volume must be 3-D, got shape {data.shape}")
+    return data, np.asarray(img.affine, dtype=np.float64)
+
+
+def nifti_labels(path) -> list[dict]:
+    """The labels of a NIfTI label or mask volume.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        ``.nii`` or ``.nii.gz`` file.
+
+    Returns
+    -------
+    list of dict
+        ``label`` (the voxel value, int when integral), ``n_voxels`` and
+        ``n_planes`` (axial planes it occupies) per non-zero value, in increasing order.
+    """
+    path = _existing(path, "NIfTI file")
+    data, affine = _nifti_volume(path)
+    axis = _slice_axis(affine, path)
+    values, counts = np.unique(data[data != 0], return_counts=True)
+    out = []
+    for v, n in zip(values, counts):
+        planes = int(np.any(np.moveaxis(data == v, axis, 0), axis=(1, 2)).sum())
+        label = int(v) if float(v).is_integer() else float(v)
+        out.append({"label": label, "n_voxels": int(n), "n_planes": planes})
+    return out
+
+
+def _slice_axis(affine: np.ndarray, path) -> int:
+    """The voxel axis along world z; the other two must lie in axial planes."""
+    columns = affine[:3, :3]
+    axis = int(np.argmax(np.abs(columns[2])))
+    others = [a for a in range(3) if a != axis]
+    scale = float(np.abs(columns).max())
+    if np.any(np.abs(columns[2, others]) > 1e-6 * scale) or np.any(np.abs(columns[:2, axis]) > 1e-6 * scale):
+        raise ValueError(f"{path}: the volume's slices are not axial (affine {columns.round(6).tolist()}); "
+                         "resample it onto an axial grid first")
+    return axis
+
+
+def read_nifti(path, label=None) -> ContourStack:
+    """Contours of a NIfTI label or mask volume, one set per axial slice (nibabel).
+
+    Every axial slice of the chosen voxels is contoured at sub-pixel
+    precision (:func:`skimage.measure.find_contours` at level 0.5, the
+    boundary half-way between voxel centres) and mapped to mm through the
+    file's affine as it stands (voxel ``(i, j, k)`` at ``affine @ (i, j, k, 1)``,
+    the convention of ``--export-mask``; no RAS/LPS flip). All components are
+    kept (a structure may have several bodies); holes come out as inner contours.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        ``.nii`` or ``.nii.gz`` file.
+    label : int, str or None
+        Voxel value of the structure; None for every non-zero voxel.
+
+    Returns
+    -------
+    ContourStack
+        ``source`` is ``"nifti"``; ``name`` the file name with the label.
+    """
+    from skimage.measure import find_contours
+
+    path = _existing(path, "NIfTI file")
+    data, affine = _nifti_volume(path)
+    axis = _slice_axis(affine, path)
+    if label is None:
+        mask, what = data != 0, "non-zero voxels"
+    else:
+        try:
+            value = float(label)
+        except (TypeError, ValueError):
+            raise ValueError(f"--label: must be a number (a voxel value), got {label!r}") from None
+        mask, what = data == value, f"label {value:g}"
+        if not mask.any():
+            present = np.unique(data[data != 0])
+            raise ValueError(f"--label: no voxel of {path.name} has the value {value:g} "
+                             f"(labels present: {[float(v) for v in present[:20]]})")
+    if not mask.any():
+        raise ValueError(f"{path}: the mask is empty (no non-zero voxel)")
+    rows_axis, cols_axis = (a for a in range(3) if a != axis)
+    stack = np.moveaxis(mask, (axis, rows_axis, cols_axis), (0, 1, 2))
+    items = []
+    for k in np.flatnonzero(stack.any(axis=(1, 2))):
+        for c in find_contours(np.pad(stack[k].astype(np.float64), 1), 0.5):
+            if len(c) < 4:
+                continue
+            index = np.empty((len(c) - 1, 4))
+            index[:, axis], index[:, rows_axis], index[:, cols_axis] = k, c[:-1, 0] - 1.0, c[:-1, 1] - 1.0
+            index[:, 3] = 1.0
+            world = index @ affine[:3].T
+            items.append((float(world[0, 2]), world[:, :2]))
+    contours = _contours_from_list(items, str(path))
+    name = path.name if label is None else f"{path.name} label {label}"
+    note = f"NIfTI {what}: contoured per axial slice at sub-pixel precision (find_contours at 0.5)"
+    return ContourStack(contours, "nifti", name, [note])
+
+
 def read_contour_json(path) -> ContourStack:
     """Contours from ``{"units": "mm", "contours": [{"z": mm, "points": [[x, y], ...]}, ...]}``.
 
@@ -613,7 +811,8 @@ def read_contour_json(path) -> ContourStack:
         items.append((float(c["z"]), pts[:, :2]))
     if not items:
         raise ValueError(f"{path}: holds no contours")
-    return ContourStack(_contours_from_list(items, path.name), "json", path.stem)
+    notes: list[str] = []
+    return ContourStack(_contours_from_list(items, path.name, notes), "json", path.stem, notes)
 
 
 def load(path, roi=None, hu_min=None, hu_max=None, spacing=None, resample: bool = False) -> ContourStack:
@@ -623,9 +822,10 @@ def load(path, roi=None, hu_min=None, hu_max=None, spacing=None, resample: bool 
     ----------
     path : str or os.PathLike
         RTSTRUCT ``.dcm``, CT series folder, ``.npy``/``.tif``/PNG-folder mask
-        stack, or contour ``.json``.
+        stack, NIfTI label or mask volume (``.nii``/``.nii.gz``), or contour ``.json``.
     roi : str or int, optional
-        ROI name or number (RTSTRUCT).
+        ROI name or number (RTSTRUCT); the label, a voxel value (NIfTI; None:
+        every non-zero voxel).
     hu_min, hu_max : float, optional
         Intensity window (CT series, grey image stacks).
     spacing : str or (float, float, float), optional
@@ -639,6 +839,8 @@ def load(path, roi=None, hu_min=None, hu_max=None, spacing=None, resample: bool 
     """
     path = _existing(path, "file or folder", "any")
     suffix = path.suffix.lower()
+    if is_nifti(path):
+        return read_nifti(path, roi)
     if suffix == ".json":
         return read_contour_json(path)
     if suffix in (".npy", ".tif", ".tiff"):

@@ -105,3 +105,61 @@ def test_welded_box_is_watertight():
     assert caps.weld_flat_caps(side, open_grid, 3) == (side, side)
     with pytest.raises(ValueError, match="single slice"):
         caps.close_side(None, bottom, bottom, (2.0, 2.0), (2.0, 2.0), 1.5, "flat", "none")
+
+
+def test_written_cap_shades_flat_with_its_own_normal():
+    # a cylinder with flat-topped half caps: the welded mesh keeps the side's normals on the rim, and
+    # the ring just inside it carries +-z, so the cap is evenly lit when rendered from the file
+    t = np.linspace(0, 2 * np.pi, 24, endpoint=False)
+    ring = np.stack([5 * np.cos(t), 5 * np.sin(t)], axis=1)
+    bottom = _polygon_curve(ring, z=0.0)
+    grid = caps.close_side(None, bottom, bottom, (0.0, 0.0), (0.0, 0.0), 1.0, "half", "half")
+    side = tessellate(BezierPatches(grid.control[:, grid.side_columns], closed_u=True), 3)
+    mesh, _ = caps.weld_flat_caps(side, grid, 3)
+    assert mesh.is_watertight() and mesh.is_oriented()
+    assert mesh.signed_volume() == pytest.approx(2 * abs(caps.curve_area(bottom)), rel=1e-9)
+    z = mesh.vertices[:, 2]
+    # the rim: cap-plane vertices of the side's triangles
+    off_plane = np.zeros(mesh.n_vertices, bool)
+    for plane, sign in ((-1.0, -1.0), (1.0, 1.0)):
+        on = np.abs(z - plane) < 1e-9
+        side_tri = ~on[mesh.triangles].all(axis=1)
+        off_plane[:] = False
+        off_plane[mesh.triangles[side_tri].ravel()] = True
+        in_cap = np.flatnonzero(on)
+        rim = off_plane[in_cap]
+        nz = mesh.vertex_normals[in_cap, 2]
+        np.testing.assert_allclose(nz[~rim], sign)
+        np.testing.assert_allclose(nz[rim], 0.0, atol=1e-9)  # the side's normal on the crease
+        assert (~rim).sum() >= rim.sum()
+    # the band of side normals is a small fraction of an edge wide: each inner vertex lies that close
+    # to the rim
+    edge = float(np.linalg.norm(ring[1] - ring[0])) / 3
+    rim_xy, inner_xy = mesh.vertices[in_cap[rim], :2], mesh.vertices[in_cap[~rim], :2]
+    gap = np.linalg.norm(inner_xy[:, None] - rim_xy[None], axis=2).min(axis=1)
+    assert np.sort(gap)[len(rim_xy) - 1] <= 1.5 * caps.CAP_INSET * edge
+
+
+def test_cap_over_a_narrow_slot_still_covers_the_outline_once():
+    # a U whose slot is far narrower than its edges: the band shrinks (or goes) rather than overlapping
+    corners = np.array([(0, 0), (10, 0), (10, 10), (5.01, 10), (5.01, 1), (4.99, 1), (4.99, 10), (0, 10)], float)
+    cap = caps.planar_cap_mesh(_polygon_curve(corners, z=2.0), 2, 1.0)
+    nz = cap.face_normals(normalize=False)[:, 2]
+    assert np.all(nz > 0)
+    assert 0.5 * nz.sum() == pytest.approx(abs(caps.curve_area(_polygon_curve(corners))), rel=1e-9)
+
+
+def test_fan_apex_moves_into_the_kernel_so_the_cap_patches_do_not_fold():
+    # an L: star-shaped about its inner corner region, not about its vertex mean's neighbourhood corner
+    corners = np.array([(0, 0), (12, 0), (12, 2), (2, 2), (2, 12), (0, 12)], float)
+    curve = _polygon_curve(corners, z=0.0)
+    hint = np.array([10.0, 10.0])  # outside the L: the fan from here folds
+    apex = caps.fan_apex(curve, hint)
+    assert 0 < apex[0] < 2 and 0 < apex[1] < 2
+    np.testing.assert_allclose(caps.fan_apex(curve, apex), apex)  # a good apex stays
+    for p in (hint, apex):
+        fan = BezierPatches(caps.fan_column(curve, np.append(p, 0.0), False), closed_u=True)
+        _, area = measure.integrals(fan)
+        folded = not np.allclose(p, apex)
+        assert (area > 1.01 * abs(caps.curve_area(curve))) == folded
+    assert area == pytest.approx(abs(caps.curve_area(curve)), rel=1e-9)

@@ -5,7 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from slices import chaining
 from slices.chaining import chain, classify_holes, overlaps, slab_volume
+from slices.control_points import clean_contour, signed_area
 from slices.io import Contour
 from tests.slices._stacks import branching_stack, circle
 
@@ -60,3 +62,26 @@ def test_slab_volume_counts_end_planes_half():
     uneven = [Contour(z, SQUARE) for z in (0.0, 1.0, 3.0)]
     assert slab_volume(uneven, None) == pytest.approx(300.0)
     assert slab_volume(uneven[:1], None) == 0.0
+
+
+def test_a_split_branching_starts_each_child_on_its_part_of_the_parent():
+    from datasets_synthetic.phantoms.trouser import trouser_contours
+
+    conts = [Contour(z, clean_contour(p)) for z, p in trouser_contours(2.0, 30.0, n_points=48)]
+    bodies = chain(conts, 2.0)
+    trunk, *legs = bodies
+    assert (trunk.start, trunk.stop) == ("end", "split") and len(legs) == 2
+    for leg in legs:
+        assert (leg.start, leg.stop) == ("split", "end")
+        assert leg.z[0] == trunk.z[-1] and np.all(np.diff(leg.z) == 2.0)
+    # the parts cover the trunk's last contour, one on each side of the mid-line x = 0
+    parts = [leg.contours[0].points for leg in legs]
+    assert sum(signed_area(p) for p in parts) == pytest.approx(signed_area(trunk.contours[-1].points), rel=5e-3)
+    assert sorted(np.sign(p[:, 0].mean()) for p in parts) == [-1.0, 1.0]
+
+
+def test_a_split_is_refused_where_a_child_would_loft_from_a_much_larger_part(monkeypatch):
+    # branching_stack: a 10 mm circle into two 4 mm circles; each half is 3x a child: half caps stay
+    assert all("split" not in (b.start, b.stop) for b in chain(branching_stack(), 2.0))
+    monkeypatch.setattr(chaining, "SPLIT_AREA_RATIO", 4.0)
+    assert sum("split" in (b.start, b.stop) for b in chain(branching_stack(), 2.0)) == 3

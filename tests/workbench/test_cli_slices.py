@@ -125,3 +125,28 @@ def test_ray_start_option(contour_json, tmp_path, capsys):
     bad = tmp_path / "bad"
     assert main(["slices", "reconstruct", str(path), "--ray-start", "north", "--out", str(bad)]) == 2
     assert "ray_start" in capsys.readouterr().err and not bad.exists()
+
+
+def test_nifti_label_volume_on_the_command_line(tmp_path, capsys):
+    nibabel = pytest.importorskip("nibabel")
+    data = np.zeros((20, 20, 8), np.uint8)
+    data[2:10, 2:10, 1:6] = 3
+    data[12:18, 12:18, 2:7] = 5
+    path = tmp_path / "labels.nii.gz"
+    nibabel.save(nibabel.Nifti1Image(data, np.diag([1.0, 1.0, 2.0, 1.0])), str(path))
+    assert main(["slices", "rois", str(path), "--json", str(tmp_path / "labels.json")]) == 0
+    assert [r["label"] for r in json.loads((tmp_path / "labels.json").read_text())] == [3, 5]
+    out = tmp_path / "five"
+    assert main(["slices", "reconstruct", str(path), "--label", "5", "--caps", "half", "--no-render",
+                 "--out", str(out)]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["source"] == "nifti" and summary["n_slices"] == 5
+    assert summary["volume_mm3"] == pytest.approx((36 - 0.5) * 2 * 5, rel=0.03)
+    capsys.readouterr()
+    assert main(["slices", "reconstruct", str(path), "--label", "4", "--out", str(tmp_path / "x")]) == 2
+    assert "labels present" in capsys.readouterr().err
+    assert main(["slices", "reconstruct", str(path), "--label", "3", "--roi", "3",
+                 "--out", str(tmp_path / "y")]) == 2
+    assert main(["slices", "reconstruct", str(tmp_path / "labels.json"), "--label", "3",
+                 "--out", str(tmp_path / "z")]) == 2
+    assert "only for NIfTI" in capsys.readouterr().err

@@ -35,9 +35,12 @@ def register(sub) -> None:
     )
     p.add_argument("input", metavar="INPUT",
                    help="RTSTRUCT .dcm, CT series folder, mask stack (.npy, multi-page .tif, "
-                   "folder of PNGs) or contour .json")
+                   "folder of PNGs), NIfTI label or mask volume (.nii, .nii.gz) or contour .json")
     p.add_argument("--roi", default=None, metavar="NAME",
                    help="ROI name (case-insensitive) or number of an RT structure set")
+    p.add_argument("--label", default=None, metavar="N",
+                   help="NIfTI input: the voxel value of the structure (default: every non-zero voxel); "
+                   "with --minus/--plus, those name labels too")
     p.add_argument("--method", default=defaults.method, choices=tuple(METHODS),
                    help="side surface: blending (seed 000 parabolic blending), coons "
                    "(seed 001 Coons patches over the lattice nodes), bspline (interpolating "
@@ -93,9 +96,10 @@ def register(sub) -> None:
     p.add_argument("--mask-spacing", default=None, metavar="X,Y,Z",
                    help="voxel size of --export-mask in mm (default 1,1 and the slice spacing)")
 
-    r = add_command(sub, "rois", _rois, help="list the ROIs of an RT structure set",
-                    description="List ROI numbers, names, contour and plane counts.")
-    r.add_argument("file", metavar="FILE", help="RTSTRUCT .dcm")
+    r = add_command(sub, "rois", _rois, help="list the ROIs of an RT structure set (or the labels of a NIfTI volume)",
+                    description="List ROI numbers, names, contour and plane counts; for a NIfTI label volume, "
+                    "its labels with voxel and plane counts.")
+    r.add_argument("file", metavar="FILE", help="RTSTRUCT .dcm, or NIfTI .nii/.nii.gz")
     r.add_argument("--json", default=None, metavar="OUT",
                    help="also write the table to this JSON file")
 
@@ -113,7 +117,7 @@ def _reconstruct(args: argparse.Namespace) -> int:
             bar.refresh()
 
         summary = reconstruct_to_folder(
-            args.input, args.out, roi=args.roi, method=args.method, rays=args.rays, caps=args.caps,
+            args.input, args.out, roi=_roi_or_label(args), method=args.method, rays=args.rays, caps=args.caps,
             hu_min=args.hu_min, hu_max=args.hu_max, spacing=args.spacing, resample=args.resample,
             lattice=args.lattice, render=not args.no_render, samples=args.samples, progress=progress,
             correspondence=args.correspondence, union=args.union, minus=args.minus, plus=args.plus,
@@ -140,9 +144,30 @@ def _reconstruct(args: argparse.Namespace) -> int:
     return 0
 
 
-def _rois(args: argparse.Namespace) -> int:
-    from slices.io import list_rois
+def _roi_or_label(args: argparse.Namespace):
+    """``--label`` for NIfTI input, ``--roi`` for the others (the library takes either as ``roi``)."""
+    from slices.io import is_nifti
 
+    if args.label is None:
+        return args.roi
+    if not is_nifti(args.input):
+        raise ValueError(f"--label: only for NIfTI input (.nii, .nii.gz), not {args.input!r}; use --roi")
+    if args.roi is not None:
+        raise ValueError("--label and --roi: give one (--label for NIfTI volumes)")
+    return args.label
+
+
+def _rois(args: argparse.Namespace) -> int:
+    from slices.io import is_nifti, list_rois, nifti_labels
+
+    if is_nifti(args.file):
+        labels = nifti_labels(args.file)
+        if args.json:
+            write_summary(args.json, labels)
+        print(f"{'label':>8} {'voxels':>10} {'planes':>6}")
+        for r in labels:
+            print(f"{r['label']:>8} {r['n_voxels']:>10} {r['n_planes']:>6}")
+        return 0
     rois = list_rois(args.file)
     if args.json:
         write_summary(args.json, rois)

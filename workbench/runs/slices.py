@@ -154,6 +154,35 @@ def export_mask(result: SlicesReconstruction, path, spacing=None) -> dict:
             "voxel_volume_mm3": n * float(np.prod(sp))}
 
 
+def planning_summary(result: SlicesReconstruction) -> dict:
+    """The planning systems' volume beside ours, for ``summary.json`` (``planning_volume_mm3``).
+
+    Parameters
+    ----------
+    result : SlicesReconstruction
+
+    Returns
+    -------
+    dict
+        ``slab_full_ends`` and ``slab_half_ends`` (mm^3, :func:`slices.chaining.planning_volumes`:
+        every contour a slab of one spacing, the end slabs whole or half), ``ours_mm3``
+        (the base ROI's patch volume with the caps asked for), ``ours_over_full_ends``,
+        ``n_planes``, ``small_structure`` and ``rule`` (the counting rule in words).
+    """
+    from slices.chaining import planning_volumes
+
+    rec = result.reconstruction
+    out = planning_volumes(result.stack.contours, rec.spacing)
+    full = out["slab_full_ends"]
+    out.update({
+        "ours_mm3": rec.volume_mm3,
+        "ours_over_full_ends": rec.volume_mm3 / full if full else None,
+        "rule": f"every contour a slab of one slice spacing ({rec.spacing:g} mm), holes subtracted; "
+                "slab_full_ends keeps the end contours' whole slabs, slab_half_ends half of them",
+    })
+    return out
+
+
 def write_result(result: SlicesReconstruction, out_dir, *, render: bool = True) -> dict:
     """Write a reconstruction's files into ``out_dir`` and return the content of ``summary.json``.
 
@@ -236,7 +265,8 @@ def reconstruct_to_folder(input_path, out_dir, *, roi=None, progress=None, atomi
     Returns
     -------
     dict
-        The content of ``summary.json`` (``ray_start`` as given, "auto" when not).
+        The content of ``summary.json`` (``ray_start`` as given, "auto" when not;
+        ``planning_volume_mm3``: :func:`planning_summary`).
     """
     unknown = set(options) - OPTIONS
     if unknown:
@@ -249,6 +279,13 @@ def reconstruct_to_folder(input_path, out_dir, *, roi=None, progress=None, atomi
     def run():
         result = reconstruct(input_path, roi=roi, progress=progress, **library_options(options))
         result.summary["ray_start"] = options.get("ray_start") or "auto"
+        plan = result.summary["planning_volume_mm3"] = planning_summary(result)
+        if plan["small_structure"]:
+            result.summary["notes"].append(
+                f"small structure ({plan['n_planes']} plane(s)): planning systems count "
+                f"{plan['slab_full_ends'] / 1000:.3f} ml (whole end slabs) or {plan['slab_half_ends'] / 1000:.3f} ml "
+                f"(half end slabs); the surface encloses {plan['ours_mm3'] / 1000:.3f} ml with caps "
+                f"{result.summary['caps']} (planning_volume_mm3)")
         if mask_path is not None:
             result.summary["export_mask"] = export_mask(result, mask_path, mask_spacing)
         return result
