@@ -55,7 +55,7 @@ def test_fitted_vertices_at_back_projected_points(perspective_plate):
     # the orthographic grid would be off by far more: the test can fail
     x, y = pixel_grid(shape, res.summary["pixel_size_mm"])
     grid_err = np.hypot(x - res.xy[..., 0], y - res.xy[..., 1])[use]
-    assert grid_err.max() > 10 * (2 * tol + 1e-4)
+    assert grid_err.max() > 4 * tol and np.median(grid_err) > 20 * np.median(err)
     # mesh vertices lie on the same surface: each is within the tolerance of a seen point
     from scipy.spatial import cKDTree
 
