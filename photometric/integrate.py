@@ -364,7 +364,7 @@ def robust_least_squares(
     pixel_size: float = 1.0,
     *,
     eps: float = 1e-3,
-    iterations: int = 5,
+    iterations: int = 1,
 ) -> np.ndarray:
     """Discontinuity-preserving integration: least absolute deviations by reweighting (IRLS).
 
@@ -392,8 +392,11 @@ def robust_least_squares(
         which an edge counts as agreeing (the smoothing of ``|r|``): edges under it keep
         the full weight, so a field integrable to within ``eps`` gives :func:`least_squares`.
     iterations : int, optional
-        Reweighting steps after the first (unweighted) solve; stops early when no height
-        moves by more than ``1e-6`` of the height range.
+        Reweighting steps after the first (curl-weighted) solve; stops early when no
+        height moves by more than ``1e-6`` of the height range. One step makes a clean
+        jump exact to about ``1e-8``; on the DiLiGenT bear further steps lower the mean
+        normal error of the height by hundredths of a degree but raise its 99th
+        percentile (they cut along noise too), hence the default 1.
 
     Returns
     -------
