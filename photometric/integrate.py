@@ -377,7 +377,8 @@ def robust_least_squares(
     (``1 / (1 + (curl / sigma)^2)``, ``sigma`` three robust standard deviations of the
     curl): integrable slopes have no curl, so the edges across a jump start nearly cut.
     Each further step solves ``D^T W D z = D^T W g`` with ``W = W_curl / max(|r| / h, eps)``
-    from the previous residuals ``r``, by sparse LU (one height pinned per connected part).
+    from the previous residuals ``r``, by sparse LU (one height pinned per connected part;
+    meant for masked objects up to about a megapixel: each step is one factorisation).
 
     Parameters
     ----------
@@ -389,8 +390,8 @@ def robust_least_squares(
         Pixel size; heights are in its unit.
     eps : float, optional
         Slope disagreement (dimensionless: residual per edge over ``pixel_size``) below
-        which an edge counts as agreeing (the smoothing of ``|r|``): edges under it keep
-        the full weight, so a field integrable to within ``eps`` gives :func:`least_squares`.
+        which an edge counts as agreeing (the smoothing of ``|r|``, and the least scale of
+        the curl weights): all edges under it weigh the same.
     iterations : int, optional
         Reweighting steps after the first (curl-weighted) solve; stops early when no
         height moves by more than ``1e-6`` of the height range. One step makes a clean
@@ -453,7 +454,7 @@ def robust_least_squares(
             z_new[free] = splu(A.tocsc()).solve((Dt @ (w * g))[free])
             moved = np.abs(z_new - z).max()
             z = z_new
-            if it and moved <= 1e-6 * np.ptp(z):
+            if it == int(iterations) or (it and moved <= 1e-6 * np.ptp(z)):
                 break
             w = w0 / np.maximum(np.abs(D @ z - g) / h, eps)
     out = np.zeros(m.shape)
