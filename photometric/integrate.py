@@ -6,7 +6,7 @@ Grid convention (:data:`surfaces.grid.GRID_CONVENTION`): pixel ``(row, col)`` of
 gradients are ``p = dz/dx`` and ``q = dz/dy``. Along the grid that is
 ``dz/dcol = p h`` and ``dz/drow = -q h``; heights come out in the unit of ``h``.
 
-Three integrators (Queau, Durou & Aujol, "Normal integration: a survey", JMIV 2018):
+Four integrators (Queau, Durou & Aujol, "Normal integration: a survey", JMIV 2018):
 
 * ``"fc"``: Frankot & Chellappa (1988), projection onto integrable Fourier series
   (periodic boundary).
@@ -18,6 +18,10 @@ Three integrators (Queau, Durou & Aujol, "Normal integration: a survey", JMIV 20
   between two valid pixels), a sparse system solved by conjugate gradients with a
   geometric multigrid preconditioner (bilinear prolongation, Galerkin coarse
   operators, damped Jacobi smoothing) written here because pyamg is not a dependency.
+
+* ``"robust"``: the ``"lsq"`` functional with a Cauchy M-estimator on each edge's
+  residual, solved by iteratively reweighted least squares, so that depth jumps and
+  non-integrable slopes (silhouettes) stay local instead of bending the whole object.
 
 On a full rectangle ``"dct"`` and ``"lsq"`` minimise the same functional and agree.
 Heights are returned with zero mean over each connected part of the domain and NaN
@@ -41,7 +45,7 @@ from surfaces.validate import as_array, positive
 if TYPE_CHECKING:
     from surfaces.bezier import BezierPatches
 
-METHODS = ("dct", "fc", "lsq")
+METHODS = ("dct", "fc", "lsq", "robust")
 
 
 def _validated(p, q, mask, pixel_size, dtype: DTypeLike = np.float64):
@@ -388,6 +392,137 @@ def least_squares(
     return _zero_mean(out, m)
 
 
+def _curl_weights(zc, zr, m, ec, er, h, eps):
+    """First weights of :func:`robust_least_squares`: Cauchy in the curl next to each edge.
+
+    The curl of a grid square (the sum of its four trapezoidal edge predictions around
+    the loop) vanishes where the slopes are integrable; every edge takes the largest
+    ``|curl| / h`` of the (one or two) domain squares it borders, and weight
+    ``1 / (1 + (c / sigma)^2)`` with ``sigma`` three robust standard deviations of the
+    curl (at least ``eps``). Returns the weights in the order of the edge list (columns,
+    then rows).
+    """
+    gc = 0.5 * (zc[:, :-1] + zc[:, 1:])
+    gr = 0.5 * (zr[:-1, :] + zr[1:, :])
+    sq = m[:-1, :-1] & m[:-1, 1:] & m[1:, :-1] & m[1:, 1:]
+    curl = np.where(sq, np.abs(gc[:-1] + gr[:, 1:] - gc[1:] - gr[:, :-1]) / h, 0.0)
+    sigma = max(3.0 * 1.4826 * float(np.median(curl[sq])) if sq.any() else 0.0, eps)
+    # a column edge (i, j)-(i, j+1) borders squares i-1 and i; a row edge those of column j-1 and j
+    cc = np.zeros(gc.shape)
+    cc[:-1] = curl
+    cc[1:] = np.maximum(cc[1:], curl)
+    cr = np.zeros(gr.shape)
+    cr[:, :-1] = curl
+    cr[:, 1:] = np.maximum(cr[:, 1:], curl)
+    c = np.concatenate([cc[ec], cr[er]])
+    return 1.0 / (1.0 + (c / sigma) ** 2)
+
+
+def robust_least_squares(
+    p,
+    q,
+    mask=None,
+    pixel_size: float = 1.0,
+    *,
+    eps: float = 1e-3,
+    iterations: int = 1,
+) -> np.ndarray:
+    """Discontinuity-preserving integration: least absolute deviations by reweighting (IRLS).
+
+    The masked functional of :func:`least_squares` with the absolute value in place of
+    the square on each grid edge's residual, so that edges whose slopes disagree with the
+    rest of the field (a depth jump, non-integrable slopes at a silhouette) keep their
+    disagreement to themselves instead of spreading it over the whole object (Queau,
+    Durou & Aujol 2018, sec. 5: an L1 M-estimator solved by iteratively reweighted least
+    squares). The first solve weighs each edge by the curl of the grid squares beside it
+    (``1 / (1 + (curl / sigma)^2)``, ``sigma`` three robust standard deviations of the
+    curl): integrable slopes have no curl, so the edges across a jump start nearly cut.
+    Each further step solves ``D^T W D z = D^T W g`` with ``W = W_curl / max(|r| / h, eps)``
+    from the previous residuals ``r``, by sparse LU (one height pinned per connected part;
+    meant for masked objects up to about a megapixel: each step is one factorisation).
+
+    Parameters
+    ----------
+    p, q : array_like, shape (H, W)
+        ``dz/dx`` and ``dz/dy`` (y up); values outside ``mask`` are ignored.
+    mask : array_like, shape (H, W), optional
+        Domain (default: the whole rectangle); only edges joining two domain pixels count.
+    pixel_size : float, optional
+        Pixel size; heights are in its unit.
+    eps : float, optional
+        Slope disagreement (dimensionless: residual per edge over ``pixel_size``) below
+        which an edge counts as agreeing (the smoothing of ``|r|``, and the least scale of
+        the curl weights): all edges under it weigh the same.
+    iterations : int, optional
+        Reweighting steps after the first (curl-weighted) solve; stops early when no
+        height moves by more than ``1e-6`` of the height range. One step makes a clean
+        jump exact to about ``1e-8``; on the DiLiGenT bear further steps lower the mean
+        normal error of the height by hundredths of a degree but raise its 99th
+        percentile (they cut along noise too), hence the default 1.
+
+    Returns
+    -------
+    numpy.ndarray, shape (H, W), float64
+        Approximate minimiser of ``sum over domain edges |z_b - z_a - g_ab|`` (``g_ab``
+        the trapezoidal slope prediction of edge ``ab``, as :func:`least_squares`), zero
+        mean per connected part, NaN outside the domain.
+
+    Examples
+    --------
+    A plane ``z = x`` whose right half also rises down the rows (``q = 0.5``): no height
+    field has these slopes, the seam between the halves is a step that grows along it.
+    The robust integral keeps each half planar; least squares bends both.
+
+    >>> p, q = np.ones((8, 8)), np.zeros((8, 8))
+    >>> q[:, 4:] = 0.5
+    >>> z = robust_least_squares(p, q)
+    >>> bool(np.allclose(np.diff(z[:, :4], axis=1), 1.0, atol=1e-3))
+    True
+    >>> bool(np.allclose(np.diff(least_squares(p, q)[:, :4], axis=1), 1.0, atol=1e-3))
+    False
+    """
+    zc, zr, m = _gradients(p, q, mask, pixel_size)
+    h = positive(pixel_size, "pixel_size")
+    eps = positive(eps, "eps")
+    if int(iterations) < 0:
+        raise ValueError(f"iterations: must be at least 0, got {iterations}")
+    rows, cols = np.nonzero(m)
+    index = np.full(m.shape, -1, np.int64)
+    index[rows, cols] = np.arange(rows.size)
+    ec = m[:, :-1] & m[:, 1:]
+    er = m[:-1, :] & m[1:, :]
+    a = np.concatenate([index[:, :-1][ec], index[:-1, :][er]])
+    b = np.concatenate([index[:, 1:][ec], index[1:, :][er]])
+    g = np.concatenate([0.5 * (zc[:, :-1] + zc[:, 1:])[ec], 0.5 * (zr[:-1, :] + zr[1:, :])[er]])
+    n, n_edges = rows.size, a.size
+    z = np.zeros(n)
+    if n_edges and np.any(g):
+        # D: edge differences z_b - z_a, shape (E, n); the normal matrix is the weighted
+        # graph Laplacian, singular by one constant per connected part: pin one height each
+        e = np.arange(n_edges)
+        D = sp.csr_matrix((np.concatenate([-np.ones(n_edges), np.ones(n_edges)]),
+                           (np.concatenate([e, e]), np.concatenate([a, b]))), shape=(n_edges, n))
+        Dt = D.T.tocsr()
+        _, part = connected_components(Dt @ D, directed=False)
+        _, first = np.unique(part, return_index=True)
+        free = np.ones(n, bool)
+        free[first] = False
+        w0 = _curl_weights(zc, zr, m, ec, er, h, eps)
+        w = w0
+        for it in range(int(iterations) + 1):
+            A = (Dt @ sp.diags(w) @ D).tocsc()[free][:, free]
+            z_new = np.zeros(n)
+            z_new[free] = splu(A.tocsc()).solve((Dt @ (w * g))[free])
+            moved = np.abs(z_new - z).max()
+            z = z_new
+            if it == int(iterations) or (it and moved <= 1e-6 * np.ptp(z)):
+                break
+            w = w0 / np.maximum(np.abs(D @ z - g) / h, eps)
+    out = np.zeros(m.shape)
+    out[rows, cols] = z
+    return _zero_mean(out, m)
+
+
 def integrate(
     p, q, method: str = "dct", mask=None, pixel_size: float = 1.0, dtype: DTypeLike = np.float64
 ) -> np.ndarray:
@@ -397,8 +532,9 @@ def integrate(
     ----------
     p, q : array_like, shape (H, W)
         Gradients (e.g. :attr:`photometric.stereo.StereoResult.p` and ``.q``).
-    method : {"dct", "fc", "lsq"}
-        :func:`dct_poisson`, :func:`frankot_chellappa` or :func:`least_squares`.
+    method : {"dct", "fc", "lsq", "robust"}
+        :func:`dct_poisson`, :func:`frankot_chellappa`, :func:`least_squares` or
+        :func:`robust_least_squares`.
     mask : array_like, shape (H, W), optional
         Domain (valid pixels).
     pixel_size : float, optional
@@ -406,7 +542,7 @@ def integrate(
     dtype : {float64, float32}
         dtype of the height. float32: ``"dct"`` solves in float32 in place
         (:func:`dct_poisson` with ``result_dtype=float32``, no float64 copy of the
-        image); ``"fc"`` and ``"lsq"`` solve in float64 and round the result.
+        image); ``"fc"``, ``"lsq"`` and ``"robust"`` solve in float64 and round the result.
 
     Returns
     -------
@@ -428,9 +564,10 @@ def integrate(
     if np.dtype(dtype) == np.float32:
         if method == "dct":
             return dct_poisson(p, q, mask=mask, pixel_size=pixel_size, dtype=np.float32, result_dtype=np.float32)
-        func = {"fc": frankot_chellappa, "lsq": least_squares}[method]
+        func = {"fc": frankot_chellappa, "lsq": least_squares, "robust": robust_least_squares}[method]
         return func(p, q, mask=mask, pixel_size=pixel_size).astype(np.float32)
-    func = {"dct": dct_poisson, "fc": frankot_chellappa, "lsq": least_squares}[method]
+    func = {"dct": dct_poisson, "fc": frankot_chellappa, "lsq": least_squares,
+            "robust": robust_least_squares}[method]
     return func(p, q, mask=mask, pixel_size=pixel_size)
 
 

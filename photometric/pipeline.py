@@ -402,8 +402,12 @@ def _nearfield(data: PhotometricData, near: _Near, *, outliers, dark, saturation
         raise NotConvergedError(str(exc), summary) from None
 
 
-def _surface_step(method, height, p, q, valid, mask, h, step, samples, tolerance):
-    """The surface model, its mesh and their summary entries (the ``surface`` stage)."""
+def _surface_step(method, height, p, q, valid, mask, h, step, samples, tolerance, xy=None):
+    """The surface model, its mesh and their summary entries (the ``surface`` stage).
+
+    ``xy`` (H, W, 2), mm: the points a perspective camera's pixels see; the fit then
+    places the surface at them instead of on the orthographic grid.
+    """
     shape = height.shape
     if method == "coons":
         from photometric.integrate import height_to_patches
@@ -418,7 +422,7 @@ def _surface_step(method, height, p, q, valid, mask, h, step, samples, tolerance
         from surfaces.fit import default_step, fit_height, fit_mesh
 
         fit = fit_height(height, p, q, mask=valid, pixel_size=h, tolerance=tolerance,
-                         step=step if step is not None else default_step(shape))
+                         step=step if step is not None else default_step(shape), xy=xy)
         step_px = fit.step
         n_samples = int(samples) if samples is not None else min(step_px, 8)
         mesh = fit_mesh(fit, spacing=step_px / n_samples)
@@ -727,7 +731,8 @@ def reconstruct(
     say("surface")
     t0 = time.perf_counter()
     patches, mesh, step_px, n_samples, surface_info = _surface_step(
-        surface, height, res.p, res.q, res.valid, data.mask, h, step, samples, surface_tolerance)
+        surface, height, res.p, res.q, res.valid, data.mask, h, step, samples, surface_tolerance,
+        xy=None if near is None or isinstance(near.camera, Orthographic) else res.xy)
     timings["surface"] = time.perf_counter() - t0
 
     say("defects")

@@ -423,3 +423,24 @@ def test_default_tolerance_stays_above_the_height_noise():
     # and the surface follows the plane more closely than the noisy heights do
     off_plane = (fit.deviation + (noisy - clean))[fit.region]  # deviation = surface - noisy height
     assert np.sqrt(np.mean(off_plane**2)) < 0.7 * np.sqrt(np.mean((noisy - clean) ** 2))
+
+
+@pytest.mark.parametrize("shape,scale", [((120, 90), 8.0), ((64, 64), 0.5), ((5, 7), 4.0), ((40, 33), 2.0)])
+def test_height_noise_fast_paths_match_direct_filters(shape, scale):
+    """The FFT Gaussian and a full mask's separable weights give the direct filters' noise."""
+    from surfaces.fit import _gaussian, height_noise
+
+    rng = np.random.default_rng(3)
+    rows, cols = np.indices(shape)
+    z = 0.3 * np.sin(rows / 20.0) * np.cos(cols / 15.0) + rng.normal(0.0, 0.002, shape)
+    np.testing.assert_allclose(_gaussian(z, scale), ndimage.gaussian_filter(z, scale, mode="constant"),
+                               rtol=0, atol=1e-14)
+    for m in (np.ones(shape, bool), rng.random(shape) > 0.2):
+        w = ndimage.gaussian_filter(m.astype(float), scale, mode="constant")
+        smooth = ndimage.gaussian_filter(np.where(m, z, 0.0), scale, mode="constant")
+        inner = m & (w > 0.99)
+        expected = 0.0
+        if inner.any():
+            d = (z - smooth / np.maximum(w, 1e-12))[inner]
+            expected = 1.4826 * np.median(np.abs(d - np.median(d)))
+        assert height_noise(z, m, scale) == pytest.approx(expected, rel=1e-9, abs=1e-15)

@@ -144,9 +144,10 @@ def register(sub) -> None:
     p.add_argument("--intensities", default=None, metavar="I",
                    help="light intensities: one value or 'r g b' per row (text, .npy or .json)")
     p.add_argument("--mask", default=None, metavar="M", help="object mask image (non-zero inside)")
-    p.add_argument("--integrator", default="dct", choices=("dct", "fc", "lsq"),
+    p.add_argument("--integrator", default="dct", choices=("dct", "fc", "lsq", "robust"),
                    help="height integrator: dct (Simchony, free boundary; default), fc "
-                   "(Frankot-Chellappa, periodic), lsq (masked least squares, multigrid CG)")
+                   "(Frankot-Chellappa, periodic), lsq (masked least squares, multigrid CG), robust "
+                   "(lsq reweighted per edge: keeps depth jumps and silhouettes local)")
     _add_camera(p, "orthographic pixel size in mm (default: the folder's scene.json, else 1; required "
                 "with point lights unless the rig or folder states the camera)")
     p.add_argument("--light-positions", default=None, metavar="P",
