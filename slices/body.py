@@ -19,12 +19,22 @@ from slices.io import SPACING_RTOL
 from slices.options import SurfaceOptions
 from slices.surface import blend_overshoot, lattice_size, ruled_surface, side_surface, slice_curves
 from surfaces import measure
-from surfaces.bezier import BezierPatches
+from surfaces.bezier import BezierPatches, bernstein
 from surfaces.mesh import TriangleMesh, tessellate
 from surfaces.validate import positive
 
-#: Vertices the written mesh aims at (the tessellation density adapts to it).
+#: Most vertices a body's mesh gets with ``samples=None`` (the density drops below
+#: :data:`EDGE_MM` edges to stay under it).
 MESH_BUDGET = 250_000
+
+#: Longest mesh edge (mm) aimed at with ``samples=None``, along and across the slices: the
+#: lattice already holds two intervals per point of the largest contour, so most bodies keep
+#: one interval per edge around and get a few edges between two slices (a 0.5 mm raster's
+#: marching cubes has edges of 0.5-0.7 mm).
+EDGE_MM = 2.0
+
+#: Most subdivisions per patch side with ``samples=None``.
+MAX_SAMPLES = 6
 
 
 @dataclass
@@ -127,6 +137,63 @@ def _flip(mesh: TriangleMesh) -> TriangleMesh:
     return TriangleMesh(mesh.vertices, mesh.triangles[:, ::-1].copy(), normals)
 
 
+def mesh_samples(control: np.ndarray, budget: int = MESH_BUDGET) -> tuple[int, int]:
+    """Subdivisions of every patch around (``u``) and across the slices (``v``) for the mesh.
+
+    Parameters
+    ----------
+    control : numpy.ndarray, shape (rows, cols, 4, 4, 3)
+        Bezier points of the side patches (mm).
+    budget : int
+        Most vertices (``rows * cols * su * sv``).
+
+    Returns
+    -------
+    (int, int)
+        ``(su, sv)``: the median control polygon length in each
+        direction over :data:`EDGE_MM`, rounded up, in ``[1, MAX_SAMPLES]``; the
+        larger is lowered while the mesh would exceed ``budget`` vertices.
+
+    Examples
+    --------
+    Patches 0.8 mm around and 3 mm across:
+
+    >>> c = np.zeros((10, 2, 4, 4, 3))
+    >>> c[..., 0] = 0.8 * np.arange(4)[:, None] / 3
+    >>> c[..., 2] = 3.0 * np.arange(4)[None, :] / 3
+    >>> mesh_samples(c)
+    (1, 3)
+    """
+    polygon_u = np.linalg.norm(np.diff(control, axis=2), axis=-1).sum(axis=2)
+    polygon_v = np.linalg.norm(np.diff(control, axis=3), axis=-1).sum(axis=3)
+    su, sv = (int(np.clip(np.ceil(np.median(p) / EDGE_MM), 1, MAX_SAMPLES)) for p in (polygon_u, polygon_v))
+    n_patches = control.shape[0] * control.shape[1]
+    while su * sv * n_patches > budget and max(su, sv) > 1:
+        su, sv = (su - 1, sv) if su >= sv else (su, sv - 1)
+    return su, sv
+
+
+def _split_patches(control: np.ndarray, su: int, sv: int) -> np.ndarray:
+    """Each bicubic Bezier patch cut into ``su x sv`` equal parameter pieces (exact: de Casteljau).
+
+    ``control`` (rows, cols, 4, 4, 3) -> (rows * su, cols * sv, 4, 4, 3); a piece on ``[a, b]``
+    has the Bezier points ``B(s)^-1 B(a + s (b - a)) P`` with ``B`` the Bernstein matrix at
+    ``s = 0, 1/3, 2/3, 1``.
+    """
+    s = np.arange(4) / 3.0
+    base = np.linalg.inv(bernstein(s))
+
+    def pieces(n: int) -> np.ndarray:  # (n, 4, 4): Bezier points of piece i from the patch's
+        return np.stack([base @ bernstein((i + s) / n) for i in range(n)])
+
+    rows, cols = control.shape[:2]
+    # tensordot (one matrix product) rather than einsum: this runs on every body's mesh
+    out = np.tensordot(pieces(su), control, axes=([2], [2]))  # (su, 4, rows, cols, 4, 3)
+    out = out.transpose(2, 0, 3, 1, 4, 5).reshape(rows * su, cols, 4, 4, 3)
+    out = np.tensordot(pieces(sv), out, axes=([2], [3]))  # (sv, 4, rows su, cols, 4, 3)
+    return np.ascontiguousarray(out.transpose(2, 3, 0, 4, 1, 5).reshape(rows * su, cols * sv, 4, 4, 3))
+
+
 def body_lattice_size(body: Body, lattice_factor: float) -> int:
     """Lattice size ``M`` of a body: :func:`slices.surface.lattice_size` of its largest contour.
 
@@ -202,7 +269,8 @@ def build_body_once(body: Body, spacing: float, options: SurfaceOptions | None =
         with ``irregular=True``, give caps of half the median interval).
     options : SurfaceOptions, optional
         Method, rays, caps, lattice, ray rotation and tessellation (the defaults
-        when omitted). ``samples=None`` gives this body a density from :data:`MESH_BUDGET`.
+        when omitted). ``samples=None`` gives this body's mesh edges of about
+        :data:`EDGE_MM` each way (:func:`mesh_samples`), at most :data:`MESH_BUDGET` vertices.
     mesh : bool
         Build the triangle mesh.
     ruled : bool
@@ -259,8 +327,14 @@ def build_body_once(body: Body, spacing: float, options: SurfaceOptions | None =
     dev = float(np.max(np.linalg.norm(node_eval(j, kk) - pts, axis=1)))
     tri_mesh = display = None
     if mesh:
-        n_s = opts.samples or max(1, min(6, int(np.sqrt(MESH_BUDGET / side_patches.n_patches))))
-        tri_mesh, display = capmod.weld_flat_caps(tessellate(side_patches, n_s), grid, n_s)
+        if opts.samples:
+            tri_mesh, display = capmod.weld_flat_caps(tessellate(side_patches, opts.samples), grid, opts.samples)
+        else:
+            # pieces of one tessellation interval each: as many as each direction needs, not the
+            # same count both ways (the caps' rims follow the pieces around)
+            su, sv = mesh_samples(side_patches.control)
+            split = BezierPatches(_split_patches(side_patches.control, su, sv), closed_u=True)
+            tri_mesh, display = capmod.weld_flat_caps(tessellate(split, 1), grid, su)
     if body.kind == "hole":
         patches = patches.flipped()
         if tri_mesh is not None:
