@@ -215,6 +215,8 @@ FALLBACKS = (
     ("seed blend", {}),
     ("arc-length blend", {"correspondence": "arc", "monotone": True}),
     ("arc-length ruled", {"correspondence": "arc", "method": "ruled"}),
+    ("aligned arc-length blend", {"correspondence": "aligned", "monotone": True}),
+    ("aligned arc-length ruled", {"correspondence": "aligned", "method": "ruled"}),
 )
 
 
@@ -226,7 +228,8 @@ def build_body(body: Body, spacing: float, options: SurfaceOptions | None = None
     faces (:func:`surfaces.intersect.self_intersections`); a folded body is built
     again with the next surface of :data:`FALLBACKS` (the blend linking the
     slices by arc length, limited to be monotone; then straight lines between
-    the slices), and the first clean one, or the one with the fewest folded
+    the slices; then both again with the arc length's origin following the
+    shape, :func:`slices.surface.aligned_arcs`), and the first clean one, or the one with the fewest folded
     faces, is kept (``surface`` and ``self_intersecting_faces`` say which).
     See :func:`build_body_once` for the parameters.
     """
