@@ -83,6 +83,9 @@ class BodySurface:
         Which side surface was kept (:data:`FALLBACKS`; empty when not checked).
     self_intersecting_faces : int or None
         Self-intersecting faces of the body's mesh (None when not checked).
+    mesh_samples : (int, int) or None
+        Tessellation subdivisions of every patch around and across the slices
+        (:func:`mesh_samples` with ``samples=None``); None without a mesh.
     """
 
     body: Body
@@ -103,6 +106,7 @@ class BodySurface:
     spacing: float = 0.0
     surface: str = ""
     self_intersecting_faces: int | None = None
+    mesh_samples: tuple[int, int] | None = None
 
     def volume_with_caps(self, caps: str) -> float | None:
         """The body's volume had it been capped with ``caps`` (none, flat or half).
@@ -328,14 +332,15 @@ def build_body_once(body: Body, spacing: float, options: SurfaceOptions | None =
     kk = np.concatenate([np.full(len(n), i + prepend) for i, n in enumerate(sc.nodes)])
     pts = np.concatenate(sc.points)
     dev = float(np.max(np.linalg.norm(node_eval(j, kk) - pts, axis=1)))
-    tri_mesh = display = None
+    tri_mesh = display = density = None
     if mesh:
         if opts.samples:
+            density = (opts.samples, opts.samples)
             tri_mesh, display = capmod.weld_flat_caps(tessellate(side_patches, opts.samples), grid, opts.samples)
         else:
             # pieces of one tessellation interval each: as many as each direction needs, not the
             # same count both ways (the caps' rims follow the pieces around)
-            su, sv = mesh_samples(side_patches.control)
+            su, sv = density = mesh_samples(side_patches.control)
             split = BezierPatches(_split_patches(side_patches.control, su, sv), closed_u=True)
             tri_mesh, display = capmod.weld_flat_caps(tessellate(split, 1), grid, su)
     if body.kind == "hole":
@@ -347,4 +352,5 @@ def build_body_once(body: Body, spacing: float, options: SurfaceOptions | None =
         int(len(pts)), int(sum(int(p.turning.sum()) for p in sc.params)), int(curves.shape[1]),
         float(sc.start_angle), n_limited, (low, high),
         (abs(capmod.curve_area(curves[0])), abs(capmod.curve_area(curves[-1]))), float(d),
+        mesh_samples=density,
     )

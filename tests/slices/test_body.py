@@ -129,3 +129,13 @@ def test_split_patches_are_exact_pieces():
     iu, jv = np.floor(u * 2).astype(int), np.floor(v * 3).astype(int)
     np.testing.assert_allclose(split.evaluate(2 * i + iu, 3 * j + jv, 2 * u - iu, 3 * v - jv),
                                whole.evaluate(i, j, u, v), atol=1e-12)
+
+
+def test_body_records_its_mesh_density(ellipsoid_body):
+    from slices.body import mesh_samples
+
+    adaptive = build_body(ellipsoid_body, 2.5, SurfaceOptions(caps="half"))
+    side = adaptive.patches.control[:, adaptive.side_columns]
+    assert adaptive.mesh_samples == mesh_samples(side)
+    assert build_body(ellipsoid_body, 2.5, SurfaceOptions(samples=2)).mesh_samples == (2, 2)
+    assert build_body(ellipsoid_body, 2.5, mesh=False).mesh_samples is None
