@@ -160,11 +160,11 @@ def mesh_samples(control: np.ndarray, budget: int = MESH_BUDGET) -> tuple[int, i
 
     Examples
     --------
-    Patches 0.8 mm around and 3 mm across:
+    Patches 0.8 mm around and 5 mm across (edges of at most :data:`EDGE_MM`, 2 mm):
 
     >>> c = np.zeros((10, 2, 4, 4, 3))
     >>> c[..., 0] = 0.8 * np.arange(4)[:, None] / 3
-    >>> c[..., 2] = 3.0 * np.arange(4)[None, :] / 3
+    >>> c[..., 2] = 5.0 * np.arange(4)[None, :] / 3
     >>> mesh_samples(c)
     (1, 3)
     """
