@@ -19,12 +19,22 @@ from slices.io import SPACING_RTOL
 from slices.options import SurfaceOptions
 from slices.surface import blend_overshoot, lattice_size, ruled_surface, side_surface, slice_curves
 from surfaces import measure
-from surfaces.bezier import BezierPatches
+from surfaces.bezier import BezierPatches, bernstein
 from surfaces.mesh import TriangleMesh, tessellate
 from surfaces.validate import positive
 
-#: Vertices the written mesh aims at (the tessellation density adapts to it).
+#: Most vertices a body's mesh gets with ``samples=None`` (the density drops below
+#: :data:`EDGE_MM` edges to stay under it).
 MESH_BUDGET = 250_000
+
+#: Longest mesh edge (mm) aimed at with ``samples=None``, along and across the slices: the
+#: lattice already holds two intervals per point of the largest contour, so most bodies keep
+#: one interval per edge around and get a few edges between two slices (a 0.5 mm raster's
+#: marching cubes has edges of 0.5-0.7 mm).
+EDGE_MM = 2.0
+
+#: Most subdivisions per patch side with ``samples=None``.
+MAX_SAMPLES = 6
 
 
 @dataclass
@@ -73,6 +83,9 @@ class BodySurface:
         Which side surface was kept (:data:`FALLBACKS`; empty when not checked).
     self_intersecting_faces : int or None
         Self-intersecting faces of the body's mesh (None when not checked).
+    mesh_samples : (int, int) or None
+        Tessellation subdivisions of every patch around and across the slices
+        (:func:`mesh_samples` with ``samples=None``); None without a mesh.
     """
 
     body: Body
@@ -93,6 +106,7 @@ class BodySurface:
     spacing: float = 0.0
     surface: str = ""
     self_intersecting_faces: int | None = None
+    mesh_samples: tuple[int, int] | None = None
 
     def volume_with_caps(self, caps: str) -> float | None:
         """The body's volume had it been capped with ``caps`` (none, flat or half).
@@ -127,6 +141,63 @@ def _flip(mesh: TriangleMesh) -> TriangleMesh:
     return TriangleMesh(mesh.vertices, mesh.triangles[:, ::-1].copy(), normals)
 
 
+def mesh_samples(control: np.ndarray, budget: int = MESH_BUDGET) -> tuple[int, int]:
+    """Subdivisions of every patch around (``u``) and across the slices (``v``) for the mesh.
+
+    Parameters
+    ----------
+    control : numpy.ndarray, shape (rows, cols, 4, 4, 3)
+        Bezier points of the side patches (mm).
+    budget : int
+        Most vertices (``rows * cols * su * sv``).
+
+    Returns
+    -------
+    (int, int)
+        ``(su, sv)``: the median control polygon length in each
+        direction over :data:`EDGE_MM`, rounded up, in ``[1, MAX_SAMPLES]``; the
+        larger is lowered while the mesh would exceed ``budget`` vertices.
+
+    Examples
+    --------
+    Patches 0.8 mm around and 5 mm across (edges of at most :data:`EDGE_MM`, 2 mm):
+
+    >>> c = np.zeros((10, 2, 4, 4, 3))
+    >>> c[..., 0] = 0.8 * np.arange(4)[:, None] / 3
+    >>> c[..., 2] = 5.0 * np.arange(4)[None, :] / 3
+    >>> mesh_samples(c)
+    (1, 3)
+    """
+    polygon_u = np.linalg.norm(np.diff(control, axis=2), axis=-1).sum(axis=2)
+    polygon_v = np.linalg.norm(np.diff(control, axis=3), axis=-1).sum(axis=3)
+    su, sv = (int(np.clip(np.ceil(np.median(p) / EDGE_MM), 1, MAX_SAMPLES)) for p in (polygon_u, polygon_v))
+    n_patches = control.shape[0] * control.shape[1]
+    while su * sv * n_patches > budget and max(su, sv) > 1:
+        su, sv = (su - 1, sv) if su >= sv else (su, sv - 1)
+    return su, sv
+
+
+def _split_patches(control: np.ndarray, su: int, sv: int) -> np.ndarray:
+    """Each bicubic Bezier patch cut into ``su x sv`` equal parameter pieces (exact: de Casteljau).
+
+    ``control`` (rows, cols, 4, 4, 3) -> (rows * su, cols * sv, 4, 4, 3); a piece on ``[a, b]``
+    has the Bezier points ``B(s)^-1 B(a + s (b - a)) P`` with ``B`` the Bernstein matrix at
+    ``s = 0, 1/3, 2/3, 1``.
+    """
+    s = np.arange(4) / 3.0
+    base = np.linalg.inv(bernstein(s))
+
+    def pieces(n: int) -> np.ndarray:  # (n, 4, 4): Bezier points of piece i from the patch's
+        return np.stack([base @ bernstein((i + s) / n) for i in range(n)])
+
+    rows, cols = control.shape[:2]
+    # tensordot (one matrix product) rather than einsum: this runs on every body's mesh
+    out = np.tensordot(pieces(su), control, axes=([2], [2]))  # (su, 4, rows, cols, 4, 3)
+    out = out.transpose(2, 0, 3, 1, 4, 5).reshape(rows * su, cols, 4, 4, 3)
+    out = np.tensordot(pieces(sv), out, axes=([2], [3]))  # (sv, 4, rows su, cols, 4, 3)
+    return np.ascontiguousarray(out.transpose(2, 3, 0, 4, 1, 5).reshape(rows * su, cols * sv, 4, 4, 3))
+
+
 def body_lattice_size(body: Body, lattice_factor: float) -> int:
     """Lattice size ``M`` of a body: :func:`slices.surface.lattice_size` of its largest contour.
 
@@ -148,6 +219,8 @@ FALLBACKS = (
     ("seed blend", {}),
     ("arc-length blend", {"correspondence": "arc", "monotone": True}),
     ("arc-length ruled", {"correspondence": "arc", "method": "ruled"}),
+    ("aligned arc-length blend", {"correspondence": "aligned", "monotone": True}),
+    ("aligned arc-length ruled", {"correspondence": "aligned", "method": "ruled"}),
 )
 
 
@@ -159,7 +232,8 @@ def build_body(body: Body, spacing: float, options: SurfaceOptions | None = None
     faces (:func:`surfaces.intersect.self_intersections`); a folded body is built
     again with the next surface of :data:`FALLBACKS` (the blend linking the
     slices by arc length, limited to be monotone; then straight lines between
-    the slices), and the first clean one, or the one with the fewest folded
+    the slices; then both again with the arc length's origin following the
+    shape, :func:`slices.surface.aligned_arcs`), and the first clean one, or the one with the fewest folded
     faces, is kept (``surface`` and ``self_intersecting_faces`` say which).
     See :func:`build_body_once` for the parameters.
     """
@@ -202,7 +276,8 @@ def build_body_once(body: Body, spacing: float, options: SurfaceOptions | None =
         with ``irregular=True``, give caps of half the median interval).
     options : SurfaceOptions, optional
         Method, rays, caps, lattice, ray rotation and tessellation (the defaults
-        when omitted). ``samples=None`` gives this body a density from :data:`MESH_BUDGET`.
+        when omitted). ``samples=None`` gives this body's mesh edges of about
+        :data:`EDGE_MM` each way (:func:`mesh_samples`), at most :data:`MESH_BUDGET` vertices.
     mesh : bool
         Build the triangle mesh.
     ruled : bool
@@ -257,11 +332,19 @@ def build_body_once(body: Body, spacing: float, options: SurfaceOptions | None =
     kk = np.concatenate([np.full(len(n), i + prepend) for i, n in enumerate(sc.nodes)])
     pts = np.concatenate(sc.points)
     dev = float(np.max(np.linalg.norm(node_eval(j, kk) - pts, axis=1)))
-    tri_mesh = display = None
+    tri_mesh = display = density = None
     if mesh:
-        n_s = opts.samples or max(1, min(6, int(np.sqrt(MESH_BUDGET / side_patches.n_patches))))
-        tri_mesh, display = capmod.weld_flat_caps(tessellate(side_patches, n_s), grid, n_s,
-                                                  inset=body.kind == "outer")
+        if opts.samples:
+            density = (opts.samples, opts.samples)
+            tri_mesh, display = capmod.weld_flat_caps(tessellate(side_patches, opts.samples), grid, opts.samples,
+                                                      inset=body.kind == "outer")
+        else:
+            # pieces of one tessellation interval each: as many as each direction needs, not the
+            # same count both ways (the caps' rims follow the pieces around)
+            su, sv = density = mesh_samples(side_patches.control)
+            split = BezierPatches(_split_patches(side_patches.control, su, sv), closed_u=True)
+            tri_mesh, display = capmod.weld_flat_caps(tessellate(split, 1), grid, su,
+                                                      inset=body.kind == "outer")
     if body.kind == "hole":
         patches = patches.flipped()
         if tri_mesh is not None:
@@ -271,4 +354,5 @@ def build_body_once(body: Body, spacing: float, options: SurfaceOptions | None =
         int(len(pts)), int(sum(int(p.turning.sum()) for p in sc.params)), int(curves.shape[1]),
         float(sc.start_angle), n_limited, (low, high),
         (abs(capmod.curve_area(curves[0])), abs(capmod.curve_area(curves[-1]))), float(d),
+        mesh_samples=density,
     )

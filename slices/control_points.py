@@ -674,8 +674,39 @@ def quantize(u, n_lattice: int, values=None) -> np.ndarray:
         target = np.where(uu > lv[-1] + 0.5 * (1.0 + lv[0] - lv[-1]), m - 1, target)
     # strictly increasing indices closest (least squares) to the targets: isotonic
     # regression of target - i (pool adjacent violators), rounded and clipped
-    from scipy.optimize import isotonic_regression
-
-    r = np.round(isotonic_regression((target - i).astype(np.float64)).x).astype(np.int64)
+    r = np.round(isotonic_fit((target - i).astype(np.float64))).astype(np.int64)
     r = np.clip(r, 0, m - n)
     return r + i
+
+
+def isotonic_fit(y) -> np.ndarray:
+    """Least-squares non-decreasing fit of a sequence (pool adjacent violators).
+
+    Every pass pools all runs of adjacent blocks whose means decrease, at once;
+    pooling adjacent violators in any order gives the one least-squares solution,
+    and the passes are few (as many as violations nest), so no loop runs per value.
+    ``scipy.optimize.isotonic_regression`` gives the same; importing
+    ``scipy.optimize`` costs a command more than all of its contours.
+
+    Parameters
+    ----------
+    y : array_like, shape (n,)
+
+    Returns
+    -------
+    numpy.ndarray, shape (n,) float64
+
+    Examples
+    --------
+    >>> isotonic_fit([1.0, 3.0, 2.0, 2.0, 5.0, 4.0]).tolist()
+    [1.0, 2.3333333333333335, 2.3333333333333335, 2.3333333333333335, 4.5, 4.5]
+    """
+    s = as_array(y, "y", ndim=1).copy()
+    w = np.ones(len(s))
+    while len(s) > 1:
+        bad = s[:-1] * w[1:] > s[1:] * w[:-1]  # mean of a block above the next one's
+        if not bad.any():
+            break
+        group = np.cumsum(np.concatenate([[True], ~bad])) - 1
+        s, w = np.bincount(group, s), np.bincount(group, w)
+    return np.repeat(s / w, w.astype(np.int64))

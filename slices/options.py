@@ -46,14 +46,15 @@ class SurfaceOptions:
         :func:`slices.surface.lattice_size`), at least 1.
     lattice_mode : {"balanced", "uniform", "adaptive", "union"}
         Common ``u`` lattice (:func:`slices.surface.slice_curves`).
-    correspondence : {"seed", "arc"}
+    correspondence : {"seed", "arc", "aligned"}
         ``u`` that links the slices (:func:`slices.surface.slice_curves`).
     start_angle : float or None
         Direction of ray 0 in radians from +x for every body; None: each body's
         own (:func:`slices.control_points.choose_start_angle`).
     samples : int or None
-        Tessellation subdivisions per patch side; None adapts the density to
-        :data:`slices.body.MESH_BUDGET` vertices.
+        Tessellation subdivisions per patch side; None gives each body edges of
+        about :data:`slices.body.EDGE_MM` around and across the slices
+        (:func:`slices.body.mesh_samples`).
 
     Examples
     --------

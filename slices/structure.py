@@ -13,20 +13,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from slices.body import MESH_BUDGET, BodySurface, body_lattice_size, build_body
+from slices.body import BodySurface, build_body
 from slices.chaining import chain, offset_sensitivity, slab_volume
 from slices.io import SPACING_RTOL, Contour, ContourStack, check_spacing, load, parse_spacing
 from slices.options import ReadOptions, SurfaceOptions, surface_options
 from surfaces.mesh import TriangleMesh, merge_meshes
 from surfaces.validate import positive
 
-
-#: Surface area per mesh vertex (mm^2) with ``samples=None``: about 0.45 mm edges, finer than a
-#: 0.5 mm raster; large structures stop at :data:`slices.body.MESH_BUDGET` vertices.
-AREA_PER_VERTEX = 0.1
-
-#: Fewest vertices a structure's mesh aims at with ``samples=None``.
-MIN_VERTICES = 2_000
 
 #: Outward contour offset (mm) of the volume sensitivity (issue 17: what a planning physicist compares).
 SENSITIVITY_OFFSET_MM = 0.5
@@ -55,8 +48,8 @@ class Reconstruction:
     spacing : float
         Slice spacing in mm.
     options : SurfaceOptions
-        The options asked for (``samples=None``: the bodies got one density
-        adapted to :data:`slices.body.MESH_BUDGET`).
+        The options asked for (``samples=None``: each body got the density
+        of :func:`slices.body.mesh_samples`).
     sensitivity_mm3 : float
         Change of the volume when every contour grows outward by
         :data:`SENSITIVITY_OFFSET_MM` (:func:`slices.chaining.offset_sensitivity`).
@@ -155,9 +148,9 @@ def reconstruct_contours(contours: list[Contour], *, spacing: float | None = Non
         Method, rays, caps, lattice, ray rotation and tessellation (the defaults when omitted).
     **keywords
         Fields of :class:`slices.options.SurfaceOptions` that override ``options``.
-        ``samples=None`` (default) gives all bodies one density, so that the
-        whole mesh has about one vertex per :data:`AREA_PER_VERTEX` mm^2, at most
-        :data:`slices.body.MESH_BUDGET` vertices.
+        ``samples=None`` (default) gives every body mesh edges of about
+        :data:`slices.body.EDGE_MM` around and across the slices
+        (:func:`slices.body.mesh_samples`).
 
     Returns
     -------
@@ -197,18 +190,9 @@ def reconstruct_contours(contours: list[Contour], *, spacing: float | None = Non
         raise ValueError("contours: a single plane has no slice spacing; give spacing (--spacing z,y,x "
                          "on the command line)")
     bodies = chain(contours, None if irregular else d)
-    build = opts
-    if opts.samples is None:
-        # one tessellation density for all bodies, so the whole mesh meets the budget
-        est = sum(body_lattice_size(b, opts.lattice_factor) * (len(b.contours) + 5) for b in bodies)
-        # small structures need fewer vertices than the budget: about one per AREA_PER_VERTEX of surface
-        # (side area estimated as perimeter x spacing per contour)
-        side = sum(float(np.linalg.norm(np.roll(c.points, -1, axis=0) - c.points, axis=1).sum()) for c in contours)
-        budget = min(MESH_BUDGET, max(MIN_VERTICES, side * d / AREA_PER_VERTEX))
-        build = surface_options(opts, samples=max(1, min(6, int(np.sqrt(budget / max(est, 1))))))
     built = []
     for i, body in enumerate(bodies):
-        built.append(build_body(body, d, build, mesh=mesh))
+        built.append(build_body(body, d, opts, mesh=mesh))
         if progress is not None:
             progress(i + 1, len(bodies))
     sign = {"outer": 1.0, "hole": -1.0}

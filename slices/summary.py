@@ -29,6 +29,8 @@ def body_table(rec: Reconstruction) -> list[dict]:
         ``n_turning_points``, ``n_blend_limited`` (tangents the monotone blend
         shortened), ``surface`` and ``self_intersecting_faces`` (which side surface
         was kept and its folded faces, :func:`slices.body.build_body`),
+        ``mesh_samples`` (subdivisions per patch around and across the slices,
+        :func:`slices.body.mesh_samples`; None without a mesh),
         ``max_control_point_deviation_mm``, ``ray_start_deg``.
     """
     out = []
@@ -47,6 +49,7 @@ def body_table(rec: Reconstruction) -> list[dict]:
             "n_blend_limited": b.n_limited,
             "surface": b.surface,
             "self_intersecting_faces": b.self_intersecting_faces,
+            "mesh_samples": None if b.mesh_samples is None else list(b.mesh_samples),
             "max_control_point_deviation_mm": b.max_deviation_mm,
             "ray_start_deg": float(np.degrees(b.start_angle)),
         })

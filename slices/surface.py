@@ -40,7 +40,10 @@ from surfaces.validate import as_array, positive
 LATTICE_MODES = ("balanced", "uniform", "adaptive", "union")
 
 #: Which ``u`` links the slices in :func:`slice_curves`.
-CORRESPONDENCES = ("seed", "arc")
+CORRESPONDENCES = ("seed", "arc", "aligned")
+
+#: Arc-length samples per slice with which ``correspondence="aligned"`` matches neighbouring slices.
+ALIGN_SAMPLES = 512
 
 
 @dataclass(frozen=True)
@@ -105,6 +108,52 @@ def _geometry_parameters(points: np.ndarray, kind: str) -> np.ndarray:
     return t[:-1] / t[-1]
 
 
+def aligned_arcs(points, arcs) -> list:
+    """Arc-length parameters whose origin turns with the shape from slice to slice.
+
+    Every slice's outline is sampled at :data:`ALIGN_SAMPLES` equal steps of arc
+    length (about its mean), and the shift of each slice's origin against the
+    slice below is the one that brings the two outlines closest in the least-squares
+    sense (the peak of their circular cross-correlation, by FFT). Arc length from a
+    common ray can start at different features of a crescent on two slices (the
+    ray meets it on either horn), and every straight or blended link between the
+    slices then twists; the shifted origins follow the shape instead.
+
+    Parameters
+    ----------
+    points : sequence of numpy.ndarray, each shape (n_k, 2)
+        Closed outlines in mm, counter-clockwise.
+    arcs : sequence of numpy.ndarray, each shape (n_k,)
+        Their points' arc length from the slice's origin as a fraction of the
+        perimeter, strictly increasing in ``[0, 1)``.
+
+    Returns
+    -------
+    list of numpy.ndarray
+        Per slice, ``(arc - shift) mod 1`` (shape (n_k,), not sorted: the point of
+        smallest value starts the outline); slice 0 keeps its origin.
+
+    Examples
+    --------
+    A square's points, the second slice's list starting one corner later:
+
+    >>> sq = np.array([[0.0, 0], [1, 0], [1, 1], [0, 1]])
+    >>> a = np.arange(4) / 4
+    >>> [u.tolist() for u in aligned_arcs([sq, np.roll(sq, -1, axis=0)], [a, a])]
+    [[0.0, 0.25, 0.5, 0.75], [0.25, 0.5, 0.75, 0.0]]
+    """
+    grid = np.arange(ALIGN_SAMPLES) / ALIGN_SAMPLES
+    shapes = []
+    for pts, arc in zip(points, arcs):
+        a = np.concatenate([arc - 1.0, arc, arc + 1.0])
+        w = np.interp(grid, a, np.tile(pts[:, 0], 3)) + 1j * np.interp(grid, a, np.tile(pts[:, 1], 3))
+        shapes.append(np.fft.fft(w - w.mean()))
+    # shift d of slice k against k - 1 maximises sum_i Re(conj(w_{k-1}[i]) w_k[i + d])
+    corr = np.real(np.fft.ifft(np.conj(np.stack(shapes[:-1])) * np.stack(shapes[1:]), axis=1))
+    shift = np.concatenate([[0.0], np.cumsum(np.argmax(corr, axis=1) / ALIGN_SAMPLES)]) if len(shapes) > 1 else [0.0]
+    return [np.mod(arc - s, 1.0) for arc, s in zip(arcs, shift)]
+
+
 def slice_curves(contours, z, n_rays: int, n_lattice: int | None = None,
                  start_angle: float | None = None, geometry: str = "centripetal",
                  correspondence: str = SurfaceOptions.correspondence,
@@ -132,9 +181,10 @@ def slice_curves(contours, z, n_rays: int, n_lattice: int | None = None,
         blended parabolas overshoot; the curve is therefore built on
         centripetal (default) or chord-length parameters and reparameterised
         piecewise linearly onto ``u``, so every point still sits at its ``u``.
-    correspondence : {"seed", "arc"}
-        Which ``u`` links the slices: the seed's parameters (eqs. 1-5, default)
-        or normalised arc length from support point 0.
+    correspondence : {"seed", "arc", "aligned"}
+        Which ``u`` links the slices: the seed's parameters (eqs. 1-5, default),
+        normalised arc length from support point 0, or normalised arc length
+        whose origin follows the shape from slice to slice (:func:`aligned_arcs`).
     lattice_mode : {"balanced", "uniform", "adaptive", "union"}
         Common lattice: ``balanced`` (default) spaces the values evenly in the
         slices' mean arc length as a function of ``u``
@@ -164,7 +214,15 @@ def slice_curves(contours, z, n_rays: int, n_lattice: int | None = None,
         closed = np.vstack([par.support[:1], par.points, par.support[:1]])
         cum = np.cumsum(np.linalg.norm(np.diff(closed, axis=0), axis=1))
         arcs.append(cum[:-1] / cum[-1])
-    us = [p.u for p in params] if correspondence == "seed" else arcs
+    outlines = [p.points for p in params]
+    if correspondence == "aligned":
+        # each outline starts at its point of smallest shifted arc length, so u increases along it
+        us = aligned_arcs(outlines, arcs)
+        first = [int(np.argmin(u)) for u in us]
+        outlines = [np.roll(o, -f, axis=0) for o, f in zip(outlines, first)]
+        us = arcs = [np.roll(u, -f) for u, f in zip(us, first)]
+    else:
+        us = [p.u for p in params] if correspondence == "seed" else arcs
     if lattice_mode == "union":
         values = np.unique(np.concatenate(us))
     elif lattice_mode == "balanced":
@@ -173,10 +231,10 @@ def slice_curves(contours, z, n_rays: int, n_lattice: int | None = None,
         values = lattice_values(us, m) if lattice_mode == "adaptive" else np.arange(m) / m
     m = len(values)
     curves, nodes, pts3 = [], [], []
-    for par, zk, u in zip(params, zz, us):
+    for outline, zk, u in zip(outlines, zz, us):
         q = quantize(u, m, values)
-        p3 = np.column_stack([par.points, np.full(len(par.points), zk)])
-        t = _geometry_parameters(par.points, geometry)
+        p3 = np.column_stack([outline, np.full(len(outline), zk)])
+        t = _geometry_parameters(outline, geometry)
         ctrl, knots = blending.overhauser_curve(p3, t, closed=True)
         # lattice node j sits at t(j), t piecewise linear through (q_i, t_i): on every lattice
         # interval the curve is one cubic piece, cut exactly (Bezier points do not depend on

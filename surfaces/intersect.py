@@ -186,16 +186,15 @@ def _pairs_intersect(corners: np.ndarray, t: np.ndarray, plane: np.ndarray, tol:
     ``corners`` (T, 3, 3), ``t`` (T, 3) vertex indices, ``plane`` (T, 5) normals (length twice
     the area), offsets and normal lengths, ``tol`` (T,) relative plane-distance tolerances, all per face.
     """
-    ia, ib = t[a], t[b]
-    # corner i of a is a corner of b (and the other way round)
-    in_b = np.stack([(ia[:, i] == ib[:, 0]) | (ia[:, i] == ib[:, 1]) | (ia[:, i] == ib[:, 2]) for i in range(3)], 1)
-    in_a = np.stack([(ib[:, j] == ia[:, 0]) | (ib[:, j] == ia[:, 1]) | (ib[:, j] == ia[:, 2]) for j in range(3)], 1)
-    n_shared = in_b[:, 0].astype(np.int8) + in_b[:, 1] + in_b[:, 2]
+    same = t[a][:, :, None] == t[b][:, None, :]  # (P, 3, 3): corner i of a is corner j of b
+    in_b, in_a = same.any(axis=2), same.any(axis=1)
+    n_shared = in_b.sum(axis=1, dtype=np.int8)
     hit = np.zeros(len(a), dtype=bool)
-    # plane test first (Moller 1997): an edge of one triangle can pierce the other only if the
-    # triangle's corners (the shared one aside) straddle the other's plane; for pairs apart, a
-    # crossing needs both to straddle, for pairs sharing a corner one straddling opposite edge;
-    # neighbours across an edge never count
+    # plane test first (Moller 1997): two triangles meet beyond a shared corner only if each one's
+    # corners (the shared one aside) straddle the other's plane. Apart pairs: a triangle whose corners
+    # lie on one side of the other's plane cannot touch it. Pairs sharing corner V: if b's other
+    # corners lie on one side of a's plane, b meets that plane in V alone, so a and b meet in V
+    # alone. Neighbours across an edge never count.
     k = np.flatnonzero(n_shared < 2)
     if not len(k):
         return hit
@@ -203,11 +202,10 @@ def _pairs_intersect(corners: np.ndarray, t: np.ndarray, plane: np.ndarray, tol:
     tol_k = tol[ak] + tol[bk]
     a_apart, side_a = _one_side(corners, ak, plane[bk], tol_k * plane[bk, 4], in_b[k])
     b_apart, side_b = _one_side(corners, bk, plane[ak], tol_k * plane[ak, 4], in_a[k])
-    keep = np.where(n_shared[k] == 0, ~(a_apart | b_apart), ~(a_apart & b_apart))
+    keep = ~(a_apart | b_apart)
     sub = k[keep]
     if len(sub):
-        same = ia[sub][:, :, None] == ib[sub][:, None, :]  # (N, 3, 3): corner i of a equals corner j of b
-        hit[sub] = _pairs_intersect_exact(corners[a[sub]], corners[b[sub]], same, n_shared[sub], eps,
+        hit[sub] = _pairs_intersect_exact(corners[a[sub]], corners[b[sub]], same[sub], n_shared[sub], eps,
                                           side_a[keep], side_b[keep])
     return hit
 

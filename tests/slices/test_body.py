@@ -101,3 +101,41 @@ def test_unequal_planes_use_the_median_interval():
     # planes 2, 2 and 4 mm apart: half caps of half the median interval (2 mm), not of the 3 mm given
     assert b.volume_mm3 - flat.volume_mm3 == pytest.approx(2 * area * 1.0, rel=1e-6)
     assert np.isfinite(b.area_mm2)
+
+
+def test_mesh_samples_follow_edge_length_and_budget():
+    from slices.body import EDGE_MM, MAX_SAMPLES, mesh_samples
+
+    c = np.zeros((40, 10, 4, 4, 3))
+    c[..., 0] = 0.5 * EDGE_MM * np.arange(4)[:, None] / 3  # half an edge around
+    c[..., 2] = 4.5 * EDGE_MM * np.arange(4)[None, :] / 3  # four and a half edges across
+    assert mesh_samples(c) == (1, 5)
+    assert mesh_samples(100 * c) == (MAX_SAMPLES, MAX_SAMPLES)
+    # the budget lowers the larger count first
+    assert mesh_samples(c, budget=40 * 10 * 3) == (1, 3)
+    assert mesh_samples(c, budget=1) == (1, 1)
+
+
+def test_split_patches_are_exact_pieces():
+    from slices.body import _split_patches
+    from surfaces.bezier import BezierPatches
+
+    rng = np.random.default_rng(3)
+    control = rng.normal(size=(3, 2, 4, 4, 3))
+    whole, split = BezierPatches(control), BezierPatches(_split_patches(control, 2, 3))
+    assert split.shape == (6, 6)
+    u, v = rng.random(200), rng.random(200)
+    i, j = rng.integers(0, 3, 200), rng.integers(0, 2, 200)
+    iu, jv = np.floor(u * 2).astype(int), np.floor(v * 3).astype(int)
+    np.testing.assert_allclose(split.evaluate(2 * i + iu, 3 * j + jv, 2 * u - iu, 3 * v - jv),
+                               whole.evaluate(i, j, u, v), atol=1e-12)
+
+
+def test_body_records_its_mesh_density(ellipsoid_body):
+    from slices.body import mesh_samples
+
+    adaptive = build_body(ellipsoid_body, 2.5, SurfaceOptions(caps="half"))
+    side = adaptive.patches.control[:, adaptive.side_columns]
+    assert adaptive.mesh_samples == mesh_samples(side)
+    assert build_body(ellipsoid_body, 2.5, SurfaceOptions(samples=2)).mesh_samples == (2, 2)
+    assert build_body(ellipsoid_body, 2.5, mesh=False).mesh_samples is None

@@ -30,6 +30,14 @@ def assert_clean_solid(mesh, n_shells: int = 1):
     assert peer.volume() == pytest.approx(mesh.signed_volume(), rel=1e-6)
 
 
+def shell_counts(mesh) -> tuple[int, int]:
+    """Outer shells (positive signed volume) and cavities (negative) of a closed mesh."""
+    label = shells(mesh.triangles, mesh.n_vertices)
+    c = mesh.vertices[mesh.triangles]
+    volume = np.bincount(label, np.einsum("ij,ij->i", c[:, 0], np.cross(c[:, 1], c[:, 2])) / 6.0)
+    return int(np.sum(volume > 0)), int(np.sum(volume < 0))
+
+
 def c_shape_stack() -> list[Contour]:
     """A disc with its hole opened by a wide channel (a C, one outline), on three planes."""
     t = np.linspace(0, 2 * np.pi, 60, endpoint=False)[3:-3]
@@ -105,13 +113,32 @@ def _rtss(shared_data):
     pytest.param("Heart", marks=pytest.mark.slow),
     pytest.param("Breast", marks=pytest.mark.slow),
     pytest.param("Lt Lung", marks=[pytest.mark.slow, pytest.mark.xfail(
-        strict=False, reason="known: crescent-shaped lung contours still fold where no fallback surface is clean")]),
+        strict=True, reason="known: 4 of 63 bodies fold in every fallback surface, where a contour's slit is "
+        "narrower than its walls move from plane to plane, where a bulb on a narrow neck is drawn on one plane "
+        "only, and where a merge doubles the area between two planes")]),
 ])
 def test_breast_rois_give_one_clean_solid(shared_data, roi):
     from slices.pipeline import reconstruct
 
     result = reconstruct(_rtss(shared_data), roi=roi, caps="half", samples=2, reference=False)
     assert result.union or len(result.reconstruction.bodies) == 1
-    assert_clean_solid(result.mesh)
+    # one outer skin; holes drawn inside the structure are closed cavities, shells of their own
+    outer, cavities = shell_counts(result.mesh)
+    assert outer == 1
+    assert_clean_solid(result.mesh, n_shells=outer + cavities)
     body_rows = result.summary["bodies"]
     assert all(r["self_intersecting_faces"] == 0 and r["surface"] for r in body_rows)
+
+
+@pytest.mark.slow
+def test_lt_lung_is_one_outer_skin_around_its_cavities(shared_data):
+    from slices.pipeline import reconstruct
+
+    result = reconstruct(_rtss(shared_data), roi="Lt Lung", caps="half", reference=False)
+    mesh = result.mesh
+    assert result.union and mesh.is_watertight() and mesh.is_oriented()
+    outer, cavities = shell_counts(mesh)
+    holes = [b for b in result.reconstruction.bodies if b.body.kind == "hole"]
+    # the 32 shells the benchmark used to count are the skin and 31 holes inside it, each subtracted
+    assert outer == 1 and 0 < cavities <= len(holes)
+    assert mesh.signed_volume() == pytest.approx(result.summary["volume_mm3"], rel=0.01)

@@ -44,22 +44,26 @@ def test_options_object_and_keywords_agree(ellipsoid):
     assert c.options.caps == "flat" and c.volume_mm3 < a.volume_mm3
 
 
-def test_adaptive_samples_meet_the_mesh_budget(ellipsoid):
+def test_adaptive_density_follows_the_contours_sampling(ellipsoid):
     _, conts, _ = ellipsoid
-    from slices.body import MESH_BUDGET
+    from slices.body import EDGE_MM, MESH_BUDGET
 
     rec = reconstruct_contours(conts)
-    assert rec.options.samples is None  # what was asked for; the bodies got one adapted density
-    # a structure gets about one vertex per AREA_PER_VERTEX of its surface (at most 6 per patch side)
-    from slices.structure import AREA_PER_VERTEX
-    area = rec.area_mm2
-    assert rec.mesh.n_vertices <= reconstruct_contours(conts, samples=6).mesh.n_vertices < MESH_BUDGET
-    assert 0.25 * area / AREA_PER_VERTEX < rec.mesh.n_vertices < 1.5 * area / AREA_PER_VERTEX
-    # a larger one (four times the points per contour and the planes) gets fewer samples per patch
+    assert rec.options.samples is None  # what was asked for; each body got the density of mesh_samples
+    mesh = rec.mesh
+    assert mesh.is_watertight() and mesh.is_oriented()
+    corners = mesh.vertices[mesh.triangles]
+    edges = np.linalg.norm(corners - np.roll(corners, 1, axis=1), axis=2)
+    assert np.median(edges) <= EDGE_MM
+    # coarser than two subdivisions per patch side, and still on the patch surface: the inscribed
+    # mesh encloses and covers a little less than the patches, by well under a percent
+    assert mesh.n_vertices < reconstruct_contours(conts, samples=2).mesh.n_vertices
+    assert 0.995 * rec.volume_mm3 < mesh.signed_volume() < rec.volume_mm3
+    assert 0.995 * rec.area_mm2 < mesh.surface_area() < rec.area_mm2
+    # a larger one (four times the points per contour and the planes) stays far below the budget
     _, dense, _ = phantom_stack("ellipsoid", spacing=0.5, a=15.0, b=10.0, c=12.0, n_points=192)
     big = reconstruct_contours(dense, mesh=True)
-    assert big.mesh.n_vertices < 1.5 * MESH_BUDGET
-    assert big.mesh.n_vertices < reconstruct_contours(dense, samples=6).mesh.n_vertices
+    assert big.mesh.n_vertices < min(MESH_BUDGET, reconstruct_contours(dense, samples=2).mesh.n_vertices)
 
 
 def test_kidney_accuracy():

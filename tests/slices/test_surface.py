@@ -92,3 +92,54 @@ def test_kidney_correspondence_follows_the_scaled_sections(n_points):
     base = sc.curves[:, :, 0, :2] / scale[:, None, None]
     shift = np.linalg.norm(np.diff(base, axis=0), axis=2) * scale[1:, None]
     assert shift.max() < 2.5  # mm; the perimeter is about 110 mm, the old record rule jumped 5-15 mm
+
+
+def c_shape(turn: float, start: int) -> np.ndarray:
+    """A C (an annulus opened by a wide channel, one outline) turned by ``turn`` radians; its
+    point list starts ``start`` points further round."""
+    t = np.linspace(0, 2 * np.pi, 60, endpoint=False)[3:-3]
+    outer = np.stack([12 * np.cos(t), 12 * np.sin(t)], 1)
+    pts = np.vstack([outer, 5 / 12 * outer[::-1]])
+    c, s = np.cos(turn), np.sin(turn)
+    return np.roll(pts @ np.array([[c, s], [-s, c]]), -start, axis=0)
+
+
+def test_aligned_arcs_follow_a_turning_shape():
+    from slices.body import build_body_once
+    from slices.chaining import chain
+    from slices.io import Contour
+    from slices.options import SurfaceOptions
+    from slices.surface import aligned_arcs
+    from surfaces.intersect import self_intersections
+
+    # the same outline on every slice, its point list starting at a different point each time
+    base = c_shape(0.0, 0)
+    arc = np.arange(len(base)) / len(base)  # one parameter per point, as the shifts are whole points
+    us = aligned_arcs([np.roll(base, -k, axis=0) for k in (0, 17, 40, 41)], [arc] * 4)
+    for k, u in zip((0, 17, 40, 41), us):
+        # every point gets the u it has on the first slice (to a sample of the alignment)
+        np.testing.assert_allclose(np.mod(u - np.roll(arc, -k) + 0.5, 1) - 0.5, 0, atol=2.0 / 512)
+    # a C turning from plane to plane: arc length from ray 0 and the seed's rays twist the links
+    # between the slices and fold the surface; the aligned links follow the C
+    body = chain([Contour(2.0 * k, c_shape(0.15 * k, 13 * k)) for k in range(5)], 2.0)[0]
+    area = np.pi * (12**2 - 5**2) * 54 / 60  # the annulus' sectors the C keeps (to its polygons)
+    for ruled in (False, True):
+        twisted = build_body_once(body, 2.0, SurfaceOptions(correspondence="arc", samples=2), ruled=ruled)
+        assert self_intersections(twisted.mesh.vertices, twisted.mesh.triangles).n_faces > 0
+        b = build_body_once(body, 2.0, SurfaceOptions(correspondence="aligned", samples=2), ruled=ruled)
+        assert self_intersections(b.mesh.vertices, b.mesh.triangles).n_faces == 0
+        assert b.max_deviation_mm < 1e-9 and b.mesh.is_watertight()
+        assert b.volume_mm3 == pytest.approx(area * 8.0, rel=0.01)
+
+def test_isotonic_fit_matches_scipy():
+    from scipy.optimize import isotonic_regression
+
+    from slices.control_points import isotonic_fit, quantize
+
+    rng = np.random.default_rng(7)
+    for n in (1, 2, 5, 40, 400):
+        y = np.round(rng.normal(size=n) * 4 + np.arange(n) * rng.random())
+        np.testing.assert_allclose(isotonic_fit(y), isotonic_regression(y).x, atol=1e-12)
+    # crowded parameters still get strictly increasing lattice indices
+    q = quantize(np.array([0.0, 0.3, 0.3001, 0.3002, 0.9]), 10)
+    assert np.all(np.diff(q) > 0) and q.tolist() == [0, 2, 3, 4, 9]
