@@ -105,7 +105,7 @@ def test_solve_and_integration_stay_within_six_times_the_input(tmp_path):
 
     from photometric.lights import ring_lights
 
-    side = 1000
+    side = 2000  # 4 MP: fixed costs (lazily imported modules, allocator arenas) stay small beside the pixels
     L = ring_lights(3, 45.0)
     y, x = np.mgrid[-1 : 1 : side * 1j, -1 : 1 : side * 1j]
     r2 = x * x + y * y
