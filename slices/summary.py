@@ -74,6 +74,10 @@ def chaining_text(rec: Reconstruction) -> str:
             f"{n_out} outer, {n_hole} hole(s) (volume subtracted)")
     if splits:
         text += f"; {splits} chain(s) split at a branching or merging contour"
+    joined = sum(b.body.start == "split" for b in rec.bodies) + sum(b.body.stop == "split" for b in rec.bodies)
+    if joined:
+        text += (f"; {joined} chain end(s) joined at a contour divided along the mid-line between its "
+                 "branches (flat joints inside the union)")
     singles = sum(len(b.body.contours) == 1 and b.caps_used == ("half", "half") and rec.options.caps in ("none", "flat")
                   for b in rec.bodies)
     if singles:

@@ -11,6 +11,7 @@ from slices.chaining import split_contour
 from slices.control_points import clean_contour, signed_area
 from slices.io import Contour
 from slices.structure import reconstruct_contours
+from slices.summary import chaining_text
 from surfaces.intersect import self_intersections
 from surfaces.topology import shells
 from tests.slices._stacks import circle
@@ -67,6 +68,7 @@ def test_trouser_phantom_is_one_clean_solid_without_a_shelf(merge):
     assert solid.signed_volume() == pytest.approx(rec.volume_mm3, rel=1e-3)
     planes = np.unique([c.z for c in conts])
     assert _shelf_area(solid, planes) < 0.5  # mm^2: slivers where the parts' curves meet the parent's
+    assert "3 chain end(s) joined at a contour divided along the mid-line" in chaining_text(rec)
 
 
 def test_without_the_split_the_branching_leaves_a_shelf(monkeypatch):
