@@ -500,8 +500,9 @@ def reconstruct(
         Object mask; overrides a folder's ``mask.png``.
     select : None, "triad" or sequence of str, optional
         Subset of a folder's images (``"triad"``: those in ``triad.txt``).
-    integrator : {"dct", "fc", "lsq"}
-        Height integrator (:func:`photometric.integrate.integrate`).
+    integrator : {"dct", "fc", "lsq", "robust"}
+        Height integrator (:func:`photometric.integrate.integrate`); near-field solves
+        take ``"dct"``, ``"fc"`` or ``"lsq"`` (:data:`photometric.nearfield.INTEGRATORS`).
     pixel_size : float, optional
         Pixel size in mm (heights, defect measures and the mesh are in mm); default: the
         folder's ``scene.json`` ``pixel_size_mm`` when present, else 1.
