@@ -33,7 +33,7 @@ def register(sub) -> None:
     sub : argparse._SubParsersAction
         The group's sub-parser collection.
     """
-    from workbench.commands.photometric import _add_camera
+    from workbench.commands.photometric import _add_camera, _add_rig_options
 
     c = add_command(
         sub, "calibrate", _calibrate,
@@ -50,13 +50,7 @@ def register(sub) -> None:
                      help="LED positions, one 'x y z' row in mm per light")
     src.add_argument("--spheres", nargs="+", default=None, metavar="DIR", help="two or more mirror-sphere folders")
     _add_camera(c, "orthographic (telecentric) pixel size in mm")
-    c.add_argument("--flat-albedo", type=float, default=None, metavar="A",
-                   help="albedo of the flat-field target (default 1)")
-    c.add_argument("--led-mu", default=None, metavar="MU", help="LED lobe exponent(s) to store in the rig")
-    c.add_argument("--intensities", default=None, metavar="I", help="LED intensities to store in the rig")
-    c.add_argument("--window", type=int, default=None, metavar="PX",
-                   help="half width of the highlight centroid window, pixels (default 4)")
-    c.add_argument("--out", default="rig.json", help="rig file to write (default rig.json)")
+    _add_rig_options(c)
 
     r = add_command(
         sub, "run", _run,

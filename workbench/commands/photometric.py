@@ -29,6 +29,17 @@ def _add_camera(p: argparse.ArgumentParser, pixel_help: str) -> None:
                    help="perspective: principal point (column, row) in pixels (default the image centre)")
 
 
+def _add_rig_options(p: argparse.ArgumentParser) -> None:
+    """The calibration options stored in the rig (shared by ``photometric calibrate`` and ``inspect calibrate``)."""
+    p.add_argument("--flat-albedo", type=float, default=None, metavar="A",
+                   help="albedo of the flat-field target (default 1)")
+    p.add_argument("--led-mu", default=None, metavar="MU", help="LED lobe exponent(s) to store in the rig")
+    p.add_argument("--intensities", default=None, metavar="I", help="LED intensities to store in the rig")
+    p.add_argument("--window", type=int, default=None, metavar="PX",
+                   help="half width of the highlight centroid window, pixels (default 4)")
+    p.add_argument("--out", default="rig.json", help="rig file to write (default rig.json)")
+
+
 def _camera_options(args: argparse.Namespace) -> dict:
     pp = None
     if args.principal_point is not None:
@@ -232,13 +243,7 @@ def register(sub) -> None:
     _add_camera(c, "orthographic pixel size in mm (default: the sphere folders' scene.json)")
     c.add_argument("--flat-field", nargs="+", default=None, metavar="F",
                    help="flat-field images (flat matte target on z = 0), one per light in light order")
-    c.add_argument("--flat-albedo", type=float, default=None, metavar="A",
-                   help="albedo of the flat-field target (default 1)")
-    c.add_argument("--led-mu", default=None, metavar="MU", help="LED lobe exponent(s) to store in the rig")
-    c.add_argument("--intensities", default=None, metavar="I", help="LED intensities to store in the rig")
-    c.add_argument("--window", type=int, default=None, metavar="PX",
-                   help="half width of the highlight centroid window, pixels (default 4)")
-    c.add_argument("--out", default="rig.json", help="rig file to write (default rig.json)")
+    _add_rig_options(c)
     c.set_defaults(func=_calibrate)
 
 
