@@ -38,7 +38,9 @@ cells use two GEMMs each) and solved by sparse LU. The one-pixel level weighs sl
 :data:`FINE_SLOPE`. Cells of level ``l`` whose largest deviation ``|S - z|`` exceeds
 the tolerance, with a margin of one cell, become the region of level ``l + 1``; the
 refinement stops at one-pixel knots. Flat background therefore keeps the large level-0
-patches, cracks and edges get small ones.
+patches, cracks and edges get small ones. Where the height's noise sets the default
+tolerance, a slope check also refines cells whose normals miss the measured ones by
+more than the height's own normals do (``slope_angle`` of :func:`fit_height`).
 
 Patches
 -------
@@ -88,6 +90,7 @@ from surfaces.validate import as_array, positive
 __all__ = [
     "NOISE_TOLERANCE",
     "RELATIVE_TOLERANCE",
+    "SLOPE_ANGLE",
     "SurfaceFit",
     "default_step",
     "fit_height",
@@ -119,7 +122,7 @@ FINE_SLOPE = 0.25
 #: (degrees) above the height's own normals (central differences) is refined even within
 #: the height tolerance: on a detailed real object (the DiLiGenT bear) the noise term sets
 #: the tolerance near 1 % of the depth, and 8 px patches within it add about 0.8 deg to
-#: the normals' mean angle.
+#: the normals' mean angle. See ``slope_angle`` of :func:`fit_height`.
 SLOPE_ANGLE = 1.0
 #: The slope check refines cells of at least this many pixels (down to half of it): below,
 #: the slopes of a kink (a crack's wall) are point samples no cubic follows, and one-pixel
@@ -697,6 +700,15 @@ def fit_height(
     slope_weight : float
         ``lambda``, the weight of the slope residuals (per pixel step) against the
         height residuals (> 0).
+    slope_angle : float, optional
+        Slope check of the refinement (degrees, > 0): a cell of at least
+        :data:`SLOPE_CELL_PX` pixels whose fitted normals leave the measured normals
+        (``p``, ``q``) by a mean angle more than ``slope_angle`` above the height's own
+        normals (central differences, over the pixels whose four neighbours are fitted) is
+        refined even within the tolerance. Orthographic fits only (ignored with ``xy``).
+        Default: :data:`SLOPE_ANGLE` when the height's noise sets the default tolerance
+        (the noise term then loosens the tolerance, and the normals keep the detail it
+        lets go), no check otherwise.
 
     Returns
     -------
