@@ -125,8 +125,8 @@ FINE_SLOPE = 0.25
 #: the normals' mean angle. See ``slope_angle`` of :func:`fit_height`.
 SLOPE_ANGLE = 1.0
 #: The slope check refines cells of at least this many pixels (down to half of it): below,
-#: the slopes of a kink (a crack's wall) are point samples no cubic follows, and one-pixel
-#: patches there doubled a 4 MP plate's fit time for no gain within the tolerance.
+#: the slopes of a kink (a crack's wall) are point samples no cubic follows, and with the
+#: check forced on down to one pixel a 4 MP plate's one-pixel patches and fit time doubled.
 SLOPE_CELL_PX = 4
 
 # Monomial coefficients (columns x^0 .. x^3) of the four pieces b_a (rows) of the uniform
