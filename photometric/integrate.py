@@ -456,9 +456,11 @@ def robust_least_squares(
     iterations : int, optional
         Reweighting steps after the first (curl-weighted) solve; stops early when no
         height moves by more than ``1e-6`` of the height range. One step makes a clean
-        jump exact to about ``1e-8``; on the DiLiGenT bear further steps lower the mean
-        normal error of the height by hundredths of a degree but raise its 99th
-        percentile (they cut along noise too), hence the default 1.
+        jump exact to about ``1e-8``. Further steps head for the least absolute edge
+        residuals, which is not the least mean normal angle: on the DiLiGenT bear the
+        height's own normals leave the measured ones by 2.81 deg on average (99th
+        percentile 21.4) after one step, 2.88 (28.1) after three and 3.02 (36.6) after
+        eight (the iterates cut along noise too), hence the default 1.
 
     Returns
     -------

@@ -89,7 +89,7 @@ BLOCK_PIXELS = 1 << 15
 RESOLVE_FRACTION = 0.1
 #: The anchoring rule, as stated in ``summary.json``.
 ANCHOR_RULE = "median height of the valid pixels = reference_height_mm"
-INTEGRATORS = ("dct", "fc", "lsq")
+INTEGRATORS = ("dct", "fc", "lsq", "robust")
 
 
 class NotConvergedError(ValueError):
@@ -345,7 +345,7 @@ def solve_nearfield(
         Shadow/highlight handling as in :func:`photometric.stereo.solve`, with the
         observations divided by the irradiance: an observation is dark when
         ``x_k < dark * albedo * E_k``.
-    integrator : {"dct", "fc", "lsq"}
+    integrator : {"dct", "fc", "lsq", "robust"}
         Normal integrator (:func:`photometric.integrate.integrate`).
     reference_height_mm : float, optional
         The anchor: median height of the valid pixels, mm (see
@@ -720,12 +720,12 @@ def _history_summary(history: list, tol: float, converged: bool) -> dict:
 def _height(level: _Level, camera: Camera, normals: np.ndarray, valid: np.ndarray, integrator: str, ref: float,
             sample: int):
     """Integrate the normals of a level and anchor the heights (filled where not valid)."""
-    from photometric.integrate import dct_poisson, frankot_chellappa, least_squares
+    from photometric.integrate import dct_poisson, frankot_chellappa, least_squares, robust_least_squares
 
     p, q, spacing = _gradient(camera, normals[0], normals[1], normals[2], level.u, level.v)
     spacing *= level.step
-    if integrator == "lsq":
-        fld = least_squares(p, q, valid, spacing)
+    if integrator in ("lsq", "robust"):
+        fld = (least_squares if integrator == "lsq" else robust_least_squares)(p, q, valid, spacing)
     else:
         pz = np.where(valid, p, np.float32(0.0))
         qz = np.where(valid, q, np.float32(0.0))
@@ -734,7 +734,7 @@ def _height(level: _Level, camera: Camera, normals: np.ndarray, valid: np.ndarra
         else:
             fld = frankot_chellappa(pz, qz, None, spacing)
     z, _ = depth_from_field(camera, fld, valid=valid, reference_height_mm=ref, sample_step=sample)
-    if integrator == "lsq":
+    if integrator in ("lsq", "robust"):
         z = np.where(np.isfinite(z), z, ref)
     return z, (p, q)
 

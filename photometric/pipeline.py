@@ -501,8 +501,8 @@ def reconstruct(
     select : None, "triad" or sequence of str, optional
         Subset of a folder's images (``"triad"``: those in ``triad.txt``).
     integrator : {"dct", "fc", "lsq", "robust"}
-        Height integrator (:func:`photometric.integrate.integrate`); near-field solves
-        take ``"dct"``, ``"fc"`` or ``"lsq"`` (:data:`photometric.nearfield.INTEGRATORS`).
+        Height integrator (:func:`photometric.integrate.integrate`), near-field solves
+        too (:data:`photometric.nearfield.INTEGRATORS`).
     pixel_size : float, optional
         Pixel size in mm (heights, defect measures and the mesh are in mm); default: the
         folder's ``scene.json`` ``pixel_size_mm`` when present, else 1.

@@ -38,7 +38,9 @@ cells use two GEMMs each) and solved by sparse LU. The one-pixel level weighs sl
 :data:`FINE_SLOPE`. Cells of level ``l`` whose largest deviation ``|S - z|`` exceeds
 the tolerance, with a margin of one cell, become the region of level ``l + 1``; the
 refinement stops at one-pixel knots. Flat background therefore keeps the large level-0
-patches, cracks and edges get small ones.
+patches, cracks and edges get small ones. Where the height's noise sets the default
+tolerance, a slope check also refines cells whose normals miss the measured ones by
+more than the height's own normals do (``slope_angle`` of :func:`fit_height`).
 
 Patches
 -------
@@ -88,6 +90,7 @@ from surfaces.validate import as_array, positive
 __all__ = [
     "NOISE_TOLERANCE",
     "RELATIVE_TOLERANCE",
+    "SLOPE_ANGLE",
     "SurfaceFit",
     "default_step",
     "fit_height",
@@ -115,6 +118,16 @@ SMOOTHING = 1e-3
 #: is a point sample of a kink (a crack's floor or rim) that no C2 cubic follows inside
 #: the pixel, and full weight trades height for it (overshoot beside the kink).
 FINE_SLOPE = 0.25
+#: A cell whose fitted normals leave the measured normals by a mean angle more than this
+#: (degrees) above the height's own normals (central differences) is refined even within
+#: the height tolerance: on a detailed real object (the DiLiGenT bear) the noise term sets
+#: the tolerance near 1 % of the depth, and 8 px patches within it add about 0.8 deg to
+#: the normals' mean angle. See ``slope_angle`` of :func:`fit_height`.
+SLOPE_ANGLE = 1.0
+#: The slope check refines cells of at least this many pixels (down to half of it): below,
+#: the slopes of a kink (a crack's wall) are point samples no cubic follows, and with the
+#: check forced on down to one pixel a 4 MP plate's one-pixel patches and fit time doubled.
+SLOPE_CELL_PX = 4
 
 # Monomial coefficients (columns x^0 .. x^3) of the four pieces b_a (rows) of the uniform
 # cubic B-spline on one knot span, local x in [0, 1]: in cell CI the B-spline CI + a is b_a.
@@ -655,6 +668,7 @@ def fit_height(
     xy=None,
     jump: float | None = None,
     slope_weight: float = 1.0,
+    slope_angle: float | None = None,
 ) -> SurfaceFit:
     """Fit bicubic patches to a height field and its slopes, refining until within a tolerance.
 
@@ -686,6 +700,15 @@ def fit_height(
     slope_weight : float
         ``lambda``, the weight of the slope residuals (per pixel step) against the
         height residuals (> 0).
+    slope_angle : float, optional
+        Slope check of the refinement (degrees, > 0): a cell of at least
+        :data:`SLOPE_CELL_PX` pixels whose fitted normals leave the measured normals
+        (``p``, ``q``) by a mean angle more than ``slope_angle`` above the height's own
+        normals (central differences, over the pixels whose four neighbours are fitted) is
+        refined even within the tolerance. Orthographic fits only (ignored with ``xy``).
+        Default: :data:`SLOPE_ANGLE` when the height's noise sets the default tolerance
+        (the noise term then loosens the tolerance, and the normals keep the detail it
+        lets go), no check otherwise.
 
     Returns
     -------
@@ -722,6 +745,7 @@ def fit_height(
     qq = as_array(q, "q", shape=z.shape, finite=False)
     h = positive(pixel_size, "pixel_size")
     lam = positive(slope_weight, "slope_weight")
+    angle = None if slope_angle is None else positive(slope_angle, "slope_angle")
     m = np.ones(z.shape, bool) if mask is None else as_array(mask, "mask", shape=z.shape, dtype=bool)
     if not m.any():
         raise ValueError("mask: no pixel is selected")
@@ -741,18 +765,52 @@ def fit_height(
     k0 = _step(step, z.shape)
     if tolerance is None:
         lo, hi = np.percentile(z[m], [0.5, 99.5])
-        tol = max(RELATIVE_TOLERANCE * float(hi - lo), MIN_TOLERANCE_PX * h,
-                  NOISE_TOLERANCE * height_noise(z, m, k0 / 2.0))
+        tol = max(RELATIVE_TOLERANCE * float(hi - lo), MIN_TOLERANCE_PX * h)
+        noise = NOISE_TOLERANCE * height_noise(z, m, k0 / 2.0)
+        if noise > tol:
+            tol = noise
+            # the height's detail, noise or not, loosened the tolerance: the normals keep it
+            angle = SLOPE_ANGLE if angle is None else angle
     else:
         tol = positive(tolerance, "tolerance")
     region = m & ~find_discontinuities(z, pp, qq, m, h, jump, xyv)
     if not region.any():
         raise ValueError("height: every pixel of the mask lies on a depth discontinuity")
     with _one_blas_thread():
-        return _fit(z, pp, qq, region, h, tol, k0, xyv, lam)
+        return _fit(z, pp, qq, region, h, tol, k0, xyv, lam, angle)
 
 
-def _fit(z, p, q, region, h, tol, k0, xy, lam) -> SurfaceFit:
+def _cell_angles(fs, ft, ts, tt, h: float, weight: np.ndarray) -> np.ndarray:
+    """Angle (degrees) between fitted and measured normals, times ``weight``, elementwise.
+
+    ``fs, ft`` and ``ts, tt`` are the fitted and target height slopes per pixel step along
+    rows (``s``) and columns (``t``); the normal of slopes ``(a_s, a_t)`` is ``(-a_t, a_s, h)``.
+    """
+    dot = h * h + ft * tt + fs * ts
+    norm = np.sqrt((h * h + ft * ft + fs * fs) * (h * h + tt * tt + ts * ts))
+    return np.degrees(np.arccos(np.clip(dot / norm, -1.0, 1.0))) * weight
+
+
+def _own_angles(z, region, ts, tt, h: float):
+    """Pixels of the slope check and the angle of the height's own normals there (degrees).
+
+    ``ts, tt``: the padded ``(HP, WP)`` target slopes of :func:`_fit`. The height's own
+    normals are its central differences, at the fitted pixels whose four neighbours are
+    fitted too (the checked pixels, weight 1; 0 elsewhere): no surface within the
+    tolerance of the height follows the measured normals much more closely than they do
+    (non-integrable slopes, noise), so the check asks only for what the height allows.
+    Returns the weights and the angles times the weights, both padded ``(HP, WP)``.
+    """
+    H, W = z.shape
+    wa = np.zeros(ts.shape)
+    wa[:H, :W] = ndimage.binary_erosion(region, border_value=0)
+    gs, gt = np.gradient(np.where(region, z, 0.0))
+    own = np.zeros(ts.shape)
+    own[:H, :W] = _cell_angles(gs, gt, ts[:H, :W], tt[:H, :W], h, wa[:H, :W])
+    return wa, own
+
+
+def _fit(z, p, q, region, h, tol, k0, xy, lam, angle=None) -> SurfaceFit:
     H, W = z.shape
     ns, nt = -(-H // k0), -(-W // k0)
     HP, WP = ns * k0, nt * k0
@@ -775,9 +833,13 @@ def _fit(z, p, q, region, h, tol, k0, xy, lam) -> SurfaceFit:
     fitted = [np.zeros((d, HP, WP)) for _ in range(3)]  # running S, S_s, S_t
     levels, solved, leaves = [], [], []
     top = int(np.log2(k0))
+    slopes_checked = angle is not None and d == 1
+    if slopes_checked:
+        wa, own = _own_angles(z, region, targets[1][0], targets[2][0], h)
     for lev in range(top + 1):
         k = k0 >> lev
         lv = _Level(k, ns << lev, nt << lev, lam * FINE_SLOPE if k == 1 and lev else lam)
+        check_slopes = slopes_checked and k >= SLOPE_CELL_PX
         V, D = lv.V, lv.D
         wc = lv.cells(w)
         if lev == 0:
@@ -835,6 +897,10 @@ def _fit(z, p, q, region, h, tol, k0, xy, lam) -> SurfaceFit:
             dist = np.abs(diff[0]) if d == 1 else np.sqrt((diff * diff).sum(axis=0))
             dist *= w
             worst = dist.reshape(ns, k, nt, k).max(axis=(1, 3))[CI, CJ]
+            if check_slopes:
+                ang = _cell_angles(fitted[1][0], fitted[2][0], targets[1][0], targets[2][0], h, wa) - own
+                excess = ang.reshape(ns, k, nt, k).sum(axis=(1, 3))[CI, CJ]
+                slope_miss = excess > angle * wa.reshape(ns, k, nt, k).sum(axis=(1, 3))[CI, CJ]
         else:
             block = _gather(values, _window_index(lookup, CI, CJ))  # (n, 4, 4, d)
             for part, (arr, (ps, pt)) in enumerate(zip(fitted, ((V, V), (D, V), (V, D)))):
@@ -842,12 +908,19 @@ def _fit(z, p, q, region, h, tol, k0, xy, lam) -> SurfaceFit:
                 for c in range(d):
                     upd = lv.expand(block[..., c], ps, pt)
                     view[c, CI, CJ] += upd
-                    if part == 0:
+                    if part == 0 or check_slopes:
                         # on the fitted pixels the new S - z is the update minus the old residual
-                        res[0][c] = (upd - res[0][c]) * ww
+                        res[part][c] = (upd - res[part][c]) * ww
             dist = np.abs(res[0][0]) if d == 1 else np.sqrt((res[0] * res[0]).sum(axis=0))
             worst = dist.reshape(len(CI), -1).max(axis=1)
+            if check_slopes:
+                ts, tt = lv.cells(targets[1])[0, CI, CJ], lv.cells(targets[2])[0, CI, CJ]
+                wac = lv.cells(wa)[CI, CJ]
+                excess = _cell_angles(ts + res[1][0], tt + res[2][0], ts, tt, h, wac) - lv.cells(own)[CI, CJ]
+                slope_miss = excess.reshape(len(CI), -1).sum(axis=1) > angle * wac.reshape(len(CI), -1).sum(axis=1)
         fail = worst > tol
+        if check_slopes:
+            fail |= slope_miss
         levels.append({"spacing_px": k, "cells": int(CI.size), "unknowns": int(fi.size), "refined": int(fail.sum())})
         if lev == top or not fail.any():
             leaves.append((lev, CI, CJ))

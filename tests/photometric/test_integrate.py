@@ -243,3 +243,30 @@ def test_robust_integrator_from_the_command_line(tmp_path):
     lsq, robust = (json.loads((tmp_path / i / "summary.json").read_text()) for i in ("lsq", "robust"))
     assert robust["integrator"] == "robust"
     assert robust["height_rmse_mm"] < 1.05 * lsq["height_rmse_mm"] + 1e-6
+
+
+def test_nearfield_takes_the_robust_integrator():
+    """A masked plane under point lights: the robust integral is the least-squares one (no curl)."""
+    from photometric.camera import make_camera, pixel_offsets
+    from photometric.lights import light_field, point_lights
+    from photometric.nearfield import INTEGRATORS, solve_nearfield
+
+    assert "robust" in INTEGRATORS
+    cam = make_camera("orthographic", pixel_size_mm=0.4)
+    shape = (30, 34)
+    a = np.radians(90.0 + 120.0 * np.arange(3))
+    pos = 150.0 * np.stack([np.sin(np.pi / 4) * np.cos(a), np.sin(np.pi / 4) * np.sin(a),
+                            np.full(3, np.cos(np.pi / 4))], axis=1)
+    x, y = np.meshgrid(*pixel_offsets(cam, shape))
+    X = np.stack([x, y, 0.1 * x], axis=-1)
+    n = np.array([-0.1, 0.0, 1.0]) / np.hypot(0.1, 1.0)
+    images = (0.8 * light_field(point_lights(pos), X) @ n).astype(np.float32)
+    mask = np.zeros(shape, bool)
+    mask[4:26, 3:30] = True
+    out = {m: solve_nearfield(images, point_lights(pos), cam, mask=mask, integrator=m, tolerance_mm=1e-5)
+           for m in ("lsq", "robust")}
+    assert np.isnan(out["robust"].height[~mask]).all()
+    plane = X[..., 2][mask]
+    # the anchor puts the median valid pixel at z = 0
+    np.testing.assert_allclose(out["robust"].height[mask], plane - np.median(plane), atol=2e-4)
+    np.testing.assert_allclose(out["robust"].height[mask], out["lsq"].height[mask], atol=1e-5)

@@ -179,6 +179,9 @@ def test_bad_input_is_a_clear_error():
         fit_height(z, p, q, step=0)
     with pytest.raises(ValueError, match="pixel_size"):
         fit_height(z, p, q, pixel_size=0)
+    for angle in (0.0, -1.0, np.nan):
+        with pytest.raises(ValueError, match="slope_angle"):
+            fit_height(z, p, q, slope_angle=angle)
     with pytest.raises(ValueError, match="xy"):
         fit_height(z, p, q, xy=np.zeros((16, 16, 3)))
     with pytest.raises(ValueError, match="height"):
@@ -423,6 +426,59 @@ def test_default_tolerance_stays_above_the_height_noise():
     # and the surface follows the plane more closely than the noisy heights do
     off_plane = (fit.deviation + (noisy - clean))[fit.region]  # deviation = surface - noisy height
     assert np.sqrt(np.mean(off_plane**2)) < 0.7 * np.sqrt(np.mean((noisy - clean) ** 2))
+
+
+def _angles(fit, p, q):
+    """Angle (degrees) between the fit's normals and the normals of slopes ``p, q`` on its region."""
+    n = np.stack([-p, -q, np.ones_like(p)], axis=-1)
+    n /= np.linalg.norm(n, axis=-1, keepdims=True)
+    return np.degrees(np.arccos(np.clip((fit.normals * n).sum(axis=-1), -1.0, 1.0)))[fit.region]
+
+
+def _ripples(amplitude=0.1, wavelength=8.0):
+    """A tilted plane with fine ripples (height under a noise-set tolerance, slopes of 4.5 deg)."""
+    r, c = np.mgrid[0:128, 0:128].astype(float)
+    k = 2.0 * np.pi / wavelength
+    z = 0.01 * c + amplitude * np.sin(k * c) * np.sin(k * r)
+    p = 0.01 + amplitude * k * np.cos(k * c) * np.sin(k * r)
+    q = -amplitude * k * np.sin(k * c) * np.cos(k * r)  # y up: dz/dy = -dz/drow
+    return z, p, q
+
+
+def test_slope_check_keeps_the_detail_a_noise_set_tolerance_lets_go():
+    """Fine ripples read as noise loosen the tolerance; the slope check still follows their normals."""
+    from surfaces.fit import SLOPE_ANGLE, SLOPE_CELL_PX
+
+    z, p, q = _ripples()
+    fit = fit_height(z, p, q, step=16)
+    # the noise term set the tolerance above the ripples' amplitude: the height alone
+    # would keep the 16 px patches (same tolerance, explicit: no slope check)
+    assert fit.tolerance > 0.1
+    loose = fit_height(z, p, q, step=16, tolerance=fit.tolerance)
+    assert loose.patch_sizes() == {16: 64}
+    assert _angles(loose, p, q).mean() > 2.0
+    # with the check the cells refine down to half of SLOPE_CELL_PX and follow the normals
+    assert min(fit.patch_sizes()) == SLOPE_CELL_PX // 2
+    assert _angles(fit, p, q).mean() < 0.5 * SLOPE_ANGLE
+    assert fit.max_deviation <= fit.tolerance
+    # an explicit slope_angle applies at any tolerance
+    forced = fit_height(z, p, q, step=16, tolerance=fit.tolerance, slope_angle=SLOPE_ANGLE)
+    assert forced.patch_sizes() == fit.patch_sizes()
+
+
+def test_slope_check_does_not_chase_noisy_normals():
+    """Noisy normals and their integral: the height's own normals miss them as much, no refinement."""
+    from photometric.integrate import dct_poisson
+
+    rng = np.random.default_rng(1)
+    p = 0.01 + rng.normal(0.0, 0.05, (128, 128))
+    q = rng.normal(0.0, 0.05, (128, 128))
+    z = dct_poisson(p, q)
+    fit = fit_height(z, p, q, step=16)
+    plain = fit_height(z, p, q, step=16, tolerance=fit.tolerance)  # no slope check
+    assert fit.tolerance > 10 * RELATIVE_TOLERANCE * np.ptp(np.percentile(z, [0.5, 99.5]))  # noise-set
+    assert fit.patch_sizes() == plain.patch_sizes()
+    assert min(fit.patch_sizes()) >= 8
 
 
 @pytest.mark.parametrize("shape,scale", [((120, 90), 8.0), ((64, 64), 0.5), ((5, 7), 4.0), ((40, 33), 2.0)])
