@@ -210,7 +210,9 @@ def register(sub) -> None:
                    "coons (Coons patches through every STEP-th height, tangents from single pixels)")
     p.add_argument("--surface-tolerance", type=float, default=None, metavar="MM",
                    help="fit: largest deviation of the surface from the integrated height, mm "
-                   "(default 0.5 %% of the height range)")
+                   "(default 0.5 %% of the height range, or 0.01 px, or four times the height's noise at "
+                   "half the largest patch, whichever is largest; where the noise sets it, cells whose normals "
+                   "miss the measured ones by 1 deg more than the height's own are refined too)")
     p.add_argument("--force", action="store_true",
                    help="solve even when the light matrix's condition number is above 100 (nearly coplanar "
                    "lights; above 10 it is a warning; summary.json light_condition_number)")
