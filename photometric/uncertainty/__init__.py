@@ -49,9 +49,10 @@ The far-field solve is ``m = C x`` with ``C = L^+`` (3, N), ``x_k = I_k / E_k`` 
 * Width, length and area depend on the segmentation: their budget holds the pixel size,
   the pixel quantisation of the outline (the spread of the same measures over the
   measured outline, a stadium, rasterised at random sub-pixel offsets) and the measures'
-  own bias found the same way (``method_bias``: e.g. the ``+ 1`` pixel of the extent,
-  stated as the standard uncertainty whose k = 2 interval holds 95 % of the biased
-  spread). The volume gets the place of its outline.
+  own bias found the same way (``method_bias``: what the errors' 95th percentile holds
+  beyond twice their spread, e.g. their skew). The length is measured to a sub-pixel
+  (:func:`photometric.defects._stadium_length`), so it carries no known bias to correct.
+  The volume gets the place of its outline.
 * The depth's pixel-grid error comes from a model of the defect: a parabolic-section
   groove of the measured depth, width, length and axis whose exact slopes at the pixel
   centres are integrated and measured like the solve, at random sub-pixel placements

@@ -11,6 +11,7 @@ import numpy as np
 import scipy.fft as sfft
 from scipy import ndimage
 
+from photometric.defects import _stadium_length
 from photometric.uncertainty.budget import _H_POWER
 from photometric.uncertainty.heights import _linear_variance, _mode_variance, _point_variance
 
@@ -182,8 +183,9 @@ def _rasterised(width: float, length: float, axis_deg: float, h: float, offsets:
     """Width, length and area (as :func:`photometric.defects.measure_defects` measures them)
     of stadiums (``width``, ``length`` in pixels, axis in degrees) rasterised at sub-pixel
     offsets: the pixel centres inside a stadium are its region, measured as
-    :func:`photometric.defects._measure` does (principal axis, extent along it plus one
-    pixel, pixels of the central half per pixel of half the length), all stadiums at once.
+    :func:`photometric.defects._measure` does (principal axis, the sub-pixel length of
+    :func:`photometric.defects._stadium_length`, pixels of the central half per pixel of
+    half the length), all stadiums at once.
 
     ``offsets`` is (n, 2) (``dx, dy``, pixels) or (n, 4) (also ``dwidth, dlength`` added to
     the stadium's width and length, pixels). Returns lists of the measures (mm, mm^2) and,
@@ -227,7 +229,8 @@ def _rasterised(width: float, length: float, axis_deg: float, h: float, offsets:
     s = np.cos(angle)[:, None] * X + np.sin(angle)[:, None] * Y
     s_max = np.where(inside, s, -np.inf).max(axis=1)
     s_min = np.where(inside, s, np.inf).min(axis=1)
-    length_px = s_max - s_min + 1.0
+    s_c = s - ((w * s).sum(axis=1) / n)[:, None]
+    length_px = _stadium_length(n.astype(float), (w * s_c * s_c).sum(axis=1), s_max - s_min, 1.0)
     central = inside & (np.abs(s - 0.5 * (s_max + s_min)[:, None]) <= 0.25 * length_px[:, None])
     values["mean_width_mm"] = list(central.sum(axis=1) / np.maximum(0.5 * length_px, 1.0) * h)
     values["length_mm"] = list(length_px * h)
