@@ -251,7 +251,8 @@ def _build_unfolded(body: Body, spacing: float, options: SurfaceOptions | None,
         return first, None
     folded = []
     for i, (name, change) in enumerate(FALLBACKS):
-        if i and opts.method != "blending":
+        if i and (opts.method != "blending" or len(body.contours) < 2):
+            # one contour's side is the same prism whatever the blend (and has no slice-to-slice alignment)
             break
         b = first if i == 0 else build_body_once(body, spacing, replace(opts, **{k: v for k, v in change.items()
                                                                                  if k != "method"}),

@@ -17,7 +17,7 @@ from slices.body import BodySurface, build_body, build_stepped
 from slices.chaining import chain, offset_sensitivity, slab_volume
 from slices.io import SPACING_RTOL, Contour, ContourStack, check_spacing, load, parse_spacing
 from slices.options import ReadOptions, SurfaceOptions, surface_options
-from surfaces.mesh import TriangleMesh, merge_meshes
+from surfaces.mesh import TriangleMesh, merge_meshes, weld
 from surfaces.validate import positive
 
 
@@ -289,21 +289,26 @@ def solid_union(bodies: list[BodySurface]) -> TriangleMesh | None:
         result = manifold3d.Manifold.batch_boolean([result] + holes, manifold3d.OpType.Subtract)
     if result.status() != manifold3d.Error.NoError or result.is_empty():
         return None
-    verts, tri = _arrays(result.to_mesh64())
-    if np.linalg.norm(verts[tri] - verts[tri[:, [1, 2, 0]]], axis=-1).min() < 1e-9 * extent:
-        # where caps coincide the boolean can leave edges far below the overlap eps: slivers that pierce
-        # their neighbours (issue 19's test); collapsing them moves no face by more than that
-        verts, tri = _arrays(result.simplify(1e-9 * extent).to_mesh64())
-    return TriangleMesh(verts + centre, tri)
-
-
-def _arrays(out) -> tuple[np.ndarray, np.ndarray]:
-    """Vertices (V, 3) and triangles (T, 3) of a manifold3d Mesh64, property-split duplicates merged."""
-    verts = np.asarray(out.vert_properties, dtype=np.float64)[:, :3]
+    out = result.to_mesh64()
+    verts = np.asarray(out.vert_properties, dtype=np.float64)[:, :3] + centre
     tri = np.asarray(out.tri_verts, dtype=np.int64).reshape(-1, 3)
     merge_from = np.asarray(out.merge_from_vert, dtype=np.int64)
     if len(merge_from):
         remap = np.arange(len(verts))
         remap[merge_from] = np.asarray(out.merge_to_vert, dtype=np.int64)
         tri = remap[tri]
-    return verts, tri
+    return _collapse_slivers(TriangleMesh(verts, tri), 1e-10 * extent)
+
+
+def _collapse_slivers(mesh: TriangleMesh, tiny: float) -> TriangleMesh:
+    """The mesh with its edges shorter than ``tiny`` (mm) collapsed, when that keeps it closed and oriented.
+
+    Where caps coincide the boolean can leave edges far below the overlap eps: needles and
+    points that the self-intersection test sees piercing their neighbours.
+    """
+    tri = mesh.triangles
+    short = np.linalg.norm(mesh.vertices[tri] - mesh.vertices[np.roll(tri, 1, axis=1)], axis=-1) < tiny
+    if not short.any():
+        return mesh
+    welded = weld(mesh, tiny, candidates=np.unique(tri[short | np.roll(short, -1, axis=1)]))
+    return welded if welded.is_watertight() and welded.is_oriented() else mesh
