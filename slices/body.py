@@ -240,9 +240,14 @@ def build_body(body: Body, spacing: float, options: SurfaceOptions | None = None
     return _build_unfolded(body, spacing, options, mesh)[0]
 
 
-def _build_unfolded(body: Body, spacing: float, options: SurfaceOptions | None,
-                    mesh: bool) -> tuple[BodySurface, np.ndarray | None]:
-    """:func:`build_body`, and the folded-face mask of the surface kept (None when clean or unchecked)."""
+def _build_unfolded(body: Body, spacing: float, options: SurfaceOptions | None, mesh: bool,
+                    fewest: bool = True) -> tuple[BodySurface, np.ndarray | None]:
+    """:func:`build_body`, and the folded-face mask of the surface kept (None when clean or unchecked).
+
+    With ``fewest=False`` a body on which every surface folds keeps the last one tried, whose
+    folds alone are counted (the stepped slabs' cheaper choice: the aligned ruled surface folds
+    in the fewest slabs, and counting every surface's folds costs more than the steps).
+    """
     from surfaces.intersect import self_intersections
 
     opts = SurfaceOptions() if options is None else options
@@ -264,6 +269,8 @@ def _build_unfolded(body: Body, spacing: float, options: SurfaceOptions | None,
             b.self_intersecting_faces = 0
             return b, None
         folded.append(b)
+    if not fewest:
+        folded = folded[-1:]
     masks = []
     for b in folded:
         masks.append(self_intersections(b.mesh.vertices, b.mesh.triangles).faces)
@@ -278,7 +285,8 @@ def build_stepped(body: Body, spacing: float, options: SurfaceOptions | None = N
     """:func:`build_body`, with the slabs it cannot unfold stepped: the last resort that never folds.
 
     When every surface of :data:`FALLBACKS` folds, the chain is cut at every
-    slab (pair of neighbouring planes) that holds a folded face, and each piece
+    slab (pair of neighbouring planes) where the last surface tried (with the
+    blending method the aligned ruled one, which folds in the fewest slabs) holds a folded face, and each piece
     is built again the same way (and cut again while it folds). Across a cut the
     lower piece ends in a half cap a half spacing above its last plane and the
     upper piece starts in one a half spacing below its first (chain ends
@@ -307,14 +315,15 @@ def build_stepped(body: Body, spacing: float, options: SurfaceOptions | None = N
         ``body.start``/``body.stop`` say ``"step"`` at a cut). A piece of one contour
         that still folds (its outline crosses itself) is kept as it is.
     """
-    built, folds = _build_unfolded(body, spacing, options, mesh)
+    built, folds = _build_unfolded(body, spacing, options, mesh, fewest=False)
     if folds is None or len(body.contours) < 2:
         return [built]
     centre_z = built.mesh.vertices[built.mesh.triangles[folds], 2].mean(axis=1)
     slab = np.searchsorted(body.z, centre_z) - 1
     cuts = np.unique(slab[(slab >= 0) & (slab < len(body.contours) - 1)])
     if not len(cuts):
-        return [built]
+        # folds in the caps only: nothing to step, the surface with the fewest folded faces is kept
+        return [build_body(body, spacing, options, mesh)]
     bounds = np.concatenate([[0], cuts + 1, [len(body.contours)]])
     out = []
     for i, (a, b) in enumerate(zip(bounds[:-1], bounds[1:])):
