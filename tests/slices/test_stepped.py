@@ -12,6 +12,7 @@ from slices.chaining import chain
 from slices.control_points import signed_area
 from slices.options import surface_options
 from slices.structure import _collapse_slivers, reconstruct_contours
+from slices.summary import chaining_text
 from surfaces.mesh import TriangleMesh
 from tests.slices._stacks import circle
 from tests.slices.test_solids import assert_clean_solid
@@ -43,6 +44,7 @@ def test_stepped_slabs_unfold_the_fold_phantoms(name):
     for low, high in zip(pieces[:-1], pieces[1:]):
         assert low.body.stop == high.body.start == "step"
         assert low.caps_used[1] == high.caps_used[0] == "half"
+    assert f"{len(sizes) - 1} slab(s) stepped" in chaining_text(rec)
     # a stepped slab encloses what the blend did, to the trapezoid rule
     assert rec.volume_mm3 == pytest.approx(whole.volume_mm3, rel=0.01)
     solid, united = rec.solid_mesh()
