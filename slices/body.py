@@ -237,15 +237,27 @@ def build_body(body: Body, spacing: float, options: SurfaceOptions | None = None
     faces, is kept (``surface`` and ``self_intersecting_faces`` say which).
     See :func:`build_body_once` for the parameters.
     """
+    return _build_unfolded(body, spacing, options, mesh)[0]
+
+
+def _build_unfolded(body: Body, spacing: float, options: SurfaceOptions | None, mesh: bool,
+                    fewest: bool = True) -> tuple[BodySurface, np.ndarray | None]:
+    """:func:`build_body`, and the folded-face mask of the surface kept (None when clean or unchecked).
+
+    With ``fewest=False`` a body on which every surface folds keeps the last one tried, whose
+    folds alone are counted (the stepped slabs' cheaper choice: the aligned ruled surface folds
+    in the fewest slabs, and counting every surface's folds costs more than the steps).
+    """
     from surfaces.intersect import self_intersections
 
     opts = SurfaceOptions() if options is None else options
     first = build_body_once(body, spacing, opts, mesh=mesh)
     if not (mesh and opts.unfold):
-        return first
+        return first, None
     folded = []
     for i, (name, change) in enumerate(FALLBACKS):
-        if i and opts.method != "blending":
+        if i and (opts.method != "blending" or len(body.contours) < 2):
+            # one contour's side is the same prism whatever the blend (and has no slice-to-slice alignment)
             break
         b = first if i == 0 else build_body_once(body, spacing, replace(opts, **{k: v for k, v in change.items()
                                                                                  if k != "method"}),
@@ -255,12 +267,70 @@ def build_body(body: Body, spacing: float, options: SurfaceOptions | None = None
         # a surface that folds is passed over at its first fold, its folds are counted only if all fold
         if self_intersections(b.mesh.vertices, b.mesh.triangles, first=True).n_faces == 0:
             b.self_intersecting_faces = 0
-            return b
+            return b, None
         folded.append(b)
+    if not fewest:
+        folded = folded[-1:]
+    masks = []
     for b in folded:
-        b.self_intersecting_faces = self_intersections(b.mesh.vertices, b.mesh.triangles).n_faces
+        masks.append(self_intersections(b.mesh.vertices, b.mesh.triangles).faces)
+        b.self_intersecting_faces = int(masks[-1].sum())
     # the first of the fewest folded faces
-    return min(folded, key=lambda b: b.self_intersecting_faces)
+    best = min(range(len(folded)), key=lambda i: folded[i].self_intersecting_faces)
+    return folded[best], masks[best]
+
+
+def build_stepped(body: Body, spacing: float, options: SurfaceOptions | None = None,
+                  mesh: bool = True) -> list[BodySurface]:
+    """:func:`build_body`, with the slabs it cannot unfold stepped: the last resort that never folds.
+
+    When every surface of :data:`FALLBACKS` folds, the chain is cut at every
+    slab (pair of neighbouring planes) where the last surface tried (with the
+    blending method the aligned ruled one, which folds in the fewest slabs) holds a folded face, and each piece
+    is built again the same way (and cut again while it folds). Across a cut the
+    lower piece ends in a half cap a half spacing above its last plane and the
+    upper piece starts in one a half spacing below its first (chain ends
+    ``"step"``, as at a branching), so the slab becomes two prisms that meet in
+    the mid-plane, where the union of the bodies (:func:`slices.structure.solid_union`)
+    joins them: a step in the wall instead of faces that cut through each other.
+    Such a slab encloses ``d (A_k + A_k+1) / 2``, the trapezoid rule the blend
+    approximates.
+
+    Parameters
+    ----------
+    body : Body
+        Contours on consecutive planes.
+    spacing : float
+        Slice spacing in mm.
+    options : SurfaceOptions, optional
+        As for :func:`build_body_once`; the slabs are stepped only with
+        ``unfold`` and a mesh.
+    mesh : bool
+        Build the triangle mesh.
+
+    Returns
+    -------
+    list of BodySurface
+        The body, or its pieces in order of ``z`` (each with its own ``surface``;
+        ``body.start``/``body.stop`` say ``"step"`` at a cut). A piece of one contour
+        that still folds (its outline crosses itself) is kept as it is.
+    """
+    built, folds = _build_unfolded(body, spacing, options, mesh, fewest=False)
+    if folds is None or len(body.contours) < 2:
+        return [built]
+    centre_z = built.mesh.vertices[built.mesh.triangles[folds], 2].mean(axis=1)
+    slab = np.searchsorted(body.z, centre_z) - 1
+    cuts = np.unique(slab[(slab >= 0) & (slab < len(body.contours) - 1)])
+    if not len(cuts):
+        # folds in the caps only: nothing to step, the surface with the fewest folded faces is kept
+        return [build_body(body, spacing, options, mesh)]
+    bounds = np.concatenate([[0], cuts + 1, [len(body.contours)]])
+    out = []
+    for i, (a, b) in enumerate(zip(bounds[:-1], bounds[1:])):
+        piece = Body(body.kind, body.contours[a:b], body.start if i == 0 else "step",
+                     body.stop if b == len(body.contours) else "step")
+        out.extend(build_stepped(piece, spacing, options, mesh))
+    return out
 
 
 def build_body_once(body: Body, spacing: float, options: SurfaceOptions | None = None,

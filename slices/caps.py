@@ -357,7 +357,7 @@ def end_kinds(caps: str, start: str, stop: str, n_contours: int = 2) -> tuple[st
         The requested caps.
     start, stop : str
         Why the body's chain starts and stops (:class:`slices.chaining.Body`):
-        ``"end"``, ``"branch"``, ``"merge"`` or ``"split"``.
+        ``"end"``, ``"branch"``, ``"merge"``, ``"split"`` or ``"step"`` (a stepped slab, half caps).
     n_contours : int
         Contours in the body. A single contour has no thickness with none/flat
         caps; it gets half caps there instead (the slab of one spacing that

@@ -58,7 +58,9 @@ class Body:
         chain's part of a contour split at a branching or merge, or the chain
         continues from such a split above its first plane: a flat joint).
     stop : str
-        Why it stops: ``"end"``, ``"branch"``, ``"merge"``, ``"split"``.
+        Why it stops: ``"end"``, ``"branch"``, ``"merge"``, ``"split"``; or ``"step"``
+        (start and stop) where :func:`slices.body.build_stepped` cut a chain at a slab that
+        folds in every surface.
     """
 
     kind: str

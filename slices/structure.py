@@ -13,11 +13,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from slices.body import BodySurface, build_body
+from slices.body import BodySurface, build_body, build_stepped
 from slices.chaining import chain, offset_sensitivity, slab_volume
 from slices.io import SPACING_RTOL, Contour, ContourStack, check_spacing, load, parse_spacing
 from slices.options import ReadOptions, SurfaceOptions, surface_options
-from surfaces.mesh import TriangleMesh, merge_meshes
+from surfaces.mesh import TriangleMesh, merge_meshes, weld
 from surfaces.validate import positive
 
 
@@ -192,7 +192,7 @@ def reconstruct_contours(contours: list[Contour], *, spacing: float | None = Non
     bodies = chain(contours, None if irregular else d)
     built = []
     for i, body in enumerate(bodies):
-        built.append(build_body(body, d, opts, mesh=mesh))
+        built.extend(build_stepped(body, d, opts, mesh=mesh))
         if progress is not None:
             progress(i + 1, len(bodies))
     sign = {"outer": 1.0, "hole": -1.0}
@@ -297,4 +297,18 @@ def solid_union(bodies: list[BodySurface]) -> TriangleMesh | None:
         remap = np.arange(len(verts))
         remap[merge_from] = np.asarray(out.merge_to_vert, dtype=np.int64)
         tri = remap[tri]
-    return TriangleMesh(verts, tri)
+    return _collapse_slivers(TriangleMesh(verts, tri), 1e-10 * extent)
+
+
+def _collapse_slivers(mesh: TriangleMesh, tiny: float) -> TriangleMesh:
+    """The mesh with its edges shorter than ``tiny`` (mm) collapsed, when that keeps it closed and oriented.
+
+    Where caps coincide the boolean can leave edges far below the overlap eps: needles and
+    points that the self-intersection test sees piercing their neighbours.
+    """
+    tri = mesh.triangles
+    short = np.linalg.norm(mesh.vertices[tri] - mesh.vertices[np.roll(tri, 1, axis=1)], axis=-1) < tiny
+    if not short.any():
+        return mesh
+    welded = weld(mesh, tiny, candidates=np.unique(tri[short | np.roll(short, -1, axis=1)]))
+    return welded if welded.is_watertight() and welded.is_oriented() else mesh

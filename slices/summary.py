@@ -78,8 +78,12 @@ def chaining_text(rec: Reconstruction) -> str:
     if joined:
         text += (f"; {joined} chain end(s) joined at a contour divided along the mid-line between its "
                  "branches (flat joints inside the union)")
+    steps = sum(b.body.stop == "step" for b in rec.bodies)
+    if steps:
+        text += (f"; {steps} slab(s) stepped where every fallback surface folded (two half caps meeting "
+                 "half-way, ends \"step\")")
     singles = sum(len(b.body.contours) == 1 and b.caps_used == ("half", "half") and rec.options.caps in ("none", "flat")
-                  for b in rec.bodies)
+                  and "step" not in (b.body.start, b.body.stop) for b in rec.bodies)
     if singles:
         text += (f"; {singles} single-contour body(ies) given half caps (no thickness with "
                  f"caps {rec.options.caps})")
