@@ -66,6 +66,12 @@ def _cells_per_box(c0: np.ndarray, c1: np.ndarray) -> tuple[np.ndarray, np.ndarr
     return box, (c0[box, 0] + local // ey) * width + c0[box, 1] + local % ey
 
 
+def _box(c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Low and high corners (T, 3) of the boxes of triangles (T, 3, 3); three-way minimum and maximum
+    rather than a reduction over the short middle axis, which numpy does several times slower."""
+    return np.minimum(np.minimum(c[:, 0], c[:, 1]), c[:, 2]), np.maximum(np.maximum(c[:, 0], c[:, 1]), c[:, 2])
+
+
 def candidate_pairs(corners: np.ndarray) -> np.ndarray:
     """Broad phase: pairs of triangles whose bounding boxes overlap.
 
@@ -89,7 +95,7 @@ def candidate_pairs(corners: np.ndarray) -> np.ndarray:
     c = as_array(corners, "corners", shape=(None, 3, 3))
     if len(c) < 2:
         return np.zeros((0, 2), dtype=np.int64)
-    lo, hi = c.min(axis=1), c.max(axis=1)
+    lo, hi = _box(c)
     span = hi.max(axis=0) - lo.min(axis=0)
     axis = int(np.argmax(span))
     grid = [k for k in range(3) if k != axis]
@@ -330,7 +336,8 @@ def self_intersections(vertices, triangles, *, eps: float = 1e-9, first: bool = 
     corners = v[t]
     normal = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
     area2 = np.linalg.norm(normal, axis=1)
-    size = np.ptp(corners, axis=1).max(axis=1)
+    lo, hi = _box(corners)
+    size = (hi - lo).max(axis=1)
     # per face: normal, offset, |normal| (the plane test's scale)
     plane = np.column_stack([normal, np.einsum("ij,ij->i", normal, corners[:, 0]), area2])
     # a plane-distance tolerance far above rounding, far below any crossing the segment tests accept
