@@ -18,6 +18,7 @@ booleans are the peers.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -41,7 +42,8 @@ class SelfIntersections:
     pairs : numpy.ndarray, shape (P, 2) int64
         The intersecting pairs of face indices (``a < b``).
     n_candidates : int
-        Pairs the broad phase handed to the narrow phase.
+        Pairs the broad phase handed to the narrow phase (with ``first``, up to the block
+        where the test stopped).
     """
 
     faces: np.ndarray
@@ -93,8 +95,16 @@ def candidate_pairs(corners: np.ndarray) -> np.ndarray:
         Unique pairs ``a < b`` whose boxes overlap.
     """
     c = as_array(corners, "corners", shape=(None, 3, 3))
-    if len(c) < 2:
-        return np.zeros((0, 2), dtype=np.int64)
+    found = list(_candidate_blocks(c)) if len(c) >= 2 else []
+    return np.concatenate(found) if found else np.zeros((0, 2), dtype=np.int64)
+
+
+def _candidate_blocks(c: np.ndarray) -> Iterator[np.ndarray]:
+    """:func:`candidate_pairs` of corners (T >= 2, 3, 3), block after block (P_i, 2) in the same order.
+
+    The sort is global, the pairs are made block by block: a caller that stops at the first
+    intersection (:func:`self_intersections` with ``first``) makes only the blocks it tests.
+    """
     lo, hi = _box(c)
     span = hi.max(axis=0) - lo.min(axis=0)
     axis = int(np.argmax(span))
@@ -123,7 +133,6 @@ def candidate_pairs(corners: np.ndarray) -> np.ndarray:
     bounds = np.searchsorted(np.cumsum(n_after), np.arange(_BLOCK, int(n_after.sum()) + _BLOCK, _BLOCK))
     cx, cy = c0[:, 0].copy(), c0[:, 1].copy()
     box = np.ascontiguousarray(np.hstack([lo, hi]))  # one gather per pair side, not six
-    found = []
     start = 0
     for stop in np.unique(np.minimum(np.append(bounds + 1, len(key)), len(key))):
         rows = np.arange(start, stop)
@@ -140,9 +149,8 @@ def candidate_pairs(corners: np.ndarray) -> np.ndarray:
         for k in (1, 2):
             keep &= (ba[:, k] <= bb[:, k + 3]) & (bb[:, k] <= ba[:, k + 3])
         a, b = a[keep], b[keep]
-        found.append(np.stack([np.minimum(a, b), np.maximum(a, b)], axis=1))
+        yield np.stack([np.minimum(a, b), np.maximum(a, b)], axis=1)
         start = stop
-    return np.concatenate(found) if found else np.zeros((0, 2), dtype=np.int64)
 
 
 def _columns(x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -343,15 +351,17 @@ def self_intersections(vertices, triangles, *, eps: float = 1e-9, first: bool = 
     # a plane-distance tolerance far above rounding, far below any crossing the segment tests accept
     tol = (eps * 1e-3) * size
     good = np.flatnonzero(area2 > 1e-12 * np.maximum(size, 1e-300) ** 2)
-    pairs = candidate_pairs(corners[good])
-    pairs = good[pairs] if len(pairs) else pairs
     found = []
-    for i in range(0, len(pairs), _BLOCK):
-        p = pairs[i:i + _BLOCK]
+    n_pairs = 0
+    # each block of the broad phase goes through the narrow phase at once: with ``first``, the
+    # pairs after the first intersecting block are never made
+    for block in _candidate_blocks(corners[good]) if len(good) >= 2 else ():
+        p = good[block]
+        n_pairs += len(p)
         hit = _pairs_intersect(corners, t_pairs, plane, tol, p[:, 0], p[:, 1], eps)
         found.append(p[hit])
         if first and hit.any():
             break
     hits = np.concatenate(found) if found else np.zeros((0, 2), dtype=np.int64)
     faces[hits.ravel()] = True
-    return SelfIntersections(faces, hits, int(len(pairs)))
+    return SelfIntersections(faces, hits, n_pairs)
