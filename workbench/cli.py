@@ -88,7 +88,7 @@ def build_parser(only: str | None = None) -> argparse.ArgumentParser:
         description="Surface-reconstruction workbench: photometric stereo and CT contour "
         "stacks converge on one Coons/Bezier surface model.",
     )
-    parser.add_argument("--version", action="version", version=f"%(prog)s {version()}")
+    parser.add_argument("--version", action=_Version, help="show program's version number and exit")
     top = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     for name, (help_text, modules) in GROUPS.items():
         group = top.add_parser(name, help=help_text, description=help_text)
@@ -119,6 +119,19 @@ def version() -> str:
         return installed("surface-workbench")
     except PackageNotFoundError:
         return "unknown"
+
+
+class _Version(argparse.Action):
+    """``--version`` as argparse prints it, the version looked up (importlib.metadata) only when asked for."""
+
+    def __init__(self, option_strings, dest=argparse.SUPPRESS, default=argparse.SUPPRESS, help=None):
+        super().__init__(option_strings=option_strings, dest=dest, default=default, nargs=0, help=help)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        formatter = parser._get_formatter()
+        formatter.add_text(f"{parser.prog} {version()}")
+        parser._print_message(formatter.format_help(), sys.stdout)
+        parser.exit()
 
 
 def _one_line_warning(message, category, filename, lineno, file=None, line=None) -> None:
