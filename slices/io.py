@@ -127,23 +127,32 @@ def open_keyholes(points) -> list[np.ndarray]:
 def _first_close_pair(q: np.ndarray, tol: float) -> tuple[int, int] | None:
     """The pair ``i < j`` of points of ``q`` (n, 2) at most ``tol`` apart with the smallest ``(i, j)``, or None.
 
-    A sweep along x: only points whose x differ by at most ``tol`` are compared (a
-    contour has a handful of such pairs, so this stays linear after the sort and
-    needs no k-d tree, whose import costs more than the search).
+    Points are hashed into square cells of side ``tol``; two points that close lie in
+    the same or neighbouring cells, and only those are compared (cells this small
+    hold one point each, bar the repeated ones), so the search stays linear after
+    one sort, however many points share an x or a y, and needs no k-d tree, whose
+    import costs more than the search.
     """
-    order = np.argsort(q[:, 0], kind="stable")
-    x = q[order, 0]
-    end = np.searchsorted(x, x + tol, side="right")
-    count = end - np.arange(len(x)) - 1
-    if not count.any():
+    cell = np.floor((q - q.min(axis=0)) / tol).astype(np.int64)
+    width = int(cell[:, 1].max()) + 3
+    key = cell[:, 0] * width + cell[:, 1] + 1
+    order = np.argsort(key, kind="stable")
+    sorted_key = key[order]
+    found = []
+    # each pair of neighbouring cells once: the same cell, and the cells above and to the right
+    for dx, dy in ((0, 0), (0, 1), (1, -1), (1, 0), (1, 1)):
+        target = key + dx * width + dy
+        lo = np.searchsorted(sorted_key, target, side="left")
+        count = np.searchsorted(sorted_key, target, side="right") - lo
+        first = np.repeat(np.arange(len(q)), count)
+        other = order[np.repeat(lo, count) + np.arange(len(first)) - np.repeat(np.cumsum(count) - count, count)]
+        keep = other != first if (dx, dy) == (0, 0) else np.ones(len(first), dtype=bool)
+        found.append(np.stack([first[keep], other[keep]], axis=1))
+    pairs = np.concatenate(found)
+    pairs = pairs[np.linalg.norm(q[pairs[:, 0]] - q[pairs[:, 1]], axis=1) <= tol]
+    if not len(pairs):
         return None
-    first = np.repeat(np.arange(len(x)), count)
-    second = first + 1 + np.arange(len(first)) - np.repeat(np.cumsum(count) - count, count)
-    a, b = order[first], order[second]
-    near = np.linalg.norm(q[a] - q[b], axis=1) <= tol
-    if not near.any():
-        return None
-    lo, hi = np.minimum(a[near], b[near]), np.maximum(a[near], b[near])
+    lo, hi = pairs.min(axis=1), pairs.max(axis=1)
     k = np.lexsort((hi, lo))[0]
     return int(lo[k]), int(hi[k])
 

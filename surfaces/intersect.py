@@ -200,8 +200,9 @@ def _one_side(corners: np.ndarray, face: np.ndarray, plane: np.ndarray, tol: np.
 
     Also returns the side of every corner (P, 3) int8: +1 or -1 beyond ``tol``, 0 within it.
 
-    ``corners`` (T, 3, 3) are per face; ``plane`` (P, 4: normal of length twice the area and the
-    plane's offset along it) and ``tol`` (P,) belong to the other triangle of every pair.
+    ``corners`` (T, 3, 3) are per face; ``plane`` (P, 5: normal of length twice the area, the
+    plane's offset along it, the normal's length) and ``tol`` (P,) belong to the other triangle
+    of every pair.
     No segment between two such corners crosses the plane, so no edge of ``face`` can pierce the
     other triangle.
     """
