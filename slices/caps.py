@@ -82,8 +82,6 @@ def fan_apex(curve, hint) -> np.ndarray:
         programme: the largest distance to every tangent line), else ``hint``
         (an outline with an empty kernel, such as a deep notch).
     """
-    from scipy.optimize import linprog
-
     c = as_array(curve, "curve", shape=(None, 4, 3))
     p = as_array(hint, "hint", shape=(2,))
     s = np.arange(APEX_SAMPLES) / APEX_SAMPLES
@@ -101,6 +99,8 @@ def fan_apex(curve, hint) -> np.ndarray:
     b = orient * (q[:, 0] * t[:, 1] - q[:, 1] * t[:, 0])
     if np.all(a @ p < b):
         return p
+    from scipy.optimize import linprog  # most caps see their curve from the hint: scipy is loaded only here
+
     res = linprog([0.0, 0.0, -1.0], A_ub=np.hstack([a, np.ones((len(a), 1))]), b_ub=b,
                   bounds=[(None, None), (None, None), (None, float(np.ptp(q, axis=0).max()))], method="highs")
     if res.status == 0 and res.x[2] > 0:

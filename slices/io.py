@@ -98,8 +98,6 @@ def open_keyholes(points) -> list[np.ndarray]:
     >>> [signed_area(loop) for loop in open_keyholes(keyhole)]
     [16.0, -4.0]
     """
-    from scipy.spatial import cKDTree
-
     p = np.asarray(points, dtype=np.float64)
     if p.ndim != 2 or len(p) < 4:
         return [p]
@@ -112,18 +110,51 @@ def open_keyholes(points) -> list[np.ndarray]:
     todo, loops, opened = [dedup(p)], [], False
     while todo:
         q = todo.pop()
-        pairs = cKDTree(q).query_pairs(tol, output_type="ndarray") if len(q) > 3 else np.zeros((0, 2), int)
-        if not len(pairs):
+        pair = _first_close_pair(q, tol) if len(q) > 3 else None
+        if pair is None:
             loops.append(q)
             continue
         opened = True
-        i, j = sorted(int(v) for v in pairs[0])
+        i, j = pair
         todo += [dedup(q[i:j]), dedup(np.concatenate([q[j:], q[:i]]))]
     if not opened:
         return [p]
     area = np.array([abs(signed_area(q)) if len(q) >= 3 else 0.0 for q in loops])
     order = np.argsort(-area, kind="stable")
     return [loops[k] for k in order if area[k] > 1e-9 * max(float(area.max()), 1e-300)]
+
+
+def _first_close_pair(q: np.ndarray, tol: float) -> tuple[int, int] | None:
+    """The pair ``i < j`` of points of ``q`` (n, 2) at most ``tol`` apart with the smallest ``(i, j)``, or None.
+
+    Points are hashed into square cells of side ``tol``; two points that close lie in
+    the same or neighbouring cells, and only those are compared (cells this small
+    hold one point each, bar the repeated ones), so the search stays linear after
+    one sort, however many points share an x or a y, and needs no k-d tree, whose
+    import costs more than the search.
+    """
+    cell = np.floor((q - q.min(axis=0)) / tol).astype(np.int64)
+    width = int(cell[:, 1].max()) + 3
+    key = cell[:, 0] * width + cell[:, 1] + 1
+    order = np.argsort(key, kind="stable")
+    sorted_key = key[order]
+    found = []
+    # each pair of neighbouring cells once: the same cell, and the cells above and to the right
+    for dx, dy in ((0, 0), (0, 1), (1, -1), (1, 0), (1, 1)):
+        target = key + dx * width + dy
+        lo = np.searchsorted(sorted_key, target, side="left")
+        count = np.searchsorted(sorted_key, target, side="right") - lo
+        first = np.repeat(np.arange(len(q)), count)
+        other = order[np.repeat(lo, count) + np.arange(len(first)) - np.repeat(np.cumsum(count) - count, count)]
+        keep = other != first if (dx, dy) == (0, 0) else np.ones(len(first), dtype=bool)
+        found.append(np.stack([first[keep], other[keep]], axis=1))
+    pairs = np.concatenate(found)
+    pairs = pairs[np.linalg.norm(q[pairs[:, 0]] - q[pairs[:, 1]], axis=1) <= tol]
+    if not len(pairs):
+        return None
+    lo, hi = pairs.min(axis=1), pairs.max(axis=1)
+    k = np.lexsort((hi, lo))[0]
+    return int(lo[k]), int(hi[k])
 
 
 def _contours_from_list(items, label: str, notes: list | None = None) -> list[Contour]:
@@ -214,14 +245,19 @@ def _damaged_rtstruct_is_bad_input(read):
 _INCOMPLETE = (AttributeError, KeyError, TypeError, ValueError, IndexError, EOFError, OSError)
 
 
-def _open_rtstruct(path):
-    """Path, dataset and ROI table of an RT Structure Set file (checked: it exists, holds ROIs, is whole)."""
+def _open_rtstruct(path, counts: bool = True):
+    """Path, dataset and ROI table of an RT Structure Set file (checked: it exists, holds ROIs, is whole).
+
+    With ``counts=False`` the table holds numbers and names only: no ROI's points
+    are parsed (most of the reading time when one ROI is wanted); pydicom reads
+    every sequence item when the file is opened, so a cut file is still found.
+    """
     path = _existing(path, "RT structure set file")
     ds = _read_dicom(path)
     if "StructureSetROISequence" not in ds:
         raise ValueError(f"{path}: not an RT Structure Set (no StructureSetROISequence)")
     try:
-        table = _roi_table(ds)
+        table = _roi_table(ds) if counts else _roi_names(ds)
     except _INCOMPLETE as exc:
         raise ValueError(f"{path}: the RT Structure Set is truncated or incomplete "
                          f"({type(exc).__name__}: {exc})") from None
@@ -244,6 +280,11 @@ def list_rois(path) -> list[dict]:
         ``max_points`` (int) per ROI, in file order.
     """
     return _open_rtstruct(path)[2]
+
+
+def _roi_names(ds) -> list[dict]:
+    """``number`` and ``name`` of every ROI (the contours are left unparsed)."""
+    return [{"number": int(roi.ROINumber), "name": str(roi.ROIName)} for roi in ds.StructureSetROISequence]
 
 
 def _roi_table(ds) -> list[dict]:
@@ -287,7 +328,7 @@ def read_rtstruct(path, roi) -> ContourStack:
         contours, non-planar or non-axial contours, fewer than 3 points,
         self-intersecting contours.
     """
-    path, ds, rois = _open_rtstruct(path)
+    path, ds, rois = _open_rtstruct(path, counts=False)
     if roi is None:
         raise ValueError(
             f"{path}: choose an ROI with --roi; existing: " + ", ".join(r["name"] for r in rois)

@@ -159,15 +159,17 @@ def reconstruct(input_path, *, roi=None, union="auto", minus=(), plus=(), repair
         if len(rec.bodies) > 1:
             stack.notes.append(f"bodies' meshes concatenated, not united ({n_tri} triangles; "
                                "--union yes forces the union)")
-    if opts.caps != "none" and not (mesh.is_watertight() and mesh.is_oriented() and mesh.signed_volume() > 0):
+    # checked once here; the summary reports the same two flags
+    checks = {"watertight": mesh.is_watertight(), "oriented": mesh.is_oriented()}
+    if opts.caps != "none" and not (checks["watertight"] and checks["oriented"] and mesh.signed_volume() > 0):
         # never expected (tests check every capped breast ROI); said loudly rather than returned silently
         stack.notes.append("WARNING: the capped mesh is not a closed, consistently and outward oriented solid "
-                           f"(watertight {mesh.is_watertight()}, oriented {mesh.is_oriented()}, "
+                           f"(watertight {checks['watertight']}, oriented {checks['oriented']}, "
                            f"signed volume {mesh.signed_volume():.6g} mm^3)")
     t_ref = time.perf_counter()
     ref = compare(rec) if reference else None
     t_ref = time.perf_counter() - t_ref
     summary = summarize(input_path, stack, rec, mesh, united, composition, ref,
-                        {"surface_time_s": t_surface, "reference_time_s": t_ref})
+                        {"surface_time_s": t_surface, "reference_time_s": t_ref}, checks=checks)
     summary["time_s"] = time.perf_counter() - t0
     return SlicesReconstruction(stack, rec, mesh, united, composition, ref, summary)

@@ -91,7 +91,8 @@ def chaining_text(rec: Reconstruction) -> str:
 
 
 def summarize(input_path, stack: ContourStack, rec: Reconstruction, mesh: TriangleMesh, union: bool,
-              composition: dict | None, reference: dict | None, timings: dict) -> dict:
+              composition: dict | None, reference: dict | None, timings: dict, *,
+              checks: dict | None = None) -> dict:
     """The summary of a reconstruction.
 
     Parameters
@@ -112,6 +113,10 @@ def summarize(input_path, stack: ContourStack, rec: Reconstruction, mesh: Triang
         :func:`slices.reference.compare`'s record.
     timings : dict
         Seconds per stage, ``surface_time_s`` and ``reference_time_s``.
+    checks : dict, optional
+        ``watertight`` and ``oriented`` of ``mesh`` when the caller has checked them
+        already (:meth:`surfaces.mesh.TriangleMesh.is_watertight`, ``is_oriented``);
+        checked here otherwise.
 
     Returns
     -------
@@ -126,6 +131,8 @@ def summarize(input_path, stack: ContourStack, rec: Reconstruction, mesh: Triang
         are under ``composition.base``.
     """
     opts = rec.options
+    if checks is None:
+        checks = {"watertight": mesh.is_watertight(), "oriented": mesh.is_oriented()}
     n_out = sum(b.body.kind == "outer" for b in rec.bodies)
     by_caps = rec.volume_by_caps()
     volume = rec.volume_mm3 if composition is None else composition["result_volume_mm3"]
@@ -163,8 +170,8 @@ def summarize(input_path, stack: ContourStack, rec: Reconstruction, mesh: Triang
         "max_control_point_deviation_mm": rec.max_deviation_mm,
         "mesh_vertices": int(mesh.n_vertices),
         "mesh_triangles": int(mesh.n_triangles),
-        "mesh_watertight": bool(mesh.is_watertight()),
-        "mesh_oriented": bool(mesh.is_oriented()),
+        "mesh_watertight": bool(checks["watertight"]),
+        "mesh_oriented": bool(checks["oriented"]),
         "mesh_union": union,
         "bodies": body_table(rec),
         "chaining": chaining_text(rec),

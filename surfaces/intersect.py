@@ -18,6 +18,7 @@ booleans are the peers.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -41,7 +42,8 @@ class SelfIntersections:
     pairs : numpy.ndarray, shape (P, 2) int64
         The intersecting pairs of face indices (``a < b``).
     n_candidates : int
-        Pairs the broad phase handed to the narrow phase.
+        Pairs the broad phase handed to the narrow phase (with ``first``, up to the block
+        where the test stopped).
     """
 
     faces: np.ndarray
@@ -66,6 +68,12 @@ def _cells_per_box(c0: np.ndarray, c1: np.ndarray) -> tuple[np.ndarray, np.ndarr
     return box, (c0[box, 0] + local // ey) * width + c0[box, 1] + local % ey
 
 
+def _box(c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Low and high corners (T, 3) of the boxes of triangles (T, 3, 3); three-way minimum and maximum
+    rather than a reduction over the short middle axis, which numpy does several times slower."""
+    return np.minimum(np.minimum(c[:, 0], c[:, 1]), c[:, 2]), np.maximum(np.maximum(c[:, 0], c[:, 1]), c[:, 2])
+
+
 def candidate_pairs(corners: np.ndarray) -> np.ndarray:
     """Broad phase: pairs of triangles whose bounding boxes overlap.
 
@@ -87,9 +95,17 @@ def candidate_pairs(corners: np.ndarray) -> np.ndarray:
         Unique pairs ``a < b`` whose boxes overlap.
     """
     c = as_array(corners, "corners", shape=(None, 3, 3))
-    if len(c) < 2:
-        return np.zeros((0, 2), dtype=np.int64)
-    lo, hi = c.min(axis=1), c.max(axis=1)
+    found = list(_candidate_blocks(c)) if len(c) >= 2 else []
+    return np.concatenate(found) if found else np.zeros((0, 2), dtype=np.int64)
+
+
+def _candidate_blocks(c: np.ndarray) -> Iterator[np.ndarray]:
+    """:func:`candidate_pairs` of corners (T >= 2, 3, 3), block after block (P_i, 2) in the same order.
+
+    The sort is global, the pairs are made block by block: a caller that stops at the first
+    intersection (:func:`self_intersections` with ``first``) makes only the blocks it tests.
+    """
+    lo, hi = _box(c)
     span = hi.max(axis=0) - lo.min(axis=0)
     axis = int(np.argmax(span))
     grid = [k for k in range(3) if k != axis]
@@ -116,8 +132,7 @@ def candidate_pairs(corners: np.ndarray) -> np.ndarray:
     # raw pairs are made block by block of rows, so memory stays bounded however many there are
     bounds = np.searchsorted(np.cumsum(n_after), np.arange(_BLOCK, int(n_after.sum()) + _BLOCK, _BLOCK))
     cx, cy = c0[:, 0].copy(), c0[:, 1].copy()
-    axes = [(lo[:, k].copy(), hi[:, k].copy()) for k in range(3)]
-    found = []
+    box = np.ascontiguousarray(np.hstack([lo, hi]))  # one gather per pair side, not six
     start = 0
     for stop in np.unique(np.minimum(np.append(bounds + 1, len(key)), len(key))):
         rows = np.arange(start, stop)
@@ -129,30 +144,53 @@ def candidate_pairs(corners: np.ndarray) -> np.ndarray:
         # (tested first: most raw rows are such repeats, and the test needs two integer columns only)
         keep = np.maximum(cx[a], cx[b]) * width + np.maximum(cy[a], cy[b]) == key[first]
         a, b = a[keep], b[keep]
-        keep = np.ones(len(a), dtype=bool)
-        for lo_k, hi_k in axes:
-            keep &= (lo_k[a] <= hi_k[b]) & (lo_k[b] <= hi_k[a])
+        ba, bb = box[a], box[b]
+        keep = (ba[:, 0] <= bb[:, 3]) & (bb[:, 0] <= ba[:, 3])
+        for k in (1, 2):
+            keep &= (ba[:, k] <= bb[:, k + 3]) & (bb[:, k] <= ba[:, k + 3])
         a, b = a[keep], b[keep]
-        found.append(np.stack([np.minimum(a, b), np.maximum(a, b)], axis=1))
+        yield np.stack([np.minimum(a, b), np.maximum(a, b)], axis=1)
         start = stop
-    return np.concatenate(found) if found else np.zeros((0, 2), dtype=np.int64)
+
+
+def _columns(x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The x, y and z columns of points (N, 3)."""
+    return x[:, 0], x[:, 1], x[:, 2]
+
+
+def _minus(x: tuple, y: tuple) -> tuple:
+    return x[0] - y[0], x[1] - y[1], x[2] - y[2]
+
+
+def _cross(x: tuple, y: tuple) -> tuple:
+    return x[1] * y[2] - x[2] * y[1], x[2] * y[0] - x[0] * y[2], x[0] * y[1] - x[1] * y[0]
+
+
+def _dot(x: tuple, y: tuple) -> np.ndarray:
+    return x[0] * y[0] + x[1] * y[1] + x[2] * y[2]
 
 
 def _segment_hits(p: np.ndarray, q: np.ndarray, tri: np.ndarray, eps: float) -> np.ndarray:
-    """Whether segments ``p -> q`` (N, 3) cross triangles (N, 3, 3) in their interiors."""
-    d = q - p
-    e1 = tri[:, 1] - tri[:, 0]
-    e2 = tri[:, 2] - tri[:, 0]
-    h = np.cross(d, e2)
-    det = np.einsum("ij,ij->i", e1, h)
-    scale = np.linalg.norm(d, axis=1) * np.linalg.norm(e1, axis=1) * np.linalg.norm(e2, axis=1)
+    """Whether segments ``p -> q`` (N, 3) cross triangles (N, 3, 3) in their interiors.
+
+    Column by column (x, y, z arrays): on millions of short rows, numpy's ``cross`` and
+    ``einsum`` over a last axis of 3 cost more than the arithmetic written out.
+    """
+    p = _columns(p)
+    t0 = _columns(tri[:, 0])
+    d = _minus(_columns(q), p)
+    e1 = _minus(_columns(tri[:, 1]), t0)
+    e2 = _minus(_columns(tri[:, 2]), t0)
+    h = _cross(d, e2)
+    det = _dot(e1, h)
+    scale = np.sqrt(_dot(d, d)) * np.sqrt(_dot(e1, e1)) * np.sqrt(_dot(e2, e2))
     ok = np.abs(det) > eps * np.maximum(scale, 1e-300)
     inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
-    s = p - tri[:, 0]
-    u = np.einsum("ij,ij->i", s, h) * inv
-    qv = np.cross(s, e1)
-    v = np.einsum("ij,ij->i", d, qv) * inv
-    t = np.einsum("ij,ij->i", e2, qv) * inv
+    s = _minus(p, t0)
+    u = _dot(s, h) * inv
+    qv = _cross(s, e1)
+    v = _dot(d, qv) * inv
+    t = _dot(e2, qv) * inv
     return ok & (u > eps) & (v > eps) & (u + v < 1 - eps) & (t > eps) & (t < 1 - eps)
 
 
@@ -162,21 +200,30 @@ def _one_side(corners: np.ndarray, face: np.ndarray, plane: np.ndarray, tol: np.
 
     Also returns the side of every corner (P, 3) int8: +1 or -1 beyond ``tol``, 0 within it.
 
-    ``corners`` (T, 3, 3) and ``plane`` (T, 5: normal of length twice the area, the plane's
-    offset along it, the normal's length) are per face; ``plane`` is gathered for the other triangle of every pair.
+    ``corners`` (T, 3, 3) are per face; ``plane`` (P, 5: normal of length twice the area, the
+    plane's offset along it, the normal's length) and ``tol`` (P,) belong to the other triangle
+    of every pair.
     No segment between two such corners crosses the plane, so no edge of ``face`` can pierce the
     other triangle.
     """
-    c = corners[face]
-    pos = neg = None
-    side = np.zeros((len(face), 3), dtype=np.int8)
-    for i in range(3):
-        d = c[:, i, 0] * plane[:, 0] + c[:, i, 1] * plane[:, 1] + c[:, i, 2] * plane[:, 2] - plane[:, 3]
-        above, below = d > tol, d < -tol
-        side[:, i] = above.astype(np.int8) - below
-        p_i, n_i = above | shared[:, i], below | shared[:, i]
-        pos, neg = (p_i, n_i) if pos is None else (pos & p_i, neg & n_i)
-    return pos | neg, side
+    d = np.einsum("pij,pj->pi", corners[face], plane[:, :3]) - plane[:, 3:4]
+    above, below = d > tol[:, None], d < -tol[:, None]
+    side = above.view(np.int8) - below.view(np.int8)
+    # column by column: numpy's any/all along a short axis cost more than the three ands
+    pos, neg = above | shared, below | shared
+    return (pos[:, 0] & pos[:, 1] & pos[:, 2]) | (neg[:, 0] & neg[:, 1] & neg[:, 2]), side
+
+
+def _shared_corners(ta: np.ndarray, tb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Which corners of ``a`` are corners of ``b`` and the other way round (vertex indices (P, 3) each).
+
+    Returns ``in_b`` and ``in_a``, (P, 3) bool each: corner ``i`` of ``a`` is a corner of ``b``;
+    corner ``j`` of ``b`` is a corner of ``a``.
+    """
+    eq = [[ta[:, i] == tb[:, j] for j in range(3)] for i in range(3)]
+    in_b = np.stack([eq[i][0] | eq[i][1] | eq[i][2] for i in range(3)], axis=1)
+    in_a = np.stack([eq[0][j] | eq[1][j] | eq[2][j] for j in range(3)], axis=1)
+    return in_b, in_a
 
 
 def _pairs_intersect(corners: np.ndarray, t: np.ndarray, plane: np.ndarray, tol: np.ndarray,
@@ -186,9 +233,8 @@ def _pairs_intersect(corners: np.ndarray, t: np.ndarray, plane: np.ndarray, tol:
     ``corners`` (T, 3, 3), ``t`` (T, 3) vertex indices, ``plane`` (T, 5) normals (length twice
     the area), offsets and normal lengths, ``tol`` (T,) relative plane-distance tolerances, all per face.
     """
-    same = t[a][:, :, None] == t[b][:, None, :]  # (P, 3, 3): corner i of a is corner j of b
-    in_b, in_a = same.any(axis=2), same.any(axis=1)
-    n_shared = in_b.sum(axis=1, dtype=np.int8)
+    in_b, in_a = _shared_corners(t[a], t[b])
+    n_shared = in_b[:, 0].view(np.int8) + in_b[:, 1].view(np.int8) + in_b[:, 2].view(np.int8)
     hit = np.zeros(len(a), dtype=bool)
     # plane test first (Moller 1997): two triangles meet beyond a shared corner only if each one's
     # corners (the shared one aside) straddle the other's plane. Apart pairs: a triangle whose corners
@@ -199,14 +245,15 @@ def _pairs_intersect(corners: np.ndarray, t: np.ndarray, plane: np.ndarray, tol:
     if not len(k):
         return hit
     ak, bk = a[k], b[k]
+    pa, pb = plane[ak], plane[bk]
     tol_k = tol[ak] + tol[bk]
-    a_apart, side_a = _one_side(corners, ak, plane[bk], tol_k * plane[bk, 4], in_b[k])
-    b_apart, side_b = _one_side(corners, bk, plane[ak], tol_k * plane[ak, 4], in_a[k])
+    a_apart, side_a = _one_side(corners, ak, pb, tol_k * pb[:, 4], in_b[k])
+    b_apart, side_b = _one_side(corners, bk, pa, tol_k * pa[:, 4], in_a[k])
     keep = ~(a_apart | b_apart)
     sub = k[keep]
     if len(sub):
-        hit[sub] = _pairs_intersect_exact(corners[a[sub]], corners[b[sub]], same[sub], n_shared[sub], eps,
-                                          side_a[keep], side_b[keep])
+        hit[sub] = _pairs_intersect_exact(corners[a[sub]], corners[b[sub]], in_b[sub], in_a[sub], n_shared[sub],
+                                          eps, side_a[keep], side_b[keep])
     return hit
 
 
@@ -219,9 +266,9 @@ def _edge_hits(p: np.ndarray, q: np.ndarray, tri: np.ndarray, crosses: np.ndarra
     return h
 
 
-def _pairs_intersect_exact(ta: np.ndarray, tb: np.ndarray, same: np.ndarray, n_shared: np.ndarray,
-                           eps: float, side_a: np.ndarray, side_b: np.ndarray) -> np.ndarray:
-    """Segment-triangle tests for pairs of triangles (corners (N, 3, 3), shared corners (N, 3, 3)).
+def _pairs_intersect_exact(ta: np.ndarray, tb: np.ndarray, in_b: np.ndarray, in_a: np.ndarray,
+                           n_shared: np.ndarray, eps: float, side_a: np.ndarray, side_b: np.ndarray) -> np.ndarray:
+    """Segment-triangle tests for pairs of triangles (corners (N, 3, 3); shared corners of a and of b (N, 3)).
 
     ``side_a`` (N, 3) is the side of a's corners of b's plane (+1, -1, or 0 on it), ``side_b`` the
     other way round: an edge whose ends lie beyond the plane on one side cannot cross the triangle.
@@ -238,11 +285,11 @@ def _pairs_intersect_exact(ta: np.ndarray, tb: np.ndarray, same: np.ndarray, n_s
         hit[free] = h
     one = n_shared == 1
     if one.any():
-        a, b, s = ta[one], tb[one], same[one]
+        a, b = ta[one], tb[one]
         side1, side2 = side_a[one], side_b[one]
         rows = np.arange(len(a))
-        sa = np.argmax(s.any(axis=2), axis=1)  # shared corner of a
-        sb = np.argmax(s.any(axis=1), axis=1)  # shared corner of b
+        sa = np.argmax(in_b[one], axis=1)  # shared corner of a
+        sb = np.argmax(in_a[one], axis=1)  # shared corner of b
         # the edge opposite the shared corner
         a1, a2, b1, b2 = (sa + 1) % 3, (sa + 2) % 3, (sb + 1) % 3, (sb + 2) % 3
         h = _edge_hits(a[rows, a1], a[rows, a2], b, side1[rows, a1] * side1[rows, a2] <= 0, eps)
@@ -292,25 +339,30 @@ def self_intersections(vertices, triangles, *, eps: float = 1e-9, first: bool = 
         raise ValueError(f"triangles: indices must lie in [0, {len(v)})")
     t = t.astype(np.int64, copy=False)
     faces = np.zeros(len(t), dtype=bool)
+    # the narrow phase compares vertex indices of every candidate pair: half the bytes in int32
+    t_pairs = t.astype(np.int32) if len(v) < 2**31 else t
     # degenerate (zero-area) faces cannot be pierced in the interior; they are left out
     corners = v[t]
     normal = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
     area2 = np.linalg.norm(normal, axis=1)
-    size = np.ptp(corners, axis=1).max(axis=1)
+    lo, hi = _box(corners)
+    size = (hi - lo).max(axis=1)
     # per face: normal, offset, |normal| (the plane test's scale)
     plane = np.column_stack([normal, np.einsum("ij,ij->i", normal, corners[:, 0]), area2])
     # a plane-distance tolerance far above rounding, far below any crossing the segment tests accept
     tol = (eps * 1e-3) * size
     good = np.flatnonzero(area2 > 1e-12 * np.maximum(size, 1e-300) ** 2)
-    pairs = candidate_pairs(corners[good])
-    pairs = good[pairs] if len(pairs) else pairs
     found = []
-    for i in range(0, len(pairs), _BLOCK):
-        p = pairs[i:i + _BLOCK]
-        hit = _pairs_intersect(corners, t, plane, tol, p[:, 0], p[:, 1], eps)
+    n_pairs = 0
+    # each block of the broad phase goes through the narrow phase at once: with ``first``, the
+    # pairs after the first intersecting block are never made
+    for block in _candidate_blocks(corners[good]) if len(good) >= 2 else ():
+        p = good[block]
+        n_pairs += len(p)
+        hit = _pairs_intersect(corners, t_pairs, plane, tol, p[:, 0], p[:, 1], eps)
         found.append(p[hit])
         if first and hit.any():
             break
     hits = np.concatenate(found) if found else np.zeros((0, 2), dtype=np.int64)
     faces[hits.ravel()] = True
-    return SelfIntersections(faces, hits, int(len(pairs)))
+    return SelfIntersections(faces, hits, n_pairs)

@@ -197,3 +197,34 @@ def test_every_reader_names_a_missing_input(tmp_path):
         io.load(tmp_path / "none")
     with pytest.raises(FileNotFoundError, match="no such contour file"):
         io.read_contour_json(tmp_path)
+
+
+def test_keyholes_to_two_holes_open_into_three_loops():
+    """Two cuts from the outer loop, each to its own hole: every cut vertex comes twice, and the
+    loops come out whatever the order in which the repeated pairs are cut (largest first)."""
+    t = np.linspace(0, 2 * np.pi, 48, endpoint=False)
+    outer = np.stack([30 * np.cos(t), 30 * np.sin(t)], axis=1)
+    h = np.linspace(0, 2 * np.pi, 16, endpoint=False)
+
+    def hole(cx):
+        return np.stack([cx + 5 * np.cos(h), 5 * np.sin(-h)], axis=1)
+
+    right, left = hole(12.0), hole(-12.0)
+    # in from (30, 0) to the right hole and back, round to (-30, 0), in to the left hole and back
+    contour = np.concatenate([outer[:1], right[:1], right[1:], right[:1], outer[:1], outer[1:25], left[8:9],
+                              left[9:], left[:9], left[8:9], outer[24:]])
+    loops = io.open_keyholes(contour)
+    areas = [io.signed_area(loop) for loop in loops]
+    assert len(loops) == 3
+    assert abs(abs(areas[0]) - io.signed_area(outer)) < 1e-9 * io.signed_area(outer)
+    assert np.allclose(sorted(abs(x) for x in areas[1:]), [io.signed_area(hole(0.0)[::-1])] * 2)
+
+
+def test_one_roi_is_read_without_parsing_the_others(shared_data, monkeypatch):
+    """Reading one ROI parses that ROI's points only (the others' are left to pydicom)."""
+    path = shared_data / "rtstruct_breast" / "rtss.dcm"
+    parsed = []
+    real = io._contour_array
+    monkeypatch.setattr(io, "_contour_array", lambda item: parsed.append(1) or real(item))
+    stack = io.load(path, roi="Scar")
+    assert len(parsed) == len(stack.contours) < 441

@@ -94,3 +94,19 @@ def test_reading_options_reach_the_reader(tmp_path):
     result = reconstruct(path, reading=ReadOptions(spacing="2,0.5,0.5"), samples=1, reference=False)
     assert result.summary["source"] == "mask" and result.summary["spacing_mm"] == 2.0
     assert result.summary["volume_mm3"] == pytest.approx(4 / 3 * np.pi * 6.0**3, rel=0.15)
+
+
+def test_the_solid_is_checked_once_and_the_summary_reports_it(ellipsoid, monkeypatch):
+    """Watertight and oriented are checked once on the solid; the summary holds those answers."""
+    from surfaces.mesh import TriangleMesh
+
+    calls = []
+    for name in ("is_watertight", "is_oriented"):
+        real = getattr(TriangleMesh, name)
+        monkeypatch.setattr(TriangleMesh, name, lambda self, _r=real, _n=name: calls.append(_n) or _r(self))
+    path, _, _ = ellipsoid
+    result = reconstruct(path, n_rays=32, samples=2, caps="half", reference=False)
+    assert calls.count("is_watertight") == 1 and calls.count("is_oriented") == 1
+    monkeypatch.undo()
+    assert result.summary["mesh_watertight"] is result.mesh.is_watertight() is True
+    assert result.summary["mesh_oriented"] is result.mesh.is_oriented() is True

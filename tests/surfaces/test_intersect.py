@@ -90,3 +90,27 @@ def test_first_stops_at_a_fold_and_keeps_clean_meshes_clean():
     some = self_intersections(v, t, first=True)
     assert 0 < some.n_faces <= full.n_faces and not np.any(some.faces & ~full.faces)
     assert self_intersections(v1, t1, first=True).n_faces == 0
+
+
+def test_first_makes_fewer_candidate_pairs_on_a_fold_and_all_on_a_clean_mesh():
+    """With ``first``, the broad phase stops with the narrow phase: a fold early in the sweep is found
+    without making every pair; a clean mesh still has every pair tested."""
+    v1, t1 = uv_sphere(60)
+    v2, t2 = uv_sphere(60, 0.8, (1.0, 0.1, 0.05))
+    v, t = np.vstack([v1, v2]), np.vstack([t1, t2 + len(v1)])
+    full = self_intersections(v, t)
+    some = self_intersections(v, t, first=True)
+    assert full.n_candidates == len(candidate_pairs(v[t]))
+    assert some.n_faces > 0 and some.n_candidates < full.n_candidates
+    clean = self_intersections(v1, t1, first=True)
+    assert clean.n_faces == 0 and clean.n_candidates == len(candidate_pairs(v1[t1]))
+
+
+def test_pairs_sharing_a_vertex_count_only_beyond_it():
+    """A fan of two triangles sharing one vertex: flat (they meet in the vertex only) reads 0; the
+    second tilted through the first's interior reads both."""
+    v = np.array([[0.0, 0, 0], [2, 0, 0], [0, 2, 0], [-2, -1, 0], [-1, -2, 0]])
+    assert self_intersections(v, [[0, 1, 2], [0, 3, 4]]).n_faces == 0
+    # the second triangle's far edge, from (0.6, 0.6, 1) to (0.6, 0.6, -1), pierces the first one
+    w = np.array([[0.0, 0, 0], [2, 0, 0], [0, 2, 0], [0.6, 0.6, 1], [0.6, 0.6, -1]])
+    assert self_intersections(w, [[0, 1, 2], [0, 3, 4]]).n_faces == 2

@@ -150,3 +150,18 @@ def test_nifti_label_volume_on_the_command_line(tmp_path, capsys):
     assert main(["slices", "reconstruct", str(tmp_path / "labels.json"), "--label", "3",
                  "--out", str(tmp_path / "z")]) == 2
     assert "only for NIfTI" in capsys.readouterr().err
+
+
+def test_a_slices_command_line_registers_the_slices_commands_only():
+    """``main`` builds the parser of the group asked for (the other command modules are not imported)."""
+    from workbench.cli import GROUPS, build_parser
+
+    parser = build_parser("slices")
+    top = next(a for a in parser._actions if a.dest == "command")
+    assert set(GROUPS) <= set(top.choices)
+    commands = {name: next(a for a in top.choices[name]._actions if a.dest == "subcommand").choices
+                for name in GROUPS}
+    assert set(commands["slices"]) == {"reconstruct", "rois"}
+    assert not any(commands[name] for name in GROUPS if name != "slices")
+    args = parser.parse_args(["slices", "rois", "rtss.dcm"])
+    assert args.file == "rtss.dcm" and callable(args.func)

@@ -201,8 +201,6 @@ def write_result(result: SlicesReconstruction, out_dir, *, render: bool = True) 
         The library's summary with ``write_time_s``, ``render_time_s`` and the
         total ``time_s`` (s).
     """
-    from surfaces.render import render as render_views
-
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     t_write = time.perf_counter()
@@ -212,6 +210,8 @@ def write_result(result: SlicesReconstruction, out_dir, *, render: bool = True) 
     t_write = time.perf_counter() - t_write
     t_render = time.perf_counter()
     if render:
+        from surfaces.render import render as render_views  # loaded only when a picture is drawn
+
         write_png(out / "render.png",
                   render_views(result.display_mesh, views=RENDER_VIEWS, size=(1024, 768), colorbar=False))
     t_render = time.perf_counter() - t_render
