@@ -487,8 +487,8 @@ def _slope_footprint(p, q, slopes, inspect, h, slope_threshold, xy=None) -> np.n
     """Pixels whose slope differs from the background's (``slopes``: its ``d/d row, d/d col``,
     broadcastable); enclosed flat parts included.
 
-    Row block by row block: the slope excess is formed twice (for the threshold's medians and
-    for the comparison) instead of being kept as a full float64 image.
+    Row block by row block, in float32: the slope excess is formed twice (for the threshold's
+    medians and for the comparison) instead of being kept as a full image.
     """
     d_row, d_col = slopes
     if xy is None:
@@ -504,13 +504,15 @@ def _slope_footprint(p, q, slopes, inspect, h, slope_threshold, xy=None) -> np.n
         return a[rows] if np.ndim(a) == 2 and a.shape[0] != 1 else a
 
     def excess(rows):
-        dp = np.subtract(p[rows], part(d_col, rows) / part(dx_col, rows), dtype=float)
-        dq = np.subtract(q[rows], part(d_row, rows) / part(dy_row, rows), dtype=float)
-        out = np.hypot(dp, dq, out=dp)
+        # float32 (the slopes' own precision): the background's slopes broadcast from a row and a
+        # column on the grid, the difference's length in one OpenCV pass
+        with np.errstate(over="ignore"):  # a huge (non-finite input) excess is inf in float32
+            dp = np.subtract(p[rows], part(d_col, rows) / part(dx_col, rows), dtype=np.float32)
+            dq = np.subtract(q[rows], part(d_row, rows) / part(dy_row, rows), dtype=np.float32)
+        out = cv2.magnitude(np.ascontiguousarray(dp), np.ascontiguousarray(dq))
         # one finiteness test instead of nan_to_num's three passes (solvers give finite slopes)
         if not np.isfinite(out.sum()):
-            out = np.hypot(np.nan_to_num(np.subtract(p[rows], part(d_col, rows) / part(dx_col, rows), dtype=float)),
-                           np.nan_to_num(dq))
+            out = cv2.magnitude(np.nan_to_num(dp), np.nan_to_num(dq))
         return out
 
     blocks = _row_blocks(p.shape)
@@ -520,8 +522,7 @@ def _slope_footprint(p, q, slopes, inspect, h, slope_threshold, xy=None) -> np.n
         n = 0
         for rows in blocks:
             v = excess(rows)[inspect[rows]]
-            with np.errstate(over="ignore"):  # a huge (non-finite input) excess is inf in float32
-                values[n:n + v.size] = v
+            values[n:n + v.size] = v
             n += v.size
         med = float(np.median(values, overwrite_input=True))
         values -= np.float32(med)
