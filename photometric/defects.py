@@ -388,6 +388,35 @@ def _slopes(value, name: str, shape) -> np.ndarray:
     return arr if np.issubdtype(arr.dtype, np.floating) else arr.astype(np.float64)
 
 
+def _median(values: np.ndarray) -> float:
+    """``np.median`` of a large 1-D array, exactly, without partitioning all of it.
+
+    The two middle ranks lie, but for a rare sample, between two order statistics of an evenly
+    spread sample of about 20 000 values (4 standard deviations of a sample rank on either
+    side of its middle): one count below that bracket and a partition of the few values inside
+    it give them (when the bracket misses, or a value is NaN: the full :func:`numpy.median`).
+    About 4 passes over the values instead of a partition of all of them (a third of the time
+    at 5 MP).
+    """
+    n = values.size
+    if n < 1 << 16:
+        return float(np.median(values))
+    sample = np.sort(values[:: n // 20_000])
+    m = sample.size
+    spread = 4.0 * np.sqrt(m)
+    a, b = sample[max(0, int(m / 2 - spread))], sample[min(m - 1, int(m / 2 + spread))]
+    lo, hi = (n - 1) // 2, n // 2
+    if np.isfinite(a) and np.isfinite(b):
+        below = int(np.count_nonzero(values < a))
+        inside = values[(values >= a) & (values <= b)]
+        # NaN is in none of the three parts (np.median then gives NaN)
+        whole = below + inside.size + int(np.count_nonzero(values > b)) == n
+        if whole and below <= lo and hi < below + inside.size:
+            middle = np.partition(inside, [lo - below, hi - below])[[lo - below, hi - below]]
+            return float(np.mean(middle))  # as np.median: the mean of the two in the array's dtype
+    return float(np.median(values))
+
+
 def _row_blocks(shape):
     step = max(1, _BLOCK_PIXELS // max(shape[1], 1))
     return [slice(r0, min(shape[0], r0 + step)) for r0 in range(0, shape[0], step)]
@@ -524,9 +553,9 @@ def _slope_footprint(p, q, slopes, inspect, h, slope_threshold, xy=None) -> np.n
             v = excess(rows)[inspect[rows]]
             values[n:n + v.size] = v
             n += v.size
-        med = float(np.median(values, overwrite_input=True))
+        med = _median(values)
         values -= np.float32(med)
-        sigma = _MAD_TO_SIGMA * float(np.median(np.abs(values, out=values), overwrite_input=True))
+        sigma = _MAD_TO_SIGMA * _median(np.abs(values, out=values))
         del values
         slope_threshold = max(0.02, med + 6.0 * sigma)
     thr = positive(slope_threshold, "slope_threshold")

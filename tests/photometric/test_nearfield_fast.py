@@ -1,4 +1,4 @@
-"""The near-field solve's shortcuts for large parts against the exact per-pixel computation.
+"""The inspection's shortcuts for large parts (near-field solve, defect detection) against the exact computation.
 
 A full-resolution pass that re-solved only the pixels whose point moved integrates the slope
 change on a decimated grid (``correction_step``); its heights must stay within the stated
@@ -61,3 +61,22 @@ def test_correction_step_is_checked():
     for bad in (0, 2.5, -1):
         with pytest.raises(ValueError, match="correction_step: must be an integer of at least 1"):
             solve_nearfield(r.images[:, :64, :64], lights, cam, correction_step=bad)
+
+
+@pytest.mark.parametrize("n", [1000, 70_000, 70_001, 1_000_003])
+def test_defect_detection_median_is_numpy_median(n):
+    """The slope threshold's medians (photometric.defects, the inspection's detection stage) are
+    found from a bracket of a sample: exactly numpy's median, ties, infinities and NaN included."""
+    from photometric.defects import _median
+
+    rng = np.random.default_rng(n)
+    for dtype in (np.float32, np.float64):
+        v = (rng.standard_normal(n) ** 2).astype(dtype)
+        assert _median(v.copy()) == float(np.median(v))
+        v[::97] = np.inf
+        v[1::5] = v[0]  # many ties
+        assert _median(v.copy()) == float(np.median(v))
+        mad = np.abs(v - np.float32(np.median(v)))
+        assert _median(mad.copy()) == float(np.median(mad))
+        v[3] = np.nan
+        assert np.isnan(_median(v.copy()))
