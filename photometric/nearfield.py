@@ -31,8 +31,13 @@ Solution (the alternation of the papers above)
    resolution, step 2 re-solves only the pixels whose height moved by more than
    :data:`RESOLVE_FRACTION` of the tolerance since their normal was solved; the others
    keep their normals (a height error ``dz`` turns a light vector by about
-   ``dz / |P_k - X|``: 1e-6 rad for 0.1 um at 100 mm). Every pass integrates the whole
-   image; ``resolved_fraction`` in the history says how many pixels were re-solved.
+   ``dz / |P_k - X|``: 1e-6 rad for 0.1 um at 100 mm); ``resolved_fraction`` in the history
+   says how many pixels were re-solved. Every pass integrates the whole image; a
+   full-resolution pass that re-solved at most half of the pixels integrates only its slope
+   change, on a grid :data:`CORRECTION_STEP` times coarser, and adds it to the previous
+   field (integration is linear; kept only while the height change stays below
+   :data:`CORRECTION_MARGIN` of the tolerance, so the heights differ from a full-resolution
+   integration by less than that).
 
 Light vectors change slowly with depth, so the passes run first on a block-averaged copy
 of the images (at most ``coarse_pixels`` pixels) until they converge there, and then at
