@@ -390,6 +390,35 @@ def _slopes(value, name: str, shape) -> np.ndarray:
     return arr if np.issubdtype(arr.dtype, np.floating) else arr.astype(np.float64)
 
 
+def _median(values: np.ndarray) -> float:
+    """``np.median`` of a large 1-D array, exactly, without partitioning all of it.
+
+    The two middle ranks lie, but for a rare sample, between two order statistics of an evenly
+    spread sample of about 20 000 values (4 standard deviations of a sample rank on either
+    side of its middle): one count below that bracket and a partition of the few values inside
+    it give them (when the bracket misses, or a value is NaN: the full :func:`numpy.median`).
+    About 4 passes over the values instead of a partition of all of them (a third of the time
+    at 5 MP).
+    """
+    n = values.size
+    if n < 1 << 16:
+        return float(np.median(values))
+    sample = np.sort(values[:: n // 20_000])
+    m = sample.size
+    spread = 4.0 * np.sqrt(m)
+    a, b = sample[max(0, int(m / 2 - spread))], sample[min(m - 1, int(m / 2 + spread))]
+    lo, hi = (n - 1) // 2, n // 2
+    if np.isfinite(a) and np.isfinite(b):
+        below = int(np.count_nonzero(values < a))
+        inside = values[(values >= a) & (values <= b)]
+        # NaN is in none of the three parts (np.median then gives NaN)
+        whole = below + inside.size + int(np.count_nonzero(values > b)) == n
+        if whole and below <= lo and hi < below + inside.size:
+            middle = np.partition(inside, [lo - below, hi - below])[[lo - below, hi - below]]
+            return float(np.mean(middle))  # as np.median: the mean of the two in the array's dtype
+    return float(np.median(values))
+
+
 def _row_blocks(shape):
     step = max(1, _BLOCK_PIXELS // max(shape[1], 1))
     return [slice(r0, min(shape[0], r0 + step)) for r0 in range(0, shape[0], step)]
@@ -489,8 +518,8 @@ def _slope_footprint(p, q, slopes, inspect, h, slope_threshold, xy=None) -> np.n
     """Pixels whose slope differs from the background's (``slopes``: its ``d/d row, d/d col``,
     broadcastable); enclosed flat parts included.
 
-    Row block by row block: the slope excess is formed twice (for the threshold's medians and
-    for the comparison) instead of being kept as a full float64 image.
+    Row block by row block, in float32: the slope excess is formed twice (for the threshold's
+    medians and for the comparison) instead of being kept as a full image.
     """
     d_row, d_col = slopes
     if xy is None:
@@ -506,13 +535,15 @@ def _slope_footprint(p, q, slopes, inspect, h, slope_threshold, xy=None) -> np.n
         return a[rows] if np.ndim(a) == 2 and a.shape[0] != 1 else a
 
     def excess(rows):
-        dp = np.subtract(p[rows], part(d_col, rows) / part(dx_col, rows), dtype=float)
-        dq = np.subtract(q[rows], part(d_row, rows) / part(dy_row, rows), dtype=float)
-        out = np.hypot(dp, dq, out=dp)
+        # float32 (the slopes' own precision): the background's slopes broadcast from a row and a
+        # column on the grid, the difference's length in one OpenCV pass
+        with np.errstate(over="ignore"):  # a huge (non-finite input) excess is inf in float32
+            dp = np.subtract(p[rows], part(d_col, rows) / part(dx_col, rows), dtype=np.float32)
+            dq = np.subtract(q[rows], part(d_row, rows) / part(dy_row, rows), dtype=np.float32)
+        out = cv2.magnitude(np.ascontiguousarray(dp), np.ascontiguousarray(dq))
         # one finiteness test instead of nan_to_num's three passes (solvers give finite slopes)
         if not np.isfinite(out.sum()):
-            out = np.hypot(np.nan_to_num(np.subtract(p[rows], part(d_col, rows) / part(dx_col, rows), dtype=float)),
-                           np.nan_to_num(dq))
+            out = cv2.magnitude(np.nan_to_num(dp), np.nan_to_num(dq))
         return out
 
     blocks = _row_blocks(p.shape)
@@ -522,12 +553,11 @@ def _slope_footprint(p, q, slopes, inspect, h, slope_threshold, xy=None) -> np.n
         n = 0
         for rows in blocks:
             v = excess(rows)[inspect[rows]]
-            with np.errstate(over="ignore"):  # a huge (non-finite input) excess is inf in float32
-                values[n:n + v.size] = v
+            values[n:n + v.size] = v
             n += v.size
-        med = float(np.median(values, overwrite_input=True))
+        med = _median(values)
         values -= np.float32(med)
-        sigma = _MAD_TO_SIGMA * float(np.median(np.abs(values, out=values), overwrite_input=True))
+        sigma = _MAD_TO_SIGMA * _median(np.abs(values, out=values))
         del values
         slope_threshold = max(0.02, med + 6.0 * sigma)
     thr = positive(slope_threshold, "slope_threshold")

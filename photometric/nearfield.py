@@ -31,8 +31,13 @@ Solution (the alternation of the papers above)
    resolution, step 2 re-solves only the pixels whose height moved by more than
    :data:`RESOLVE_FRACTION` of the tolerance since their normal was solved; the others
    keep their normals (a height error ``dz`` turns a light vector by about
-   ``dz / |P_k - X|``: 1e-6 rad for 0.1 um at 100 mm). Every pass integrates the whole
-   image; ``resolved_fraction`` in the history says how many pixels were re-solved.
+   ``dz / |P_k - X|``: 1e-6 rad for 0.1 um at 100 mm); ``resolved_fraction`` in the history
+   says how many pixels were re-solved. Every pass integrates the whole image; a
+   full-resolution pass that re-solved at most half of the pixels integrates only its slope
+   change, on a grid :data:`CORRECTION_STEP` times coarser, and adds it to the previous
+   field (integration is linear; kept only while the height change stays below
+   :data:`CORRECTION_MARGIN` of the tolerance, so the heights differ from a full-resolution
+   integration by less than that).
 
 Light vectors change slowly with depth, so the passes run first on a block-averaged copy
 of the images (at most ``coarse_pixels`` pixels) until they converge there, and then at
@@ -69,6 +74,7 @@ from surfaces.validate import as_array, positive
 
 __all__ = [
     "DEFAULT_TOLERANCE_MM",
+    "CORRECTION_STEP",
     "COARSE_PIXELS",
     "ANCHOR_RULE",
     "NearFieldResult",
@@ -87,6 +93,17 @@ BLOCK_PIXELS = 1 << 15
 #: Passes after the first at a level re-solve the normals only of the pixels whose height moved by more
 #: than this fraction of the tolerance since their normal was solved (the others keep theirs).
 RESOLVE_FRACTION = 0.1
+#: Block size of the decimated integration of a partial full-resolution pass (1: every pass integrates the
+#: whole image at full resolution). Such a pass re-solved only the normals whose point moved (typically
+#: under a fifth of the pixels, each turned by about 1e-6 rad); integration is linear (``dct``, ``fc``), so
+#: its heights are the previous pass's field plus the integral of the slope change, here block-averaged,
+#: integrated on the r-times coarser grid and upsampled bilinearly. That correction is of the size of the
+#: height change the pass measures, and so is its error.
+CORRECTION_STEP = 4
+#: A decimated correction is kept only when the height change it gives is below this fraction of the
+#: tolerance (the pass then converges and the heights differ from a full-resolution integration by about
+#: that change at most); otherwise the pass integrates the whole image at full resolution.
+CORRECTION_MARGIN = 0.1
 #: The anchoring rule, as stated in ``summary.json``.
 ANCHOR_RULE = "median height of the valid pixels = reference_height_mm"
 INTEGRATORS = ("dct", "fc", "lsq", "robust")
@@ -320,6 +337,7 @@ def solve_nearfield(
     coarse_pixels: int = COARSE_PIXELS,
     threads: int | None = None,
     setup: NearFieldSetup | None = None,
+    correction_step: int = CORRECTION_STEP,
 ) -> NearFieldResult:
     """Normals, albedo and the surface from images under point lights (or distant ones).
 
@@ -363,6 +381,11 @@ def solve_nearfield(
     setup : NearFieldSetup, optional
         The rig's strengths prepared once (:func:`nearfield_setup`, with the gains given
         there instead of ``gains``); the result is the same as with ``gains``.
+    correction_step : int, optional
+        Block size r of the decimated integration of a full-resolution pass that re-solved
+        at most half of the pixels (:data:`CORRECTION_STEP`; ``dct`` and ``fc`` only, and
+        only while the height change stays below :data:`CORRECTION_MARGIN` of the
+        tolerance); 1: integrate every pass at full resolution.
 
     Returns
     -------
@@ -421,6 +444,8 @@ def solve_nearfield(
         raise ValueError(f"max_iterations: must be at least 1, got {max_iterations}")
     if int(coarse_pixels) < 1:
         raise ValueError(f"coarse_pixels: must be at least 1, got {coarse_pixels}")
+    if int(correction_step) != correction_step or correction_step < 1:
+        raise ValueError(f"correction_step: must be an integer of at least 1, got {correction_step}")
     ref = float(reference_height_mm)
     if not np.isfinite(ref):
         raise ValueError(f"reference_height_mm: must be finite, got {reference_height_mm}")
@@ -431,6 +456,7 @@ def solve_nearfield(
     return _solve_nearfield(
         imgs, lights, camera, intens, m, g, outliers, dark, saturation, highlight, integrator, ref,
         float(tolerance_mm), int(max_iterations), int(coarse_pixels), threads, setup=setup,
+        correction_step=int(correction_step),
     )
 
 
@@ -453,6 +479,7 @@ def _solve_nearfield(
     threads: int | None,
     *,
     setup: NearFieldSetup | None = None,
+    correction_step: int = CORRECTION_STEP,
 ) -> NearFieldResult:
     """:func:`solve_nearfield` on checked input (the pipeline calls this)."""
     if not isinstance(lights, PointLights):
@@ -490,7 +517,7 @@ def _solve_nearfield(
             coarse = _coarsen(fine, r, None if setup is None else setup.coarse.get(r))
             state = _alternate(coarse, *args, np.full(coarse.shape, reference_height_mm), pool, timings, history)
             z = _upsample(state["z"], r, shape)
-        state = _alternate(fine, *args, z, pool, timings, history)
+        state = _alternate(fine, *args, z, pool, timings, history, correction_step)
     sol, z = state["sol"], state["z"]
     valid = sol["valid"]
     normals = cv2.merge(list(sol["normals"]))
@@ -530,8 +557,8 @@ def _directional(imgs, L, camera, intens, mask, outliers, dark, saturation, high
     if not res.valid.any():
         raise ValueError("images: no pixel has a valid normal (check the lights, the mask and the images)")
     planes = np.moveaxis(res.normals, -1, 0)
-    z, (lu, lv) = _height(level, camera, planes, res.valid, integrator, ref,
-                          max(1, int(np.sqrt(res.valid.size / 250_000))))
+    z, (lu, lv), _ = _height(level, camera, planes, res.valid, integrator, ref,
+                             max(1, int(np.sqrt(res.valid.size / 250_000))))
     t2 = time.perf_counter()
     return NearFieldResult(
         normals=res.normals,
@@ -623,7 +650,7 @@ def _upsample(z: np.ndarray, r: int, shape) -> np.ndarray:
 
 
 def _alternate(level, lights, camera, opts, integrator, ref, tol, max_iterations, z, pool, timings,
-               history) -> dict:
+               history, correction_step: int = 1) -> dict:
     """Passes at one level from heights ``z`` until the largest change of a pixel valid in both
     passes is below ``tol``; :class:`NotConvergedError` after ``max_iterations`` passes, or
     when the heights are no longer finite or reach a light."""
@@ -632,10 +659,16 @@ def _alternate(level, lights, camera, opts, integrator, ref, tol, max_iterations
     sample = max(1, int(np.sqrt(level.mask.size / 250_000)))
     top = float(lights.positions[:, 2].min())
     sol = z_solved = None  # the normals and the heights they were solved at
+    last = None  # the previous pass's integration (:func:`_height`)
+    since = None  # |z - z_solved| when the last pass computed it
     in_mask = max(np.count_nonzero(level.mask), 1)
     for _ in range(max_iterations):
         t0 = time.perf_counter()
-        moved = None if z_solved is None else level.mask & (np.abs(z - z_solved) > RESOLVE_FRACTION * tol)
+        if z_solved is not None:
+            gap = since if since is not None else cv2.absdiff(z, z_solved)
+            moved = level.mask & (gap > RESOLVE_FRACTION * tol)
+        else:
+            moved = None
         n_moved = in_mask if moved is None else np.count_nonzero(moved)
         if moved is None or n_moved > in_mask // 2:
             sol = _normals(level, lights, camera, z, opts, pool, final=name == "full")
@@ -651,12 +684,24 @@ def _alternate(level, lights, camera, opts, integrator, ref, tol, max_iterations
         valid = sol["valid"]
         if not valid.any():
             raise ValueError("images: no pixel has a valid normal (check the lights, the mask and the images)")
-        z_new, grad = _height(level, camera, sol["normals"], valid, integrator, ref, sample)
-        timings["integrate"] += time.perf_counter() - t0
+        # a partial re-solve at full resolution changes the slopes of few pixels by little: its
+        # correction is integrated on a decimated grid, unless it comes near the tolerance
+        correct = last is not None and name == "full" and n_moved <= in_mask // 2 and correction_step > 1
+        z_new, grad, record = _height(level, camera, sol["normals"], valid, integrator, ref, sample,
+                                      last if correct else None, correction_step)
         both = valid if prev_valid is None else valid & prev_valid
         if not both.any():
             both = valid
-        change = float(np.max(np.abs(z_new - z), where=both, initial=0.0))
+        step = cv2.absdiff(z_new, z)
+        change = float(np.max(step, where=both, initial=0.0))
+        if correct and not change < CORRECTION_MARGIN * tol:
+            z_new, grad, record = _height(level, camera, sol["normals"], valid, integrator, ref, sample)
+            step = cv2.absdiff(z_new, z)
+            change = float(np.max(step, where=both, initial=0.0))
+        # after a whole-level solve the next pass's height moves since the solve are this step
+        since = step if z_solved is z else None
+        last = record
+        timings["integrate"] += time.perf_counter() - t0
         history.append({"level": name, "step": level.step, "depth_change_mm": change,
                         "valid_fraction": float(np.count_nonzero(valid) / in_mask),
                         "resolved_fraction": float(n_moved / in_mask)})
@@ -718,25 +763,47 @@ def _history_summary(history: list, tol: float, converged: bool) -> dict:
 
 
 def _height(level: _Level, camera: Camera, normals: np.ndarray, valid: np.ndarray, integrator: str, ref: float,
-            sample: int):
-    """Integrate the normals of a level and anchor the heights (filled where not valid)."""
+            sample: int, last: dict | None = None, correction_step: int = 1):
+    """Integrate the normals of a level and anchor the heights (filled where not valid).
+
+    Returns ``z``, the slopes ``(p, q)`` and, for the spectral integrators (``dct``, ``fc``),
+    what a later pass needs to integrate only its change (``{"pz", "qz", "field"}``, else
+    None). With ``last`` (that record of the previous pass) and ``correction_step`` r > 1 the
+    slope change since ``last`` is block-averaged in r x r blocks, integrated on that grid and
+    upsampled onto the previous field (see :data:`CORRECTION_STEP`).
+    """
     from photometric.integrate import dct_poisson, frankot_chellappa, least_squares, robust_least_squares
 
     p, q, spacing = _gradient(camera, normals[0], normals[1], normals[2], level.u, level.v)
     spacing *= level.step
+    keep = None
     if integrator in ("lsq", "robust"):
         fld = (least_squares if integrator == "lsq" else robust_least_squares)(p, q, valid, spacing)
     else:
-        pz = np.where(valid, p, np.float32(0.0))
-        qz = np.where(valid, q, np.float32(0.0))
-        if integrator == "dct":
-            fld = dct_poisson(pz, qz, None, spacing, dtype=np.float32)
+        zero = np.float32(0.0)
+        pz = np.where(valid, p, zero)
+        qz = np.where(valid, q, zero)
+
+        def solve(a, b, h):
+            if integrator == "dct":
+                return dct_poisson(a, b, None, h, dtype=np.float32)
+            return frankot_chellappa(a, b, None, h)
+
+        r = int(correction_step)
+        if last is not None and r > 1:
+            h, w = pz.shape[0] // r, pz.shape[1] // r
+            # block means by OpenCV's area resampling (an integer factor on the cropped image)
+            dp, dq = (cv2.resize(np.subtract(a[: h * r, : w * r], b[: h * r, : w * r]), (w, h),
+                                 interpolation=cv2.INTER_AREA) for a, b in ((pz, last["pz"]), (qz, last["qz"])))
+            fld = last["field"]  # the previous pass's field is not used again: corrected in place
+            fld += _upsample(solve(dp, dq, spacing * r).astype(np.float32), r, pz.shape)
         else:
-            fld = frankot_chellappa(pz, qz, None, spacing)
+            fld = solve(pz, qz, spacing)
+        keep = {"pz": pz, "qz": qz, "field": fld}
     z, _ = depth_from_field(camera, fld, valid=valid, reference_height_mm=ref, sample_step=sample)
     if integrator in ("lsq", "robust"):
         z = np.where(np.isfinite(z), z, ref)
-    return z, (p, q)
+    return z, (p, q), keep
 
 
 def _normals(level: _Level, lights: PointLights, camera: Camera, z: np.ndarray, opts: _Options, pool,
