@@ -962,6 +962,7 @@ def _fit(z, p, q, region, h, tol, k0, xy, lam) -> SurfaceFit:
         leaves.append((lev, CI[~refine], CJ[~refine]))
         CI = (2 * CI[refine][:, None] + np.array([0, 0, 1, 1])).ravel()
         CJ = (2 * CJ[refine][:, None] + np.array([0, 1, 0, 1])).ravel()
+    del w, wc  # the weights are the region's; the deviations below read it
     patches = _patches(leaves, solved, k0, (H, W), h, xy is None)
     values = tuple(np.moveaxis(f[:, :H, :W], 0, -1) for f in fitted)
     # per block of rows on the contiguous fitted arrays (a boolean gather from the strided
