@@ -113,6 +113,8 @@ JUMP_PX = 4.0
 SMOOTHING = 1e-3
 #: Pixels per block of the whole-image passes of the fit (a few MB of float64 working arrays).
 BLOCK_PIXELS = 1 << 18
+#: Largest number of entries per pair of a dense :class:`_Lookup` map (beyond it: binary search).
+DENSE_LOOKUP = 16
 #: Slope weight of the one-pixel level relative to ``slope_weight``: there a pixel's slope
 #: is a point sample of a kink (a crack's floor or rim) that no C2 cubic follows inside
 #: the pixel, and full weight trades height for it (overshoot beside the kink).
@@ -323,17 +325,45 @@ class _Level:
 
 
 class _Lookup:
-    """Position of integer pairs ``(i, j)`` in a list of distinct pairs, -1 where absent (a dense map)."""
+    """Position of integer pairs ``(i, j)`` in a list of distinct pairs, -1 where absent.
+
+    A dense map over the pairs' bounding box (with a margin: lookups reach a few entries
+    beyond it, and within the grid ``shape`` and its margin) while that box holds at most
+    :data:`DENSE_LOOKUP` entries per pair; otherwise sorted keys and a binary search, so
+    that the thin refined region of a fine level costs memory per cell, not per pixel of
+    the image (a one-pixel level over a 64 MP image: 256 MB per dense map).
+    """
 
     def __init__(self, i: np.ndarray, j: np.ndarray, shape: tuple[int, int]):
-        self.offset = 8  # lookups reach a few entries beyond the grid
-        self.map = np.full((shape[0] + 2 * self.offset, shape[1] + 2 * self.offset), -1, np.int32)
-        self.map[i + self.offset, j + self.offset] = np.arange(np.size(i))
+        offset = 8  # lookups reach a few entries beyond the grid
+        i, j = np.asarray(i), np.asarray(j)
+        n = int(np.size(i))
+        lo_i, lo_j = (int(i.min()), int(j.min())) if n else (0, 0)
+        hi_i, hi_j = (int(i.max()), int(j.max())) if n else (-1, -1)
+        self.i0, self.j0 = max(lo_i, 0) - offset, max(lo_j, 0) - offset
+        self.rows = min(hi_i + 1 + offset, shape[0] + offset) - self.i0
+        self.cols = min(hi_j + 1 + offset, shape[1] + offset) - self.j0
+        at = np.arange(n, dtype=np.int32)
+        if self.rows * self.cols <= DENSE_LOOKUP * n + 4096:
+            self.map = np.full((self.rows, self.cols), -1, np.int32)
+            self.map[i - self.i0, j - self.j0] = at
+        else:
+            self.map = None
+            keys = (i - self.i0).astype(np.int64) * self.cols + (j - self.j0)
+            order = np.argsort(keys, kind="stable")
+            self.keys, self.at = keys[order], at[order]
 
     def __call__(self, i, j) -> np.ndarray:
-        i = np.asarray(i) + self.offset
-        j = np.asarray(j) + self.offset
-        rows, cols = self.map.shape
+        i = np.asarray(i) - self.i0
+        j = np.asarray(j) - self.j0
+        rows, cols = self.rows, self.cols
+        if self.map is None:
+            inside = (i >= 0) & (i < rows) & (j >= 0) & (j < cols)
+            key = np.where(inside, i.astype(np.int64) * cols + j, -1)
+            if self.keys.size == 0:
+                return np.full(key.shape, -1, np.int32)
+            pos = np.minimum(np.searchsorted(self.keys, key), self.keys.size - 1)
+            return np.where(inside & (self.keys[pos] == key), self.at[pos], -1).astype(np.int32, copy=False)
         if i.size == 0 or j.size == 0 or (i.min() >= 0 and i.max() < rows and j.min() >= 0 and j.max() < cols):
             # the usual case: four reductions instead of a clip, a mask and a select per entry
             return self.map[i, j]
@@ -883,7 +913,7 @@ def _fit(z, p, q, region, h, tol, k0, xy, lam) -> SurfaceFit:
                     grid[c, b0:b0 + band] = lv.project_grid(tz[c], V, V) + lv.lam * (
                         lv.project_grid(ts[c], D, V) + lv.project_grid(tt[c], V, D))
             cell_rhs = grid[:, WI, WJ]
-            del grid
+            del grid, tz, ts, tt
             ridge = 0.0
         else:
             # an overlay B-spline lies wholly inside the region; outside the image the
@@ -906,6 +936,7 @@ def _fit(z, p, q, region, h, tol, k0, xy, lam) -> SurfaceFit:
                        for t, f in zip(targets.cells(CI[sl], CJ[sl], k, ww[sl]), fitted)]
                 cell_rhs[:, sl] = np.stack([lv.project(res[0][c], V, V) + lv.lam * (lv.project(res[1][c], D, V)
                                             + lv.project(res[2][c], V, D)) for c in range(d)])
+            del res
             ridge = 1e-9
         # data pixels per cell, without gathering every working cell's k x k weights (only
         # partial cells need theirs, in _assemble)
@@ -948,6 +979,7 @@ def _fit(z, p, q, region, h, tol, k0, xy, lam) -> SurfaceFit:
                 diff = (lv.cells(fitted[0])[:, ci, cj] - targets.cells(ci, cj, k, ww[sl], parts=1)[0]) * ww[sl]
                 dist = np.abs(diff[0]) if d == 1 else np.sqrt((diff * diff).sum(axis=0))
                 worst[sl] = dist.reshape(len(ci), -1).max(axis=1)
+        del diff, dist
         fail = worst > tol
         levels.append({"spacing_px": k, "cells": int(CI.size), "unknowns": int(fi.size), "refined": int(fail.sum())})
         if lev == top or not fail.any():
