@@ -1226,12 +1226,22 @@ def fit_mesh(fit: SurfaceFit, spacing: float = 1.0, smoothing: float = 0.7):
     del tris
     st = np.concatenate(params)
     del params
-    patch, u, v = fit.patches.locate_lattice(st[:, 0] + 0.5, st[:, 1] + 0.5)
-    lost = patch < 0
+    # points and normals evaluated per block of vertices: no whole-mesh derivative temporaries
+    n = len(st)
+    points, normals = np.empty((n, 3)), np.empty((n, 3))
+    lost = np.zeros(n, bool)
+    span = max(1, BLOCK_PIXELS // 8)
+    for a in range(0, n, span):
+        b = min(a + span, n)
+        patch, u, v = fit.patches.locate_lattice(st[a:b, 0] + 0.5, st[a:b, 1] + 0.5)
+        lost[a:b] = patch < 0
+        d = fit.patches.derivatives(np.maximum(patch, 0), 0, u, v)
+        points[a:b] = d.point
+        normals[a:b] = unit(cross(d.du, d.dv))
+    del st
     if lost.any():  # a cut beyond the patches (never for fits): drop its triangles
         tri = tri[~lost[tri].any(axis=1)]
-    d = fit.patches.derivatives(np.maximum(patch, 0), 0, u, v)
-    mesh = TriangleMesh(d.point, tri, unit(cross(d.du, d.dv)))
+    mesh = TriangleMesh(points, tri, normals)
     if lost.any():
         from surfaces.mesh import compact
 
