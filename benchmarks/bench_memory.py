@@ -223,12 +223,20 @@ def main(argv: list[str] | None = None) -> int:
         "the photometric solve stay within it: the images are read plane by plane into one float32 stack (2x), "
         "the normals and albedo are solved in blocks of rows and written to their files block by block, the "
         "stack is dropped after the solve, and the height is integrated in float32 in place (p, q, height, "
-        "valid and mask are 14 bytes per pixel, 2.3x, for the later stages). The peak of the command is the "
-        "surface fit (`surfaces.fit.fit_height`: float64 copies of height, p and q, a float64 weight plane and "
-        "three target and three fitted float64 planes, about 80 bytes per pixel before its temporaries) and, "
-        "after it, the defect measures (`photometric.defects.measure_defects`: float64 copies of height, p, q "
-        "and the background, and label images); the write stage's figure is mostly the heap the C library "
-        "keeps from the fit (its own peak is about 4x above what the stages before hold).",
+        "valid and mask are 14 bytes per pixel, 2.3x, for the later stages). The surface fit "
+        "(`surfaces.fit.fit_height`) keeps float32 inputs float32: it holds the fitted height and its two "
+        "derivatives in float32 (12 bytes per pixel), a padded boolean weight plane, the region and the "
+        "covered pixels (3) and a float32 deviation map (4); its targets, level-0 projections and "
+        "evaluations, refined cells' residuals, noise estimate and jump test run on float64 blocks of "
+        "`surfaces.fit.BLOCK_PIXELS` pixels, and its index maps cover the refined cells, not the image (before: "
+        "float64 copies of height, p, q, a float64 weight plane and three target and three fitted planes, "
+        "about 117 bytes per pixel at its peak). The pipeline takes the fit's statistics and lets its "
+        "per-pixel planes go before the trimmed mesh is built (`fit_mesh`: the smoothed outline field only at "
+        "the lattice rows, points and normals per block of vertices). The command's peak is now the defect "
+        "measures (`photometric.defects.measure_defects`, not changed by this work): on this scene one "
+        "depression covers 16 % of the image (the dome inside its plane fit), and the per-region measures hold "
+        "its pixel coordinates and depths and several float64 per-pixel copies of them (about 180 bytes per "
+        "region pixel). A stage's figure also includes the heap the C library keeps from earlier stages.",
         "### `workbench slices reconstruct` (CT phantom series)",
         Table(head, slices, "lrrrrr"),
         "### `workbench surfaces coons` (8 samples per patch, PLY)",

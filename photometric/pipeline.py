@@ -417,7 +417,8 @@ def _surface_step(method, height, p, q, valid, mask, h, step, samples, tolerance
         n_samples = int(samples) if samples is not None else min(step_px, 8)
         mesh = _trimmed_mesh(patches, mask, h, n_samples)
         dev = _coons_deviation(patches, height, valid)
-        info = {"surface": "coons"}
+        info = {"surface": "coons", "surface_max_dev_mm": float(dev.max()),
+                "surface_rms_dev_mm": float(np.sqrt(np.mean(dev**2)))}
     else:
         from surfaces.fit import default_step, fit_height, fit_mesh
 
@@ -425,13 +426,15 @@ def _surface_step(method, height, p, q, valid, mask, h, step, samples, tolerance
                          step=step if step is not None else default_step(shape), xy=xy)
         step_px = fit.step
         n_samples = int(samples) if samples is not None else min(step_px, 8)
+        info = {"surface": "fit", "surface_tolerance_mm": fit.tolerance,
+                "surface_patch_sizes_px": {str(k): v for k, v in fit.patch_sizes().items()},
+                "surface_max_dev_mm": fit.max_deviation, "surface_rms_dev_mm": fit.rms_deviation}
+        # the mesh needs only the patches and the fitted region: the per-pixel values and
+        # deviations (16 bytes per pixel for float32 heights) are let go before it is built
+        fit = replace(fit, values=(), deviation=None)
         mesh = fit_mesh(fit, spacing=step_px / n_samples)
         patches = fit.patches
-        dev = np.abs(fit.deviation[fit.region])
-        info = {"surface": "fit", "surface_tolerance_mm": fit.tolerance,
-                "surface_patch_sizes_px": {str(k): v for k, v in fit.patch_sizes().items()}}
-    info.update(surface_max_dev_mm=float(dev.max()), surface_rms_dev_mm=float(np.sqrt(np.mean(dev**2))),
-                n_patches=int(patches.n_patches))
+    info.update(n_patches=int(patches.n_patches))
     return patches, mesh, step_px, n_samples, info
 
 

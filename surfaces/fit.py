@@ -114,6 +114,10 @@ JUMP_PX = 4.0
 #: it only has to fix the coefficients no pixel determines; at weight 1 it also fought the
 #: data beside a depth discontinuity (a step across a two-pixel gap was missed by 13 %).
 SMOOTHING = 1e-3
+#: Pixels per block of the whole-image passes of the fit (a few MB of float64 working arrays).
+BLOCK_PIXELS = 1 << 18
+#: Largest number of entries per pair of a dense :class:`_Lookup` map (beyond it: binary search).
+DENSE_LOOKUP = 16
 #: Slope weight of the one-pixel level relative to ``slope_weight``: there a pixel's slope
 #: is a point sample of a kink (a crack's floor or rim) that no C2 cubic follows inside
 #: the pixel, and full weight trades height for it (overshoot beside the kink).
@@ -315,14 +319,18 @@ class _Level:
 
 
     def project_grid(self, x: np.ndarray, along_s: np.ndarray, along_t: np.ndarray) -> np.ndarray:
-        """:meth:`project` of every cell of a whole ``(ns k, nt k)`` image: ``(ns, nt, 4, 4)``."""
-        k, ns, nt = self.k, self.ns, self.nt
+        """:meth:`project` of every cell of ``(n k, nt k)`` rows of the image (``n`` cell rows, all
+        ``ns`` for the whole image): ``(n, nt, 4, 4)``."""
+        k, nt = self.k, self.nt
+        ns = x.shape[-2] // k
         y = (x.reshape(ns * k * nt, k) @ along_t).reshape(ns, k, nt * 4)  # [CI, o, (CJ, b)]
         return (along_s.T[None] @ y).reshape(ns, 4, nt, 4).transpose(0, 2, 1, 3)
 
     def expand_grid(self, coef: np.ndarray, along_s: np.ndarray, along_t: np.ndarray) -> np.ndarray:
-        """:meth:`expand` over every cell of a coefficient grid ``(ns + 3, nt + 3)``: ``(ns k, nt k)``."""
-        k, ns, nt = self.k, self.ns, self.nt
+        """:meth:`expand` over every cell of coefficient rows ``(n + 3, nt + 3)`` (``n`` cell rows, all
+        ``ns`` for the whole grid): ``(n k, nt k)``."""
+        k, nt = self.k, self.nt
+        ns = coef.shape[0] - 3
         shifted = np.stack([coef[:, b:b + nt] for b in range(4)], axis=2)  # [i, CJ, b]
         u = (shifted @ along_t.T).reshape(ns + 3, nt * k)  # [i, (CJ, p)]
         rows = np.stack([u[a:a + ns] for a in range(4)], axis=1)  # [CI, a, (CJ, p)]
@@ -330,17 +338,45 @@ class _Level:
 
 
 class _Lookup:
-    """Position of integer pairs ``(i, j)`` in a list of distinct pairs, -1 where absent (a dense map)."""
+    """Position of integer pairs ``(i, j)`` in a list of distinct pairs, -1 where absent.
+
+    A dense map over the pairs' bounding box (with a margin: lookups reach a few entries
+    beyond it, and within the grid ``shape`` and its margin) while that box holds at most
+    :data:`DENSE_LOOKUP` entries per pair; otherwise sorted keys and a binary search, so
+    that the thin refined region of a fine level costs memory per cell, not per pixel of
+    the image (a one-pixel level over a 64 MP image: 256 MB per dense map).
+    """
 
     def __init__(self, i: np.ndarray, j: np.ndarray, shape: tuple[int, int]):
-        self.offset = 8  # lookups reach a few entries beyond the grid
-        self.map = np.full((shape[0] + 2 * self.offset, shape[1] + 2 * self.offset), -1, np.int32)
-        self.map[i + self.offset, j + self.offset] = np.arange(np.size(i))
+        offset = 8  # lookups reach a few entries beyond the grid
+        i, j = np.asarray(i), np.asarray(j)
+        n = int(np.size(i))
+        lo_i, lo_j = (int(i.min()), int(j.min())) if n else (0, 0)
+        hi_i, hi_j = (int(i.max()), int(j.max())) if n else (-1, -1)
+        self.i0, self.j0 = max(lo_i, 0) - offset, max(lo_j, 0) - offset
+        self.rows = min(hi_i + 1 + offset, shape[0] + offset) - self.i0
+        self.cols = min(hi_j + 1 + offset, shape[1] + offset) - self.j0
+        at = np.arange(n, dtype=np.int32)
+        if self.rows * self.cols <= DENSE_LOOKUP * n + 4096:
+            self.map = np.full((self.rows, self.cols), -1, np.int32)
+            self.map[i - self.i0, j - self.j0] = at
+        else:
+            self.map = None
+            keys = (i - self.i0).astype(np.int64) * self.cols + (j - self.j0)
+            order = np.argsort(keys, kind="stable")
+            self.keys, self.at = keys[order], at[order]
 
     def __call__(self, i, j) -> np.ndarray:
-        i = np.asarray(i) + self.offset
-        j = np.asarray(j) + self.offset
-        rows, cols = self.map.shape
+        i = np.asarray(i) - self.i0
+        j = np.asarray(j) - self.j0
+        rows, cols = self.rows, self.cols
+        if self.map is None:
+            inside = (i >= 0) & (i < rows) & (j >= 0) & (j < cols)
+            key = np.where(inside, i.astype(np.int64) * cols + j, -1)
+            if self.keys.size == 0:
+                return np.full(key.shape, -1, np.int32)
+            pos = np.minimum(np.searchsorted(self.keys, key), self.keys.size - 1)
+            return np.where(inside & (self.keys[pos] == key), self.at[pos], -1).astype(np.int32, copy=False)
         if i.size == 0 or j.size == 0 or (i.min() >= 0 and i.max() < rows and j.min() >= 0 and j.max() < cols):
             # the usual case: four reductions instead of a clip, a mask and a select per entry
             return self.map[i, j]
@@ -503,40 +539,72 @@ def height_noise(height, mask, scale_px: float) -> float:
     True
     """
     m = np.asarray(mask, bool)
+    z = np.asarray(height)
+    dt = _work_dtype(z)
+    H, W = m.shape
     # zero outside the image, so that the border pixels' weight drops and they are left out
     if m.all():
         # a full mask's weights are separable: two 1-D filters instead of two image passes
-        w = np.multiply.outer(*(ndimage.gaussian_filter1d(np.ones(n), scale_px, mode="constant") for n in m.shape))
-        smooth = _gaussian(np.asarray(height, np.float64), scale_px)
+        w_rows, w_cols = (ndimage.gaussian_filter1d(np.ones(n), scale_px, mode="constant") for n in m.shape)
+        smooth = _gaussian(z, scale_px, dt)
+
+        def weight(r: slice) -> np.ndarray:
+            return np.multiply.outer(w_rows[r], w_cols)
     else:
-        w = _gaussian(m.astype(np.float64), scale_px)
-        smooth = _gaussian(np.where(m, height, 0.0), scale_px)
-    inner = m & (w > 0.99)
+        w = _gaussian(m, scale_px, dt)
+        smooth = _gaussian(z, scale_px, dt, where=m)
+
+        def weight(r: slice) -> np.ndarray:
+            return np.asarray(w[r], np.float64)
+    # the detail per block of rows, in float64, written over the smoothed plane
+    inner = np.empty(m.shape, bool)
+    step = max(1, BLOCK_PIXELS // W)
+    for r0 in range(0, H, step):
+        r = slice(r0, r0 + step)
+        wr = weight(r)
+        inner[r] = m[r] & (wr > 0.99)
+        smooth[r] = np.asarray(z[r], np.float64) - smooth[r] / np.maximum(wr, 1e-12)
     if not inner.any():
         return 0.0
-    detail = (np.asarray(height, np.float64) - smooth / np.maximum(w, 1e-12))[inner]
-    return float(1.4826 * np.median(np.abs(detail - np.median(detail))))
+    detail = smooth[inner].astype(np.float64)
+    del smooth
+    # the medians reorder ``detail`` in place, which leaves both medians as they are
+    centre = np.median(detail, overwrite_input=True)
+    detail -= centre
+    return float(1.4826 * np.median(np.abs(detail, out=detail), overwrite_input=True))
 
 
-def _gaussian(a: np.ndarray, sigma: float) -> np.ndarray:
+def _gaussian(a: np.ndarray, sigma: float, dtype=np.float64, where: np.ndarray | None = None) -> np.ndarray:
     """``ndimage.gaussian_filter(a, sigma, mode="constant")`` (kernel truncated at 4 sigma, zero
     outside the image) as one FFT convolution per axis: equal to rounding (1e-15), and on the
-    129-tap kernels of a 4 MP fit's noise estimate about 40 % less CPU time than direct sums."""
+    129-tap kernels of a 4 MP fit's noise estimate about 40 % less CPU time than direct sums.
+
+    The convolutions run in float64 on blocks of columns (then of rows, in place), so that the
+    only whole-image array is the result, in ``dtype``; ``where`` (bool, the shape of ``a``)
+    zeroes ``a`` outside it first.
+    """
     import scipy.fft as sfft
 
     radius = int(4.0 * sigma + 0.5)
     x = np.arange(-radius, radius + 1)
     k = np.exp(-0.5 / (sigma * sigma) * x * x)
     k /= k.sum()
-    out = a
+    out = np.empty(a.shape, dtype)
     for axis in (0, 1):
-        n = out.shape[axis]
+        n = a.shape[axis]
         # zero padding to the full linear convolution: no wrap-around
         size = sfft.next_fast_len(n + 2 * radius, real=True)
-        spec = sfft.rfft(out, size, axis=axis)
-        spec *= np.expand_dims(sfft.rfft(k, size), 1 - axis)
-        keep = (slice(radius, radius + n), slice(None)) if axis == 0 else (slice(None), slice(radius, radius + n))
-        out = sfft.irfft(spec, size, axis=axis)[keep]
+        kernel = np.expand_dims(sfft.rfft(k, size), 1 - axis)
+        span = max(1, BLOCK_PIXELS // size)
+        for b0 in range(0, a.shape[1 - axis], span):
+            part = (slice(None), slice(b0, b0 + span)) if axis == 0 else (slice(b0, b0 + span), slice(None))
+            block = np.asarray((a if axis == 0 else out)[part], np.float64)
+            if axis == 0 and where is not None:
+                block = np.where(where[part], block, 0.0)
+            spec = sfft.rfft(block, size, axis=axis)
+            spec *= kernel
+            keep = (slice(radius, radius + n), slice(None)) if axis == 0 else (slice(None), slice(radius, radius + n))
+            out[part] = sfft.irfft(spec, size, axis=axis)[keep]
     return out
 
 
@@ -568,6 +636,11 @@ def _step(step, shape) -> int:
     if isinstance(step, bool) or not isinstance(step, (int, np.integer)) or int(step) < 1:
         raise ValueError(f"step: expected a positive whole number of pixels, got {step!r}")
     return 1 << (int(step).bit_length() - 1)
+
+
+def _work_dtype(*arrays) -> type:
+    """float32 when every input is a float32 array (kept as it is), float64 otherwise."""
+    return np.float32 if all(getattr(a, "dtype", None) == np.float32 for a in arrays) else np.float64
 
 
 def _slope_targets(p, q, xy, valid):
@@ -622,36 +695,44 @@ def find_discontinuities(height, p, q, mask, pixel_size: float = 1.0, jump: floa
         Both pixels of every 4-neighbour pair inside ``mask`` whose height difference
         differs from the trapezoidal prediction ``(g_a + g_b) / 2`` by more than ``jump``.
     """
-    z = as_array(height, "height", ndim=2, finite=False)
+    dt = _work_dtype(height, p, q)
+    z = as_array(height, "height", ndim=2, finite=False, dtype=dt)
     m = as_array(mask, "mask", shape=z.shape, dtype=bool)
-    pp = as_array(p, "p", shape=z.shape, finite=False)
-    qq = as_array(q, "q", shape=z.shape, finite=False)
+    pp = as_array(p, "p", shape=z.shape, finite=False, dtype=dt)
+    qq = as_array(q, "q", shape=z.shape, finite=False, dtype=dt)
     h = positive(pixel_size, "pixel_size")
     limit = JUMP_PX * h if jump is None else positive(jump, "jump")
-    zz = np.where(m, z, 0.0)
     border = np.zeros(z.shape, bool)
-    for axis in (0, 1):
-        lo = [slice(None), slice(None)]
-        hi = [slice(None), slice(None)]
-        lo[axis], hi[axis] = slice(None, -1), slice(1, None)
-        lo, hi = tuple(lo), tuple(hi)
-        if xy is None:
-            # one pixel step: along the rows y falls by h (only q counts), along the columns
-            # x grows by h (only p counts)
-            g = qq if axis == 0 else pp
-            predicted = g[lo] + g[hi]
-            predicted *= -0.5 * h if axis == 0 else 0.5 * h
-        else:
-            dx = xy[hi + (0,)] - xy[lo + (0,)]
-            dy = xy[hi + (1,)] - xy[lo + (1,)]
-            predicted = 0.5 * (pp[lo] + pp[hi]) * dx + 0.5 * (qq[lo] + qq[hi]) * dy
-        both = m[lo] & m[hi]
-        with np.errstate(invalid="ignore"):
-            miss = zz[hi] - zz[lo]
-            miss -= predicted
-            bad = both & (np.abs(miss, out=miss) > limit)
-        border[lo] |= bad
-        border[hi] |= bad
+    # per block of rows, so that the temporaries stay a few MB
+    step = max(1, BLOCK_PIXELS // z.shape[1])
+    for r0 in range(0, z.shape[0], step):
+        for axis in (0, 1):
+            # the pairs across rows reach one row into the next block
+            rows = slice(r0, min(r0 + step + (axis == 0), z.shape[0]))
+            mb, pb, qb, bb = m[rows], pp[rows], qq[rows], border[rows]
+            zz = np.where(mb, z[rows], 0.0)
+            lo = [slice(None), slice(None)]
+            hi = [slice(None), slice(None)]
+            lo[axis], hi[axis] = slice(None, -1), slice(1, None)
+            lo, hi = tuple(lo), tuple(hi)
+            if xy is None:
+                # one pixel step: along the rows y falls by h (only q counts), along the columns
+                # x grows by h (only p counts)
+                g = qb if axis == 0 else pb
+                predicted = g[lo] + g[hi]
+                predicted *= -0.5 * h if axis == 0 else 0.5 * h
+            else:
+                xb = xy[rows]
+                dx = xb[hi + (0,)] - xb[lo + (0,)]
+                dy = xb[hi + (1,)] - xb[lo + (1,)]
+                predicted = 0.5 * (pb[lo] + pb[hi]) * dx + 0.5 * (qb[lo] + qb[hi]) * dy
+            both = mb[lo] & mb[hi]
+            with np.errstate(invalid="ignore"):
+                miss = zz[hi] - zz[lo]
+                miss -= predicted
+                bad = both & (np.abs(miss, out=miss) > limit)
+            bb[lo] |= bad
+            bb[hi] |= bad
     return border
 
 
@@ -737,12 +818,14 @@ def fit_height(
     >>> fit.patches.n_patches, fit.max_deviation < 1e-9
     (4, True)
     """
-    z = as_array(height, "height", ndim=2, finite=False)
+    # float32 inputs stay float32 (no float64 copy of the whole grid); float64 only per block
+    dt = _work_dtype(height, p, q)
+    z = as_array(height, "height", ndim=2, finite=False, dtype=dt)
     H, W = z.shape
     if min(H, W) < 2:
         raise ValueError(f"height: needs at least 2 x 2 pixels, got {z.shape}")
-    pp = as_array(p, "p", shape=z.shape, finite=False)
-    qq = as_array(q, "q", shape=z.shape, finite=False)
+    pp = as_array(p, "p", shape=z.shape, finite=False, dtype=dt)
+    qq = as_array(q, "q", shape=z.shape, finite=False, dtype=dt)
     h = positive(pixel_size, "pixel_size")
     lam = positive(slope_weight, "slope_weight")
     angle = None if slope_angle is None else positive(slope_angle, "slope_angle")
@@ -764,7 +847,7 @@ def fit_height(
             raise ValueError("xy: non-finite values inside the mask")
     k0 = _step(step, z.shape)
     if tolerance is None:
-        lo, hi = np.percentile(z[m], [0.5, 99.5])
+        lo, hi = np.percentile(z[m].astype(np.float64), [0.5, 99.5], overwrite_input=True)
         tol = max(RELATIVE_TOLERANCE * float(hi - lo), MIN_TOLERANCE_PX * h)
         noise = NOISE_TOLERANCE * height_noise(z, m, k0 / 2.0)
         if noise > tol:
@@ -791,23 +874,65 @@ def _cell_angles(fs, ft, ts, tt, h: float, weight: np.ndarray) -> np.ndarray:
     return np.degrees(np.arccos(np.clip(dot / norm, -1.0, 1.0))) * weight
 
 
-def _own_angles(z, region, ts, tt, h: float):
+def _own_angles(z, region, targets, h: float, padded: tuple[int, int]):
     """Pixels of the slope check and the angle of the height's own normals there (degrees).
 
-    ``ts, tt``: the padded ``(HP, WP)`` target slopes of :func:`_fit`. The height's own
-    normals are its central differences, at the fitted pixels whose four neighbours are
-    fitted too (the checked pixels, weight 1; 0 elsewhere): no surface within the
-    tolerance of the height follows the measured normals much more closely than they do
-    (non-integrable slopes, noise), so the check asks only for what the height allows.
-    Returns the weights and the angles times the weights, both padded ``(HP, WP)``.
+    The height's own normals are its central differences, at the fitted pixels whose four
+    neighbours are fitted too (the checked pixels); no surface within the tolerance of the
+    height follows the measured normals much more closely than they do (non-integrable
+    slopes, noise), so the check asks only for what the height allows. ``targets``: the
+    :class:`_Targets` of :func:`_fit` (orthographic). Made per block of rows (a row of halo
+    on each side keeps the central differences exact). Returns the checked pixels (bool) and
+    their angles (float32, 0 elsewhere), both padded to ``padded`` ``(HP, WP)``.
     """
     H, W = z.shape
-    wa = np.zeros(ts.shape)
+    wa = np.zeros(padded, bool)
     wa[:H, :W] = ndimage.binary_erosion(region, border_value=0)
-    gs, gt = np.gradient(np.where(region, z, 0.0))
-    own = np.zeros(ts.shape)
-    own[:H, :W] = _cell_angles(gs, gt, ts[:H, :W], tt[:H, :W], h, wa[:H, :W])
+    own = np.zeros(padded, np.float32)
+    rows = max(1, BLOCK_PIXELS // W)
+    for r0 in range(0, H, rows):
+        r1 = min(r0 + rows, H)
+        a, b = max(r0 - 1, 0), min(r1 + 1, H)
+        gs, gt = np.gradient(np.where(region[a:b], np.asarray(z[a:b], np.float64), 0.0))
+        _, ts, tt = targets.rows(r0, r1)
+        inner = slice(r0 - a, r1 - a)
+        own[r0:r1, :W] = _cell_angles(gs[inner], gt[inner], ts[0][:, :W], tt[0][:, :W], h, wa[r0:r1, :W])
     return wa, own
+
+
+class _Targets:
+    """The value, s-slope and t-slope targets of the fit (component first, zero off the fitted
+    pixels), made in float64 per block of rows or of cells from the inputs instead of held as
+    whole padded float64 planes.
+
+    ``sources``: per target a tuple of ``(H, W)`` component planes; ``scales``: per target the
+    factor on its components (``-h`` for ``z_s = -q h``).
+    """
+
+    def __init__(self, sources, scales, region: np.ndarray, width: int):
+        self.sources, self.scales, self.region, self.width = sources, scales, region, width
+
+    def rows(self, r0: int, r1: int, parts: int = 3) -> list:
+        """Padded rows ``r0:r1`` (``WP`` columns; zero beyond the image), ``(d, r1 - r0, WP)`` each."""
+        H, W = self.region.shape
+        end = min(r1, H)
+        fitted = self.region[r0:end]
+        out = []
+        for src, scale in zip(self.sources[:parts], self.scales):
+            t = np.zeros((len(src), r1 - r0, self.width))
+            for c, comp in enumerate(src):
+                np.multiply(np.asarray(comp[r0:end], np.float64), scale, out=t[c, :end - r0, :W], where=fitted)
+            out.append(t)
+        return out
+
+    def cells(self, ci: np.ndarray, cj: np.ndarray, k: int, weight: np.ndarray, parts: int = 3) -> list:
+        """Cells ``(ci, cj)`` of side ``k`` with their weights ``(n, k, k)``: ``(d, n, k, k)`` each."""
+        H, W = self.region.shape
+        # pixels beyond the image have weight 0: any index in range does
+        r = np.minimum(ci[:, None] * k + np.arange(k), H - 1)[:, :, None]
+        c = np.minimum(cj[:, None] * k + np.arange(k), W - 1)[:, None, :]
+        return [np.stack([np.where(weight, np.asarray(comp[r, c], np.float64) * scale, 0.0) for comp in src])
+                for src, scale in zip(self.sources[:parts], self.scales)]
 
 
 def _fit(z, p, q, region, h, tol, k0, xy, lam, angle=None) -> SurfaceFit:
@@ -815,27 +940,24 @@ def _fit(z, p, q, region, h, tol, k0, xy, lam, angle=None) -> SurfaceFit:
     ns, nt = -(-H // k0), -(-W // k0)
     HP, WP = ns * k0, nt * k0
     d = 1 if xy is None else 3
-    w = np.zeros((HP, WP))
+    # the weights are 0 or 1: one padded byte per pixel
+    w = np.zeros((HP, WP), bool)
     w[:H, :W] = region
-    # value, s-slope and t-slope targets, component first, zero off the fitted pixels
-    targets = [np.zeros((d, HP, WP)) for _ in range(3)]
     if xy is None:
-        # written straight into the padded arrays: z, z_s = -q h, z_t = p h
-        np.copyto(targets[0][0, :H, :W], z, where=region)
-        np.multiply(q, -h, out=targets[1][0, :H, :W], where=region)
-        np.multiply(p, h, out=targets[2][0, :H, :W], where=region)
+        # z, z_s = -q h, z_t = p h
+        targets = _Targets(((z,), (q,), (p,)), (1.0, -h, h), region, WP)
     else:
         zs, zt, fs, ft = _slope_targets(p, q, xy, region)
-        sources = [(xy[..., 0], xy[..., 1], z), (fs[..., 0], fs[..., 1], zs), (ft[..., 0], ft[..., 1], zt)]
-        for t, source in zip(targets, sources):
-            for c, comp in enumerate(source):
-                np.copyto(t[c, :H, :W], comp, where=region)
-    fitted = [np.zeros((d, HP, WP)) for _ in range(3)]  # running S, S_s, S_t
+        sources = ((xy[..., 0], xy[..., 1], z), (fs[..., 0], fs[..., 1], zs), (ft[..., 0], ft[..., 1], zt))
+        targets = _Targets(sources, (1.0, 1.0, 1.0), region, WP)
+    # running S, S_s, S_t in the inputs' precision: 12 bytes per pixel for float32 heights
+    fitted = [np.zeros((d, HP, WP), z.dtype) for _ in range(3)]
+    band = max(1, BLOCK_PIXELS // (k0 * WP))  # level-0 cell rows per block
     levels, solved, leaves = [], [], []
     top = int(np.log2(k0))
     slopes_checked = angle is not None and d == 1
     if slopes_checked:
-        wa, own = _own_angles(z, region, targets[1][0], targets[2][0], h)
+        wa, own = _own_angles(z, region, targets, h, (HP, WP))
     for lev in range(top + 1):
         k = k0 >> lev
         lv = _Level(k, ns << lev, nt << lev, lam * FINE_SLOPE if k == 1 and lev else lam)
@@ -853,9 +975,14 @@ def _fit(z, p, q, region, h, tol, k0, xy, lam, angle=None) -> SurfaceFit:
             WI, WJ = np.nonzero(ndimage.binary_dilation(patch, np.ones((7, 7), bool)))
             covered = np.repeat(np.repeat(patch, k, axis=0), k, axis=1)[:H, :W]
             # the targets are zero off the fitted pixels: weighting by w changes nothing
-            grid = [lv.project_grid(targets[0][c], V, V) + lv.lam * (lv.project_grid(targets[1][c], D, V)
-                    + lv.project_grid(targets[2][c], V, D)) for c in range(d)]
-            cell_rhs = np.stack([g[WI, WJ] for g in grid])
+            grid = np.empty((d, ns, nt, 4, 4))
+            for b0 in range(0, ns, band):
+                tz, ts, tt = targets.rows(b0 * k, min(b0 + band, ns) * k)
+                for c in range(d):
+                    grid[c, b0:b0 + band] = lv.project_grid(tz[c], V, V) + lv.lam * (
+                        lv.project_grid(ts[c], D, V) + lv.project_grid(tt[c], V, D))
+            cell_rhs = grid[:, WI, WJ]
+            del grid, tz, ts, tt
             ridge = 0.0
         else:
             # an overlay B-spline lies wholly inside the region; outside the image the
@@ -870,14 +997,20 @@ def _fit(z, p, q, region, h, tol, k0, xy, lam, angle=None) -> SurfaceFit:
             fi, fj = ci[inside], cj[inside]
             WI, WJ = CI, CJ
             ww = wc[CI, CJ]
-            res = [(lv.cells(t)[:, CI, CJ] - lv.cells(f)[:, CI, CJ]) * ww for t, f in zip(targets, fitted)]
-            cell_rhs = np.stack([lv.project(res[0][c], V, V) + lv.lam * (lv.project(res[1][c], D, V)
-                                 + lv.project(res[2][c], V, D)) for c in range(d)])
+            per = max(1, BLOCK_PIXELS // (k * k))  # cells per block
+            chunks = [slice(a, a + per) for a in range(0, CI.size, per)]
+            cell_rhs = np.empty((d, CI.size, 4, 4))
+            for sl in chunks:
+                res = [(t - lv.cells(f)[:, CI[sl], CJ[sl]]) * ww[sl]
+                       for t, f in zip(targets.cells(CI[sl], CJ[sl], k, ww[sl]), fitted)]
+                cell_rhs[:, sl] = np.stack([lv.project(res[0][c], V, V) + lv.lam * (lv.project(res[1][c], D, V)
+                                            + lv.project(res[2][c], V, D)) for c in range(d)])
+            del res
             ridge = 1e-9
         # data pixels per cell, without gathering every working cell's k x k weights (only
         # partial cells need theirs, in _assemble)
         if lev == 0:
-            n_data = w.reshape(ns, k, nt, k).sum(axis=(1, 3))[WI, WJ]
+            n_data = count[WI, WJ]
         else:  # the refined cells' weights are at hand: no pass over the whole image
             n_data = ww.reshape(len(WI), -1).sum(axis=1)
         counts = _Lookup(WI, WJ, (lv.ns, lv.nt))
@@ -890,34 +1023,52 @@ def _fit(z, p, q, region, h, tol, k0, xy, lam, angle=None) -> SurfaceFit:
         if lev == 0:
             coef = np.zeros((ns + 3, nt + 3, d))
             coef[fi, fj] = values
-            for arr, (ps, pt) in zip(fitted, ((V, V), (D, V), (V, D))):
-                for c in range(d):
-                    arr[c] = lv.expand_grid(coef[..., c], ps, pt)
-            diff = fitted[0] - targets[0]
-            dist = np.abs(diff[0]) if d == 1 else np.sqrt((diff * diff).sum(axis=0))
-            dist *= w
-            worst = dist.reshape(ns, k, nt, k).max(axis=(1, 3))[CI, CJ]
+            # evaluated and compared with the targets per block of cell rows
+            cell_max = np.empty((ns, nt))
             if check_slopes:
-                ang = _cell_angles(fitted[1][0], fitted[2][0], targets[1][0], targets[2][0], h, wa) - own
-                excess = ang.reshape(ns, k, nt, k).sum(axis=(1, 3))[CI, CJ]
-                slope_miss = excess > angle * wa.reshape(ns, k, nt, k).sum(axis=(1, 3))[CI, CJ]
+                cell_excess, cell_checked = np.empty((ns, nt)), np.empty((ns, nt))
+            for b0 in range(0, ns, band):
+                b1 = min(b0 + band, ns)
+                for arr, (ps, pt) in zip(fitted, ((V, V), (D, V), (V, D))):
+                    for c in range(d):
+                        arr[c, b0 * k:b1 * k] = lv.expand_grid(coef[b0:b1 + 3, :, c], ps, pt)
+                diff = fitted[0][:, b0 * k:b1 * k] - targets.rows(b0 * k, b1 * k, parts=1)[0]
+                dist = np.abs(diff[0]) if d == 1 else np.sqrt((diff * diff).sum(axis=0))
+                dist *= w[b0 * k:b1 * k]
+                cell_max[b0:b1] = dist.reshape(b1 - b0, k, nt, k).max(axis=(1, 3))
+                if check_slopes:
+                    r0, r1 = b0 * k, b1 * k
+                    _, ts, tt = targets.rows(r0, r1)
+                    ang = _cell_angles(fitted[1][0, r0:r1], fitted[2][0, r0:r1], ts[0], tt[0], h,
+                                       wa[r0:r1]) - own[r0:r1]
+                    cell_excess[b0:b1] = ang.reshape(b1 - b0, k, nt, k).sum(axis=(1, 3))
+                    cell_checked[b0:b1] = wa[r0:r1].reshape(b1 - b0, k, nt, k).sum(axis=(1, 3))
+            worst = cell_max[CI, CJ]
+            if check_slopes:
+                slope_miss = cell_excess[CI, CJ] > angle * cell_checked[CI, CJ]
         else:
             block = _gather(values, _window_index(lookup, CI, CJ))  # (n, 4, 4, d)
-            for part, (arr, (ps, pt)) in enumerate(zip(fitted, ((V, V), (D, V), (V, D)))):
-                view = lv.cells(arr)
-                for c in range(d):
-                    upd = lv.expand(block[..., c], ps, pt)
-                    view[c, CI, CJ] += upd
-                    if part == 0 or check_slopes:
-                        # on the fitted pixels the new S - z is the update minus the old residual
-                        res[part][c] = (upd - res[part][c]) * ww
-            dist = np.abs(res[0][0]) if d == 1 else np.sqrt((res[0] * res[0]).sum(axis=0))
-            worst = dist.reshape(len(CI), -1).max(axis=1)
+            worst = np.empty(CI.size)
             if check_slopes:
-                ts, tt = lv.cells(targets[1])[0, CI, CJ], lv.cells(targets[2])[0, CI, CJ]
-                wac = lv.cells(wa)[CI, CJ]
-                excess = _cell_angles(ts + res[1][0], tt + res[2][0], ts, tt, h, wac) - lv.cells(own)[CI, CJ]
-                slope_miss = excess.reshape(len(CI), -1).sum(axis=1) > angle * wac.reshape(len(CI), -1).sum(axis=1)
+                slope_miss = np.empty(CI.size, bool)
+            for sl in chunks:
+                ci, cj = CI[sl], CJ[sl]
+                for arr, (ps, pt) in zip(fitted, ((V, V), (D, V), (V, D))):
+                    view = lv.cells(arr)
+                    for c in range(d):
+                        view[c, ci, cj] += lv.expand(block[sl, ..., c], ps, pt)
+                # the new S - z on the fitted pixels, from S as stored
+                diff = (lv.cells(fitted[0])[:, ci, cj] - targets.cells(ci, cj, k, ww[sl], parts=1)[0]) * ww[sl]
+                dist = np.abs(diff[0]) if d == 1 else np.sqrt((diff * diff).sum(axis=0))
+                worst[sl] = dist.reshape(len(ci), -1).max(axis=1)
+                if check_slopes:
+                    _, ts, tt = targets.cells(ci, cj, k, ww[sl])
+                    wac = lv.cells(wa)[ci, cj]
+                    excess = _cell_angles(lv.cells(fitted[1])[0, ci, cj], lv.cells(fitted[2])[0, ci, cj], ts[0], tt[0],
+                                          h, wac) - lv.cells(own)[ci, cj]
+                    slope_miss[sl] = (excess.reshape(len(ci), -1).sum(axis=1)
+                                      > angle * wac.reshape(len(ci), -1).sum(axis=1))
+        del diff, dist
         fail = worst > tol
         if check_slopes:
             fail |= slope_miss
@@ -934,20 +1085,26 @@ def _fit(z, p, q, region, h, tol, k0, xy, lam, angle=None) -> SurfaceFit:
         leaves.append((lev, CI[~refine], CJ[~refine]))
         CI = (2 * CI[refine][:, None] + np.array([0, 0, 1, 1])).ravel()
         CJ = (2 * CJ[refine][:, None] + np.array([0, 1, 0, 1])).ravel()
+    del w, wc  # the weights are the region's; the deviations below read it
     patches = _patches(leaves, solved, k0, (H, W), h, xy is None)
     values = tuple(np.moveaxis(f[:, :H, :W], 0, -1) for f in fitted)
-    # whole-image operations on the contiguous fitted arrays: a boolean gather from the
-    # strided (H, W, d) views of ``values`` cost more than the rest of the bookkeeping
-    if xy is None:
-        dv = fitted[0][0, :H, :W] - targets[0][0, :H, :W]
-    else:
-        diff = fitted[0][:, :H, :W] - targets[0][:, :H, :W]
-        dv = np.sqrt((diff * diff).sum(axis=0))
-    dv[~region] = 0.0
-    deviation = np.where(region, dv, np.nan)
+    # per block of rows on the contiguous fitted arrays (a boolean gather from the strided
+    # (H, W, d) views of ``values`` cost more than the rest of the bookkeeping)
+    deviation = np.empty((H, W), z.dtype)
+    max_dev = squares = 0.0
+    rows = max(1, BLOCK_PIXELS // WP)
+    for r0 in range(0, H, rows):
+        r1 = min(r0 + rows, H)
+        diff = fitted[0][:, r0:r1, :W] - targets.rows(r0, r1, parts=1)[0][:, :, :W]
+        dv = diff[0] if d == 1 else np.sqrt((diff * diff).sum(axis=0))
+        off = ~region[r0:r1]
+        dv[off] = 0.0
+        max_dev = max(max_dev, float(dv.max()), -float(dv.min()))
+        squares += float(np.vdot(dv, dv))
+        dv[off] = np.nan
+        deviation[r0:r1] = dv
     n_fitted = int(np.count_nonzero(region))
-    max_dev = max(float(dv.max()), -float(dv.min()))
-    rms_dev = float(np.sqrt(np.vdot(dv, dv) / n_fitted))
+    rms_dev = float(np.sqrt(squares / n_fitted))
     return SurfaceFit(
         patches=patches,
         deviation=deviation,
@@ -1034,6 +1191,38 @@ def _marching_table() -> dict:
 _MARCHING = _marching_table()
 
 
+def _lattice_field(mask: np.ndarray, sigma: float, s: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """The mask smoothed by a Gaussian (zero outside the image) at the lattice ``s x t``, interpolated linearly.
+
+    What ``map_coordinates(gaussian_filter(mask, sigma, mode="constant"), ..., order=1,
+    mode="constant")`` gives on the lattice (to rounding; nodes outside the pixel centres'
+    range are 0), without a whole-image float64 field: both the filter and the bilinear
+    interpolation are separable, so the columns are filtered and interpolated to the
+    lattice rows a block at a time, and only those rows are filtered along the columns.
+    """
+
+    def linear(x: np.ndarray, n: int):
+        ok = (x >= 0) & (x <= n - 1)
+        i0 = np.clip(np.floor(x).astype(np.intp), 0, n - 1)
+        return ok, i0, np.minimum(i0 + 1, n - 1), np.where(ok, x - i0, 0.0)
+
+    H, W = mask.shape
+    ok, r0, r1, a = linear(np.asarray(s, float), H)
+    rows = np.zeros((len(s), W))
+    span = max(1, BLOCK_PIXELS // H)
+    for c0 in range(0, W, span):
+        block = mask[:, c0:c0 + span].astype(np.float64)
+        if sigma:
+            block = ndimage.gaussian_filter1d(block, sigma, axis=0, mode="constant")
+        rows[ok, c0:c0 + span] = ((1.0 - a[ok, None]) * block[r0[ok]] + a[ok, None] * block[r1[ok]])
+    if sigma:
+        rows = ndimage.gaussian_filter1d(rows, sigma, axis=1, mode="constant")
+    ok, c0, c1, b = linear(np.asarray(t, float), W)
+    out = np.zeros((len(s), len(t)))
+    out[:, ok] = (1.0 - b[ok]) * rows[:, c0[ok]] + b[ok] * rows[:, c1[ok]]
+    return out
+
+
 def fit_mesh(fit: SurfaceFit, spacing: float = 1.0, smoothing: float = 0.7):
     """Triangle mesh of a fit on a lattice of parameter points, trimmed along the region's outline.
 
@@ -1075,15 +1264,12 @@ def fit_mesh(fit: SurfaceFit, spacing: float = 1.0, smoothing: float = 0.7):
     if not np.isfinite(sigma) or sigma < 0:
         raise ValueError(f"smoothing: must be a finite number >= 0, got {smoothing!r}")
     H, W = fit.shape
-    inside_px = fit.region & fit.covered
-    field = ndimage.gaussian_filter(inside_px.astype(float), sigma, mode="constant") if sigma else inside_px * 1.0
     # lattice nodes one spacing beyond the pixel centres on every side, so the outline
     # reaches the image edges
     s = np.arange(-1, int(np.ceil((H - 1) / step)) + 2) * step
     t = np.arange(-1, int(np.ceil((W - 1) / step)) + 2) * step
     S, T = np.meshgrid(s, t, indexing="ij")
-    f = ndimage.map_coordinates(field, [S.ravel(), T.ravel()], order=1, mode="constant", cval=0.0)
-    f = f.reshape(S.shape)
+    f = _lattice_field(fit.region & fit.covered, sigma, s, t)
     inside = f >= 0.5
     nr, nc = S.shape
     # vertices: inside nodes, then the crossings on vertical (along s) and horizontal edges
@@ -1104,6 +1290,7 @@ def fit_mesh(fit: SurfaceFit, spacing: float = 1.0, smoothing: float = 0.7):
         t_cut = T[a][cut] + frac * (T[b][cut] - T[a][cut])
         params.append(np.stack([s_cut, t_cut], axis=1))
         edge_ids.append(ids)
+    del S, T
     along_s, along_t = edge_ids
     # the eight cycle positions of every lattice cell
     ring = np.stack([
@@ -1112,6 +1299,7 @@ def fit_mesh(fit: SurfaceFit, spacing: float = 1.0, smoothing: float = 0.7):
     ], axis=-1).reshape(-1, 8)
     case = (inside[:-1, :-1] * 1 + inside[1:, :-1] * 2 + inside[1:, 1:] * 4 + inside[:-1, 1:] * 8).ravel()
     centre = (0.25 * (f[:-1, :-1] + f[1:, :-1] + f[1:, 1:] + f[:-1, 1:])).ravel() >= 0.5
+    del f, inside, node_id, edge_ids, along_s, along_t
     tris = []
     for (c, joined), triangles in _MARCHING.items():
         if not triangles:
@@ -1124,14 +1312,27 @@ def fit_mesh(fit: SurfaceFit, spacing: float = 1.0, smoothing: float = 0.7):
         cells = ring[sel]
         for tri in triangles:
             tris.append(cells[:, list(tri)])
+    del ring, case, centre
     tri = np.concatenate(tris) if tris else np.zeros((0, 3), np.int64)
+    del tris
     st = np.concatenate(params)
-    patch, u, v = fit.patches.locate_lattice(st[:, 0] + 0.5, st[:, 1] + 0.5)
-    lost = patch < 0
+    del params
+    # points and normals evaluated per block of vertices: no whole-mesh derivative temporaries
+    n = len(st)
+    points, normals = np.empty((n, 3)), np.empty((n, 3))
+    lost = np.zeros(n, bool)
+    span = max(1, BLOCK_PIXELS // 8)
+    for a in range(0, n, span):
+        b = min(a + span, n)
+        patch, u, v = fit.patches.locate_lattice(st[a:b, 0] + 0.5, st[a:b, 1] + 0.5)
+        lost[a:b] = patch < 0
+        d = fit.patches.derivatives(np.maximum(patch, 0), 0, u, v)
+        points[a:b] = d.point
+        normals[a:b] = unit(cross(d.du, d.dv))
+    del st
     if lost.any():  # a cut beyond the patches (never for fits): drop its triangles
         tri = tri[~lost[tri].any(axis=1)]
-    d = fit.patches.derivatives(np.maximum(patch, 0), 0, u, v)
-    mesh = TriangleMesh(d.point, tri, unit(cross(d.du, d.dv)))
+    mesh = TriangleMesh(points, tri, normals)
     if lost.any():
         from surfaces.mesh import compact
 

@@ -108,13 +108,27 @@ class MixedPatches(BezierPatches):
         numpy.ndarray, shape lattice_shape, int64
         """
         rows, cols = self.lattice_shape
-        out = np.full((rows, cols), -1, np.int64)
-        for size in np.unique(self.sizes):
-            k = np.flatnonzero(self.sizes == size)
-            r0, c0 = self.cells[k, 0], self.cells[k, 1]
+        unit, coarse = self._unit_map()
+        return np.repeat(np.repeat(coarse.astype(np.int64), unit, axis=0), unit, axis=1)[:rows, :cols]
+
+    def _unit_map(self) -> tuple[int, np.ndarray]:
+        """:meth:`patch_map` on squares of ``unit`` lattice squares, the largest unit that divides
+        every corner and size: ``(unit, map)``, map int32 of shape ``ceil(lattice_shape / unit)``.
+
+        A fit whose smallest patches are 8 pixels wide needs 64 times fewer entries than the
+        lattice has squares (a 4 MP fit: 0.5 MB instead of 32 MB of int64, and no index
+        arrays of the whole lattice while it is filled).
+        """
+        rows, cols = self.lattice_shape
+        unit = int(np.gcd.reduce(self.cells.ravel()))
+        out = np.full((-(-rows // unit), -(-cols // unit)), -1, np.int32)
+        cells = self.cells // unit
+        for size in np.unique(cells[:, 2]):
+            k = np.flatnonzero(cells[:, 2] == size)
+            r0, c0 = cells[k, 0], cells[k, 1]
             dr, dc = np.meshgrid(np.arange(size), np.arange(size), indexing="ij")
             out[r0[:, None, None] + dr, c0[:, None, None] + dc] = k[:, None, None]
-        return out
+        return unit, out
 
     def locate_lattice(self, row, col) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Patch and local parameters of lattice coordinates.
@@ -134,14 +148,15 @@ class MixedPatches(BezierPatches):
         """
         r = as_array(row, "row", ndim=1)
         c = as_array(col, "col", ndim=1, shape=r.shape)
-        pmap = self.patch_map()
-        ir = np.clip(np.floor(r).astype(np.intp), 0, pmap.shape[0] - 1)
-        ic = np.clip(np.floor(c).astype(np.intp), 0, pmap.shape[1] - 1)
-        patch = pmap[ir, ic]
+        rows, cols = self.lattice_shape
+        unit, pmap = self._unit_map()
+        ir = np.clip(np.floor(r).astype(np.intp), 0, rows - 1) // unit
+        ic = np.clip(np.floor(c).astype(np.intp), 0, cols - 1) // unit
+        patch = pmap[ir, ic].astype(np.int64)
         cell = self.cells[np.maximum(patch, 0)]
         u = np.clip((r - cell[:, 0]) / cell[:, 2], 0.0, 1.0)
         v = np.clip((c - cell[:, 1]) / cell[:, 2], 0.0, 1.0)
-        outside = (r < 0) | (c < 0) | (r > pmap.shape[0]) | (c > pmap.shape[1])
+        outside = (r < 0) | (c < 0) | (r > rows) | (c > cols)
         patch = np.where(outside, -1, patch)
         return patch, u, v
 

@@ -1,10 +1,12 @@
 """Bounded memory of ``photometric reconstruct`` (issue 20): streamed ``.npy`` files and the stages' peaks.
 
 The peak of each stage is measured in a fresh process with the kernel's own high-water
-mark (``VmHWM``), reset at every stage by ``/proc/self/clear_refs``; the stages this
-work bounds (read, normals, height) must stay within 6x the raw input bytes (the goal
-of the issue for the whole command; the surface fit and the defect measures are
-measured in ``benchmarks/bench_memory.py``).
+mark (``VmHWM``), reset at every stage by ``/proc/self/clear_refs``; the stages of the
+solve (read, normals, height) must stay within 6x the raw input bytes (the goal of the
+issue for the whole command), the surface fit and the write stage within 8x (21.8x and
+14.3x before the fit was bounded; at 4 MP the mesh lattice, a vertex every 4 pixels, and
+the heap the C library keeps from earlier stages leave them a little above 6x); the defect
+measures are measured in ``benchmarks/bench_memory.py``.
 """
 
 from __future__ import annotations
@@ -124,6 +126,8 @@ def test_solve_and_integration_stay_within_six_times_the_input(tmp_path):
     assert {"read", "normals", "height", "surface", "defects", "write"} <= set(ratios)
     for stage in ("read", "normals", "height"):
         assert ratios[stage] <= 6.0, ratios
+    for stage in ("surface", "write"):
+        assert ratios[stage] <= 8.0, ratios
     assert sorted(p.name for p in (tmp_path / "out").iterdir()) == sorted(
         json.loads((tmp_path / "out" / "summary.json").read_text())["files"] + ["_COMPLETE"])
     assert np.load(tmp_path / "out" / "height.npy").dtype == np.float32

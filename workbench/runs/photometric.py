@@ -179,8 +179,9 @@ def _write_previews(result: PhotometricReconstruction, out: Path) -> None:
     vmin = vmax = None
     if vals.size:
         vmin, vmax = (float(v) for v in np.percentile(vals, [0.5, 99.5], overwrite_input=True))
-    lo, hi = scalar_range(vals, vmin, vmax)
     del vals
+    # the ends are known whenever a value is (scalar_range would copy the values only to find them)
+    lo, hi = scalar_range(np.empty(0), vmin, vmax)
     for r, block in blocks("height", result.height):
         pic[r] = images.scalar_image(block, result.valid[r], cmap="viridis", vmin=lo, vmax=hi, colorbar=False,
                                      min_height=1, background=(0.0, 0.0, 0.0))
