@@ -46,12 +46,17 @@ The far-field solve is ``m = C x`` with ``C = L^+`` (3, N), ``x_k = I_k / E_k`` 
 * Defect depth and volume are linear in the height after a least-squares background fit:
   each systematic field's effect is taken on the *measured depth* (field minus its
   background fit), so a light error that only tilts the plate adds nothing.
-* Width, length and area depend on the segmentation: their budget holds the pixel size,
-  the pixel quantisation of the outline (the spread of the same measures over the
-  measured outline, a stadium, rasterised at random sub-pixel offsets) and the measures'
-  own bias found the same way (``method_bias``: what the errors' 95th percentile holds
-  beyond twice their spread, e.g. their skew). The length is measured to a sub-pixel
-  (:func:`photometric.defects._stadium_length`), so it carries no known bias to correct.
+* Width, length and area depend on the segmentation: their budget holds the pixel size
+  and the pixel quantisation of the outline, from the same measures over the measured
+  outline, a stadium, rasterised at random sub-pixel offsets, widths and lengths. Those
+  errors are bounded, flat-topped and skewed, not normal, so U is the 95 % half-width of
+  their distribution (bias included) convolved with the Gaussian of the other terms
+  (GUM-S1 coverage interval; a uniform error of half-range ``a`` alone gives ``0.95 a``,
+  where ``2 sd`` would give ``1.15 a``), stated as the ``discretisation`` term's effective
+  standard uncertainty: the ``u_q`` for which ``2 sqrt(u_q^2 + sum of the others' u^2)``
+  is that half-width, so the budget still sums with k = 2. The length is measured to a
+  sub-pixel (:func:`photometric.defects._stadium_length`), so it carries no known bias to
+  correct.
   The volume gets the place of its outline.
 * The depth's pixel-grid error comes from a model of the defect: a parabolic-section
   groove of the measured depth, width, length and axis whose exact slopes at the pixel

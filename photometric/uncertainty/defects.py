@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.fft as sfft
-from scipy import ndimage
+from scipy import ndimage, special
 
 from photometric.defects import _stadium_length
 from photometric.uncertainty.budget import _H_POWER
@@ -248,12 +248,12 @@ def _quantisation(rec: dict, h: float, rng: np.random.Generator) -> dict:
     The stadium stands for the true outline, so its width and length are first set so that
     their mean measures over a few offsets equal the defect's (one correction: the extent
     along the axis adds up to a pixel, the mean width of a round dent is below its
-    diameter). The measures' errors over the offsets are discrete and skewed (the extent
-    moves in steps of the pixel pitch projected on the axis), so the 95 % half-width is
-    their 95th percentile of ``|measure - stadium|``, not twice a standard deviation.
+    diameter). The measures' errors over the offsets are bounded, flat-topped and skewed
+    (the outline moves in steps of the pixel pitch projected on the axis), far from normal:
+    they are returned as samples for :func:`_quantisation_term`, not as a standard deviation.
 
-    Returns ``{figure: (spread, half95)}``: the standard deviation of the measures over the
-    offsets and the 95th percentile of their absolute error.
+    Returns ``{figure: errors}``: the errors ``measure - stadium`` over the offsets (mm or
+    mm^2, shape (n,)); a defect too small to rasterise gets ``±h`` (``±h^2``), the pixel.
     """
     width = max(float(rec["mean_width_mm"]) / h, 1.0)
     length = max(float(rec["length_mm"]) / h, width)
@@ -274,11 +274,47 @@ def _quantisation(rec: dict, h: float, rng: np.random.Generator) -> dict:
     out = {}
     for key, v in values.items():
         if len(v) > 2:
-            err = np.asarray(v) - model[key]
-            out[key] = (float(np.std(err, ddof=1)), float(np.percentile(np.abs(err), 95.0)))
+            out[key] = np.asarray(v) - model[key]
         else:
-            out[key] = (0.5 * h ** _H_POWER[key], h ** _H_POWER[key])
+            out[key] = np.array([-1.0, 1.0]) * h ** _H_POWER[key]
     return out
+
+
+def _coverage_half_width(errors, others: float, level: float = 0.95) -> float:
+    """Half-width ``U`` of the interval ``±U`` that holds ``level`` of ``e + N(0, others^2)``,
+    ``e`` drawn from the samples ``errors`` (their empirical distribution, bias included,
+    convolved with the Gaussian of the other terms; GUM-S1 coverage interval).
+
+    ``P(|e + n| <= U) = mean(Phi((U - e) / s) - Phi((-U - e) / s))`` is solved for ``U`` by
+    bisection; with ``others = 0`` it is the ``level`` quantile of ``|e|`` (a uniform error
+    of half-range ``a`` gives ``level * a``; no errors and a Gaussian give ``1.96 s``).
+    """
+    e = np.asarray(errors, float).ravel()
+    if e.size == 0:
+        raise ValueError("errors: need at least one error sample")
+    if others <= 0.0:
+        return float(np.quantile(np.abs(e), level, method="inverted_cdf"))
+    s = float(others)
+
+    def held(U):
+        return float(np.mean(special.ndtr((U - e) / s) - special.ndtr((-U - e) / s)))
+
+    lo, hi = 0.0, float(np.abs(e).max()) + 10.0 * s
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if held(mid) < level else (lo, mid)
+    return 0.5 * (lo + hi)
+
+
+def _quantisation_term(errors, others: float) -> float:
+    """Effective standard uncertainty of the outline's quantisation next to the other terms'
+    combined standard uncertainty ``others``: the ``u_q`` for which ``2 sqrt(others^2 +
+    u_q^2)`` (k = 2, as the budget sums) is :func:`_coverage_half_width` of the errors
+    convolved with the Gaussian of the others. A bounded, flat-topped error has a 95 %
+    half-width below twice its standard deviation (a uniform one 0.95 x its half-range
+    against 1.15), so this ``u_q`` is below the errors' spread there."""
+    U = _coverage_half_width(errors, others)
+    return float(math.sqrt(max(0.25 * U * U - others * others, 0.0)))
 
 
 def _bias_term(spread: float, bias: float) -> float:

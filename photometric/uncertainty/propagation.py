@@ -27,6 +27,7 @@ from photometric.uncertainty.defects import (
     _noise_functionals,
     _points,
     _quantisation,
+    _quantisation_term,
     _sampler,
     _systematic,
     _volume_edge,
@@ -264,11 +265,12 @@ def propagate(
         if tol.pixel_size_tolerance > 0:
             for figname in FIGURES:
                 terms[figname]["pixel_size"] = _entry(tol.pixel_size_tolerance, _H_POWER[figname] * rec[figname])
-        for figname, (spread, half95) in _quantisation(rec, h, rng).items():
-            # the outline's 95 % half-width stands for 2 u of the quantisation: its spread,
-            # and the rest (bias, skew) as the method's term
-            terms[figname]["discretisation"] = _entry(spread, 1.0)
-            terms[figname]["method_bias"] = _entry(math.sqrt(max(0.25 * half95**2 - spread**2, 0.0)), 1.0)
+        for figname, errors in _quantisation(rec, h, rng).items():
+            # the outline's errors are bounded and flat-topped, not normal: U is the 95 %
+            # half-width of their distribution convolved with the Gaussian of the other
+            # terms, stated as the discretisation's effective standard uncertainty
+            others = math.sqrt(sum(e["contribution"] ** 2 for e in terms[figname].values()))
+            terms[figname]["discretisation"] = _entry(_quantisation_term(errors, others), 1.0)
         # the deepest pixel's grid error on the defect's model: its spread, and its mean
         # (a bias that depends on the axis) stated as the uncorrected bias that, with every
         # other term, a k = 2 interval must still cover (GUM F.2.4.5)

@@ -354,3 +354,60 @@ def test_public_names_import_from_the_package():
     assert U.propagate is propagation.propagate and U.Tolerances is budget.Tolerances
     assert U.slope_noise_covariance is slopes.slope_noise_covariance
     assert U.height_noise_variance is heights.height_noise_variance
+
+
+def test_quantisation_half_width_of_a_uniform_error_is_its_95_percent_quantile():
+    """A uniform quantisation error of half-range a, alone, is covered by 0.95 a (closed
+    form), not by twice its standard deviation (2 a / sqrt(3) = 1.15 a)."""
+    a = 0.03
+    errors = np.linspace(-a, a, 20001)
+    assert defects._coverage_half_width(errors, 0.0) == pytest.approx(0.95 * a, rel=1e-3)
+    u_q = defects._quantisation_term(errors, 0.0)
+    assert 2.0 * u_q == pytest.approx(0.95 * a, rel=1e-3)
+    assert u_q < errors.std()
+    # a bias moves the interval: a uniform error on [0, 2 a] needs 0.95 x 2 a
+    assert defects._coverage_half_width(errors + a, 0.0) == pytest.approx(1.9 * a, rel=1e-3)
+
+
+def test_quantisation_half_width_of_a_gaussian_alone_is_1_96_sigma():
+    """No quantisation error next to a Gaussian of standard deviation s: U = 1.96 s, and the
+    effective quantisation term is nil (k = 2 on s is what the budget states)."""
+    s = 0.004
+    assert defects._coverage_half_width(np.zeros(5), s) == pytest.approx(1.959964 * s, rel=1e-6)
+    assert defects._quantisation_term(np.zeros(5), s) == 0.0
+    with pytest.raises(ValueError, match="errors"):
+        defects._coverage_half_width(np.array([]), s)
+
+
+def test_quantisation_half_width_convolves_the_error_with_the_gaussian():
+    """Uniform error of half-range a plus a Gaussian of s: the half-width is the 95 % quantile of
+    |e + n| (checked against a large sample), between either alone and their k = 2 sum."""
+    a, s = 0.02, 0.008
+    errors = np.linspace(-a, a, 2001)
+    U_ = defects._coverage_half_width(errors, s)
+    rng = np.random.default_rng(3)
+    sample = rng.uniform(-a, a, 400_000) + rng.normal(0.0, s, 400_000)
+    assert U_ == pytest.approx(np.quantile(np.abs(sample), 0.95), rel=0.01)
+    assert max(0.95 * a, 1.96 * s) < U_ < 2.0 * math.sqrt(a * a / 3.0 + s * s)
+    # the budget's sum 2 sqrt(s^2 + u_q^2) gives that half-width back
+    u_q = defects._quantisation_term(errors, s)
+    assert 2.0 * math.sqrt(s * s + u_q * u_q) == pytest.approx(U_, rel=1e-9)
+
+
+def test_outline_budget_states_the_quantisation_as_one_effective_term():
+    """Width, length and area: one discretisation term (no method_bias), whose k = 2 sum with
+    the pixel size is the 95 % half-width of the quantisation errors convolved with the
+    pixel size's Gaussian."""
+    _, L, images = _scratch(axis_deg=30.0, deviation_deg=0.0)
+    res = reconstruct(images, lights=L, pixel_size=0.05,
+                      uncertainty={"noise_sigma": 0.002, "pixel_size_tolerance": 0.001})
+    budget = res.uncertainty.defects[0]["budget"]
+    rec = res.defects[0]
+    for fig in ("mean_width_mm", "length_mm", "area_mm2"):
+        sources = budget[fig]["sources"]
+        assert set(sources) == {"pixel_size", "discretisation"}
+        assert sources["discretisation"]["contribution"] > 0
+        errors = defects._quantisation(rec, 0.05, np.random.default_rng(7))[fig]
+        U_ = defects._coverage_half_width(errors, sources["pixel_size"]["contribution"])
+        # another draw of the sub-pixel offsets: the same half-width to within their spread
+        assert budget[fig]["expanded_uncertainty"] == pytest.approx(U_, rel=0.25)
