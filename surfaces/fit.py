@@ -75,7 +75,6 @@ stair-stepping.
 
 from __future__ import annotations
 
-from contextlib import contextmanager
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -85,6 +84,7 @@ from scipy import ndimage
 from scipy.sparse.linalg import splu
 
 from surfaces.mixed import MixedPatches
+from surfaces.threads import one_blas_thread
 from surfaces.validate import as_array, positive
 
 __all__ = [
@@ -491,21 +491,6 @@ def _solve(A: sp.csr_matrix, b: np.ndarray) -> np.ndarray:
 
 
 # ----------------------------------------------------------------------------- BLAS threads
-@contextmanager
-def _one_blas_thread():
-    """Numpy's products on one BLAS thread for the duration (threadpoolctl restores the count).
-
-    The fit's products are thin (inner dimension 4 to 32 pixels): BLAS threads gain
-    nothing on them, and on a busy machine each product waits for a descheduled helper
-    thread; measured on a 4 MP fit under load, the level products took 10 to 30 times
-    longer with two threads than with one.
-    """
-    from threadpoolctl import threadpool_limits
-
-    with threadpool_limits(limits=1, user_api="blas"):
-        yield
-
-
 # ----------------------------------------------------------------------------- input
 def height_noise(height, mask, scale_px: float) -> float:
     """Robust standard deviation of a height field's detail below a scale (its noise there).
@@ -859,7 +844,7 @@ def fit_height(
     region = m & ~find_discontinuities(z, pp, qq, m, h, jump, xyv)
     if not region.any():
         raise ValueError("height: every pixel of the mask lies on a depth discontinuity")
-    with _one_blas_thread():
+    with one_blas_thread():
         return _fit(z, pp, qq, region, h, tol, k0, xyv, lam, angle)
 
 

@@ -41,6 +41,7 @@ from photometric.uncertainty.slopes import (
     _tangents,
     estimate_noise_sigma,
 )
+from surfaces.threads import one_blas_thread
 from surfaces.validate import as_array, positive
 
 #: Largest image on which the systematic fields are integrated pixel by pixel; larger
@@ -70,6 +71,8 @@ def _median(values: np.ndarray, where: np.ndarray) -> float:
     return float(np.median(v)) if v.size else 0.0
 
 
+# many small products (3 x 3 solves, dot products over a model window): one BLAS thread
+@one_blas_thread()
 def propagate(
     *,
     lights,

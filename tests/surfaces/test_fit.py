@@ -387,13 +387,13 @@ def test_lookup_in_and_out_of_range_agree():
 def test_blas_thread_count_is_restored():
     from threadpoolctl import threadpool_info
 
-    from surfaces import fit as fitmod
+    from surfaces.threads import one_blas_thread
 
     def blas_threads():
         return [i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"]
 
     before = blas_threads()
-    with fitmod._one_blas_thread():
+    with one_blas_thread():
         assert all(n == 1 for n in blas_threads())
     assert blas_threads() == before
     r, c = np.mgrid[0:32, 0:32]
