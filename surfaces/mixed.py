@@ -23,6 +23,7 @@ stores ``cells`` beside ``control``.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -108,16 +109,18 @@ class MixedPatches(BezierPatches):
         numpy.ndarray, shape lattice_shape, int64
         """
         rows, cols = self.lattice_shape
-        unit, coarse = self._unit_map()
+        unit, coarse = self._unit_map
         return np.repeat(np.repeat(coarse.astype(np.int64), unit, axis=0), unit, axis=1)[:rows, :cols]
 
+    @cached_property
     def _unit_map(self) -> tuple[int, np.ndarray]:
         """:meth:`patch_map` on squares of ``unit`` lattice squares, the largest unit that divides
         every corner and size: ``(unit, map)``, map int32 of shape ``ceil(lattice_shape / unit)``.
 
         A fit whose smallest patches are 8 pixels wide needs 64 times fewer entries than the
         lattice has squares (a 4 MP fit: 0.5 MB instead of 32 MB of int64, and no index
-        arrays of the whole lattice while it is filled).
+        arrays of the whole lattice while it is filled). Made once per model (the mesh
+        locates its vertices block by block).
         """
         rows, cols = self.lattice_shape
         unit = int(np.gcd.reduce(self.cells.ravel()))
@@ -149,7 +152,7 @@ class MixedPatches(BezierPatches):
         r = as_array(row, "row", ndim=1)
         c = as_array(col, "col", ndim=1, shape=r.shape)
         rows, cols = self.lattice_shape
-        unit, pmap = self._unit_map()
+        unit, pmap = self._unit_map
         ir = np.clip(np.floor(r).astype(np.intp), 0, rows - 1) // unit
         ic = np.clip(np.floor(c).astype(np.intp), 0, cols - 1) // unit
         patch = pmap[ir, ic].astype(np.int64)

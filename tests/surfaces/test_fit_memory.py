@@ -111,7 +111,7 @@ def test_patch_map_on_coarse_units_is_the_lattice_map():
     for k, (r, c, size) in enumerate(patches.cells):
         want[r:r + size, c:c + size] = k
     np.testing.assert_array_equal(patches.patch_map(), want)
-    unit, coarse = patches._unit_map()
+    unit, coarse = patches._unit_map
     assert unit == min(fit.patch_sizes()) and coarse.dtype == np.int32
     rng = np.random.default_rng(0)
     r, c = rng.uniform(-1, rows + 1, 2000), rng.uniform(-1, cols + 1, 2000)
@@ -130,7 +130,7 @@ def test_patch_map_on_coarse_units_is_the_lattice_map():
 def test_mixed_patches_of_odd_corners_use_unit_squares():
     ctrl = np.zeros((2, 1, 4, 4, 3))
     m = MixedPatches(ctrl, cells=[[0, 0, 3], [0, 3, 2]])
-    assert m._unit_map()[0] == 1
+    assert m._unit_map[0] == 1
     np.testing.assert_array_equal(m.patch_map(), [[0, 0, 0, 1, 1], [0, 0, 0, 1, 1], [0, 0, 0, -1, -1]])
 
 
