@@ -139,3 +139,17 @@ def test_lt_lung_is_one_outer_skin_around_its_cavities(shared_data):
     # the 32 shells the benchmark used to count are the skin and 31 holes inside it, each subtracted
     assert outer == 1 and 0 < cavities <= len(holes)
     assert mesh.signed_volume() == pytest.approx(result.summary["volume_mm3"], rel=0.01)
+
+
+@pytest.mark.slow
+def test_breast_body_solid_has_no_needle_at_its_split_plane(shared_data):
+    from slices.pipeline import reconstruct
+
+    # 35 bodies; three end in flat caps at z = -104.44 mm where a fourth starts, and the union left a
+    # 5e-8 mm sliver whose needle pierced the wall there (every body clean on its own)
+    result = reconstruct(_rtss(shared_data), roi="BODY", caps="half", reference=False)
+    assert result.union and all(r["self_intersecting_faces"] == 0 for r in result.summary["bodies"])
+    mesh = result.mesh
+    assert mesh.is_watertight() and mesh.is_oriented()
+    assert self_intersections(mesh.vertices, mesh.triangles).n_faces == 0
+    assert mesh.signed_volume() == pytest.approx(result.summary["volume_mm3"], rel=0.01)

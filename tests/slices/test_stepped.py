@@ -11,8 +11,9 @@ from slices.caps import end_kinds
 from slices.chaining import chain
 from slices.control_points import signed_area
 from slices.options import surface_options
-from slices.structure import _collapse_slivers, reconstruct_contours
+from slices.structure import SLIVER_FRACTIONS, _collapse_slivers, _unfold_slivers, reconstruct_contours
 from slices.summary import chaining_text
+from surfaces.intersect import self_intersections
 from surfaces.mesh import TriangleMesh
 from tests.slices._stacks import circle
 from tests.slices.test_solids import assert_clean_solid
@@ -103,6 +104,37 @@ def test_point_sized_slivers_are_collapsed():
     # nothing below the threshold: the mesh comes back as it is
     assert _collapse_slivers(split, 1e-14) is split
     assert _collapse_slivers(tet, 1e-10) is tet
+
+
+def _split_octahedron(offset) -> TriangleMesh:
+    """An octahedron whose top vertex is split in two ``offset`` (mm) apart, two faces of its fan on each."""
+    v = np.array([[0.0, 0, 1], [1, 0, 0], [0, 1, 0], [-1, 0, 0], [0, -1, 0], [0, 0, -1]])
+    v = np.vstack([v, v[0] + offset])
+    ring = [1, 2, 3, 4, 1]
+    t = [[0 if i < 2 else 6, ring[i], ring[i + 1]] for i in range(4)] + [[5, ring[i + 1], ring[i]] for i in range(4)]
+    return TriangleMesh(v, np.array(t + [[6, 0, 3], [0, 6, 1]]))
+
+
+def test_sliver_needles_that_fold_are_collapsed_more_widely():
+    # the breast BODY's cause: an edge between the two thresholds whose needle pierces its neighbours
+    extent = 100.0
+    folded = _split_octahedron(2e-8 * np.array([2.0, 1.0, 0.4]))
+    length = np.linalg.norm(folded.vertices[6] - folded.vertices[0])
+    assert SLIVER_FRACTIONS[0] * extent < length < SLIVER_FRACTIONS[1] * extent
+    assert folded.is_watertight() and folded.is_oriented()
+    assert self_intersections(folded.vertices, folded.triangles).n_faces > 0
+    assert _collapse_slivers(folded, SLIVER_FRACTIONS[0] * extent) is folded
+    out = _unfold_slivers(folded, extent)
+    assert len(out.triangles) == 8 and len(out.vertices) == 6
+    assert out.is_watertight() and out.is_oriented()
+    assert self_intersections(out.vertices, out.triangles).n_faces == 0
+    assert out.signed_volume() == pytest.approx(4 / 3)
+    # a sliver of the same length that folds nothing is kept: such meshes come back as they were
+    flat = _split_octahedron(np.array([0.0, length, 0.0]))
+    assert self_intersections(flat.vertices, flat.triangles).n_faces == 0
+    assert _unfold_slivers(flat, extent) is flat
+    tet = _tetrahedron()
+    assert _unfold_slivers(tet, extent) is tet
 
 
 def test_single_contour_bodies_skip_the_fallbacks():
