@@ -46,10 +46,12 @@ class _Background:
     def __init__(self, usable: np.ndarray, degree: int, shape):
         from photometric.defects import _design
 
-        rows, cols = np.nonzero(usable)
-        if rows.size > _MAX_FIT_POINTS:
-            pick = np.linspace(0, rows.size - 1, _MAX_FIT_POINTS).astype(np.int64)
-            rows, cols = rows[pick], cols[pick]
+        # flat indices (one index array, not two), picked, then split: the same pixels in
+        # the same order as np.nonzero's, at half its cost on a full 4 MP mask
+        flat = np.flatnonzero(usable)
+        if flat.size > _MAX_FIT_POINTS:
+            flat = flat[np.linspace(0, flat.size - 1, _MAX_FIT_POINTS).astype(np.int64)]
+        rows, cols = np.divmod(flat, usable.shape[1])
         self.rows, self.cols, self.shape, self.degree = rows, cols, shape, degree
         self.A = _design(rows, cols, shape, degree)
         self.gram_inv = np.linalg.pinv(self.A.T @ self.A)
@@ -60,7 +62,8 @@ class _Background:
         return _design(np.atleast_1d(rows), np.atleast_1d(cols), self.shape, self.degree)
 
     def coef(self, z: np.ndarray) -> np.ndarray:
-        return self.gram_inv @ (self.A.T @ z[self.rows, self.cols])
+        """The fit's coefficients to ``z`` (NaN read as 0, at the fit's pixels only)."""
+        return self.gram_inv @ (self.A.T @ np.nan_to_num(z[self.rows, self.cols]))
 
     def weights(self, d: np.ndarray) -> np.ndarray:
         """Image of the weights with which the fit's value ``d . coef`` takes each pixel."""
@@ -82,10 +85,11 @@ def _grown(labels: np.ndarray, defects: list, margin: int) -> np.ndarray:
 
 
 def _figures(labels: np.ndarray, defects: list, height: np.ndarray, bg: _Background) -> list[_Figures]:
-    coef = bg.coef(np.nan_to_num(height))
+    coef = bg.coef(height)
     out = []
     for rec in defects:
-        region = np.argwhere(labels == rec["id"] + 1)
+        r0, c0, r1, c1 = rec["bbox_px"]
+        region = np.argwhere(labels[r0:r1, c0:c1] == rec["id"] + 1) + (r0, c0)
         sign = -1.0 if rec.get("kind", "depression") == "depression" else 1.0
         design = bg.design(region[:, 0], region[:, 1])
         depth = sign * (height[region[:, 0], region[:, 1]] - design @ coef)

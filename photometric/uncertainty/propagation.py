@@ -242,7 +242,7 @@ def propagate(
 
     marks["maps"] = time.perf_counter()
     rng = np.random.default_rng(tol.seed)
-    coef0 = bg.coef(np.nan_to_num(z)) if figs else None
+    coef0 = bg.coef(z) if figs else None
 
     mc = None
     if tol.method == "montecarlo":
