@@ -490,7 +490,6 @@ def _solve(A: sp.csr_matrix, b: np.ndarray) -> np.ndarray:
         return splu((A + ridge).tocsc(), **opts).solve(b)
 
 
-# ----------------------------------------------------------------------------- BLAS threads
 # ----------------------------------------------------------------------------- input
 def height_noise(height, mask, scale_px: float) -> float:
     """Robust standard deviation of a height field's detail below a scale (its noise there).
