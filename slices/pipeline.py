@@ -17,7 +17,7 @@ from slices.compose import compose_rois
 from slices.io import ContourStack
 from slices.options import ReadOptions, SurfaceOptions, split_options
 from slices.reference import compare
-from slices.structure import Reconstruction, reconstruct_roi
+from slices.structure import Reconstruction, read_roi, reconstruct_contours
 from slices.summary import summarize
 from surfaces.bezier import BezierPatches
 from surfaces.mesh import TriangleMesh
@@ -131,8 +131,12 @@ def reconstruct(input_path, *, roi=None, union="auto", minus=(), plus=(), repair
         raise ValueError(f"union: must be 'auto', 'yes' or 'no', got {union!r}")
     if opts.caps == "none" and (minus or plus):
         raise ValueError("caps: set operations need closed solids; use --caps flat, half or dome, not none")
-    stack, rec = reconstruct_roi(input_path, roi, reading=read, options=opts, progress=progress)
-    t_surface = time.perf_counter() - t0
+    stack, layout = read_roi(input_path, roi, reading=read)
+    # the surface's clock starts with the contours in memory, as a rasteriser's would
+    t_read = time.perf_counter()
+    rec = reconstruct_contours(stack.contours, progress=progress, options=opts, **layout)
+    t_surface = time.perf_counter() - t_read
+    t_read -= t0
     rebuilt = [b for b in rec.bodies if b.self_intersecting_faces is not None
                and not b.surface.startswith(opts.method)]
     if rebuilt:
@@ -147,6 +151,7 @@ def reconstruct(input_path, *, roi=None, union="auto", minus=(), plus=(), repair
         stack.notes.append(f"the blend across slices was limited (monotone, shape-preserving) at {limited} "
                            "curve point(s) where the seed's parabolic blending would overshoot")
     composition = None
+    t_union = time.perf_counter()
     n_tri = sum(b.mesh.n_triangles for b in rec.bodies)
     if minus or plus:
         mesh, composition = compose_rois(input_path, stack, rec, minus=minus, plus=plus, repair=bool(repair),
@@ -159,6 +164,7 @@ def reconstruct(input_path, *, roi=None, union="auto", minus=(), plus=(), repair
         if len(rec.bodies) > 1:
             stack.notes.append(f"bodies' meshes concatenated, not united ({n_tri} triangles; "
                                "--union yes forces the union)")
+    t_union = time.perf_counter() - t_union
     # checked once here; the summary reports the same two flags
     checks = {"watertight": mesh.is_watertight(), "oriented": mesh.is_oriented()}
     if opts.caps != "none" and not (checks["watertight"] and checks["oriented"] and mesh.signed_volume() > 0):
@@ -170,6 +176,7 @@ def reconstruct(input_path, *, roi=None, union="auto", minus=(), plus=(), repair
     ref = compare(rec) if reference else None
     t_ref = time.perf_counter() - t_ref
     summary = summarize(input_path, stack, rec, mesh, united, composition, ref,
-                        {"surface_time_s": t_surface, "reference_time_s": t_ref}, checks=checks)
+                        {"read_time_s": t_read, "surface_time_s": t_surface, "union_time_s": t_union,
+                         "reference_time_s": t_ref}, checks=checks)
     summary["time_s"] = time.perf_counter() - t0
     return SlicesReconstruction(stack, rec, mesh, united, composition, ref, summary)

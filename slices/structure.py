@@ -3,8 +3,8 @@
 :func:`reconstruct_contours` chains the contours into bodies
 (:func:`slices.chaining.chain`) and builds each (:func:`slices.body.build_body`);
 :meth:`Reconstruction.solid_mesh` unites the outer bodies and subtracts the
-holes with manifold3d; :func:`reconstruct_roi` reads one ROI (or the whole
-input) and reconstructs it.
+holes with manifold3d; :func:`read_roi` reads one ROI (or the whole input) into contours and
+:func:`reconstruct_roi` reads and reconstructs it.
 """
 
 from __future__ import annotations
@@ -208,9 +208,8 @@ def reconstruct_contours(contours: list[Contour], *, spacing: float | None = Non
     return Reconstruction(built, float(volume), float(area), slab, d, opts, sensitivity)
 
 
-def reconstruct_roi(input_path, roi=None, *, reading: ReadOptions | None = None,
-                    options: SurfaceOptions | None = None, progress=None) -> tuple[ContourStack, Reconstruction]:
-    """Read one ROI (or the whole input) and reconstruct it.
+def read_roi(input_path, roi=None, *, reading: ReadOptions | None = None) -> tuple[ContourStack, dict]:
+    """Read one ROI (or the whole input) into contours in memory, ready for :func:`reconstruct_contours`.
 
     Parameters
     ----------
@@ -223,6 +222,38 @@ def reconstruct_roi(input_path, roi=None, *, reading: ReadOptions | None = None,
         plane of contours), resampling. With ``resample``, contour
         inputs (RTSTRUCT, JSON) are blended at their true plane positions
         (``irregular`` of :func:`reconstruct_contours`).
+
+    Returns
+    -------
+    stack : ContourStack
+    layout : dict
+        ``spacing`` (mm or None: the slab of a single plane, given by ``--spacing``) and
+        ``irregular`` (bool), the keywords of :func:`reconstruct_contours` for ``stack.contours``.
+    """
+    read = ReadOptions() if reading is None else reading
+    stack = load(input_path, roi, read.hu_min, read.hu_max, read.spacing, bool(read.resample))
+    spacing = None
+    if read.spacing is not None and len(stack.planes) == 1:
+        # one plane has no spacing of its own: the z of --spacing z,y,x gives its slab
+        given = read.spacing
+        single = isinstance(given, int | float) or (isinstance(given, str) and "," not in given)
+        spacing = positive(given, "--spacing") if single else parse_spacing(given)[0]
+    return stack, {"spacing": spacing,
+                   "irregular": bool(read.resample) and stack.source in ("rtstruct", "json")}
+
+
+def reconstruct_roi(input_path, roi=None, *, reading: ReadOptions | None = None,
+                    options: SurfaceOptions | None = None, progress=None) -> tuple[ContourStack, Reconstruction]:
+    """Read one ROI (or the whole input) and reconstruct it.
+
+    Parameters
+    ----------
+    input_path : str or os.PathLike
+        RTSTRUCT, CT folder, mask stack or contour JSON (see :func:`slices.io.load`).
+    roi : str or int, optional
+        ROI name or number (RTSTRUCT).
+    reading : ReadOptions, optional
+        How the input is read (see :func:`read_roi`).
     options : SurfaceOptions, optional
         How the contours become a surface.
     progress : callable, optional
@@ -233,18 +264,8 @@ def reconstruct_roi(input_path, roi=None, *, reading: ReadOptions | None = None,
     stack : ContourStack
     reconstruction : Reconstruction
     """
-    read = ReadOptions() if reading is None else reading
-    stack = load(input_path, roi, read.hu_min, read.hu_max, read.spacing, bool(read.resample))
-    spacing = None
-    if read.spacing is not None and len(stack.planes) == 1:
-        # one plane has no spacing of its own: the z of --spacing z,y,x gives its slab
-        given = read.spacing
-        single = isinstance(given, int | float) or (isinstance(given, str) and "," not in given)
-        spacing = positive(given, "--spacing") if single else parse_spacing(given)[0]
-    rec = reconstruct_contours(stack.contours, spacing=spacing,
-                               irregular=bool(read.resample) and stack.source in ("rtstruct", "json"),
-                               progress=progress, options=options)
-    return stack, rec
+    stack, layout = read_roi(input_path, roi, reading=reading)
+    return stack, reconstruct_contours(stack.contours, progress=progress, options=options, **layout)
 
 
 def solid_union(bodies: list[BodySurface]) -> TriangleMesh | None:

@@ -112,7 +112,10 @@ def summarize(input_path, stack: ContourStack, rec: Reconstruction, mesh: Triang
     reference : dict or None
         :func:`slices.reference.compare`'s record.
     timings : dict
-        Seconds per stage, ``surface_time_s`` and ``reference_time_s``.
+        Seconds per stage: ``read_time_s`` (reading the input into contours),
+        ``surface_time_s`` (from the contours in memory to the bodies' meshes: chaining, bodies,
+        fold checks), ``union_time_s`` (the bodies united, or the composition with the
+        other ROIs: their reading included) and ``reference_time_s``.
     checks : dict, optional
         ``watertight`` and ``oriented`` of ``mesh`` when the caller has checked them
         already (:meth:`surfaces.mesh.TriangleMesh.is_watertight`, ``is_oriented``);
@@ -126,6 +129,12 @@ def summarize(input_path, stack: ContourStack, rec: Reconstruction, mesh: Triang
         (``volume_range_mm3``), the volume's sensitivity to a 0.5 mm contour offset
         (``volume_sensitivity_mm3_per_0.5mm`` and its method), counts, mesh checks,
         bodies, chaining, notes, timings; ``composition`` and ``reference_bspline`` when given.
+        ``area_mm2`` is the area of the solid's true surface (``area_source`` says which):
+        the patches' (Gauss-Legendre) for one body or bodies left side by side; the
+        written triangle mesh's when the bodies were united (``union``), so walls where
+        bodies touch no longer count, while the walls of cavities (holes inside the
+        solid) do, being surface of the solid. ``bodies_area_mm2`` is always the sum
+        over the bodies' patches (shared caps and walls counted on both sides).
         With a composition, ``volume_mm3``, ``volume_ml`` and ``area_mm2`` are the
         composed solid's (``volume_source`` says which); the base ROI's own figures
         are under ``composition.base``.
@@ -136,7 +145,12 @@ def summarize(input_path, stack: ContourStack, rec: Reconstruction, mesh: Triang
     n_out = sum(b.body.kind == "outer" for b in rec.bodies)
     by_caps = rec.volume_by_caps()
     volume = rec.volume_mm3 if composition is None else composition["result_volume_mm3"]
-    area = rec.area_mm2 if composition is None else composition["area_mm2"]
+    if composition is not None:
+        area, area_source = composition["area_mm2"], "composition"
+    elif union:
+        area, area_source = mesh.surface_area(), "united solid"
+    else:
+        area, area_source = rec.area_mm2, "patches"
     summary = {
         "input": str(input_path),
         "source": stack.source,
@@ -149,6 +163,8 @@ def summarize(input_path, stack: ContourStack, rec: Reconstruction, mesh: Triang
         "volume_mm3": volume,
         "volume_ml": volume / 1000.0,
         "area_mm2": area,
+        "area_source": area_source,
+        "bodies_area_mm2": rec.area_mm2,
         "volume_source": "patches" if composition is None else "composition",
         "slab_volume_mm3": rec.slab_volume_mm3,
         "slab_volume_ml": rec.slab_volume_mm3 / 1000.0,

@@ -37,3 +37,17 @@ def branching_stack(n: int = 40) -> list[Contour]:
     return [Contour(0.0, circle(0, 0, 10, n)), Contour(2.0, circle(0, 0, 10, n)),
             Contour(4.0, circle(-5, 0, 4, n)), Contour(4.0, circle(5, 0, 4, n)),
             Contour(6.0, circle(-5, 0, 4, n)), Contour(6.0, circle(5, 0, 4, n))]
+
+
+def half_disc(side: float, r: float = 10.0, n_arc: int = 48, n_wall: int = 16) -> np.ndarray:
+    """Counter-clockwise half disc of radius ``r`` on the ``side`` (+1 right, -1 left) of x = 0, shape (n, 2).
+
+    The two halves share the wall x = 0 (vertices at the same points); each starts mid-arc, so
+    its first vertex lies strictly outside the other half (the hole test probes the first vertex).
+    """
+    t = np.linspace(-np.pi / 2, np.pi / 2, n_arc + 1)
+    y = np.linspace(r, -r, n_wall + 1)[1:-1]
+    pts = np.vstack([r * np.stack([np.cos(t), np.sin(t)], 1), np.stack([np.zeros_like(y), y], 1)])
+    if side < 0:
+        pts = (pts * [-1.0, 1.0])[::-1]
+    return np.roll(pts, -len(pts) // 4, axis=0)

@@ -11,7 +11,8 @@ from slices.options import ReadOptions, SurfaceOptions
 from slices.pipeline import UNION_LIMIT, SlicesReconstruction, reconstruct
 from slices.structure import reconstruct_contours
 from surfaces.io import write_json
-from tests.slices._stacks import branching_stack, phantom_stack
+from slices.io import Contour
+from tests.slices._stacks import branching_stack, half_disc, phantom_stack
 
 
 def _file(path, contours):
@@ -110,3 +111,44 @@ def test_the_solid_is_checked_once_and_the_summary_reports_it(ellipsoid, monkeyp
     monkeypatch.undo()
     assert result.summary["mesh_watertight"] is result.mesh.is_watertight() is True
     assert result.summary["mesh_oriented"] is result.mesh.is_oriented() is True
+
+
+@pytest.mark.parametrize("caps", ["flat", "half"])
+def test_united_area_is_the_outer_surface_of_touching_bodies(tmp_path, caps):
+    """Two half discs on one plane, sharing the wall x = 0: two bodies that touch, one cylinder united.
+
+    With a 4 mm slab the united solid is a cylinder of radius 10 mm and height 4 mm, area
+    ``2 pi r h + 2 pi r^2``; the bodies' sum also counts the shared wall (2r x h) on both sides.
+    """
+    r, h = 10.0, 4.0
+    path = _file(tmp_path / "halves.json", [Contour(0.0, half_disc(1, r)), Contour(0.0, half_disc(-1, r))])
+    result = reconstruct(path, caps=caps, spacing=h, reference=False)
+    s = result.summary
+    assert result.union and s["n_bodies"] == 2 and s["area_source"] == "united solid"
+    cylinder = 2 * np.pi * r * h + 2 * np.pi * r**2
+    assert s["area_mm2"] == result.mesh.surface_area() == pytest.approx(cylinder, rel=1e-3)
+    assert s["bodies_area_mm2"] == result.reconstruction.area_mm2
+    assert s["bodies_area_mm2"] == pytest.approx(cylinder + 2 * 2 * r * h, rel=3e-3)
+    assert result.mesh.is_watertight() and result.mesh.is_oriented()
+    # side by side, the bodies' own area stays the figure
+    apart = reconstruct(path, caps=caps, spacing=h, union="no", reference=False).summary
+    assert apart["area_source"] == "patches" and apart["area_mm2"] == apart["bodies_area_mm2"]
+
+
+def test_reading_is_timed_apart_from_the_surface(ellipsoid, monkeypatch):
+    """``surface_time_s`` starts with the contours in memory; reading is ``read_time_s``."""
+    import time
+
+    from slices import structure
+
+    real = structure.load
+
+    def slow_load(*args, **kwargs):
+        time.sleep(0.2)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(structure, "load", slow_load)
+    path, _, _ = ellipsoid
+    s = reconstruct(path, n_rays=32, samples=1, reference=False).summary
+    assert s["read_time_s"] >= 0.2 and s["surface_time_s"] < s["time_s"] - 0.2
+    assert s["union_time_s"] >= 0 and s["time_s"] >= s["read_time_s"] + s["surface_time_s"] + s["union_time_s"]

@@ -50,11 +50,15 @@ def test_summarize(fork):
                                                                            pytest.approx(np.degrees(0.1)))
     assert s["n_slices"] == 5 and s["n_contours"] == 7 and s["n_bodies"] == 4 and s["n_outer_bodies"] == 4
     assert s["volume_source"] == "patches" and s["mesh_union"] and s["surface_time_s"] == 1.0
+    # united: the solid's area, without the caps the branches share; the bodies' sum kept beside it
+    assert s["area_source"] == "united solid" and s["area_mm2"] == mesh.surface_area()
+    assert s["bodies_area_mm2"] == rec.area_mm2 > s["area_mm2"]
     assert s["n_patches"] == sum(b.patches.n_patches for b in rec.bodies)
     assert s["notes"] == ["read from memory"] and s["reference_bspline"]["max_control_point_deviation_mm"] == 0.5
     json.dumps(s)  # plain Python throughout
     comp = {"result_volume_mm3": 12.0, "area_mm2": 30.0, "operation": "'fork' - 'x'"}
     c = summarize("fork.json", stack, rec, mesh, united, comp, None, {})
     assert (c["volume_mm3"], c["volume_ml"], c["area_mm2"]) == (12.0, 0.012, 30.0)
+    assert c["area_source"] == "composition" and c["bodies_area_mm2"] == rec.area_mm2
     assert c["volume_source"] == "composition" and c["composition"] is comp and "reference_bspline" not in c
     assert "'fork' - 'x'" in c["notes"][-1] and stack.notes == ["read from memory"]

@@ -220,7 +220,7 @@ def write_result(result: SlicesReconstruction, out_dir, *, render: bool = True) 
         if key != "time_s":
             summary[key] = value
         # each stage's time beside the library's, in the order they run on the command line
-        if key == "surface_time_s":
+        if key == "union_time_s":
             summary["write_time_s"] = t_write
         elif key == "reference_time_s":
             summary["render_time_s"] = t_render
