@@ -229,7 +229,9 @@ def build_body(body: Body, spacing: float, options: SurfaceOptions | None = None
     """Surface, volume and area of one body, rebuilt more conservatively while its mesh folds.
 
     With ``options.unfold`` and a mesh, the mesh is checked for self-intersecting
-    faces (:func:`surfaces.intersect.self_intersections`); a folded body is built
+    faces (:func:`surfaces.intersect.is_fold_free`: the exact test of
+    :func:`surfaces.intersect.self_intersections` on the faces that the certificate
+    of :func:`surfaces.intersect.fold_suspects` cannot clear); a folded body is built
     again with the next surface of :data:`FALLBACKS` (the blend linking the
     slices by arc length, limited to be monotone; then straight lines between
     the slices; then both again with the arc length's origin following the
@@ -248,7 +250,7 @@ def _build_unfolded(body: Body, spacing: float, options: SurfaceOptions | None, 
     folds alone are counted (the stepped slabs' cheaper choice: the aligned ruled surface folds
     in the fewest slabs, and counting every surface's folds costs more than the steps).
     """
-    from surfaces.intersect import self_intersections
+    from surfaces.intersect import folded_faces, is_fold_free
 
     opts = SurfaceOptions() if options is None else options
     first = build_body_once(body, spacing, opts, mesh=mesh)
@@ -264,8 +266,9 @@ def _build_unfolded(body: Body, spacing: float, options: SurfaceOptions | None, 
                                                  mesh=True, ruled=change.get("method") == "ruled")
         b.surface = name if i else f"{opts.method} ({opts.correspondence})"
         # the mesh as written: a blend can fold inside a patch, below any coarser check's resolution;
-        # a surface that folds is passed over at its first fold, its folds are counted only if all fold
-        if self_intersections(b.mesh.vertices, b.mesh.triangles, first=True).n_faces == 0:
+        # a surface that folds is passed over at its first fold, its folds are counted only if all fold.
+        # The exact test runs on the faces the layered certificate cannot clear (usually a few bands)
+        if is_fold_free(b.mesh.vertices, b.mesh.triangles):
             b.self_intersecting_faces = 0
             return b, None
         folded.append(b)
@@ -273,7 +276,7 @@ def _build_unfolded(body: Body, spacing: float, options: SurfaceOptions | None, 
         folded = folded[-1:]
     masks = []
     for b in folded:
-        masks.append(self_intersections(b.mesh.vertices, b.mesh.triangles).faces)
+        masks.append(folded_faces(b.mesh.vertices, b.mesh.triangles))
         b.self_intersecting_faces = int(masks[-1].sum())
     # the first of the fewest folded faces
     best = min(range(len(folded)), key=lambda i: folded[i].self_intersecting_faces)

@@ -1,0 +1,120 @@
+"""The fold certificate of layered meshes (:func:`surfaces.intersect.fold_suspects`) against the exact test.
+
+Whatever the mesh, every pair of faces that :func:`self_intersections` finds
+crossing must have both faces among the suspects; a mesh without suspects must
+have no crossing at all. Checked on the body meshes of random star-shaped and
+random wavy stacks, on the fold phantoms (whose surfaces fold), on meshes
+folded on purpose by moving vertices within their level, and on meshes that are
+not layered (where the certificate must decline).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from datasets_synthetic.fold_stacks import fold_stack
+from slices.body import FALLBACKS, build_body_once
+from slices.chaining import chain
+from slices.io import Contour
+from slices.options import SurfaceOptions
+from surfaces.intersect import fold_suspects, folded_faces, is_fold_free, layered_radial_graph, self_intersections
+from tests.surfaces.test_intersect import uv_sphere
+
+
+def _check(v: np.ndarray, t: np.ndarray) -> tuple[np.ndarray | None, int]:
+    """Suspects and exact folded faces of a mesh, asserting the certificate's promise."""
+    suspects = fold_suspects(v, t)
+    exact = self_intersections(v, t)
+    if suspects is not None:
+        assert suspects[exact.pairs].all(), "a crossing pair outside the suspects"
+        if not suspects.any():
+            assert exact.n_faces == 0
+    assert is_fold_free(v, t) == (exact.n_faces == 0)
+    assert np.array_equal(folded_faces(v, t), exact.faces)
+    return suspects, exact.n_faces
+
+
+def _star(rng: np.random.Generator, n: int, wavy: float) -> np.ndarray:
+    """A random star-shaped contour about a random centre: radius a positive trigonometric series."""
+    t = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    r = 10.0 + sum(rng.uniform(-wavy, wavy) * np.cos(k * t + rng.uniform(0, 2 * np.pi)) for k in range(1, 6))
+    return rng.uniform(-3, 3, 2) + np.maximum(r, 1.0)[:, None] * np.stack([np.cos(t), np.sin(t)], 1)
+
+
+def _body_meshes(contours: list[Contour], spacing: float, caps: str, surfaces=FALLBACKS[:1]):
+    for body in chain(contours, spacing):
+        for name, change in surfaces:
+            opts = SurfaceOptions(caps=caps, **{k: val for k, val in change.items() if k != "method"})
+            b = build_body_once(body, spacing, opts, ruled=change.get("method") == "ruled")
+            yield name, b.mesh
+
+
+@pytest.mark.parametrize("wavy, least", [(1.0, 7), (2.5, 4), (4.0, 0)])
+def test_random_star_shaped_stacks(wavy, least):
+    """Random stacks, star-shaped to wildly wavy: ordinary ones proven outright, never a crossing outside the
+    suspects."""
+    rng = np.random.default_rng(int(wavy * 10))
+    proven = 0
+    for trial in range(8):
+        n_planes = int(rng.integers(2, 7))
+        spacing = float(rng.uniform(1.0, 4.0))
+        contours = [Contour(spacing * k, _star(rng, int(rng.integers(24, 80)), wavy)) for k in range(n_planes)]
+        caps = ("flat", "half", "dome")[trial % 3]
+        for _, mesh in _body_meshes(contours, spacing, caps):
+            suspects, folded = _check(mesh.vertices, mesh.triangles)
+            assert suspects is not None  # closed, oriented, layered: the certificate applies
+            proven += not suspects.any()
+    assert proven >= least  # the certificate does its job on ordinary shapes
+
+
+@pytest.mark.parametrize("name", ["hook", "closing_c"])
+def test_fold_phantoms_are_never_proven(name):
+    """Every surface of the fold phantoms folds; no such mesh is proven, each crossing is a suspect pair."""
+    contours = fold_stack(name)
+    for surface, mesh in _body_meshes(contours, 3.0, "half", FALLBACKS):
+        suspects, folded = _check(mesh.vertices, mesh.triangles)
+        if folded:
+            assert not layered_radial_graph(mesh.vertices, mesh.triangles), surface
+            assert suspects is None or suspects.any()
+
+
+def test_meshes_folded_on_purpose():
+    """Vertices moved within their level (the mesh stays layered) fold it; the suspects hold every crossing."""
+    rng = np.random.default_rng(7)
+    contours = [Contour(2.0 * k, _star(rng, 48, 1.5)) for k in range(5)]
+    _, mesh = next(_body_meshes(contours, 2.0, "half"))
+    n_folded = 0
+    for _ in range(60):
+        v = mesh.vertices.copy()
+        moved = rng.choice(len(v), size=int(rng.integers(1, 6)), replace=False)
+        v[moved, :2] += rng.normal(0, rng.choice([0.5, 3.0, 12.0]), (len(moved), 2))
+        suspects, folded = _check(v, mesh.triangles)
+        n_folded += folded > 0
+        if folded:
+            assert suspects is None or suspects.any()
+    assert n_folded >= 10  # the test sees real folds
+
+
+def test_meshes_that_are_not_layered_are_declined():
+    v, t = uv_sphere(12)
+    tilted = v @ np.array([[1, 0, 0], [0, np.cos(0.3), -np.sin(0.3)], [0, np.sin(0.3), np.cos(0.3)]])
+    assert fold_suspects(tilted, t) is None  # faces span three levels
+    assert fold_suspects(v, t[1:]) is None  # open
+    assert fold_suspects(v, np.vstack([t[:1, ::-1], t[1:]])) is None  # not oriented
+    assert is_fold_free(tilted, t) and is_fold_free(v, t)
+    with pytest.raises(ValueError, match="triangles"):
+        fold_suspects(v, t.astype(float))
+    with pytest.raises(ValueError, match="indices"):
+        fold_suspects(v, t + len(v))
+
+
+def test_a_uv_sphere_is_proven():
+    """Rings on levels, fans to the poles (a band's axis is its apex): a radial graph everywhere."""
+    v, t = uv_sphere(20)
+    suspects = fold_suspects(v, t)
+    assert suspects is not None and not suspects.any() and layered_radial_graph(v, t)
+    # two spheres side by side: every band's cut winds twice, so nothing is proven
+    v2, t2 = np.vstack([v, v + [3.0, 0, 0]]), np.vstack([t, t + len(v)])
+    s2 = fold_suspects(v2, t2)
+    assert s2 is None or s2.all()
