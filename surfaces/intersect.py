@@ -396,7 +396,7 @@ LEVEL_RTOL = 1e-13
 ANGLE_BINS = 1024
 
 #: Above this many bands with faces turning back, :func:`fold_suspects` gives up (the exact test is as cheap).
-MAX_WORRIED_BANDS = 64
+MAX_WORRIED_BANDS = 1024
 
 
 def _arcs(p: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -430,7 +430,8 @@ def fold_suspects(vertices, triangles, *, margin: float = 1e-12) -> np.ndarray |
     The mesh must be closed and consistently oriented (every directed edge once,
     its reverse once), its vertices on horizontal levels ``z_0 < z_1 < ...``
     (``z`` values apart by at most :data:`LEVEL_RTOL` times the largest ``|z|``
-    along the sorted values are one level: the rounding of evaluating patches,
+    along the sorted values are one level, spread over at most four times that:
+    the rounding of evaluating patches,
     which the proof treats as exact and which lies far below the contacts
     :func:`self_intersections` counts), every face spanning two consecutive
     levels (a band face) or lying on the lowest or highest level (a cap face),
@@ -510,9 +511,15 @@ def fold_suspects(vertices, triangles, *, margin: float = 1e-12) -> np.ndarray |
         return None
     z = v[:, 2]
     order = np.argsort(z, kind="stable")
-    same = np.diff(z[order]) <= LEVEL_RTOL * max(float(np.abs(z).max()), 1e-300)
+    zs = z[order]
+    tol = LEVEL_RTOL * max(float(np.abs(z).max()), 1e-300)
+    new_level = np.concatenate([[True], np.diff(zs) > tol])
+    starts = np.flatnonzero(new_level)
+    # a chain of small steps must not make one level of a slope
+    if np.any(np.append(zs[starts[1:] - 1], zs[-1]) - zs[starts] > 4 * tol):
+        return None
     level = np.empty(len(z), dtype=np.int64)
-    level[order] = np.concatenate([[0], np.cumsum(~same)])
+    level[order] = np.cumsum(new_level) - 1
     lv = level[t]
     # three-way minimum and maximum: numpy reduces a short middle axis several times slower
     low = np.minimum(np.minimum(lv[:, 0], lv[:, 1]), lv[:, 2])
@@ -569,28 +576,34 @@ def fold_suspects(vertices, triangles, *, margin: float = 1e-12) -> np.ndarray |
     worry = np.unique(np.concatenate([base[~good], np.flatnonzero(~once)]))
     if len(worry) > MAX_WORRIED_BANDS:
         return None
-    # each face's group: its band, or the band its cap closes
+    # each face's group: its band, or the band its cap closes; every face is looked at from the axis of
+    # each worried band within one of its group, all (face, band) pairs at once
     group = np.where(flat, np.where(low == 0, 0, top - 1), low)
-    for k in worry:
-        near = np.flatnonzero(np.abs(group - k) <= 1)
-        mine = (group[near] == k) & ~flat[near]
-        bad_rows = band[(base == k) & ~good]
-        ck = np.repeat(centre[k][None], len(near), axis=0)
-        first, count = _bins(*_arcs(xy[t[near]], ck))
-        if not once[k]:
-            suspect[near] = True
-            continue
-        bad = np.isin(near, bad_rows)
-        if np.any(count[bad & mine] >= ANGLE_BINS):
-            suspect[near] = True
-            continue
-        marked = np.zeros(2 * ANGLE_BINS + 1, dtype=np.int64)
-        np.add.at(marked, first[bad], 1)
-        np.add.at(marked, first[bad] + count[bad], -1)
-        marked = np.cumsum(marked)[:2 * ANGLE_BINS]
-        taken = (marked[:ANGLE_BINS] + marked[ANGLE_BINS:]) > 0
-        prefix = np.concatenate([[0], np.cumsum(np.tile(taken, 2))])
-        suspect[near] |= prefix[first + count] - prefix[first] > 0
+    slot = np.full(n_bands, -1)
+    slot[worry] = np.arange(len(worry))
+    faces, bands = [], []
+    for step in (-1, 0, 1):
+        k = group + step
+        ok = np.flatnonzero((k >= 0) & (k < n_bands))
+        ok = ok[slot[k[ok]] >= 0]
+        faces.append(ok)
+        bands.append(k[ok])
+    f, k = np.concatenate(faces), np.concatenate(bands)
+    first, count = _bins(*_arcs(xy[t[f]], centre[k]))
+    w = slot[k]
+    bad_face = np.zeros(len(t), dtype=bool)
+    bad_face[band[~good]] = True
+    # a bad face marks the bins of its arc about its own band's axis (a full arc: all of them)
+    bad = bad_face[f] & (group[f] == k)
+    cover = np.zeros((len(worry), 2 * ANGLE_BINS + 1), dtype=np.int32)
+    np.add.at(cover, (w[bad], first[bad]), 1)
+    np.add.at(cover, (w[bad], first[bad] + count[bad]), -1)
+    cover = np.cumsum(cover, axis=1)[:, :2 * ANGLE_BINS]
+    taken = (cover[:, :ANGLE_BINS] + cover[:, ANGLE_BINS:]) > 0
+    prefix = np.zeros((len(worry), 2 * ANGLE_BINS + 1), dtype=np.int32)
+    prefix[:, 1:] = np.cumsum(np.tile(taken, 2), axis=1)
+    hit = (prefix[w, first + count] - prefix[w, first] > 0) | ~once[k]
+    suspect[f[hit]] = True
     return suspect
 
 

@@ -102,6 +102,8 @@ def test_meshes_that_are_not_layered_are_declined():
     assert fold_suspects(tilted, t) is None  # faces span three levels
     assert fold_suspects(v, t[1:]) is None  # open
     assert fold_suspects(v, np.vstack([t[:1, ::-1], t[1:]])) is None  # not oriented
+    creeping = v + np.array([0.0, 0.0, 3e-14]) * np.arange(len(v))[:, None]
+    assert fold_suspects(creeping, t) is None  # steps below the level tolerance that add up to a slope
     assert is_fold_free(tilted, t) and is_fold_free(v, t)
     with pytest.raises(ValueError, match="triangles"):
         fold_suspects(v, t.astype(float))
