@@ -26,8 +26,9 @@ SENSITIVITY_OFFSET_MM = 0.5
 
 #: Edges of the united solid shorter than these fractions of the bodies' extent are the boolean's
 #: slivers (the bodies overlap by 1e-8 of it at shared caps): the first are always collapsed, the
-#: second only where the first leave a fold (:func:`_unfold_slivers`).
-SLIVER_FRACTIONS = (1e-10, 1e-9)
+#: second only where the first leave a fold, the third (the overlap itself) only at the faces that
+#: still fold after that (:func:`_unfold_slivers`).
+SLIVER_FRACTIONS = (1e-10, 1e-9, 1e-8)
 
 
 def _merged(meshes: list) -> TriangleMesh | None:
@@ -330,18 +331,41 @@ def _unfold_slivers(mesh: TriangleMesh, extent: float) -> TriangleMesh:
     """The union's mesh with its slivers collapsed, wider ones too where the smallest leave a fold.
 
     Edges under ``SLIVER_FRACTIONS[0] * extent`` (mm) are collapsed (:func:`_collapse_slivers`).
-    Where a face at the edges under ``SLIVER_FRACTIONS[1] * extent`` then still crosses another (the
-    breast BODY: an edge of 5e-8 mm left where three bodies' flat caps meet a fourth's at
-    z = -104.44 mm, its needle piercing the wall), those are collapsed as well, if that unfolds them.
-    Every other mesh comes back as the smallest collapse gives it.
+    Where a face then still crosses another within the z ranges of the edges under
+    ``SLIVER_FRACTIONS[2] * extent`` (the bodies' overlap), every edge under ``SLIVER_FRACTIONS[1] *
+    extent`` is collapsed as well, if that unfolds them (the breast BODY: an edge of 5e-8 mm left where
+    three bodies' flat caps meet a fourth's at z = -104.44 mm, its needle piercing the wall); failing
+    that, the edges under ``SLIVER_FRACTIONS[2] * extent`` among the faces around the crossings only, if
+    that unfolds them (BODY with dome caps: a needle of 2e-6 mm at the same plane; collapsing every such
+    edge of the solid would fold others). Every other mesh comes back as the smallest collapse gives it.
     """
     out = _collapse_slivers(mesh, SLIVER_FRACTIONS[0] * extent)
-    wider = SLIVER_FRACTIONS[1] * extent
-    band = _sliver_band(out, wider)
+    widest = SLIVER_FRACTIONS[2] * extent
+    band = _sliver_band(out, widest)
     if band is None or not _folds_in_band(out, band):
         return out
-    unfolded = _collapse_slivers(mesh, wider)
-    return unfolded if unfolded is not mesh and not _folds_in_band(unfolded, band) else out
+    unfolded = _collapse_slivers(mesh, SLIVER_FRACTIONS[1] * extent)
+    if unfolded is not mesh and not _folds_in_band(unfolded, band):
+        return unfolded
+    return _unfold_around_folds(out, band, widest)
+
+
+def _unfold_around_folds(mesh: TriangleMesh, band: tuple[np.ndarray, np.ndarray], tiny: float) -> TriangleMesh:
+    """The mesh with the edges shorter than ``tiny`` (mm) collapsed among the faces at its folds in ``band``.
+
+    Only the faces that share a vertex with a crossing face take part; the result is kept when it
+    is closed, oriented and free of crossings in the band, else the mesh comes back as it is.
+    """
+    folded = _band_folds(mesh, band)
+    tri = mesh.triangles
+    around = np.isin(tri, np.unique(tri[folded])).any(axis=1)
+    short = (_edge_lengths(mesh) < tiny) & around[:, None]
+    if not short.any():
+        return mesh
+    welded = weld(mesh, tiny, candidates=np.unique(tri[short | np.roll(short, -1, axis=1)]))
+    if welded.is_watertight() and welded.is_oriented() and not _folds_in_band(welded, band):
+        return welded
+    return mesh
 
 
 def _edge_lengths(mesh: TriangleMesh) -> np.ndarray:
@@ -368,6 +392,15 @@ def _sliver_band(mesh: TriangleMesh, tiny: float) -> tuple[np.ndarray, np.ndarra
     return z.min(axis=1)[order] - tiny, np.maximum.accumulate(z.max(axis=1)[order]) + tiny
 
 
+def _in_band(mesh: TriangleMesh, band: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+    """Which faces (T,) reach into the z ranges of :func:`_sliver_band`."""
+    low, high = band
+    z = mesh.vertices[mesh.triangles, 2]
+    # the ranges starting below a face's top; it meets one of them if the highest of their ends reaches its bottom
+    last = np.searchsorted(low, z.max(axis=1), side="right") - 1
+    return (last >= 0) & (high[np.maximum(last, 0)] >= z.min(axis=1))
+
+
 def _folds_in_band(mesh: TriangleMesh, band: tuple[np.ndarray, np.ndarray]) -> bool:
     """Whether faces within the z ranges of :func:`_sliver_band` cross each other.
 
@@ -375,12 +408,17 @@ def _folds_in_band(mesh: TriangleMesh, band: tuple[np.ndarray, np.ndarray]) -> b
     """
     from surfaces.intersect import self_intersections
 
-    low, high = band
-    z = mesh.vertices[mesh.triangles, 2]
-    # the ranges starting below a face's top; it meets one of them if the highest of their ends reaches its bottom
-    last = np.searchsorted(low, z.max(axis=1), side="right") - 1
-    near = (last >= 0) & (high[np.maximum(last, 0)] >= z.min(axis=1))
-    return self_intersections(mesh.vertices, mesh.triangles[near], first=True).n_faces > 0
+    return self_intersections(mesh.vertices, mesh.triangles[_in_band(mesh, band)], first=True).n_faces > 0
+
+
+def _band_folds(mesh: TriangleMesh, band: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+    """Which faces (T,) within the z ranges of :func:`_sliver_band` cross another (every one of them)."""
+    from surfaces.intersect import self_intersections
+
+    near = np.flatnonzero(_in_band(mesh, band))
+    out = np.zeros(mesh.n_triangles, dtype=bool)
+    out[near] = self_intersections(mesh.vertices, mesh.triangles[near]).faces
+    return out
 
 
 def _collapse_slivers(mesh: TriangleMesh, tiny: float) -> TriangleMesh:

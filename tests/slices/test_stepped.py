@@ -137,6 +137,25 @@ def test_sliver_needles_that_fold_are_collapsed_more_widely():
     assert _unfold_slivers(tet, extent) is tet
 
 
+def test_wider_needles_are_collapsed_only_around_their_folds():
+    # BODY with dome caps: a needle longer than the second threshold, within the bodies' overlap
+    extent = 100.0
+    folded = _split_octahedron(3e-7 * np.array([2.0, 1.0, 0.4]))
+    length = np.linalg.norm(folded.vertices[6] - folded.vertices[0])
+    assert SLIVER_FRACTIONS[1] * extent < length < SLIVER_FRACTIONS[2] * extent
+    assert self_intersections(folded.vertices, folded.triangles).n_faces > 0
+    assert _collapse_slivers(folded, SLIVER_FRACTIONS[1] * extent) is folded
+    out = _unfold_slivers(folded, extent)
+    assert len(out.triangles) == 8 and len(out.vertices) == 6
+    assert out.is_watertight() and out.is_oriented()
+    assert self_intersections(out.vertices, out.triangles).n_faces == 0
+    assert out.signed_volume() == pytest.approx(4 / 3)
+    # the same needle that folds nothing is kept
+    flat = _split_octahedron(np.array([0.0, length, 0.0]))
+    assert self_intersections(flat.vertices, flat.triangles).n_faces == 0
+    assert _unfold_slivers(flat, extent) is flat
+
+
 def test_single_contour_bodies_skip_the_fallbacks():
     # one contour's side is a prism whatever the blend; the aligned arc length needs two contours
     (body,) = chain(fold_stack("hook")[2:3], 3.0)
