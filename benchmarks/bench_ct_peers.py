@@ -76,7 +76,8 @@ def shell_counts(mesh) -> tuple[int, int]:
 #: Columns of the result table.
 HEADERS = ["ROI", "bodies", "surface (s)", "read (s)", "union (s)", "command (s)", "command CPU (s)", "MC 0.5 mm (s)",
            "closed+oriented",
-           "shells (outer + cavities)", "self-int. faces", "MC self-int. faces", "area (mm2)", "MC area (mm2)",
+           "shells (outer + cavities)", "self-int. faces", "MC self-int. faces", "area (mm2)", "summary area_mm2",
+           "bodies_area_mm2", "MC area (mm2)",
            "volume (cc)", "references (cc)", "inside +-1 %", "range none/flat/half/slab (cc)", "dV per 0.5 mm (cc)",
            "surfaces"]
 
@@ -165,11 +166,11 @@ def roi_row(name: str) -> list:
     row = [name, len(result.reconstruction.bodies), f"{stages['surface_time_s']:.3f}",
            f"{stages['read_time_s']:.3f}", f"{stages['union_time_s']:.3f}", f"{command:.2f}", f"{cpu:.2f}",
            f"{mc_time:.3f}", "yes" if mesh.is_watertight() and mesh.is_oriented() else "NO",
-            f"{outer} + {cavities}", hits,
-            mc_hits, f"{mesh.surface_area():.0f}", f"{mc_area:.0f}", f"{vol:.2f}",
-            "-" if ref is None else f"{ref[0]:g}-{ref[1]:g}", inside,
-            f"{s['volume_range_mm3'][0] / 1000:.2f}-{s['volume_range_mm3'][1] / 1000:.2f}",
-            f"{s['volume_sensitivity_mm3_per_0.5mm'] / 1000:.2f}", ", ".join(surfaces_used)]
+           f"{outer} + {cavities}", hits, mc_hits, f"{mesh.surface_area():.0f}", f"{s['area_mm2']:.0f}",
+           f"{s['bodies_area_mm2']:.0f}", f"{mc_area:.0f}", f"{vol:.2f}",
+           "-" if ref is None else f"{ref[0]:g}-{ref[1]:g}", inside,
+           f"{s['volume_range_mm3'][0] / 1000:.2f}-{s['volume_range_mm3'][1] / 1000:.2f}",
+           f"{s['volume_sensitivity_mm3_per_0.5mm'] / 1000:.2f}", ", ".join(surfaces_used)]
     print("  " + " | ".join(map(str, row)), file=sys.stderr, flush=True)
     return row
 
@@ -192,7 +193,10 @@ def page(rows: list) -> list:
         "Surfaces: which side surface each body kept (`slices.body.FALLBACKS`: a folded body is "
         "rebuilt with the arc-length monotone blend, then ruled, then both with the arc length's origin "
         "aligned slice to slice, and the first clean or the cleanest kept). Shells: connected "
-        "components of the written solid, outer ones (positive volume) and cavities (holes inside).",
+        "components of the written solid, outer ones (positive volume) and cavities (holes inside). Area: "
+        "the written solid's triangles; summary area_mm2 is what `summary.json` reports (the patches' for one "
+        "body, the written solid's when bodies are united: shared caps and walls no longer count, cavity "
+        "walls do), bodies_area_mm2 the sum over the bodies' patches.",
         "Times: the process is warmed up first (imports and one small ROI through both pipelines). Surface is "
         "`surface_time_s` of `slices.pipeline.reconstruct`: from the contours in memory to the bodies' meshes "
         "(chaining, bodies, fold checks); read (`read_time_s`, the RTSTRUCT into contours) and union "
