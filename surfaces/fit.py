@@ -548,14 +548,49 @@ def height_noise(height, mask, scale_px: float) -> float:
         wr = weight(r)
         inner[r] = m[r] & (wr > 0.99)
         smooth[r] = np.asarray(z[r], np.float64) - smooth[r] / np.maximum(wr, 1e-12)
+    weight = w = None  # the weights are not needed past the detail (4 bytes per pixel with a mask)
     if not inner.any():
         return 0.0
-    detail = smooth[inner].astype(np.float64)
-    del smooth
+    # the detail gathered a block of rows at a time into float64: no float32 copy of it beside
+    detail = np.empty(int(np.count_nonzero(inner)))
+    n = 0
+    for r0 in range(0, H, step):
+        part = smooth[r0:r0 + step][inner[r0:r0 + step]]
+        detail[n:n + part.size] = part
+        n += part.size
+    del smooth, inner
     # the medians reorder ``detail`` in place, which leaves both medians as they are
     centre = np.median(detail, overwrite_input=True)
     detail -= centre
     return float(1.4826 * np.median(np.abs(detail, out=detail), overwrite_input=True))
+
+
+def _percentiles(values: np.ndarray, q) -> np.ndarray:
+    """``np.percentile(values.astype(np.float64), q)`` (linear method), bit for bit, without the
+    float64 copy: the order statistics are found by partitioning ``values`` (a 1-D array that
+    may be reordered, in its own float type) and interpolated in float64 as numpy does.
+
+    Parameters
+    ----------
+    values : numpy.ndarray, shape (n,)
+        Finite values, n >= 1; reordered in place.
+    q : sequence of float
+        Percentiles in [0, 100].
+
+    Returns
+    -------
+    numpy.ndarray, shape (len(q),), float64
+    """
+    n = values.size
+    virtual = (n - 1) * np.true_divide(np.asarray(q, np.float64), 100)
+    lo = np.floor(virtual).astype(np.intp)
+    hi = np.minimum(lo + 1, n - 1)
+    values.partition(np.unique(np.concatenate([lo, hi])))
+    a, b = values[lo].astype(np.float64), values[hi].astype(np.float64)
+    t = virtual - lo
+    diff = b - a
+    # numpy's _lerp: from the nearer end
+    return np.where(t >= 0.5, b - diff * (1 - t), a + diff * t)
 
 
 def _gaussian(a: np.ndarray, sigma: float, dtype=np.float64, where: np.ndarray | None = None) -> np.ndarray:
@@ -734,6 +769,7 @@ def fit_height(
     jump: float | None = None,
     slope_weight: float = 1.0,
     slope_angle: float | None = None,
+    keep_pixels: bool = True,
 ) -> SurfaceFit:
     """Fit bicubic patches to a height field and its slopes, refining until within a tolerance.
 
@@ -774,6 +810,12 @@ def fit_height(
         Default: :data:`SLOPE_ANGLE` when the height's noise sets the default tolerance
         (the noise term then loosens the tolerance, and the normals keep the detail it
         lets go), no check otherwise.
+    keep_pixels : bool
+        False: the result keeps no per-pixel surface and deviation (``values=()``,
+        ``deviation=None``; every other field the same), for callers that need only the
+        patches, the region and the statistics: the fit's running surface is let go before
+        the patches are built and no deviation map is made (16 bytes per pixel less at the
+        end of a float32 fit).
 
     Returns
     -------
@@ -831,7 +873,7 @@ def fit_height(
             raise ValueError("xy: non-finite values inside the mask")
     k0 = _step(step, z.shape)
     if tolerance is None:
-        lo, hi = np.percentile(z[m].astype(np.float64), [0.5, 99.5], overwrite_input=True)
+        lo, hi = _percentiles(z[m], (0.5, 99.5))
         tol = max(RELATIVE_TOLERANCE * float(hi - lo), MIN_TOLERANCE_PX * h)
         noise = NOISE_TOLERANCE * height_noise(z, m, k0 / 2.0)
         if noise > tol:
@@ -844,7 +886,7 @@ def fit_height(
     if not region.any():
         raise ValueError("height: every pixel of the mask lies on a depth discontinuity")
     with one_blas_thread():
-        return _fit(z, pp, qq, region, h, tol, k0, xyv, lam, angle)
+        return _fit(z, pp, qq, region, h, tol, k0, xyv, lam, angle, bool(keep_pixels))
 
 
 def _cell_angles(fs, ft, ts, tt, h: float, weight: np.ndarray) -> np.ndarray:
@@ -919,7 +961,7 @@ class _Targets:
                 for src, scale in zip(self.sources[:parts], self.scales)]
 
 
-def _fit(z, p, q, region, h, tol, k0, xy, lam, angle=None) -> SurfaceFit:
+def _fit(z, p, q, region, h, tol, k0, xy, lam, angle=None, keep_pixels: bool = True) -> SurfaceFit:
     H, W = z.shape
     ns, nt = -(-H // k0), -(-W // k0)
     HP, WP = ns * k0, nt * k0
@@ -1070,11 +1112,12 @@ def _fit(z, p, q, region, h, tol, k0, xy, lam, angle=None) -> SurfaceFit:
         CI = (2 * CI[refine][:, None] + np.array([0, 0, 1, 1])).ravel()
         CJ = (2 * CJ[refine][:, None] + np.array([0, 1, 0, 1])).ravel()
     del w, wc  # the weights are the region's; the deviations below read it
-    patches = _patches(leaves, solved, k0, (H, W), h, xy is None)
-    values = tuple(np.moveaxis(f[:, :H, :W], 0, -1) for f in fitted)
+    arr = view = None  # the refinement's loop names, views of the running surface
+    if slopes_checked:
+        del wa, own
     # per block of rows on the contiguous fitted arrays (a boolean gather from the strided
     # (H, W, d) views of ``values`` cost more than the rest of the bookkeeping)
-    deviation = np.empty((H, W), z.dtype)
+    deviation = np.empty((H, W), z.dtype) if keep_pixels else None
     max_dev = squares = 0.0
     rows = max(1, BLOCK_PIXELS // WP)
     for r0 in range(0, H, rows):
@@ -1085,8 +1128,15 @@ def _fit(z, p, q, region, h, tol, k0, xy, lam, angle=None) -> SurfaceFit:
         dv[off] = 0.0
         max_dev = max(max_dev, float(dv.max()), -float(dv.min()))
         squares += float(np.vdot(dv, dv))
-        dv[off] = np.nan
-        deviation[r0:r1] = dv
+        if keep_pixels:
+            dv[off] = np.nan
+            deviation[r0:r1] = dv
+    if keep_pixels:
+        values = tuple(np.moveaxis(f[:, :H, :W], 0, -1) for f in fitted)
+    else:
+        values = ()
+    del fitted  # without keep_pixels the running surface goes before the patches are built
+    patches = _patches(leaves, solved, k0, (H, W), h, xy is None)
     n_fitted = int(np.count_nonzero(region))
     rms_dev = float(np.sqrt(squares / n_fitted))
     return SurfaceFit(
