@@ -97,6 +97,7 @@ __all__ = [
     "fit_mesh",
     "find_discontinuities",
     "height_noise",
+    "percentiles",
 ]
 
 #: Default tolerance as a fraction of the height range (0.5th to 99.5th percentile) of
@@ -565,7 +566,7 @@ def height_noise(height, mask, scale_px: float) -> float:
     return float(1.4826 * np.median(np.abs(detail, out=detail), overwrite_input=True))
 
 
-def _percentiles(values: np.ndarray, q) -> np.ndarray:
+def percentiles(values: np.ndarray, q) -> np.ndarray:
     """``np.percentile(values.astype(np.float64), q)`` (linear method), bit for bit, without the
     float64 copy: the order statistics are found by partitioning ``values`` (a 1-D array that
     may be reordered, in its own float type) and interpolated in float64 as numpy does.
@@ -873,7 +874,7 @@ def fit_height(
             raise ValueError("xy: non-finite values inside the mask")
     k0 = _step(step, z.shape)
     if tolerance is None:
-        lo, hi = _percentiles(z[m], (0.5, 99.5))
+        lo, hi = percentiles(z[m], (0.5, 99.5))
         tol = max(RELATIVE_TOLERANCE * float(hi - lo), MIN_TOLERANCE_PX * h)
         noise = NOISE_TOLERANCE * height_noise(z, m, k0 / 2.0)
         if noise > tol:
@@ -1302,36 +1303,44 @@ def fit_mesh(fit: SurfaceFit, spacing: float = 1.0, smoothing: float = 0.7):
     # reaches the image edges
     s = np.arange(-1, int(np.ceil((H - 1) / step)) + 2) * step
     t = np.arange(-1, int(np.ceil((W - 1) / step)) + 2) * step
-    S, T = np.meshgrid(s, t, indexing="ij")
     f = _lattice_field(fit.region & fit.covered, sigma, s, t)
     inside = f >= 0.5
-    nr, nc = S.shape
-    # vertices: inside nodes, then the crossings on vertical (along s) and horizontal edges
-    node_id = np.full(S.shape, -1, np.int64)
-    node_id[inside] = np.arange(int(inside.sum()))
-    n_vert = int(inside.sum())
-    params = [np.stack([S[inside], T[inside]], axis=1)]
+    # vertices: inside nodes, then the crossings on vertical (along s) and horizontal edges; their
+    # ids in int32 while they fit (the cells' rings of eight ids are the mesh step's largest arrays),
+    # their lattice coordinates from s and t (no whole-lattice coordinate planes)
+    ids_type = np.int32 if 3 * inside.size < 2**31 else np.int64
+    node_id = np.full(inside.shape, -1, ids_type)
+    n_vert = int(np.count_nonzero(inside))
+    node_id[inside] = np.arange(n_vert, dtype=ids_type)
+    i, j = np.nonzero(inside)
+    params = [np.stack([s[i], t[j]], axis=1)]
     edge_ids = []
     for axis in (0, 1):
         a = (slice(None, -1), slice(None)) if axis == 0 else (slice(None), slice(None, -1))
         b = (slice(1, None), slice(None)) if axis == 0 else (slice(None), slice(1, None))
         cut = inside[a] != inside[b]
-        ids = np.full(cut.shape, -1, np.int64)
-        ids[cut] = n_vert + np.arange(int(cut.sum()))
-        n_vert += int(cut.sum())
+        ids = np.full(cut.shape, -1, ids_type)
+        n_cut = int(np.count_nonzero(cut))
+        ids[cut] = n_vert + np.arange(n_cut, dtype=ids_type)
+        n_vert += n_cut
         frac = (0.5 - f[a][cut]) / (f[b][cut] - f[a][cut])
-        s_cut = S[a][cut] + frac * (S[b][cut] - S[a][cut])
-        t_cut = T[a][cut] + frac * (T[b][cut] - T[a][cut])
+        i, j = np.nonzero(cut)
+        s_a, t_a = s[i], t[j]
+        s_b, t_b = (s[i + 1], t_a) if axis == 0 else (s_a, t[j + 1])
+        s_cut = s_a + frac * (s_b - s_a)
+        t_cut = t_a + frac * (t_b - t_a)
         params.append(np.stack([s_cut, t_cut], axis=1))
         edge_ids.append(ids)
-    del S, T
+    del i, j, s_a, s_b, t_a, t_b, frac, cut
     along_s, along_t = edge_ids
     # the eight cycle positions of every lattice cell
     ring = np.stack([
         node_id[:-1, :-1], along_s[:, :-1], node_id[1:, :-1], along_t[1:, :],
         node_id[1:, 1:], along_s[:, 1:], node_id[:-1, 1:], along_t[:-1, :],
     ], axis=-1).reshape(-1, 8)
-    case = (inside[:-1, :-1] * 1 + inside[1:, :-1] * 2 + inside[1:, 1:] * 4 + inside[:-1, 1:] * 8).ravel()
+    one = np.uint8(1)
+    case = (inside[:-1, :-1] * one + inside[1:, :-1] * (2 * one) + inside[1:, 1:] * (4 * one)
+            + inside[:-1, 1:] * (8 * one)).ravel()
     centre = (0.25 * (f[:-1, :-1] + f[1:, :-1] + f[1:, 1:] + f[:-1, 1:])).ravel() >= 0.5
     del f, inside, node_id, edge_ids, along_s, along_t
     tris = []
@@ -1355,7 +1364,7 @@ def fit_mesh(fit: SurfaceFit, spacing: float = 1.0, smoothing: float = 0.7):
     n = len(st)
     points, normals = np.empty((n, 3)), np.empty((n, 3))
     lost = np.zeros(n, bool)
-    span = max(1, BLOCK_PIXELS // 8)
+    span = max(1, BLOCK_PIXELS // 64)  # the patches' derivatives take about 800 bytes per vertex
     for a in range(0, n, span):
         b = min(a + span, n)
         patch, u, v = fit.patches.locate_lattice(st[a:b, 0] + 0.5, st[a:b, 1] + 0.5)
@@ -1364,11 +1373,13 @@ def fit_mesh(fit: SurfaceFit, spacing: float = 1.0, smoothing: float = 0.7):
         points[a:b] = d.point
         normals[a:b] = unit(cross(d.du, d.dv))
     del st
-    if lost.any():  # a cut beyond the patches (never for fits): drop its triangles
-        tri = tri[~lost[tri].any(axis=1)]
-    mesh = TriangleMesh(points, tri, normals)
     if lost.any():
-        from surfaces.mesh import compact
-
-        mesh = compact(mesh)
-    return mesh
+        # a cut beyond the patches: drop its triangles, then every vertex no triangle uses, numbered
+        # as surfaces.mesh.compact does (here, without a second whole mesh beside this one)
+        tri = tri[~lost[tri].any(axis=1)]
+        used = np.zeros(n, bool)
+        used[tri.ravel()] = True
+        tri = (np.cumsum(used) - 1)[tri]
+        points = points[used]
+        normals = normals[used]
+    return TriangleMesh(points, tri, normals)
