@@ -28,8 +28,6 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 from scipy import ndimage
-from skimage.filters import apply_hysteresis_threshold
-
 from surfaces.validate import as_array, positive
 
 _MAD_TO_SIGMA = 1.4826
@@ -332,8 +330,11 @@ def measure_defects(
         high = positive(high, "threshold_mm")
         low = min(positive(low, "extent_mm"), high)
         if depth is not None:
-            labels = _label(apply_hysteresis_threshold(depth, low, high) & inspect)
+            regions = _hysteresis(depth, low, high)
             del depth
+            regions &= inspect
+            labels = _label(regions)
+            del regions
             regions = _regions_in(labels, ndimage.find_objects(labels), None, z, base, sign)
         else:
             hit = np.flatnonzero(reach > high)
@@ -492,6 +493,17 @@ def _residual_blocks(z: np.ndarray, base: _Background, inspect: np.ndarray):
 def _label(mask: np.ndarray) -> np.ndarray:
     """8-connected labels of a mask, int32 (half of skimage's int64)."""
     return ndimage.label(mask, structure=_EIGHT, output=np.int32)[0]
+
+
+def _hysteresis(depth: np.ndarray, low: float, high: float) -> np.ndarray:
+    """:func:`skimage.filters.apply_hysteresis_threshold` (the same comparisons and 4-connected
+    components, the same pixels) without its float64 and int64 copies of the image: the
+    components that hold a pixel above ``high`` are marked from those pixels' labels."""
+    low = np.clip(low, a_min=None, a_max=high)  # a float64 scalar, compared as skimage does
+    labels, _ = ndimage.label(depth > low)
+    hit = np.zeros(int(labels.max()) + 1, bool)
+    hit[labels[depth > high]] = True
+    return hit[labels]
 
 
 def _fill_holes(mask: np.ndarray) -> np.ndarray:
