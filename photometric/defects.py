@@ -330,11 +330,11 @@ def measure_defects(
         high = positive(high, "threshold_mm")
         low = min(positive(low, "extent_mm"), high)
         if depth is not None:
-            regions = _hysteresis(depth, low, high)
+            kept = _hysteresis(depth, low, high)
             del depth
-            regions &= inspect
-            labels = _label(regions)
-            del regions
+            kept &= inspect
+            labels = _label(kept)
+            del kept
             regions = _regions_in(labels, ndimage.find_objects(labels), None, z, base, sign)
         else:
             hit = np.flatnonzero(reach > high)
