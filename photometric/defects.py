@@ -11,7 +11,8 @@ turns the height field into numbers an inspector uses:
    measured slopes ``p, q`` are given, by where the slope departs from the background's
    (sharper: integration spreads each slope kink over a few pixels of height), keeping
    the footprints that reach the detection depth;
-3. measure each connected region (scikit-image ``regionprops``) in physical units.
+3. measure each connected region in physical units (from sums over its pixels, read a block of rows
+   of its bounding box at a time: nothing per region pixel is kept).
 
 Directions follow :data:`photometric.lights.CONVENTION` (x right, y up). On a regular
 pixel grid (orthographic camera) positions are the pixel centres times the pixel size.
