@@ -469,10 +469,18 @@ def _median(values: np.ndarray) -> float:
     a, b = sample[max(0, int(m / 2 - spread))], sample[min(m - 1, int(m / 2 + spread))]
     lo, hi = (n - 1) // 2, n // 2
     if np.isfinite(a) and np.isfinite(b):
-        below = int(np.count_nonzero(values < a))
-        inside = values[(values >= a) & (values <= b)]
+        # counted and gathered a block at a time: no boolean arrays of every value
+        below = above = 0
+        parts = []
+        for start in range(0, n, _BLOCK_PIXELS):
+            v = values[start:start + _BLOCK_PIXELS]
+            below += int(np.count_nonzero(v < a))
+            above += int(np.count_nonzero(v > b))
+            parts.append(v[(v >= a) & (v <= b)])
+        inside = np.concatenate(parts)
+        del parts
         # NaN is in none of the three parts (np.median then gives NaN)
-        whole = below + inside.size + int(np.count_nonzero(values > b)) == n
+        whole = below + inside.size + above == n
         if whole and below <= lo and hi < below + inside.size:
             middle = np.partition(inside, [lo - below, hi - below])[[lo - below, hi - below]]
             return float(np.mean(middle))  # as np.median: the mean of the two in the array's dtype
