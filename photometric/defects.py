@@ -43,8 +43,14 @@ def _scaled(rows: np.ndarray, cols: np.ndarray, shape) -> tuple[np.ndarray, np.n
 def _design(rows: np.ndarray, cols: np.ndarray, shape, degree: int, coords=None) -> np.ndarray:
     """Monomials ``x^a y^b`` (a + b <= degree) in coordinates scaled to [-1, 1]."""
     x, y = _scaled(rows, cols, shape) if coords is None else (coords[0][rows, cols], coords[1][rows, cols])
-    terms = [x**a * y ** (d - a) for d in range(degree + 1) for a in range(d + 1)]
-    return np.stack(terms, axis=1)
+    # each column written in place: no list of columns beside the matrix
+    out = np.empty((np.size(x), (degree + 1) * (degree + 2) // 2))
+    k = 0
+    for d in range(degree + 1):
+        for a in range(d + 1):
+            np.multiply(x**a, y ** (d - a), out=out[:, k])
+            k += 1
+    return out
 
 
 def _scaled_xy(xy: np.ndarray, usable: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -140,10 +146,11 @@ def _fit(height, mask, method, degree, iterations, xy, full: bool = True):
     rows, cols = np.divmod(flat, z.shape[1])
     A = _design(rows, cols, z.shape, deg, coords)
     values = z.ravel()[flat].astype(np.float64)  # a float32 height: the fit in float64 all the same
+    del rows, cols, flat
     use = np.ones(values.size, bool)
     sigma = 0.0
     for _ in range(int(iterations)):
-        coef = np.linalg.lstsq(A[use], values[use], rcond=None)[0]
+        coef = np.linalg.lstsq(A if use.all() else A[use], values[use], rcond=None)[0]
         r = values - A @ coef
         sigma = _MAD_TO_SIGMA * float(np.median(np.abs(r[use] - np.median(r[use]))))
         new = np.abs(r) <= max(3.0 * sigma, 1e-12 * (np.abs(values).max() + 1.0))
