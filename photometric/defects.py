@@ -11,7 +11,8 @@ turns the height field into numbers an inspector uses:
    measured slopes ``p, q`` are given, by where the slope departs from the background's
    (sharper: integration spreads each slope kink over a few pixels of height), keeping
    the footprints that reach the detection depth;
-3. measure each connected region (scikit-image ``regionprops``) in physical units.
+3. measure each connected region in physical units (from sums over its pixels, read a block of rows
+   of its bounding box at a time: nothing per region pixel is kept).
 
 Directions follow :data:`photometric.lights.CONVENTION` (x right, y up). On a regular
 pixel grid (orthographic camera) positions are the pixel centres times the pixel size.
@@ -28,8 +29,6 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 from scipy import ndimage
-from skimage.filters import apply_hysteresis_threshold
-
 from surfaces.validate import as_array, positive
 
 _MAD_TO_SIGMA = 1.4826
@@ -44,8 +43,14 @@ def _scaled(rows: np.ndarray, cols: np.ndarray, shape) -> tuple[np.ndarray, np.n
 def _design(rows: np.ndarray, cols: np.ndarray, shape, degree: int, coords=None) -> np.ndarray:
     """Monomials ``x^a y^b`` (a + b <= degree) in coordinates scaled to [-1, 1]."""
     x, y = _scaled(rows, cols, shape) if coords is None else (coords[0][rows, cols], coords[1][rows, cols])
-    terms = [x**a * y ** (d - a) for d in range(degree + 1) for a in range(d + 1)]
-    return np.stack(terms, axis=1)
+    # each column written in place: no list of columns beside the matrix
+    out = np.empty((np.size(x), (degree + 1) * (degree + 2) // 2))
+    k = 0
+    for d in range(degree + 1):
+        for a in range(d + 1):
+            np.multiply(x**a, y ** (d - a), out=out[:, k])
+            k += 1
+    return out
 
 
 def _scaled_xy(xy: np.ndarray, usable: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -118,7 +123,7 @@ def _fit(height, mask, method, degree, iterations, xy, full: bool = True):
     from 1-D gradients without a full-image :func:`numpy.gradient`. ``full=False`` on the
     grid: the background image is not built (None), only its terms.
     """
-    z = as_array(height, "height", ndim=2, finite=False)
+    z = _height(height)
     if method not in ("plane", "smooth"):
         raise ValueError(f"method: expected 'plane' or 'smooth', got {method!r}")
     deg = 1 if method == "plane" else int(degree)
@@ -140,11 +145,12 @@ def _fit(height, mask, method, degree, iterations, xy, full: bool = True):
         raise ValueError(f"height: only {flat.size} usable pixels for a degree-{deg} background")
     rows, cols = np.divmod(flat, z.shape[1])
     A = _design(rows, cols, z.shape, deg, coords)
-    values = z.ravel()[flat]
+    values = z.ravel()[flat].astype(np.float64)  # a float32 height: the fit in float64 all the same
+    del rows, cols, flat
     use = np.ones(values.size, bool)
     sigma = 0.0
     for _ in range(int(iterations)):
-        coef = np.linalg.lstsq(A[use], values[use], rcond=None)[0]
+        coef = np.linalg.lstsq(A if use.all() else A[use], values[use], rcond=None)[0]
         r = values - A @ coef
         sigma = _MAD_TO_SIGMA * float(np.median(np.abs(r[use] - np.median(r[use]))))
         new = np.abs(r) <= max(3.0 * sigma, 1e-12 * (np.abs(values).max() + 1.0))
@@ -259,7 +265,7 @@ def measure_defects(
     labels : numpy.ndarray, shape (H, W), int32
         Only with ``return_labels``: ``id + 1`` on each defect's pixels, 0 elsewhere.
     """
-    z = as_array(height, "height", ndim=2, finite=False)
+    z = _height(height)
     h = positive(pixel_size, "pixel_size")
     if polarity not in ("depression", "bump", "both"):
         raise ValueError(f"polarity: expected 'depression', 'bump' or 'both', got {polarity!r}")
@@ -271,7 +277,7 @@ def measure_defects(
     pts = foot = None
     if xy is not None:
         pts = as_array(xy, "xy", shape=z.shape + (2,), finite=False)
-        foot = np.full(z.shape, h * h) if area is None else np.broadcast_to(
+        foot = np.broadcast_to(np.float64(h * h), z.shape) if area is None else np.broadcast_to(
             as_array(area, "area", ndim=(0, 2), finite=False), z.shape)
         inspect &= np.isfinite(pts).all(axis=2) & np.isfinite(foot)
         if not inspect.any():
@@ -280,8 +286,10 @@ def measure_defects(
         raise ValueError("area: per-pixel footprints need xy (the points they belong to)")
     if background == "none":
         terms = []  # flat: the slopes' background is zero
-        base = _Background(None, [], float(np.nanmedian(z[inspect])))
-        sigma = _MAD_TO_SIGMA * float(np.median(np.abs(z[inspect] - base.constant)))
+        values = z[inspect].astype(np.float64, copy=False)
+        base = _Background(None, [], float(np.nanmedian(values)))
+        sigma = _MAD_TO_SIGMA * float(np.median(np.abs(values - base.constant)))
+        del values
     elif background in ("plane", "smooth"):
         # on the pixel grid only the separable terms: residuals are formed block by block
         bg, sigma, terms = _fit(z, inspect, background, degree, 6, pts, full=pts is not None)
@@ -300,15 +308,27 @@ def measure_defects(
 
     signs = {"depression": (-1.0,), "bump": (1.0,), "both": (-1.0, 1.0)}[polarity]
     results: list[dict] = []
-    pixels: list[np.ndarray] = []
     candidates = objects = None
     if footprint is not None:
         candidates = _label(footprint)
         del footprint
         objects = ndimage.find_objects(candidates)
+    labels_out = np.zeros(z.shape, np.int32) if return_labels else None
     for sign in signs:
-        deepest = max((float(np.max(sign * r, where=ok, initial=-np.inf)) for r, ok, _ in
-                       _residual_blocks(z, base, inspect)), default=-np.inf)
+        # one residual pass: the deepest point, and the float32 depth image (hysteresis) or each
+        # slope-footprint component's deepest point (footprint)
+        depth = np.zeros(z.shape, np.float32) if candidates is None else None
+        reach = None if candidates is None else np.full(len(objects) + 1, -np.inf)
+        deepest = -np.inf
+        for res, ok, rows in _residual_blocks(z, base, inspect):
+            d = np.multiply(sign, res, out=res)
+            deepest = max(deepest, float(np.max(d, where=ok, initial=-np.inf)))
+            if depth is not None:
+                np.copyto(depth[rows], d, where=ok, casting="unsafe")
+            else:
+                cand = candidates[rows]
+                sel = ok & (cand > 0)
+                np.maximum.at(reach, cand[sel], d[sel])
         if not inspect.all():
             deepest = max(deepest, 0.0)  # pixels outside the inspected area count as depth 0
         if deepest <= 0:
@@ -317,30 +337,37 @@ def measure_defects(
         low = extent_mm if extent_mm is not None else max(2.0 * sigma, 0.005 * deepest)
         high = positive(high, "threshold_mm")
         low = min(positive(low, "extent_mm"), high)
-        if candidates is None:
-            regions = _hysteresis_regions(z, base, inspect, sign, low, high)
+        if depth is not None:
+            kept = _hysteresis(depth, low, high)
+            del depth
+            kept &= inspect
+            labels = _label(kept)
+            del kept
+            regions = _regions_in(labels, ndimage.find_objects(labels), None, z, base, sign)
         else:
-            regions = _footprint_regions(z, base, inspect, sign, high, candidates, objects)
+            hit = np.flatnonzero(reach > high)
+            regions = _regions_in(candidates, objects, hit, z, base, sign)
         kind = "depression" if sign < 0 else "bump"
-        for rows, cols, depth, bbox in regions:
-            if rows.size < min_area_px:
+        for reg in regions:
+            if reg.area < min_area_px:
                 continue
-            reg = _Region(np.stack([rows, cols], axis=1), depth, bbox)
             if pts is None:
-                results.append(_measure(reg, h, kind, low, high, sigma))
+                results.append(_measure(reg, z, base, sign, h, kind, low, high, sigma))
             else:
-                results.append(_measure_points(reg, pts, foot, kind, low, high, sigma))
-            pixels.append(reg.coords)
+                results.append(_measure_points(reg, z, base, sign, pts, foot, kind, low, high, sigma))
+            if labels_out is not None:
+                labels_out[reg.box][reg.mask] = len(results)  # renumbered below
     order = sorted(range(len(results)), key=lambda i: -results[i]["max_depth_mm"])
     results = [results[i] for i in order]
     for i, rec in enumerate(results):
         rec["id"] = i
-    if not return_labels:
+    if labels_out is None:
         return results
-    out = np.zeros(z.shape, np.int32)
-    for i, k in enumerate(order):
-        out[pixels[k][:, 0], pixels[k][:, 1]] = i + 1
-    return results, out
+    lut = np.zeros(len(results) + 1, np.int32)
+    lut[np.asarray(order, np.int64) + 1] = np.arange(1, len(results) + 1)
+    for rows in _row_blocks(z.shape):
+        labels_out[rows] = lut[labels_out[rows]]
+    return results, labels_out
 
 
 #: pixels per row block of the whole-image passes (their float64 temporaries stay in the CPU cache)
@@ -369,18 +396,58 @@ class _Background:
             out += np.outer(col[rows], row[cols])
         return out
 
+    def at(self, rows: np.ndarray, cols: np.ndarray):
+        """The background at pixels ``(rows, cols)`` (the values :meth:`block` gives there)."""
+        if self.image is not None:
+            return self.image[rows, cols]
+        if not self.terms:
+            return self.constant
+        (col, row), *rest = self.terms
+        out = col[rows] * row[cols]
+        for col, row in rest:
+            out += col[rows] * row[cols]
+        return out
+
 
 @dataclass(frozen=True)
 class _Region:
-    """One connected defect region: its pixels (row, col), their float64 depths, its bounding box."""
+    """One connected defect region: a boolean crop of its bounding box and the box's place.
 
-    coords: np.ndarray  # (n, 2) int
-    depth: np.ndarray  # (n,) float64
-    bbox: tuple  # (min_row, min_col, max_row + 1, max_col + 1)
+    No per-pixel coordinates or depths are kept (they were 40 bytes per region pixel, with
+    float64 copies in the measures): :meth:`pixels` gives them a block of rows at a time.
+    """
+
+    mask: np.ndarray  # (h, w) bool, the region's pixels inside its bounding box
+    row0: int
+    col0: int
 
     @property
     def area(self) -> int:
-        return int(self.coords.shape[0])
+        return int(np.count_nonzero(self.mask))
+
+    @property
+    def box(self) -> tuple[slice, slice]:
+        return (slice(self.row0, self.row0 + self.mask.shape[0]), slice(self.col0, self.col0 + self.mask.shape[1]))
+
+    @property
+    def bbox(self) -> tuple[int, int, int, int]:
+        """(min_row, min_col, max_row + 1, max_col + 1)."""
+        return (self.row0, self.col0, self.row0 + self.mask.shape[0], self.col0 + self.mask.shape[1])
+
+    def pixels(self):
+        """``(rows, cols)`` (image coordinates, int64) of the region's pixels in raster order, a block
+        of rows of its box at a time."""
+        for rows in _row_blocks(self.mask.shape):
+            r, c = np.nonzero(self.mask[rows])
+            yield r + (self.row0 + rows.start), c + self.col0
+
+
+def _height(value) -> np.ndarray:
+    """Height checked for two dimensions, kept in its float type: a float32 height (the pipeline's)
+    is not copied to float64 (8 bytes per pixel); every residual is formed in float64 from it, so the
+    figures are those of the float64 copy."""
+    arr = as_array(value, "height", ndim=2, dtype=None, finite=False)
+    return arr if np.issubdtype(arr.dtype, np.floating) else arr.astype(np.float64)
 
 
 def _slopes(value, name: str, shape) -> np.ndarray:
@@ -409,10 +476,18 @@ def _median(values: np.ndarray) -> float:
     a, b = sample[max(0, int(m / 2 - spread))], sample[min(m - 1, int(m / 2 + spread))]
     lo, hi = (n - 1) // 2, n // 2
     if np.isfinite(a) and np.isfinite(b):
-        below = int(np.count_nonzero(values < a))
-        inside = values[(values >= a) & (values <= b)]
+        # counted and gathered a block at a time: no boolean arrays of every value
+        below = above = 0
+        parts = []
+        for start in range(0, n, _BLOCK_PIXELS):
+            v = values[start:start + _BLOCK_PIXELS]
+            below += int(np.count_nonzero(v < a))
+            above += int(np.count_nonzero(v > b))
+            parts.append(v[(v >= a) & (v <= b)])
+        inside = np.concatenate(parts)
+        del parts
         # NaN is in none of the three parts (np.median then gives NaN)
-        whole = below + inside.size + int(np.count_nonzero(values > b)) == n
+        whole = below + inside.size + above == n
         if whole and below <= lo and hi < below + inside.size:
             middle = np.partition(inside, [lo - below, hi - below])[[lo - below, hi - below]]
             return float(np.mean(middle))  # as np.median: the mean of the two in the array's dtype
@@ -428,12 +503,23 @@ def _residual_blocks(z: np.ndarray, base: _Background, inspect: np.ndarray):
     """``(z - background, inspect, rows)`` over blocks of rows (float64, NaN where not inspected):
     no full-image residual or background in memory."""
     for rows in _row_blocks(z.shape):
-        yield z[rows] - base.block(rows), inspect[rows], rows
+        yield np.subtract(z[rows], base.block(rows), dtype=np.float64), inspect[rows], rows
 
 
 def _label(mask: np.ndarray) -> np.ndarray:
     """8-connected labels of a mask, int32 (half of skimage's int64)."""
     return ndimage.label(mask, structure=_EIGHT, output=np.int32)[0]
+
+
+def _hysteresis(depth: np.ndarray, low: float, high: float) -> np.ndarray:
+    """:func:`skimage.filters.apply_hysteresis_threshold` (the same comparisons and 4-connected
+    components, the same pixels) without its float64 and int64 copies of the image: the
+    components that hold a pixel above ``high`` are marked from those pixels' labels."""
+    low = np.clip(low, a_min=None, a_max=high)  # a float64 scalar, compared as skimage does
+    labels, _ = ndimage.label(depth > low)
+    hit = np.zeros(int(labels.max()) + 1, bool)
+    hit[labels[depth > high]] = True
+    return hit[labels]
 
 
 def _fill_holes(mask: np.ndarray) -> np.ndarray:
@@ -446,50 +532,30 @@ def _fill_holes(mask: np.ndarray) -> np.ndarray:
     return pad[1:-1, 1:-1] != 2
 
 
-def _regions_in(labels: np.ndarray, objects: list, ids, z: np.ndarray, base: _Background, sign: float,
-                within=None):
-    """``(rows, cols, depth, bbox)`` of each region ``k`` in ``ids`` of ``labels``, measured in its bounding
-    box; ``within``: split region ``k`` into the 8-connected parts where ``sign (z - bg) > 0``."""
-    for k in ids:
+def _regions_in(labels: np.ndarray, objects: list, ids, z: np.ndarray, base: _Background, sign: float):
+    """The :class:`_Region` of each label ``k`` in ``ids`` (every label with ``ids=None``), in order.
+
+    With ``ids`` (the slope footprints that reach the detection depth) each region is split into
+    its 8-connected parts where ``sign (z - bg) > 0``, found inside its bounding box (the residual
+    a block of rows at a time: no float64 box in memory).
+    """
+    for k in range(1, len(objects) + 1) if ids is None else ids:
         box = objects[k - 1]
         if box is None:
             continue
-        depth_box = sign * (z[box] - base.block(*box))
         part = labels[box] == k
-        if within is None:
-            pieces = [part]
-        else:
-            sub = _label(part & (depth_box > 0))
-            pieces = [sub == j for j in range(1, int(sub.max()) + 1)]
-        for piece in pieces:
-            r, c = np.nonzero(piece)
-            if r.size == 0:
-                continue
-            rows, cols = r + box[0].start, c + box[1].start
-            bbox = (int(rows.min()), int(cols.min()), int(rows.max()) + 1, int(cols.max()) + 1)
-            yield rows, cols, depth_box[r, c], bbox
-
-
-def _footprint_regions(z, base, inspect, sign, high, candidates, objects):
-    """Slope-footprint components that reach the detection depth, split to where they lie on the
-    right side of the background."""
-    hit = set()
-    for res, ok, rows in _residual_blocks(z, base, inspect):
-        cand = candidates[rows]
-        hit.update(np.unique(cand[(sign * res > high) & ok & (cand > 0)]).tolist())
-    return list(_regions_in(candidates, objects, sorted(hit), z, base, sign, within=True))
-
-
-def _hysteresis_regions(z, base, inspect, sign, low, high):
-    """Depth hysteresis: regions deeper than ``low`` that reach ``high`` somewhere."""
-    depth = np.zeros(z.shape, np.float32)
-    for res, ok, rows in _residual_blocks(z, base, inspect):
-        np.multiply(sign, res, out=depth[rows], where=ok, casting="unsafe")
-    regions = apply_hysteresis_threshold(depth, low, high) & inspect
-    del depth
-    labels = _label(regions)
-    objects = ndimage.find_objects(labels)
-    return list(_regions_in(labels, objects, range(1, len(objects) + 1), z, base, sign))
+        if ids is None:
+            yield _Region(part, box[0].start, box[1].start)
+            continue
+        for rows in _row_blocks(part.shape):
+            image_rows = slice(box[0].start + rows.start, box[0].start + rows.stop)
+            res = np.subtract(z[image_rows, box[1]], base.block(image_rows, box[1]), dtype=np.float64)
+            part[rows] &= np.multiply(sign, res, out=res) > 0
+        sub = _label(part)
+        del part
+        for j, piece in enumerate(ndimage.find_objects(sub), start=1):
+            if piece is not None:
+                yield _Region(sub[piece] == j, box[0].start + piece[0].start, box[1].start + piece[1].start)
 
 
 def _background_slopes(background, terms):
@@ -619,77 +685,151 @@ def _stadium_length(area, second, extent, pitch):
     return float(out) if out.ndim == 0 else out
 
 
-def _measure(prop, h: float, kind: str, low: float, high: float, sigma: float) -> dict:
-    """Physical measures of one region (:class:`_Region`: its pixels and their depths)."""
-    rows, cols = prop.coords[:, 0].astype(float), prop.coords[:, 1].astype(float)
-    depth = prop.depth
-    # Principal axis in the (x right, y up) frame.
-    x, y = cols - cols.mean(), -(rows - rows.mean())
-    cov = np.cov(np.stack([x, y])) if rows.size > 1 else np.eye(2)
-    evals, evecs = np.linalg.eigh(cov)
-    axis = evecs[:, 1]
-    s = x * axis[0] + y * axis[1]
-    t = -x * axis[1] + y * axis[0]
-    length_px = _stadium_length(float(rows.size), float(s @ s), float(s.max() - s.min()), 1.0)
-    central = np.abs(s - 0.5 * (s.max() + s.min())) <= 0.25 * length_px
-    mean_width_px = float(central.sum() / max(0.5 * length_px, 1.0))
+def _axis_angle(cov: np.ndarray) -> tuple[np.ndarray, float]:
+    """Principal axis (unit vector, x right, y up) of a 2 x 2 covariance and its angle from +x
+    towards +y in degrees, in (-90, 90]."""
+    axis = np.linalg.eigh(cov)[1][:, 1]
     angle = float(np.degrees(np.arctan2(axis[1], axis[0])))
     angle = (angle + 90.0) % 180.0 - 90.0
-    if angle == -90.0:
-        angle = 90.0
-    wsum = float(depth.sum())
+    return axis, 90.0 if angle == -90.0 else angle
+
+
+def _measure(reg: _Region, z: np.ndarray, base: _Background, sign: float, h: float, kind: str, low: float,
+             high: float, sigma: float) -> dict:
+    """Physical measures of one region on the pixel grid.
+
+    Three passes over the region's pixels, a block of rows of its box at a time, so that nothing
+    per region pixel is kept: (1) the count, the sums of rows, columns and their products as exact
+    integers (Python ``int``: the covariance is exact before its one rounding) and the float64
+    depth sums; (2) the extents along and across the principal axis and the second moment along
+    it; (3) the pixels of the central half of the length. Depths are the float64 residual
+    ``sign (z - background)`` at each pixel.
+    """
+    n = sr = sc = srr = scc = src = 0
+    wsum = wr = wc = 0.0
+    deepest = -np.inf
+    for r, c in reg.pixels():
+        d = np.subtract(z[r, c], base.at(r, c), dtype=np.float64)
+        d *= sign
+        n += r.size
+        sr, sc = sr + int(r.sum()), sc + int(c.sum())
+        srr, scc, src = srr + int(r @ r), scc + int(c @ c), src + int(r @ c)
+        deepest = max(deepest, float(d.max()))
+        wsum += float(d.sum())
+        wr, wc = wr + float(r @ d), wc + float(c @ d)
+    mean_r, mean_c = sr / n, sc / n
+    if n > 1:
+        # x = col - mean, y = -(row - mean): cov(x, y) = -cov(col, row)
+        cxy = -(n * src - sr * sc) / (n * (n - 1))
+        cov = np.array([[(n * scc - sc * sc) / (n * (n - 1)), cxy], [cxy, (n * srr - sr * sr) / (n * (n - 1))]])
+    else:
+        cov = np.eye(2)
+    axis, angle = _axis_angle(cov)
+
+    def along(r, c):
+        x, y = c - mean_c, mean_r - r
+        return x * axis[0] + y * axis[1], y * axis[0] - x * axis[1]
+
+    s_lo = t_lo = np.inf
+    s_hi = t_hi = -np.inf
+    second = 0.0
+    for r, c in reg.pixels():
+        s, t = along(r, c)
+        s_lo, s_hi = min(s_lo, float(s.min())), max(s_hi, float(s.max()))
+        t_lo, t_hi = min(t_lo, float(t.min())), max(t_hi, float(t.max()))
+        second += float(s @ s)
+    length_px = _stadium_length(float(n), second, s_hi - s_lo, 1.0)
+    mid, half = 0.5 * (s_hi + s_lo), 0.25 * length_px
+    central = sum(int(np.count_nonzero(np.abs(along(r, c)[0] - mid) <= half)) for r, c in reg.pixels())
+    mean_width_px = float(central / max(0.5 * length_px, 1.0))
     return {
         "kind": kind,
-        "max_depth_mm": float(depth.max()),
+        "max_depth_mm": deepest,
         "mean_width_mm": mean_width_px * h,
-        "max_width_mm": float(t.max() - t.min() + 1.0) * h,
+        "max_width_mm": float(t_hi - t_lo + 1.0) * h,
         "length_mm": length_px * h,
-        "area_mm2": float(prop.area) * h * h,
+        "area_mm2": float(n) * h * h,
         "volume_mm3": wsum * h * h,
         "axis_deg": angle,
-        "center_px": [float((rows * depth).sum() / wsum), float((cols * depth).sum() / wsum)],
-        "bbox_px": [int(v) for v in prop.bbox],
-        "area_px": int(prop.area),
+        "center_px": [wr / wsum, wc / wsum],
+        "bbox_px": [int(v) for v in reg.bbox],
+        "area_px": int(n),
         "threshold_mm": float(high),
         "extent_mm": float(low),
         "background_sigma_mm": float(sigma),
     }
 
 
-def _measure_points(prop, xy: np.ndarray, foot: np.ndarray, kind: str, low: float, high: float,
-                    sigma: float) -> dict:
-    """:func:`_measure` on each pixel's own point ``xy`` and footprint area ``foot`` (perspective)."""
-    rows, cols = prop.coords[:, 0], prop.coords[:, 1]
-    depth = prop.depth
-    px, py = xy[rows, cols, 0], xy[rows, cols, 1]
-    a = foot[rows, cols]
-    side = float(np.sqrt(a.mean()))
-    x, y = px - px.mean(), py - py.mean()
-    cov = np.cov(np.stack([x, y])) if rows.size > 1 else np.eye(2)
-    axis = np.linalg.eigh(cov)[1][:, 1]
-    s = x * axis[0] + y * axis[1]
-    t = -x * axis[1] + y * axis[0]
-    s_c = s - float(a @ s) / float(a.sum())  # about the area-weighted centroid
-    length = _stadium_length(float(a.sum()), float(a @ (s_c * s_c)), float(s.max() - s.min()), side)
-    central = np.abs(s - 0.5 * (s.max() + s.min())) <= 0.25 * length
-    angle = float(np.degrees(np.arctan2(axis[1], axis[0])))
-    angle = (angle + 90.0) % 180.0 - 90.0
-    if angle == -90.0:
-        angle = 90.0
-    wsum = float(depth.sum())
+def _measure_points(reg: _Region, z: np.ndarray, base: _Background, sign: float, xy: np.ndarray,
+                    foot: np.ndarray, kind: str, low: float, high: float, sigma: float) -> dict:
+    """:func:`_measure` on each pixel's own point ``xy`` and footprint area ``foot`` (perspective).
+
+    The same three passes; the point sums are float64 about the region's first point (no
+    cancellation of a region far from the origin).
+    """
+    first = next(reg.pixels())
+    ref_x, ref_y = float(xy[first[0][0], first[1][0], 0]), float(xy[first[0][0], first[1][0], 1])
+    n = 0
+    su = sv = suu = svv = suv = 0.0
+    a_sum = a_u = a_v = 0.0
+    wsum = wr = wc = wx = wy = volume = 0.0
+    deepest = -np.inf
+    for r, c in reg.pixels():
+        d = np.subtract(z[r, c], base.at(r, c), dtype=np.float64)
+        d *= sign
+        px, py, a = xy[r, c, 0], xy[r, c, 1], foot[r, c]
+        u, v = px - ref_x, py - ref_y
+        n += r.size
+        su, sv = su + float(u.sum()), sv + float(v.sum())
+        suu, svv, suv = suu + float(u @ u), svv + float(v @ v), suv + float(u @ v)
+        a_sum, a_u, a_v = a_sum + float(a.sum()), a_u + float(a @ u), a_v + float(a @ v)
+        deepest = max(deepest, float(d.max()))
+        wsum += float(d.sum())
+        wr, wc = wr + float(r @ d), wc + float(c @ d)
+        wx, wy = wx + float(px @ d), wy + float(py @ d)
+        volume += float(d @ a)
+    side = float(np.sqrt(a_sum / n))
+    mean_u, mean_v = su / n, sv / n
+    if n > 1:
+        cuv = (suv - su * sv / n) / (n - 1)
+        cov = np.array([[(suu - su * su / n) / (n - 1), cuv], [cuv, (svv - sv * sv / n) / (n - 1)]])
+    else:
+        cov = np.eye(2)
+    axis, angle = _axis_angle(cov)
+    # the area-weighted centroid along the axis, from the first pass's sums
+    s_mean = (axis[0] * (a_u - mean_u * a_sum) + axis[1] * (a_v - mean_v * a_sum)) / a_sum
+
+    def along(r, c):
+        x, y = xy[r, c, 0] - ref_x - mean_u, xy[r, c, 1] - ref_y - mean_v
+        return x * axis[0] + y * axis[1], y * axis[0] - x * axis[1]
+
+    s_lo = t_lo = np.inf
+    s_hi = t_hi = -np.inf
+    second = 0.0
+    for r, c in reg.pixels():
+        s, t = along(r, c)
+        s_lo, s_hi = min(s_lo, float(s.min())), max(s_hi, float(s.max()))
+        t_lo, t_hi = min(t_lo, float(t.min())), max(t_hi, float(t.max()))
+        s -= s_mean
+        second += float(foot[r, c] @ (s * s))
+    length = _stadium_length(a_sum, second, s_hi - s_lo, side)
+    mid, half = 0.5 * (s_hi + s_lo), 0.25 * length
+    central = 0.0
+    for r, c in reg.pixels():
+        central += float(foot[r, c][np.abs(along(r, c)[0] - mid) <= half].sum())
     return {
         "kind": kind,
-        "max_depth_mm": float(depth.max()),
-        "mean_width_mm": float(a[central].sum()) / max(0.5 * length, side),
-        "max_width_mm": float(t.max() - t.min()) + side,
+        "max_depth_mm": deepest,
+        "mean_width_mm": central / max(0.5 * length, side),
+        "max_width_mm": float(t_hi - t_lo) + side,
         "length_mm": length,
-        "area_mm2": float(a.sum()),
-        "volume_mm3": float((depth * a).sum()),
+        "area_mm2": a_sum,
+        "volume_mm3": volume,
         "axis_deg": angle,
-        "center_px": [float((rows * depth).sum() / wsum), float((cols * depth).sum() / wsum)],
-        "center_mm": [float((px * depth).sum() / wsum), float((py * depth).sum() / wsum)],
-        "bbox_px": [int(v) for v in prop.bbox],
-        "area_px": int(prop.area),
+        "center_px": [wr / wsum, wc / wsum],
+        "center_mm": [wx / wsum, wy / wsum],
+        "bbox_px": [int(v) for v in reg.bbox],
+        "area_px": int(n),
         "threshold_mm": float(high),
         "extent_mm": float(low),
         "background_sigma_mm": float(sigma),

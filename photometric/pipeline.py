@@ -422,16 +422,15 @@ def _surface_step(method, height, p, q, valid, mask, h, step, samples, tolerance
     else:
         from surfaces.fit import default_step, fit_height, fit_mesh
 
+        # the mesh needs only the patches and the fitted region: no per-pixel surface or
+        # deviation map is kept (16 bytes per pixel for float32 heights)
         fit = fit_height(height, p, q, mask=valid, pixel_size=h, tolerance=tolerance,
-                         step=step if step is not None else default_step(shape), xy=xy)
+                         step=step if step is not None else default_step(shape), xy=xy, keep_pixels=False)
         step_px = fit.step
         n_samples = int(samples) if samples is not None else min(step_px, 8)
         info = {"surface": "fit", "surface_tolerance_mm": fit.tolerance,
                 "surface_patch_sizes_px": {str(k): v for k, v in fit.patch_sizes().items()},
                 "surface_max_dev_mm": fit.max_deviation, "surface_rms_dev_mm": fit.rms_deviation}
-        # the mesh needs only the patches and the fitted region: the per-pixel values and
-        # deviations (16 bytes per pixel for float32 heights) are let go before it is built
-        fit = replace(fit, values=(), deviation=None)
         mesh = fit_mesh(fit, spacing=step_px / n_samples)
         patches = fit.patches
     info.update(n_patches=int(patches.n_patches))

@@ -97,6 +97,7 @@ __all__ = [
     "fit_mesh",
     "find_discontinuities",
     "height_noise",
+    "percentiles",
 ]
 
 #: Default tolerance as a fraction of the height range (0.5th to 99.5th percentile) of
@@ -548,14 +549,49 @@ def height_noise(height, mask, scale_px: float) -> float:
         wr = weight(r)
         inner[r] = m[r] & (wr > 0.99)
         smooth[r] = np.asarray(z[r], np.float64) - smooth[r] / np.maximum(wr, 1e-12)
+    weight = w = None  # the weights are not needed past the detail (4 bytes per pixel with a mask)
     if not inner.any():
         return 0.0
-    detail = smooth[inner].astype(np.float64)
-    del smooth
+    # the detail gathered a block of rows at a time into float64: no float32 copy of it beside
+    detail = np.empty(int(np.count_nonzero(inner)))
+    n = 0
+    for r0 in range(0, H, step):
+        part = smooth[r0:r0 + step][inner[r0:r0 + step]]
+        detail[n:n + part.size] = part
+        n += part.size
+    del smooth, inner
     # the medians reorder ``detail`` in place, which leaves both medians as they are
     centre = np.median(detail, overwrite_input=True)
     detail -= centre
     return float(1.4826 * np.median(np.abs(detail, out=detail), overwrite_input=True))
+
+
+def percentiles(values: np.ndarray, q) -> np.ndarray:
+    """``np.percentile(values.astype(np.float64), q)`` (linear method), bit for bit, without the
+    float64 copy: the order statistics are found by partitioning ``values`` (a 1-D array that
+    may be reordered, in its own float type) and interpolated in float64 as numpy does.
+
+    Parameters
+    ----------
+    values : numpy.ndarray, shape (n,)
+        Finite values, n >= 1; reordered in place.
+    q : sequence of float
+        Percentiles in [0, 100].
+
+    Returns
+    -------
+    numpy.ndarray, shape (len(q),), float64
+    """
+    n = values.size
+    virtual = (n - 1) * np.true_divide(np.asarray(q, np.float64), 100)
+    lo = np.floor(virtual).astype(np.intp)
+    hi = np.minimum(lo + 1, n - 1)
+    values.partition(np.unique(np.concatenate([lo, hi])))
+    a, b = values[lo].astype(np.float64), values[hi].astype(np.float64)
+    t = virtual - lo
+    diff = b - a
+    # numpy's _lerp: from the nearer end
+    return np.where(t >= 0.5, b - diff * (1 - t), a + diff * t)
 
 
 def _gaussian(a: np.ndarray, sigma: float, dtype=np.float64, where: np.ndarray | None = None) -> np.ndarray:
@@ -734,6 +770,7 @@ def fit_height(
     jump: float | None = None,
     slope_weight: float = 1.0,
     slope_angle: float | None = None,
+    keep_pixels: bool = True,
 ) -> SurfaceFit:
     """Fit bicubic patches to a height field and its slopes, refining until within a tolerance.
 
@@ -774,6 +811,12 @@ def fit_height(
         Default: :data:`SLOPE_ANGLE` when the height's noise sets the default tolerance
         (the noise term then loosens the tolerance, and the normals keep the detail it
         lets go), no check otherwise.
+    keep_pixels : bool
+        False: the result keeps no per-pixel surface and deviation (``values=()``,
+        ``deviation=None``; every other field the same), for callers that need only the
+        patches, the region and the statistics: the fit's running surface is let go before
+        the patches are built and no deviation map is made (16 bytes per pixel less at the
+        end of a float32 fit).
 
     Returns
     -------
@@ -831,7 +874,7 @@ def fit_height(
             raise ValueError("xy: non-finite values inside the mask")
     k0 = _step(step, z.shape)
     if tolerance is None:
-        lo, hi = np.percentile(z[m].astype(np.float64), [0.5, 99.5], overwrite_input=True)
+        lo, hi = percentiles(z[m], (0.5, 99.5))
         tol = max(RELATIVE_TOLERANCE * float(hi - lo), MIN_TOLERANCE_PX * h)
         noise = NOISE_TOLERANCE * height_noise(z, m, k0 / 2.0)
         if noise > tol:
@@ -844,7 +887,7 @@ def fit_height(
     if not region.any():
         raise ValueError("height: every pixel of the mask lies on a depth discontinuity")
     with one_blas_thread():
-        return _fit(z, pp, qq, region, h, tol, k0, xyv, lam, angle)
+        return _fit(z, pp, qq, region, h, tol, k0, xyv, lam, angle, bool(keep_pixels))
 
 
 def _cell_angles(fs, ft, ts, tt, h: float, weight: np.ndarray) -> np.ndarray:
@@ -919,7 +962,7 @@ class _Targets:
                 for src, scale in zip(self.sources[:parts], self.scales)]
 
 
-def _fit(z, p, q, region, h, tol, k0, xy, lam, angle=None) -> SurfaceFit:
+def _fit(z, p, q, region, h, tol, k0, xy, lam, angle=None, keep_pixels: bool = True) -> SurfaceFit:
     H, W = z.shape
     ns, nt = -(-H // k0), -(-W // k0)
     HP, WP = ns * k0, nt * k0
@@ -1070,11 +1113,12 @@ def _fit(z, p, q, region, h, tol, k0, xy, lam, angle=None) -> SurfaceFit:
         CI = (2 * CI[refine][:, None] + np.array([0, 0, 1, 1])).ravel()
         CJ = (2 * CJ[refine][:, None] + np.array([0, 1, 0, 1])).ravel()
     del w, wc  # the weights are the region's; the deviations below read it
-    patches = _patches(leaves, solved, k0, (H, W), h, xy is None)
-    values = tuple(np.moveaxis(f[:, :H, :W], 0, -1) for f in fitted)
+    arr = view = None  # the refinement's loop names, views of the running surface
+    if slopes_checked:
+        del wa, own
     # per block of rows on the contiguous fitted arrays (a boolean gather from the strided
     # (H, W, d) views of ``values`` cost more than the rest of the bookkeeping)
-    deviation = np.empty((H, W), z.dtype)
+    deviation = np.empty((H, W), z.dtype) if keep_pixels else None
     max_dev = squares = 0.0
     rows = max(1, BLOCK_PIXELS // WP)
     for r0 in range(0, H, rows):
@@ -1085,8 +1129,15 @@ def _fit(z, p, q, region, h, tol, k0, xy, lam, angle=None) -> SurfaceFit:
         dv[off] = 0.0
         max_dev = max(max_dev, float(dv.max()), -float(dv.min()))
         squares += float(np.vdot(dv, dv))
-        dv[off] = np.nan
-        deviation[r0:r1] = dv
+        if keep_pixels:
+            dv[off] = np.nan
+            deviation[r0:r1] = dv
+    if keep_pixels:
+        values = tuple(np.moveaxis(f[:, :H, :W], 0, -1) for f in fitted)
+    else:
+        values = ()
+    del fitted  # without keep_pixels the running surface goes before the patches are built
+    patches = _patches(leaves, solved, k0, (H, W), h, xy is None)
     n_fitted = int(np.count_nonzero(region))
     rms_dev = float(np.sqrt(squares / n_fitted))
     return SurfaceFit(
@@ -1252,36 +1303,44 @@ def fit_mesh(fit: SurfaceFit, spacing: float = 1.0, smoothing: float = 0.7):
     # reaches the image edges
     s = np.arange(-1, int(np.ceil((H - 1) / step)) + 2) * step
     t = np.arange(-1, int(np.ceil((W - 1) / step)) + 2) * step
-    S, T = np.meshgrid(s, t, indexing="ij")
     f = _lattice_field(fit.region & fit.covered, sigma, s, t)
     inside = f >= 0.5
-    nr, nc = S.shape
-    # vertices: inside nodes, then the crossings on vertical (along s) and horizontal edges
-    node_id = np.full(S.shape, -1, np.int64)
-    node_id[inside] = np.arange(int(inside.sum()))
-    n_vert = int(inside.sum())
-    params = [np.stack([S[inside], T[inside]], axis=1)]
+    # vertices: inside nodes, then the crossings on vertical (along s) and horizontal edges; their
+    # ids in int32 while they fit (the cells' rings of eight ids are the mesh step's largest arrays),
+    # their lattice coordinates from s and t (no whole-lattice coordinate planes)
+    ids_type = np.int32 if 3 * inside.size < 2**31 else np.int64
+    node_id = np.full(inside.shape, -1, ids_type)
+    n_vert = int(np.count_nonzero(inside))
+    node_id[inside] = np.arange(n_vert, dtype=ids_type)
+    i, j = np.nonzero(inside)
+    params = [np.stack([s[i], t[j]], axis=1)]
     edge_ids = []
     for axis in (0, 1):
         a = (slice(None, -1), slice(None)) if axis == 0 else (slice(None), slice(None, -1))
         b = (slice(1, None), slice(None)) if axis == 0 else (slice(None), slice(1, None))
         cut = inside[a] != inside[b]
-        ids = np.full(cut.shape, -1, np.int64)
-        ids[cut] = n_vert + np.arange(int(cut.sum()))
-        n_vert += int(cut.sum())
+        ids = np.full(cut.shape, -1, ids_type)
+        n_cut = int(np.count_nonzero(cut))
+        ids[cut] = n_vert + np.arange(n_cut, dtype=ids_type)
+        n_vert += n_cut
         frac = (0.5 - f[a][cut]) / (f[b][cut] - f[a][cut])
-        s_cut = S[a][cut] + frac * (S[b][cut] - S[a][cut])
-        t_cut = T[a][cut] + frac * (T[b][cut] - T[a][cut])
+        i, j = np.nonzero(cut)
+        s_a, t_a = s[i], t[j]
+        s_b, t_b = (s[i + 1], t_a) if axis == 0 else (s_a, t[j + 1])
+        s_cut = s_a + frac * (s_b - s_a)
+        t_cut = t_a + frac * (t_b - t_a)
         params.append(np.stack([s_cut, t_cut], axis=1))
         edge_ids.append(ids)
-    del S, T
+    del i, j, s_a, s_b, t_a, t_b, frac, cut
     along_s, along_t = edge_ids
     # the eight cycle positions of every lattice cell
     ring = np.stack([
         node_id[:-1, :-1], along_s[:, :-1], node_id[1:, :-1], along_t[1:, :],
         node_id[1:, 1:], along_s[:, 1:], node_id[:-1, 1:], along_t[:-1, :],
     ], axis=-1).reshape(-1, 8)
-    case = (inside[:-1, :-1] * 1 + inside[1:, :-1] * 2 + inside[1:, 1:] * 4 + inside[:-1, 1:] * 8).ravel()
+    one = np.uint8(1)
+    case = (inside[:-1, :-1] * one + inside[1:, :-1] * (2 * one) + inside[1:, 1:] * (4 * one)
+            + inside[:-1, 1:] * (8 * one)).ravel()
     centre = (0.25 * (f[:-1, :-1] + f[1:, :-1] + f[1:, 1:] + f[:-1, 1:])).ravel() >= 0.5
     del f, inside, node_id, edge_ids, along_s, along_t
     tris = []
@@ -1305,7 +1364,7 @@ def fit_mesh(fit: SurfaceFit, spacing: float = 1.0, smoothing: float = 0.7):
     n = len(st)
     points, normals = np.empty((n, 3)), np.empty((n, 3))
     lost = np.zeros(n, bool)
-    span = max(1, BLOCK_PIXELS // 8)
+    span = max(1, BLOCK_PIXELS // 64)  # the patches' derivatives take about 800 bytes per vertex
     for a in range(0, n, span):
         b = min(a + span, n)
         patch, u, v = fit.patches.locate_lattice(st[a:b, 0] + 0.5, st[a:b, 1] + 0.5)
@@ -1314,11 +1373,13 @@ def fit_mesh(fit: SurfaceFit, spacing: float = 1.0, smoothing: float = 0.7):
         points[a:b] = d.point
         normals[a:b] = unit(cross(d.du, d.dv))
     del st
-    if lost.any():  # a cut beyond the patches (never for fits): drop its triangles
-        tri = tri[~lost[tri].any(axis=1)]
-    mesh = TriangleMesh(points, tri, normals)
     if lost.any():
-        from surfaces.mesh import compact
-
-        mesh = compact(mesh)
-    return mesh
+        # a cut beyond the patches: drop its triangles, then every vertex no triangle uses, numbered
+        # as surfaces.mesh.compact does (here, without a second whole mesh beside this one)
+        tri = tri[~lost[tri].any(axis=1)]
+        used = np.zeros(n, bool)
+        used[tri.ravel()] = True
+        tri = (np.cumsum(used) - 1)[tri]
+        points = points[used]
+        normals = normals[used]
+    return TriangleMesh(points, tri, normals)

@@ -85,3 +85,52 @@ def test_defect_stage_memory_stays_below_8_bytes_per_pixel():
         tracemalloc.stop()
     assert len(found) == 1 and found[0]["max_depth_mm"] == pytest.approx(0.1, rel=0.1)
     assert peak / z.size < 8.0, peak / z.size
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_hysteresis_is_skimages(seed):
+    rng = np.random.default_rng(seed)
+    img = ndimage.gaussian_filter(rng.standard_normal((70, 90)), 2.0).astype(np.float32 if seed % 2 else np.float64)
+    low, high = sorted(rng.uniform(-0.1, 0.3, 2))
+    if seed == 4:
+        low = high + 0.1  # clipped to high, as skimage does
+    np.testing.assert_array_equal(defects._hysteresis(img, low, high), apply_hysteresis_threshold(img, low, high))
+
+
+def _reference_measures(z, h, labels, sign, bg):
+    """The former per-region measures on whole coordinate arrays (np.cov, float64 copies)."""
+    out = []
+    for k in range(1, labels.max() + 1):
+        rows, cols = np.nonzero(labels == k)
+        depth = sign * (z[rows, cols] - bg[rows, cols])
+        rows, cols = rows.astype(float), cols.astype(float)
+        x, y = cols - cols.mean(), -(rows - rows.mean())
+        axis = np.linalg.eigh(np.cov(np.stack([x, y])))[1][:, 1]
+        s, t = x * axis[0] + y * axis[1], -x * axis[1] + y * axis[0]
+        length = defects._stadium_length(float(rows.size), float(s @ s), float(s.max() - s.min()), 1.0)
+        central = np.abs(s - 0.5 * (s.max() + s.min())) <= 0.25 * length
+        out.append({"max_depth_mm": depth.max(), "length_mm": length * h, "max_width_mm": (np.ptp(t) + 1.0) * h,
+                    "mean_width_mm": central.sum() / max(0.5 * length, 1.0) * h, "volume_mm3": depth.sum() * h * h,
+                    "center_px": [(rows * depth).sum() / depth.sum(), (cols * depth).sum() / depth.sum()]})
+    return out
+
+
+@pytest.mark.parametrize("axis_deg", [0.0, 30.0, 90.0, -50.0])
+def test_block_sums_measure_what_the_coordinate_arrays_measured(monkeypatch, axis_deg):
+    """Three passes over row blocks with exact integer moments give the figures of the whole
+    coordinate arrays (float32 height, as the pipeline passes it), and the labels paint each
+    measured region."""
+    hf = v_crack(200, 0.05, depth_mm=0.2, width_mm=0.7, length_mm=5.0, axis_deg=axis_deg)
+    rng = np.random.default_rng(2)
+    z = (hf.height + 1e-3 * rng.standard_normal(hf.height.shape)).astype(np.float32)
+    monkeypatch.setattr(defects, "_BLOCK_PIXELS", 1500)  # a region spans many blocks
+    found, labels = measure_defects(z, 0.05, return_labels=True)
+    bg, _ = defects.fit_background(z)
+    ref = _reference_measures(z, 0.05, labels, -1.0, bg)
+    assert len(found) == len(ref) >= 1
+    for got, want in zip(found, ref):
+        for key, value in want.items():
+            np.testing.assert_allclose(got[key], value, rtol=1e-9, err_msg=key)
+        assert got["area_px"] == np.count_nonzero(labels == got["id"] + 1)
+        rows, cols = np.nonzero(labels == got["id"] + 1)
+        assert got["bbox_px"] == [rows.min(), cols.min(), rows.max() + 1, cols.max() + 1]

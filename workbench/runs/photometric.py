@@ -150,6 +150,8 @@ def _write_previews(result: PhotometricReconstruction, out: Path) -> None:
     the per-pixel drawing then runs on blocks of rows (the whole-image functions hold a few
     float64 copies of the image, 24 bytes per pixel for the normals).
     """
+    from surfaces.fit import percentiles
+
     rows, cols = result.valid.shape
     step = max(1, PREVIEW_PIXELS // cols)
 
@@ -167,7 +169,7 @@ def _write_previews(result: PhotometricReconstruction, out: Path) -> None:
 
     # images.albedo_image: white at the 99.5th percentile of the finite albedo inside the mask (float64)
     vals = _gather(lambda: blocks("albedo", result.albedo), lambda r: result.mask[r])
-    top = float(np.percentile(vals, 99.5, overwrite_input=True)) if vals.size else 1.0
+    top = float(percentiles(vals, (99.5,))[0]) if vals.size else 1.0
     del vals
     for r, block in blocks("albedo", result.albedo):
         pic[r] = images.to_uint8(block.astype(np.float64), vmax=top if top > 0 else 1.0)
@@ -178,7 +180,7 @@ def _write_previews(result: PhotometricReconstruction, out: Path) -> None:
     vals = _gather(lambda: blocks("height", result.height), lambda r: result.valid[r])
     vmin = vmax = None
     if vals.size:
-        vmin, vmax = (float(v) for v in np.percentile(vals, [0.5, 99.5], overwrite_input=True))
+        vmin, vmax = (float(v) for v in percentiles(vals, (0.5, 99.5)))
     del vals
     # the ends are known whenever a value is (scalar_range would copy the values only to find them)
     lo, hi = scalar_range(np.empty(0), vmin, vmax)
@@ -189,13 +191,18 @@ def _write_previews(result: PhotometricReconstruction, out: Path) -> None:
 
 
 def _gather(blocks: Callable, select: Callable) -> np.ndarray:
-    """The finite values ``block[select(rows)]`` of all blocks, in order, as one float64 array.
+    """The finite values ``block[select(rows)]`` of all blocks, in order, as one array in the blocks'
+    float type (float32 maps stay float32: :func:`surfaces.fit.percentiles` gives their float64
+    percentiles without a float64 copy).
 
     Two passes over ``blocks()`` (a fresh iterator of ``(rows, block)`` each call), so only
-    the float64 result is the size of the selection.
+    the result is the size of the selection.
     """
-    count = sum(int(np.count_nonzero(np.isfinite(b[select(r)]))) for r, b in blocks())
-    vals = np.empty(count, np.float64)
+    count, dtype = 0, np.dtype(np.float32)
+    for r, b in blocks():
+        count += int(np.count_nonzero(np.isfinite(b[select(r)])))
+        dtype = np.promote_types(dtype, b.dtype)
+    vals = np.empty(count, dtype)
     at = 0
     for r, b in blocks():
         part = b[select(r)]
