@@ -630,8 +630,13 @@ def _coarsen(fine: _Level, r: int, strength: list | None = None) -> _Level:
     sat = None
     if fine.saturated is not None:
         sat = fine.saturated[:, : h * r, : w * r].reshape(-1, h, r, w, r).any(axis=(2, 4))
+    planes = np.empty((len(fine.planes), h, w), np.float32)
+    for k, pl in enumerate(fine.planes):
+        # block means by OpenCV's area resampling (an integer factor on the cropped image): one
+        # pass, where numpy's mean over two axes of a reshaped copy takes several
+        planes[k] = cv2.resize(pl[: h * r, : w * r], (w, h), interpolation=cv2.INTER_AREA)
     return _Level(
-        planes=np.stack([_block_mean(pl, r) for pl in fine.planes]),
+        planes=planes,
         strength=strength if strength is not None else [s if np.ndim(s) == 0 else _block_mean(s, r)
                                                         for s in fine.strength],
         mask=mask,
@@ -646,7 +651,9 @@ def _upsample(z: np.ndarray, r: int, shape) -> np.ndarray:
     """Bilinear from block centres to pixel centres (cv2 maps ``(i + 0.5) / r - 0.5``),
     edge values carried into the dropped rows and columns."""
     up = cv2.resize(z, (z.shape[1] * r, z.shape[0] * r), interpolation=cv2.INTER_LINEAR)
-    return np.pad(up, ((0, shape[0] - up.shape[0]), (0, shape[1] - up.shape[1])), mode="edge")
+    if up.shape == tuple(shape):
+        return up
+    return cv2.copyMakeBorder(up, 0, shape[0] - up.shape[0], 0, shape[1] - up.shape[1], cv2.BORDER_REPLICATE)
 
 
 def _alternate(level, lights, camera, opts, integrator, ref, tol, max_iterations, z, pool, timings,
@@ -674,10 +681,10 @@ def _alternate(level, lights, camera, opts, integrator, ref, tol, max_iterations
             sol = _normals(level, lights, camera, z, opts, pool, final=name == "full")
             z_solved = z
         elif n_moved:
-            rows, cols = np.nonzero(moved)
-            part = _normals(_gather(level, rows, cols), lights, camera, z[rows, cols][None, :], opts, pool,
+            idx = np.flatnonzero(moved)
+            part = _normals(_gather(level, idx), lights, camera, _take(z, idx, level.shape[1]), opts, pool,
                             final=name == "full")
-            _scatter(sol, part, rows, cols)
+            _scatter(sol, part, idx)
             z_solved = np.where(moved, z, z_solved)
         timings["solve"] += time.perf_counter() - t0
         t0 = time.perf_counter()
@@ -722,33 +729,53 @@ def _alternate(level, lights, camera, opts, integrator, ref, tol, max_iterations
     )
 
 
-def _gather(level: _Level, rows: np.ndarray, cols: np.ndarray) -> _Level:
-    """The pixels ``(rows, cols)`` of a level as one row ``(1, P)`` with per-pixel offsets (all in
-    the mask: they were selected from it)."""
-    def take(a):
-        return a[:, rows, cols][:, None]
+def _take(a: np.ndarray, idx: np.ndarray, width: int) -> np.ndarray:
+    """The pixels ``idx`` (flat indices into the trailing (h, w) of ``a``, leading axes kept) laid out
+    in rows of ``width``; the last row is padded with the last pixel (:func:`_gather`)."""
+    lead = a.shape[:-2]
+    rows = -(-idx.size // width)
+    flat = a.reshape(lead + (-1,))
+    out = np.empty(lead + (rows * width,), a.dtype)
+    np.take(flat, idx, axis=-1, out=out[..., : idx.size])
+    out[..., idx.size :] = flat[..., idx[-1], None]
+    return out.reshape(lead + (rows, width))
 
+
+def _gather(level: _Level, idx: np.ndarray) -> _Level:
+    """The pixels ``idx`` (flat indices, all in the mask: they were selected from it) as a level of
+    rows as wide as ``level`` with per-pixel offsets, so that :func:`_normals` solves them in
+    cache-sized blocks as it does a whole image; the padding at the end is outside its mask."""
+    w = level.shape[1]
+    rows = -(-idx.size // w)
+    mask = np.zeros(rows * w, bool)
+    mask[: idx.size] = True
+    pix_r, pix_c = np.divmod(idx, w)
     return _Level(
-        planes=take(level.planes),
-        strength=[s if np.ndim(s) == 0 else s[rows, cols][None, :] for s in level.strength],
-        mask=np.ones((1, rows.size), bool),
-        saturated=None if level.saturated is None else take(level.saturated),
-        u=level.u[cols][None, :],
-        v=level.v[rows][None, :],
+        planes=_take(level.planes, idx, w),
+        strength=[s if np.ndim(s) == 0 else _take(s, idx, w) for s in level.strength],
+        mask=mask.reshape(rows, w),
+        saturated=None if level.saturated is None else _take(level.saturated, idx, w),
+        u=_take(level.u[None, :], pix_c, w),
+        v=_take(level.v[None, :], pix_r, w),
         step=level.step,
-        colour=None if level.colour is None else take(level.colour),
+        colour=None if level.colour is None else np.stack([_take(level.colour[..., c], idx, w) for c in range(3)],
+                                                          axis=-1),
     )
 
 
-def _scatter(sol: dict, part: dict, rows: np.ndarray, cols: np.ndarray) -> None:
+def _scatter(sol: dict, part: dict, idx: np.ndarray) -> None:
     """Write the solve of gathered pixels (:func:`_gather`) back into a whole-level solve."""
+    n = idx.size
     for key, value in part.items():
         if value is None:
             continue
         if key in ("normals", "outliers"):
-            sol[key][:, rows, cols] = value[:, 0]
+            target = sol[key].reshape(sol[key].shape[0], -1)
+            target[:, idx] = value.reshape(value.shape[0], -1)[:, :n]
         else:
-            sol[key][rows, cols] = value[0]
+            trail = value.shape[2:]
+            target = sol[key].reshape((-1,) + trail)
+            target[idx] = value.reshape((-1,) + trail)[:n]
 
 
 def _history_summary(history: list, tol: float, converged: bool) -> dict:
