@@ -521,10 +521,17 @@ def _solve_nearfield(
     sol, z = state["sol"], state["z"]
     valid = sol["valid"]
     normals = cv2.merge(list(sol["normals"]))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        p = np.where(valid, -sol["normals"][0] / sol["normals"][2], np.float32(0.0)).astype(np.float32)
-        q = np.where(valid, -sol["normals"][1] / sol["normals"][2], np.float32(0.0)).astype(np.float32)
     lu, lv = state["grad"]
+    if isinstance(camera, Orthographic):
+        # the last pass's slopes of the same normals, already zero where not valid: not computed again
+        p, q = lu, lv
+        if state["record"] is None:
+            np.copyto(p, 0.0, where=~valid)
+            np.copyto(q, 0.0, where=~valid)
+    else:
+        with np.errstate(divide="ignore", invalid="ignore"):
+            p = np.where(valid, -sol["normals"][0] / sol["normals"][2], np.float32(0.0)).astype(np.float32)
+            q = np.where(valid, -sol["normals"][1] / sol["normals"][2], np.float32(0.0)).astype(np.float32)
     return NearFieldResult(
         normals=normals,
         albedo=sol["albedo"] if sol["albedo"] is not None else sol["rho"],
@@ -721,7 +728,7 @@ def _alternate(level, lights, camera, opts, integrator, ref, tol, max_iterations
                 _history_summary(history, tol, False),
             )
         if change < tol:
-            return {"z": z, "sol": sol, "grad": grad, "change": change}
+            return {"z": z, "sol": sol, "grad": grad, "change": change, "record": record}
     raise NotConvergedError(
         f"near-field solve did not converge: height change {change:.3g} mm after {max_iterations} passes "
         f"at the {name} level (tolerance {tol:g} mm)",
@@ -807,9 +814,18 @@ def _height(level: _Level, camera: Camera, normals: np.ndarray, valid: np.ndarra
     if integrator in ("lsq", "robust"):
         fld = (least_squares if integrator == "lsq" else robust_least_squares)(p, q, valid, spacing)
     else:
-        zero = np.float32(0.0)
-        pz = np.where(valid, p, zero)
-        qz = np.where(valid, q, zero)
+        if isinstance(camera, Orthographic):
+            # the slopes themselves, zero where not valid: masked in place (they are the solve's p, q)
+            off = ~valid
+            np.copyto(p, 0.0, where=off)
+            np.copyto(q, 0.0, where=off)
+            del off
+            pz, qz = p, q
+        else:
+            # the perspective log-depth derivatives stay unmasked for the footprint
+            zero = np.float32(0.0)
+            pz = np.where(valid, p, zero)
+            qz = np.where(valid, q, zero)
 
         def solve(a, b, h):
             if integrator == "dct":
@@ -854,7 +870,13 @@ def _normals(level: _Level, lights: PointLights, camera: Camera, z: np.ndarray, 
 
 def _block(level: _Level, lights: PointLights, camera: Camera, z: np.ndarray, opts: _Options, r0: int, r1: int,
            out: dict, final: bool) -> None:
-    """Light vectors, normal equations and the closed-form 3 x 3 solve for rows ``r0:r1``."""
+    """Light vectors, normal equations and the closed-form 3 x 3 solve for rows ``r0:r1``.
+
+    The light vectors stay one (h, w) plane per light and component as
+    :func:`photometric.lights._scaled_vectors` returns them (an ``(N, 3, h, w)`` array only in
+    the outlier mode, which indexes them by pixel), and the normals, albedo and validity are
+    written straight into ``out``: every pass over the block is arithmetic.
+    """
     f32 = np.float32
     zz = z[r0:r1].astype(f32)
     # offsets per column and row, or per pixel for a gathered level (:func:`_gather`)
@@ -865,16 +887,19 @@ def _block(level: _Level, lights: PointLights, camera: Camera, z: np.ndarray, op
         scale = (f32(camera.camera_height_mm) - zz) * f32(1.0 / camera.focal_length_px)
         x, y = x * scale, y * scale
     n = len(lights)
-    S = np.empty((n, 3) + zz.shape, f32)
+    vecs = []
     for k in range(n):
         strength = level.strength[k]
         if np.ndim(strength):
             strength = strength[r0:r1]
-        S[k, 0], S[k, 1], S[k, 2] = _scaled_vectors(lights.positions[k], lights.axes[k], float(lights.mu[k]),
-                                                    strength, x, y, zz, lobe=opts.lobe)
+        vecs.append(_scaled_vectors(lights.positions[k], lights.axes[k], float(lights.mu[k]), strength, x, y, zz,
+                                    lobe=opts.lobe))
+    S = np.array(vecs, f32) if opts.outliers else None
+    sx, sy, sz = ([vk[c] for vk in vecs] for c in range(3))
+    del vecs
     X = level.planes[:, r0:r1]
     mask = level.mask[r0:r1]
-    g_all, ok_all = _solve3(S, X, None)
+    g_all, ok_all = _solve3(sx, sy, sz, X, None)
     g, ok = g_all, ok_all & mask
     weights = None
     if opts.outliers:
@@ -889,7 +914,7 @@ def _block(level: _Level, lights: PointLights, camera: Camera, z: np.ndarray, op
                 ok = ok_all & mask & ~bad.any(axis=0)
                 break
             weights = (~bad).astype(f32)
-            g_new, ok_new = _solve3(S, X, weights)
+            g_new, ok_new = _solve3(sx, sy, sz, X, weights)
             ok = ok_new & mask & (weights.sum(axis=0) >= 3)
             some = ok & bad.any(axis=0)
             if some.any():
@@ -898,31 +923,44 @@ def _block(level: _Level, lights: PointLights, camera: Camera, z: np.ndarray, op
             g = np.where(ok[None], g_new, g_all)
         if out["outliers"] is not None:
             out["outliers"][:, r0:r1] = bad & mask[None]
-    rho = np.sqrt(_kdot(g, g))
-    blank = ~mask | ~(rho > 0) | ~np.isfinite(rho)
+    rho = out["rho"][r0:r1]
+    np.sqrt(_kdot(g, g), out=rho)
+    # a normal needs a positive, finite length (NaN fails both comparisons)
+    blank = ~(mask & (rho > 0) & (rho < np.inf))
+    nrm = out["normals"][:, r0:r1]
     with np.errstate(divide="ignore", invalid="ignore"):
-        nrm = g / rho[None]
+        np.divide(g, rho[None], out=nrm)
     nrm[:, blank] = 0.0
     nrm[2, blank] = 1.0
     rho[blank] = 0.0
     ok &= ~blank & (nrm[2] > 0)
-    out["normals"][:, r0:r1] = nrm
-    out["rho"][r0:r1] = rho
     out["valid"][r0:r1] = ok
     if not final:
         return
     g = nrm * rho[None]
-    err = X - _kdot(S, g[None], axis=1)
-    if weights is not None:
-        err *= weights
-        count = np.maximum(weights.sum(axis=0), 1.0)
-    else:
-        count = f32(n)
-    res = np.sqrt(_kdot(err, err) / count)
+    # residual: per light x_k - s_k . g, squared and summed over the lights in their order
+    sq = None
+    for k in range(n):
+        e = sx[k] * g[0]
+        e += sy[k] * g[1]
+        e += sz[k] * g[2]
+        np.subtract(X[k], e, out=e)
+        if weights is not None:
+            e *= weights[k]
+        if sq is None:
+            sq = np.multiply(e, e)
+        else:
+            sq += np.multiply(e, e, out=e)
+    count = np.maximum(weights.sum(axis=0), 1.0) if weights is not None else f32(n)
+    res = out["residual"][r0:r1]
+    np.sqrt(np.divide(sq, count, out=sq), out=res)
     res[blank] = 0.0
-    out["residual"][r0:r1] = res
     if out["albedo"] is not None:
-        shade = _kdot(S, nrm[None], axis=1)
+        shade = np.empty((n,) + nrm.shape[1:], f32)
+        for k in range(n):
+            np.multiply(sx[k], nrm[0], out=shade[k])
+            shade[k] += sy[k] * nrm[1]
+            shade[k] += sz[k] * nrm[2]
         if weights is not None:
             shade *= weights
         num = np.einsum("khwc,khw->hwc", level.colour[:, r0:r1], shade)
@@ -932,15 +970,15 @@ def _block(level: _Level, lights: PointLights, camera: Camera, z: np.ndarray, op
         out["albedo"][r0:r1] = alb
 
 
-def _solve3(S: np.ndarray, X: np.ndarray, weights: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+def _solve3(sx, sy, sz, X: np.ndarray, weights: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
     """Per pixel ``g`` of ``(sum_k w_k s_k s_k^T) g = sum_k w_k x_k s_k`` (cofactors; float32).
 
-    ``S`` (N, 3, h, w), ``X`` (N, h, w), ``weights`` (N, h, w) or None. Returns ``g``
-    (3, h, w) and where the system is regular (positive determinant).
+    ``sx, sy, sz``: per light the (h, w) components of ``s_k`` (sequences or (N, h, w) arrays),
+    ``X`` (N, h, w), ``weights`` (N, h, w) or None. Returns ``g`` (3, h, w) and where the
+    system is regular (positive determinant).
     """
-    sx, sy, sz = S[:, 0], S[:, 1], S[:, 2]
     if weights is not None:
-        wx, wy, wz = sx * weights, sy * weights, sz * weights
+        wx, wy, wz = ([s[k] * weights[k] for k in range(len(s))] for s in (sx, sy, sz))
     else:
         wx, wy, wz = sx, sy, sz
     a00 = _kdot(wx, sx)
@@ -969,15 +1007,16 @@ def _solve3(S: np.ndarray, X: np.ndarray, weights: np.ndarray | None) -> tuple[n
     return g, ok
 
 
-def _kdot(a: np.ndarray, b: np.ndarray, axis: int = 0) -> np.ndarray:
+def _kdot(a, b, axis: int = 0) -> np.ndarray:
     """``sum(a * b, axis)`` over a short axis (lights or components), accumulated in place:
-    twice as fast as ``einsum`` on float32 image blocks."""
+    twice as fast as ``einsum`` on float32 image blocks. ``a`` and ``b`` may be sequences of
+    equal-shape planes (``axis`` 0)."""
     if axis:
         a, b = np.moveaxis(a, axis, 0), np.moveaxis(b, axis, 0)
     out = np.multiply(a[0], b[0])
     tmp = np.empty_like(out)
-    for i in range(1, max(a.shape[0], b.shape[0])):
-        out += np.multiply(a[i if a.shape[0] > 1 else 0], b[i if b.shape[0] > 1 else 0], out=tmp)
+    for i in range(1, max(len(a), len(b))):
+        out += np.multiply(a[i if len(a) > 1 else 0], b[i if len(b) > 1 else 0], out=tmp)
     return out
 
 
