@@ -52,7 +52,7 @@ from __future__ import annotations
 import os
 import time
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import cv2
 import numpy as np
@@ -137,9 +137,9 @@ class NearFieldResult:
     valid : numpy.ndarray, shape (H, W), bool
         In the mask, positive albedo, ``n_z > 0``, enough well-conditioned inliers in
         the outlier mode.
-    residual : numpy.ndarray, shape (H, W), float32
+    residual : numpy.ndarray, shape (H, W), float32, or None
         RMS of ``x_k - s_k . (albedo n)`` over the observations used (intensity-divided
-        image units).
+        image units); None when the solve was asked not to compute it.
     p, q : numpy.ndarray, shape (H, W), float32
         Surface slopes ``dz/dx = -n_x / n_z``, ``dz/dy = -n_y / n_z`` (y up) in the rig
         frame; zero where not valid.
@@ -171,7 +171,7 @@ class NearFieldResult:
     normals: np.ndarray
     albedo: np.ndarray
     valid: np.ndarray
-    residual: np.ndarray
+    residual: np.ndarray | None
     p: np.ndarray
     q: np.ndarray
     height: np.ndarray
@@ -211,6 +211,7 @@ class _Options:
     highlight: float | None
     rounds: int
     lobe: bool  # apply the modelled LED lobe to the strength
+    residual: bool = True  # compute the fit residual of the final passes
 
 
 @dataclass(frozen=True)
@@ -338,6 +339,7 @@ def solve_nearfield(
     threads: int | None = None,
     setup: NearFieldSetup | None = None,
     correction_step: int = CORRECTION_STEP,
+    residual: bool = True,
 ) -> NearFieldResult:
     """Normals, albedo and the surface from images under point lights (or distant ones).
 
@@ -386,6 +388,9 @@ def solve_nearfield(
         at most half of the pixels (:data:`CORRECTION_STEP`; ``dct`` and ``fc`` only, and
         only while the height change stays below :data:`CORRECTION_MARGIN` of the
         tolerance); 1: integrate every pass at full resolution.
+    residual : bool, optional
+        Compute :attr:`NearFieldResult.residual` (False: it is None; a caller that does not
+        use it, such as an inspection, saves about a tenth of the normal solves).
 
     Returns
     -------
@@ -456,7 +461,7 @@ def solve_nearfield(
     return _solve_nearfield(
         imgs, lights, camera, intens, m, g, outliers, dark, saturation, highlight, integrator, ref,
         float(tolerance_mm), int(max_iterations), int(coarse_pixels), threads, setup=setup,
-        correction_step=int(correction_step),
+        correction_step=int(correction_step), residual=bool(residual),
     )
 
 
@@ -480,16 +485,18 @@ def _solve_nearfield(
     *,
     setup: NearFieldSetup | None = None,
     correction_step: int = CORRECTION_STEP,
+    residual: bool = True,
 ) -> NearFieldResult:
     """:func:`solve_nearfield` on checked input (the pipeline calls this)."""
     if not isinstance(lights, PointLights):
-        return _directional(imgs, lights, camera, intens, mask, outliers, dark, saturation, highlight,
-                            integrator, reference_height_mm)
+        res = _directional(imgs, lights, camera, intens, mask, outliers, dark, saturation, highlight,
+                           integrator, reference_height_mm)
+        return res if residual else replace(res, residual=None)
     n_img, height, width = imgs.shape[:3]
     shape = (height, width)
     m = np.ones(shape, bool) if mask is None else mask
     flat = gains is not None or (setup is not None and setup.flat_field)
-    opts = _Options(outliers, dark, saturation, highlight, 2, lights.mu_known or not flat)
+    opts = _Options(outliers, dark, saturation, highlight, 2, lights.mu_known or not flat, residual)
     u, v = pixel_offsets(camera, shape)
     divide = np.ones_like(intens) if flat else intens
     own = imgs.ndim == 3 and bool(np.all(divide.mean(axis=1) == 1.0))
@@ -858,7 +865,7 @@ def _normals(level: _Level, lights: PointLights, camera: Camera, z: np.ndarray, 
         "normals": np.empty((3, h, w), np.float32),
         "rho": np.empty((h, w), np.float32),
         "valid": np.empty((h, w), bool),
-        "residual": np.zeros((h, w), np.float32) if final else None,
+        "residual": np.zeros((h, w), np.float32) if (final and opts.residual) else None,
         "outliers": np.zeros((n, h, w), bool) if (final and opts.outliers) else None,
         "albedo": np.empty((h, w, 3), np.float32) if (final and level.colour is not None) else None,
     }
@@ -937,24 +944,8 @@ def _block(level: _Level, lights: PointLights, camera: Camera, z: np.ndarray, op
     out["valid"][r0:r1] = ok
     if not final:
         return
-    g = nrm * rho[None]
-    # residual: per light x_k - s_k . g, squared and summed over the lights in their order
-    sq = None
-    for k in range(n):
-        e = sx[k] * g[0]
-        e += sy[k] * g[1]
-        e += sz[k] * g[2]
-        np.subtract(X[k], e, out=e)
-        if weights is not None:
-            e *= weights[k]
-        if sq is None:
-            sq = np.multiply(e, e)
-        else:
-            sq += np.multiply(e, e, out=e)
-    count = np.maximum(weights.sum(axis=0), 1.0) if weights is not None else f32(n)
-    res = out["residual"][r0:r1]
-    np.sqrt(np.divide(sq, count, out=sq), out=res)
-    res[blank] = 0.0
+    if out["residual"] is not None:
+        _residual(sx, sy, sz, X, nrm * rho[None], weights, blank, out["residual"][r0:r1])
     if out["albedo"] is not None:
         shade = np.empty((n,) + nrm.shape[1:], f32)
         for k in range(n):
@@ -968,6 +959,27 @@ def _block(level: _Level, lights: PointLights, camera: Camera, z: np.ndarray, op
         alb = np.divide(num, den[..., None], out=np.zeros_like(num), where=den[..., None] > 0)
         alb[blank] = 0.0
         out["albedo"][r0:r1] = alb
+
+
+def _residual(sx, sy, sz, X: np.ndarray, g: np.ndarray, weights: np.ndarray | None, blank: np.ndarray,
+              res: np.ndarray) -> None:
+    """RMS over the lights used of ``x_k - s_k . g`` into ``res`` (0 where ``blank``), accumulated per
+    light in light order."""
+    sq = None
+    for k in range(len(sx)):
+        e = sx[k] * g[0]
+        e += sy[k] * g[1]
+        e += sz[k] * g[2]
+        np.subtract(X[k], e, out=e)
+        if weights is not None:
+            e *= weights[k]
+        if sq is None:
+            sq = np.multiply(e, e)
+        else:
+            sq += np.multiply(e, e, out=e)
+    count = np.maximum(weights.sum(axis=0), 1.0) if weights is not None else np.float32(len(sx))
+    np.sqrt(np.divide(sq, count, out=sq), out=res)
+    res[blank] = 0.0
 
 
 def _solve3(sx, sy, sz, X: np.ndarray, weights: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
