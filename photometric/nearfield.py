@@ -748,10 +748,12 @@ def _take(a: np.ndarray, idx: np.ndarray, width: int) -> np.ndarray:
     in rows of ``width``; the last row is padded with the last pixel (:func:`_gather`)."""
     lead = a.shape[:-2]
     rows = -(-idx.size // width)
-    flat = a.reshape(lead + (-1,))
-    out = np.empty(lead + (rows * width,), a.dtype)
-    np.take(flat, idx, axis=-1, out=out[..., : idx.size])
-    out[..., idx.size :] = flat[..., idx[-1], None]
+    flat = a.reshape((-1, a.shape[-2] * a.shape[-1]))
+    out = np.empty((flat.shape[0], rows * width), a.dtype)
+    # one 1-D take per plane: several times faster than a take along the last axis of the stack
+    for src, dst in zip(flat, out):
+        np.take(src, idx, out=dst[: idx.size], mode="clip")  # the indices are valid: no bounds buffer
+        dst[idx.size :] = src[idx[-1]]
     return out.reshape(lead + (rows, width))
 
 
