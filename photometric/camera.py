@@ -383,13 +383,17 @@ def _gradient(camera: Camera, nx, ny, nz, u, v) -> tuple[np.ndarray, np.ndarray,
     p = np.empty(shape, f32)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         facing = nz > 0
+        # a masked division is about three times slower than a plain one: only when some pixel faces away
+        every = bool(facing.all())
         if isinstance(camera, Orthographic):
-            q = np.divide(f32(-1.0), nz, out=np.zeros(shape, f32), where=facing)
+            q = np.divide(f32(-1.0), nz, dtype=f32) if every else \
+                np.divide(f32(-1.0), nz, out=np.zeros(shape, f32), where=facing)
             np.multiply(nx, q, out=p)
             np.multiply(ny, q, out=q)
         else:
             q = np.empty(shape, f32)
-            inv = np.divide(f32(1.0), nz, out=np.zeros(shape, f32), where=facing)
+            inv = np.divide(f32(1.0), nz, dtype=f32) if every else \
+                np.divide(f32(1.0), nz, out=np.zeros(shape, f32), where=facing)
             np.multiply(nx, inv, out=p)  # a = n_x / n_z
             np.multiply(ny, inv, out=q)  # b = n_y / n_z
             f = f32(camera.focal_length_px)
@@ -402,9 +406,10 @@ def _gradient(camera: Camera, nx, ny, nz, u, v) -> tuple[np.ndarray, np.ndarray,
             den[~ok] = 0.0
             p *= den
             q *= den
-        # a grazing normal (n_z a denormal) overflows: no slope there
+        # a grazing normal (n_z a denormal) overflows: no slope there. A float64 sum of float32 values
+        # cannot overflow, so it is finite exactly when every value is (one pass, no temporary)
         for g in (p, q):
-            if not np.isfinite(g).all():
+            if not np.isfinite(g.sum(dtype=np.float64)):
                 g[~np.isfinite(g)] = 0.0
     return p, q, _spacing(camera)
 

@@ -838,7 +838,8 @@ def _height(level: _Level, camera: Camera, normals: np.ndarray, valid: np.ndarra
 
         def solve(a, b, h):
             if integrator == "dct":
-                return dct_poisson(a, b, None, h, dtype=np.float32)
+                # float32 in, float32 out: the solve runs in place in blocks (no float64 copy of the field)
+                return dct_poisson(a, b, None, h, dtype=np.float32, result_dtype=np.float32)
             return frankot_chellappa(a, b, None, h)
 
         r = int(correction_step)
