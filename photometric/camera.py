@@ -419,7 +419,7 @@ def _spacing(camera: Camera) -> float:
 
 
 def depth_from_field(camera: Camera, field, *, valid=None, reference_height_mm: float = 0.0,
-                     sample_step: int = 1) -> tuple[np.ndarray, float]:
+                     sample_step: int = 1, dtype=np.float64) -> tuple[np.ndarray, float]:
     """Height ``z`` from an integrated field, anchored to the reference height.
 
     The integral of :func:`gradient_field` is known up to a constant (an offset of
@@ -441,10 +441,15 @@ def depth_from_field(camera: Camera, field, *, valid=None, reference_height_mm: 
     sample_step : int, optional
         Take the median over every ``sample_step``-th row and column (speed on large
         images; 1 = all pixels).
+    dtype : {float64, float32}, optional
+        dtype of ``z``, computed in float64 and rounded. float32 (orthographic camera)
+        rounds each height by at most ``2**-24 |z|`` (6e-9 mm at 0.1 mm) and halves the
+        memory traffic of the arrays that follow it; a perspective ``z = H_c - w`` loses more
+        (``2**-24 H_c``, 1.8e-5 mm at 300 mm), so there float64 is the sensible choice.
 
     Returns
     -------
-    z : numpy.ndarray, shape (H, W), float64
+    z : numpy.ndarray, shape (H, W), ``dtype``
         Height of the point each pixel sees, mm.
     constant : float
         The constant added to ``field`` (orthographic, mm) or to ``log w``
@@ -466,17 +471,23 @@ def depth_from_field(camera: Camera, field, *, valid=None, reference_height_mm: 
     if sample.size == 0:
         raise ValueError("field: no valid pixel to anchor the height")
     med = float(np.median(sample.astype(np.float64, copy=False)))
+    if np.dtype(dtype) not in (np.float64, np.float32):
+        raise ValueError(f"dtype: expected float64 or float32, got {np.dtype(dtype)}")
     # z in float64 straight from a float32 field: no float64 copy of the field first
     if isinstance(camera, Orthographic):
         c = float(reference_height_mm) - med
-        return np.add(fld, c, dtype=np.float64), c
+        if np.dtype(dtype) == np.float32 and fld.dtype == np.float32:
+            # the sum of a float32 and a float64 rounded once to float32, without a float64 array
+            z = np.empty(fld.shape, np.float32)
+            return np.add(fld, np.float64(c), dtype=np.float64, casting="same_kind", out=z), c
+        return np.add(fld, c, dtype=np.float64).astype(dtype, copy=False), c
     depth = camera.camera_height_mm - float(reference_height_mm)
     if depth <= 0:
         raise ValueError(f"reference_height_mm: {reference_height_mm} mm is not below the camera")
     # exp is monotone, so the median of w = exp(l + c) is exp(median(l) + c)
     c = float(np.log(depth)) - med
     w = np.exp(np.add(fld, c, dtype=np.float64))
-    return np.subtract(camera.camera_height_mm, w, out=w), c
+    return np.subtract(camera.camera_height_mm, w, out=w).astype(dtype, copy=False), c
 
 
 def footprint_area(camera: Camera, z, p=None, q=None) -> np.ndarray | float:

@@ -516,13 +516,14 @@ def _solve_nearfield(
     workers = threads if threads is not None else min(4, os.cpu_count() or 1)
     timings = {"solve": 0.0, "integrate": 0.0}
     history: list[dict] = []
-    z = np.full(shape, reference_height_mm)
+    zt = _z_dtype(camera)
+    z = np.full(shape, reference_height_mm, zt)
     r = _coarse_step(shape, coarse_pixels)
     args = (lights, camera, opts, integrator, reference_height_mm, tolerance_mm, max_iterations)
     with ThreadPoolExecutor(max_workers=max(1, int(workers))) as pool:
         if r > 1:
             coarse = _coarsen(fine, r, None if setup is None else setup.coarse.get(r))
-            state = _alternate(coarse, *args, np.full(coarse.shape, reference_height_mm), pool, timings, history)
+            state = _alternate(coarse, *args, np.full(coarse.shape, reference_height_mm, zt), pool, timings, history)
             z = _upsample(state["z"], r, shape)
         state = _alternate(fine, *args, z, pool, timings, history, correction_step)
     sol, z = state["sol"], state["z"]
@@ -546,7 +547,7 @@ def _solve_nearfield(
         residual=sol["residual"],
         p=p,
         q=q,
-        height=np.where(valid, z, np.nan),
+        height=np.where(valid, z, np.float64(np.nan)),  # float64 whatever the alternation's dtype
         xy=surface_xy(camera, z),
         footprint_mm2=footprint_area(camera, z, lu, lv),
         outliers=sol["outliers"],
@@ -556,6 +557,14 @@ def _solve_nearfield(
         anchor={"rule": ANCHOR_RULE, "reference_height_mm": reference_height_mm},
         timings_s=timings,
     )
+
+
+def _z_dtype(camera: Camera):
+    """dtype of the heights between passes: float32 for the orthographic camera (``z`` = the field
+    plus a constant, rounded by at most ``2**-24 |z|``, 6e-9 mm at 0.1 mm: far below the tolerance,
+    and every whole-image pass moves half the bytes); float64 for the perspective one, whose
+    ``z = H_c - w`` would lose ``2**-24 H_c`` (1.8e-5 mm at 300 mm) to float32."""
+    return np.float32 if isinstance(camera, Orthographic) else np.float64
 
 
 def _directional(imgs, L, camera, intens, mask, outliers, dark, saturation, highlight, integrator,
@@ -581,7 +590,7 @@ def _directional(imgs, L, camera, intens, mask, outliers, dark, saturation, high
         residual=res.residual,
         p=res.p,
         q=res.q,
-        height=np.where(res.valid, z, np.nan),
+        height=np.where(res.valid, z, np.float64(np.nan)),
         xy=surface_xy(camera, z),
         footprint_mm2=footprint_area(camera, z, lu, lv),
         outliers=res.outliers,
@@ -853,7 +862,8 @@ def _height(level: _Level, camera: Camera, normals: np.ndarray, valid: np.ndarra
         else:
             fld = solve(pz, qz, spacing)
         keep = {"pz": pz, "qz": qz, "field": fld}
-    z, _ = depth_from_field(camera, fld, valid=valid, reference_height_mm=ref, sample_step=sample)
+    z, _ = depth_from_field(camera, fld, valid=valid, reference_height_mm=ref, sample_step=sample,
+                            dtype=_z_dtype(camera))
     if integrator in ("lsq", "robust"):
         z = np.where(np.isfinite(z), z, ref)
     return z, (p, q), keep
