@@ -102,6 +102,27 @@ def test_depth_anchor_rule_median_at_the_reference_height():
     np.testing.assert_allclose(zp, -2.0)
 
 
+
+@pytest.mark.parametrize("cam", [make_camera("orthographic", pixel_size_mm=0.1), PERSP], ids=["ortho", "persp"])
+def test_depth_from_field_float32_is_the_float64_heights_rounded_once(cam):
+    """A float32 field gives the heights of its float64 copy (same constant, same sampled median);
+    ``dtype=float32`` rounds each of them once."""
+    rng = np.random.default_rng(2)
+    fld = rng.normal(0.0, 0.05, (41, 37)).astype(np.float32)
+    if isinstance(cam, Perspective):
+        fld += np.float32(np.log(250.0))
+    fld[3, 4] = np.nan
+    valid = rng.random(fld.shape) > 0.2
+    z64, c64 = depth_from_field(cam, fld.astype(np.float64), valid=valid, reference_height_mm=0.3, sample_step=3)
+    z, c = depth_from_field(cam, fld, valid=valid, reference_height_mm=0.3, sample_step=3)
+    z32, c32 = depth_from_field(cam, fld, valid=valid, reference_height_mm=0.3, sample_step=3, dtype=np.float32)
+    assert c == c64 == c32 and z.dtype == np.float64 and z32.dtype == np.float32
+    np.testing.assert_array_equal(z, z64)
+    np.testing.assert_array_equal(z32, z64.astype(np.float32))
+    assert np.isnan(z32[3, 4])
+    with pytest.raises(ValueError, match="dtype"):
+        depth_from_field(cam, fld, dtype=np.int32)
+
 def test_footprint_area_is_the_jacobian_of_the_points():
     shape = (21, 31)
     z, w = tilted_plane_perspective(PERSP, shape, 0.2)

@@ -80,3 +80,49 @@ def test_defect_detection_median_is_numpy_median(n):
         assert _median(mad.copy()) == float(np.median(mad))
         v[3] = np.nan
         assert np.isnan(_median(v.copy()))
+
+
+@pytest.mark.parametrize("outliers", [False, True], ids=["all-lights", "outliers"])
+def test_solve_without_residual_is_the_same_solve(outliers):
+    """``residual=False`` (the inspection) leaves out only the residual: every other array bit for bit."""
+    part, cam, r = _scratch(None)
+    lights = point_lights(r.lights.positions, mu=1.0)
+    kw = {"intensities": r.lights.intensities, "coarse_pixels": 1 << 14, "outliers": outliers}
+    full = solve_nearfield(r.images, lights, cam, **kw)
+    lean = solve_nearfield(r.images, lights, cam, residual=False, **kw)
+    assert lean.residual is None and full.residual.shape == full.valid.shape
+    assert np.median(full.residual[full.valid]) > 0  # image noise: a residual was computed
+    for name in ("normals", "albedo", "valid", "p", "q", "height", "xy"):
+        np.testing.assert_array_equal(getattr(lean, name), getattr(full, name), err_msg=name)
+    assert [h["resolved_fraction"] for h in lean.history] == [h["resolved_fraction"] for h in full.history]
+
+
+def test_partial_resolve_equals_a_whole_image_solve():
+    """Pixels gathered into image-wide rows (:func:`photometric.nearfield._gather`), solved and scattered
+    back, get exactly the normals, albedo, residual and validity of a solve of the whole image."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from photometric.camera import pixel_offsets
+    from photometric.nearfield import _gather, _Level, _normals, _Options, _scatter, _strengths, _take
+
+    part, cam, r = _scratch(None)
+    lights = point_lights(r.lights.positions, mu=1.0)
+    shape = r.images.shape[1:3]
+    u, v = pixel_offsets(cam, shape)
+    mask = np.ones(shape, bool)
+    mask[:5] = False
+    level = _Level(planes=r.images.astype(np.float32), strength=_strengths(lights, cam, shape, None, None), mask=mask,
+                   saturated=r.images >= 0.99, u=u, v=v, step=1)
+    opts = _Options(True, 0.1, 0.99, None, 2, True)
+    z = np.random.default_rng(3).uniform(-0.05, 0.05, shape)
+    with ThreadPoolExecutor(1) as pool:
+        whole = _normals(level, lights, cam, z, opts, pool, final=True)
+        # a scattered selection whose count is not a multiple of the width (a padded last row)
+        moved = mask & (np.random.default_rng(4).random(shape) < 0.3)
+        idx = np.flatnonzero(moved)
+        assert idx.size % shape[1]
+        sol = _normals(level, lights, cam, np.zeros(shape), opts, pool, final=True)
+        part_sol = _normals(_gather(level, idx), lights, cam, _take(z, idx, shape[1]), opts, pool, final=True)
+        _scatter(sol, part_sol, idx)
+    for key in ("normals", "rho", "valid", "residual", "outliers"):
+        np.testing.assert_array_equal(sol[key][..., moved], whole[key][..., moved], err_msg=key)
