@@ -69,7 +69,7 @@ def test_read_rows_checks_its_range(tmp_path):
 STAGES = textwrap.dedent("""
     import json, sys
     # the modules the stages import lazily, so that their code is not counted as a stage's memory
-    import cv2, scipy.fft, scipy.ndimage, scipy.sparse.linalg, skimage.measure, skimage.filters
+    import cv2, scipy.fft, scipy.ndimage, scipy.sparse.linalg, skimage.measure, skimage.filters, matplotlib
     import photometric.defects, photometric.integrate, photometric.normals, surfaces.fit
     from workbench.runs.photometric import reconstruct_to_folder
 
