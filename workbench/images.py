@@ -75,12 +75,20 @@ def to_uint8(image: np.ndarray, vmax: float | None = None, percentile: float = 9
     img = as_array(image, "image", ndim=(2, 3), finite=False)
     if img.ndim == 3 and img.shape[2] != 3:
         raise ValueError(f"image: expected (H, W) or (H, W, 3), got {img.shape}")
-    finite = img[np.isfinite(img)]
-    top = float(vmax) if vmax is not None else (float(np.percentile(finite, percentile)) if finite.size else 1.0)
+    if vmax is not None:
+        top = float(vmax)
+    else:
+        finite = img[np.isfinite(img)]
+        top = float(np.percentile(finite, percentile)) if finite.size else 1.0
     if top <= 0:
         top = 1.0
-    out = np.clip(np.nan_to_num(img) / top, 0.0, 1.0)
-    out = (out * 255 + 0.5).astype(np.uint8)
+    # in place on one float64 array; NaN -> 0 and +-inf -> the ends, as nan_to_num before dividing gave
+    out = np.true_divide(img, top, dtype=np.float64)
+    np.nan_to_num(out, copy=False, nan=0.0)
+    np.clip(out, 0.0, 1.0, out=out)
+    out *= 255
+    out += 0.5
+    out = out.astype(np.uint8)
     return np.repeat(out[..., None], 3, axis=2) if out.ndim == 2 else out
 
 
