@@ -76,8 +76,17 @@ def centroid(points) -> np.ndarray:
     numpy.ndarray, shape (2,)
         Centroid in mm (the vertex mean for a degenerate zero-area polygon).
     """
-    p = as_array(points, "points", shape=(None, 2))
-    q = np.roll(p, -1, axis=0)
+    return _centroid(as_array(points, "points", shape=(None, 2)))
+
+
+def _next(p: np.ndarray) -> np.ndarray:
+    """Each vertex's successor along a closed polygon (``np.roll(p, -1, axis=0)`` without its overhead)."""
+    return np.concatenate([p[1:], p[:1]])
+
+
+def _centroid(p: np.ndarray) -> np.ndarray:
+    """Area centroid of an already validated (n, 2) float64 polygon."""
+    q = _next(p)
     cross = p[:, 0] * q[:, 1] - q[:, 0] * p[:, 1]
     a = cross.sum() / 2.0
     if abs(a) < 1e-12 * max(1.0, float(np.ptp(p, axis=0).max()) ** 2):
@@ -362,10 +371,15 @@ def parameterize(points, n_rays: int, start_angle: float = 0.0) -> ContourParame
     n1 = int(n_rays)
     if n1 < 3:
         raise ValueError(f"n_rays: need at least 3 rays (seed 000, eq. 1), got {n_rays}")
+    if len(p) < 3:
+        raise ValueError(f"points: needs at least 3 points, got {len(p)}")
+    return _parameterize(p, n1, start_angle, _polar(p))
+
+
+def _parameterize(p: np.ndarray, n1: int, start_angle: float, polar) -> ContourParameters:
+    """:func:`parameterize` of a validated contour whose :func:`_polar` is already known."""
     n = len(p)
-    if n < 3:
-        raise ValueError(f"points: needs at least 3 points, got {n}")
-    center, phi, arc = _polar(p)
+    center, phi, arc = polar
     total = arc[n]
     delta = 2 * np.pi / n1
     s_arc, support_xy, level_k, ang = _support_crossings(p, center, phi, arc, n1, start_angle)
@@ -418,7 +432,7 @@ def _polar(p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     Returns ``center`` (2,), ``phi`` (3n + 1,) and ``arc`` (3n + 1,): vertex ``i``
     of period ``r`` is entry ``r n + i``.
     """
-    center = centroid(p)
+    center = _centroid(p)
     dphi = _angle_steps(p, center)
     if abs(dphi.sum() - 2 * np.pi) > 1e-6:
         center = interior_point(p)
@@ -428,7 +442,7 @@ def _polar(p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     rel = p - center
     phi0 = float(np.arctan2(rel[0, 1], rel[0, 0]))
     phi = phi0 + np.concatenate([[0.0], np.cumsum(np.concatenate([dphi, dphi, dphi]))])
-    edge_len = np.linalg.norm(np.roll(p, -1, axis=0) - p, axis=1)
+    edge_len = np.linalg.norm(_next(p) - p, axis=1)
     arc = np.concatenate([[0.0], np.cumsum(np.concatenate([edge_len, edge_len, edge_len]))])
     return center, phi, arc
 
@@ -509,13 +523,22 @@ def ray_supports(points, n_rays: int, start_angle: float = 0.0) -> tuple[np.ndar
     n1 = int(n_rays)
     if n1 < 3 or len(p) < 3:
         raise ValueError(f"n_rays/points: need at least 3 rays and 3 points, got {n_rays} and {len(p)}")
-    center, phi, arc = _polar(p)
+    return _ray_supports(p, n1, start_angle, _polar(p))
+
+
+def _ray_supports(p: np.ndarray, n1: int, start_angle: float, polar) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`ray_supports` of a validated contour whose :func:`_polar` is already known."""
+    center, phi, arc = polar
     s_arc, xy, level_k, _ = _support_crossings(p, center, phi, arc, n1, start_angle)
     order = np.argsort(level_k % n1)
     return (s_arc[order] % arc[len(p)]) / arc[len(p)], xy[order]
 
 
-def choose_start_angle(contours, n_rays: int, candidates: int = 8) -> float:
+#: Rotations of the rays that :func:`choose_start_angle` tries by default, evenly over one ray spacing.
+START_CANDIDATES = 8
+
+
+def choose_start_angle(contours, n_rays: int, candidates: int = START_CANDIDATES) -> float:
     """Direction of ray 0, common to a stack of slices, that keeps support points steady.
 
     Where a contour folds, the support point of a ray that passes close to the
@@ -546,7 +569,16 @@ def choose_start_angle(contours, n_rays: int, candidates: int = 8) -> float:
     n1 = int(n_rays)
     if len(contours) < 2 or r == 1:
         return 0.0
-    frac = np.stack([ray_supports(c, n1 * r)[0] for c in contours]).reshape(len(contours), n1, r)
+    ps = [as_array(c, f"contours[{i}]", shape=(None, 2)) for i, c in enumerate(contours)]
+    if n1 * r < 3 or min(len(p) for p in ps) < 3:
+        raise ValueError(f"n_rays/points: need at least 3 rays and 3 points, got {n1 * r} and "
+                         f"{min(len(p) for p in ps)}")
+    return _start_angle(ps, [_polar(p) for p in ps], n1, r)
+
+
+def _start_angle(ps: list, polars: list, n1: int, r: int) -> float:
+    """:func:`choose_start_angle` of validated contours (two or more) with their :func:`_polar` known."""
+    frac = np.stack([_ray_supports(p, n1 * r, 0.0, pol)[0] for p, pol in zip(ps, polars)]).reshape(len(ps), n1, r)
     shift = (np.diff(frac, axis=0) + 0.5) % 1.0 - 0.5  # (K-1, N1, R)
     shift -= np.median(shift, axis=1, keepdims=True)
     cost = np.abs(shift).max(axis=1).sum(axis=0)  # (R,)
@@ -557,7 +589,7 @@ def _angle_steps(p: np.ndarray, center: np.ndarray) -> np.ndarray:
     """Signed polar-angle change along each edge (wrapped into (-pi, pi])."""
     rel = p - center
     ang = np.arctan2(rel[:, 1], rel[:, 0])
-    d = np.roll(ang, -1) - ang
+    d = _next(ang) - ang
     return (d + np.pi) % (2 * np.pi) - np.pi
 
 

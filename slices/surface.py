@@ -24,11 +24,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from slices.control_points import (
+    START_CANDIDATES,
     ContourParameters,
+    _parameterize,
+    _polar,
+    _start_angle,
     balanced_lattice_values,
-    choose_start_angle,
     lattice_values,
-    parameterize,
     quantize,
 )
 from slices.options import SurfaceOptions
@@ -204,9 +206,18 @@ def slice_curves(contours, z, n_rays: int, n_lattice: int | None = None,
         raise ValueError(f"correspondence: must be one of {CORRESPONDENCES}, got {correspondence!r}")
     if lattice_mode not in LATTICE_MODES:
         raise ValueError(f"lattice_mode: must be one of {LATTICE_MODES}, got {lattice_mode!r}")
+    ps = [as_array(c, f"contours[{i}]", shape=(None, 2)) for i, c in enumerate(contours)]
+    n1 = int(n_rays)
+    if n1 < 3:
+        raise ValueError(f"n_rays: need at least 3 rays (seed 000, eq. 1), got {n_rays}")
+    for i, p in enumerate(ps):
+        if len(p) < 3:
+            raise ValueError(f"contours[{i}]: needs at least 3 points, got {len(p)}")
+    # the ray origin, polar angles and arc lengths serve both the rotation's choice and the parameters
+    polars = [_polar(p) for p in ps]
     if start_angle is None:
-        start_angle = choose_start_angle(contours, n_rays)
-    params: list[ContourParameters] = [parameterize(c, n_rays, start_angle) for c in contours]
+        start_angle = _start_angle(ps, polars, n1, START_CANDIDATES) if len(ps) > 1 else 0.0
+    params: list[ContourParameters] = [_parameterize(p, n1, float(start_angle), pol) for p, pol in zip(ps, polars)]
     m = n_lattice or lattice_size(max(len(p.u) for p in params))
     # arc length from support point 0 (the same ray on every slice), fraction of the perimeter
     arcs = []
