@@ -373,16 +373,19 @@ def parameterize(points, n_rays: int, start_angle: float = 0.0) -> ContourParame
         raise ValueError(f"n_rays: need at least 3 rays (seed 000, eq. 1), got {n_rays}")
     if len(p) < 3:
         raise ValueError(f"points: needs at least 3 points, got {len(p)}")
-    return _parameterize(p, n1, start_angle, _polar(p))
+    polar = _polar(p)
+    crossings = [c[0] for c in _support_crossings([p], [polar], n1, start_angle)]
+    return _parameterize(p, n1, start_angle, polar, crossings)
 
 
-def _parameterize(p: np.ndarray, n1: int, start_angle: float, polar) -> ContourParameters:
-    """:func:`parameterize` of a validated contour whose :func:`_polar` is already known."""
+def _parameterize(p: np.ndarray, n1: int, start_angle: float, polar, crossings) -> ContourParameters:
+    """:func:`parameterize` of a validated contour with its :func:`_polar` and its row of
+    :func:`_support_crossings` (``start_angle``'s rays) already known."""
     n = len(p)
     center, phi, arc = polar
     total = arc[n]
     delta = 2 * np.pi / n1
-    s_arc, support_xy, level_k, ang = _support_crossings(p, center, phi, arc, n1, start_angle)
+    s_arc, support_xy, level_k, ang = crossings
     first = int(np.flatnonzero(level_k % n1 == 0)[0])
     order = np.roll(np.arange(n1), -first)
     s0 = s_arc[first]
@@ -447,7 +450,7 @@ def _polar(p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return center, phi, arc
 
 
-def _support_crossings(p, center, phi, arc, n1, start_angle):
+def _support_crossings(ps: list, polars: list, n1: int, start_angle: float):
     """Support points of ``n1`` rays: the outermost crossing of each ray with the contour.
 
     A ray from inside a counter-clockwise contour crosses it alternately going
@@ -459,43 +462,64 @@ def _support_crossings(p, center, phi, arc, n1, start_angle):
     first time the polar angle reaches the ray's angle as a new record), which
     always does.
 
-    Returns the arc positions (unwrapped, increasing in the order of the rays,
-    starting with the first ray after the polar-angle record at the start of
-    the second period), their points, the rays' levels and angles.
+    All contours at once (validated (n_c, 2) arrays with their :func:`_polar`),
+    one array operation over every edge of every contour. Returns, per contour
+    (axis 0), the arc positions (unwrapped, increasing in the order of the
+    rays, starting with the first ray after the polar-angle record at the
+    start of the second period), their points, the rays' levels and angles:
+    shapes (C, n1), (C, n1, 2), (C, n1), (C, n1).
     """
-    n = len(p)
-    record = np.maximum.accumulate(phi)
-    edge_len = np.diff(arc[: n + 1])
+    ns = np.array([len(p) for p in ps], dtype=np.int64)
+    n_c = len(ps)
+    pts = np.concatenate(ps)
+    centers = np.array([pol[0] for pol in polars], dtype=np.float64).reshape(n_c, 2)
+    phi = np.concatenate([pol[1] for pol in polars])
+    arc = np.concatenate([pol[2] for pol in polars])
+    off3 = np.cumsum(3 * ns + 1) - (3 * ns + 1)  # contour c's polar entries start here
+    offp = np.cumsum(ns) - ns  # and its points here
+    # the polar-angle record at the start of the second period: the largest phi up to entry n
+    bounds = np.stack([off3, off3 + ns + 1], axis=1).ravel()
+    record_n = np.maximum.reduceat(phi, bounds)[::2]  # the odd segments run to the next contour
     delta = 2 * np.pi / n1
-    k_base = int(np.floor((record[n] - start_angle) / delta))
-    e = np.arange(n, 3 * n)
+    k_base = np.floor((record_n - start_angle) / delta).astype(np.int64)
+    # every edge of the second and third periods, contour by contour
+    cid = np.repeat(np.arange(n_c), 2 * ns)
+    e = np.arange(len(cid)) - np.repeat(np.cumsum(2 * ns) - 2 * ns, 2 * ns) + np.repeat(ns, 2 * ns)
+    g = off3[cid] + e
     # every outgoing crossing of the N1 ray levels after the record at the start of the second period
-    k_lo = np.maximum(np.floor((phi[e] - start_angle) / delta).astype(np.int64), k_base)
-    k_hi = np.minimum(np.floor((phi[e + 1] - start_angle) / delta).astype(np.int64), k_base + n1)
+    k_lo = np.maximum(np.floor((phi[g] - start_angle) / delta).astype(np.int64), k_base[cid])
+    k_hi = np.minimum(np.floor((phi[g + 1] - start_angle) / delta).astype(np.int64), k_base[cid] + n1)
     count = np.maximum(k_hi - k_lo, 0)
-    edge = np.repeat(e, count)
+    cid, e, g = np.repeat(cid, count), np.repeat(e, count), np.repeat(g, count)
     level_k = np.repeat(k_lo + 1, count) + (np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count))
     ang = start_angle + level_k * delta
     direction = np.stack([np.cos(ang), np.sin(ang)], axis=1)
-    a_pt, b_pt = p[edge % n], p[(edge + 1) % n]
+    first_edge = e % ns[cid]
+    a_pt = pts[offp[cid] + first_edge]
+    b_pt = pts[offp[cid] + (e + 1) % ns[cid]]
+    center = centers[cid]
     seg = b_pt - a_pt
     num = (a_pt - center)[:, 0] * direction[:, 1] - (a_pt - center)[:, 1] * direction[:, 0]
     den = seg[:, 0] * direction[:, 1] - seg[:, 1] * direction[:, 0]
     t = np.clip(-num / np.where(den == 0, 1e-300, den), 0.0, 1.0)
-    s_all = arc[edge] + t * edge_len[edge % n]
+    edge_len = arc[off3[cid] + first_edge + 1] - arc[off3[cid] + first_edge]
+    s_all = arc[g] + t * edge_len
     xy_all = a_pt + t[:, None] * seg
     radius = np.einsum("ij,ij->i", xy_all - center, direction)
-    by_level = np.lexsort((s_all, level_k))  # crossings of each level in contour order
-    lv = level_k[by_level]
-    starts = np.flatnonzero(np.r_[True, lv[1:] != lv[:-1]])
-    if len(starts) != n1:
-        raise ValueError(f"points: found support points for {len(starts)} of {n1} rays")
-    first = by_level[starts]
-    outer = np.lexsort((-radius, level_k))[starts]
-    pick = outer
-    s_pick = s_all[pick]
-    if np.any(np.diff(s_pick) <= 0) or s_pick[-1] - s_pick[0] >= arc[n]:
-        pick = first
+    by_level = np.lexsort((s_all, level_k, cid))  # crossings of each level in contour order
+    lv, lc = level_k[by_level], cid[by_level]
+    starts = np.flatnonzero(np.r_[True, (lv[1:] != lv[:-1]) | (lc[1:] != lc[:-1])])
+    found = np.bincount(lc[starts], minlength=n_c)
+    if np.any(found != n1):
+        bad = int(np.flatnonzero(found != n1)[0])
+        where = "points" if n_c == 1 else f"contours[{bad}]"
+        raise ValueError(f"{where}: found support points for {found[bad]} of {n1} rays")
+    first = by_level[starts].reshape(n_c, n1)
+    outer = np.lexsort((-radius, level_k, cid))[starts].reshape(n_c, n1)
+    s_outer = s_all[outer]
+    total = arc[off3 + ns]
+    unordered = np.any(np.diff(s_outer, axis=1) <= 0, axis=1) | (s_outer[:, -1] - s_outer[:, 0] >= total)
+    pick = np.where(unordered[:, None], first, outer)
     return s_all[pick], xy_all[pick], level_k[pick], ang[pick]
 
 
@@ -523,15 +547,16 @@ def ray_supports(points, n_rays: int, start_angle: float = 0.0) -> tuple[np.ndar
     n1 = int(n_rays)
     if n1 < 3 or len(p) < 3:
         raise ValueError(f"n_rays/points: need at least 3 rays and 3 points, got {n_rays} and {len(p)}")
-    return _ray_supports(p, n1, start_angle, _polar(p))
+    frac, xy = _ray_supports([p], [_polar(p)], n1, start_angle)
+    return frac[0], xy[0]
 
 
-def _ray_supports(p: np.ndarray, n1: int, start_angle: float, polar) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`ray_supports` of a validated contour whose :func:`_polar` is already known."""
-    center, phi, arc = polar
-    s_arc, xy, level_k, _ = _support_crossings(p, center, phi, arc, n1, start_angle)
-    order = np.argsort(level_k % n1)
-    return (s_arc[order] % arc[len(p)]) / arc[len(p)], xy[order]
+def _ray_supports(ps: list, polars: list, n1: int, start_angle: float) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`ray_supports` of validated contours with their :func:`_polar`: shapes (C, n1), (C, n1, 2)."""
+    s_arc, xy, level_k, _ = _support_crossings(ps, polars, n1, start_angle)
+    order = np.argsort(level_k % n1, axis=1)
+    total = np.array([pol[2][len(p)] for p, pol in zip(ps, polars)])[:, None]
+    return (np.take_along_axis(s_arc, order, axis=1) % total) / total, xy[np.arange(len(ps))[:, None], order]
 
 
 #: Rotations of the rays that :func:`choose_start_angle` tries by default, evenly over one ray spacing.
@@ -578,7 +603,7 @@ def choose_start_angle(contours, n_rays: int, candidates: int = START_CANDIDATES
 
 def _start_angle(ps: list, polars: list, n1: int, r: int) -> float:
     """:func:`choose_start_angle` of validated contours (two or more) with their :func:`_polar` known."""
-    frac = np.stack([_ray_supports(p, n1 * r, 0.0, pol)[0] for p, pol in zip(ps, polars)]).reshape(len(ps), n1, r)
+    frac = _ray_supports(ps, polars, n1 * r, 0.0)[0].reshape(len(ps), n1, r)
     shift = (np.diff(frac, axis=0) + 0.5) % 1.0 - 0.5  # (K-1, N1, R)
     shift -= np.median(shift, axis=1, keepdims=True)
     cost = np.abs(shift).max(axis=1).sum(axis=0)  # (R,)

@@ -29,6 +29,7 @@ from slices.control_points import (
     _parameterize,
     _polar,
     _start_angle,
+    _support_crossings,
     balanced_lattice_values,
     lattice_values,
     quantize,
@@ -217,7 +218,11 @@ def slice_curves(contours, z, n_rays: int, n_lattice: int | None = None,
     polars = [_polar(p) for p in ps]
     if start_angle is None:
         start_angle = _start_angle(ps, polars, n1, START_CANDIDATES) if len(ps) > 1 else 0.0
-    params: list[ContourParameters] = [_parameterize(p, n1, float(start_angle), pol) for p, pol in zip(ps, polars)]
+    start_angle = float(start_angle)
+    crossings = _support_crossings(ps, polars, n1, start_angle)
+    params: list[ContourParameters] = [
+        _parameterize(p, n1, start_angle, pol, [c[i] for c in crossings]) for i, (p, pol) in enumerate(zip(ps, polars))
+    ]
     m = n_lattice or lattice_size(max(len(p.u) for p in params))
     # arc length from support point 0 (the same ray on every slice), fraction of the perimeter
     arcs = []
