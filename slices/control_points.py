@@ -718,22 +718,31 @@ def quantize(u, n_lattice: int, values=None) -> np.ndarray:
     """
     uu = as_array(u, "u", ndim=1)
     m = int(positive(n_lattice, "n_lattice"))
-    n = len(uu)
-    if n > m:
-        raise ValueError(f"n_lattice: {m} lattice values cannot hold {n} distinct parameters")
-    i = np.arange(n)
+    if len(uu) > m:
+        raise ValueError(f"n_lattice: {m} lattice values cannot hold {len(uu)} distinct parameters")
+    lv = None if values is None else as_array(values, "values", shape=(m,))
+    return _quantize_many([uu], m, lv)[0]
+
+
+def _quantize_many(us: list, m: int, values: np.ndarray | None) -> list:
+    """:func:`quantize` of every slice's validated parameters (each at most ``m``) in one pass."""
+    ns = np.array([len(u) for u in us], dtype=np.int64)
+    uu = np.concatenate(us)
+    start = np.cumsum(ns) - ns
+    slice_of = np.repeat(np.arange(len(us)), ns)
+    i = np.arange(len(uu)) - start[slice_of]
     if values is None:
         target = np.minimum(np.round(uu * m).astype(np.int64), m - 1)
     else:
-        lv = as_array(values, "values", shape=(m,))
+        lv = values
         hi = np.clip(np.searchsorted(lv, uu), 1, m - 1)
         target = np.where(np.abs(lv[hi - 1] - uu) <= np.abs(lv[hi] - uu), hi - 1, hi)
         target = np.where(uu > lv[-1] + 0.5 * (1.0 + lv[0] - lv[-1]), m - 1, target)
     # strictly increasing indices closest (least squares) to the targets: isotonic
     # regression of target - i (pool adjacent violators), rounded and clipped
-    r = np.round(isotonic_fit((target - i).astype(np.float64))).astype(np.int64)
-    r = np.clip(r, 0, m - n)
-    return r + i
+    r = np.round(_isotonic_fit_runs((target - i).astype(np.float64), start)).astype(np.int64)
+    r = np.clip(r, 0, (m - ns)[slice_of])
+    return np.split(r + i, start[1:])
 
 
 def isotonic_fit(y) -> np.ndarray:
@@ -758,12 +767,26 @@ def isotonic_fit(y) -> np.ndarray:
     >>> isotonic_fit([1.0, 3.0, 2.0, 2.0, 5.0, 4.0]).tolist()
     [1.0, 2.3333333333333335, 2.3333333333333335, 2.3333333333333335, 4.5, 4.5]
     """
-    s = as_array(y, "y", ndim=1).copy()
+    s = as_array(y, "y", ndim=1)
+    return _isotonic_fit_runs(s, np.zeros(min(len(s), 1), dtype=np.int64))
+
+
+def _isotonic_fit_runs(y: np.ndarray, starts: np.ndarray) -> np.ndarray:
+    """:func:`isotonic_fit` of every run ``y[starts[r]:starts[r + 1]]`` on its own, all runs at once.
+
+    Blocks never pool across a run's start; a run without violations keeps its
+    blocks (bincount of one value is the value), so each run comes out as
+    alone. ``starts`` is increasing and begins at 0 (empty for an empty ``y``).
+    """
+    s = y.astype(np.float64, copy=True)
     w = np.ones(len(s))
+    first = np.zeros(len(s), dtype=bool)
+    first[starts] = True  # the blocks that begin a run
     while len(s) > 1:
-        bad = s[:-1] * w[1:] > s[1:] * w[:-1]  # mean of a block above the next one's
+        bad = (s[:-1] * w[1:] > s[1:] * w[:-1]) & ~first[1:]  # mean of a block above the next one's
         if not bad.any():
             break
         group = np.cumsum(np.concatenate([[True], ~bad])) - 1
         s, w = np.bincount(group, s), np.bincount(group, w)
+        first = np.bincount(group, first).astype(bool)
     return np.repeat(s / w, w.astype(np.int64))

@@ -28,11 +28,11 @@ from slices.control_points import (
     ContourParameters,
     _parameterize,
     _polar,
+    _quantize_many,
     _start_angle,
     _support_crossings,
     balanced_lattice_values,
     lattice_values,
-    quantize,
 )
 from slices.options import SurfaceOptions
 from surfaces import blending, coons
@@ -246,9 +246,12 @@ def slice_curves(contours, z, n_rays: int, n_lattice: int | None = None,
     else:
         values = lattice_values(us, m) if lattice_mode == "adaptive" else np.arange(m) / m
     m = len(values)
+    longest = max(len(u) for u in us)
+    if longest > m:
+        raise ValueError(f"n_lattice: {m} lattice values cannot hold {longest} distinct parameters")
+    quantized = _quantize_many(us, m, values)
     curves, nodes, pts3 = [], [], []
-    for outline, zk, u in zip(outlines, zz, us):
-        q = quantize(u, m, values)
+    for outline, zk, q in zip(outlines, zz, quantized):
         p3 = np.column_stack([outline, np.full(len(outline), zk)])
         t = _geometry_parameters(outline, geometry)
         ctrl, knots = blending.overhauser_curve(p3, t, closed=True)

@@ -194,3 +194,21 @@ def test_start_angle_keeps_supports_steady_across_slices():
     assert worst_shift(angle) < 0.05
     assert max(worst_shift(2 * np.pi * o / (8 * 64)) for o in range(8)) > 0.1
     assert cp.choose_start_angle(conts[:1], 64) == 0.0
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_batched_quantize_and_isotonic_fit_equal_the_single_ones(seed):
+    """Runs side by side come out exactly as each alone (no pooling across a run's start)."""
+    rng = np.random.default_rng(seed)
+    us = [np.sort(rng.choice(np.arange(200) / 200, size=k, replace=False)) for k in (5, 40, 17, 1, 60)]
+    m = 64
+    values = np.unique(np.concatenate([np.arange(m) / m + 0.002 * rng.random(m)]))[:m]
+    for lv in (None, values):
+        batched = cp._quantize_many(us, m, lv)
+        for u, q in zip(us, batched):
+            np.testing.assert_array_equal(q, cp.quantize(u, m, lv))
+    ys = [rng.normal(size=k) for k in (7, 1, 30, 12)]
+    starts = np.cumsum([0] + [len(y) for y in ys[:-1]])
+    np.testing.assert_array_equal(cp._isotonic_fit_runs(np.concatenate(ys), starts),
+                                  np.concatenate([cp.isotonic_fit(y) for y in ys]))
+    assert cp.isotonic_fit([]).shape == (0,)
