@@ -387,14 +387,14 @@ def _parameterize(p: np.ndarray, n1: int, start_angle: float, polar, crossings) 
     delta = 2 * np.pi / n1
     s_arc, support_xy, level_k, ang = crossings
     first = int(np.flatnonzero(level_k % n1 == 0)[0])
-    order = np.roll(np.arange(n1), -first)
+    order = (np.arange(n1) + first) % n1
     s0 = s_arc[first]
     sigma = np.append((s_arc[order] - s0) % total, total)
     sigma[0] = 0.0
     support_xy = support_xy[order]
     # vertex arc positions relative to support 0, in [0, total)
     a_vert = (arc[:n] - (s0 - total)) % total
-    a_vert[np.isclose(a_vert, total, rtol=0, atol=1e-12 * total)] = 0.0
+    a_vert[np.abs(a_vert - total) <= 1e-12 * total] = 0.0
     rot = np.argsort(a_vert, kind="stable")
     pts, a_vert = p[rot], a_vert[rot]
     # unwrapped polar angle of each vertex on the period that starts at support 0
@@ -406,11 +406,11 @@ def _parameterize(p: np.ndarray, n1: int, start_angle: float, polar, crossings) 
     folded_seg = np.zeros(n1, dtype=bool)
     folded_seg[seg_of[folded_vertex]] = True
     # turning points (eq. 3): the polar angle changes direction at the vertex
-    d_in = phi_v - np.roll(phi_v, 1)
+    d_in = phi_v - np.concatenate([phi_v[-1:], phi_v[:-1]])
     d_in[0] = phi_v[0] - (phi_v[-1] - 2 * np.pi)
-    d_out = np.roll(d_in, -1)
+    d_out = _next(d_in)
     turning = (np.sign(d_in) * np.sign(d_out) < 0) & folded_seg[seg_of]
-    turning &= ~np.isclose(a_vert, sigma[seg_of], rtol=0, atol=1e-9 * total)
+    turning &= ~(np.abs(a_vert - sigma[seg_of]) <= 1e-9 * total)
     # eq. 4: turning points spread evenly inside their segment
     t_idx = np.flatnonzero(turning)
     t_seg = seg_of[t_idx]
