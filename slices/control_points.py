@@ -506,16 +506,27 @@ def _support_crossings(ps: list, polars: list, n1: int, start_angle: float):
     s_all = arc[g] + t * edge_len
     xy_all = a_pt + t[:, None] * seg
     radius = np.einsum("ij,ij->i", xy_all - center, direction)
-    by_level = np.lexsort((s_all, level_k, cid))  # crossings of each level in contour order
-    lv, lc = level_k[by_level], cid[by_level]
-    starts = np.flatnonzero(np.r_[True, (lv[1:] != lv[:-1]) | (lc[1:] != lc[:-1])])
-    found = np.bincount(lc[starts], minlength=n_c)
+    # group the crossings by (contour, level): levels lie in k_base + [1, n1], so one integer key
+    # orders them; the input is nearly in that order already, which a stable sort exploits
+    key = cid * (n1 + 1) + (level_k - k_base[cid])
+    order = np.argsort(key, kind="stable")
+    sorted_key = key[order]
+    starts = np.flatnonzero(np.r_[True, sorted_key[1:] != sorted_key[:-1]])
+    found = np.bincount(cid[order[starts]], minlength=n_c)
     if np.any(found != n1):
         bad = int(np.flatnonzero(found != n1)[0])
         where = "points" if n_c == 1 else f"contours[{bad}]"
         raise ValueError(f"{where}: found support points for {found[bad]} of {n1} rays")
-    first = by_level[starts].reshape(n_c, n1)
-    outer = np.lexsort((-radius, level_k, cid))[starts].reshape(n_c, n1)
+    sizes = np.diff(np.r_[starts, len(order)])
+
+    def pick_extreme(values: np.ndarray, reduce) -> np.ndarray:
+        # per group the crossing of least (or greatest) value, ties to the earliest crossing
+        v = values[order]
+        best = np.repeat(reduce.reduceat(v, starts), sizes)
+        return np.minimum.reduceat(np.where(v == best, order, len(order)), starts).reshape(n_c, n1)
+
+    first = pick_extreme(s_all, np.minimum)  # each level's first crossing along the contour
+    outer = pick_extreme(radius, np.maximum)  # and its farthest from the origin
     s_outer = s_all[outer]
     total = arc[off3 + ns]
     unordered = np.any(np.diff(s_outer, axis=1) <= 0, axis=1) | (s_outer[:, -1] - s_outer[:, 0] >= total)
