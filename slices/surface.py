@@ -102,7 +102,7 @@ def lattice_size(max_points: int, lattice_factor: float = SurfaceOptions.lattice
 
 def _geometry_parameters(points: np.ndarray, kind: str) -> np.ndarray:
     """Parameters that shape the curve between points: seed, chord length or centripetal."""
-    seg = np.linalg.norm(np.roll(points, -1, axis=0) - points, axis=1)
+    seg = np.linalg.norm(np.concatenate([points[1:], points[:1]]) - points, axis=1)
     if kind == "centripetal":
         seg = np.sqrt(seg)
     elif kind != "chord":
@@ -261,7 +261,7 @@ def slice_curves(contours, z, n_rays: int, n_lattice: int | None = None,
         u_nodes = np.append(q, q[0] + m)
         breaks = np.interp(q[0] + np.arange(m + 1), u_nodes, knots)
         cut = blending.restrict_curve(ctrl, knots, breaks)
-        curves.append(np.roll(cut, q[0], axis=0))
+        curves.append(cut[(np.arange(m) - q[0]) % m])  # np.roll by q0, without its overhead
         nodes.append(q)
         pts3.append(p3)
     return SliceCurves(np.stack(curves), nodes, pts3, params, float(start_angle))
