@@ -192,6 +192,13 @@ def dome_rings(curve, center, height: float, upward: bool, n_rings: int = DOME_R
     return rings
 
 
+#: 3-point Gauss-Legendre nodes on [0, 1] and weights on [-1, 1] of :func:`curve_area`: computed once, not per cap.
+_GAUSS3_NODES = 0.5 * (np.polynomial.legendre.leggauss(3)[0] + 1.0)
+_GAUSS3_WEIGHTS = np.polynomial.legendre.leggauss(3)[1]
+_GAUSS3_NODES.flags.writeable = False
+_GAUSS3_WEIGHTS.flags.writeable = False
+
+
 def curve_area(curve) -> float:
     """Signed area enclosed by a closed planar Bezier curve (Green's theorem).
 
@@ -209,8 +216,7 @@ def curve_area(curve) -> float:
         mm^2, positive for a counter-clockwise curve seen from +z.
     """
     c = as_array(curve, "curve", shape=(None, 4, 3))
-    x, w = np.polynomial.legendre.leggauss(3)
-    s = 0.5 * (x + 1.0)
+    s, w = _GAUSS3_NODES, _GAUSS3_WEIGHTS
     pts = _bezier_points(c, s)
     d = 3 * ((1 - s)[None, :, None] ** 2 * (c[:, None, 1] - c[:, None, 0])
              + (2 * s * (1 - s))[None, :, None] * (c[:, None, 2] - c[:, None, 1])

@@ -76,8 +76,17 @@ def centroid(points) -> np.ndarray:
     numpy.ndarray, shape (2,)
         Centroid in mm (the vertex mean for a degenerate zero-area polygon).
     """
-    p = as_array(points, "points", shape=(None, 2))
-    q = np.roll(p, -1, axis=0)
+    return _centroid(as_array(points, "points", shape=(None, 2)))
+
+
+def _next(p: np.ndarray) -> np.ndarray:
+    """Each vertex's successor along a closed polygon (``np.roll(p, -1, axis=0)`` without its overhead)."""
+    return np.concatenate([p[1:], p[:1]])
+
+
+def _centroid(p: np.ndarray) -> np.ndarray:
+    """Area centroid of an already validated (n, 2) float64 polygon."""
+    q = _next(p)
     cross = p[:, 0] * q[:, 1] - q[:, 0] * p[:, 1]
     a = cross.sum() / 2.0
     if abs(a) < 1e-12 * max(1.0, float(np.ptp(p, axis=0).max()) ** 2):
@@ -362,22 +371,30 @@ def parameterize(points, n_rays: int, start_angle: float = 0.0) -> ContourParame
     n1 = int(n_rays)
     if n1 < 3:
         raise ValueError(f"n_rays: need at least 3 rays (seed 000, eq. 1), got {n_rays}")
+    if len(p) < 3:
+        raise ValueError(f"points: needs at least 3 points, got {len(p)}")
+    polar = _polar(p)
+    crossings = [c[0] for c in _support_crossings([p], [polar], n1, start_angle)]
+    return _parameterize(p, n1, start_angle, polar, crossings)
+
+
+def _parameterize(p: np.ndarray, n1: int, start_angle: float, polar, crossings) -> ContourParameters:
+    """:func:`parameterize` of a validated contour with its :func:`_polar` and its row of
+    :func:`_support_crossings` (``start_angle``'s rays) already known."""
     n = len(p)
-    if n < 3:
-        raise ValueError(f"points: needs at least 3 points, got {n}")
-    center, phi, arc = _polar(p)
+    center, phi, arc = polar
     total = arc[n]
     delta = 2 * np.pi / n1
-    s_arc, support_xy, level_k, ang = _support_crossings(p, center, phi, arc, n1, start_angle)
+    s_arc, support_xy, level_k, ang = crossings
     first = int(np.flatnonzero(level_k % n1 == 0)[0])
-    order = np.roll(np.arange(n1), -first)
+    order = (np.arange(n1) + first) % n1
     s0 = s_arc[first]
     sigma = np.append((s_arc[order] - s0) % total, total)
     sigma[0] = 0.0
     support_xy = support_xy[order]
     # vertex arc positions relative to support 0, in [0, total)
     a_vert = (arc[:n] - (s0 - total)) % total
-    a_vert[np.isclose(a_vert, total, rtol=0, atol=1e-12 * total)] = 0.0
+    a_vert[np.abs(a_vert - total) <= 1e-12 * total] = 0.0
     rot = np.argsort(a_vert, kind="stable")
     pts, a_vert = p[rot], a_vert[rot]
     # unwrapped polar angle of each vertex on the period that starts at support 0
@@ -389,11 +406,11 @@ def parameterize(points, n_rays: int, start_angle: float = 0.0) -> ContourParame
     folded_seg = np.zeros(n1, dtype=bool)
     folded_seg[seg_of[folded_vertex]] = True
     # turning points (eq. 3): the polar angle changes direction at the vertex
-    d_in = phi_v - np.roll(phi_v, 1)
+    d_in = phi_v - np.concatenate([phi_v[-1:], phi_v[:-1]])
     d_in[0] = phi_v[0] - (phi_v[-1] - 2 * np.pi)
-    d_out = np.roll(d_in, -1)
+    d_out = _next(d_in)
     turning = (np.sign(d_in) * np.sign(d_out) < 0) & folded_seg[seg_of]
-    turning &= ~np.isclose(a_vert, sigma[seg_of], rtol=0, atol=1e-9 * total)
+    turning &= ~(np.abs(a_vert - sigma[seg_of]) <= 1e-9 * total)
     # eq. 4: turning points spread evenly inside their segment
     t_idx = np.flatnonzero(turning)
     t_seg = seg_of[t_idx]
@@ -418,7 +435,7 @@ def _polar(p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     Returns ``center`` (2,), ``phi`` (3n + 1,) and ``arc`` (3n + 1,): vertex ``i``
     of period ``r`` is entry ``r n + i``.
     """
-    center = centroid(p)
+    center = _centroid(p)
     dphi = _angle_steps(p, center)
     if abs(dphi.sum() - 2 * np.pi) > 1e-6:
         center = interior_point(p)
@@ -428,12 +445,12 @@ def _polar(p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     rel = p - center
     phi0 = float(np.arctan2(rel[0, 1], rel[0, 0]))
     phi = phi0 + np.concatenate([[0.0], np.cumsum(np.concatenate([dphi, dphi, dphi]))])
-    edge_len = np.linalg.norm(np.roll(p, -1, axis=0) - p, axis=1)
+    edge_len = np.linalg.norm(_next(p) - p, axis=1)
     arc = np.concatenate([[0.0], np.cumsum(np.concatenate([edge_len, edge_len, edge_len]))])
     return center, phi, arc
 
 
-def _support_crossings(p, center, phi, arc, n1, start_angle):
+def _support_crossings(ps: list, polars: list, n1: int, start_angle: float):
     """Support points of ``n1`` rays: the outermost crossing of each ray with the contour.
 
     A ray from inside a counter-clockwise contour crosses it alternately going
@@ -445,43 +462,75 @@ def _support_crossings(p, center, phi, arc, n1, start_angle):
     first time the polar angle reaches the ray's angle as a new record), which
     always does.
 
-    Returns the arc positions (unwrapped, increasing in the order of the rays,
-    starting with the first ray after the polar-angle record at the start of
-    the second period), their points, the rays' levels and angles.
+    All contours at once (validated (n_c, 2) arrays with their :func:`_polar`),
+    one array operation over every edge of every contour. Returns, per contour
+    (axis 0), the arc positions (unwrapped, increasing in the order of the
+    rays, starting with the first ray after the polar-angle record at the
+    start of the second period), their points, the rays' levels and angles:
+    shapes (C, n1), (C, n1, 2), (C, n1), (C, n1).
     """
-    n = len(p)
-    record = np.maximum.accumulate(phi)
-    edge_len = np.diff(arc[: n + 1])
+    ns = np.array([len(p) for p in ps], dtype=np.int64)
+    n_c = len(ps)
+    pts = np.concatenate(ps)
+    centers = np.array([pol[0] for pol in polars], dtype=np.float64).reshape(n_c, 2)
+    phi = np.concatenate([pol[1] for pol in polars])
+    arc = np.concatenate([pol[2] for pol in polars])
+    off3 = np.cumsum(3 * ns + 1) - (3 * ns + 1)  # contour c's polar entries start here
+    offp = np.cumsum(ns) - ns  # and its points here
+    # the polar-angle record at the start of the second period: the largest phi up to entry n
+    bounds = np.stack([off3, off3 + ns + 1], axis=1).ravel()
+    record_n = np.maximum.reduceat(phi, bounds)[::2]  # the odd segments run to the next contour
     delta = 2 * np.pi / n1
-    k_base = int(np.floor((record[n] - start_angle) / delta))
-    e = np.arange(n, 3 * n)
+    k_base = np.floor((record_n - start_angle) / delta).astype(np.int64)
+    # every edge of the second and third periods, contour by contour
+    cid = np.repeat(np.arange(n_c), 2 * ns)
+    e = np.arange(len(cid)) - np.repeat(np.cumsum(2 * ns) - 2 * ns, 2 * ns) + np.repeat(ns, 2 * ns)
+    g = off3[cid] + e
     # every outgoing crossing of the N1 ray levels after the record at the start of the second period
-    k_lo = np.maximum(np.floor((phi[e] - start_angle) / delta).astype(np.int64), k_base)
-    k_hi = np.minimum(np.floor((phi[e + 1] - start_angle) / delta).astype(np.int64), k_base + n1)
+    k_lo = np.maximum(np.floor((phi[g] - start_angle) / delta).astype(np.int64), k_base[cid])
+    k_hi = np.minimum(np.floor((phi[g + 1] - start_angle) / delta).astype(np.int64), k_base[cid] + n1)
     count = np.maximum(k_hi - k_lo, 0)
-    edge = np.repeat(e, count)
+    cid, e, g = np.repeat(cid, count), np.repeat(e, count), np.repeat(g, count)
     level_k = np.repeat(k_lo + 1, count) + (np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count))
     ang = start_angle + level_k * delta
     direction = np.stack([np.cos(ang), np.sin(ang)], axis=1)
-    a_pt, b_pt = p[edge % n], p[(edge + 1) % n]
+    first_edge = e % ns[cid]
+    a_pt = pts[offp[cid] + first_edge]
+    b_pt = pts[offp[cid] + (e + 1) % ns[cid]]
+    center = centers[cid]
     seg = b_pt - a_pt
     num = (a_pt - center)[:, 0] * direction[:, 1] - (a_pt - center)[:, 1] * direction[:, 0]
     den = seg[:, 0] * direction[:, 1] - seg[:, 1] * direction[:, 0]
     t = np.clip(-num / np.where(den == 0, 1e-300, den), 0.0, 1.0)
-    s_all = arc[edge] + t * edge_len[edge % n]
+    edge_len = arc[off3[cid] + first_edge + 1] - arc[off3[cid] + first_edge]
+    s_all = arc[g] + t * edge_len
     xy_all = a_pt + t[:, None] * seg
     radius = np.einsum("ij,ij->i", xy_all - center, direction)
-    by_level = np.lexsort((s_all, level_k))  # crossings of each level in contour order
-    lv = level_k[by_level]
-    starts = np.flatnonzero(np.r_[True, lv[1:] != lv[:-1]])
-    if len(starts) != n1:
-        raise ValueError(f"points: found support points for {len(starts)} of {n1} rays")
-    first = by_level[starts]
-    outer = np.lexsort((-radius, level_k))[starts]
-    pick = outer
-    s_pick = s_all[pick]
-    if np.any(np.diff(s_pick) <= 0) or s_pick[-1] - s_pick[0] >= arc[n]:
-        pick = first
+    # group the crossings by (contour, level): levels lie in k_base + [1, n1], so one integer key
+    # orders them; the input is nearly in that order already, which a stable sort exploits
+    key = cid * (n1 + 1) + (level_k - k_base[cid])
+    order = np.argsort(key, kind="stable")
+    sorted_key = key[order]
+    starts = np.flatnonzero(np.r_[True, sorted_key[1:] != sorted_key[:-1]])
+    found = np.bincount(cid[order[starts]], minlength=n_c)
+    if np.any(found != n1):
+        bad = int(np.flatnonzero(found != n1)[0])
+        where = "points" if n_c == 1 else f"contours[{bad}]"
+        raise ValueError(f"{where}: found support points for {found[bad]} of {n1} rays")
+    sizes = np.diff(np.r_[starts, len(order)])
+
+    def pick_extreme(values: np.ndarray, reduce) -> np.ndarray:
+        # per group the crossing of least (or greatest) value, ties to the earliest crossing
+        v = values[order]
+        best = np.repeat(reduce.reduceat(v, starts), sizes)
+        return np.minimum.reduceat(np.where(v == best, order, len(order)), starts).reshape(n_c, n1)
+
+    first = pick_extreme(s_all, np.minimum)  # each level's first crossing along the contour
+    outer = pick_extreme(radius, np.maximum)  # and its farthest from the origin
+    s_outer = s_all[outer]
+    total = arc[off3 + ns]
+    unordered = np.any(np.diff(s_outer, axis=1) <= 0, axis=1) | (s_outer[:, -1] - s_outer[:, 0] >= total)
+    pick = np.where(unordered[:, None], first, outer)
     return s_all[pick], xy_all[pick], level_k[pick], ang[pick]
 
 
@@ -509,13 +558,23 @@ def ray_supports(points, n_rays: int, start_angle: float = 0.0) -> tuple[np.ndar
     n1 = int(n_rays)
     if n1 < 3 or len(p) < 3:
         raise ValueError(f"n_rays/points: need at least 3 rays and 3 points, got {n_rays} and {len(p)}")
-    center, phi, arc = _polar(p)
-    s_arc, xy, level_k, _ = _support_crossings(p, center, phi, arc, n1, start_angle)
-    order = np.argsort(level_k % n1)
-    return (s_arc[order] % arc[len(p)]) / arc[len(p)], xy[order]
+    frac, xy = _ray_supports([p], [_polar(p)], n1, start_angle)
+    return frac[0], xy[0]
 
 
-def choose_start_angle(contours, n_rays: int, candidates: int = 8) -> float:
+def _ray_supports(ps: list, polars: list, n1: int, start_angle: float) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`ray_supports` of validated contours with their :func:`_polar`: shapes (C, n1), (C, n1, 2)."""
+    s_arc, xy, level_k, _ = _support_crossings(ps, polars, n1, start_angle)
+    order = np.argsort(level_k % n1, axis=1)
+    total = np.array([pol[2][len(p)] for p, pol in zip(ps, polars)])[:, None]
+    return (np.take_along_axis(s_arc, order, axis=1) % total) / total, xy[np.arange(len(ps))[:, None], order]
+
+
+#: Rotations of the rays that :func:`choose_start_angle` tries by default, evenly over one ray spacing.
+START_CANDIDATES = 8
+
+
+def choose_start_angle(contours, n_rays: int, candidates: int = START_CANDIDATES) -> float:
     """Direction of ray 0, common to a stack of slices, that keeps support points steady.
 
     Where a contour folds, the support point of a ray that passes close to the
@@ -546,7 +605,16 @@ def choose_start_angle(contours, n_rays: int, candidates: int = 8) -> float:
     n1 = int(n_rays)
     if len(contours) < 2 or r == 1:
         return 0.0
-    frac = np.stack([ray_supports(c, n1 * r)[0] for c in contours]).reshape(len(contours), n1, r)
+    ps = [as_array(c, f"contours[{i}]", shape=(None, 2)) for i, c in enumerate(contours)]
+    if n1 * r < 3 or min(len(p) for p in ps) < 3:
+        raise ValueError(f"n_rays/points: need at least 3 rays and 3 points, got {n1 * r} and "
+                         f"{min(len(p) for p in ps)}")
+    return _start_angle(ps, [_polar(p) for p in ps], n1, r)
+
+
+def _start_angle(ps: list, polars: list, n1: int, r: int) -> float:
+    """:func:`choose_start_angle` of validated contours (two or more) with their :func:`_polar` known."""
+    frac = _ray_supports(ps, polars, n1 * r, 0.0)[0].reshape(len(ps), n1, r)
     shift = (np.diff(frac, axis=0) + 0.5) % 1.0 - 0.5  # (K-1, N1, R)
     shift -= np.median(shift, axis=1, keepdims=True)
     cost = np.abs(shift).max(axis=1).sum(axis=0)  # (R,)
@@ -557,7 +625,7 @@ def _angle_steps(p: np.ndarray, center: np.ndarray) -> np.ndarray:
     """Signed polar-angle change along each edge (wrapped into (-pi, pi])."""
     rel = p - center
     ang = np.arctan2(rel[:, 1], rel[:, 0])
-    d = np.roll(ang, -1) - ang
+    d = _next(ang) - ang
     return (d + np.pi) % (2 * np.pi) - np.pi
 
 
@@ -661,22 +729,31 @@ def quantize(u, n_lattice: int, values=None) -> np.ndarray:
     """
     uu = as_array(u, "u", ndim=1)
     m = int(positive(n_lattice, "n_lattice"))
-    n = len(uu)
-    if n > m:
-        raise ValueError(f"n_lattice: {m} lattice values cannot hold {n} distinct parameters")
-    i = np.arange(n)
+    if len(uu) > m:
+        raise ValueError(f"n_lattice: {m} lattice values cannot hold {len(uu)} distinct parameters")
+    lv = None if values is None else as_array(values, "values", shape=(m,))
+    return _quantize_many([uu], m, lv)[0]
+
+
+def _quantize_many(us: list, m: int, values: np.ndarray | None) -> list:
+    """:func:`quantize` of every slice's validated parameters (each at most ``m``) in one pass."""
+    ns = np.array([len(u) for u in us], dtype=np.int64)
+    uu = np.concatenate(us)
+    start = np.cumsum(ns) - ns
+    slice_of = np.repeat(np.arange(len(us)), ns)
+    i = np.arange(len(uu)) - start[slice_of]
     if values is None:
         target = np.minimum(np.round(uu * m).astype(np.int64), m - 1)
     else:
-        lv = as_array(values, "values", shape=(m,))
+        lv = values
         hi = np.clip(np.searchsorted(lv, uu), 1, m - 1)
         target = np.where(np.abs(lv[hi - 1] - uu) <= np.abs(lv[hi] - uu), hi - 1, hi)
         target = np.where(uu > lv[-1] + 0.5 * (1.0 + lv[0] - lv[-1]), m - 1, target)
     # strictly increasing indices closest (least squares) to the targets: isotonic
     # regression of target - i (pool adjacent violators), rounded and clipped
-    r = np.round(isotonic_fit((target - i).astype(np.float64))).astype(np.int64)
-    r = np.clip(r, 0, m - n)
-    return r + i
+    r = np.round(_isotonic_fit_runs((target - i).astype(np.float64), start)).astype(np.int64)
+    r = np.clip(r, 0, (m - ns)[slice_of])
+    return np.split(r + i, start[1:])
 
 
 def isotonic_fit(y) -> np.ndarray:
@@ -701,12 +778,26 @@ def isotonic_fit(y) -> np.ndarray:
     >>> isotonic_fit([1.0, 3.0, 2.0, 2.0, 5.0, 4.0]).tolist()
     [1.0, 2.3333333333333335, 2.3333333333333335, 2.3333333333333335, 4.5, 4.5]
     """
-    s = as_array(y, "y", ndim=1).copy()
+    s = as_array(y, "y", ndim=1)
+    return _isotonic_fit_runs(s, np.zeros(min(len(s), 1), dtype=np.int64))
+
+
+def _isotonic_fit_runs(y: np.ndarray, starts: np.ndarray) -> np.ndarray:
+    """:func:`isotonic_fit` of every run ``y[starts[r]:starts[r + 1]]`` on its own, all runs at once.
+
+    Blocks never pool across a run's start; a run without violations keeps its
+    blocks (bincount of one value is the value), so each run comes out as
+    alone. ``starts`` is increasing and begins at 0 (empty for an empty ``y``).
+    """
+    s = y.astype(np.float64, copy=True)
     w = np.ones(len(s))
+    first = np.zeros(len(s), dtype=bool)
+    first[starts] = True  # the blocks that begin a run
     while len(s) > 1:
-        bad = s[:-1] * w[1:] > s[1:] * w[:-1]  # mean of a block above the next one's
+        bad = (s[:-1] * w[1:] > s[1:] * w[:-1]) & ~first[1:]  # mean of a block above the next one's
         if not bad.any():
             break
         group = np.cumsum(np.concatenate([[True], ~bad])) - 1
         s, w = np.bincount(group, s), np.bincount(group, w)
+        first = np.bincount(group, first).astype(bool)
     return np.repeat(s / w, w.astype(np.int64))

@@ -24,12 +24,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from slices.control_points import (
+    START_CANDIDATES,
     ContourParameters,
+    _parameterize,
+    _polar,
+    _quantize_many,
+    _start_angle,
+    _support_crossings,
     balanced_lattice_values,
-    choose_start_angle,
     lattice_values,
-    parameterize,
-    quantize,
 )
 from slices.options import SurfaceOptions
 from surfaces import blending, coons
@@ -99,7 +102,7 @@ def lattice_size(max_points: int, lattice_factor: float = SurfaceOptions.lattice
 
 def _geometry_parameters(points: np.ndarray, kind: str) -> np.ndarray:
     """Parameters that shape the curve between points: seed, chord length or centripetal."""
-    seg = np.linalg.norm(np.roll(points, -1, axis=0) - points, axis=1)
+    seg = np.linalg.norm(np.concatenate([points[1:], points[:1]]) - points, axis=1)
     if kind == "centripetal":
         seg = np.sqrt(seg)
     elif kind != "chord":
@@ -204,9 +207,22 @@ def slice_curves(contours, z, n_rays: int, n_lattice: int | None = None,
         raise ValueError(f"correspondence: must be one of {CORRESPONDENCES}, got {correspondence!r}")
     if lattice_mode not in LATTICE_MODES:
         raise ValueError(f"lattice_mode: must be one of {LATTICE_MODES}, got {lattice_mode!r}")
+    ps = [as_array(c, f"contours[{i}]", shape=(None, 2)) for i, c in enumerate(contours)]
+    n1 = int(n_rays)
+    if n1 < 3:
+        raise ValueError(f"n_rays: need at least 3 rays (seed 000, eq. 1), got {n_rays}")
+    for i, p in enumerate(ps):
+        if len(p) < 3:
+            raise ValueError(f"contours[{i}]: needs at least 3 points, got {len(p)}")
+    # the ray origin, polar angles and arc lengths serve both the rotation's choice and the parameters
+    polars = [_polar(p) for p in ps]
     if start_angle is None:
-        start_angle = choose_start_angle(contours, n_rays)
-    params: list[ContourParameters] = [parameterize(c, n_rays, start_angle) for c in contours]
+        start_angle = _start_angle(ps, polars, n1, START_CANDIDATES) if len(ps) > 1 else 0.0
+    start_angle = float(start_angle)
+    crossings = _support_crossings(ps, polars, n1, start_angle)
+    params: list[ContourParameters] = [
+        _parameterize(p, n1, start_angle, pol, [c[i] for c in crossings]) for i, (p, pol) in enumerate(zip(ps, polars))
+    ]
     m = n_lattice or lattice_size(max(len(p.u) for p in params))
     # arc length from support point 0 (the same ray on every slice), fraction of the perimeter
     arcs = []
@@ -230,9 +246,12 @@ def slice_curves(contours, z, n_rays: int, n_lattice: int | None = None,
     else:
         values = lattice_values(us, m) if lattice_mode == "adaptive" else np.arange(m) / m
     m = len(values)
+    longest = max(len(u) for u in us)
+    if longest > m:
+        raise ValueError(f"n_lattice: {m} lattice values cannot hold {longest} distinct parameters")
+    quantized = _quantize_many(us, m, values)
     curves, nodes, pts3 = [], [], []
-    for outline, zk, u in zip(outlines, zz, us):
-        q = quantize(u, m, values)
+    for outline, zk, q in zip(outlines, zz, quantized):
         p3 = np.column_stack([outline, np.full(len(outline), zk)])
         t = _geometry_parameters(outline, geometry)
         ctrl, knots = blending.overhauser_curve(p3, t, closed=True)
@@ -242,7 +261,7 @@ def slice_curves(contours, z, n_rays: int, n_lattice: int | None = None,
         u_nodes = np.append(q, q[0] + m)
         breaks = np.interp(q[0] + np.arange(m + 1), u_nodes, knots)
         cut = blending.restrict_curve(ctrl, knots, breaks)
-        curves.append(np.roll(cut, q[0], axis=0))
+        curves.append(cut[(np.arange(m) - q[0]) % m])  # np.roll by q0, without its overhead
         nodes.append(q)
         pts3.append(p3)
     return SliceCurves(np.stack(curves), nodes, pts3, params, float(start_angle))

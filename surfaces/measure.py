@@ -19,6 +19,8 @@ Both integrate over the patches themselves, not over a triangle mesh:
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 
 from surfaces.bezier import BezierPatches, bernstein, control_matrix, tensor_evaluate
@@ -32,8 +34,18 @@ def _gauss(order: int) -> tuple[np.ndarray, np.ndarray]:
     order = int(order)
     if order < 1:
         raise ValueError(f"order: need at least 1 quadrature point, got {order}")
+    return _gauss_cached(order)
+
+
+@lru_cache(maxsize=32)
+def _gauss_cached(order: int) -> tuple[np.ndarray, np.ndarray]:
+    # leggauss solves an eigenproblem on every call; measuring many small bodies asks for the
+    # same few orders again and again. Read-only, so no caller can alter the shared nodes.
     x, w = np.polynomial.legendre.leggauss(order)
-    return 0.5 * (x + 1.0), 0.5 * w
+    nodes, weights = 0.5 * (x + 1.0), 0.5 * w
+    nodes.flags.writeable = False
+    weights.flags.writeable = False
+    return nodes, weights
 
 
 def _per_patch(patches: BezierPatches, order: int, integrands) -> list[np.ndarray]:

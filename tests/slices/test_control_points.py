@@ -194,3 +194,45 @@ def test_start_angle_keeps_supports_steady_across_slices():
     assert worst_shift(angle) < 0.05
     assert max(worst_shift(2 * np.pi * o / (8 * 64)) for o in range(8)) > 0.1
     assert cp.choose_start_angle(conts[:1], 64) == 0.0
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_batched_quantize_and_isotonic_fit_equal_the_single_ones(seed):
+    """Runs side by side come out exactly as each alone (no pooling across a run's start)."""
+    rng = np.random.default_rng(seed)
+    us = [np.sort(rng.choice(np.arange(200) / 200, size=k, replace=False)) for k in (5, 40, 17, 1, 60)]
+    m = 64
+    values = np.unique(np.concatenate([np.arange(m) / m + 0.002 * rng.random(m)]))[:m]
+    for lv in (None, values):
+        batched = cp._quantize_many(us, m, lv)
+        for u, q in zip(us, batched):
+            np.testing.assert_array_equal(q, cp.quantize(u, m, lv))
+    ys = [rng.normal(size=k) for k in (7, 1, 30, 12)]
+    starts = np.cumsum([0] + [len(y) for y in ys[:-1]])
+    np.testing.assert_array_equal(cp._isotonic_fit_runs(np.concatenate(ys), starts),
+                                  np.concatenate([cp.isotonic_fit(y) for y in ys]))
+    assert cp.isotonic_fit([]).shape == (0,)
+
+
+def test_support_crossings_of_many_contours_equal_each_alone():
+    """The batched rays give every contour what it gets alone, folded outlines included."""
+    t = np.linspace(0, 2 * np.pi, 90, endpoint=False)
+    star = np.stack([(10 + 4 * np.cos(5 * t)) * np.cos(t), (10 + 4 * np.cos(5 * t)) * np.sin(t)], 1)
+    # a C-shaped outline: rays through the gap cross it several times (the outermost crossing is the support)
+    a = np.linspace(0.3, 2 * np.pi - 0.3, 70)
+    c_shape = np.vstack([np.stack([12 * np.cos(a), 12 * np.sin(a)], 1),
+                         np.stack([7 * np.cos(a[::-1]), 7 * np.sin(a[::-1])], 1)])
+    ps = [cp.clean_contour(p) for p in (star, c_shape, star[::2] + 3.0, c_shape * 0.5)]
+    polars = [cp._polar(p) for p in ps]
+    for n1, start in ((12, 0.0), (96, 0.05)):
+        together = cp._support_crossings(ps, polars, n1, start)
+        for i, (p, pol) in enumerate(zip(ps, polars)):
+            alone = cp._support_crossings([p], [pol], n1, start)
+            for x, y in zip(together, alone):
+                np.testing.assert_array_equal(x[i], y[0])
+        # every support point lies on its ray
+        s_arc, xy, level, ang = together
+        for i, pol in enumerate(polars):
+            rel = xy[i] - pol[0]
+            np.testing.assert_allclose(rel[:, 0] * np.sin(ang[i]) - rel[:, 1] * np.cos(ang[i]), 0, atol=1e-9)
+            assert np.all(rel[:, 0] * np.cos(ang[i]) + rel[:, 1] * np.sin(ang[i]) > 0)

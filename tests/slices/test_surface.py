@@ -143,3 +143,21 @@ def test_isotonic_fit_matches_scipy():
     # crowded parameters still get strictly increasing lattice indices
     q = quantize(np.array([0.0, 0.3, 0.3001, 0.3002, 0.9]), 10)
     assert np.all(np.diff(q) > 0) and q.tolist() == [0, 2, 3, 4, 9]
+
+
+def test_slice_curves_share_the_public_parameters_and_rotation():
+    """The batched path (one polar pass per contour) gives what the public functions give."""
+    from slices.control_points import choose_start_angle, parameterize
+
+    _, conts, _ = phantom_stack("kidney", n_points=60)
+    pts, z = [c.points for c in conts], np.array([c.z for c in conts])
+    sc = slice_curves(pts, z, 24)
+    assert sc.start_angle == choose_start_angle(pts, 24)
+    for got, p in zip(sc.params, pts):
+        want = parameterize(p, 24, sc.start_angle)
+        for field in ("points", "u", "center", "support", "turning"):
+            np.testing.assert_array_equal(getattr(got, field), getattr(want, field))
+    with pytest.raises(ValueError, match="n_rays"):
+        slice_curves(pts, z, 2)
+    with pytest.raises(ValueError, match=r"contours\[1\]"):
+        slice_curves([pts[0], pts[1][:2]], z[:2], 24)

@@ -71,3 +71,17 @@ def test_sphere_closed_by_poles_and_open_surfaces():
     assert sheet["volume"] is None and sheet["area"] == pytest.approx(1.0)
     with pytest.raises(ValueError, match="caps close a surface"):
         cap_flux(flat_patches(1.0, 1.0, 0.0))
+
+
+def test_gauss_nodes_cached_read_only_and_exact():
+    from surfaces.measure import _gauss
+
+    t, w = _gauss(5)
+    t2, w2 = _gauss(5)
+    assert t is t2 and w is w2
+    assert not t.flags.writeable and not w.flags.writeable
+    x, v = np.polynomial.legendre.leggauss(5)
+    np.testing.assert_array_equal(t, 0.5 * (x + 1.0))
+    np.testing.assert_array_equal(w, 0.5 * v)
+    with pytest.raises(ValueError, match="order"):
+        _gauss(0)
