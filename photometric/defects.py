@@ -709,6 +709,24 @@ def _axis_angle(cov: np.ndarray) -> tuple[np.ndarray, float]:
     return axis, 90.0 if angle == -90.0 else angle
 
 
+def _axis_extents(reg, along, second_of) -> tuple[float, float, float, float, float]:
+    """Extents of a region along and across its axis, and its second moment along it.
+
+    ``along(r, c)`` gives the pixels' ``(s, t)`` (along, across the axis) for a block of
+    the region's rows and columns (``reg.pixels()``); ``second_of(r, c, s)`` the block's
+    share of the second moment. Returns ``s_lo, s_hi, t_lo, t_hi, second``.
+    """
+    s_lo = t_lo = np.inf
+    s_hi = t_hi = -np.inf
+    second = 0.0
+    for r, c in reg.pixels():
+        s, t = along(r, c)
+        s_lo, s_hi = min(s_lo, float(s.min())), max(s_hi, float(s.max()))
+        t_lo, t_hi = min(t_lo, float(t.min())), max(t_hi, float(t.max()))
+        second += second_of(r, c, s)
+    return s_lo, s_hi, t_lo, t_hi, second
+
+
 def _measure(reg: _Region, z: np.ndarray, base: _Background, sign: float, h: float, kind: str, low: float,
              high: float, sigma: float) -> dict:
     """Physical measures of one region on the pixel grid.
@@ -745,14 +763,7 @@ def _measure(reg: _Region, z: np.ndarray, base: _Background, sign: float, h: flo
         x, y = c - mean_c, mean_r - r
         return x * axis[0] + y * axis[1], y * axis[0] - x * axis[1]
 
-    s_lo = t_lo = np.inf
-    s_hi = t_hi = -np.inf
-    second = 0.0
-    for r, c in reg.pixels():
-        s, t = along(r, c)
-        s_lo, s_hi = min(s_lo, float(s.min())), max(s_hi, float(s.max()))
-        t_lo, t_hi = min(t_lo, float(t.min())), max(t_hi, float(t.max()))
-        second += float(s @ s)
+    s_lo, s_hi, t_lo, t_hi, second = _axis_extents(reg, along, lambda r, c, s: float(s @ s))
     length_px = _stadium_length(float(n), second, s_hi - s_lo, 1.0)
     mid, half = 0.5 * (s_hi + s_lo), 0.25 * length_px
     central = sum(int(np.count_nonzero(np.abs(along(r, c)[0] - mid) <= half)) for r, c in reg.pixels())
@@ -818,15 +829,8 @@ def _measure_points(reg: _Region, z: np.ndarray, base: _Background, sign: float,
         x, y = xy[r, c, 0] - ref_x - mean_u, xy[r, c, 1] - ref_y - mean_v
         return x * axis[0] + y * axis[1], y * axis[0] - x * axis[1]
 
-    s_lo = t_lo = np.inf
-    s_hi = t_hi = -np.inf
-    second = 0.0
-    for r, c in reg.pixels():
-        s, t = along(r, c)
-        s_lo, s_hi = min(s_lo, float(s.min())), max(s_hi, float(s.max()))
-        t_lo, t_hi = min(t_lo, float(t.min())), max(t_hi, float(t.max()))
-        s -= s_mean
-        second += float(foot[r, c] @ (s * s))
+    s_lo, s_hi, t_lo, t_hi, second = _axis_extents(
+        reg, along, lambda r, c, s: float(foot[r, c] @ ((s - s_mean) * (s - s_mean))))
     length = _stadium_length(a_sum, second, s_hi - s_lo, side)
     mid, half = 0.5 * (s_hi + s_lo), 0.25 * length
     central = 0.0
