@@ -341,10 +341,11 @@ def _bias_term(spread: float, bias: float) -> float:
 
 
 def _groove_depth_errors(depth: float, width: float, length: float, axis_deg: float, h: float,
-                         offsets: np.ndarray, integrator: str = "dct") -> np.ndarray:
-    """Errors of the measured depth (mm) of a parabolic-section groove on the pixel grid.
+                         offsets: np.ndarray, integrator: str = "dct", section: float = 2.0) -> np.ndarray:
+    """Errors of the measured depth (mm) of a groove on the pixel grid.
 
-    The groove ``z = -D (1 - (2 d / w)^2)`` for ``d < w / 2`` (``d`` the distance to its
+    The groove ``z = -D (1 - (2 d / w)^p)`` for ``d < w / 2``, ``p = section`` (2: a
+    parabolic section, as a U-scratch; 1: a V, as a crack; ``d`` the distance to its
     central segment of length ``L - w``; a stadium outline, ``width``, ``length`` in pixels)
     is sampled as the solve sees it: its exact slopes at the pixel centres, integrated by
     ``integrator`` on a window with a flat margin of 8 pixels (at least half a width), measured as
@@ -383,8 +384,13 @@ def _groove_depth_errors(depth: float, width: float, length: float, axis_deg: fl
         ex, ey = x - along * f(ux), y - along * f(uy)
         d2 = ex * ex + ey * ey
         inside = d2 < f(0.25 * w * w)
-        # dz/dd = 8 D d / w^2 along (ex, ey) / d: the slope is 8 D / (w^2 h) (ex, ey)
-        g = np.where(inside, f(8.0 * depth / (w * w * h)), f(0.0))
+        if section == 2.0:
+            # dz/dd = 8 D d / w^2 along (ex, ey) / d: the slope is 8 D / (w^2 h) (ex, ey)
+            g = np.where(inside, f(8.0 * depth / (w * w * h)), f(0.0))
+        else:
+            # dz/dd = D p (2 / w)^p d^(p - 1) along (ex, ey) / d (d floored: (ex, ey) is 0 there)
+            d = np.maximum(np.sqrt(d2), f(1e-6))
+            g = np.where(inside, f(depth * section * (2.0 / w) ** section / h) * d ** f(section - 2.0), f(0.0))
         if integrator == "dct":
             z = dct_poisson(g * ex, g * ey, None, h, dtype=np.float32)
         else:
@@ -407,13 +413,49 @@ def _depth_grid(rec: dict, h: float, integrator: str, rng: np.random.Generator) 
     standard uncertainty."""
     width = max(float(rec["mean_width_mm"]) / h, 1.0)
     length = max(float(rec["length_mm"]) / h, width)
+    section = _section_exponent(rec)
     a = math.radians(float(rec["axis_deg"]))
     frame = width + 2.0 * max(8.0, 0.5 * width) + 4.0
     window = (abs(math.cos(a)) * (length - width) + frame) * (abs(math.sin(a)) * (length - width) + frame)
     count = int(np.clip(_DEPTH_GRID_WORK / window, _DEPTH_GRID_OFFSETS // 3, _DEPTH_GRID_OFFSETS))
     errors = _groove_depth_errors(float(rec["max_depth_mm"]), width, length, float(rec["axis_deg"]), h,
-                                  rng.uniform(-0.5, 0.5, (count, 4)), integrator)
+                                  rng.uniform(-0.5, 0.5, (count, 4)), integrator, section)
+    # the errors are linear in the depth and the model ran at the measured one: the true depth is
+    # measured / (1 + mean relative error), so are the errors' scale (a V's -9 % then reads -10 %)
+    depth = float(rec["max_depth_mm"])
+    if depth > 0:
+        errors = errors / max(1.0 + float(errors.mean()) / depth, 0.5)
     return float(errors.mean()), float(errors.std(ddof=1))
+
+
+def _section_exponent(rec: dict) -> float:
+    """The exponent ``p`` of the defect's section ``D (1 - (2 d / w)^p)``: 1 (a V, as a crack)
+    or 2 (a parabola, as a U-scratch or a round dent), whichever its measured fullness
+    ``R = volume / (area * depth)`` is nearer.
+
+    A stadium groove of width ``w`` and length ``L`` with that section (its round ends the
+    section turned about the end centres) has ``R(p) = ((L - w) w p / (p + 1) + pi w^2 / 4
+    p / (p + 2)) / ((L - w) w + pi w^2 / 4)``: 1/2 for a V over a long groove, 2/3 for a
+    parabola. The measured ``R`` of a V reads a little fuller (its bottom, missed by up to
+    half a pixel, reads shallow), of a parabola a little leaner (the rim's grid error): the
+    two are told apart by the mid-point, not fitted in between. 2 when a figure is missing.
+    The depth's grid error depends on the section: a V's bottom reads shallower by up to
+    its slope times half a pixel, a parabola's hardly.
+    """
+    try:
+        depth, volume, area = (float(rec[k]) for k in ("max_depth_mm", "volume_mm3", "area_mm2"))
+        w, L = float(rec["mean_width_mm"]), float(rec["length_mm"])
+    except (KeyError, TypeError, ValueError):
+        return 2.0
+    if not (depth > 0 and volume > 0 and area > 0 and w > 0 and L >= w):
+        return 2.0
+    side, ends = (L - w) * w, math.pi * w * w / 4.0
+
+    def fullness(p: float) -> float:
+        return (side * p / (p + 1.0) + ends * p / (p + 2.0)) / (side + ends)
+
+    return 1.0 if volume / (area * depth) < 0.5 * (fullness(1.0) + fullness(2.0)) else 2.0
+
 
 def _volume_edge(z: np.ndarray, fig: _Figures, bg: _Background, coef: np.ndarray, h: float) -> float:
     """Standard uncertainty of the volume from the outline's place: the outline moves together
