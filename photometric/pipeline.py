@@ -420,7 +420,8 @@ def _surface_step(method, height, p, q, valid, mask, h, step, samples, tolerance
         info = {"surface": "coons", "surface_max_dev_mm": float(dev.max()),
                 "surface_rms_dev_mm": float(np.sqrt(np.mean(dev**2)))}
     else:
-        from surfaces.fit import default_step, fit_height, fit_mesh
+        from surfaces.fit import default_step, fit_height
+        from surfaces.fit_mesh import fit_mesh
 
         # the mesh needs only the patches and the fitted region: no per-pixel surface or
         # deviation map is kept (16 bytes per pixel for float32 heights)

@@ -115,15 +115,18 @@ def _split_octahedron(offset) -> TriangleMesh:
     return TriangleMesh(v, np.array(t + [[6, 0, 3], [0, 6, 1]]))
 
 
-def test_sliver_needles_that_fold_are_collapsed_more_widely():
-    # the breast BODY's cause: an edge between the two thresholds whose needle pierces its neighbours
+@pytest.mark.parametrize("scale, level", [(2e-8, 0), (3e-7, 1)], ids=["needle", "wider-needle"])
+def test_sliver_needles_that_fold_are_collapsed(scale, level):
+    # needle: the breast BODY's cause, an edge between the first two thresholds whose needle pierces
+    # its neighbours (collapsed more widely); wider-needle: BODY with dome caps, a needle longer than
+    # the second threshold within the bodies' overlap (collapsed only around its folds)
     extent = 100.0
-    folded = _split_octahedron(2e-8 * np.array([2.0, 1.0, 0.4]))
+    folded = _split_octahedron(scale * np.array([2.0, 1.0, 0.4]))
     length = np.linalg.norm(folded.vertices[6] - folded.vertices[0])
-    assert SLIVER_FRACTIONS[0] * extent < length < SLIVER_FRACTIONS[1] * extent
+    assert SLIVER_FRACTIONS[level] * extent < length < SLIVER_FRACTIONS[level + 1] * extent
     assert folded.is_watertight() and folded.is_oriented()
     assert self_intersections(folded.vertices, folded.triangles).n_faces > 0
-    assert _collapse_slivers(folded, SLIVER_FRACTIONS[0] * extent) is folded
+    assert _collapse_slivers(folded, SLIVER_FRACTIONS[level] * extent) is folded
     out = _unfold_slivers(folded, extent)
     assert len(out.triangles) == 8 and len(out.vertices) == 6
     assert out.is_watertight() and out.is_oriented()
@@ -135,25 +138,6 @@ def test_sliver_needles_that_fold_are_collapsed_more_widely():
     assert _unfold_slivers(flat, extent) is flat
     tet = _tetrahedron()
     assert _unfold_slivers(tet, extent) is tet
-
-
-def test_wider_needles_are_collapsed_only_around_their_folds():
-    # BODY with dome caps: a needle longer than the second threshold, within the bodies' overlap
-    extent = 100.0
-    folded = _split_octahedron(3e-7 * np.array([2.0, 1.0, 0.4]))
-    length = np.linalg.norm(folded.vertices[6] - folded.vertices[0])
-    assert SLIVER_FRACTIONS[1] * extent < length < SLIVER_FRACTIONS[2] * extent
-    assert self_intersections(folded.vertices, folded.triangles).n_faces > 0
-    assert _collapse_slivers(folded, SLIVER_FRACTIONS[1] * extent) is folded
-    out = _unfold_slivers(folded, extent)
-    assert len(out.triangles) == 8 and len(out.vertices) == 6
-    assert out.is_watertight() and out.is_oriented()
-    assert self_intersections(out.vertices, out.triangles).n_faces == 0
-    assert out.signed_volume() == pytest.approx(4 / 3)
-    # the same needle that folds nothing is kept
-    flat = _split_octahedron(np.array([0.0, length, 0.0]))
-    assert self_intersections(flat.vertices, flat.triangles).n_faces == 0
-    assert _unfold_slivers(flat, extent) is flat
 
 
 def test_single_contour_bodies_skip_the_fallbacks():

@@ -500,3 +500,13 @@ def test_height_noise_fast_paths_match_direct_filters(shape, scale):
             d = (z - smooth / np.maximum(w, 1e-12))[inner]
             expected = 1.4826 * np.median(np.abs(d - np.median(d)))
         assert height_noise(z, m, scale) == pytest.approx(expected, rel=1e-9, abs=1e-15)
+
+
+def test_fit_mesh_keeps_its_old_import_path():
+    """The trimmed mesh moved to surfaces.fit_mesh; ``surfaces.fit.fit_mesh`` is the same function."""
+    import surfaces.fit
+    import surfaces.fit_mesh
+
+    assert surfaces.fit.fit_mesh is surfaces.fit_mesh.fit_mesh
+    with pytest.raises(AttributeError):
+        surfaces.fit.no_such_name  # noqa: B018

@@ -7,6 +7,7 @@ import pytest
 from scipy import ndimage
 
 import surfaces.fit as F
+import surfaces.fit_mesh as FM
 from datasets_synthetic.heightfields import sphere_cap, v_crack
 from surfaces.fit import fit_height, fit_mesh, height_noise
 from surfaces.mixed import MixedPatches
@@ -98,7 +99,7 @@ def test_lattice_field_is_the_interpolated_smoothed_mask(sigma, spacing):
     S, T = np.meshgrid(s, t, indexing="ij")
     field = ndimage.gaussian_filter(m.astype(float), sigma, mode="constant") if sigma else m * 1.0
     want = ndimage.map_coordinates(field, [S.ravel(), T.ravel()], order=1, mode="constant", cval=0.0)
-    np.testing.assert_allclose(F._lattice_field(m, sigma, s, t), want.reshape(S.shape), rtol=0, atol=1e-14)
+    np.testing.assert_allclose(FM._lattice_field(m, sigma, s, t), want.reshape(S.shape), rtol=0, atol=1e-14)
 
 
 def test_patch_map_on_coarse_units_is_the_lattice_map():

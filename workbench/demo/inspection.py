@@ -11,7 +11,8 @@ from datasets_synthetic.render import make_triad_folder
 from photometric.io import read_folder
 from photometric.normals import angular_error_deg
 from photometric.uncertainty import Tolerances
-from surfaces.fit import fit_height, fit_mesh
+from surfaces.fit import fit_height
+from surfaces.fit_mesh import fit_mesh
 from surfaces.grid import xy_to_pixel
 from surfaces.io import read_mesh
 from surfaces.mixed import MixedPatches
