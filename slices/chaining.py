@@ -131,6 +131,103 @@ def overlaps(a: np.ndarray, b: np.ndarray) -> bool:
     return bool(np.any(masks[0] & masks[1]))
 
 
+@dataclass(frozen=True)
+class _Outlines:
+    """All contours of a structure as one ragged table (vertices concatenated, each closed).
+
+    ``start``/``size`` locate contour ``k``'s vertices in ``points``; ``after`` is every
+    vertex's successor along its own contour; the per-contour figures come from one
+    reduction each, not a loop per contour.
+    """
+
+    points: np.ndarray  # (N, 2)
+    start: np.ndarray  # (C,)
+    size: np.ndarray  # (C,)
+    after: np.ndarray  # (N,) index of the next vertex of the same contour
+    area: np.ndarray  # (C,) signed area, mm^2
+    perimeter: np.ndarray  # (C,) mm
+    centroid: np.ndarray  # (C, 2) area centroid (vertex mean when degenerate)
+    low: np.ndarray  # (C, 2) bounding box
+    high: np.ndarray  # (C, 2)
+
+    @classmethod
+    def of(cls, contours: list[Contour]) -> _Outlines:
+        size = np.array([len(c.points) for c in contours])
+        start = np.concatenate([[0], np.cumsum(size)[:-1]])
+        p = np.concatenate([np.asarray(c.points, dtype=np.float64) for c in contours])
+        after = np.arange(1, len(p) + 1)
+        after[start + size - 1] = start
+        q = p[after]
+        cross = p[:, 0] * q[:, 1] - q[:, 0] * p[:, 1]
+        area = np.add.reduceat(cross, start) / 2.0
+        d = q - p
+        perimeter = np.add.reduceat(np.sqrt(d[:, 0] ** 2 + d[:, 1] ** 2), start)
+        low, high = np.minimum.reduceat(p, start), np.maximum.reduceat(p, start)
+        moment = np.add.reduceat((p + q) * cross[:, None], start)
+        flat = np.abs(area) < 1e-12 * np.maximum(1.0, (high - low).max(axis=1)) ** 2
+        with np.errstate(divide="ignore", invalid="ignore"):
+            centroid = np.where(flat[:, None], np.add.reduceat(p, start) / size[:, None],
+                                moment / (6.0 * area[:, None]))
+        return cls(p, start, size, after, area, perimeter, centroid, low, high)
+
+    def edges_of(self, polygon: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Edge (first-vertex) indices of the polygons ``polygon`` (Q,), and which query each belongs to."""
+        n = self.size[polygon]
+        query = np.repeat(np.arange(len(polygon)), n)
+        first = np.concatenate([[0], np.cumsum(n)[:-1]])
+        return np.arange(len(query)) - np.repeat(first - self.start[polygon], n), query
+
+    def inside_depth(self, point: np.ndarray, polygon: np.ndarray) -> np.ndarray:
+        """Signed distance of each point (Q, 2) to polygon ``polygon[k]``: positive inside, negative outside."""
+        e, k = self.edges_of(polygon)
+        a, b, q = self.points[e], self.points[self.after[e]], point[k]
+        d, w = b - a, q - a
+        straddle = (a[:, 1] > q[:, 1]) != (b[:, 1] > q[:, 1])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            xc = a[:, 0] + w[:, 1] * d[:, 0] / d[:, 1]
+        first = np.concatenate([[0], np.cumsum(self.size[polygon])[:-1]])
+        crossings = np.add.reduceat((straddle & (q[:, 0] < xc)).astype(np.int64), first)
+        length2 = d[:, 0] ** 2 + d[:, 1] ** 2
+        t = np.clip(np.divide(w[:, 0] * d[:, 0] + w[:, 1] * d[:, 1], length2, out=np.zeros(len(e)),
+                              where=length2 > 0), 0.0, 1.0)
+        gap = np.sqrt(np.minimum.reduceat((w[:, 0] - t * d[:, 0]) ** 2 + (w[:, 1] - t * d[:, 1]) ** 2, first))
+        return np.where(crossings % 2 == 1, gap, -gap)
+
+
+#: Raster pixels a point must lie inside both polygons for :func:`_overlapping` to skip the raster:
+#: a disc of this radius in both is a whole filled pixel in both of :func:`overlaps`' masks.
+_SURE_PIXELS = 3.0
+
+
+def _overlapping(table: _Outlines, contours: list[Contour], i: np.ndarray, j: np.ndarray) -> np.ndarray:
+    """:func:`overlaps` of contours ``i[k]`` and ``j[k]`` for every pair at once, shape (P,) bool.
+
+    Pairs whose boxes are apart do not overlap; a pair where either contour's centroid lies inside
+    both outlines, farther than :data:`_SURE_PIXELS` of the raster's pixels from both, overlaps in
+    the raster too (its disc holds a filled pixel of each mask); only the others are rasterised.
+    """
+    out = np.zeros(len(i), dtype=bool)
+    if not len(i):
+        return out
+    lo_i, hi_i, lo_j, hi_j = table.low[i], table.high[i], table.low[j], table.high[j]
+    meet = np.all(np.maximum(lo_i, lo_j) <= np.minimum(hi_i, hi_j), axis=1)
+    pixel = (np.maximum(hi_i, hi_j) - np.minimum(lo_i, lo_j)).max(axis=1) / (_RASTER - 1)
+    k = np.flatnonzero(meet)
+    if not len(k):
+        return out
+    # each pair's two centroids, each tested against both outlines
+    point = np.concatenate([table.centroid[i[k]], table.centroid[j[k]]])
+    point = np.concatenate([point, point])
+    polygon = np.concatenate([i[k], j[k], j[k], i[k]])
+    depth = table.inside_depth(point, polygon).reshape(4, len(k))
+    margin = _SURE_PIXELS * pixel[k]
+    sure = ((depth[0] > margin) & (depth[2] > margin)) | ((depth[1] > margin) & (depth[3] > margin))
+    out[k[sure]] = True
+    for m in k[~sure]:
+        out[m] = overlaps(contours[i[m]].points, contours[j[m]].points)
+    return out
+
+
 def _segment_distance(points: np.ndarray, polygon: np.ndarray) -> np.ndarray:
     """Distance of every point to a closed polygon's boundary, shape (N,)."""
     a, b = polygon, np.roll(polygon, -1, axis=0)
@@ -247,27 +344,39 @@ def chain(contours: list[Contour], spacing: float | None) -> list[Body]:
     """
     n = len(contours)
     hole = classify_holes(contours)
-    z = np.array([c.z for c in contours])
+    table = _Outlines.of(contours)
+    z = np.round([c.z for c in contours], 6)
     succ: list[list[int]] = [[] for _ in range(n)]
     pred: list[list[int]] = [[] for _ in range(n)]
-    planes = np.unique(np.round(z, 6))
-    for p0, p1 in zip(planes[:-1], planes[1:]):
-        lower = np.flatnonzero(np.round(z, 6) == p0)
-        upper = np.flatnonzero(np.round(z, 6) == p1)
-        if spacing is not None and abs((p1 - p0) - spacing) > SPACING_RTOL * spacing:
-            # missing planes are fine between separate bodies, not inside one
-            if any(overlaps(contours[i].points, contours[j].points) for i in lower for j in upper):
-                raise ValueError(
-                    f"contours: unequal slice spacing, no plane between z={p0:.3f} and z={p1:.3f} mm "
-                    f"({spacing:.3f} mm elsewhere) although the structure continues across; use "
-                    "--resample to blend at the true slice positions"
-                )
-            continue
-        for i in lower:
-            for j in upper:
-                if hole[i] == hole[j] and overlaps(contours[i].points, contours[j].points):
-                    succ[i].append(j)
-                    pred[j].append(i)
+    planes, plane_of = np.unique(z, return_inverse=True)
+    order = np.argsort(plane_of, kind="stable")
+    members = np.split(order, np.cumsum(np.bincount(plane_of, minlength=len(planes)))[:-1])
+    lower_all, upper_all, gapped = [], [], []
+    for p, (p0, p1) in enumerate(zip(planes[:-1], planes[1:])):
+        lower, upper = np.repeat(members[p], len(members[p + 1])), np.tile(members[p + 1], len(members[p]))
+        lower_all.append(lower)
+        upper_all.append(upper)
+        gapped.append(np.full(len(lower), spacing is not None and abs((p1 - p0) - spacing) > SPACING_RTOL * spacing))
+    if lower_all:
+        lower, upper, gapped = np.concatenate(lower_all), np.concatenate(upper_all), np.concatenate(gapped)
+    else:
+        lower = upper = np.zeros(0, dtype=int)
+        gapped = np.zeros(0, dtype=bool)
+    # missing planes are fine between separate bodies, not inside one
+    ask = gapped | (hole[lower] == hole[upper])
+    meets = np.zeros(len(lower), dtype=bool)
+    meets[ask] = _overlapping(table, contours, lower[ask], upper[ask])
+    if np.any(meets & gapped):
+        p0 = z[lower[meets & gapped][0]]
+        p1 = z[upper[meets & gapped][0]]
+        raise ValueError(
+            f"contours: unequal slice spacing, no plane between z={p0:.3f} and z={p1:.3f} mm "
+            f"({spacing:.3f} mm elsewhere) although the structure continues across; use "
+            "--resample to blend at the true slice positions"
+        )
+    for a, b in zip(lower[meets].tolist(), upper[meets].tolist()):
+        succ[a].append(b)
+        pred[b].append(a)
     linked = [len(succ[i]) == 1 and len(pred[succ[i][0]]) == 1 for i in range(n)]
     starts = [i for i in range(n) if not (len(pred[i]) == 1 and linked[pred[i][0]])]
     below, above = _split_joints(contours, succ, pred)
@@ -330,6 +439,18 @@ def _split_joints(contours: list[Contour], succ: list, pred: list) -> tuple[dict
     return below, above
 
 
+def _plane_sums(contours: list[Contour], term) -> tuple[np.ndarray, np.ndarray]:
+    """Distinct planes (P,) and the sum over each plane's contours of ``term(table, sign)`` (P,).
+
+    ``term`` gets the :class:`_Outlines` table and each contour's sign (+1 outer, -1 hole) and
+    returns one value per contour.
+    """
+    z = np.round([c.z for c in contours], 6)
+    planes, plane_of = np.unique(z, return_inverse=True)
+    sign = np.where(classify_holes(contours), -1.0, 1.0)
+    return planes, np.bincount(plane_of, term(_Outlines.of(contours), sign), minlength=len(planes))
+
+
 def slab_volume(contours: list[Contour], spacing: float | None) -> float:
     """Volume as treatment-planning systems count it.
 
@@ -350,12 +471,7 @@ def slab_volume(contours: list[Contour], spacing: float | None) -> float:
     float
         Volume in mm^3.
     """
-    hole = classify_holes(contours)
-    z = np.round([c.z for c in contours], 6)
-    planes = np.unique(z)
-    area = np.zeros(len(planes))
-    for c, h, zz in zip(contours, hole, z):
-        area[np.searchsorted(planes, zz)] += (-1.0 if h else 1.0) * abs(signed_area(c.points))
+    planes, area = _plane_sums(contours, lambda table, sign: sign * np.abs(table.area))
     if spacing is None:
         if len(planes) < 2:
             return 0.0
@@ -403,12 +519,7 @@ def planning_volumes(contours: list[Contour], spacing: float | None) -> dict:
     >>> planning_volumes([Contour(z, square) for z in (0.0, 2.0, 4.0)], 2.0)
     {'slab_full_ends': 600.0, 'slab_half_ends': 400.0, 'n_planes': 3, 'small_structure': True}
     """
-    hole = classify_holes(contours)
-    z = np.round([c.z for c in contours], 6)
-    planes = np.unique(z)
-    area = np.zeros(len(planes))
-    np.add.at(area, np.searchsorted(planes, z),
-              np.where(hole, -1.0, 1.0) * np.array([abs(signed_area(c.points)) for c in contours]))
+    planes, area = _plane_sums(contours, lambda table, sign: sign * np.abs(table.area))
     if spacing is None:
         gaps = np.diff(planes)
         d = float(np.median(gaps)) if len(gaps) else 0.0
@@ -452,13 +563,7 @@ def offset_sensitivity(contours: list[Contour], spacing: float | None, offset: f
     >>> round(offset_sensitivity([Contour(0.0, disc), Contour(2.0, disc)], 2.0), 2)
     64.4
     """
-    hole = classify_holes(contours)
-    z = np.round([c.z for c in contours], 6)
-    planes = np.unique(z)
-    grow = np.zeros(len(planes))
-    for c, h, zz in zip(contours, hole, z):
-        perimeter = float(np.linalg.norm(np.roll(c.points, -1, axis=0) - c.points, axis=1).sum())
-        grow[np.searchsorted(planes, zz)] += perimeter * offset + (-1.0 if h else 1.0) * np.pi * offset**2
+    planes, grow = _plane_sums(contours, lambda table, sign: table.perimeter * offset + sign * np.pi * offset**2)
     if spacing is None:
         if len(planes) < 2:
             return 0.0

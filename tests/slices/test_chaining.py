@@ -7,7 +7,7 @@ import pytest
 
 from slices import chaining
 from slices.chaining import chain, classify_holes, overlaps, slab_volume
-from slices.control_points import clean_contour, signed_area
+from slices.control_points import centroid, clean_contour, signed_area
 from slices.io import Contour
 from tests.slices._stacks import branching_stack, circle
 
@@ -85,3 +85,46 @@ def test_a_split_is_refused_where_a_child_would_loft_from_a_much_larger_part(mon
     assert all("split" not in (b.start, b.stop) for b in chain(branching_stack(), 2.0))
     monkeypatch.setattr(chaining, "SPLIT_AREA_RATIO", 4.0)
     assert sum("split" in (b.start, b.stop) for b in chain(branching_stack(), 2.0)) == 3
+
+
+def _star(rng, cx, cy, radius, n):
+    """A random star-shaped (often non-convex) counter-clockwise polygon."""
+    t = np.sort(rng.uniform(0, 2 * np.pi, n))
+    r = radius * rng.uniform(0.3, 1.0, n)
+    return np.column_stack([cx + r * np.cos(t), cy + r * np.sin(t)])
+
+
+def test_vectorised_overlap_equals_the_raster_test():
+    # every pair at once, certified pairs and rasterised ones, against overlaps() pair by pair:
+    # apart, touching, slightly and deeply overlapping, nested, non-convex
+    rng = np.random.default_rng(7)
+    contours = []
+    for _ in range(160):
+        size = rng.uniform(1.0, 20.0)
+        contours.append(Contour(0.0, _star(rng, rng.uniform(-20, 20), rng.uniform(-20, 20), size, rng.integers(3, 40))))
+    l_shape = np.array([[0, 0], [10, 0], [10, 2], [2, 2], [2, 10], [0, 10]], float)
+    contours += [Contour(0.0, l_shape), Contour(0.0, np.array([[5, 5], [9, 5], [9, 9], [5, 9]], float)),
+                 Contour(0.0, SQUARE), Contour(0.0, SQUARE + [10.0, 0.0]), Contour(0.0, SQUARE * 0.1 + 4.5)]
+    table = chaining._Outlines.of(contours)
+    i, j = np.triu_indices(len(contours), 1)
+    got = chaining._overlapping(table, contours, i, j)
+    want = np.array([overlaps(contours[a].points, contours[b].points) for a, b in zip(i, j)])
+    np.testing.assert_array_equal(got, want)
+    assert 0.2 < want.mean() < 0.8  # both answers are well represented
+
+
+def test_outline_table_equals_the_per_contour_figures():
+    rng = np.random.default_rng(3)
+    contours = [Contour(float(k), _star(rng, rng.uniform(-5, 5), 0.0, rng.uniform(1, 9), rng.integers(3, 30)))
+                for k in range(25)]
+    table = chaining._Outlines.of(contours)
+    for k, c in enumerate(contours):
+        p = c.points
+        np.testing.assert_allclose(table.area[k], signed_area(p), rtol=1e-12)
+        np.testing.assert_allclose(table.perimeter[k], np.linalg.norm(np.roll(p, -1, 0) - p, axis=1).sum(),
+                                   rtol=1e-12)
+        np.testing.assert_allclose(table.centroid[k], centroid(p), rtol=1e-10, atol=1e-12)
+    # signed distance to the outline: a unit square's centre is 0.5 inside, a far point outside
+    sq = chaining._Outlines.of([Contour(0.0, SQUARE / 10)])
+    depth = sq.inside_depth(np.array([[0.5, 0.5], [3.0, 0.5]]), np.array([0, 0]))
+    np.testing.assert_allclose(depth, [0.5, -2.0])
