@@ -163,3 +163,49 @@ def test_fan_apex_moves_into_the_kernel_so_the_cap_patches_do_not_fold():
         folded = not np.allclose(p, apex)
         assert (area > 1.01 * abs(caps.curve_area(curve))) == folded
     assert area == pytest.approx(abs(caps.curve_area(curve)), rel=1e-9)
+
+
+def _wavy_curve(rng, n: int = 40) -> np.ndarray:
+    """A closed counter-clockwise curve: a random star-shaped outline, or a thick C (whose kernel is empty)."""
+    if rng.uniform() < 0.5:
+        t = np.sort(rng.uniform(0, 2 * np.pi, n))
+        r = 10 * rng.uniform(0.4, 1.0, n)
+        return _polygon_curve(np.column_stack([r * np.cos(t), r * np.sin(t)]))
+    gap = rng.uniform(0.2, 2.5)  # the C spans 2 pi - 2 gap: more than pi, so no point sees all of it
+    t = np.linspace(gap, 2 * np.pi - gap, n // 2)
+    outer, inner = 10 * rng.uniform(0.9, 1.1, len(t)), rng.uniform(3.0, 7.0) * rng.uniform(0.9, 1.1, len(t))
+    xy = np.concatenate([np.column_stack([outer * np.cos(t), outer * np.sin(t)]),
+                         np.column_stack([inner * np.cos(t), inner * np.sin(t)])[::-1]])
+    return _polygon_curve(xy)
+
+
+def test_kernel_margin_equals_the_linear_programme():
+    from scipy.optimize import linprog
+
+    rng = np.random.default_rng(11)
+    for _ in range(60):
+        n = rng.integers(4, 200)
+        angle = rng.uniform(0, 2 * np.pi, n)
+        a = np.column_stack([np.cos(angle), np.sin(angle)])
+        b = rng.uniform(-3, 10, n)
+        margin, point = caps.kernel_margin(a, b)
+        res = linprog([0.0, 0.0, -1.0], A_ub=np.hstack([a, np.ones((n, 1))]), b_ub=b,
+                      bounds=[(None, None), (None, None), (None, 1e6)], method="highs")
+        if not np.isfinite(margin):
+            # a half-circle of directions is left open: the margin grows without bound
+            assert res.x[2] == pytest.approx(1e6)
+            continue
+        assert margin == pytest.approx(res.x[2], abs=1e-7)
+        assert np.min(b - a @ point) == pytest.approx(margin, abs=1e-9)  # reached at the point
+
+
+def test_fan_apex_skips_the_programme_only_where_it_would_find_no_kernel(monkeypatch):
+    rng = np.random.default_rng(5)
+    curves = [_wavy_curve(rng) for _ in range(40)]
+    hint = np.array([12.0, 0.0])  # outside every outline: the programme decides
+    fast = [caps.fan_apex(c, hint) for c in curves]
+    monkeypatch.setattr(caps, "_no_kernel", lambda *args: False)
+    slow = [caps.fan_apex(c, hint) for c in curves]
+    np.testing.assert_array_equal(fast, slow)
+    moved = sum(not np.array_equal(p, hint) for p in slow)
+    assert 5 <= moved <= 35  # both outcomes occur: apexes moved into a kernel, and empty kernels
