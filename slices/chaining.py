@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from slices.control_points import points_in_polygon, signed_area
+from slices.control_points import signed_area
 from slices.io import SPACING_RTOL, Contour
 
 #: Pixels along the longer side of the raster used for overlap tests.
@@ -74,6 +74,128 @@ class Body:
         return np.array([c.z for c in self.contours])
 
 
+@dataclass(frozen=True)
+class Outlines:
+    """All contours of a structure as one ragged table (vertices concatenated, each closed).
+
+    Built once per structure by :meth:`of` (every figure by one array reduction over all
+    contours, not a loop per contour) and shared by :func:`chain`, :func:`classify_holes`,
+    :func:`slab_volume`, :func:`planning_volumes` and :func:`offset_sensitivity`.
+
+    Attributes
+    ----------
+    points : numpy.ndarray, shape (N, 2)
+        Every contour's vertices in mm, contour after contour.
+    start, size : numpy.ndarray, shape (C,) int
+        Where contour ``k``'s vertices start in ``points``, and how many it has.
+    after : numpy.ndarray, shape (N,) int
+        Each vertex's successor along its own closed contour.
+    area : numpy.ndarray, shape (C,)
+        Signed areas in mm^2 (positive counter-clockwise).
+    perimeter : numpy.ndarray, shape (C,)
+        Perimeters in mm.
+    centroid : numpy.ndarray, shape (C, 2)
+        Area centroids in mm (the vertex mean of a contour without area).
+    low, high : numpy.ndarray, shape (C, 2)
+        Bounding boxes in mm.
+    z : numpy.ndarray, shape (C,)
+        Plane positions rounded to 1e-6 mm.
+    planes : numpy.ndarray, shape (P,)
+        The distinct planes, increasing.
+    plane_of : numpy.ndarray, shape (C,) int
+        Each contour's plane (index into ``planes``).
+    hole : numpy.ndarray, shape (C,) bool
+        Inner contours: inside an odd number of other contours of their plane
+        (each contour's first vertex, crossing-number test).
+    """
+
+    points: np.ndarray
+    start: np.ndarray
+    size: np.ndarray
+    after: np.ndarray
+    area: np.ndarray
+    perimeter: np.ndarray
+    centroid: np.ndarray
+    low: np.ndarray
+    high: np.ndarray
+    z: np.ndarray
+    planes: np.ndarray
+    plane_of: np.ndarray
+    hole: np.ndarray
+
+    @classmethod
+    def of(cls, contours: list[Contour]) -> Outlines:
+        """The table of ``contours`` (a list of :class:`slices.io.Contour`, at least one)."""
+        size = np.array([len(c.points) for c in contours])
+        start = np.concatenate([[0], np.cumsum(size)[:-1]])
+        p = np.concatenate([np.asarray(c.points, dtype=np.float64) for c in contours])
+        after = np.arange(1, len(p) + 1)
+        after[start + size - 1] = start
+        q = p[after]
+        cross = p[:, 0] * q[:, 1] - q[:, 0] * p[:, 1]
+        area = np.add.reduceat(cross, start) / 2.0
+        d = q - p
+        perimeter = np.add.reduceat(np.sqrt(d[:, 0] ** 2 + d[:, 1] ** 2), start)
+        low, high = np.minimum.reduceat(p, start), np.maximum.reduceat(p, start)
+        moment = np.add.reduceat((p + q) * cross[:, None], start)
+        flat = np.abs(area) < 1e-12 * np.maximum(1.0, (high - low).max(axis=1)) ** 2
+        with np.errstate(divide="ignore", invalid="ignore"):
+            centroid = np.where(flat[:, None], np.add.reduceat(p, start) / size[:, None],
+                                moment / (6.0 * area[:, None]))
+        z = np.round([c.z for c in contours], 6)
+        planes, plane_of = np.unique(z, return_inverse=True)
+        table = cls(p, start, size, after, area, perimeter, centroid, low, high, z, planes, plane_of,
+                    np.zeros(len(contours), dtype=bool))
+        # holes by containment among the contours of each plane: all pairs of one plane at once
+        i, j = table.same_plane_pairs()
+        if len(i):
+            inside = table.crossings(p[start[i]], j)[0]
+            table.hole[:] = np.bincount(i, inside, minlength=len(contours)).astype(int) % 2 == 1
+        return table
+
+    def members(self) -> list[np.ndarray]:
+        """The contours of each plane, in order of the planes (a list of P index arrays)."""
+        order = np.argsort(self.plane_of, kind="stable")
+        return np.split(order, np.cumsum(np.bincount(self.plane_of, minlength=len(self.planes)))[:-1])
+
+    def same_plane_pairs(self) -> tuple[np.ndarray, np.ndarray]:
+        """Every ordered pair ``(i, j)``, ``i != j``, of contours on one plane (two index arrays)."""
+        pairs = [(np.repeat(m, len(m)), np.tile(m, len(m))) for m in self.members() if len(m) > 1]
+        if not pairs:
+            return np.zeros(0, dtype=int), np.zeros(0, dtype=int)
+        i, j = (np.concatenate(x) for x in zip(*pairs))
+        return i[i != j], j[i != j]
+
+    def edges_of(self, polygon: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Edge (first-vertex) indices of the contours ``polygon`` (Q,), and which query each belongs to."""
+        n = self.size[polygon]
+        query = np.repeat(np.arange(len(polygon)), n)
+        first = np.concatenate([[0], np.cumsum(n)[:-1]])
+        return np.arange(len(query)) - np.repeat(first - self.start[polygon], n), query
+
+    def crossings(self, point: np.ndarray, polygon: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Whether each point (Q, 2) is inside contour ``polygon[k]`` (crossing number, as
+        :func:`slices.control_points.points_in_polygon`), and its distance to that outline in mm."""
+        e, k = self.edges_of(polygon)
+        a, b, q = self.points[e], self.points[self.after[e]], point[k]
+        d, w = b - a, q - a
+        straddle = (a[:, 1] > q[:, 1]) != (b[:, 1] > q[:, 1])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            xc = a[:, 0] + w[:, 1] * d[:, 0] / d[:, 1]
+        first = np.concatenate([[0], np.cumsum(self.size[polygon])[:-1]])
+        crossings = np.add.reduceat((straddle & (q[:, 0] < xc)).astype(np.int64), first)
+        length2 = d[:, 0] ** 2 + d[:, 1] ** 2
+        t = np.clip(np.divide(w[:, 0] * d[:, 0] + w[:, 1] * d[:, 1], length2, out=np.zeros(len(e)),
+                              where=length2 > 0), 0.0, 1.0)
+        gap = np.sqrt(np.minimum.reduceat((w[:, 0] - t * d[:, 0]) ** 2 + (w[:, 1] - t * d[:, 1]) ** 2, first))
+        return crossings % 2 == 1, gap
+
+    def inside_depth(self, point: np.ndarray, polygon: np.ndarray) -> np.ndarray:
+        """Signed distance of each point (Q, 2) to contour ``polygon[k]`` in mm: positive inside."""
+        inside, gap = self.crossings(point, polygon)
+        return np.where(inside, gap, -gap)
+
+
 def classify_holes(contours: list[Contour]) -> np.ndarray:
     """Mark inner contours (holes) by containment on their own plane.
 
@@ -87,20 +209,7 @@ def classify_holes(contours: list[Contour]) -> np.ndarray:
     numpy.ndarray, shape (N,) bool
         True for holes (inside an odd number of other contours of the same plane).
     """
-    z = np.round([c.z for c in contours], 6)
-    hole = np.zeros(len(contours), dtype=bool)
-    for plane in np.unique(z):
-        idx = np.flatnonzero(z == plane)
-        if len(idx) < 2:
-            continue
-        depth = np.zeros(len(idx), dtype=int)
-        for a_pos, a in enumerate(idx):
-            probe = contours[a].points[:1]
-            for b in idx:
-                if b != a and points_in_polygon(probe, contours[b].points)[0]:
-                    depth[a_pos] += 1
-        hole[idx] = depth % 2 == 1
-    return hole
+    return Outlines.of(contours).hole.copy()
 
 
 def overlaps(a: np.ndarray, b: np.ndarray) -> bool:
@@ -131,75 +240,12 @@ def overlaps(a: np.ndarray, b: np.ndarray) -> bool:
     return bool(np.any(masks[0] & masks[1]))
 
 
-@dataclass(frozen=True)
-class _Outlines:
-    """All contours of a structure as one ragged table (vertices concatenated, each closed).
-
-    ``start``/``size`` locate contour ``k``'s vertices in ``points``; ``after`` is every
-    vertex's successor along its own contour; the per-contour figures come from one
-    reduction each, not a loop per contour.
-    """
-
-    points: np.ndarray  # (N, 2)
-    start: np.ndarray  # (C,)
-    size: np.ndarray  # (C,)
-    after: np.ndarray  # (N,) index of the next vertex of the same contour
-    area: np.ndarray  # (C,) signed area, mm^2
-    perimeter: np.ndarray  # (C,) mm
-    centroid: np.ndarray  # (C, 2) area centroid (vertex mean when degenerate)
-    low: np.ndarray  # (C, 2) bounding box
-    high: np.ndarray  # (C, 2)
-
-    @classmethod
-    def of(cls, contours: list[Contour]) -> _Outlines:
-        size = np.array([len(c.points) for c in contours])
-        start = np.concatenate([[0], np.cumsum(size)[:-1]])
-        p = np.concatenate([np.asarray(c.points, dtype=np.float64) for c in contours])
-        after = np.arange(1, len(p) + 1)
-        after[start + size - 1] = start
-        q = p[after]
-        cross = p[:, 0] * q[:, 1] - q[:, 0] * p[:, 1]
-        area = np.add.reduceat(cross, start) / 2.0
-        d = q - p
-        perimeter = np.add.reduceat(np.sqrt(d[:, 0] ** 2 + d[:, 1] ** 2), start)
-        low, high = np.minimum.reduceat(p, start), np.maximum.reduceat(p, start)
-        moment = np.add.reduceat((p + q) * cross[:, None], start)
-        flat = np.abs(area) < 1e-12 * np.maximum(1.0, (high - low).max(axis=1)) ** 2
-        with np.errstate(divide="ignore", invalid="ignore"):
-            centroid = np.where(flat[:, None], np.add.reduceat(p, start) / size[:, None],
-                                moment / (6.0 * area[:, None]))
-        return cls(p, start, size, after, area, perimeter, centroid, low, high)
-
-    def edges_of(self, polygon: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Edge (first-vertex) indices of the polygons ``polygon`` (Q,), and which query each belongs to."""
-        n = self.size[polygon]
-        query = np.repeat(np.arange(len(polygon)), n)
-        first = np.concatenate([[0], np.cumsum(n)[:-1]])
-        return np.arange(len(query)) - np.repeat(first - self.start[polygon], n), query
-
-    def inside_depth(self, point: np.ndarray, polygon: np.ndarray) -> np.ndarray:
-        """Signed distance of each point (Q, 2) to polygon ``polygon[k]``: positive inside, negative outside."""
-        e, k = self.edges_of(polygon)
-        a, b, q = self.points[e], self.points[self.after[e]], point[k]
-        d, w = b - a, q - a
-        straddle = (a[:, 1] > q[:, 1]) != (b[:, 1] > q[:, 1])
-        with np.errstate(divide="ignore", invalid="ignore"):
-            xc = a[:, 0] + w[:, 1] * d[:, 0] / d[:, 1]
-        first = np.concatenate([[0], np.cumsum(self.size[polygon])[:-1]])
-        crossings = np.add.reduceat((straddle & (q[:, 0] < xc)).astype(np.int64), first)
-        length2 = d[:, 0] ** 2 + d[:, 1] ** 2
-        t = np.clip(np.divide(w[:, 0] * d[:, 0] + w[:, 1] * d[:, 1], length2, out=np.zeros(len(e)),
-                              where=length2 > 0), 0.0, 1.0)
-        gap = np.sqrt(np.minimum.reduceat((w[:, 0] - t * d[:, 0]) ** 2 + (w[:, 1] - t * d[:, 1]) ** 2, first))
-        return np.where(crossings % 2 == 1, gap, -gap)
-
-
 #: Raster pixels a point must lie inside both polygons for :func:`_overlapping` to skip the raster:
 #: a disc of this radius in both is a whole filled pixel in both of :func:`overlaps`' masks.
 _SURE_PIXELS = 3.0
 
 
-def _overlapping(table: _Outlines, contours: list[Contour], i: np.ndarray, j: np.ndarray) -> np.ndarray:
+def _overlapping(table: Outlines, contours: list[Contour], i: np.ndarray, j: np.ndarray) -> np.ndarray:
     """:func:`overlaps` of contours ``i[k]`` and ``j[k]`` for every pair at once, shape (P,) bool.
 
     Pairs whose boxes are apart do not overlap; a pair where either contour's centroid lies inside
@@ -324,7 +370,7 @@ def split_contour(parent: np.ndarray, children: list[np.ndarray]) -> list[np.nda
     return parts
 
 
-def chain(contours: list[Contour], spacing: float | None) -> list[Body]:
+def chain(contours: list[Contour], spacing: float | None, outlines: Outlines | None = None) -> list[Body]:
     """Group contours into bodies (see module docstring).
 
     Parameters
@@ -336,6 +382,8 @@ def chain(contours: list[Contour], spacing: float | None) -> list[Body]:
         gap separates bodies and is an error where contours overlap across it).
         None: every pair of consecutive planes are neighbours (unequally spaced
         stacks).
+    outlines : Outlines, optional
+        The contours' table (:meth:`Outlines.of`) when the caller has built it already.
 
     Returns
     -------
@@ -343,14 +391,10 @@ def chain(contours: list[Contour], spacing: float | None) -> list[Body]:
         Outer bodies first, then holes; each ordered by its lowest ``z``.
     """
     n = len(contours)
-    hole = classify_holes(contours)
-    table = _Outlines.of(contours)
-    z = np.round([c.z for c in contours], 6)
+    table = Outlines.of(contours) if outlines is None else outlines
+    hole, z, planes, members = table.hole, table.z, table.planes, table.members()
     succ: list[list[int]] = [[] for _ in range(n)]
     pred: list[list[int]] = [[] for _ in range(n)]
-    planes, plane_of = np.unique(z, return_inverse=True)
-    order = np.argsort(plane_of, kind="stable")
-    members = np.split(order, np.cumsum(np.bincount(plane_of, minlength=len(planes)))[:-1])
     lower_all, upper_all, gapped = [], [], []
     for p, (p0, p1) in enumerate(zip(planes[:-1], planes[1:])):
         lower, upper = np.repeat(members[p], len(members[p + 1])), np.tile(members[p + 1], len(members[p]))
@@ -439,19 +483,18 @@ def _split_joints(contours: list[Contour], succ: list, pred: list) -> tuple[dict
     return below, above
 
 
-def _plane_sums(contours: list[Contour], term) -> tuple[np.ndarray, np.ndarray]:
+def _plane_sums(contours: list[Contour], outlines: Outlines | None, term) -> tuple[np.ndarray, np.ndarray]:
     """Distinct planes (P,) and the sum over each plane's contours of ``term(table, sign)`` (P,).
 
-    ``term`` gets the :class:`_Outlines` table and each contour's sign (+1 outer, -1 hole) and
+    ``term`` gets the :class:`Outlines` table and each contour's sign (+1 outer, -1 hole) and
     returns one value per contour.
     """
-    z = np.round([c.z for c in contours], 6)
-    planes, plane_of = np.unique(z, return_inverse=True)
-    sign = np.where(classify_holes(contours), -1.0, 1.0)
-    return planes, np.bincount(plane_of, term(_Outlines.of(contours), sign), minlength=len(planes))
+    table = Outlines.of(contours) if outlines is None else outlines
+    sign = np.where(table.hole, -1.0, 1.0)
+    return table.planes, np.bincount(table.plane_of, term(table, sign), minlength=len(table.planes))
 
 
-def slab_volume(contours: list[Contour], spacing: float | None) -> float:
+def slab_volume(contours: list[Contour], spacing: float | None, outlines: Outlines | None = None) -> float:
     """Volume as treatment-planning systems count it.
 
     Per plane, outer contour areas minus hole areas, times the slice spacing;
@@ -465,13 +508,15 @@ def slab_volume(contours: list[Contour], spacing: float | None) -> float:
         Slice spacing in mm; None for unequally spaced planes (then the
         trapezoid rule over the actual plane positions, which is the same
         count for equal spacing).
+    outlines : Outlines, optional
+        The contours' table (:meth:`Outlines.of`) when the caller has built it already.
 
     Returns
     -------
     float
         Volume in mm^3.
     """
-    planes, area = _plane_sums(contours, lambda table, sign: sign * np.abs(table.area))
+    planes, area = _plane_sums(contours, outlines, lambda table, sign: sign * np.abs(table.area))
     if spacing is None:
         if len(planes) < 2:
             return 0.0
@@ -485,7 +530,7 @@ def slab_volume(contours: list[Contour], spacing: float | None) -> float:
 SMALL_STRUCTURE_CONTOURS = 5
 
 
-def planning_volumes(contours: list[Contour], spacing: float | None) -> dict:
+def planning_volumes(contours: list[Contour], spacing: float | None, outlines: Outlines | None = None) -> dict:
     """The volume as treatment-planning systems count it, under both end conventions.
 
     Planning systems give every contour a slab of one slice spacing (area x
@@ -504,6 +549,8 @@ def planning_volumes(contours: list[Contour], spacing: float | None) -> dict:
         Slice spacing in mm; None for unequally spaced planes (then each plane's
         slab reaches half-way to its neighbours, and the end planes' outer halves
         use the median spacing).
+    outlines : Outlines, optional
+        The contours' table (:meth:`Outlines.of`) when the caller has built it already.
 
     Returns
     -------
@@ -519,19 +566,21 @@ def planning_volumes(contours: list[Contour], spacing: float | None) -> dict:
     >>> planning_volumes([Contour(z, square) for z in (0.0, 2.0, 4.0)], 2.0)
     {'slab_full_ends': 600.0, 'slab_half_ends': 400.0, 'n_planes': 3, 'small_structure': True}
     """
-    planes, area = _plane_sums(contours, lambda table, sign: sign * np.abs(table.area))
+    planes, area = _plane_sums(contours, outlines, lambda table, sign: sign * np.abs(table.area))
     if spacing is None:
         gaps = np.diff(planes)
         d = float(np.median(gaps)) if len(gaps) else 0.0
         thickness = np.concatenate([[d / 2], gaps / 2]) + np.concatenate([gaps / 2, [d / 2]])
     else:
         thickness = np.full(len(planes), float(spacing))
-    return {"slab_full_ends": float(np.sum(area * thickness)), "slab_half_ends": slab_volume(contours, spacing),
+    return {"slab_full_ends": float(np.sum(area * thickness)),
+            "slab_half_ends": slab_volume(contours, spacing, outlines),
             "n_planes": int(len(planes)),
             "small_structure": bool(len(planes) <= SMALL_STRUCTURE_CONTOURS)}
 
 
-def offset_sensitivity(contours: list[Contour], spacing: float | None, offset: float = 0.5) -> float:
+def offset_sensitivity(contours: list[Contour], spacing: float | None, offset: float = 0.5,
+                       outlines: Outlines | None = None) -> float:
     """Change of the slab volume when every contour grows outward by ``offset``.
 
     Steiner's formula per contour: an outer contour's area grows by
@@ -548,6 +597,8 @@ def offset_sensitivity(contours: list[Contour], spacing: float | None, offset: f
         Slice spacing in mm (None: unequally spaced planes, trapezoid rule).
     offset : float
         Outward offset of every contour in mm.
+    outlines : Outlines, optional
+        The contours' table (:meth:`Outlines.of`) when the caller has built it already.
 
     Returns
     -------
@@ -563,7 +614,8 @@ def offset_sensitivity(contours: list[Contour], spacing: float | None, offset: f
     >>> round(offset_sensitivity([Contour(0.0, disc), Contour(2.0, disc)], 2.0), 2)
     64.4
     """
-    planes, grow = _plane_sums(contours, lambda table, sign: table.perimeter * offset + sign * np.pi * offset**2)
+    planes, grow = _plane_sums(contours, outlines,
+                               lambda table, sign: table.perimeter * offset + sign * np.pi * offset**2)
     if spacing is None:
         if len(planes) < 2:
             return 0.0

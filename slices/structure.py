@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from slices.body import BodySurface, build_body, build_stepped
-from slices.chaining import chain, offset_sensitivity, slab_volume
+from slices.chaining import Outlines, chain, offset_sensitivity, slab_volume
 from slices.io import SPACING_RTOL, Contour, ContourStack, check_spacing, load, parse_spacing
 from slices.options import ReadOptions, SurfaceOptions, surface_options
 from surfaces.mesh import TriangleMesh, merge_meshes, weld
@@ -195,7 +195,9 @@ def reconstruct_contours(contours: list[Contour], *, spacing: float | None = Non
     if d == 0:
         raise ValueError("contours: a single plane has no slice spacing; give spacing (--spacing z,y,x "
                          "on the command line)")
-    bodies = chain(contours, None if irregular else d)
+    # the contours' areas, perimeters, boxes and holes once, for the chains and both slab figures
+    outlines = Outlines.of(contours)
+    bodies = chain(contours, None if irregular else d, outlines)
     built = []
     for i, body in enumerate(bodies):
         built.extend(build_stepped(body, d, opts, mesh=mesh))
@@ -204,8 +206,8 @@ def reconstruct_contours(contours: list[Contour], *, spacing: float | None = Non
     sign = {"outer": 1.0, "hole": -1.0}
     volume = sum(sign[b.body.kind] * b.volume_mm3 for b in built)
     area = sum(b.area_mm2 for b in built)
-    slab = slab_volume(contours, None if irregular else d)
-    sensitivity = offset_sensitivity(contours, None if irregular else d, SENSITIVITY_OFFSET_MM)
+    slab = slab_volume(contours, None if irregular else d, outlines)
+    sensitivity = offset_sensitivity(contours, None if irregular else d, SENSITIVITY_OFFSET_MM, outlines)
     return Reconstruction(built, float(volume), float(area), slab, d, opts, sensitivity)
 
 

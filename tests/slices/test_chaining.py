@@ -105,7 +105,7 @@ def test_vectorised_overlap_equals_the_raster_test():
     l_shape = np.array([[0, 0], [10, 0], [10, 2], [2, 2], [2, 10], [0, 10]], float)
     contours += [Contour(0.0, l_shape), Contour(0.0, np.array([[5, 5], [9, 5], [9, 9], [5, 9]], float)),
                  Contour(0.0, SQUARE), Contour(0.0, SQUARE + [10.0, 0.0]), Contour(0.0, SQUARE * 0.1 + 4.5)]
-    table = chaining._Outlines.of(contours)
+    table = chaining.Outlines.of(contours)
     i, j = np.triu_indices(len(contours), 1)
     got = chaining._overlapping(table, contours, i, j)
     want = np.array([overlaps(contours[a].points, contours[b].points) for a, b in zip(i, j)])
@@ -117,7 +117,7 @@ def test_outline_table_equals_the_per_contour_figures():
     rng = np.random.default_rng(3)
     contours = [Contour(float(k), _star(rng, rng.uniform(-5, 5), 0.0, rng.uniform(1, 9), rng.integers(3, 30)))
                 for k in range(25)]
-    table = chaining._Outlines.of(contours)
+    table = chaining.Outlines.of(contours)
     for k, c in enumerate(contours):
         p = c.points
         np.testing.assert_allclose(table.area[k], signed_area(p), rtol=1e-12)
@@ -125,6 +125,26 @@ def test_outline_table_equals_the_per_contour_figures():
                                    rtol=1e-12)
         np.testing.assert_allclose(table.centroid[k], centroid(p), rtol=1e-10, atol=1e-12)
     # signed distance to the outline: a unit square's centre is 0.5 inside, a far point outside
-    sq = chaining._Outlines.of([Contour(0.0, SQUARE / 10)])
+    sq = chaining.Outlines.of([Contour(0.0, SQUARE / 10)])
     depth = sq.inside_depth(np.array([[0.5, 0.5], [3.0, 0.5]]), np.array([0, 0]))
     np.testing.assert_allclose(depth, [0.5, -2.0])
+
+
+def test_holes_equal_the_pairwise_containment_count():
+    # nested and overlapping random outlines on a few planes: the table's parity of containing
+    # contours equals counting them pair by pair with points_in_polygon
+    from slices.control_points import points_in_polygon
+
+    rng = np.random.default_rng(4)
+    contours = [Contour(float(rng.integers(0, 3)), _star(rng, rng.uniform(-3, 3), rng.uniform(-3, 3),
+                                                         rng.uniform(1, 15), rng.integers(3, 30)))
+                for _ in range(60)]
+    want = []
+    for a, ca in enumerate(contours):
+        inside = [points_in_polygon(ca.points[:1], cb.points)[0] for b, cb in enumerate(contours)
+                  if b != a and cb.z == ca.z]
+        want.append(sum(inside) % 2 == 1)
+    np.testing.assert_array_equal(classify_holes(contours), want)
+    assert 5 < sum(want) < 55
+    table = chaining.Outlines.of(contours)
+    assert len(table.planes) == 3 and sum(len(m) for m in table.members()) == 60
