@@ -100,15 +100,28 @@ def lattice_size(max_points: int, lattice_factor: float = SurfaceOptions.lattice
     return max(4, int(max_points), int(np.ceil(f * max_points)))
 
 
-def _geometry_parameters(points: np.ndarray, kind: str) -> np.ndarray:
-    """Parameters that shape the curve between points: seed, chord length or centripetal."""
-    seg = np.linalg.norm(np.concatenate([points[1:], points[:1]]) - points, axis=1)
+def _geometry_parameters(points: np.ndarray, start: np.ndarray, sizes: np.ndarray, kind: str) -> np.ndarray:
+    """Parameters that shape each closed contour between its points: chord length or centripetal.
+
+    ``points`` (N, 2) holds the contours one after the other, contour ``c`` the
+    ``sizes[c]`` rows from ``start[c]``; each gets parameters in ``[0, 1)``.
+    """
+    if kind not in ("centripetal", "chord"):
+        raise ValueError(f"geometry: must be 'chord' or 'centripetal', got {kind!r}")
+    n_c = len(sizes)
+    curve = np.repeat(np.arange(n_c), sizes)
+    local = np.arange(len(points)) - start[curve]
+    nxt = np.arange(1, len(points) + 1)
+    nxt[start + sizes - 1] = start
+    d = points[nxt] - points
+    seg = np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1])
     if kind == "centripetal":
         seg = np.sqrt(seg)
-    elif kind != "chord":
-        raise ValueError(f"geometry: must be 'chord' or 'centripetal', got {kind!r}")
-    t = np.concatenate([[0.0], np.cumsum(seg)])
-    return t[:-1] / t[-1]
+    # one row per contour, so that every running sum starts afresh at its contour
+    cum = np.zeros((n_c, int(sizes.max()) + 1))
+    cum[curve, local + 1] = seg
+    cum = np.cumsum(cum, axis=1)
+    return cum[curve, local] / cum[np.arange(n_c), sizes][curve]
 
 
 def aligned_arcs(points, arcs) -> list:
@@ -249,22 +262,32 @@ def slice_curves(contours, z, n_rays: int, n_lattice: int | None = None,
     longest = max(len(u) for u in us)
     if longest > m:
         raise ValueError(f"n_lattice: {m} lattice values cannot hold {longest} distinct parameters")
-    quantized = _quantize_many(us, m, values)
-    curves, nodes, pts3 = [], [], []
-    for outline, zk, q in zip(outlines, zz, quantized):
-        p3 = np.column_stack([outline, np.full(len(outline), zk)])
-        t = _geometry_parameters(outline, geometry)
-        ctrl, knots = blending.overhauser_curve(p3, t, closed=True)
-        # lattice node j sits at t(j), t piecewise linear through (q_i, t_i): on every lattice
-        # interval the curve is one cubic piece, cut exactly (Bezier points do not depend on
-        # the affine parameter of the interval); the period starts at node q0
-        u_nodes = np.append(q, q[0] + m)
-        breaks = np.interp(q[0] + np.arange(m + 1), u_nodes, knots)
-        cut = blending.restrict_curve(ctrl, knots, breaks)
-        curves.append(cut[(np.arange(m) - q[0]) % m])  # np.roll by q0, without its overhead
-        nodes.append(q)
-        pts3.append(p3)
-    return SliceCurves(np.stack(curves), nodes, pts3, params, float(start_angle))
+    nodes = _quantize_many(us, m, values)
+    ns = np.array([len(o) for o in outlines], dtype=np.int64)
+    n_c = len(ns)
+    start = np.cumsum(ns) - ns
+    curve = np.repeat(np.arange(n_c), ns)
+    flat = np.concatenate(outlines)
+    p3 = np.column_stack([flat, zz[curve]])
+    ctrl, knots = blending.overhauser_closed_curves(p3, _geometry_parameters(flat, start, ns, geometry), ns)
+    # lattice node j sits at t(j), t piecewise linear through (q_i, t_i) (np.interp's formula): on
+    # every lattice interval the curve is one cubic piece, cut exactly (Bezier points do not depend
+    # on the affine parameter of the interval); the period starts at node q0, so lattice interval
+    # L of slice c is [x, x + 1] with x = L, or L + M before q0
+    q = np.concatenate(nodes)
+    q_next = np.append(q[1:], 0)
+    q_next[start + ns - 1] = q[start] + m
+    lattice = np.arange(m)
+    x = lattice + m * (lattice < q[start][:, None])  # (C, M)
+    g = np.searchsorted(curve * 2 * m + q, (np.arange(n_c)[:, None] * 2 * m + x).ravel(), side="right") - 1
+    x = x.ravel().astype(np.float64)
+    k_lo, k_hi = knots[g + curve[g]], knots[g + curve[g] + 1]
+    x_lo, x_hi = q[g].astype(np.float64), q_next[g].astype(np.float64)
+    slope = (k_hi - k_lo) / (x_hi - x_lo)
+    b_lo = np.where(x == x_lo, k_lo, slope * (x - x_lo) + k_lo)
+    b_hi = np.where(x + 1.0 == x_hi, k_hi, slope * (x + 1.0 - x_lo) + k_lo)
+    cut = blending.restrict_segments(ctrl[g], k_lo, k_hi, b_lo, b_hi).reshape(n_c, m, 4, 3)
+    return SliceCurves(cut, nodes, np.split(p3, start[1:]), params, float(start_angle))
 
 
 # ------------------------------------------------------------------ methods
