@@ -306,8 +306,24 @@ def _corner_eval(patches: BezierPatches, n_slices: int) -> NodeEval:
 
 
 def _side_blending(curves: np.ndarray, v: np.ndarray, monotone: bool = False) -> tuple[BezierPatches, NodeEval]:
-    patches = blending.blend_curves(curves, closed_u=True, params=v, monotone=monotone)
+    if not monotone:
+        patches = blending.blend_curves(curves, closed_u=True, params=v)
+    else:
+        patches, limited = blending.monotone_blend(curves, closed_u=True, params=v)
+        if len(curves) >= 3:
+            _last_overshoot[:] = [curves.copy(), v.copy(), _overshoot_count(limited)]
     return patches, _corner_eval(patches, len(curves))
+
+
+#: The curves and ``v`` of the last monotone blend and their :func:`blend_overshoot`: a body
+#: blends its side surface, then reports the overshoot of the same curves, which is then a
+#: comparison instead of the limit a second time (by value, so a changed array misses).
+_last_overshoot: list = []
+
+
+def _overshoot_count(limited: np.ndarray) -> int:
+    """(curve, Bezier point) pairs of a (K, M, 4, 3) limit mask with x or y limited."""
+    return int(np.count_nonzero(limited[..., 0] | limited[..., 1]))
 
 
 def blend_overshoot(curves, v=None) -> int:
@@ -331,10 +347,12 @@ def blend_overshoot(curves, v=None) -> int:
     k = len(c)
     if k < 3:
         return 0
-    w = blending.blend_weights(k, v)
-    pieces = (w.reshape(-1, k) @ c.reshape(k, -1)).reshape(k - 1, 4, -1)
-    limited = blending.limit_monotone(pieces).limited.reshape(k, -1, 3)
-    return int(np.count_nonzero(limited[..., :2].any(axis=-1)))
+    vv = None if v is None else as_array(v, "v", shape=(k,))
+    last = _last_overshoot[:]
+    if (vv is not None and last and last[0].shape == c.shape and np.array_equal(last[1], vv)
+            and np.array_equal(last[0], c)):
+        return last[2]
+    return _overshoot_count(blending.monotone_blend(c, closed_u=True, params=vv)[1])
 
 
 def ruled_surface(curves) -> tuple[BezierPatches, NodeEval]:

@@ -490,14 +490,48 @@ def blend_curves(curves, closed_u: bool = True, params=None, monotone: bool = Fa
     c = as_array(curves, "curves", shape=(None, None, 4, 3))
     if len(c) < 2:
         raise ValueError(f"curves: need at least 2 curves, got {len(c)}")
+    return _blend(c, closed_u, params, monotone)[0]
+
+
+def monotone_blend(curves, closed_u: bool = True, params=None) -> tuple[BezierPatches, np.ndarray]:
+    """:func:`blend_curves` with ``monotone=True``, and which tangents the limit shortened.
+
+    Parameters
+    ----------
+    curves : array_like, shape (K, M, 4, 3)
+        ``K >= 2`` curves on common ``u`` breakpoints (as for :func:`blend_curves`).
+    closed_u : bool
+        The curves are closed.
+    params : array_like, shape (K,), optional
+        ``v`` of the curves (see :func:`blend_weights`).
+
+    Returns
+    -------
+    patches : BezierPatches
+        ``M x (K - 1)`` patches, the same as ``blend_curves(curves, closed_u, params, monotone=True)``.
+    limited : numpy.ndarray, shape (K, M, 4, 3) bool
+        Per curve, Bezier point and coordinate: the tangent in ``v`` there was
+        shortened or zeroed (:attr:`LimitedBlend.limited`).
+    """
+    c = as_array(curves, "curves", shape=(None, None, 4, 3))
+    if len(c) < 2:
+        raise ValueError(f"curves: need at least 2 curves, got {len(c)}")
+    return _blend(c, closed_u, params, True)
+
+
+def _blend(c: np.ndarray, closed_u: bool, params, monotone: bool) -> tuple[BezierPatches, np.ndarray | None]:
+    """:func:`blend_curves` of validated curves, with the limited tangents when ``monotone``."""
     k, m = c.shape[:2]
     w = blend_weights(k, params)
     # one matrix product over all curves (faster than einsum's batched path)
     mixed = (w.reshape(-1, k) @ c.reshape(k, -1)).reshape(k - 1, 4, m, 4, 3)
+    limited = None
     if monotone:
-        mixed = limit_monotone(mixed.reshape(k - 1, 4, -1)).control.reshape(mixed.shape)
+        blend = _limit_monotone(mixed.reshape(k - 1, 4, -1), in_place=True)
+        mixed = blend.control.reshape(mixed.shape)
+        limited = blend.limited.reshape(c.shape)
     control = np.ascontiguousarray(mixed.transpose(2, 0, 3, 1, 4))
-    return BezierPatches(control, closed_u=closed_u)
+    return BezierPatches(control, closed_u=closed_u), limited
 
 
 @dataclass(frozen=True)
@@ -554,23 +588,46 @@ def limit_monotone(pieces) -> LimitedBlend:
     >>> r.control[:, :, 0].round(3).tolist(), r.limited[:, 0].tolist()
     ([[0.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.5, 1.0]], [True, True, False])
     """
-    p = as_array(pieces, "pieces", shape=(None, 4, None))
-    d = p[:, 3] - p[:, 0]
-    out = p[:, 1] - p[:, 0]  # a_k: leaves node k into piece k
-    inn = p[:, 3] - p[:, 2]  # b_k: enters node k + 1 from piece k
-    n = len(p) + 1
-    scale = np.ones((n,) + d.shape[1:])
-    tiny = 1e-12 * (np.abs(p).max() + 1.0)
-    for side, diff, sl in ((out, d, slice(0, n - 1)), (inn, d, slice(1, n))):
-        # a tangent against the piece's own direction, or longer than its rise, overshoots
-        wrong = (side * diff < 0) | ((np.abs(diff) <= tiny) & (np.abs(side) > tiny))
-        ratio = np.where(np.abs(side) > np.abs(diff), np.abs(diff) / np.maximum(np.abs(side), 1e-300), 1.0)
-        scale[sl] = np.minimum(scale[sl], np.where(wrong, 0.0, ratio))
-    limited = scale < 1.0
-    q = p.copy()
-    q[:, 1] = p[:, 0] + out * scale[:-1]
-    q[:, 2] = p[:, 3] - inn * scale[1:]
-    return LimitedBlend(q, limited)
+    return _limit_monotone(as_array(pieces, "pieces", shape=(None, 4, None)))
+
+
+def _limit_monotone(p: np.ndarray, in_place: bool = False) -> LimitedBlend:
+    """:func:`limit_monotone` of validated pieces (written into ``p`` itself when ``in_place``).
+
+    The buffers are reused from step to step: on a body's few hundred thousand
+    coordinates each fresh temporary costs as much in page faults as its arithmetic.
+    """
+    p0, p3 = p[:, 0], p[:, 3]
+    d = p3 - p0
+    out = p[:, 1] - p0  # a_k: leaves node k into piece k
+    inn = p3 - p[:, 2]  # b_k: enters node k + 1 from piece k
+    tiny = 1e-12 * (max(float(p.max()), -float(p.min())) + 1.0)
+    rise = np.abs(d)
+    flat = rise <= tiny
+    scale = np.empty((len(p) + 1,) + d.shape[1:])
+    scale[-1] = 1.0
+    inn_scale = np.empty_like(d)
+    wrong = np.empty(d.shape, dtype=bool)
+    long_flat = np.empty(d.shape, dtype=bool)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for side, ratio in ((out, scale[:-1]), (inn, inn_scale)):
+            # a tangent against the piece's own direction, or longer than its rise, overshoots
+            np.multiply(side, d, out=ratio)
+            np.less(ratio, 0.0, out=wrong)
+            np.abs(side, out=ratio)
+            np.greater(ratio, tiny, out=long_flat)
+            long_flat &= flat
+            wrong |= long_flat
+            np.divide(rise, ratio, out=ratio)
+            np.fmin(ratio, 1.0, out=ratio)  # also 1 where both are 0 (nan)
+            np.copyto(ratio, 0.0, where=wrong)
+    np.minimum(scale[1:], inn_scale, out=scale[1:])
+    q = p if in_place else p.copy()
+    np.multiply(out, scale[:-1], out=q[:, 1])
+    q[:, 1] += p0
+    np.multiply(inn, scale[1:], out=q[:, 2])
+    np.subtract(p3, q[:, 2], out=q[:, 2])
+    return LimitedBlend(q, scale < 1.0)
 
 
 def from_grid(points, u_params=None, closed_u: bool = False, closed_v: bool = False) -> BezierPatches:

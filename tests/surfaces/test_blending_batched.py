@@ -85,3 +85,54 @@ def test_restrict_segments_closed_form():
     np.testing.assert_allclose(out, expect, atol=1e-14)
     with pytest.raises(ValueError, match="increase strictly"):
         blending.restrict_segments(seg, [0.0], [2.0], [b], [a])
+
+
+def _limit_reference(p):
+    """Fritsch-Carlson limit written plainly, node by node and coordinate by coordinate."""
+    n = len(p) + 1
+    scale = np.ones((n, p.shape[2]))
+    tiny = 1e-12 * (np.abs(p).max() + 1.0)
+    for k in range(n - 1):
+        for f in range(p.shape[2]):
+            d = p[k, 3, f] - p[k, 0, f]
+            for side, node in ((p[k, 1, f] - p[k, 0, f], k), (p[k, 3, f] - p[k, 2, f], k + 1)):
+                if side * d < 0 or (abs(d) <= tiny and abs(side) > tiny):
+                    r = 0.0
+                else:
+                    r = abs(d) / abs(side) if abs(side) > abs(d) else 1.0
+                scale[node, f] = min(scale[node, f], r)
+    q = p.copy()
+    q[:, 1] = p[:, 0] + (p[:, 1] - p[:, 0]) * scale[:-1]
+    q[:, 2] = p[:, 3] - (p[:, 3] - p[:, 2]) * scale[1:]
+    return q, scale < 1.0
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_limit_monotone_equals_plain_loop(seed):
+    rng = np.random.default_rng(seed)
+    nodes = rng.normal(size=(7, 5))
+    nodes[3, 0] = nodes[2, 0]  # a flat piece
+    w = blending.blend_weights(7, np.cumsum(rng.uniform(0.5, 2.0, 7)))
+    pieces = (w.reshape(-1, 7) @ nodes).reshape(6, 4, 5)
+    pieces[2, 1, 1] = pieces[2, 0, 1]  # a zero tangent
+    before = pieces.copy()
+    got = blending.limit_monotone(pieces)
+    q, limited = _limit_reference(pieces)
+    np.testing.assert_array_equal(got.control, q)
+    np.testing.assert_array_equal(got.limited, limited)
+    np.testing.assert_array_equal(pieces, before)  # the input is left alone
+    assert limited.any() and not limited.all()
+
+
+def test_monotone_blend_is_blend_curves_with_its_limit():
+    rng = np.random.default_rng(4)
+    curves = rng.normal(size=(5, 6, 4, 3))
+    curves[:, -1, 3] = curves[:, 0, 0]  # closed in u
+    v = np.cumsum(rng.uniform(0.5, 2.0, 5))
+    patches, limited = blending.monotone_blend(curves, params=v)
+    np.testing.assert_array_equal(patches.control, blending.blend_curves(curves, params=v, monotone=True).control)
+    w = blending.blend_weights(5, v)
+    pieces = (w.reshape(-1, 5) @ curves.reshape(5, -1)).reshape(4, 4, -1)
+    np.testing.assert_array_equal(limited, blending.limit_monotone(pieces).limited.reshape(curves.shape))
+    with pytest.raises(ValueError, match="at least 2 curves"):
+        blending.monotone_blend(curves[:1])
