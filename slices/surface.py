@@ -26,8 +26,8 @@ import numpy as np
 from slices.control_points import (
     START_CANDIDATES,
     ContourParameters,
-    _parameterize,
-    _polar,
+    _parameterize_many,
+    _polars,
     _quantize_many,
     _start_angle,
     _support_crossings,
@@ -122,6 +122,26 @@ def _geometry_parameters(points: np.ndarray, start: np.ndarray, sizes: np.ndarra
     cum[curve, local + 1] = seg
     cum = np.cumsum(cum, axis=1)
     return cum[curve, local] / cum[np.arange(n_c), sizes][curve]
+
+
+def _support_arcs(params: list, start: np.ndarray, sizes: np.ndarray) -> list:
+    """Per contour, its points' arc length from support point 0 (the same ray on every slice),
+    as a fraction of the perimeter; ``start``/``sizes`` place the contours one after the other."""
+    n_c = len(sizes)
+    # contour c's support point 0, then its points, from row start[c] + c; the last edge returns to the first
+    closed = np.concatenate([x for par in params for x in (par.support[:1], par.points)])
+    first = start + np.arange(n_c)
+    nxt = np.arange(1, len(closed) + 1)
+    nxt[first + sizes] = first
+    d = closed[nxt] - closed
+    curve = np.repeat(np.arange(n_c), sizes + 1)
+    local = np.arange(len(closed)) - first[curve]
+    cum = np.zeros((n_c, int(sizes.max()) + 1))
+    cum[curve, local] = np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1])
+    np.cumsum(cum, axis=1, out=cum)  # one row per contour: every running sum starts afresh
+    at_point = local < sizes[curve]
+    frac = cum[curve[at_point], local[at_point]] / cum[np.arange(n_c), sizes][curve[at_point]]
+    return np.split(frac, start[1:])
 
 
 def aligned_arcs(points, arcs) -> list:
@@ -228,21 +248,14 @@ def slice_curves(contours, z, n_rays: int, n_lattice: int | None = None,
         if len(p) < 3:
             raise ValueError(f"contours[{i}]: needs at least 3 points, got {len(p)}")
     # the ray origin, polar angles and arc lengths serve both the rotation's choice and the parameters
-    polars = [_polar(p) for p in ps]
+    polars = _polars(ps)
     if start_angle is None:
-        start_angle = _start_angle(ps, polars, n1, START_CANDIDATES) if len(ps) > 1 else 0.0
+        start_angle = _start_angle(polars, n1, START_CANDIDATES) if len(ps) > 1 else 0.0
     start_angle = float(start_angle)
-    crossings = _support_crossings(ps, polars, n1, start_angle)
-    params: list[ContourParameters] = [
-        _parameterize(p, n1, start_angle, pol, [c[i] for c in crossings]) for i, (p, pol) in enumerate(zip(ps, polars))
-    ]
+    params: list[ContourParameters] = _parameterize_many(
+        polars, n1, start_angle, _support_crossings(polars, n1, start_angle))
     m = n_lattice or lattice_size(max(len(p.u) for p in params))
-    # arc length from support point 0 (the same ray on every slice), fraction of the perimeter
-    arcs = []
-    for par in params:
-        closed = np.vstack([par.support[:1], par.points, par.support[:1]])
-        cum = np.cumsum(np.linalg.norm(np.diff(closed, axis=0), axis=1))
-        arcs.append(cum[:-1] / cum[-1])
+    arcs = _support_arcs(params, polars.start, polars.sizes)
     outlines = [p.points for p in params]
     if correspondence == "aligned":
         # each outline starts at its point of smallest shifted arc length, so u increases along it
