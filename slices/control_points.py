@@ -382,9 +382,7 @@ def _parameterize_many(polars: _Polars, n1: int, start_angle: float, crossings) 
     """:func:`parameterize` of every contour of ``polars`` at once, given their
     :func:`_support_crossings` for ``start_angle``'s rays; a list of :class:`ContourParameters`.
 
-    Every contour's steps are those of one contour alone, on concatenated arrays:
-    ragged sorts and searches go through :func:`numpy.lexsort` keyed by contour,
-    so ties break exactly as they do contour by contour.
+    Every contour's steps are those of one contour alone, on concatenated arrays.
     """
     pts_all, start, ns, off3 = polars.pts, polars.start, polars.sizes, polars.off3
     n_c = len(ns)
@@ -406,15 +404,16 @@ def _parameterize_many(polars: _Polars, n1: int, start_angle: float, crossings) 
     tot = total[curve]
     a_vert = (polars.arc[off3[curve] + local] - (s0 - total)[curve]) % tot
     a_vert[np.abs(a_vert - tot) <= 1e-12 * tot] = 0.0
-    rot = np.lexsort((a_vert, curve))  # a stable sort inside every contour
+    bounds = list(zip(start.tolist(), (start + ns).tolist()))
+    # ragged sorts and searches contour by contour: one cheap call each, exact (no shifted keys)
+    rot = np.concatenate([lo + np.argsort(a_vert[lo:hi], kind="stable") for lo, hi in bounds])
     a_vert = a_vert[rot]
     local_rot = rot - start[curve]
     # unwrapped polar angle of each vertex on the period that starts at support 0
     periods = np.maximum(np.ceil((s0[curve] - polars.arc[off3[curve] + ns[curve] + local_rot]) / tot - 1e-12), 0.0)
     phi_v = polars.phi[off3[curve] + ns[curve] + local_rot] + 2 * np.pi * periods
-    # segment of each vertex: how many of its contour's sigma lie at or below it (searchsorted, right)
-    seg_of = np.clip(_count_at_or_below(sigma[:, :-1].ravel(), np.repeat(np.arange(n_c), n1), a_vert, curve) - 1,
-                     0, n1 - 1)
+    seg_of = np.concatenate([np.searchsorted(sig, a_vert[lo:hi], side="right") for sig, (lo, hi) in zip(sigma, bounds)])
+    seg_of = np.clip(seg_of - 1, 0, n1 - 1)
     key = curve * n1 + seg_of
     seg_lo = ang[np.arange(n_c), first][curve] + seg_of * delta
     folded_vertex = (phi_v < seg_lo - 1e-9) | (phi_v > seg_lo + delta + 1e-9)
@@ -439,16 +438,22 @@ def _parameterize_many(polars: _Polars, n1: int, start_angle: float, crossings) 
     first_in_seg = np.cumsum(n2) - n2
     rank = np.arange(len(t_idx)) - first_in_seg[t_key] + 1
     u_turn = (seg_of[t_idx] + rank / (n2[t_key] + 1.0)) / n1
-    # eq. 5: chord length between consecutive anchors (support and turning points), np.interp's formula
-    anchor_arc = np.concatenate([sigma.ravel(), a_vert[t_idx]])
-    anchor_u = np.concatenate([np.tile(np.arange(n1 + 1) / n1, n_c), u_turn])
-    anchor_curve = np.concatenate([np.repeat(np.arange(n_c), n1 + 1), curve[t_idx]])
-    o = np.lexsort((np.arange(len(anchor_arc)), anchor_arc, anchor_curve))
-    anchor_arc, anchor_u = anchor_arc[o], anchor_u[o]
-    j = _count_at_or_below(anchor_arc, anchor_curve[o], a_vert, curve) - 1
-    j += (np.cumsum(np.bincount(anchor_curve, minlength=n_c)) - np.bincount(anchor_curve, minlength=n_c))[curve]
-    x0, x1, f0, f1 = anchor_arc[j], anchor_arc[j + 1], anchor_u[j], anchor_u[j + 1]
-    u = np.where(a_vert == x0, f0, (f1 - f0) / (x1 - x0) * (a_vert - x0) + f0)
+    # eq. 5: chord length between consecutive anchors (support and turning points); a turning point lies
+    # strictly inside its segment, so the anchors' order follows from the counts: sigma[c, k] after the
+    # turning points of the segments before k, a turning point after its segment's sigma
+    anchor_arc = np.empty(n_c * (n1 + 1) + len(t_idx))
+    anchor_u = np.empty_like(anchor_arc)
+    n_before = np.append(first_in_seg.reshape(n_c, n1), (first_in_seg[n1 - 1::n1] + n2[n1 - 1::n1])[:, None], axis=1)
+    at_sigma = (np.arange(n_c) * (n1 + 1))[:, None] + np.arange(n1 + 1) + n_before
+    anchor_arc[at_sigma] = sigma
+    anchor_u[at_sigma] = np.arange(n1 + 1) / n1
+    at_turn = curve[t_idx] * (n1 + 1) + seg_of[t_idx] + 1 + np.arange(len(t_idx))
+    anchor_arc[at_turn] = a_vert[t_idx]
+    anchor_u[at_turn] = u_turn
+    a_lo = at_sigma[:, 0].tolist()
+    a_hi = (at_sigma[:, -1] + 1).tolist()
+    u = np.concatenate([np.interp(a_vert[lo:hi], anchor_arc[al:ah], anchor_u[al:ah])
+                        for (lo, hi), al, ah in zip(bounds, a_lo, a_hi)])
     u[t_idx] = u_turn
     bad = (np.diff(u) <= 0) & (curve[1:] == curve[:-1])
     if np.any(bad) or np.any(u[last] >= 1.0):
@@ -457,21 +462,6 @@ def _parameterize_many(polars: _Polars, n1: int, start_angle: float, crossings) 
     cut = start[1:]
     return [ContourParameters(pp, uu, cc, ss, tt) for pp, uu, cc, ss, tt in zip(
         np.split(pts, cut), np.split(u, cut), polars.centers, support_xy, np.split(turning, cut))]
-
-
-def _count_at_or_below(values: np.ndarray, values_curve: np.ndarray, x: np.ndarray, x_curve: np.ndarray) -> np.ndarray:
-    """For every ``x``, how many ``values`` of its own contour are ``<= x``
-    (:func:`numpy.searchsorted` with ``side="right"`` contour by contour, exact: no shifted keys)."""
-    n_v = len(values)
-    both = np.concatenate([values, x])
-    kind = np.repeat(np.array([0, 1], dtype=np.int8), [n_v, len(x)])  # values before x where equal
-    o = np.lexsort((kind, both, np.concatenate([values_curve, x_curve])))
-    is_value = o < n_v
-    seen = np.cumsum(is_value)
-    count = np.empty(len(x), dtype=np.int64)
-    count[o[~is_value] - n_v] = seen[~is_value]
-    before = np.cumsum(np.bincount(values_curve, minlength=int(x_curve.max(initial=0)) + 1))
-    return count - np.concatenate([[0], before[:-1]])[x_curve]
 
 
 class _Polars(NamedTuple):
