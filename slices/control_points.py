@@ -566,7 +566,22 @@ def _support_crossings(polars: _Polars, n1: int, start_angle: float):
     k_lo = np.maximum(np.floor((phi[g] - start_angle) / delta).astype(np.int64), k_base[cid])
     k_hi = np.minimum(np.floor((phi[g + 1] - start_angle) / delta).astype(np.int64), k_base[cid] + n1)
     count = np.maximum(k_hi - k_lo, 0)
-    # per edge what its crossings share, gathered once per edge (x and y apart: 1-D gathers are cheap)
+    ie = np.repeat(np.arange(len(cid)), count)  # the edge of every crossing
+    level_k = np.repeat(k_lo + 1 - (np.cumsum(count) - count), count) + np.arange(len(ie))
+    # group the crossings by (contour, level): levels lie in k_base + [1, n1], so one integer key
+    # orders them; the input is nearly in that order already, which a stable sort exploits
+    key = np.repeat(cid * (n1 + 1) - k_base[cid], count) + level_k
+    order = np.argsort(key, kind="stable")
+    sorted_key = key[order]
+    starts = np.flatnonzero(np.r_[True, sorted_key[1:] != sorted_key[:-1]])
+    if len(starts) != n_c * n1:  # a contour has at most n1 levels: one is missing
+        found = np.bincount(sorted_key[starts] // (n1 + 1), minlength=n_c)
+        bad = int(np.flatnonzero(found != n1)[0])
+        where = "points" if n_c == 1 else f"contours[{bad}]"
+        raise ValueError(f"{where}: found support points for {found[bad]} of {n1} rays")
+    sizes = np.diff(np.r_[starts, len(order)])
+    # per edge what its crossings share (x and y apart: 1-D gathers are cheap); the geometry is
+    # computed only for the crossings that compete (a level crossed more than once) and the picks
     a_idx = offp[cid] + e % ns[cid]
     b_idx = offp[cid] + (e + 1) % ns[cid]
     ax, ay, bx, by = pts[a_idx, 0], pts[a_idx, 1], pts[b_idx, 0], pts[b_idx, 1]
@@ -575,48 +590,46 @@ def _support_crossings(polars: _Polars, n1: int, start_angle: float):
     rx, ry = ax - cx, ay - cy
     edge_len = arc[off3[cid] + e % ns[cid] + 1] - arc[off3[cid] + e % ns[cid]]
     arc_g = arc[g]
-    ie = np.repeat(np.arange(len(cid)), count)  # the edge of every crossing
-    cid = cid[ie]
-    level_k = np.repeat(k_lo + 1, count) + (np.arange(len(ie)) - np.repeat(np.cumsum(count) - count, count))
     # the rays' directions from a table over the levels that occur (the same values, fewer cosines)
     k_min = int(level_k.min(initial=0))
     table = start_angle + np.arange(k_min, int(level_k.max(initial=0)) + 1) * delta
     cos_t, sin_t = np.cos(table), np.sin(table)
-    cos_k, sin_k = cos_t[level_k - k_min], sin_t[level_k - k_min]
-    sx, sy, cx, cy = sx[ie], sy[ie], cx[ie], cy[ie]
-    num = rx[ie] * sin_k - ry[ie] * cos_k
-    den = sx * sin_k - sy * cos_k
-    t = np.clip(-num / np.where(den == 0, 1e-300, den), 0.0, 1.0)
-    s_all = arc_g[ie] + t * edge_len[ie]
-    x_all = ax[ie] + t * sx
-    y_all = ay[ie] + t * sy
-    radius = (x_all - cx) * cos_k + (y_all - cy) * sin_k
-    # group the crossings by (contour, level): levels lie in k_base + [1, n1], so one integer key
-    # orders them; the input is nearly in that order already, which a stable sort exploits
-    key = cid * (n1 + 1) + (level_k - k_base[cid])
-    order = np.argsort(key, kind="stable")
-    sorted_key = key[order]
-    starts = np.flatnonzero(np.r_[True, sorted_key[1:] != sorted_key[:-1]])
-    found = np.bincount(cid[order[starts]], minlength=n_c)
-    if np.any(found != n1):
-        bad = int(np.flatnonzero(found != n1)[0])
-        where = "points" if n_c == 1 else f"contours[{bad}]"
-        raise ValueError(f"{where}: found support points for {found[bad]} of {n1} rays")
-    sizes = np.diff(np.r_[starts, len(order)])
 
-    def pick_extreme(values: np.ndarray, reduce) -> np.ndarray:
-        # per group the crossing of least (or greatest) value, ties to the earliest crossing
-        v = values[order]
-        best = np.repeat(reduce.reduceat(v, starts), sizes)
-        return np.minimum.reduceat(np.where(v == best, order, len(order)), starts).reshape(n_c, n1)
+    def crossing(idx: np.ndarray):
+        # arc position, point and distance from the origin along the ray of crossings idx
+        j, lv = ie[idx], level_k[idx] - k_min
+        cos_k, sin_k, sx_j, sy_j = cos_t[lv], sin_t[lv], sx[j], sy[j]
+        num = rx[j] * sin_k - ry[j] * cos_k
+        den = sx_j * sin_k - sy_j * cos_k
+        t = np.clip(-num / np.where(den == 0, 1e-300, den), 0.0, 1.0)
+        x, y = ax[j] + t * sx_j, ay[j] + t * sy_j
+        return arc_g[j] + t * edge_len[j], x, y, (x - cx[j]) * cos_k + (y - cy[j]) * sin_k
 
-    pick = pick_extreme(radius, np.maximum)  # each level's crossing farthest from the origin
-    s_outer = s_all[pick]
+    outer = order[starts]  # a level crossed once: its only crossing, either way
+    first = outer.copy()  # (the first crossings along the contour, needed only when unordered)
+    multi = np.flatnonzero(sizes > 1)
+    if len(multi):
+        m_sizes = sizes[multi]
+        m_starts = np.cumsum(m_sizes) - m_sizes
+        cand = order[np.repeat(starts[multi] - m_starts, m_sizes) + np.arange(int(m_sizes.sum()))]
+        s_c, _, _, radius = crossing(cand)
+
+        def pick_extreme(values: np.ndarray, reduce) -> np.ndarray:
+            # per group the crossing of least (or greatest) value, ties to the earliest crossing
+            best = np.repeat(reduce.reduceat(values, m_starts), m_sizes)
+            return np.minimum.reduceat(np.where(values == best, cand, len(order)), m_starts)
+
+        outer[multi] = pick_extreme(radius, np.maximum)  # the crossing farthest from the origin
+    pick = outer.reshape(n_c, n1)
+    s_pick, x_pick, y_pick, _ = crossing(pick)
     total = arc[off3 + ns]
-    unordered = np.any(np.diff(s_outer, axis=1) <= 0, axis=1) | (s_outer[:, -1] - s_outer[:, 0] >= total)
+    unordered = np.any(np.diff(s_pick, axis=1) <= 0, axis=1) | (s_pick[:, -1] - s_pick[:, 0] >= total)
     if unordered.any():  # then each level's first crossing along the contour
-        pick = np.where(unordered[:, None], pick_extreme(s_all, np.minimum), pick)
-    return s_all[pick], np.stack([x_all[pick], y_all[pick]], axis=-1), level_k[pick], table[level_k[pick] - k_min]
+        if len(multi):
+            first[multi] = pick_extreme(s_c, np.minimum)
+        pick = np.where(unordered[:, None], first.reshape(n_c, n1), pick)
+        s_pick, x_pick, y_pick, _ = crossing(pick)
+    return s_pick, np.stack([x_pick, y_pick], axis=-1), level_k[pick], table[level_k[pick] - k_min]
 
 
 def ray_supports(points, n_rays: int, start_angle: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
@@ -647,12 +660,16 @@ def ray_supports(points, n_rays: int, start_angle: float = 0.0) -> tuple[np.ndar
     return frac[0], xy[0]
 
 
-def _ray_supports(polars: _Polars, n1: int, start_angle: float) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`ray_supports` of the contours of ``polars`` (:func:`_polars`): shapes (C, n1), (C, n1, 2)."""
+def _ray_supports(polars: _Polars, n1: int, start_angle: float,
+                  points: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
+    """:func:`ray_supports` of the contours of ``polars`` (:func:`_polars`): shapes (C, n1), (C, n1, 2)
+    (the points only when ``points``)."""
     s_arc, xy, level_k, _ = _support_crossings(polars, n1, start_angle)
-    order = np.argsort(level_k % n1, axis=1)
+    # each contour's row runs through n1 consecutive levels: ray k sits at column (k - first level) mod n1
+    order = (np.arange(n1) - level_k[:, :1]) % n1
     total = polars.arc[polars.off3 + polars.sizes][:, None]
-    return (np.take_along_axis(s_arc, order, axis=1) % total) / total, xy[np.arange(len(total))[:, None], order]
+    frac = (np.take_along_axis(s_arc, order, axis=1) % total) / total
+    return frac, (xy[np.arange(len(total))[:, None], order] if points else None)
 
 
 #: Rotations of the rays that :func:`choose_start_angle` tries by default, evenly over one ray spacing.
@@ -699,7 +716,7 @@ def choose_start_angle(contours, n_rays: int, candidates: int = START_CANDIDATES
 
 def _start_angle(polars: _Polars, n1: int, r: int) -> float:
     """:func:`choose_start_angle` of the contours of ``polars`` (:func:`_polars`, two or more)."""
-    frac = _ray_supports(polars, n1 * r, 0.0)[0].reshape(len(polars.sizes), n1, r)
+    frac = _ray_supports(polars, n1 * r, 0.0, points=False)[0].reshape(len(polars.sizes), n1, r)
     shift = (np.diff(frac, axis=0) + 0.5) % 1.0 - 0.5  # (K-1, N1, R)
     shift -= np.median(shift, axis=1, keepdims=True)
     cost = np.abs(shift).max(axis=1).sum(axis=0)  # (R,)
