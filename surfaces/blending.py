@@ -397,11 +397,24 @@ def restrict_segments(control, start, end, lo, hi) -> np.ndarray:
     h = k1 - k0
     if np.any(h <= 0) or np.any(b1 <= b0):
         raise ValueError("start/end, lo/hi: every range must increase strictly")
-    s0, s1 = (b0 - k0) / h, (b1 - k0) / h
-    p0, d0 = _segment_values(c, s0, h, 0), _segment_values(c, s0, h, 1)
-    p1, d1 = _segment_values(c, s1, h, 0), _segment_values(c, s1, h, 1)
+    t = np.empty((len(c), 2))
+    t[:, 0] = (b0 - k0) / h
+    t[:, 1] = (b1 - k0) / h
+    # the cubic Bernstein basis and its derivative at both ends (as surfaces.bezier.bernstein), so
+    # one product gives the end points and end derivatives of every piece
+    r = 1.0 - t
+    basis = np.empty((len(c), 2, 2, 4))
+    basis[:, :, 0] = np.stack([r * r * r, 3.0 * t * r * r, 3.0 * t * t * r, t * t * t], axis=-1)
+    basis[:, :, 1] = np.stack([-3.0 * r * r, 3.0 * r * (r - 2.0 * t), 3.0 * t * (2.0 * r - t), 3.0 * t * t], axis=-1)
+    ends = (basis.reshape(len(c), 4, 4) @ c).reshape(len(c), 2, 2, -1)  # (P, end, order, d)
+    hh = h[:, None]
     w = (b1 - b0)[:, None]
-    return np.stack([p0, p0 + w * d0 / 3.0, p1 - w * d1 / 3.0, p1], axis=1)
+    out = np.empty_like(c)
+    out[:, 0] = p0 = ends[:, 0, 0]
+    out[:, 3] = p1 = ends[:, 1, 0]
+    out[:, 1] = p0 + w * (ends[:, 0, 1] / hh) / 3.0
+    out[:, 2] = p1 - w * (ends[:, 1, 1] / hh) / 3.0
+    return out
 
 
 def blend_weights(n_curves: int, params=None) -> np.ndarray:
