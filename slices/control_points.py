@@ -718,7 +718,13 @@ def _start_angle(polars: _Polars, n1: int, r: int) -> float:
     """:func:`choose_start_angle` of the contours of ``polars`` (:func:`_polars`, two or more)."""
     frac = _ray_supports(polars, n1 * r, 0.0, points=False)[0].reshape(len(polars.sizes), n1, r)
     shift = (np.diff(frac, axis=0) + 0.5) % 1.0 - 0.5  # (K-1, N1, R)
-    shift -= np.median(shift, axis=1, keepdims=True)
+    # the median over the rays (np.median's partition and mean of the middle pair, without its overhead)
+    half = n1 // 2
+    if n1 % 2:
+        shift -= np.partition(shift, half, axis=1)[:, half:half + 1]
+    else:
+        mid = np.partition(shift, (half - 1, half), axis=1)
+        shift -= (mid[:, half - 1:half] + mid[:, half:half + 1]) / 2.0
     cost = np.abs(shift).max(axis=1).sum(axis=0)  # (R,)
     return float(2 * np.pi * int(np.argmin(cost)) / (n1 * r))
 
@@ -786,14 +792,30 @@ def balanced_lattice_values(u_list, arc_list, n_lattice: int) -> np.ndarray:
     m = int(positive(n_lattice, "n_lattice"))
     if len(u_list) != len(arc_list) or not len(u_list):
         raise ValueError("u_list, arc_list: need the same, non-zero number of slices")
-    grid = np.unique(np.concatenate([[0.0, 1.0], *[as_array(u, "u", ndim=1) for u in u_list]]))
-    mean = np.zeros_like(grid)
-    for u, a in zip(u_list, arc_list):
-        mean += np.interp(grid, np.concatenate([[0.0], u, [1.0]]), np.concatenate([[0.0], a, [1.0]]))
-    mean /= len(u_list)
+    us = [as_array(u, "u", ndim=1) for u in u_list]
+    arcs = [as_array(a, "arc_list", shape=(len(u),)) for a, u in zip(arc_list, us)]
+    return _balanced_values(np.concatenate(us), np.concatenate(arcs), np.array([len(u) for u in us]), m)
+
+
+def _balanced_values(u_all: np.ndarray, arc_all: np.ndarray, sizes: np.ndarray, m: int) -> np.ndarray:
+    """:func:`balanced_lattice_values` of every slice's validated parameters and arcs one after the other."""
+    n_c = len(sizes)
+    # each slice's (u, arc) between (0, 0) and (1, 1)
+    off = np.cumsum(sizes + 2) - (sizes + 2)
+    xp = np.zeros(len(u_all) + 2 * n_c)
+    fp = np.zeros_like(xp)
+    inner = np.arange(len(u_all)) + np.repeat(2 * np.arange(n_c) + 1, sizes)
+    xp[inner] = u_all
+    fp[inner] = arc_all
+    xp[off + sizes + 1] = 1.0
+    fp[off + sizes + 1] = 1.0
+    grid = np.unique(np.concatenate([[0.0, 1.0], u_all]))
+    # summed slice after slice (axis 0 of a C-ordered stack), as the running mean of one slice at a time
+    mean = np.array([np.interp(grid, xp[lo:hi], fp[lo:hi]) for lo, hi in zip(off.tolist(), (off + sizes + 2).tolist())])
+    mean = mean.sum(axis=0) / n_c
     values = np.unique(np.interp(np.arange(m) / m, mean, grid))
     values = values[values < 1.0]
-    if len(values) < max(len(u) for u in u_list):
+    if len(values) < int(sizes.max()):
         values = np.arange(m) / m
     return values
 

@@ -26,12 +26,12 @@ import numpy as np
 from slices.control_points import (
     START_CANDIDATES,
     ContourParameters,
+    _balanced_values,
     _parameterize_many,
     _polars,
     _quantize_many,
     _start_angle,
     _support_crossings,
-    balanced_lattice_values,
     lattice_values,
 )
 from slices.options import SurfaceOptions
@@ -268,7 +268,7 @@ def slice_curves(contours, z, n_rays: int, n_lattice: int | None = None,
     if lattice_mode == "union":
         values = np.unique(np.concatenate(us))
     elif lattice_mode == "balanced":
-        values = balanced_lattice_values(us, arcs, m)
+        values = _balanced_values(np.concatenate(us), np.concatenate(arcs), polars.sizes, m)
     else:
         values = lattice_values(us, m) if lattice_mode == "adaptive" else np.arange(m) / m
     m = len(values)

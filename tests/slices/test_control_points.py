@@ -278,3 +278,33 @@ def test_parameters_of_many_contours_equal_each_alone(n1, start):
         alone = cp.parameterize(p, n1, start)
         for field in ("points", "u", "center", "support", "turning"):
             np.testing.assert_array_equal(getattr(par, field), getattr(alone, field))
+
+
+def test_balanced_lattice_values_of_many_slices_equal_the_running_mean():
+    rng = np.random.default_rng(5)
+    us, arcs = [], []
+    for n in (7, 12, 5, 9):
+        us.append(np.sort(rng.uniform(0, 1, n)))
+        arcs.append(np.sort(rng.uniform(0, 1, n)))
+    m = 30
+    grid = np.unique(np.concatenate([[0.0, 1.0], *us]))
+    mean = np.zeros_like(grid)
+    for u, a in zip(us, arcs):
+        mean += np.interp(grid, np.r_[0.0, u, 1.0], np.r_[0.0, a, 1.0])
+    mean /= len(us)
+    expect = np.unique(np.interp(np.arange(m) / m, mean, grid))
+    np.testing.assert_array_equal(cp.balanced_lattice_values(us, arcs, m), expect[expect < 1.0])
+    with pytest.raises(ValueError, match="arc_list"):
+        cp.balanced_lattice_values(us, [a[:-1] for a in arcs], m)
+
+
+@pytest.mark.parametrize("n1", [7, 8])
+def test_start_angle_is_the_least_median_removed_shift(n1):
+    ps = _ragged_outlines()[:2] + [cp.clean_contour(p) for p in _ragged_outlines()[:2]]
+    ps = [p * (1.0 + 0.05 * i) + 0.3 * i for i, p in enumerate(ps)]
+    r = 4
+    frac = cp._ray_supports(cp._polars(ps), n1 * r, 0.0)[0].reshape(len(ps), n1, r)
+    shift = (np.diff(frac, axis=0) + 0.5) % 1.0 - 0.5
+    shift -= np.median(shift, axis=1, keepdims=True)
+    expect = 2 * np.pi * int(np.argmin(np.abs(shift).max(axis=1).sum(axis=0))) / (n1 * r)
+    assert cp.choose_start_angle(ps, n1, r) == expect
