@@ -607,23 +607,25 @@ def limit_monotone(pieces) -> LimitedBlend:
 def _limit_monotone(p: np.ndarray, in_place: bool = False) -> LimitedBlend:
     """:func:`limit_monotone` of validated pieces (written into ``p`` itself when ``in_place``).
 
-    The buffers are reused from step to step: on a body's few hundred thousand
+    The result's own rows hold the tangents while they are limited, and the
+    buffers are reused from step to step: on a body's few hundred thousand
     coordinates each fresh temporary costs as much in page faults as its arithmetic.
     """
-    p0, p3 = p[:, 0], p[:, 3]
-    d = p3 - p0
-    out = p[:, 1] - p0  # a_k: leaves node k into piece k
-    inn = p3 - p[:, 2]  # b_k: enters node k + 1 from piece k
     tiny = 1e-12 * (max(float(p.max()), -float(p.min())) + 1.0)
+    q = p if in_place else p.copy()
+    q0, q1, q2, q3 = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
+    d = q3 - q0
+    np.subtract(q1, q0, out=q1)  # a_k: leaves node k into piece k
+    np.subtract(q3, q2, out=q2)  # b_k: enters node k + 1 from piece k
     rise = np.abs(d)
     flat = rise <= tiny
-    scale = np.empty((len(p) + 1,) + d.shape[1:])
+    scale = np.empty((len(q) + 1,) + d.shape[1:])
     scale[-1] = 1.0
-    inn_scale = np.empty_like(d)
     wrong = np.empty(d.shape, dtype=bool)
     long_flat = np.empty(d.shape, dtype=bool)
     with np.errstate(divide="ignore", invalid="ignore"):
-        for side, ratio in ((out, scale[:-1]), (inn, inn_scale)):
+        # the last side's ratio overwrites d, which it reads first
+        for side, ratio in ((q1, scale[:-1]), (q2, d)):
             # a tangent against the piece's own direction, or longer than its rise, overshoots
             np.multiply(side, d, out=ratio)
             np.less(ratio, 0.0, out=wrong)
@@ -634,12 +636,11 @@ def _limit_monotone(p: np.ndarray, in_place: bool = False) -> LimitedBlend:
             np.divide(rise, ratio, out=ratio)
             np.fmin(ratio, 1.0, out=ratio)  # also 1 where both are 0 (nan)
             np.copyto(ratio, 0.0, where=wrong)
-    np.minimum(scale[1:], inn_scale, out=scale[1:])
-    q = p if in_place else p.copy()
-    np.multiply(out, scale[:-1], out=q[:, 1])
-    q[:, 1] += p0
-    np.multiply(inn, scale[1:], out=q[:, 2])
-    np.subtract(p3, q[:, 2], out=q[:, 2])
+    np.minimum(scale[1:], d, out=scale[1:])
+    q1 *= scale[:-1]
+    q1 += q0
+    q2 *= scale[1:]
+    np.subtract(q3, q2, out=q2)
     return LimitedBlend(q, scale < 1.0)
 
 
