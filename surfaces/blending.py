@@ -404,8 +404,10 @@ def restrict_segments(control, start, end, lo, hi) -> np.ndarray:
     # one product gives the end points and end derivatives of every piece
     r = 1.0 - t
     basis = np.empty((len(c), 2, 2, 4))
-    basis[:, :, 0] = np.stack([r * r * r, 3.0 * t * r * r, 3.0 * t * t * r, t * t * t], axis=-1)
-    basis[:, :, 1] = np.stack([-3.0 * r * r, 3.0 * r * (r - 2.0 * t), 3.0 * t * (2.0 * r - t), 3.0 * t * t], axis=-1)
+    for b, value in enumerate((r * r * r, 3.0 * t * r * r, 3.0 * t * t * r, t * t * t)):
+        basis[:, :, 0, b] = value
+    for b, value in enumerate((-3.0 * r * r, 3.0 * r * (r - 2.0 * t), 3.0 * t * (2.0 * r - t), 3.0 * t * t)):
+        basis[:, :, 1, b] = value
     ends = (basis.reshape(len(c), 4, 4) @ c).reshape(len(c), 2, 2, -1)  # (P, end, order, d)
     hh = h[:, None]
     w = (b1 - b0)[:, None]
@@ -618,11 +620,10 @@ def _limit_monotone(p: np.ndarray, in_place: bool = False) -> LimitedBlend:
     np.subtract(q1, q0, out=q1)  # a_k: leaves node k into piece k
     np.subtract(q3, q2, out=q2)  # b_k: enters node k + 1 from piece k
     rise = np.abs(d)
-    flat = rise <= tiny
+    flat = np.flatnonzero(rise <= tiny)  # few: pieces that do not rise in a coordinate
     scale = np.empty((len(q) + 1,) + d.shape[1:])
     scale[-1] = 1.0
     wrong = np.empty(d.shape, dtype=bool)
-    long_flat = np.empty(d.shape, dtype=bool)
     with np.errstate(divide="ignore", invalid="ignore"):
         # the last side's ratio overwrites d, which it reads first
         for side, ratio in ((q1, scale[:-1]), (q2, d)):
@@ -630,9 +631,8 @@ def _limit_monotone(p: np.ndarray, in_place: bool = False) -> LimitedBlend:
             np.multiply(side, d, out=ratio)
             np.less(ratio, 0.0, out=wrong)
             np.abs(side, out=ratio)
-            np.greater(ratio, tiny, out=long_flat)
-            long_flat &= flat
-            wrong |= long_flat
+            if len(flat):  # any tangent along a piece that does not rise
+                wrong.ravel()[flat] |= ratio.ravel()[flat] > tiny
             np.divide(rise, ratio, out=ratio)
             np.fmin(ratio, 1.0, out=ratio)  # also 1 where both are 0 (nan)
             np.copyto(ratio, 0.0, where=wrong)
