@@ -545,7 +545,9 @@ def _blend(c: np.ndarray, closed_u: bool, params, monotone: bool) -> tuple[Bezie
         blend = _limit_monotone(mixed.reshape(k - 1, 4, -1), in_place=True)
         mixed = blend.control.reshape(mixed.shape)
         limited = blend.limited.reshape(c.shape)
-    control = np.ascontiguousarray(mixed.transpose(2, 0, 3, 1, 4))
+    # moved as whole 3-vectors (one 24-byte item each), which numpy copies faster than single floats
+    whole = mixed.view(np.dtype((np.void, 8 * 3))).reshape(k - 1, 4, m, 4)
+    control = np.ascontiguousarray(whole.transpose(2, 0, 3, 1)).view(np.float64).reshape(m, k - 1, 4, 4, 3)
     return BezierPatches(control, closed_u=closed_u), limited
 
 
