@@ -532,7 +532,7 @@ def _polars(ps: list) -> _Polars:
     return _Polars(pts, start, ns, centers, ang[start][c3] + acc[0, c3, i3], acc[1, c3, i3], off3)
 
 
-def _support_crossings(polars: _Polars, n1: int, start_angle: float):
+def _support_crossings(polars: _Polars, n1: int, start_angle: float, points: bool = True):
     """Support points of ``n1`` rays: the outermost crossing of each ray with the contour.
 
     A ray from inside a counter-clockwise contour crosses it alternately going
@@ -548,8 +548,8 @@ def _support_crossings(polars: _Polars, n1: int, start_angle: float):
     one array operation over every edge of every contour. Returns, per contour
     (axis 0), the arc positions (unwrapped, increasing in the order of the
     rays, starting with the first ray after the polar-angle record at the
-    start of the second period), their points, the rays' levels and angles:
-    shapes (C, n1), (C, n1, 2), (C, n1), (C, n1).
+    start of the second period), their points (``None`` unless ``points``), the
+    rays' levels and angles: shapes (C, n1), (C, n1, 2), (C, n1), (C, n1).
     """
     pts, offp, ns, centers, phi, arc, off3 = polars
     n_c = len(ns)
@@ -595,13 +595,15 @@ def _support_crossings(polars: _Polars, n1: int, start_angle: float):
     table = start_angle + np.arange(k_min, int(level_k.max(initial=0)) + 1) * delta
     cos_t, sin_t = np.cos(table), np.sin(table)
 
-    def crossing(idx: np.ndarray):
-        # arc position, point and distance from the origin along the ray of crossings idx
+    def crossing(idx: np.ndarray, full: bool = True) -> tuple:
+        # arc position, then (full) point and distance from the origin along the ray, of crossings idx
         j, lv = ie[idx], level_k[idx] - k_min
         cos_k, sin_k, sx_j, sy_j = cos_t[lv], sin_t[lv], sx[j], sy[j]
         num = rx[j] * sin_k - ry[j] * cos_k
         den = sx_j * sin_k - sy_j * cos_k
         t = np.clip(-num / np.where(den == 0, 1e-300, den), 0.0, 1.0)
+        if not full:
+            return (arc_g[j] + t * edge_len[j],)
         x, y = ax[j] + t * sx_j, ay[j] + t * sy_j
         return arc_g[j] + t * edge_len[j], x, y, (x - cx[j]) * cos_k + (y - cy[j]) * sin_k
 
@@ -621,15 +623,17 @@ def _support_crossings(polars: _Polars, n1: int, start_angle: float):
 
         outer[multi] = pick_extreme(radius, np.maximum)  # the crossing farthest from the origin
     pick = outer.reshape(n_c, n1)
-    s_pick, x_pick, y_pick, _ = crossing(pick)
+    picked = crossing(pick, full=points)
     total = arc[off3 + ns]
+    s_pick = picked[0]
     unordered = np.any(np.diff(s_pick, axis=1) <= 0, axis=1) | (s_pick[:, -1] - s_pick[:, 0] >= total)
     if unordered.any():  # then each level's first crossing along the contour
         if len(multi):
             first[multi] = pick_extreme(s_c, np.minimum)
         pick = np.where(unordered[:, None], first.reshape(n_c, n1), pick)
-        s_pick, x_pick, y_pick, _ = crossing(pick)
-    return s_pick, np.stack([x_pick, y_pick], axis=-1), level_k[pick], table[level_k[pick] - k_min]
+        picked = crossing(pick, full=points)
+    xy = np.stack(picked[1:3], axis=-1) if points else None
+    return picked[0], xy, level_k[pick], table[level_k[pick] - k_min]
 
 
 def ray_supports(points, n_rays: int, start_angle: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
@@ -664,7 +668,7 @@ def _ray_supports(polars: _Polars, n1: int, start_angle: float,
                   points: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
     """:func:`ray_supports` of the contours of ``polars`` (:func:`_polars`): shapes (C, n1), (C, n1, 2)
     (the points only when ``points``)."""
-    s_arc, xy, level_k, _ = _support_crossings(polars, n1, start_angle)
+    s_arc, xy, level_k, _ = _support_crossings(polars, n1, start_angle, points)
     # each contour's row runs through n1 consecutive levels: ray k sits at column (k - first level) mod n1
     order = (np.arange(n1) - level_k[:, :1]) % n1
     total = polars.arc[polars.off3 + polars.sizes][:, None]
