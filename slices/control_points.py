@@ -39,6 +39,7 @@ Project decisions where the seed is silent:
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -373,84 +374,165 @@ def parameterize(points, n_rays: int, start_angle: float = 0.0) -> ContourParame
         raise ValueError(f"n_rays: need at least 3 rays (seed 000, eq. 1), got {n_rays}")
     if len(p) < 3:
         raise ValueError(f"points: needs at least 3 points, got {len(p)}")
-    polar = _polar(p)
-    crossings = [c[0] for c in _support_crossings([p], [polar], n1, start_angle)]
-    return _parameterize(p, n1, start_angle, polar, crossings)
+    polars = _polars([p])
+    return _parameterize_many(polars, n1, start_angle, _support_crossings(polars, n1, start_angle))[0]
 
 
-def _parameterize(p: np.ndarray, n1: int, start_angle: float, polar, crossings) -> ContourParameters:
-    """:func:`parameterize` of a validated contour with its :func:`_polar` and its row of
-    :func:`_support_crossings` (``start_angle``'s rays) already known."""
-    n = len(p)
-    center, phi, arc = polar
-    total = arc[n]
+def _parameterize_many(polars: _Polars, n1: int, start_angle: float, crossings) -> list:
+    """:func:`parameterize` of every contour of ``polars`` at once, given their
+    :func:`_support_crossings` for ``start_angle``'s rays; a list of :class:`ContourParameters`.
+
+    Every contour's steps are those of one contour alone, on concatenated arrays.
+    """
+    pts_all, start, ns, off3 = polars.pts, polars.start, polars.sizes, polars.off3
+    n_c = len(ns)
+    curve = np.repeat(np.arange(n_c), ns)
+    local = np.arange(len(pts_all)) - start[curve]
+    total = polars.arc[off3 + ns]
     delta = 2 * np.pi / n1
     s_arc, support_xy, level_k, ang = crossings
-    first = int(np.flatnonzero(level_k % n1 == 0)[0])
-    order = (np.arange(n1) + first) % n1
-    s0 = s_arc[first]
-    sigma = np.append((s_arc[order] - s0) % total, total)
-    sigma[0] = 0.0
-    support_xy = support_xy[order]
+    rows = np.arange(n_c)[:, None]
+    first = np.argmax(level_k % n1 == 0, axis=1)
+    order = (np.arange(n1) + first[:, None]) % n1
+    s0 = s_arc[np.arange(n_c), first]
+    sigma = np.empty((n_c, n1 + 1))
+    sigma[:, :n1] = (s_arc[rows, order] - s0[:, None]) % total[:, None]
+    sigma[:, n1] = total
+    sigma[:, 0] = 0.0
+    support_xy = support_xy[rows, order]
     # vertex arc positions relative to support 0, in [0, total)
-    a_vert = (arc[:n] - (s0 - total)) % total
-    a_vert[np.abs(a_vert - total) <= 1e-12 * total] = 0.0
-    rot = np.argsort(a_vert, kind="stable")
-    pts, a_vert = p[rot], a_vert[rot]
+    tot = total[curve]
+    a_vert = (polars.arc[off3[curve] + local] - (s0 - total)[curve]) % tot
+    a_vert[np.abs(a_vert - tot) <= 1e-12 * tot] = 0.0
+    bounds = list(zip(start.tolist(), (start + ns).tolist()))
+    # ragged sorts and searches contour by contour: one cheap call each, exact (no shifted keys)
+    rot = np.concatenate([lo + np.argsort(a_vert[lo:hi], kind="stable") for lo, hi in bounds])
+    a_vert = a_vert[rot]
+    local_rot = rot - start[curve]
     # unwrapped polar angle of each vertex on the period that starts at support 0
-    periods = np.maximum(np.ceil((s0 - arc[n + rot]) / total - 1e-12), 0.0)
-    phi_v = phi[n + rot] + 2 * np.pi * periods
-    seg_of = np.clip(np.searchsorted(sigma, a_vert, side="right") - 1, 0, n1 - 1)
-    seg_lo = ang[first] + seg_of * delta
+    periods = np.maximum(np.ceil((s0[curve] - polars.arc[off3[curve] + ns[curve] + local_rot]) / tot - 1e-12), 0.0)
+    phi_v = polars.phi[off3[curve] + ns[curve] + local_rot] + 2 * np.pi * periods
+    seg_of = np.concatenate([np.searchsorted(sig, a_vert[lo:hi], side="right") for sig, (lo, hi) in zip(sigma, bounds)])
+    seg_of = np.clip(seg_of - 1, 0, n1 - 1)
+    key = curve * n1 + seg_of
+    seg_lo = ang[np.arange(n_c), first][curve] + seg_of * delta
     folded_vertex = (phi_v < seg_lo - 1e-9) | (phi_v > seg_lo + delta + 1e-9)
-    folded_seg = np.zeros(n1, dtype=bool)
-    folded_seg[seg_of[folded_vertex]] = True
+    folded_seg = np.zeros(n_c * n1, dtype=bool)
+    folded_seg[key[folded_vertex]] = True
     # turning points (eq. 3): the polar angle changes direction at the vertex
-    d_in = phi_v - np.concatenate([phi_v[-1:], phi_v[:-1]])
-    d_in[0] = phi_v[0] - (phi_v[-1] - 2 * np.pi)
-    d_out = _next(d_in)
-    turning = (np.sign(d_in) * np.sign(d_out) < 0) & folded_seg[seg_of]
-    turning &= ~(np.abs(a_vert - sigma[seg_of]) <= 1e-9 * total)
+    last = start + ns - 1
+    prv = np.arange(-1, len(phi_v) - 1)
+    prv[start] = last
+    nxt = np.arange(1, len(phi_v) + 1)
+    nxt[last] = start
+    d_in = phi_v - phi_v[prv]
+    d_in[start] = phi_v[start] - (phi_v[last] - 2 * np.pi)
+    d_out = d_in[nxt]
+    sigma_of = sigma[curve, seg_of]
+    turning = (np.sign(d_in) * np.sign(d_out) < 0) & folded_seg[key]
+    turning &= ~(np.abs(a_vert - sigma_of) <= 1e-9 * tot)
     # eq. 4: turning points spread evenly inside their segment
     t_idx = np.flatnonzero(turning)
-    t_seg = seg_of[t_idx]
-    n2 = np.bincount(t_seg, minlength=n1)
+    t_key = key[t_idx]
+    n2 = np.bincount(t_key, minlength=n_c * n1)
     first_in_seg = np.cumsum(n2) - n2
-    rank = np.arange(len(t_idx)) - first_in_seg[t_seg] + 1
-    u_turn = (t_seg + rank / (n2[t_seg] + 1.0)) / n1
-    # eq. 5: chord length between consecutive anchors (support and turning points)
-    anchor_arc = np.concatenate([sigma, a_vert[t_idx]])
-    anchor_u = np.concatenate([np.arange(n1 + 1) / n1, u_turn])
-    o = np.argsort(anchor_arc, kind="stable")
-    u = np.interp(a_vert, anchor_arc[o], anchor_u[o])
+    rank = np.arange(len(t_idx)) - first_in_seg[t_key] + 1
+    u_turn = (seg_of[t_idx] + rank / (n2[t_key] + 1.0)) / n1
+    # eq. 5: chord length between consecutive anchors (support and turning points); a turning point lies
+    # strictly inside its segment, so the anchors' order follows from the counts: sigma[c, k] after the
+    # turning points of the segments before k, a turning point after its segment's sigma
+    anchor_arc = np.empty(n_c * (n1 + 1) + len(t_idx))
+    anchor_u = np.empty_like(anchor_arc)
+    n_before = np.append(first_in_seg.reshape(n_c, n1), (first_in_seg[n1 - 1::n1] + n2[n1 - 1::n1])[:, None], axis=1)
+    at_sigma = (np.arange(n_c) * (n1 + 1))[:, None] + np.arange(n1 + 1) + n_before
+    anchor_arc[at_sigma] = sigma
+    anchor_u[at_sigma] = np.arange(n1 + 1) / n1
+    at_turn = curve[t_idx] * (n1 + 1) + seg_of[t_idx] + 1 + np.arange(len(t_idx))
+    anchor_arc[at_turn] = a_vert[t_idx]
+    anchor_u[at_turn] = u_turn
+    a_lo = at_sigma[:, 0].tolist()
+    a_hi = (at_sigma[:, -1] + 1).tolist()
+    u = np.concatenate([np.interp(a_vert[lo:hi], anchor_arc[al:ah], anchor_u[al:ah])
+                        for (lo, hi), al, ah in zip(bounds, a_lo, a_hi)])
     u[t_idx] = u_turn
-    if np.any(np.diff(u) <= 0) or u[-1] >= 1.0:
+    bad = (np.diff(u) <= 0) & (curve[1:] == curve[:-1])
+    if np.any(bad) or np.any(u[last] >= 1.0):
         raise ValueError("points: could not give the contour monotone parameters (degenerate outline)")
-    return ContourParameters(pts, u, center, support_xy, turning)
+    pts = pts_all[rot]
+    cut = start[1:]
+    return [ContourParameters(pp, uu, cc, ss, tt) for pp, uu, cc, ss, tt in zip(
+        np.split(pts, cut), np.split(u, cut), polars.centers, support_xy, np.split(turning, cut))]
 
 
-def _polar(p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Ray origin, unwrapped polar angle (eq. 2) and arc length over three periods.
+class _Polars(NamedTuple):
+    """Validated contours one after the other, with their ray origins, polar angles and arc lengths.
 
-    Returns ``center`` (2,), ``phi`` (3n + 1,) and ``arc`` (3n + 1,): vertex ``i``
-    of period ``r`` is entry ``r n + i``.
+    ``pts`` (N, 2) holds contour ``c`` in the ``sizes[c]`` rows from ``start[c]``;
+    ``centers`` (C, 2) are the ray origins; ``phi`` and ``arc`` hold, from
+    ``off3[c]``, contour ``c``'s unwrapped polar angle (eq. 2) and arc length over
+    three periods (``3 n_c + 1`` entries, vertex ``i`` of period ``r`` at ``r n_c + i``).
     """
-    center = _centroid(p)
-    dphi = _angle_steps(p, center)
-    if abs(dphi.sum() - 2 * np.pi) > 1e-6:
-        center = interior_point(p)
-        dphi = _angle_steps(p, center)
-        if abs(dphi.sum() - 2 * np.pi) > 1e-6:
+
+    pts: np.ndarray
+    start: np.ndarray
+    sizes: np.ndarray
+    centers: np.ndarray
+    phi: np.ndarray
+    arc: np.ndarray
+    off3: np.ndarray
+
+
+def _polars(ps: list) -> _Polars:
+    """Ray origin, unwrapped polar angle and arc length of every validated (n_c >= 3, 2) contour at once.
+
+    The origin is the area centroid, or, when the contour does not wind once
+    around it, the interior point farthest from the outline (:func:`interior_point`).
+    """
+    ns = np.array([len(p) for p in ps], dtype=np.int64)
+    n_c = len(ns)
+    pts = np.concatenate(ps) if n_c > 1 else ps[0]
+    start = np.cumsum(ns) - ns
+    curve = np.repeat(np.arange(n_c), ns)
+    nxt = np.arange(1, len(pts) + 1)
+    nxt[start + ns - 1] = start
+    q = pts[nxt]
+    # area centroids (:func:`_centroid`), the vertex mean of a degenerate zero-area polygon
+    cross = pts[:, 0] * q[:, 1] - q[:, 0] * pts[:, 1]
+    a = np.add.reduceat(cross, start) / 2.0
+    extent = (np.maximum.reduceat(pts, start) - np.minimum.reduceat(pts, start)).max(axis=1)
+    flat = np.abs(a) < 1e-12 * np.maximum(1.0, extent) ** 2
+    centers = np.add.reduceat((pts + q) * cross[:, None], start, axis=0) / (6.0 * np.where(flat, 1.0, a))[:, None]
+    if flat.any():
+        centers[flat] = (np.add.reduceat(pts, start, axis=0) / ns[:, None])[flat]
+    rel = pts - centers[curve]
+    ang = np.arctan2(rel[:, 1], rel[:, 0])
+    dphi = (ang[nxt] - ang + np.pi) % (2 * np.pi) - np.pi
+    for c in np.flatnonzero(np.abs(np.add.reduceat(dphi, start) - 2 * np.pi) > 1e-6):
+        # the centroid lies outside (strongly bent outlines): rays from the interior point instead
+        sl = slice(start[c], start[c] + ns[c])
+        centers[c] = interior_point(pts[sl])
+        rel_c = pts[sl] - centers[c]
+        ang[sl] = np.arctan2(rel_c[:, 1], rel_c[:, 0])
+        dphi[sl] = (_next(ang[sl]) - ang[sl] + np.pi) % (2 * np.pi) - np.pi
+        if abs(dphi[sl].sum() - 2 * np.pi) > 1e-6:
             raise ValueError("points: contour does not wind once counter-clockwise around its interior")
-    rel = p - center
-    phi0 = float(np.arctan2(rel[0, 1], rel[0, 0]))
-    phi = phi0 + np.concatenate([[0.0], np.cumsum(np.concatenate([dphi, dphi, dphi]))])
-    edge_len = np.linalg.norm(_next(p) - p, axis=1)
-    arc = np.concatenate([[0.0], np.cumsum(np.concatenate([edge_len, edge_len, edge_len]))])
-    return center, phi, arc
+    d = q - pts
+    edge_len = np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1])
+    # running sums over three periods, one row per contour so that each starts afresh
+    local = np.arange(len(pts)) - start[curve]
+    cols = 1 + local + ns[curve] * np.arange(3)[:, None]  # (3, N)
+    acc = np.zeros((2, n_c, 3 * int(ns.max()) + 1))
+    acc[0, curve, cols] = dphi
+    acc[1, curve, cols] = edge_len
+    np.cumsum(acc, axis=2, out=acc)
+    size3 = 3 * ns + 1
+    off3 = np.cumsum(size3) - size3
+    c3 = np.repeat(np.arange(n_c), size3)
+    i3 = np.arange(len(c3)) - off3[c3]
+    return _Polars(pts, start, ns, centers, ang[start][c3] + acc[0, c3, i3], acc[1, c3, i3], off3)
 
 
-def _support_crossings(ps: list, polars: list, n1: int, start_angle: float):
+def _support_crossings(polars: _Polars, n1: int, start_angle: float, points: bool = True):
     """Support points of ``n1`` rays: the outermost crossing of each ray with the contour.
 
     A ray from inside a counter-clockwise contour crosses it alternately going
@@ -462,21 +544,15 @@ def _support_crossings(ps: list, polars: list, n1: int, start_angle: float):
     first time the polar angle reaches the ray's angle as a new record), which
     always does.
 
-    All contours at once (validated (n_c, 2) arrays with their :func:`_polar`),
+    All contours of ``polars`` (:func:`_polars`) at once,
     one array operation over every edge of every contour. Returns, per contour
     (axis 0), the arc positions (unwrapped, increasing in the order of the
     rays, starting with the first ray after the polar-angle record at the
-    start of the second period), their points, the rays' levels and angles:
-    shapes (C, n1), (C, n1, 2), (C, n1), (C, n1).
+    start of the second period), their points (``None`` unless ``points``), the
+    rays' levels and angles: shapes (C, n1), (C, n1, 2), (C, n1), (C, n1).
     """
-    ns = np.array([len(p) for p in ps], dtype=np.int64)
-    n_c = len(ps)
-    pts = np.concatenate(ps)
-    centers = np.array([pol[0] for pol in polars], dtype=np.float64).reshape(n_c, 2)
-    phi = np.concatenate([pol[1] for pol in polars])
-    arc = np.concatenate([pol[2] for pol in polars])
-    off3 = np.cumsum(3 * ns + 1) - (3 * ns + 1)  # contour c's polar entries start here
-    offp = np.cumsum(ns) - ns  # and its points here
+    pts, offp, ns, centers, phi, arc, off3 = polars
+    n_c = len(ns)
     # the polar-angle record at the start of the second period: the largest phi up to entry n
     bounds = np.stack([off3, off3 + ns + 1], axis=1).ravel()
     record_n = np.maximum.reduceat(phi, bounds)[::2]  # the odd segments run to the next contour
@@ -490,48 +566,74 @@ def _support_crossings(ps: list, polars: list, n1: int, start_angle: float):
     k_lo = np.maximum(np.floor((phi[g] - start_angle) / delta).astype(np.int64), k_base[cid])
     k_hi = np.minimum(np.floor((phi[g + 1] - start_angle) / delta).astype(np.int64), k_base[cid] + n1)
     count = np.maximum(k_hi - k_lo, 0)
-    cid, e, g = np.repeat(cid, count), np.repeat(e, count), np.repeat(g, count)
-    level_k = np.repeat(k_lo + 1, count) + (np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count))
-    ang = start_angle + level_k * delta
-    direction = np.stack([np.cos(ang), np.sin(ang)], axis=1)
-    first_edge = e % ns[cid]
-    a_pt = pts[offp[cid] + first_edge]
-    b_pt = pts[offp[cid] + (e + 1) % ns[cid]]
-    center = centers[cid]
-    seg = b_pt - a_pt
-    num = (a_pt - center)[:, 0] * direction[:, 1] - (a_pt - center)[:, 1] * direction[:, 0]
-    den = seg[:, 0] * direction[:, 1] - seg[:, 1] * direction[:, 0]
-    t = np.clip(-num / np.where(den == 0, 1e-300, den), 0.0, 1.0)
-    edge_len = arc[off3[cid] + first_edge + 1] - arc[off3[cid] + first_edge]
-    s_all = arc[g] + t * edge_len
-    xy_all = a_pt + t[:, None] * seg
-    radius = np.einsum("ij,ij->i", xy_all - center, direction)
+    ie = np.repeat(np.arange(len(cid)), count)  # the edge of every crossing
+    level_k = np.repeat(k_lo + 1 - (np.cumsum(count) - count), count) + np.arange(len(ie))
     # group the crossings by (contour, level): levels lie in k_base + [1, n1], so one integer key
     # orders them; the input is nearly in that order already, which a stable sort exploits
-    key = cid * (n1 + 1) + (level_k - k_base[cid])
+    key = np.repeat(cid * (n1 + 1) - k_base[cid], count) + level_k
     order = np.argsort(key, kind="stable")
     sorted_key = key[order]
     starts = np.flatnonzero(np.r_[True, sorted_key[1:] != sorted_key[:-1]])
-    found = np.bincount(cid[order[starts]], minlength=n_c)
-    if np.any(found != n1):
+    if len(starts) != n_c * n1:  # a contour has at most n1 levels: one is missing
+        found = np.bincount(sorted_key[starts] // (n1 + 1), minlength=n_c)
         bad = int(np.flatnonzero(found != n1)[0])
         where = "points" if n_c == 1 else f"contours[{bad}]"
         raise ValueError(f"{where}: found support points for {found[bad]} of {n1} rays")
     sizes = np.diff(np.r_[starts, len(order)])
+    # per edge what its crossings share (x and y apart: 1-D gathers are cheap); the geometry is
+    # computed only for the crossings that compete (a level crossed more than once) and the picks
+    a_idx = offp[cid] + e % ns[cid]
+    b_idx = offp[cid] + (e + 1) % ns[cid]
+    ax, ay, bx, by = pts[a_idx, 0], pts[a_idx, 1], pts[b_idx, 0], pts[b_idx, 1]
+    cx, cy = centers[cid, 0], centers[cid, 1]
+    sx, sy = bx - ax, by - ay
+    rx, ry = ax - cx, ay - cy
+    edge_len = arc[off3[cid] + e % ns[cid] + 1] - arc[off3[cid] + e % ns[cid]]
+    arc_g = arc[g]
+    # the rays' directions from a table over the levels that occur (the same values, fewer cosines)
+    k_min = int(level_k.min(initial=0))
+    table = start_angle + np.arange(k_min, int(level_k.max(initial=0)) + 1) * delta
+    cos_t, sin_t = np.cos(table), np.sin(table)
 
-    def pick_extreme(values: np.ndarray, reduce) -> np.ndarray:
-        # per group the crossing of least (or greatest) value, ties to the earliest crossing
-        v = values[order]
-        best = np.repeat(reduce.reduceat(v, starts), sizes)
-        return np.minimum.reduceat(np.where(v == best, order, len(order)), starts).reshape(n_c, n1)
+    def crossing(idx: np.ndarray, full: bool = True) -> tuple:
+        # arc position, then (full) point and distance from the origin along the ray, of crossings idx
+        j, lv = ie[idx], level_k[idx] - k_min
+        cos_k, sin_k, sx_j, sy_j = cos_t[lv], sin_t[lv], sx[j], sy[j]
+        num = rx[j] * sin_k - ry[j] * cos_k
+        den = sx_j * sin_k - sy_j * cos_k
+        t = np.clip(-num / np.where(den == 0, 1e-300, den), 0.0, 1.0)
+        if not full:
+            return (arc_g[j] + t * edge_len[j],)
+        x, y = ax[j] + t * sx_j, ay[j] + t * sy_j
+        return arc_g[j] + t * edge_len[j], x, y, (x - cx[j]) * cos_k + (y - cy[j]) * sin_k
 
-    first = pick_extreme(s_all, np.minimum)  # each level's first crossing along the contour
-    outer = pick_extreme(radius, np.maximum)  # and its farthest from the origin
-    s_outer = s_all[outer]
+    outer = order[starts]  # a level crossed once: its only crossing, either way
+    first = outer.copy()  # (the first crossings along the contour, needed only when unordered)
+    multi = np.flatnonzero(sizes > 1)
+    if len(multi):
+        m_sizes = sizes[multi]
+        m_starts = np.cumsum(m_sizes) - m_sizes
+        cand = order[np.repeat(starts[multi] - m_starts, m_sizes) + np.arange(int(m_sizes.sum()))]
+        s_c, _, _, radius = crossing(cand)
+
+        def pick_extreme(values: np.ndarray, reduce) -> np.ndarray:
+            # per group the crossing of least (or greatest) value, ties to the earliest crossing
+            best = np.repeat(reduce.reduceat(values, m_starts), m_sizes)
+            return np.minimum.reduceat(np.where(values == best, cand, len(order)), m_starts)
+
+        outer[multi] = pick_extreme(radius, np.maximum)  # the crossing farthest from the origin
+    pick = outer.reshape(n_c, n1)
+    picked = crossing(pick, full=points)
     total = arc[off3 + ns]
-    unordered = np.any(np.diff(s_outer, axis=1) <= 0, axis=1) | (s_outer[:, -1] - s_outer[:, 0] >= total)
-    pick = np.where(unordered[:, None], first, outer)
-    return s_all[pick], xy_all[pick], level_k[pick], ang[pick]
+    s_pick = picked[0]
+    unordered = np.any(np.diff(s_pick, axis=1) <= 0, axis=1) | (s_pick[:, -1] - s_pick[:, 0] >= total)
+    if unordered.any():  # then each level's first crossing along the contour
+        if len(multi):
+            first[multi] = pick_extreme(s_c, np.minimum)
+        pick = np.where(unordered[:, None], first.reshape(n_c, n1), pick)
+        picked = crossing(pick, full=points)
+    xy = np.stack(picked[1:3], axis=-1) if points else None
+    return picked[0], xy, level_k[pick], table[level_k[pick] - k_min]
 
 
 def ray_supports(points, n_rays: int, start_angle: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
@@ -558,16 +660,20 @@ def ray_supports(points, n_rays: int, start_angle: float = 0.0) -> tuple[np.ndar
     n1 = int(n_rays)
     if n1 < 3 or len(p) < 3:
         raise ValueError(f"n_rays/points: need at least 3 rays and 3 points, got {n_rays} and {len(p)}")
-    frac, xy = _ray_supports([p], [_polar(p)], n1, start_angle)
+    frac, xy = _ray_supports(_polars([p]), n1, start_angle)
     return frac[0], xy[0]
 
 
-def _ray_supports(ps: list, polars: list, n1: int, start_angle: float) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`ray_supports` of validated contours with their :func:`_polar`: shapes (C, n1), (C, n1, 2)."""
-    s_arc, xy, level_k, _ = _support_crossings(ps, polars, n1, start_angle)
-    order = np.argsort(level_k % n1, axis=1)
-    total = np.array([pol[2][len(p)] for p, pol in zip(ps, polars)])[:, None]
-    return (np.take_along_axis(s_arc, order, axis=1) % total) / total, xy[np.arange(len(ps))[:, None], order]
+def _ray_supports(polars: _Polars, n1: int, start_angle: float,
+                  points: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
+    """:func:`ray_supports` of the contours of ``polars`` (:func:`_polars`): shapes (C, n1), (C, n1, 2)
+    (the points only when ``points``)."""
+    s_arc, xy, level_k, _ = _support_crossings(polars, n1, start_angle, points)
+    # each contour's row runs through n1 consecutive levels: ray k sits at column (k - first level) mod n1
+    order = (np.arange(n1) - level_k[:, :1]) % n1
+    total = polars.arc[polars.off3 + polars.sizes][:, None]
+    frac = (np.take_along_axis(s_arc, order, axis=1) % total) / total
+    return frac, (xy[np.arange(len(total))[:, None], order] if points else None)
 
 
 #: Rotations of the rays that :func:`choose_start_angle` tries by default, evenly over one ray spacing.
@@ -609,24 +715,22 @@ def choose_start_angle(contours, n_rays: int, candidates: int = START_CANDIDATES
     if n1 * r < 3 or min(len(p) for p in ps) < 3:
         raise ValueError(f"n_rays/points: need at least 3 rays and 3 points, got {n1 * r} and "
                          f"{min(len(p) for p in ps)}")
-    return _start_angle(ps, [_polar(p) for p in ps], n1, r)
+    return _start_angle(_polars(ps), n1, r)
 
 
-def _start_angle(ps: list, polars: list, n1: int, r: int) -> float:
-    """:func:`choose_start_angle` of validated contours (two or more) with their :func:`_polar` known."""
-    frac = _ray_supports(ps, polars, n1 * r, 0.0)[0].reshape(len(ps), n1, r)
+def _start_angle(polars: _Polars, n1: int, r: int) -> float:
+    """:func:`choose_start_angle` of the contours of ``polars`` (:func:`_polars`, two or more)."""
+    frac = _ray_supports(polars, n1 * r, 0.0, points=False)[0].reshape(len(polars.sizes), n1, r)
     shift = (np.diff(frac, axis=0) + 0.5) % 1.0 - 0.5  # (K-1, N1, R)
-    shift -= np.median(shift, axis=1, keepdims=True)
+    # the median over the rays (np.median's partition and mean of the middle pair, without its overhead)
+    half = n1 // 2
+    if n1 % 2:
+        shift -= np.partition(shift, half, axis=1)[:, half:half + 1]
+    else:
+        mid = np.partition(shift, (half - 1, half), axis=1)
+        shift -= (mid[:, half - 1:half] + mid[:, half:half + 1]) / 2.0
     cost = np.abs(shift).max(axis=1).sum(axis=0)  # (R,)
     return float(2 * np.pi * int(np.argmin(cost)) / (n1 * r))
-
-
-def _angle_steps(p: np.ndarray, center: np.ndarray) -> np.ndarray:
-    """Signed polar-angle change along each edge (wrapped into (-pi, pi])."""
-    rel = p - center
-    ang = np.arctan2(rel[:, 1], rel[:, 0])
-    d = _next(ang) - ang
-    return (d + np.pi) % (2 * np.pi) - np.pi
 
 
 def lattice_values(u_list, n_lattice: int) -> np.ndarray:
@@ -692,14 +796,30 @@ def balanced_lattice_values(u_list, arc_list, n_lattice: int) -> np.ndarray:
     m = int(positive(n_lattice, "n_lattice"))
     if len(u_list) != len(arc_list) or not len(u_list):
         raise ValueError("u_list, arc_list: need the same, non-zero number of slices")
-    grid = np.unique(np.concatenate([[0.0, 1.0], *[as_array(u, "u", ndim=1) for u in u_list]]))
-    mean = np.zeros_like(grid)
-    for u, a in zip(u_list, arc_list):
-        mean += np.interp(grid, np.concatenate([[0.0], u, [1.0]]), np.concatenate([[0.0], a, [1.0]]))
-    mean /= len(u_list)
+    us = [as_array(u, "u", ndim=1) for u in u_list]
+    arcs = [as_array(a, "arc_list", shape=(len(u),)) for a, u in zip(arc_list, us)]
+    return _balanced_values(np.concatenate(us), np.concatenate(arcs), np.array([len(u) for u in us]), m)
+
+
+def _balanced_values(u_all: np.ndarray, arc_all: np.ndarray, sizes: np.ndarray, m: int) -> np.ndarray:
+    """:func:`balanced_lattice_values` of every slice's validated parameters and arcs one after the other."""
+    n_c = len(sizes)
+    # each slice's (u, arc) between (0, 0) and (1, 1)
+    off = np.cumsum(sizes + 2) - (sizes + 2)
+    xp = np.zeros(len(u_all) + 2 * n_c)
+    fp = np.zeros_like(xp)
+    inner = np.arange(len(u_all)) + np.repeat(2 * np.arange(n_c) + 1, sizes)
+    xp[inner] = u_all
+    fp[inner] = arc_all
+    xp[off + sizes + 1] = 1.0
+    fp[off + sizes + 1] = 1.0
+    grid = np.unique(np.concatenate([[0.0, 1.0], u_all]))
+    # summed slice after slice (axis 0 of a C-ordered stack), as the running mean of one slice at a time
+    mean = np.array([np.interp(grid, xp[lo:hi], fp[lo:hi]) for lo, hi in zip(off.tolist(), (off + sizes + 2).tolist())])
+    mean = mean.sum(axis=0) / n_c
     values = np.unique(np.interp(np.arange(m) / m, mean, grid))
     values = values[values < 1.0]
-    if len(values) < max(len(u) for u in u_list):
+    if len(values) < int(sizes.max()):
         values = np.arange(m) / m
     return values
 

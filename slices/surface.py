@@ -26,12 +26,12 @@ import numpy as np
 from slices.control_points import (
     START_CANDIDATES,
     ContourParameters,
-    _parameterize,
-    _polar,
+    _balanced_values,
+    _parameterize_many,
+    _polars,
     _quantize_many,
     _start_angle,
     _support_crossings,
-    balanced_lattice_values,
     lattice_values,
 )
 from slices.options import SurfaceOptions
@@ -100,15 +100,48 @@ def lattice_size(max_points: int, lattice_factor: float = SurfaceOptions.lattice
     return max(4, int(max_points), int(np.ceil(f * max_points)))
 
 
-def _geometry_parameters(points: np.ndarray, kind: str) -> np.ndarray:
-    """Parameters that shape the curve between points: seed, chord length or centripetal."""
-    seg = np.linalg.norm(np.concatenate([points[1:], points[:1]]) - points, axis=1)
+def _geometry_parameters(points: np.ndarray, start: np.ndarray, sizes: np.ndarray, kind: str) -> np.ndarray:
+    """Parameters that shape each closed contour between its points: chord length or centripetal.
+
+    ``points`` (N, 2) holds the contours one after the other, contour ``c`` the
+    ``sizes[c]`` rows from ``start[c]``; each gets parameters in ``[0, 1)``.
+    """
+    if kind not in ("centripetal", "chord"):
+        raise ValueError(f"geometry: must be 'chord' or 'centripetal', got {kind!r}")
+    n_c = len(sizes)
+    curve = np.repeat(np.arange(n_c), sizes)
+    local = np.arange(len(points)) - start[curve]
+    nxt = np.arange(1, len(points) + 1)
+    nxt[start + sizes - 1] = start
+    d = points[nxt] - points
+    seg = np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1])
     if kind == "centripetal":
         seg = np.sqrt(seg)
-    elif kind != "chord":
-        raise ValueError(f"geometry: must be 'chord' or 'centripetal', got {kind!r}")
-    t = np.concatenate([[0.0], np.cumsum(seg)])
-    return t[:-1] / t[-1]
+    # one row per contour, so that every running sum starts afresh at its contour
+    cum = np.zeros((n_c, int(sizes.max()) + 1))
+    cum[curve, local + 1] = seg
+    cum = np.cumsum(cum, axis=1)
+    return cum[curve, local] / cum[np.arange(n_c), sizes][curve]
+
+
+def _support_arcs(params: list, start: np.ndarray, sizes: np.ndarray) -> list:
+    """Per contour, its points' arc length from support point 0 (the same ray on every slice),
+    as a fraction of the perimeter; ``start``/``sizes`` place the contours one after the other."""
+    n_c = len(sizes)
+    # contour c's support point 0, then its points, from row start[c] + c; the last edge returns to the first
+    closed = np.concatenate([x for par in params for x in (par.support[:1], par.points)])
+    first = start + np.arange(n_c)
+    nxt = np.arange(1, len(closed) + 1)
+    nxt[first + sizes] = first
+    d = closed[nxt] - closed
+    curve = np.repeat(np.arange(n_c), sizes + 1)
+    local = np.arange(len(closed)) - first[curve]
+    cum = np.zeros((n_c, int(sizes.max()) + 1))
+    cum[curve, local] = np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1])
+    np.cumsum(cum, axis=1, out=cum)  # one row per contour: every running sum starts afresh
+    at_point = local < sizes[curve]
+    frac = cum[curve[at_point], local[at_point]] / cum[np.arange(n_c), sizes][curve[at_point]]
+    return np.split(frac, start[1:])
 
 
 def aligned_arcs(points, arcs) -> list:
@@ -215,21 +248,14 @@ def slice_curves(contours, z, n_rays: int, n_lattice: int | None = None,
         if len(p) < 3:
             raise ValueError(f"contours[{i}]: needs at least 3 points, got {len(p)}")
     # the ray origin, polar angles and arc lengths serve both the rotation's choice and the parameters
-    polars = [_polar(p) for p in ps]
+    polars = _polars(ps)
     if start_angle is None:
-        start_angle = _start_angle(ps, polars, n1, START_CANDIDATES) if len(ps) > 1 else 0.0
+        start_angle = _start_angle(polars, n1, START_CANDIDATES) if len(ps) > 1 else 0.0
     start_angle = float(start_angle)
-    crossings = _support_crossings(ps, polars, n1, start_angle)
-    params: list[ContourParameters] = [
-        _parameterize(p, n1, start_angle, pol, [c[i] for c in crossings]) for i, (p, pol) in enumerate(zip(ps, polars))
-    ]
+    params: list[ContourParameters] = _parameterize_many(
+        polars, n1, start_angle, _support_crossings(polars, n1, start_angle))
     m = n_lattice or lattice_size(max(len(p.u) for p in params))
-    # arc length from support point 0 (the same ray on every slice), fraction of the perimeter
-    arcs = []
-    for par in params:
-        closed = np.vstack([par.support[:1], par.points, par.support[:1]])
-        cum = np.cumsum(np.linalg.norm(np.diff(closed, axis=0), axis=1))
-        arcs.append(cum[:-1] / cum[-1])
+    arcs = _support_arcs(params, polars.start, polars.sizes)
     outlines = [p.points for p in params]
     if correspondence == "aligned":
         # each outline starts at its point of smallest shifted arc length, so u increases along it
@@ -242,29 +268,39 @@ def slice_curves(contours, z, n_rays: int, n_lattice: int | None = None,
     if lattice_mode == "union":
         values = np.unique(np.concatenate(us))
     elif lattice_mode == "balanced":
-        values = balanced_lattice_values(us, arcs, m)
+        values = _balanced_values(np.concatenate(us), np.concatenate(arcs), polars.sizes, m)
     else:
         values = lattice_values(us, m) if lattice_mode == "adaptive" else np.arange(m) / m
     m = len(values)
     longest = max(len(u) for u in us)
     if longest > m:
         raise ValueError(f"n_lattice: {m} lattice values cannot hold {longest} distinct parameters")
-    quantized = _quantize_many(us, m, values)
-    curves, nodes, pts3 = [], [], []
-    for outline, zk, q in zip(outlines, zz, quantized):
-        p3 = np.column_stack([outline, np.full(len(outline), zk)])
-        t = _geometry_parameters(outline, geometry)
-        ctrl, knots = blending.overhauser_curve(p3, t, closed=True)
-        # lattice node j sits at t(j), t piecewise linear through (q_i, t_i): on every lattice
-        # interval the curve is one cubic piece, cut exactly (Bezier points do not depend on
-        # the affine parameter of the interval); the period starts at node q0
-        u_nodes = np.append(q, q[0] + m)
-        breaks = np.interp(q[0] + np.arange(m + 1), u_nodes, knots)
-        cut = blending.restrict_curve(ctrl, knots, breaks)
-        curves.append(cut[(np.arange(m) - q[0]) % m])  # np.roll by q0, without its overhead
-        nodes.append(q)
-        pts3.append(p3)
-    return SliceCurves(np.stack(curves), nodes, pts3, params, float(start_angle))
+    nodes = _quantize_many(us, m, values)
+    ns = np.array([len(o) for o in outlines], dtype=np.int64)
+    n_c = len(ns)
+    start = np.cumsum(ns) - ns
+    curve = np.repeat(np.arange(n_c), ns)
+    flat = np.concatenate(outlines)
+    p3 = np.column_stack([flat, zz[curve]])
+    ctrl, knots = blending.overhauser_closed_curves(p3, _geometry_parameters(flat, start, ns, geometry), ns)
+    # lattice node j sits at t(j), t piecewise linear through (q_i, t_i) (np.interp's formula): on
+    # every lattice interval the curve is one cubic piece, cut exactly (Bezier points do not depend
+    # on the affine parameter of the interval); the period starts at node q0, so lattice interval
+    # L of slice c is [x, x + 1] with x = L, or L + M before q0
+    q = np.concatenate(nodes)
+    q_next = np.append(q[1:], 0)
+    q_next[start + ns - 1] = q[start] + m
+    lattice = np.arange(m)
+    x = lattice + m * (lattice < q[start][:, None])  # (C, M)
+    g = np.searchsorted(curve * 2 * m + q, (np.arange(n_c)[:, None] * 2 * m + x).ravel(), side="right") - 1
+    x = x.ravel().astype(np.float64)
+    k_lo, k_hi = knots[g + curve[g]], knots[g + curve[g] + 1]
+    x_lo, x_hi = q[g].astype(np.float64), q_next[g].astype(np.float64)
+    slope = (k_hi - k_lo) / (x_hi - x_lo)
+    b_lo = np.where(x == x_lo, k_lo, slope * (x - x_lo) + k_lo)
+    b_hi = np.where(x + 1.0 == x_hi, k_hi, slope * (x + 1.0 - x_lo) + k_lo)
+    cut = blending.restrict_segments(ctrl[g], k_lo, k_hi, b_lo, b_hi).reshape(n_c, m, 4, 3)
+    return SliceCurves(cut, nodes, np.split(p3, start[1:]), params, float(start_angle))
 
 
 # ------------------------------------------------------------------ methods
@@ -283,8 +319,24 @@ def _corner_eval(patches: BezierPatches, n_slices: int) -> NodeEval:
 
 
 def _side_blending(curves: np.ndarray, v: np.ndarray, monotone: bool = False) -> tuple[BezierPatches, NodeEval]:
-    patches = blending.blend_curves(curves, closed_u=True, params=v, monotone=monotone)
+    if not monotone:
+        patches = blending.blend_curves(curves, closed_u=True, params=v)
+    else:
+        patches, limited = blending.monotone_blend(curves, closed_u=True, params=v)
+        if len(curves) >= 3:
+            _last_overshoot[:] = [curves.copy(), v.copy(), _overshoot_count(limited)]
     return patches, _corner_eval(patches, len(curves))
+
+
+#: The curves and ``v`` of the last monotone blend and their :func:`blend_overshoot`: a body
+#: blends its side surface, then reports the overshoot of the same curves, which is then a
+#: comparison instead of the limit a second time (by value, so a changed array misses).
+_last_overshoot: list = []
+
+
+def _overshoot_count(limited: np.ndarray) -> int:
+    """(curve, Bezier point) pairs of a (K, M, 4, 3) limit mask with x or y limited."""
+    return int(np.count_nonzero(limited[..., 0] | limited[..., 1]))
 
 
 def blend_overshoot(curves, v=None) -> int:
@@ -308,10 +360,12 @@ def blend_overshoot(curves, v=None) -> int:
     k = len(c)
     if k < 3:
         return 0
-    w = blending.blend_weights(k, v)
-    pieces = (w.reshape(-1, k) @ c.reshape(k, -1)).reshape(k - 1, 4, -1)
-    limited = blending.limit_monotone(pieces).limited.reshape(k, -1, 3)
-    return int(np.count_nonzero(limited[..., :2].any(axis=-1)))
+    vv = None if v is None else as_array(v, "v", shape=(k,))
+    last = _last_overshoot[:]
+    if (vv is not None and last and last[0].shape == c.shape and np.array_equal(last[1], vv)
+            and np.array_equal(last[0], c)):
+        return last[2]
+    return _overshoot_count(blending.monotone_blend(c, closed_u=True, params=vv)[1])
 
 
 def ruled_surface(curves) -> tuple[BezierPatches, NodeEval]:

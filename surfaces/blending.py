@@ -143,17 +143,92 @@ def overhauser_curve(points, params=None, closed: bool = False) -> tuple[np.ndar
     """
     pts = as_array(points, "points", ndim=2)
     t = _parameters(pts, params, closed)
-    tan = overhauser_tangents(pts, t, closed)
     if closed:
-        knots = np.append(t, t[0] + 1.0)
-        p_end, m_end = np.roll(pts, -1, axis=0), np.roll(tan, -1, axis=0)
-        p_start, m_start = pts, tan
-    else:
-        knots = t
-        p_start, m_start, p_end, m_end = pts[:-1], tan[:-1], pts[1:], tan[1:]
-    h = np.diff(knots)[:, None]
-    ctrl = np.stack([p_start, p_start + h * m_start / 3.0, p_end - h * m_end / 3.0, p_end], axis=1)
+        if len(pts) < 3:
+            raise ValueError(f"points: need at least 3 points, got {len(pts)}")
+        return _overhauser_closed(pts, t, np.zeros(1, np.int64), np.array([len(pts)]))
+    tan = overhauser_tangents(pts, t, closed)
+    h = np.diff(t)[:, None]
+    ctrl = np.stack([pts[:-1], pts[:-1] + h * tan[:-1] / 3.0, pts[1:] - h * tan[1:] / 3.0, pts[1:]], axis=1)
+    return ctrl, t
+
+
+def overhauser_closed_curves(points, params, sizes) -> tuple[np.ndarray, np.ndarray]:
+    """Closed parabolic-blending curves of many point lists at once, as cubic Bezier segments.
+
+    The same curves as :func:`overhauser_curve` with ``closed=True`` for each
+    list, computed in one array pass over the concatenated points (the lists
+    may differ in length).
+
+    Parameters
+    ----------
+    points : array_like, shape (N, d)
+        The curves' points one after the other: curve ``c`` is the ``sizes[c]``
+        rows starting at ``sum(sizes[:c])``.
+    params : array_like, shape (N,)
+        Per curve, strictly increasing parameters spanning less than one period.
+    sizes : array_like of int, shape (C,)
+        Points per curve, each at least 3, summing to ``N``.
+
+    Returns
+    -------
+    control : numpy.ndarray, shape (N, 4, d)
+        Bezier points: row ``sum(sizes[:c]) + i`` is segment ``i`` of curve ``c``
+        (from its point ``i`` to the next, the last back to its first point).
+    knots : numpy.ndarray, shape (N + C,)
+        Per curve its ``sizes[c] + 1`` knots (its parameters, then the first plus
+        one), starting at ``sum(sizes[:c]) + c``.
+
+    Examples
+    --------
+    >>> sq = np.array([[0.0, 0], [1, 0], [1, 1], [0, 1]])
+    >>> t = np.r_[np.arange(4) / 4, np.arange(3) / 3]
+    >>> ctrl, knots = overhauser_closed_curves(np.vstack([sq, sq[:3]]), t, [4, 3])
+    >>> ctrl.shape, knots.round(3).tolist()
+    ((7, 4, 2), [0.0, 0.25, 0.5, 0.75, 1.0, 0.0, 0.333, 0.667, 1.0])
+    >>> bool(np.allclose(ctrl[4:], overhauser_curve(sq[:3], np.arange(3) / 3, closed=True)[0]))
+    True
+    """
+    pts = as_array(points, "points", ndim=2)
+    t = as_array(params, "params", shape=(len(pts),))
+    ns = np.asarray(sizes)
+    if ns.ndim != 1 or not len(ns) or ns.dtype.kind not in "iu" or ns.min() < 3 or int(ns.sum()) != len(pts):
+        raise ValueError(f"sizes: need integer counts of at least 3 points summing to {len(pts)}, got {sizes!r}")
+    ns = ns.astype(np.int64)
+    start = np.cumsum(ns) - ns
+    inner = np.ones(len(pts), dtype=bool)
+    inner[start] = False
+    if np.any(np.diff(t)[inner[1:]] <= 0):
+        raise ValueError("params: must increase strictly along every curve")
+    if not np.all(t[start + ns - 1] - t[start] < 1.0):
+        raise ValueError("params: a closed curve needs parameters spanning less than one period")
+    return _overhauser_closed(pts, t, start, ns)
+
+
+def _overhauser_closed(pts: np.ndarray, t: np.ndarray, start: np.ndarray,
+                       ns: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`overhauser_closed_curves` of validated arrays, the curves starting at rows ``start``."""
+    last = start + ns - 1
+    nxt = np.arange(1, len(pts) + 1)
+    nxt[last] = start
+    prv = np.arange(-1, len(pts) - 1)
+    prv[start] = last
+    t_next = t[nxt]
+    t_next[last] += 1.0
+    t_prev = t[prv]
+    t_prev[start] -= 1.0
+    h1 = t_next - t
+    tan = _middle_slope(pts[prv], pts, pts[nxt], t - t_prev, h1)
+    h = h1[:, None]
+    p_end = pts[nxt]
+    ctrl = np.stack([pts, pts + h * tan / 3.0, p_end - h * tan[nxt] / 3.0, p_end], axis=1)
+    knots = np.empty(len(pts) + len(ns))
+    curve = np.repeat(np.arange(len(ns)), ns)
+    knots[np.arange(len(pts)) + curve] = t
+    knots[last + np.arange(1, len(ns) + 1)] = t[start] + 1.0
     return ctrl, knots
+
+
 
 
 def evaluate_curve(control, knots, u, derivative: int = 0) -> np.ndarray:
@@ -216,24 +291,132 @@ def restrict_curve(control, knots, breakpoints) -> np.ndarray:
         Bezier segments on the new breakpoints.
     """
     ctrl = as_array(control, "control", ndim=3)
-    k = as_array(knots, "knots", shape=(len(ctrl) + 1,))
     b = as_array(breakpoints, "breakpoints", ndim=1, min_size=2)
-    if np.any(np.diff(b) <= 0):
+    return restrict_curves(ctrl, knots, [len(ctrl)], b[None])[0]
+
+
+def restrict_curves(control, knots, sizes, breakpoints) -> np.ndarray:
+    """:func:`restrict_curve` of many piecewise cubics at once, each on its own breakpoints.
+
+    Parameters
+    ----------
+    control : array_like, shape (S, 4, d)
+        Bezier segments of all curves one after the other: curve ``c`` is the
+        ``sizes[c]`` rows starting at ``sum(sizes[:c])``.
+    knots : array_like, shape (S + C,)
+        Per curve its ``sizes[c] + 1`` strictly increasing knots, starting at
+        ``sum(sizes[:c]) + c`` (as :func:`overhauser_closed_curves` returns them).
+    sizes : array_like of int, shape (C,)
+        Segments per curve, each at least 1.
+    breakpoints : array_like, shape (C, M + 1)
+        Per curve, strictly increasing, containing every knot of the curve and
+        spanning ``[first knot, last knot]``.
+
+    Returns
+    -------
+    numpy.ndarray, shape (C, M, 4, d)
+        Bezier segments of every curve on its breakpoints.
+
+    Examples
+    --------
+    The cubic ``u^3`` as one segment on ``[0, 1]`` and the line ``u`` as two on
+    ``[0, 2]``, each cut in two:
+
+    >>> cubic = np.array([[[0.0], [0.0], [0.0], [1.0]]])
+    >>> line = np.array([[[0.0], [1 / 3], [2 / 3], [1.0]], [[1.0], [4 / 3], [5 / 3], [2.0]]])
+    >>> out = restrict_curves(np.vstack([cubic, line]), [0, 1, 0, 1, 2], [1, 2], [[0, 0.5, 1], [0, 1, 2]])
+    >>> out[0, 0, :, 0].tolist(), out[1, 1, :, 0].round(12).tolist()
+    ([0.0, 0.0, 0.0, 0.125], [1.0, 1.333333333333, 1.666666666667, 2.0])
+    """
+    ctrl = as_array(control, "control", ndim=3)
+    ns = np.asarray(sizes)
+    if ns.ndim != 1 or not len(ns) or ns.dtype.kind not in "iu" or ns.min() < 1 or int(ns.sum()) != len(ctrl):
+        raise ValueError(f"sizes: need integer counts of at least 1 segment summing to {len(ctrl)}, got {sizes!r}")
+    ns = ns.astype(np.int64)
+    n_c = len(ns)
+    k = as_array(knots, "knots", shape=(len(ctrl) + n_c,))
+    b = as_array(breakpoints, "breakpoints", shape=(n_c, None))
+    if b.shape[1] < 2:
+        raise ValueError(f"breakpoints: need at least 2 per curve, got {b.shape[1]}")
+    if np.any(np.diff(b, axis=1) <= 0):
         raise ValueError("breakpoints: must increase strictly")
-    scale = max(1.0, float(k[-1] - k[0]))
-    pos = np.clip(np.searchsorted(b, k), 0, len(b) - 1)
-    if np.max(np.abs(b[pos] - k)) > 1e-12 * scale:
+    kstart = np.cumsum(ns + 1) - (ns + 1)
+    curve = np.repeat(np.arange(n_c), ns + 1)
+    lo, hi = k[kstart], k[kstart + ns]
+    if np.any(np.diff(k)[(curve[1:] == curve[:-1])] <= 0):
+        raise ValueError("knots: must increase strictly along every curve")
+    # shift every curve's knots and breakpoints by its own offset so that the curves never interleave
+    step = 2.0 * float(np.max(hi - lo)) + 1.0
+    shift = np.arange(n_c) * step - lo
+    key = k + shift[curve]
+    keyed_b = b + shift[:, None]
+    scale = np.maximum(1.0, hi - lo)[curve]
+    pos = np.clip(np.searchsorted(keyed_b.ravel(), key), 0, b.size - 1)
+    if np.max(np.abs(b.ravel()[pos] - k) / scale) > 1e-12:
         raise ValueError("breakpoints: must contain every knot of the curve")
     # evaluate each interval's ends inside the segment that contains the interval's midpoint
-    mid = 0.5 * (b[:-1] + b[1:])
-    seg = np.clip(np.searchsorted(k, mid, side="right") - 1, 0, len(ctrl) - 1)
-    h = k[seg + 1] - k[seg]
-    c = ctrl[seg]
-    s0, s1 = (b[:-1] - k[seg]) / h, (b[1:] - k[seg]) / h
-    p0, d0 = _segment_values(c, s0, h, 0), _segment_values(c, s0, h, 1)
-    p1, d1 = _segment_values(c, s1, h, 0), _segment_values(c, s1, h, 1)
-    w = np.diff(b)[:, None]
-    return np.stack([p0, p0 + w * d0 / 3.0, p1 - w * d1 / 3.0, p1], axis=1)
+    mid = (0.5 * (keyed_b[:, :-1] + keyed_b[:, 1:])).ravel()
+    g = np.searchsorted(key, mid, side="right") - 1
+    local = np.clip(g - kstart[np.repeat(np.arange(n_c), b.shape[1] - 1)], 0, np.repeat(ns - 1, b.shape[1] - 1))
+    first_knot = np.repeat(kstart, b.shape[1] - 1) + local
+    seg = first_knot - np.repeat(np.arange(n_c), b.shape[1] - 1)
+    out = restrict_segments(ctrl[seg], k[first_knot], k[first_knot + 1], b[:, :-1].ravel(), b[:, 1:].ravel())
+    return out.reshape(n_c, b.shape[1] - 1, 4, ctrl.shape[2])
+
+
+def restrict_segments(control, start, end, lo, hi) -> np.ndarray:
+    """Bezier points of cubic segments on sub-intervals of their parameter ranges.
+
+    Parameters
+    ----------
+    control : array_like, shape (P, 4, d)
+        Bezier points of ``P`` cubic segments, segment ``p`` running over
+        ``[start[p], end[p]]``.
+    start, end : array_like, shape (P,)
+        Each segment's parameter range (``start < end``).
+    lo, hi : array_like, shape (P,)
+        The sub-interval wanted of each segment (``lo < hi``, usually inside
+        ``[start, end]``; outside it the cubic is extrapolated).
+
+    Returns
+    -------
+    numpy.ndarray, shape (P, 4, d)
+        Bezier points of each cubic on ``[lo, hi]`` (Hermite form: end points and
+        end derivatives per unit of the parameter).
+
+    Examples
+    --------
+    >>> restrict_segments([[[0.0], [0.0], [0.0], [1.0]]], [0.0], [2.0], [0.0], [1.0])[0, :, 0].tolist()
+    [0.0, 0.0, 0.0, 0.125]
+    """
+    c = as_array(control, "control", shape=(None, 4, None))
+    k0 = as_array(start, "start", shape=(len(c),))
+    k1 = as_array(end, "end", shape=(len(c),))
+    b0 = as_array(lo, "lo", shape=(len(c),))
+    b1 = as_array(hi, "hi", shape=(len(c),))
+    h = k1 - k0
+    if np.any(h <= 0) or np.any(b1 <= b0):
+        raise ValueError("start/end, lo/hi: every range must increase strictly")
+    t = np.empty((len(c), 2))
+    t[:, 0] = (b0 - k0) / h
+    t[:, 1] = (b1 - k0) / h
+    # the cubic Bernstein basis and its derivative at both ends (as surfaces.bezier.bernstein), so
+    # one product gives the end points and end derivatives of every piece
+    r = 1.0 - t
+    basis = np.empty((len(c), 2, 2, 4))
+    for b, value in enumerate((r * r * r, 3.0 * t * r * r, 3.0 * t * t * r, t * t * t)):
+        basis[:, :, 0, b] = value
+    for b, value in enumerate((-3.0 * r * r, 3.0 * r * (r - 2.0 * t), 3.0 * t * (2.0 * r - t), 3.0 * t * t)):
+        basis[:, :, 1, b] = value
+    ends = (basis.reshape(len(c), 4, 4) @ c).reshape(len(c), 2, 2, -1)  # (P, end, order, d)
+    hh = h[:, None]
+    w = (b1 - b0)[:, None]
+    out = np.empty_like(c)
+    out[:, 0] = p0 = ends[:, 0, 0]
+    out[:, 3] = p1 = ends[:, 1, 0]
+    out[:, 1] = p0 + w * (ends[:, 0, 1] / hh) / 3.0
+    out[:, 2] = p1 - w * (ends[:, 1, 1] / hh) / 3.0
+    return out
 
 
 def blend_weights(n_curves: int, params=None) -> np.ndarray:
@@ -322,14 +505,50 @@ def blend_curves(curves, closed_u: bool = True, params=None, monotone: bool = Fa
     c = as_array(curves, "curves", shape=(None, None, 4, 3))
     if len(c) < 2:
         raise ValueError(f"curves: need at least 2 curves, got {len(c)}")
+    return _blend(c, closed_u, params, monotone)[0]
+
+
+def monotone_blend(curves, closed_u: bool = True, params=None) -> tuple[BezierPatches, np.ndarray]:
+    """:func:`blend_curves` with ``monotone=True``, and which tangents the limit shortened.
+
+    Parameters
+    ----------
+    curves : array_like, shape (K, M, 4, 3)
+        ``K >= 2`` curves on common ``u`` breakpoints (as for :func:`blend_curves`).
+    closed_u : bool
+        The curves are closed.
+    params : array_like, shape (K,), optional
+        ``v`` of the curves (see :func:`blend_weights`).
+
+    Returns
+    -------
+    patches : BezierPatches
+        ``M x (K - 1)`` patches, the same as ``blend_curves(curves, closed_u, params, monotone=True)``.
+    limited : numpy.ndarray, shape (K, M, 4, 3) bool
+        Per curve, Bezier point and coordinate: the tangent in ``v`` there was
+        shortened or zeroed (:attr:`LimitedBlend.limited`).
+    """
+    c = as_array(curves, "curves", shape=(None, None, 4, 3))
+    if len(c) < 2:
+        raise ValueError(f"curves: need at least 2 curves, got {len(c)}")
+    return _blend(c, closed_u, params, True)
+
+
+def _blend(c: np.ndarray, closed_u: bool, params, monotone: bool) -> tuple[BezierPatches, np.ndarray | None]:
+    """:func:`blend_curves` of validated curves, with the limited tangents when ``monotone``."""
     k, m = c.shape[:2]
     w = blend_weights(k, params)
     # one matrix product over all curves (faster than einsum's batched path)
     mixed = (w.reshape(-1, k) @ c.reshape(k, -1)).reshape(k - 1, 4, m, 4, 3)
+    limited = None
     if monotone:
-        mixed = limit_monotone(mixed.reshape(k - 1, 4, -1)).control.reshape(mixed.shape)
-    control = np.ascontiguousarray(mixed.transpose(2, 0, 3, 1, 4))
-    return BezierPatches(control, closed_u=closed_u)
+        blend = _limit_monotone(mixed.reshape(k - 1, 4, -1), in_place=True)
+        mixed = blend.control.reshape(mixed.shape)
+        limited = blend.limited.reshape(c.shape)
+    # moved as whole 3-vectors (one 24-byte item each), which numpy copies faster than single floats
+    whole = mixed.view(np.dtype((np.void, 8 * 3))).reshape(k - 1, 4, m, 4)
+    control = np.ascontiguousarray(whole.transpose(2, 0, 3, 1)).view(np.float64).reshape(m, k - 1, 4, 4, 3)
+    return BezierPatches(control, closed_u=closed_u), limited
 
 
 @dataclass(frozen=True)
@@ -386,23 +605,45 @@ def limit_monotone(pieces) -> LimitedBlend:
     >>> r.control[:, :, 0].round(3).tolist(), r.limited[:, 0].tolist()
     ([[0.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.5, 1.0]], [True, True, False])
     """
-    p = as_array(pieces, "pieces", shape=(None, 4, None))
-    d = p[:, 3] - p[:, 0]
-    out = p[:, 1] - p[:, 0]  # a_k: leaves node k into piece k
-    inn = p[:, 3] - p[:, 2]  # b_k: enters node k + 1 from piece k
-    n = len(p) + 1
-    scale = np.ones((n,) + d.shape[1:])
-    tiny = 1e-12 * (np.abs(p).max() + 1.0)
-    for side, diff, sl in ((out, d, slice(0, n - 1)), (inn, d, slice(1, n))):
-        # a tangent against the piece's own direction, or longer than its rise, overshoots
-        wrong = (side * diff < 0) | ((np.abs(diff) <= tiny) & (np.abs(side) > tiny))
-        ratio = np.where(np.abs(side) > np.abs(diff), np.abs(diff) / np.maximum(np.abs(side), 1e-300), 1.0)
-        scale[sl] = np.minimum(scale[sl], np.where(wrong, 0.0, ratio))
-    limited = scale < 1.0
-    q = p.copy()
-    q[:, 1] = p[:, 0] + out * scale[:-1]
-    q[:, 2] = p[:, 3] - inn * scale[1:]
-    return LimitedBlend(q, limited)
+    return _limit_monotone(as_array(pieces, "pieces", shape=(None, 4, None)))
+
+
+def _limit_monotone(p: np.ndarray, in_place: bool = False) -> LimitedBlend:
+    """:func:`limit_monotone` of validated pieces (written into ``p`` itself when ``in_place``).
+
+    The result's own rows hold the tangents while they are limited, and the
+    buffers are reused from step to step: on a body's few hundred thousand
+    coordinates each fresh temporary costs as much in page faults as its arithmetic.
+    """
+    tiny = 1e-12 * (max(float(p.max()), -float(p.min())) + 1.0)
+    q = p if in_place else p.copy()
+    q0, q1, q2, q3 = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
+    d = q3 - q0
+    np.subtract(q1, q0, out=q1)  # a_k: leaves node k into piece k
+    np.subtract(q3, q2, out=q2)  # b_k: enters node k + 1 from piece k
+    rise = np.abs(d)
+    flat = np.flatnonzero(rise <= tiny)  # few: pieces that do not rise in a coordinate
+    scale = np.empty((len(q) + 1,) + d.shape[1:])
+    scale[-1] = 1.0
+    wrong = np.empty(d.shape, dtype=bool)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        # the last side's ratio overwrites d, which it reads first
+        for side, ratio in ((q1, scale[:-1]), (q2, d)):
+            # a tangent against the piece's own direction, or longer than its rise, overshoots
+            np.multiply(side, d, out=ratio)
+            np.less(ratio, 0.0, out=wrong)
+            np.abs(side, out=ratio)
+            if len(flat):  # any tangent along a piece that does not rise
+                wrong.ravel()[flat] |= ratio.ravel()[flat] > tiny
+            np.divide(rise, ratio, out=ratio)
+            np.fmin(ratio, 1.0, out=ratio)  # also 1 where both are 0 (nan)
+            np.copyto(ratio, 0.0, where=wrong)
+    np.minimum(scale[1:], d, out=scale[1:])
+    q1 *= scale[:-1]
+    q1 += q0
+    q2 *= scale[1:]
+    np.subtract(q3, q2, out=q2)
+    return LimitedBlend(q, scale < 1.0)
 
 
 def from_grid(points, u_params=None, closed_u: bool = False, closed_v: bool = False) -> BezierPatches:

@@ -223,16 +223,88 @@ def test_support_crossings_of_many_contours_equal_each_alone():
     c_shape = np.vstack([np.stack([12 * np.cos(a), 12 * np.sin(a)], 1),
                          np.stack([7 * np.cos(a[::-1]), 7 * np.sin(a[::-1])], 1)])
     ps = [cp.clean_contour(p) for p in (star, c_shape, star[::2] + 3.0, c_shape * 0.5)]
-    polars = [cp._polar(p) for p in ps]
+    polars = cp._polars(ps)
     for n1, start in ((12, 0.0), (96, 0.05)):
-        together = cp._support_crossings(ps, polars, n1, start)
-        for i, (p, pol) in enumerate(zip(ps, polars)):
-            alone = cp._support_crossings([p], [pol], n1, start)
+        together = cp._support_crossings(polars, n1, start)
+        for i, p in enumerate(ps):
+            alone = cp._support_crossings(cp._polars([p]), n1, start)
             for x, y in zip(together, alone):
                 np.testing.assert_array_equal(x[i], y[0])
         # every support point lies on its ray
         s_arc, xy, level, ang = together
-        for i, pol in enumerate(polars):
-            rel = xy[i] - pol[0]
+        for i, center in enumerate(polars.centers):
+            rel = xy[i] - center
             np.testing.assert_allclose(rel[:, 0] * np.sin(ang[i]) - rel[:, 1] * np.cos(ang[i]), 0, atol=1e-9)
             assert np.all(rel[:, 0] * np.cos(ang[i]) + rel[:, 1] * np.sin(ang[i]) > 0)
+
+
+def _ragged_outlines():
+    t = np.linspace(0, 2 * np.pi, 90, endpoint=False)
+    star = np.stack([(10 + 4 * np.cos(5 * t)) * np.cos(t), (10 + 4 * np.cos(5 * t)) * np.sin(t)], 1)
+    a = np.linspace(0.3, 2 * np.pi - 0.3, 70)
+    c_shape = np.vstack([np.stack([12 * np.cos(a), 12 * np.sin(a)], 1),
+                         np.stack([7 * np.cos(a[::-1]), 7 * np.sin(a[::-1])], 1)])
+    square = np.array([[-1.0, -1], [1, -1], [1, 1], [-1, 1]])
+    return [cp.clean_contour(p) for p in (star, c_shape, square, star[::3] + 3.0, c_shape[::2] * 0.5)]
+
+
+def test_polars_of_many_contours_equal_each_alone():
+    ps = _ragged_outlines()
+    together = cp._polars(ps)
+    for i, p in enumerate(ps):
+        alone = cp._polars([p])
+        n = len(p)
+        sl = slice(together.off3[i], together.off3[i] + 3 * n + 1)
+        np.testing.assert_array_equal(together.centers[i], alone.centers[0])
+        np.testing.assert_array_equal(together.phi[sl], alone.phi)
+        np.testing.assert_array_equal(together.arc[sl], alone.arc)
+        # closed forms: the centroid, three turns of polar angle, three perimeters
+        if cp.points_in_polygon(cp.centroid(p)[None], p)[0]:  # else the rays start from an interior point
+            np.testing.assert_allclose(alone.centers[0], cp.centroid(p), atol=1e-12)
+        assert cp.points_in_polygon(alone.centers, p)[0]
+        np.testing.assert_allclose(alone.phi[-1] - alone.phi[0], 6 * np.pi, atol=1e-9)
+        perimeter = np.linalg.norm(np.roll(p, -1, axis=0) - p, axis=1).sum()
+        np.testing.assert_allclose(alone.arc[[n, 2 * n, 3 * n]], perimeter * np.arange(1, 4), rtol=1e-12)
+
+
+@pytest.mark.parametrize("n1, start", [(12, 0.0), (64, 0.05), (96, 0.3)])
+def test_parameters_of_many_contours_equal_each_alone(n1, start):
+    ps = _ragged_outlines()
+    polars = cp._polars(ps)
+    together = cp._parameterize_many(polars, n1, start, cp._support_crossings(polars, n1, start))
+    assert len(together) == len(ps)
+    assert any(par.turning.any() for par in together)  # the folded outlines get turning points
+    for p, par in zip(ps, together):
+        alone = cp.parameterize(p, n1, start)
+        for field in ("points", "u", "center", "support", "turning"):
+            np.testing.assert_array_equal(getattr(par, field), getattr(alone, field))
+
+
+def test_balanced_lattice_values_of_many_slices_equal_the_running_mean():
+    rng = np.random.default_rng(5)
+    us, arcs = [], []
+    for n in (7, 12, 5, 9):
+        us.append(np.sort(rng.uniform(0, 1, n)))
+        arcs.append(np.sort(rng.uniform(0, 1, n)))
+    m = 30
+    grid = np.unique(np.concatenate([[0.0, 1.0], *us]))
+    mean = np.zeros_like(grid)
+    for u, a in zip(us, arcs):
+        mean += np.interp(grid, np.r_[0.0, u, 1.0], np.r_[0.0, a, 1.0])
+    mean /= len(us)
+    expect = np.unique(np.interp(np.arange(m) / m, mean, grid))
+    np.testing.assert_array_equal(cp.balanced_lattice_values(us, arcs, m), expect[expect < 1.0])
+    with pytest.raises(ValueError, match="arc_list"):
+        cp.balanced_lattice_values(us, [a[:-1] for a in arcs], m)
+
+
+@pytest.mark.parametrize("n1", [7, 8])
+def test_start_angle_is_the_least_median_removed_shift(n1):
+    ps = _ragged_outlines()[:2] + [cp.clean_contour(p) for p in _ragged_outlines()[:2]]
+    ps = [p * (1.0 + 0.05 * i) + 0.3 * i for i, p in enumerate(ps)]
+    r = 4
+    frac = cp._ray_supports(cp._polars(ps), n1 * r, 0.0)[0].reshape(len(ps), n1, r)
+    shift = (np.diff(frac, axis=0) + 0.5) % 1.0 - 0.5
+    shift -= np.median(shift, axis=1, keepdims=True)
+    expect = 2 * np.pi * int(np.argmin(np.abs(shift).max(axis=1).sum(axis=0))) / (n1 * r)
+    assert cp.choose_start_angle(ps, n1, r) == expect

@@ -161,3 +161,27 @@ def test_slice_curves_share_the_public_parameters_and_rotation():
         slice_curves(pts, z, 2)
     with pytest.raises(ValueError, match=r"contours\[1\]"):
         slice_curves([pts[0], pts[1][:2]], z[:2], 24)
+
+
+def test_blend_overshoot_after_side_surface_is_by_value():
+    """The side surface's limit serves the overshoot count of the same curves, never of others."""
+    from slices.surface import blend_overshoot, side_surface
+    from surfaces import blending
+
+    rng = np.random.default_rng(7)
+    curves = rng.normal(size=(6, 8, 4, 3))
+    curves[:, -1, 3] = curves[:, 0, 0]  # closed in u
+    v = np.arange(6.0) * 2.5
+
+    def fresh(c):
+        limited = blending.monotone_blend(c, params=v)[1]
+        return int(np.count_nonzero(limited[..., :2].any(axis=-1)))
+
+    side_surface(curves, "blending", v=v, monotone=True)
+    assert blend_overshoot(curves, v) == fresh(curves) > 0
+    changed = curves.copy()
+    changed[2, :, 1:3, :2] *= 3.0
+    assert fresh(changed) != fresh(curves)
+    assert blend_overshoot(changed, v) == fresh(changed)
+    curves[2, :, 1:3, :2] *= 3.0  # the same array, changed in place after the blend
+    assert blend_overshoot(curves, v) == fresh(changed)
