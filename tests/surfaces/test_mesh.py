@@ -154,3 +154,37 @@ def test_as_mesh_accepts_mesh_like_inputs():
         as_mesh(np.zeros((3, 3)), "thing")
     with pytest.raises(ValueError, match="thing.triangles: indices"):
         as_mesh((b.vertices, b.triangles + 8), "thing")
+
+
+@pytest.mark.parametrize("closed_u", [False, True])
+@pytest.mark.parametrize("closed_v", [False, True])
+def test_tessellate_with_a_pair_of_samples_puts_the_lattice_on_the_patches(closed_u, closed_v):
+    rng = np.random.default_rng(5)
+    control = rng.normal(size=(3, 4, 4, 4, 3))
+    # closed directions: the last patch row (column) ends where the first starts
+    if closed_u:
+        control[-1, :, 3] = control[0, :, 0]
+    if closed_v:
+        control[:, -1, :, 3] = control[:, 0, :, 0]
+    patches = BezierPatches(control, closed_u, closed_v)
+    su, sv = 2, 3
+    mesh = tessellate(patches, (su, sv), weld_seams=False)
+    n_u, n_v = 3 * su + (not closed_u), 4 * sv + (not closed_v)
+    assert mesh.n_vertices == n_u * n_v
+    g, h = np.divmod(np.arange(n_u * n_v), n_v)
+    # the lattice of global parameters (i + a / su, j + b / sv), the last sample of an open side at t = 1
+    expect = patches.evaluate_global(g / su, h / sv)
+    np.testing.assert_allclose(mesh.vertices, expect, atol=1e-12)
+    np.testing.assert_allclose(mesh.vertex_normals, patches.normals(*patches.locate(g / su, h / sv)), atol=1e-9)
+    # one count both ways is the square tessellation
+    square = tessellate(patches, 2, weld_seams=False)
+    same = tessellate(patches, (2, 2), weld_seams=False)
+    np.testing.assert_array_equal(square.triangles, same.triangles)
+    np.testing.assert_allclose(square.vertices, same.vertices, atol=1e-12)
+
+
+def test_tessellate_refuses_bad_sample_pairs():
+    patches = BezierPatches(np.random.default_rng(0).normal(size=(1, 1, 4, 4, 3)))
+    for bad in ((0, 2), (2, 3, 4), (1, -1)):
+        with pytest.raises(ValueError, match="samples"):
+            tessellate(patches, bad)
