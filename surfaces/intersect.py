@@ -376,16 +376,20 @@ def self_intersections(vertices, triangles, *, eps: float = 1e-9, first: bool = 
     return SelfIntersections(faces, hits, n_pairs)
 
 
-def _cross2(x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """z component of the cross products of 2D vectors (N, 2)."""
-    return x[:, 0] * y[:, 1] - x[:, 1] * y[:, 0]
-
-
 def _closed_and_oriented(t: np.ndarray, n_vertices: int) -> bool:
     """Whether every directed edge of triangles ``t`` (T, 3) occurs once and its reverse once."""
-    a, b = t.ravel(), t[:, [1, 2, 0]].ravel()
+    a = t.ravel()
+    b = np.empty_like(t)
+    b[:, :2], b[:, 2] = t[:, 1:], t[:, 0]
+    b = b.ravel()
+    if 2 * n_vertices * n_vertices + 2 < 2**31:  # half the bytes to sort
+        a, b = a.astype(np.int32), b.astype(np.int32)
     # one sort: each undirected edge must come exactly twice, once each way (codes 2 key and 2 key + 1)
-    code = np.sort(2 * (np.minimum(a, b) * n_vertices + np.maximum(a, b)) + (a > b))
+    code = np.minimum(a, b) * n_vertices
+    code += np.maximum(a, b)
+    code *= 2
+    code += a > b
+    code.sort()
     return bool(len(code) % 2 == 0 and np.all(code[0::2] % 2 == 0) and np.all(code[1::2] == code[0::2] + 1))
 
 
@@ -399,15 +403,15 @@ ANGLE_BINS = 1024
 MAX_WORRIED_BANDS = 1024
 
 
-def _arcs(p: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Angular range about ``c`` (F, 2) of triangles ``p`` (F, 3, 2): low end and length (rad).
+def _arcs(px: np.ndarray, py: np.ndarray, cx: np.ndarray, cy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Angular range about ``(cx, cy)`` (F,) of triangles with corners ``(px, py)`` (F, 3): low end and length (rad).
 
     Lengths of pi and more mean the triangle may hold ``c`` (then every direction is taken).
     """
-    phi = np.arctan2(p[..., 1] - c[:, None, 1], p[..., 0] - c[:, None, 0])
+    phi = np.arctan2(py - cy[:, None], px - cx[:, None])
     d = (phi[:, 1:] - phi[:, :1] + np.pi) % (2 * np.pi) - np.pi
-    low = np.minimum(d.min(axis=1), 0.0)
-    return phi[:, 0] + low, np.maximum(d.max(axis=1), 0.0) - low
+    low = np.minimum(np.minimum(d[:, 0], d[:, 1]), 0.0)
+    return phi[:, 0] + low, np.maximum(np.maximum(d[:, 0], d[:, 1]), 0.0) - low
 
 
 def _bins(low: np.ndarray, length: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -520,60 +524,74 @@ def fold_suspects(vertices, triangles, *, margin: float = 1e-12) -> np.ndarray |
         return None
     level = np.empty(len(z), dtype=np.int64)
     level[order] = np.cumsum(new_level) - 1
-    lv = level[t]
-    # three-way minimum and maximum: numpy reduces a short middle axis several times slower
-    low = np.minimum(np.minimum(lv[:, 0], lv[:, 1]), lv[:, 2])
-    high = np.maximum(np.maximum(lv[:, 0], lv[:, 1]), lv[:, 2])
+    # column by column (x and y of the vertices, the three corners of the faces): numpy's reductions,
+    # gathers and products along a short last axis cost more than the arithmetic written out
+    t0, t1, t2 = t[:, 0], t[:, 1], t[:, 2]
+    l0, l1, l2 = level[t0], level[t1], level[t2]
+    low = np.minimum(np.minimum(l0, l1), l2)
+    high = np.maximum(np.maximum(l0, l1), l2)
     top = int(level.max())
     flat = high == low
     if top < 1 or np.any(high - low > 1) or np.any(flat & (low != 0) & (low != top)):
         return None
-    xy = v[:, :2] - v[:, :2].mean(axis=0)
-    tiny = margin * (2.0 * float(np.abs(xy).max())) ** 2
+    mean = v[:, :2].mean(axis=0)
+    X, Y = v[:, 0] - mean[0], v[:, 1] - mean[1]
+    tiny = margin * (2.0 * max(float(np.abs(X).max()), float(np.abs(Y).max()))) ** 2
     for lvl in (0, top):
-        on = flat & (low == lvl)
-        if on.any():
-            c = xy[t[on]]
-            area = _cross2(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0])
+        on = np.flatnonzero(flat & (low == lvl))
+        if len(on):
+            c0, c1, c2 = t0[on], t1[on], t2[on]
+            x0, y0 = X[c0], Y[c0]
+            area = (X[c1] - x0) * (Y[c2] - y0) - (Y[c1] - y0) * (X[c2] - x0)
             if not (np.all(area > tiny) or np.all(area < -tiny)):
                 return None
     n_bands = top
     band = np.flatnonzero(~flat)
-    tb, base = t[band], low[band]
-    upper = (lv[band] > base[:, None]).view(np.int8)
-    n_up = upper[:, 0] + upper[:, 1] + upper[:, 2]
+    base = low[band]
+    u0, u1, u2 = l0[band] > base, l1[band] > base, l2[band] > base
+    n_up = u0.view(np.int8) + u1.view(np.int8) + u2.view(np.int8)
     one_up = n_up == 1
     # the lone corner (the one on its own level) last, the other two in the face's order before it
-    odd = np.where(one_up[:, None], upper, 1 - upper)
-    lone = odd[:, 1] + 2 * odd[:, 2]
-    r = np.take_along_axis(tb, (lone[:, None] + np.array([1, 2, 0])) % 3, axis=1)
-    p1, p2, x = xy[r[:, 0]], xy[r[:, 1]], xy[r[:, 2]]
+    lone = (u1 == one_up).view(np.int8) + 2 * (u2 == one_up).view(np.int8)
+    corner = 3 * band
+    corner += lone
+    flat_t = t.ravel()
+    r2 = flat_t[corner]
+    r0 = flat_t[corner + np.where(lone == 2, -2, 1)]
+    r1 = flat_t[corner + np.where(lone == 0, 2, -1)]
+    p1x, p1y, p2x, p2y, xx, xy = X[r0], Y[r0], X[r1], Y[r1], X[r2], Y[r2]
     # the cut runs along p1 -> p2 below a lone upper corner and along p2 -> p1 above a lone lower one
     turn = np.where(one_up, 1.0, -1.0)
-    a_mid = (np.where(one_up[:, None], p1, p2) + x) / 2.0
-    b_mid = (np.where(one_up[:, None], p2, p1) + x) / 2.0
-    w = _cross2(a_mid, b_mid)
+    ax, ay = (np.where(one_up, p1x, p2x) + xx) / 2.0, (np.where(one_up, p1y, p2y) + xy) / 2.0
+    bx, by = (np.where(one_up, p2x, p1x) + xx) / 2.0, (np.where(one_up, p2y, p1y) + xy) / 2.0
+    w = ax * by - ay * bx
     area = np.bincount(base, w, n_bands)
-    centre = np.stack([np.bincount(base, (a_mid[:, 0] + b_mid[:, 0]) * w, n_bands),
-                       np.bincount(base, (a_mid[:, 1] + b_mid[:, 1]) * w, n_bands)], axis=1)
-    centre /= 3.0 * np.where(area == 0, 1.0, area)[:, None]
+    denominator = 3.0 * np.where(area == 0, 1.0, area)
+    cx = np.bincount(base, (ax + bx) * w, n_bands) / denominator
+    cy = np.bincount(base, (ay + by) * w, n_bands) / denominator
     for lone_below in (False, True):
         # a band whose faces of one kind all share their lone corner and have no other kind is a fan to it
         kind = (n_up == 2) == lone_below
         apex = np.full(n_bands, -1)
-        apex[base[kind]] = r[kind, 2]
+        apex[base[kind]] = r2[kind]
         fan = apex >= 0
-        fan &= np.bincount(base[kind], r[kind, 2] != apex[base[kind]], n_bands) == 0
+        fan &= np.bincount(base[kind], r2[kind] != apex[base[kind]], n_bands) == 0
         fan &= np.bincount(base[~kind], minlength=n_bands) == 0
-        centre[fan] = xy[apex[fan]]
-    c = centre[base]
-    sign = np.sign(area)[base]
-    good = (sign * turn * _cross2(p1 - c, p2 - c) > tiny) & (sign * turn * _cross2(x - c, p2 - p1) >= 0)
-    am, bm = a_mid - c, b_mid - c
-    winding = np.bincount(base, np.arctan2(_cross2(am, bm), np.einsum("ij,ij->i", am, bm)), n_bands)
+        cx[fan], cy[fan] = X[apex[fan]], Y[apex[fan]]
+    ccx, ccy = cx[base], cy[base]
+    sign = np.sign(area)[base] * turn
+    good = sign * ((p1x - ccx) * (p2y - ccy) - (p1y - ccy) * (p2x - ccx)) > tiny
+    good &= sign * ((xx - ccx) * (p2y - p1y) - (xy - ccy) * (p2x - p1x)) >= 0
+    ax -= ccx
+    ay -= ccy
+    bx -= ccx
+    by -= ccy
+    winding = np.bincount(base, np.arctan2(ax * by - ay * bx, ax * bx + ay * by), n_bands)
     once = (np.abs(np.abs(winding) - 2 * np.pi) < 1.0) & (area != 0)
     suspect = np.zeros(len(t), dtype=bool)
-    worry = np.unique(np.concatenate([base[~good], np.flatnonzero(~once)]))
+    worried = ~once
+    worried[base[~good]] = True
+    worry = np.flatnonzero(worried)
     if len(worry) > MAX_WORRIED_BANDS:
         return None
     # each face's group: its band, or the band its cap closes; every face is looked at from the axis of
@@ -581,15 +599,20 @@ def fold_suspects(vertices, triangles, *, margin: float = 1e-12) -> np.ndarray |
     group = np.where(flat, np.where(low == 0, 0, top - 1), low)
     slot = np.full(n_bands, -1)
     slot[worry] = np.arange(len(worry))
+    near = worried.copy()  # bands within one of a worried band
+    near[1:] |= worried[:-1]
+    near[:-1] |= worried[1:]
+    seen = np.flatnonzero(near[group])
     faces, bands = [], []
     for step in (-1, 0, 1):
-        k = group + step
+        k = group[seen] + step
         ok = np.flatnonzero((k >= 0) & (k < n_bands))
         ok = ok[slot[k[ok]] >= 0]
-        faces.append(ok)
+        faces.append(seen[ok])
         bands.append(k[ok])
     f, k = np.concatenate(faces), np.concatenate(bands)
-    first, count = _bins(*_arcs(xy[t[f]], centre[k]))
+    tf = t[f]
+    first, count = _bins(*_arcs(X[tf], Y[tf], cx[k], cy[k]))
     w = slot[k]
     bad_face = np.zeros(len(t), dtype=bool)
     bad_face[band[~good]] = True
