@@ -27,6 +27,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -107,6 +108,19 @@ def candidate_pairs(corners: np.ndarray) -> np.ndarray:
     return np.concatenate(found) if found else np.zeros((0, 2), dtype=np.int64)
 
 
+#: Most triangles whose boxes :func:`candidate_pairs` compares pair by pair (one block), without the grid.
+SMALL_BROAD_PHASE = 96
+
+
+@lru_cache(maxsize=8)
+def _all_pairs(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Every pair ``a < b`` of ``n`` items (read-only int64 arrays)."""
+    a, b = np.triu_indices(n, 1)
+    a.flags.writeable = False
+    b.flags.writeable = False
+    return a, b
+
+
 def _candidate_blocks(c: np.ndarray) -> Iterator[np.ndarray]:
     """:func:`candidate_pairs` of corners (T >= 2, 3, 3), block after block (P_i, 2) in the same order.
 
@@ -114,6 +128,14 @@ def _candidate_blocks(c: np.ndarray) -> Iterator[np.ndarray]:
     intersection (:func:`self_intersections` with ``first``) makes only the blocks it tests.
     """
     lo, hi = _box(c)
+    if len(c) <= SMALL_BROAD_PHASE:
+        # every pair's boxes compared at once: cheaper than the grid and the sweep on a few faces
+        a, b = _all_pairs(len(c))
+        keep = (lo[a, 0] <= hi[b, 0]) & (lo[b, 0] <= hi[a, 0])
+        for k in (1, 2):
+            keep &= (lo[a, k] <= hi[b, k]) & (lo[b, k] <= hi[a, k])
+        yield np.stack([a[keep], b[keep]], axis=1)
+        return
     span = hi.max(axis=0) - lo.min(axis=0)
     axis = int(np.argmax(span))
     grid = [k for k in range(3) if k != axis]
@@ -265,44 +287,40 @@ def _pairs_intersect(corners: np.ndarray, t: np.ndarray, plane: np.ndarray, tol:
     return hit
 
 
-def _edge_hits(p: np.ndarray, q: np.ndarray, tri: np.ndarray, crosses: np.ndarray, eps: float) -> np.ndarray:
-    """:func:`_segment_hits` on the rows where the segment ``crosses`` (N,) the triangle's plane; False elsewhere."""
-    h = np.zeros(len(p), dtype=bool)
-    m = np.flatnonzero(crosses)
-    if len(m):
-        h[m] = _segment_hits(p[m], q[m], tri[m], eps)
-    return h
-
-
 def _pairs_intersect_exact(ta: np.ndarray, tb: np.ndarray, in_b: np.ndarray, in_a: np.ndarray,
                            n_shared: np.ndarray, eps: float, side_a: np.ndarray, side_b: np.ndarray) -> np.ndarray:
     """Segment-triangle tests for pairs of triangles (corners (N, 3, 3); shared corners of a and of b (N, 3)).
 
     ``side_a`` (N, 3) is the side of a's corners of b's plane (+1, -1, or 0 on it), ``side_b`` the
     other way round: an edge whose ends lie beyond the plane on one side cannot cross the triangle.
+    Pairs without a shared corner test every edge of each triangle against the other; pairs
+    sharing one corner the edge opposite it. All the tests of all pairs go through one call of
+    :func:`_segment_hits`.
     """
-    hit = np.zeros(len(ta), dtype=bool)
-    free = n_shared == 0
-    if free.any():
-        a, b, sa, sb = ta[free], tb[free], side_a[free], side_b[free]
-        h = np.zeros(len(a), dtype=bool)
-        for k in range(3):
-            n = (k + 1) % 3
-            h |= _edge_hits(a[:, k], a[:, n], b, sa[:, k] * sa[:, n] <= 0, eps)
-            h |= _edge_hits(b[:, k], b[:, n], a, sb[:, k] * sb[:, n] <= 0, eps)
-        hit[free] = h
-    one = n_shared == 1
-    if one.any():
-        a, b = ta[one], tb[one]
-        side1, side2 = side_a[one], side_b[one]
-        rows = np.arange(len(a))
-        sa = np.argmax(in_b[one], axis=1)  # shared corner of a
-        sb = np.argmax(in_a[one], axis=1)  # shared corner of b
-        # the edge opposite the shared corner
-        a1, a2, b1, b2 = (sa + 1) % 3, (sa + 2) % 3, (sb + 1) % 3, (sb + 2) % 3
-        h = _edge_hits(a[rows, a1], a[rows, a2], b, side1[rows, a1] * side1[rows, a2] <= 0, eps)
-        h |= _edge_hits(b[rows, b1], b[rows, b2], a, side2[rows, b1] * side2[rows, b2] <= 0, eps)
-        hit[one] = h
+    n = len(ta)
+    nxt = np.array([1, 2, 0])
+    rows, seg, ends, other = [], [], [], []
+    for tri, tri_other, side, shared in ((ta, tb, side_a, in_b), (tb, ta, side_b, in_a)):
+        # edge k runs from corner k to corner k + 1; it can cross the other triangle only where its
+        # ends do not lie beyond the other's plane on one side
+        need = side * side[:, nxt] <= 0
+        one = n_shared == 1
+        if one.any():
+            # the edge opposite the shared corner s is edge s + 1
+            opposite = np.zeros((n, 3), dtype=bool)
+            k = np.flatnonzero(one)
+            opposite[k, nxt[np.argmax(shared[k], axis=1)]] = True
+            need &= np.where(one[:, None], opposite, True)
+        r, k = np.nonzero(need)
+        rows.append(r)
+        seg.append(tri[r, k])
+        ends.append(tri[r, nxt[k]])
+        other.append(tri_other[r])
+    r = np.concatenate(rows)
+    hit = np.zeros(n, dtype=bool)
+    if len(r):
+        h = _segment_hits(np.concatenate(seg), np.concatenate(ends), np.concatenate(other), eps)
+        hit[r[h]] = True
     return hit
 
 

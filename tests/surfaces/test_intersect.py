@@ -49,9 +49,13 @@ def test_two_overlapping_spheres_intersect_along_their_circle():
     assert self_intersections(far, t).n_faces == 0
 
 
-def test_broad_phase_matches_brute_force():
+@pytest.mark.parametrize("n", [40, 300])  # pair by pair (few faces) and grid and sweep
+def test_broad_phase_matches_brute_force(n):
+    from surfaces.intersect import SMALL_BROAD_PHASE
+
+    assert (n <= SMALL_BROAD_PHASE) == (n == 40)
     rng = np.random.default_rng(3)
-    corners = rng.uniform(0, 10, (300, 1, 3)) + rng.normal(0, 0.6, (300, 3, 3))
+    corners = rng.uniform(0, 10, (n, 1, 3)) + rng.normal(0, 0.6, (n, 3, 3))
     corners[:5] *= [1.0, 1.0, 0.0]  # a few long flat slivers, like cap fans
     lo, hi = corners.min(axis=1), corners.max(axis=1)
     a, b = np.triu_indices(len(corners), 1)
