@@ -35,7 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from surfaces.mesh import TriangleMesh, merge_meshes, weld
+from surfaces.mesh import TriangleMesh, compact, merge_meshes, points_apart, weld
 from surfaces.validate import as_array, positive
 
 CAP_KINDS = ("none", "flat", "half", "dome")
@@ -550,6 +550,60 @@ def weld_flat_caps(side: TriangleMesh, grid: CappedGrid, samples: int,
     tol = 1e-7 * max(1.0, float(np.abs(side.vertices).max()))
     low, high = grid.end_planes
     rim = np.flatnonzero((np.abs(zv - low) < tol) | (np.abs(zv - high) < tol))
-    merged = merge_meshes([side] + [planar_cap_mesh(c, samples, s, inset) for c, s in grid.flat_caps])
+    caps = [planar_cap_mesh(c, samples, s, inset) for c, s in grid.flat_caps]
+    merged = merge_meshes([side] + caps)
     candidates = np.concatenate([rim, np.arange(side.n_vertices, merged.n_vertices)])
-    return weld(merged, candidates=candidates), merged
+    rep = _rim_weld_map(merged, side, caps, grid.flat_caps, int(samples), rim)
+    if rep is None:
+        return weld(merged, candidates=candidates), merged
+    tri = rep[merged.triangles]
+    keep = (tri[:, 0] != tri[:, 1]) & (tri[:, 1] != tri[:, 2]) & (tri[:, 2] != tri[:, 0])
+    return compact(TriangleMesh(merged.vertices, tri[keep], merged.vertex_normals, merged.vertex_colors,
+                                dict(merged.metadata))), merged
+
+
+def _rim_weld_map(merged: TriangleMesh, side: TriangleMesh, caps: list, flat_caps: tuple, samples: int,
+                  rim: np.ndarray) -> np.ndarray | None:
+    """The map of :func:`surfaces.mesh.weld` on ``merged`` (side, then caps) by index arithmetic, or None.
+
+    The side of :func:`surfaces.mesh.tessellate` is a lattice, ring sample ``i`` on row ``i``, the
+    low end plane in its first column and the high one in its last; a cap's boundary vertex ``i``
+    is that ring's sample ``i`` (the same points). The map sends every cap boundary vertex to its
+    rim vertex; it is what the spatial weld gives when every boundary vertex lies within half the
+    weld tolerance of its rim vertex and no two other candidates (rim, rim partners, the caps' other
+    vertices) lie within three tolerances (then no other pair is close enough to merge), checked by
+    :func:`surfaces.mesh.points_apart`. None when either check fails (a side that is not such a
+    lattice, points that nearly coincide): then the spatial weld decides.
+    """
+    verts = merged.vertices
+    # column by column: numpy reduces an (N, 3) array along its first axis several times slower
+    diag = float(np.sqrt(sum((verts[:, k].max() - verts[:, k].min()) ** 2 for k in range(3))))
+    tol = 1e-9 * max(diag, 1e-300)
+    rep = np.arange(len(verts))
+    n_side = side.n_vertices
+    boundary, partner, others = [], [], [rim]
+    offset = n_side
+    for cap, (curve, out_z) in zip(caps, flat_caps):
+        n_ring = len(curve) * samples  # the boundary vertices come first (planar_cap_mesh)
+        if n_ring == 0 or n_side % n_ring:
+            return None
+        n_v = n_side // n_ring
+        boundary.append(offset + np.arange(n_ring))
+        partner.append(np.arange(n_ring) * n_v + (0 if out_z < 0 else n_v - 1))
+        others.append(offset + np.arange(n_ring, cap.n_vertices))
+        offset += cap.n_vertices
+    boundary, partner = np.concatenate(boundary), np.concatenate(partner)
+    in_rim = np.zeros(n_side, dtype=bool)
+    in_rim[rim] = True
+    if not in_rim[partner].all():  # the spatial weld joins candidates only
+        return None
+    d = verts[boundary] - verts[partner]
+    if not np.all(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2] <= (tol / 2) ** 2):
+        return None
+    apart = np.zeros(len(verts), dtype=bool)
+    for idx in others + [partner]:
+        apart[idx] = True
+    if not points_apart(verts[apart], 3 * tol):
+        return None
+    rep[boundary] = partner
+    return rep

@@ -552,8 +552,7 @@ def fold_suspects(vertices, triangles, *, margin: float = 1e-12) -> np.ndarray |
     flat = high == low
     if top < 1 or np.any(high - low > 1) or np.any(flat & (low != 0) & (low != top)):
         return None
-    mean = v[:, :2].mean(axis=0)
-    X, Y = v[:, 0] - mean[0], v[:, 1] - mean[1]
+    X, Y = v[:, 0] - v[:, 0].mean(), v[:, 1] - v[:, 1].mean()
     tiny = margin * (2.0 * max(float(np.abs(X).max()), float(np.abs(Y).max()))) ** 2
     for lvl in (0, top):
         on = np.flatnonzero(flat & (low == lvl))

@@ -163,3 +163,38 @@ def test_fan_apex_moves_into_the_kernel_so_the_cap_patches_do_not_fold():
         folded = not np.allclose(p, apex)
         assert (area > 1.01 * abs(caps.curve_area(curve))) == folded
     assert area == pytest.approx(abs(caps.curve_area(curve)), rel=1e-9)
+
+
+@pytest.mark.parametrize("inset", [True, False])
+def test_welding_caps_by_index_is_the_spatial_weld(monkeypatch, inset):
+    # a blob with half caps and two subdivisions around: the caps' rims are joined to the side's lattice
+    # rows by index arithmetic; the spatial weld (forced) gives the same mesh
+    t = np.linspace(0, 2 * np.pi, 30, endpoint=False)
+    ring = np.stack([(6 + np.cos(3 * t)) * np.cos(t), (6 + np.cos(3 * t)) * np.sin(t)], axis=1)
+    bottom = _polygon_curve(ring, z=2.0)
+    grid = caps.close_side(None, bottom, bottom, (0.0, 0.0), (0.0, 0.0), 1.25, "half", "half")
+    side = tessellate(BezierPatches(grid.control[:, grid.side_columns], closed_u=True), (2, 3))
+    mesh, display = caps.weld_flat_caps(side, grid, 2, inset=inset)
+    assert caps._rim_weld_map(display, side, [caps.planar_cap_mesh(c, 2, s, inset) for c, s in grid.flat_caps],
+                              grid.flat_caps, 2, np.flatnonzero(np.abs(np.abs(side.vertices[:, 2] - 2.0) - 1.25)
+                                                                < 1e-9)) is not None
+    monkeypatch.setattr(caps, "_rim_weld_map", lambda *a: None)
+    spatial, _ = caps.weld_flat_caps(side, grid, 2, inset=inset)
+    np.testing.assert_array_equal(mesh.triangles, spatial.triangles)
+    np.testing.assert_array_equal(mesh.vertices, spatial.vertices)
+    np.testing.assert_array_equal(mesh.vertex_normals, spatial.vertex_normals)
+    assert mesh.is_watertight() and mesh.is_oriented()
+
+
+def test_welding_caps_by_index_falls_back_where_points_nearly_meet():
+    # a rim vertex doubled (a zero-length lattice step): the index map is refused, the spatial weld decides
+    corners = np.array([(0, 0), (4, 0), (4, 0), (4, 4), (0, 4)], float)
+    bottom = _polygon_curve(corners, z=0.0)
+    grid = caps.close_side(None, bottom, bottom, (2.0, 2.0), (2.0, 2.0), 1.0, "half", "half")
+    side = tessellate(BezierPatches(grid.control[:, grid.side_columns], closed_u=True), 1)
+    cap_meshes = [caps.planar_cap_mesh(c, 1, s) for c, s in grid.flat_caps]
+    from surfaces.mesh import merge_meshes
+
+    merged = merge_meshes([side] + cap_meshes)
+    rim = np.flatnonzero(np.abs(np.abs(side.vertices[:, 2]) - 1.0) < 1e-9)
+    assert caps._rim_weld_map(merged, side, cap_meshes, grid.flat_caps, 1, rim) is None

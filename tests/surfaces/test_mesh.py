@@ -188,3 +188,34 @@ def test_tessellate_refuses_bad_sample_pairs():
     for bad in ((0, 2), (2, 3, 4), (1, -1)):
         with pytest.raises(ValueError, match="samples"):
             tessellate(patches, bad)
+
+
+def test_points_apart_proves_only_what_holds():
+    from surfaces.mesh import points_apart
+
+    rng = np.random.default_rng(8)
+    pts = rng.uniform(-50, 50, (400, 3))
+    d = np.sqrt(((pts[:, None] - pts[None]) ** 2).sum(-1))
+    closest = d[np.triu_indices(len(pts), 1)].min()
+    assert points_apart(pts, 1e-9)
+    # never proven apart when two points are within the distance (one duplicated, one moved a little)
+    for extra in (pts[7], pts[7] + [0.0, 3e-10, 0.0]):
+        assert not points_apart(np.vstack([pts, extra]), 1e-9)
+    assert not points_apart(pts, closest * 1.01)
+    assert points_apart(pts[:1], 1.0) and points_apart(pts[:0], 1.0)
+
+
+def test_weld_map_skips_the_tree_only_when_points_are_apart(monkeypatch):
+    import scipy.spatial
+
+    pts = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
+    calls = []
+    real = scipy.spatial.cKDTree
+
+    def tree(p, *a, **k):
+        calls.append(len(p))
+        return real(p, *a, **k)
+
+    monkeypatch.setattr(scipy.spatial, "cKDTree", tree)
+    assert weld_map(pts, 1e-9).tolist() == [0, 1, 2, 3] and calls == []
+    assert weld_map(np.vstack([pts, pts[2] + 1e-12]), 1e-9).tolist() == [0, 1, 2, 3, 2] and calls == [5]
