@@ -489,19 +489,19 @@ def close_side(side, bottom, top, low_center, high_center, height: float, low: s
     """
     bottom = as_array(bottom, "bottom", shape=(None, 4, 3))
     top = as_array(top, "top", shape=bottom.shape)
-    columns = [] if side is None else [as_array(side, "side", shape=(len(bottom), None, 4, 4, 3))]
+    full = [] if side is None else [as_array(side, "side", shape=(len(bottom), None, 4, 4, 3))]
     if low == "half":
-        columns.insert(0, prism_column(bottom, -height))
+        full.insert(0, prism_column(bottom, -height))
         bottom = bottom.copy()
         bottom[..., 2] -= height
     if high == "half":
-        columns.append(prism_column(top, height))
+        full.append(prism_column(top, height))
         top = top.copy()
         top[..., 2] += height
-    if not columns:
+    if not full:
         raise ValueError("side: a single slice has no side surface; it needs a half cap at one end at least")
-    side_ctrl = np.concatenate(columns, axis=1)
-    full = [side_ctrl]
+    n_side = sum(c.shape[1] for c in full)
+    # one concatenation of every column (side, extrusions and fans): the grid is copied once
     flat = []
     first = 0
     if low != "dome":
@@ -513,7 +513,7 @@ def close_side(side, bottom, top, low_center, high_center, height: float, low: s
         full.append(fan_column(top, np.append(fan_apex(top, high_center), top[0, 0, 2]), True))
         if high != "none":
             flat.append((top, 1.0))
-    return CappedGrid(np.concatenate(full, axis=1), slice(first, first + side_ctrl.shape[1]), tuple(flat),
+    return CappedGrid(np.concatenate(full, axis=1), slice(first, first + n_side), tuple(flat),
                       (float(bottom[0, 0, 2]), float(top[0, 0, 2])))
 
 
