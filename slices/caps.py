@@ -32,6 +32,7 @@ joins the flat caps' triangles to the tessellated side.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -229,6 +230,44 @@ def curve_area(curve) -> float:
 CAP_INSET = 0.05
 
 
+def _following(x: np.ndarray) -> np.ndarray:
+    """The rows of a closed ring starting at the second: ``np.roll(x, -1, axis=0)`` in one call."""
+    return np.concatenate((x[1:], x[:1]))
+
+
+def _previous(x: np.ndarray) -> np.ndarray:
+    """The rows of a closed ring starting at the last: ``np.roll(x, 1, axis=0)`` in one call."""
+    return np.concatenate((x[-1:], x[:-1]))
+
+
+def _lengths(v: np.ndarray) -> np.ndarray:
+    """Lengths of 2D vectors (N, 2), as ``np.linalg.norm(v, axis=1)`` (the same sum of squares)."""
+    return np.sqrt(v[:, 0] * v[:, 0] + v[:, 1] * v[:, 1])
+
+
+#: Turns ``(y, x)`` into the left normal ``(-y, x)`` of ``(x, y)``.
+_LEFT = np.array([-1.0, 1.0])
+_LEFT.flags.writeable = False
+
+
+@lru_cache(maxsize=64)
+def _fan(n: int) -> np.ndarray:
+    """Triangles ``(n, i, i + 1)`` of a fan from an extra vertex ``n`` round a ring of ``n`` (read-only)."""
+    i = np.arange(n)
+    out = np.stack([np.full(n, n), i, (i + 1) % n], axis=1)
+    out.flags.writeable = False
+    return out
+
+
+@lru_cache(maxsize=64)
+def _strip(n: int) -> np.ndarray:
+    """Triangles of the band between a ring of ``n`` and the inner ring ``n .. 2n - 1`` (read-only)."""
+    i = np.arange(n)
+    out = np.concatenate([np.stack([i, (i + 1) % n, n + (i + 1) % n], 1), np.stack([i, n + (i + 1) % n, n + i], 1)])
+    out.flags.writeable = False
+    return out
+
+
 def _triangulate_ccw(xy: np.ndarray) -> np.ndarray:
     """Triangles of a counter-clockwise simple polygon, counter-clockwise, shape (T, 3).
 
@@ -241,10 +280,9 @@ def _triangulate_ccw(xy: np.ndarray) -> np.ndarray:
     n = len(xy)
     rel = xy - xy.mean(axis=0)
     ang = np.arctan2(rel[:, 1], rel[:, 0])
-    turn = (ang - np.roll(ang, 1) + np.pi) % (2 * np.pi) - np.pi
+    turn = (ang - _previous(ang) + np.pi) % (2 * np.pi) - np.pi
     if np.all(turn > 0) and turn.sum() > np.pi:
-        i = np.arange(n)
-        return np.stack([np.full(n, n), i, (i + 1) % n], axis=1)
+        return _fan(n)
     return np.asarray(manifold3d.triangulate([xy]), dtype=np.int64).reshape(-1, 3)
 
 
@@ -257,14 +295,13 @@ def _signed_areas(xy: np.ndarray, tri: np.ndarray) -> np.ndarray:
 
 def _inset_ring(xy: np.ndarray, distance: float) -> np.ndarray:
     """A counter-clockwise ring moved inward by ``distance`` (mitred, the mitre limited to 4x)."""
-    t_out = np.roll(xy, -1, axis=0) - xy
-    t_out /= np.maximum(np.linalg.norm(t_out, axis=1), 1e-300)[:, None]
-    t_in = np.roll(t_out, 1, axis=0)
+    t_out = _following(xy) - xy
+    t_out /= np.maximum(_lengths(t_out), 1e-300)[:, None]
+    t_in = _previous(t_out)
     # inward (left) normals of the incoming and outgoing edges
-    n_in = np.stack([-t_in[:, 1], t_in[:, 0]], axis=1)
-    n_out = np.stack([-t_out[:, 1], t_out[:, 0]], axis=1)
+    n_in, n_out = t_in[:, ::-1] * _LEFT, t_out[:, ::-1] * _LEFT
     bis = n_in + n_out
-    half = np.linalg.norm(bis, axis=1) / 2
+    half = _lengths(bis) / 2
     direction = np.where(half[:, None] > 1e-9, bis / np.maximum(2 * half, 1e-300)[:, None], n_out)
     return xy + direction * (distance / np.maximum(half, 0.25))[:, None]
 
@@ -282,17 +319,17 @@ def _cap_polygon(xy: np.ndarray, inset: bool = True) -> tuple[np.ndarray, np.nda
     (outlines narrower than the band) the band is halved, and at last left out.
     """
     n = len(xy)
-    edge = np.linalg.norm(np.roll(xy, -1, axis=0) - xy, axis=1)
-    total = 0.5 * float(np.sum(_signed_areas(np.vstack([xy, xy.mean(axis=0)]),
-                                             np.stack([np.full(n, n), np.arange(n), (np.arange(n) + 1) % n], 1))))
+    following = _following(xy)
+    edge = _lengths(following - xy)
+    # the fan from the mean: the outline's area
+    d0, d1 = xy - xy.mean(axis=0), following - xy.mean(axis=0)
+    total = 0.5 * float(np.sum(d0[:, 0] * d1[:, 1] - d0[:, 1] * d1[:, 0]))
     distance = CAP_INSET * float(np.median(edge)) if inset else 0.0
-    i = np.arange(n)
+    strip = _strip(n)
     for _ in range(4):
         if distance <= 1e-9 * max(1.0, float(np.abs(xy).max())):
             break
         inner = _inset_ring(xy, distance)
-        strip = np.concatenate([np.stack([i, (i + 1) % n, n + (i + 1) % n], 1),
-                                np.stack([i, n + (i + 1) % n, n + i], 1)])
         tri = _triangulate_ccw(inner)
         pts = np.vstack([xy, inner, inner.mean(axis=0)[None]]) if tri.max(initial=0) >= n else np.vstack([xy, inner])
         tri = np.concatenate([strip, tri + n])
@@ -334,7 +371,8 @@ def planar_cap_mesh(curve, samples: int, outward_z: float, inset: bool = True) -
     ring = _bezier_points(c, s).reshape(-1, 3)
     xy = ring[:, :2]
     n = len(xy)
-    area = 0.5 * float(np.dot(xy[:, 0], np.roll(xy[:, 1], -1)) - np.dot(xy[:, 1], np.roll(xy[:, 0], -1)))
+    following = _following(xy)
+    area = 0.5 * float(np.dot(xy[:, 0], following[:, 1]) - np.dot(xy[:, 1], following[:, 0]))
     # work on a counter-clockwise copy; the boundary vertices keep the curve's order
     order = np.arange(n) if area > 0 else np.arange(n)[::-1]
     pts, tri = _cap_polygon(xy[order], inset)
