@@ -59,6 +59,18 @@ def _bezier_points(curve: np.ndarray, s: np.ndarray) -> np.ndarray:
 APEX_SAMPLES = 8
 
 
+def _apex_weights() -> tuple:
+    """Bernstein weights of the points and of the tangents (over 3) at :func:`fan_apex`'s samples."""
+    s = np.arange(APEX_SAMPLES) / APEX_SAMPLES
+    out = ((1 - s) ** 3, 3 * s * (1 - s) ** 2, 3 * s**2 * (1 - s), s**3, (1 - s) ** 2, 2 * s * (1 - s), s**2)
+    for w in out:
+        w.flags.writeable = False
+    return out
+
+
+_APEX_WEIGHTS = _apex_weights()
+
+
 def fan_apex(curve, hint) -> np.ndarray:
     """Apex of a flat cap's fan from which the closed curve is seen turning one way.
 
@@ -85,25 +97,30 @@ def fan_apex(curve, hint) -> np.ndarray:
     """
     c = as_array(curve, "curve", shape=(None, 4, 3))
     p = as_array(hint, "hint", shape=(2,))
-    s = np.arange(APEX_SAMPLES) / APEX_SAMPLES
-    q = _bezier_points(c, s).reshape(-1, 3)[:, :2]
-    t = 3 * ((1 - s)[None, :, None] ** 2 * (c[:, None, 1] - c[:, None, 0])
-             + (2 * s * (1 - s))[None, :, None] * (c[:, None, 2] - c[:, None, 1])
-             + (s**2)[None, :, None] * (c[:, None, 3] - c[:, None, 2])).reshape(-1, 3)[:, :2]
-    length = np.linalg.norm(t, axis=1)
-    keep = length > 1e-12 * max(1.0, float(length.max(initial=0.0)))
-    q, t = q[keep], t[keep] / length[keep, None]
+    k0, k1, k2, k3, d0, d1, d2 = _APEX_WEIGHTS
+    x, y = c[:, :, 0, None], c[:, :, 1, None]  # (M, 4, 1): the sample axis last
+    # x and y of the points and tangents at the samples, (M * APEX_SAMPLES,) each (segment-major)
+    qx = (k0 * x[:, 0] + k1 * x[:, 1] + k2 * x[:, 2] + k3 * x[:, 3]).ravel()
+    qy = (k0 * y[:, 0] + k1 * y[:, 1] + k2 * y[:, 2] + k3 * y[:, 3]).ravel()
+    tx = (3 * (d0 * (x[:, 1] - x[:, 0]) + d1 * (x[:, 2] - x[:, 1]) + d2 * (x[:, 3] - x[:, 2]))).ravel()
+    ty = (3 * (d0 * (y[:, 1] - y[:, 0]) + d1 * (y[:, 2] - y[:, 1]) + d2 * (y[:, 3] - y[:, 2]))).ravel()
+    length = np.sqrt(tx * tx + ty * ty)
+    keep = np.flatnonzero(length > 1e-12 * max(1.0, float(length.max(initial=0.0))))
+    qx, qy, length = qx[keep], qy[keep], length[keep]
+    tx, ty = tx[keep] / length, ty[keep] / length
     orient = 1.0 if curve_area(c) > 0 else -1.0
     # seen from p, the curve turns counter-clockwise (for a counter-clockwise curve) where
     # cross(q - p, t) > 0, i.e. a . p < b with a = (t_y, -t_x), b = cross(q, t)
-    a = orient * np.stack([t[:, 1], -t[:, 0]], axis=1)
-    b = orient * (q[:, 0] * t[:, 1] - q[:, 1] * t[:, 0])
+    a = np.empty((len(keep), 2))
+    a[:, 0], a[:, 1] = orient * ty, orient * -tx
+    b = orient * (qx * ty - qy * tx)
     if np.all(a @ p < b):
         return p
     from scipy.optimize import linprog  # most caps see their curve from the hint: scipy is loaded only here
 
+    extent = max(float(np.ptp(qx)), float(np.ptp(qy)))
     res = linprog([0.0, 0.0, -1.0], A_ub=np.hstack([a, np.ones((len(a), 1))]), b_ub=b,
-                  bounds=[(None, None), (None, None), (None, float(np.ptp(q, axis=0).max()))], method="highs")
+                  bounds=[(None, None), (None, None), (None, extent)], method="highs")
     if res.status == 0 and res.x[2] > 0:
         return np.asarray(res.x[:2], dtype=np.float64)
     return p

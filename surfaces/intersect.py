@@ -32,6 +32,7 @@ from functools import lru_cache
 import numpy as np
 
 from surfaces.validate import as_array
+from surfaces.vectors import cross
 
 __all__ = ["SelfIntersections", "candidate_pairs", "fold_suspects", "folded_faces", "is_fold_free",
            "layered_radial_graph", "self_intersections"]
@@ -369,7 +370,7 @@ def self_intersections(vertices, triangles, *, eps: float = 1e-9, first: bool = 
     t_pairs = t.astype(np.int32) if len(v) < 2**31 else t
     # degenerate (zero-area) faces cannot be pierced in the interior; they are left out
     corners = v[t]
-    normal = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    normal = cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
     area2 = np.linalg.norm(normal, axis=1)
     lo, hi = _box(corners)
     size = (hi - lo).max(axis=1)
