@@ -453,13 +453,23 @@ TESSELLATE_BLOCK = 2**20
 
 
 def _grid_triangles(rows: int, cols: int, closed_u: bool, closed_v: bool) -> np.ndarray:
-    """Two triangles per grid cell, oriented so that the face normal is ``du x dv``."""
+    """Two triangles per grid cell, oriented so that the face normal is ``du x dv``.
+
+    Cell ``(g, h)`` has corners ``a = (g, h)``, ``b = (g + 1, h)``, ``c = (g + 1, h + 1)``,
+    ``d = (g, h + 1)`` (wrapping closed directions); all triangles ``(a, b, c)`` first, then all ``(a, c, d)``.
+    """
     gu = np.arange(rows if closed_u else rows - 1)
     gv = np.arange(cols if closed_v else cols - 1)
-    g0, h0 = np.meshgrid(gu, gv, indexing="ij")
-    g1, h1 = (g0 + 1) % rows, (h0 + 1) % cols
-    a, b, c, d = g0 * cols + h0, g1 * cols + h0, g1 * cols + h1, g0 * cols + h1
-    return np.concatenate([np.stack([a, b, c], -1).reshape(-1, 3), np.stack([a, c, d], -1).reshape(-1, 3)])
+    g0, g1 = gu * cols, ((gu + 1) % rows) * cols
+    h0, h1 = gv, (gv + 1) % cols
+    out = np.empty((2, len(gu), len(gv), 3), dtype=np.int64)
+    np.add(g0[:, None], h0, out=out[0, :, :, 0])
+    np.add(g1[:, None], h0, out=out[0, :, :, 1])
+    np.add(g1[:, None], h1, out=out[0, :, :, 2])
+    out[1, :, :, 0] = out[0, :, :, 0]
+    out[1, :, :, 1] = out[0, :, :, 2]
+    np.add(g0[:, None], h1, out=out[1, :, :, 2])
+    return out.reshape(-1, 3)
 
 
 @lru_cache(maxsize=32)
