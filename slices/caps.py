@@ -59,16 +59,26 @@ def _bezier_points(curve: np.ndarray, s: np.ndarray) -> np.ndarray:
 APEX_SAMPLES = 8
 
 
-def _apex_weights() -> tuple:
-    """Bernstein weights of the points and of the tangents (over 3) at :func:`fan_apex`'s samples."""
-    s = np.arange(APEX_SAMPLES) / APEX_SAMPLES
+def _bezier_weights(s: np.ndarray) -> tuple:
+    """Bernstein weights of the points (4) and of the tangents over 3 (3) at parameters ``s``, read-only.
+
+    A point is ``k0 P0 + k1 P1 + k2 P2 + k3 P3``, a tangent ``3 (d0 (P1 - P0) + d1 (P2 - P1) + d2 (P3 - P2))``.
+    """
     out = ((1 - s) ** 3, 3 * s * (1 - s) ** 2, 3 * s**2 * (1 - s), s**3, (1 - s) ** 2, 2 * s * (1 - s), s**2)
     for w in out:
         w.flags.writeable = False
     return out
 
 
-_APEX_WEIGHTS = _apex_weights()
+def _points_and_tangents(x: np.ndarray, weights: tuple) -> tuple[np.ndarray, np.ndarray]:
+    """One coordinate ``x`` (M, 4) of Bezier segments at the parameters of ``weights``: values and tangents (M, S)."""
+    k0, k1, k2, k3, d0, d1, d2 = weights
+    x = x[:, :, None]
+    return (k0 * x[:, 0] + k1 * x[:, 1] + k2 * x[:, 2] + k3 * x[:, 3],
+            3 * (d0 * (x[:, 1] - x[:, 0]) + d1 * (x[:, 2] - x[:, 1]) + d2 * (x[:, 3] - x[:, 2])))
+
+
+_APEX_WEIGHTS = _bezier_weights(np.arange(APEX_SAMPLES) / APEX_SAMPLES)
 
 
 def fan_apex(curve, hint) -> np.ndarray:
@@ -97,13 +107,9 @@ def fan_apex(curve, hint) -> np.ndarray:
     """
     c = as_array(curve, "curve", shape=(None, 4, 3))
     p = as_array(hint, "hint", shape=(2,))
-    k0, k1, k2, k3, d0, d1, d2 = _APEX_WEIGHTS
-    x, y = c[:, :, 0, None], c[:, :, 1, None]  # (M, 4, 1): the sample axis last
     # x and y of the points and tangents at the samples, (M * APEX_SAMPLES,) each (segment-major)
-    qx = (k0 * x[:, 0] + k1 * x[:, 1] + k2 * x[:, 2] + k3 * x[:, 3]).ravel()
-    qy = (k0 * y[:, 0] + k1 * y[:, 1] + k2 * y[:, 2] + k3 * y[:, 3]).ravel()
-    tx = (3 * (d0 * (x[:, 1] - x[:, 0]) + d1 * (x[:, 2] - x[:, 1]) + d2 * (x[:, 3] - x[:, 2]))).ravel()
-    ty = (3 * (d0 * (y[:, 1] - y[:, 0]) + d1 * (y[:, 2] - y[:, 1]) + d2 * (y[:, 3] - y[:, 2]))).ravel()
+    qx, tx = (a.ravel() for a in _points_and_tangents(c[:, :, 0], _APEX_WEIGHTS))
+    qy, ty = (a.ravel() for a in _points_and_tangents(c[:, :, 1], _APEX_WEIGHTS))
     length = np.sqrt(tx * tx + ty * ty)
     keep = np.flatnonzero(length > 1e-12 * max(1.0, float(length.max(initial=0.0))))
     qx, qy, length = qx[keep], qy[keep], length[keep]
@@ -215,6 +221,7 @@ _GAUSS3_NODES = 0.5 * (np.polynomial.legendre.leggauss(3)[0] + 1.0)
 _GAUSS3_WEIGHTS = np.polynomial.legendre.leggauss(3)[1]
 _GAUSS3_NODES.flags.writeable = False
 _GAUSS3_WEIGHTS.flags.writeable = False
+_GAUSS3_BEZIER = _bezier_weights(_GAUSS3_NODES)
 
 
 def curve_area(curve) -> float:
@@ -234,13 +241,9 @@ def curve_area(curve) -> float:
         mm^2, positive for a counter-clockwise curve seen from +z.
     """
     c = as_array(curve, "curve", shape=(None, 4, 3))
-    s, w = _GAUSS3_NODES, _GAUSS3_WEIGHTS
-    pts = _bezier_points(c, s)
-    d = 3 * ((1 - s)[None, :, None] ** 2 * (c[:, None, 1] - c[:, None, 0])
-             + (2 * s * (1 - s))[None, :, None] * (c[:, None, 2] - c[:, None, 1])
-             + (s**2)[None, :, None] * (c[:, None, 3] - c[:, None, 2]))
-    integrand = pts[..., 0] * d[..., 1] - pts[..., 1] * d[..., 0]
-    return float(0.25 * np.sum(integrand * w[None, :]))
+    x, dx = _points_and_tangents(c[:, :, 0], _GAUSS3_BEZIER)
+    y, dy = _points_and_tangents(c[:, :, 1], _GAUSS3_BEZIER)
+    return float(0.25 * np.sum((x * dy - y * dx) * _GAUSS3_WEIGHTS))
 
 
 #: Width of the flat band round a flat cap's inner ring, as a fraction of the median boundary edge.
