@@ -122,14 +122,88 @@ def fan_apex(curve, hint) -> np.ndarray:
     b = orient * (qx * ty - qy * tx)
     if np.all(a @ p < b):
         return p
+    extent = max(float(np.ptp(qx)), float(np.ptp(qy)))
+    # an empty kernel (a deep notch) needs no linear programme: three tangent lines prove it
+    if _kernel_empty(a, b, (float(qx.min()), float(qy.min()), float(qx.max()), float(qy.max())),
+                     1e-6 * max(1.0, extent, float(np.abs(b).max()))):
+        return p
     from scipy.optimize import linprog  # most caps see their curve from the hint: scipy is loaded only here
 
-    extent = max(float(np.ptp(qx)), float(np.ptp(qy)))
     res = linprog([0.0, 0.0, -1.0], A_ub=np.hstack([a, np.ones((len(a), 1))]), b_ub=b,
                   bounds=[(None, None), (None, None), (None, extent)], method="highs")
     if res.status == 0 and res.x[2] > 0:
         return np.asarray(res.x[:2], dtype=np.float64)
     return p
+
+
+#: Constraints nearest the approximate optimum among which :func:`_kernel_empty` tries every triple.
+_KERNEL_CANDIDATES = 32
+
+#: A 9 x 9 grid over [-1, 1]^2, (81, 2) (row-major: x slowest).
+_GRID_9 = np.stack(np.meshgrid(np.linspace(-1.0, 1.0, 9), np.linspace(-1.0, 1.0, 9), indexing="ij"), -1).reshape(-1, 2)
+_GRID_9.flags.writeable = False
+
+
+@lru_cache(maxsize=4)
+def _triples(n: int) -> np.ndarray:
+    """Every triple ``i < j < k`` of ``n`` items, (C(n, 3), 3) read-only."""
+    i, j, k = np.meshgrid(np.arange(n), np.arange(n), np.arange(n), indexing="ij")
+    out = np.stack([i, j, k], axis=-1).reshape(-1, 3)
+    out = out[(out[:, 0] < out[:, 1]) & (out[:, 1] < out[:, 2])]
+    out.flags.writeable = False
+    return out
+
+
+def _kernel_empty(a: np.ndarray, b: np.ndarray, box: tuple, margin: float) -> bool:
+    """Whether ``max_p min_i (b_i - a_i . p) < -margin`` (unit normals ``a`` (N, 2)) is proven; False: not proven.
+
+    The proof: three constraints whose normals surround the origin bound the maximum by theirs,
+    ``r_T = sum y_i b_i / sum y_i`` with ``y = (a_j x a_k, a_k x a_i, a_i x a_j)`` all of one sign
+    or zero (``sum y_i a_i = 0``, so ``r <= sum y_i (b_i - a_i . p) / sum y_i`` at every ``p``);
+    or two opposite normals, ``r <= (b_i + b_j) / 2``. The
+    triples tried are those among the :data:`_KERNEL_CANDIDATES` constraints tightest at an
+    approximate maximiser (one per direction, of 256) (a grid over ``box`` = (x0, y0, x1, y1), zoomed in four times: the
+    function is concave). Proven below ``-margin``, the linear programme of :func:`fan_apex` ends
+    with a negative distance too (its tolerances lie far below the margin), so its answer is the hint.
+    """
+    x0, y0, x1, y1 = box
+    cx, cy, hx, hy = (x0 + x1) / 2, (y0 + y1) / 2, (x1 - x0) / 2 + margin, (y1 - y0) / 2 + margin
+    grid = _GRID_9
+    at = np.ascontiguousarray(a.T)
+    for _ in range(4):
+        # the distances of 9 x 9 grid points to every constraint line, (81, N)
+        r = (grid * (hx, hy) + (cx, cy)) @ at
+        np.subtract(b, r, out=r)
+        best = int(np.argmax(r.min(axis=1)))
+        cx, cy = cx + hx * grid[best, 0], cy + hy * grid[best, 1]
+        hx, hy = hx / 4, hy / 4
+    slack = b - (a[:, 0] * cx + a[:, 1] * cy)
+    if slack.min() >= -margin:
+        return False  # a point that (nearly) sees the whole curve: no proof to look for
+    # the tightest constraint of each direction (sampled segments repeat their lines), tightest first
+    direction = np.floor((np.arctan2(a[:, 1], a[:, 0]) + np.pi) * (256 / (2 * np.pi))).astype(np.int64)
+    order = np.lexsort((slack, direction))
+    first = order[np.concatenate([[True], np.diff(direction[order]) != 0])]
+    near = first[np.argsort(slack[first])[:_KERNEL_CANDIDATES]]
+    t = near[_triples(len(near))]
+    ax, ay, bb = a[t, 0], a[t, 1], b[t]
+    y = np.stack([ax[:, 1] * ay[:, 2] - ay[:, 1] * ax[:, 2], ax[:, 2] * ay[:, 0] - ay[:, 2] * ax[:, 0],
+                  ax[:, 0] * ay[:, 1] - ay[:, 0] * ax[:, 1]], axis=1)
+    y *= np.sign(y[:, :1] + y[:, 1:2] + y[:, 2:])
+    # no weight negative beyond rounding: the normals surround the origin (a zero weight: two opposite
+    # normals, as the walls of a slot); well spread, so that the rounding of sum y_i a_i = 0 stays far
+    # below the margin
+    ok = y.min(axis=1) > -1e-12
+    y = np.maximum(y, 0.0)
+    total = y[:, 0] + y[:, 1] + y[:, 2]
+    ok &= total > 1e-3
+    bound = (y * bb).sum(axis=1) / np.where(ok, total, 1.0)
+    if np.any(ok & (bound < -margin)):
+        return True
+    # two opposite normals (the walls of a slot, each sampled many times): r <= (b_i + b_j) / 2
+    i, j = near[np.array(np.triu_indices(len(near), 1))]
+    opposite = a[i, 0] * a[j, 0] + a[i, 1] * a[j, 1] < -1.0 + 1e-12
+    return bool(np.any(opposite & ((b[i] + b[j]) / 2 < -margin)))
 
 
 def fan_column(curve, center, toward_center: bool) -> np.ndarray:
