@@ -112,6 +112,10 @@ def candidate_pairs(corners: np.ndarray) -> np.ndarray:
 #: Most triangles whose boxes :func:`candidate_pairs` compares pair by pair (one block), without the grid.
 SMALL_BROAD_PHASE = 96
 
+#: Raw pairs per triangle up to which :func:`candidate_pairs` sweeps along one axis without the grid
+#: (one block); beyond, long slivers would make too many, and the grid keeps them apart.
+SWEEP_PAIRS_PER_FACE = 64
+
 
 @lru_cache(maxsize=8)
 def _all_pairs(n: int) -> tuple[np.ndarray, np.ndarray]:
@@ -140,6 +144,21 @@ def _candidate_blocks(c: np.ndarray) -> Iterator[np.ndarray]:
     span = hi.max(axis=0) - lo.min(axis=0)
     axis = int(np.argmax(span))
     grid = [k for k in range(3) if k != axis]
+    # one sweep along the longest axis, without the grid, while it makes few raw pairs (a few hundred
+    # suspect faces of a fold check): each box pairs with the boxes after it whose low end does not pass
+    # its high end, then the other two axes are compared
+    order = np.argsort(lo[:, axis], kind="stable")
+    n_after = np.searchsorted(lo[order, axis], hi[order, axis], side="right") - np.arange(1, len(c) + 1)
+    n_after = np.maximum(n_after, 0)
+    if int(n_after.sum()) <= min(_BLOCK, SWEEP_PAIRS_PER_FACE * len(c)):
+        first = np.repeat(np.arange(len(c)), n_after)
+        a = order[first]
+        b = order[first + np.arange(1, len(first) + 1) - np.repeat(np.cumsum(n_after) - n_after, n_after)]
+        keep = (lo[a, grid[0]] <= hi[b, grid[0]]) & (lo[b, grid[0]] <= hi[a, grid[0]])
+        keep &= (lo[a, grid[1]] <= hi[b, grid[1]]) & (lo[b, grid[1]] <= hi[a, grid[1]])
+        a, b = a[keep], b[keep]
+        yield np.stack([np.minimum(a, b), np.maximum(a, b)], axis=1)
+        return
     cell = np.maximum(np.median(hi[:, grid] - lo[:, grid], axis=0), span[grid] * 1e-6 + 1e-300)
     # a few huge triangles would otherwise cover millions of cells: coarsen until bounded
     while np.prod(np.floor(hi[:, grid] / cell) - np.floor(lo[:, grid] / cell) + 1, axis=1).sum() > 8 * len(c) + 1000:
