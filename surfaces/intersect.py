@@ -2,7 +2,8 @@
 
 A vectorised triangle-triangle test with a broad phase. The broad phase hashes
 every triangle's bounding box into a grid over two axes and sweeps along the
-third (:func:`candidate_pairs`), keeping the pairs whose boxes overlap. The
+third (:func:`candidate_pairs`; a few faces are compared pair by pair, a few
+hundred swept along one axis), keeping the pairs whose boxes overlap. The
 narrow phase decides each candidate pair by segment-triangle tests (Moller &
 Trumbore 1997): two triangles in general position intersect exactly when an
 edge of one crosses the other. Pairs that share an edge are neighbours and
@@ -92,7 +93,10 @@ def candidate_pairs(corners: np.ndarray) -> np.ndarray:
     cell; a pair whose boxes share several cells is kept in the cell of the
     overlap's low corner only. Long flat slivers (fans of planar caps) then
     meet only the triangles beside them, not everything within their box's
-    extent along the sweep axis.
+    extent along the sweep axis. Cheaper ways give the same pairs on small
+    inputs: up to :data:`SMALL_BROAD_PHASE` triangles every pair of boxes is
+    compared; while a sweep along the longest axis alone makes at most
+    :data:`SWEEP_PAIRS_PER_FACE` raw pairs a triangle, the grid is left out.
 
     Parameters
     ----------
