@@ -170,12 +170,17 @@ def mesh_samples(control: np.ndarray, budget: int = MESH_BUDGET) -> tuple[int, i
     """
     # written out over the short axes (3 legs, 3 coordinates): numpy's reductions along them cost
     # more than the arithmetic on every body's mesh
-    du = control[:, :, 1:] - control[:, :, :-1]
-    dv = control[:, :, :, 1:] - control[:, :, :, :-1]
-    lu = np.sqrt(du[..., 0] ** 2 + du[..., 1] ** 2 + du[..., 2] ** 2)
-    lv = np.sqrt(dv[..., 0] ** 2 + dv[..., 1] ** 2 + dv[..., 2] ** 2)
-    polygon_u = lu[:, :, 0] + lu[:, :, 1] + lu[:, :, 2]
-    polygon_v = lv[:, :, :, 0] + lv[:, :, :, 1] + lv[:, :, :, 2]
+    lengths = []
+    for d in (control[:, :, 1:] - control[:, :, :-1], control[:, :, :, 1:] - control[:, :, :, :-1]):
+        d *= d  # in place: one pass over the legs' coordinates, not one per coordinate
+        length = d[..., 0] + d[..., 1]
+        length += d[..., 2]
+        lengths.append(np.sqrt(length, out=length))
+    lu, lv = lengths  # (R, C, 3, 4) along u, (R, C, 4, 3) along v
+    polygon_u = lu[:, :, 0] + lu[:, :, 1]
+    polygon_u += lu[:, :, 2]
+    polygon_v = lv[..., 0] + lv[..., 1]
+    polygon_v += lv[..., 2]
     su, sv = (int(np.clip(np.ceil(np.median(p) / EDGE_MM), 1, MAX_SAMPLES)) for p in (polygon_u, polygon_v))
     n_patches = control.shape[0] * control.shape[1]
     while su * sv * n_patches > budget and max(su, sv) > 1:
