@@ -19,7 +19,7 @@ from slices.io import SPACING_RTOL
 from slices.options import SurfaceOptions
 from slices.surface import blend_overshoot, lattice_size, ruled_surface, side_surface, slice_curves
 from surfaces import measure
-from surfaces.bezier import BezierPatches, bernstein
+from surfaces.bezier import BezierPatches
 from surfaces.mesh import TriangleMesh, tessellate
 from surfaces.validate import positive
 
@@ -170,38 +170,22 @@ def mesh_samples(control: np.ndarray, budget: int = MESH_BUDGET) -> tuple[int, i
     """
     # written out over the short axes (3 legs, 3 coordinates): numpy's reductions along them cost
     # more than the arithmetic on every body's mesh
-    du = control[:, :, 1:] - control[:, :, :-1]
-    dv = control[:, :, :, 1:] - control[:, :, :, :-1]
-    lu = np.sqrt(du[..., 0] ** 2 + du[..., 1] ** 2 + du[..., 2] ** 2)
-    lv = np.sqrt(dv[..., 0] ** 2 + dv[..., 1] ** 2 + dv[..., 2] ** 2)
-    polygon_u = lu[:, :, 0] + lu[:, :, 1] + lu[:, :, 2]
-    polygon_v = lv[:, :, :, 0] + lv[:, :, :, 1] + lv[:, :, :, 2]
+    lengths = []
+    for d in (control[:, :, 1:] - control[:, :, :-1], control[:, :, :, 1:] - control[:, :, :, :-1]):
+        d *= d  # in place: one pass over the legs' coordinates, not one per coordinate
+        length = d[..., 0] + d[..., 1]
+        length += d[..., 2]
+        lengths.append(np.sqrt(length, out=length))
+    lu, lv = lengths  # (R, C, 3, 4) along u, (R, C, 4, 3) along v
+    polygon_u = lu[:, :, 0] + lu[:, :, 1]
+    polygon_u += lu[:, :, 2]
+    polygon_v = lv[..., 0] + lv[..., 1]
+    polygon_v += lv[..., 2]
     su, sv = (int(np.clip(np.ceil(np.median(p) / EDGE_MM), 1, MAX_SAMPLES)) for p in (polygon_u, polygon_v))
     n_patches = control.shape[0] * control.shape[1]
     while su * sv * n_patches > budget and max(su, sv) > 1:
         su, sv = (su - 1, sv) if su >= sv else (su, sv - 1)
     return su, sv
-
-
-def _split_patches(control: np.ndarray, su: int, sv: int) -> np.ndarray:
-    """Each bicubic Bezier patch cut into ``su x sv`` equal parameter pieces (exact: de Casteljau).
-
-    ``control`` (rows, cols, 4, 4, 3) -> (rows * su, cols * sv, 4, 4, 3); a piece on ``[a, b]``
-    has the Bezier points ``B(s)^-1 B(a + s (b - a)) P`` with ``B`` the Bernstein matrix at
-    ``s = 0, 1/3, 2/3, 1``.
-    """
-    s = np.arange(4) / 3.0
-    base = np.linalg.inv(bernstein(s))
-
-    def pieces(n: int) -> np.ndarray:  # (n, 4, 4): Bezier points of piece i from the patch's
-        return np.stack([base @ bernstein((i + s) / n) for i in range(n)])
-
-    rows, cols = control.shape[:2]
-    # tensordot (one matrix product) rather than einsum: this runs on every body's mesh
-    out = np.tensordot(pieces(su), control, axes=([2], [2]))  # (su, 4, rows, cols, 4, 3)
-    out = out.transpose(2, 0, 3, 1, 4, 5).reshape(rows * su, cols, 4, 4, 3)
-    out = np.tensordot(pieces(sv), out, axes=([2], [3]))  # (sv, 4, rows su, cols, 4, 3)
-    return np.ascontiguousarray(out.transpose(2, 3, 0, 4, 1, 5).reshape(rows * su, cols * sv, 4, 4, 3))
 
 
 def body_lattice_size(body: Body, lattice_factor: float) -> int:
@@ -418,11 +402,10 @@ def build_body_once(body: Body, spacing: float, options: SurfaceOptions | None =
             tri_mesh, display = capmod.weld_flat_caps(tessellate(side_patches, opts.samples), grid, opts.samples,
                                                       inset=body.kind == "outer")
         else:
-            # pieces of one tessellation interval each: as many as each direction needs, not the
-            # same count both ways (the caps' rims follow the pieces around)
+            # as many subdivisions as each direction needs, not the same count both ways (the caps'
+            # rims follow the subdivisions around)
             su, sv = density = mesh_samples(side_patches.control)
-            split = BezierPatches(_split_patches(side_patches.control, su, sv), closed_u=True)
-            tri_mesh, display = capmod.weld_flat_caps(tessellate(split, 1), grid, su,
+            tri_mesh, display = capmod.weld_flat_caps(tessellate(side_patches, (su, sv)), grid, su,
                                                       inset=body.kind == "outer")
     if body.kind == "hole":
         patches = patches.flipped()

@@ -32,10 +32,11 @@ joins the flat caps' triangles to the tessellated side.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
-from surfaces.mesh import TriangleMesh, merge_meshes, weld
+from surfaces.mesh import TriangleMesh, compact, merge_meshes, points_apart, weld
 from surfaces.validate import as_array, positive
 
 CAP_KINDS = ("none", "flat", "half", "dome")
@@ -56,6 +57,28 @@ def _bezier_points(curve: np.ndarray, s: np.ndarray) -> np.ndarray:
 
 #: Points per Bezier segment at which :func:`fan_apex` tests that a fan does not fold.
 APEX_SAMPLES = 8
+
+
+def _bezier_weights(s: np.ndarray) -> tuple:
+    """Bernstein weights of the points (4) and of the tangents over 3 (3) at parameters ``s``, read-only.
+
+    A point is ``k0 P0 + k1 P1 + k2 P2 + k3 P3``, a tangent ``3 (d0 (P1 - P0) + d1 (P2 - P1) + d2 (P3 - P2))``.
+    """
+    out = ((1 - s) ** 3, 3 * s * (1 - s) ** 2, 3 * s**2 * (1 - s), s**3, (1 - s) ** 2, 2 * s * (1 - s), s**2)
+    for w in out:
+        w.flags.writeable = False
+    return out
+
+
+def _points_and_tangents(x: np.ndarray, weights: tuple) -> tuple[np.ndarray, np.ndarray]:
+    """One coordinate ``x`` (M, 4) of Bezier segments at the parameters of ``weights``: values and tangents (M, S)."""
+    k0, k1, k2, k3, d0, d1, d2 = weights
+    x = x[:, :, None]
+    return (k0 * x[:, 0] + k1 * x[:, 1] + k2 * x[:, 2] + k3 * x[:, 3],
+            3 * (d0 * (x[:, 1] - x[:, 0]) + d1 * (x[:, 2] - x[:, 1]) + d2 * (x[:, 3] - x[:, 2])))
+
+
+_APEX_WEIGHTS = _bezier_weights(np.arange(APEX_SAMPLES) / APEX_SAMPLES)
 
 #: Rounds of added half-planes, and half-planes added per round, with which :func:`fan_apex`
 #: tries to prove a kernel empty before it solves the whole linear programme.
@@ -89,27 +112,27 @@ def fan_apex(curve, hint) -> np.ndarray:
     """
     c = as_array(curve, "curve", shape=(None, 4, 3))
     p = as_array(hint, "hint", shape=(2,))
-    s = np.arange(APEX_SAMPLES) / APEX_SAMPLES
-    q = _bezier_points(c, s).reshape(-1, 3)[:, :2]
-    t = 3 * ((1 - s)[None, :, None] ** 2 * (c[:, None, 1] - c[:, None, 0])
-             + (2 * s * (1 - s))[None, :, None] * (c[:, None, 2] - c[:, None, 1])
-             + (s**2)[None, :, None] * (c[:, None, 3] - c[:, None, 2])).reshape(-1, 3)[:, :2]
-    length = np.linalg.norm(t, axis=1)
-    keep = length > 1e-12 * max(1.0, float(length.max(initial=0.0)))
-    q, t = q[keep], t[keep] / length[keep, None]
+    # x and y of the points and tangents at the samples, (M * APEX_SAMPLES,) each (segment-major)
+    qx, tx = (a.ravel() for a in _points_and_tangents(c[:, :, 0], _APEX_WEIGHTS))
+    qy, ty = (a.ravel() for a in _points_and_tangents(c[:, :, 1], _APEX_WEIGHTS))
+    length = np.sqrt(tx * tx + ty * ty)
+    keep = np.flatnonzero(length > 1e-12 * max(1.0, float(length.max(initial=0.0))))
+    qx, qy, length = qx[keep], qy[keep], length[keep]
+    tx, ty = tx[keep] / length, ty[keep] / length
     orient = 1.0 if curve_area(c) > 0 else -1.0
     # seen from p, the curve turns counter-clockwise (for a counter-clockwise curve) where
     # cross(q - p, t) > 0, i.e. a . p < b with a = (t_y, -t_x), b = cross(q, t)
-    a = orient * np.stack([t[:, 1], -t[:, 0]], axis=1)
-    b = orient * (q[:, 0] * t[:, 1] - q[:, 1] * t[:, 0])
+    a = np.empty((len(keep), 2))
+    a[:, 0], a[:, 1] = orient * ty, orient * -tx
+    b = orient * (qx * ty - qy * tx)
     if np.all(a @ p < b):
         return p
-    extent = float(np.ptp(q, axis=0).max())
-    # fewer constraints allow a larger margin: where the tangents at the segments' starts alone leave
-    # no kernel (by more than the solver's tolerance), the whole programme has none and returns the
-    # hint; a convex hull decides that in a fraction of the solver's set-up time (most outlines that
-    # reach this point, folded ones, have no kernel)
-    if _no_kernel(a, b, (np.arange(len(keep)) % APEX_SAMPLES == 0)[keep], 1e-6 * max(1.0, extent)):
+    extent = max(float(np.ptp(qx)), float(np.ptp(qy)))
+    # fewer constraints allow a larger margin: where the tangents at the segments' starts (and the
+    # few more that cutting planes add) leave no kernel by more than the solver's tolerance, the
+    # whole programme has none and returns the hint; convex hulls decide that in a fraction of the
+    # solver's set-up time (most outlines that reach this point, folded ones, have no kernel)
+    if _no_kernel(a, b, keep % APEX_SAMPLES == 0, 1e-6 * max(1.0, extent, float(np.abs(b).max()))):
         return p
     from scipy.optimize import linprog  # most caps see their curve from the hint: scipy is loaded only here
 
@@ -142,7 +165,7 @@ def kernel_margin(normals, offsets) -> tuple[float, np.ndarray]:
     margin : float
         The margin in mm; ``inf`` when the margin is unbounded (the normals
         leave a half-circle of directions empty), fewer than 3 half-planes are
-        given, or qhull cannot build the hull (degenerate input).
+        given, or qhull cannot build the hull even from joggled input.
     point : numpy.ndarray, shape (2,)
         A point ``p`` where the margin is reached (NaN where it is ``inf``).
 
@@ -168,10 +191,16 @@ def kernel_margin(normals, offsets) -> tuple[float, np.ndarray]:
     angle = np.sort(np.arctan2(a[:, 1], a[:, 0]))
     if np.max(np.diff(np.append(angle, angle[0] + 2 * np.pi))) >= np.pi - 1e-9:
         return unknown
+    lifted = np.column_stack([a, b])
     try:
-        plane = ConvexHull(np.column_stack([a, b])).equations
+        plane = ConvexHull(lifted).equations
     except QhullError:
-        return unknown
+        # lifted points in one plane (offsets affine in the normals, e.g. all equal): qhull's joggled
+        # input moves them by ~1e-11 of their extent, far below the margins asked about
+        try:
+            plane = ConvexHull(lifted, qhull_options="QJ").equations
+        except QhullError:
+            return unknown
     lower = plane[plane[:, 2] < -1e-9]
     if not len(lower):
         return unknown
@@ -194,7 +223,11 @@ def _no_kernel(a: np.ndarray, b: np.ndarray, start: np.ndarray, tol: float) -> b
         if margin < -tol:
             return True
         if not np.isfinite(margin):
-            return False
+            # the subset's normals leave directions open (or qhull failed): all of them, once
+            if len(subset) == len(a):
+                return False
+            subset = np.arange(len(a))
+            continue
         slack = b - a @ point
         violated = np.flatnonzero(slack < margin - tol)
         if not len(violated):
@@ -293,6 +326,7 @@ _GAUSS3_NODES = 0.5 * (np.polynomial.legendre.leggauss(3)[0] + 1.0)
 _GAUSS3_WEIGHTS = np.polynomial.legendre.leggauss(3)[1]
 _GAUSS3_NODES.flags.writeable = False
 _GAUSS3_WEIGHTS.flags.writeable = False
+_GAUSS3_BEZIER = _bezier_weights(_GAUSS3_NODES)
 
 
 def curve_area(curve) -> float:
@@ -312,17 +346,51 @@ def curve_area(curve) -> float:
         mm^2, positive for a counter-clockwise curve seen from +z.
     """
     c = as_array(curve, "curve", shape=(None, 4, 3))
-    s, w = _GAUSS3_NODES, _GAUSS3_WEIGHTS
-    pts = _bezier_points(c, s)
-    d = 3 * ((1 - s)[None, :, None] ** 2 * (c[:, None, 1] - c[:, None, 0])
-             + (2 * s * (1 - s))[None, :, None] * (c[:, None, 2] - c[:, None, 1])
-             + (s**2)[None, :, None] * (c[:, None, 3] - c[:, None, 2]))
-    integrand = pts[..., 0] * d[..., 1] - pts[..., 1] * d[..., 0]
-    return float(0.25 * np.sum(integrand * w[None, :]))
+    x, dx = _points_and_tangents(c[:, :, 0], _GAUSS3_BEZIER)
+    y, dy = _points_and_tangents(c[:, :, 1], _GAUSS3_BEZIER)
+    return float(0.25 * np.sum((x * dy - y * dx) * _GAUSS3_WEIGHTS))
 
 
 #: Width of the flat band round a flat cap's inner ring, as a fraction of the median boundary edge.
 CAP_INSET = 0.05
+
+
+def _following(x: np.ndarray) -> np.ndarray:
+    """The rows of a closed ring starting at the second: ``np.roll(x, -1, axis=0)`` in one call."""
+    return np.concatenate((x[1:], x[:1]))
+
+
+def _previous(x: np.ndarray) -> np.ndarray:
+    """The rows of a closed ring starting at the last: ``np.roll(x, 1, axis=0)`` in one call."""
+    return np.concatenate((x[-1:], x[:-1]))
+
+
+def _lengths(v: np.ndarray) -> np.ndarray:
+    """Lengths of 2D vectors (N, 2), as ``np.linalg.norm(v, axis=1)`` (the same sum of squares)."""
+    return np.sqrt(v[:, 0] * v[:, 0] + v[:, 1] * v[:, 1])
+
+
+#: Turns ``(y, x)`` into the left normal ``(-y, x)`` of ``(x, y)``.
+_LEFT = np.array([-1.0, 1.0])
+_LEFT.flags.writeable = False
+
+
+@lru_cache(maxsize=64)
+def _fan(n: int) -> np.ndarray:
+    """Triangles ``(n, i, i + 1)`` of a fan from an extra vertex ``n`` round a ring of ``n`` (read-only)."""
+    i = np.arange(n)
+    out = np.stack([np.full(n, n), i, (i + 1) % n], axis=1)
+    out.flags.writeable = False
+    return out
+
+
+@lru_cache(maxsize=64)
+def _strip(n: int) -> np.ndarray:
+    """Triangles of the band between a ring of ``n`` and the inner ring ``n .. 2n - 1`` (read-only)."""
+    i = np.arange(n)
+    out = np.concatenate([np.stack([i, (i + 1) % n, n + (i + 1) % n], 1), np.stack([i, n + (i + 1) % n, n + i], 1)])
+    out.flags.writeable = False
+    return out
 
 
 def _triangulate_ccw(xy: np.ndarray) -> np.ndarray:
@@ -337,10 +405,9 @@ def _triangulate_ccw(xy: np.ndarray) -> np.ndarray:
     n = len(xy)
     rel = xy - xy.mean(axis=0)
     ang = np.arctan2(rel[:, 1], rel[:, 0])
-    turn = (ang - np.roll(ang, 1) + np.pi) % (2 * np.pi) - np.pi
+    turn = (ang - _previous(ang) + np.pi) % (2 * np.pi) - np.pi
     if np.all(turn > 0) and turn.sum() > np.pi:
-        i = np.arange(n)
-        return np.stack([np.full(n, n), i, (i + 1) % n], axis=1)
+        return _fan(n)
     return np.asarray(manifold3d.triangulate([xy]), dtype=np.int64).reshape(-1, 3)
 
 
@@ -353,14 +420,13 @@ def _signed_areas(xy: np.ndarray, tri: np.ndarray) -> np.ndarray:
 
 def _inset_ring(xy: np.ndarray, distance: float) -> np.ndarray:
     """A counter-clockwise ring moved inward by ``distance`` (mitred, the mitre limited to 4x)."""
-    t_out = np.roll(xy, -1, axis=0) - xy
-    t_out /= np.maximum(np.linalg.norm(t_out, axis=1), 1e-300)[:, None]
-    t_in = np.roll(t_out, 1, axis=0)
+    t_out = _following(xy) - xy
+    t_out /= np.maximum(_lengths(t_out), 1e-300)[:, None]
+    t_in = _previous(t_out)
     # inward (left) normals of the incoming and outgoing edges
-    n_in = np.stack([-t_in[:, 1], t_in[:, 0]], axis=1)
-    n_out = np.stack([-t_out[:, 1], t_out[:, 0]], axis=1)
+    n_in, n_out = t_in[:, ::-1] * _LEFT, t_out[:, ::-1] * _LEFT
     bis = n_in + n_out
-    half = np.linalg.norm(bis, axis=1) / 2
+    half = _lengths(bis) / 2
     direction = np.where(half[:, None] > 1e-9, bis / np.maximum(2 * half, 1e-300)[:, None], n_out)
     return xy + direction * (distance / np.maximum(half, 0.25))[:, None]
 
@@ -378,17 +444,17 @@ def _cap_polygon(xy: np.ndarray, inset: bool = True) -> tuple[np.ndarray, np.nda
     (outlines narrower than the band) the band is halved, and at last left out.
     """
     n = len(xy)
-    edge = np.linalg.norm(np.roll(xy, -1, axis=0) - xy, axis=1)
-    total = 0.5 * float(np.sum(_signed_areas(np.vstack([xy, xy.mean(axis=0)]),
-                                             np.stack([np.full(n, n), np.arange(n), (np.arange(n) + 1) % n], 1))))
+    following = _following(xy)
+    edge = _lengths(following - xy)
+    # the fan from the mean: the outline's area
+    d0, d1 = xy - xy.mean(axis=0), following - xy.mean(axis=0)
+    total = 0.5 * float(np.sum(d0[:, 0] * d1[:, 1] - d0[:, 1] * d1[:, 0]))
     distance = CAP_INSET * float(np.median(edge)) if inset else 0.0
-    i = np.arange(n)
+    strip = _strip(n)
     for _ in range(4):
         if distance <= 1e-9 * max(1.0, float(np.abs(xy).max())):
             break
         inner = _inset_ring(xy, distance)
-        strip = np.concatenate([np.stack([i, (i + 1) % n, n + (i + 1) % n], 1),
-                                np.stack([i, n + (i + 1) % n, n + i], 1)])
         tri = _triangulate_ccw(inner)
         pts = np.vstack([xy, inner, inner.mean(axis=0)[None]]) if tri.max(initial=0) >= n else np.vstack([xy, inner])
         tri = np.concatenate([strip, tri + n])
@@ -430,7 +496,8 @@ def planar_cap_mesh(curve, samples: int, outward_z: float, inset: bool = True) -
     ring = _bezier_points(c, s).reshape(-1, 3)
     xy = ring[:, :2]
     n = len(xy)
-    area = 0.5 * float(np.dot(xy[:, 0], np.roll(xy[:, 1], -1)) - np.dot(xy[:, 1], np.roll(xy[:, 0], -1)))
+    following = _following(xy)
+    area = 0.5 * float(np.dot(xy[:, 0], following[:, 1]) - np.dot(xy[:, 1], following[:, 0]))
     # work on a counter-clockwise copy; the boundary vertices keep the curve's order
     order = np.arange(n) if area > 0 else np.arange(n)[::-1]
     pts, tri = _cap_polygon(xy[order], inset)
@@ -585,19 +652,19 @@ def close_side(side, bottom, top, low_center, high_center, height: float, low: s
     """
     bottom = as_array(bottom, "bottom", shape=(None, 4, 3))
     top = as_array(top, "top", shape=bottom.shape)
-    columns = [] if side is None else [as_array(side, "side", shape=(len(bottom), None, 4, 4, 3))]
+    full = [] if side is None else [as_array(side, "side", shape=(len(bottom), None, 4, 4, 3))]
     if low == "half":
-        columns.insert(0, prism_column(bottom, -height))
+        full.insert(0, prism_column(bottom, -height))
         bottom = bottom.copy()
         bottom[..., 2] -= height
     if high == "half":
-        columns.append(prism_column(top, height))
+        full.append(prism_column(top, height))
         top = top.copy()
         top[..., 2] += height
-    if not columns:
+    if not full:
         raise ValueError("side: a single slice has no side surface; it needs a half cap at one end at least")
-    side_ctrl = np.concatenate(columns, axis=1)
-    full = [side_ctrl]
+    n_side = sum(c.shape[1] for c in full)
+    # one concatenation of every column (side, extrusions and fans): the grid is copied once
     flat = []
     first = 0
     if low != "dome":
@@ -609,7 +676,7 @@ def close_side(side, bottom, top, low_center, high_center, height: float, low: s
         full.append(fan_column(top, np.append(fan_apex(top, high_center), top[0, 0, 2]), True))
         if high != "none":
             flat.append((top, 1.0))
-    return CappedGrid(np.concatenate(full, axis=1), slice(first, first + side_ctrl.shape[1]), tuple(flat),
+    return CappedGrid(np.concatenate(full, axis=1), slice(first, first + n_side), tuple(flat),
                       (float(bottom[0, 0, 2]), float(top[0, 0, 2])))
 
 
@@ -646,6 +713,60 @@ def weld_flat_caps(side: TriangleMesh, grid: CappedGrid, samples: int,
     tol = 1e-7 * max(1.0, float(np.abs(side.vertices).max()))
     low, high = grid.end_planes
     rim = np.flatnonzero((np.abs(zv - low) < tol) | (np.abs(zv - high) < tol))
-    merged = merge_meshes([side] + [planar_cap_mesh(c, samples, s, inset) for c, s in grid.flat_caps])
+    caps = [planar_cap_mesh(c, samples, s, inset) for c, s in grid.flat_caps]
+    merged = merge_meshes([side] + caps)
     candidates = np.concatenate([rim, np.arange(side.n_vertices, merged.n_vertices)])
-    return weld(merged, candidates=candidates), merged
+    rep = _rim_weld_map(merged, side, caps, grid.flat_caps, int(samples), rim)
+    if rep is None:
+        return weld(merged, candidates=candidates), merged
+    tri = rep[merged.triangles]
+    keep = (tri[:, 0] != tri[:, 1]) & (tri[:, 1] != tri[:, 2]) & (tri[:, 2] != tri[:, 0])
+    return compact(TriangleMesh(merged.vertices, tri[keep], merged.vertex_normals, merged.vertex_colors,
+                                dict(merged.metadata))), merged
+
+
+def _rim_weld_map(merged: TriangleMesh, side: TriangleMesh, caps: list, flat_caps: tuple, samples: int,
+                  rim: np.ndarray) -> np.ndarray | None:
+    """The map of :func:`surfaces.mesh.weld` on ``merged`` (side, then caps) by index arithmetic, or None.
+
+    The side of :func:`surfaces.mesh.tessellate` is a lattice, ring sample ``i`` on row ``i``, the
+    low end plane in its first column and the high one in its last; a cap's boundary vertex ``i``
+    is that ring's sample ``i`` (the same points). The map sends every cap boundary vertex to its
+    rim vertex; it is what the spatial weld gives when every boundary vertex lies within half the
+    weld tolerance of its rim vertex and no two other candidates (rim, rim partners, the caps' other
+    vertices) lie within three tolerances (then no other pair is close enough to merge), checked by
+    :func:`surfaces.mesh.points_apart`. None when either check fails (a side that is not such a
+    lattice, points that nearly coincide): then the spatial weld decides.
+    """
+    verts = merged.vertices
+    # column by column: numpy reduces an (N, 3) array along its first axis several times slower
+    diag = float(np.sqrt(sum((verts[:, k].max() - verts[:, k].min()) ** 2 for k in range(3))))
+    tol = 1e-9 * max(diag, 1e-300)
+    rep = np.arange(len(verts))
+    n_side = side.n_vertices
+    boundary, partner, others = [], [], [rim]
+    offset = n_side
+    for cap, (curve, out_z) in zip(caps, flat_caps):
+        n_ring = len(curve) * samples  # the boundary vertices come first (planar_cap_mesh)
+        if n_ring == 0 or n_side % n_ring:
+            return None
+        n_v = n_side // n_ring
+        boundary.append(offset + np.arange(n_ring))
+        partner.append(np.arange(n_ring) * n_v + (0 if out_z < 0 else n_v - 1))
+        others.append(offset + np.arange(n_ring, cap.n_vertices))
+        offset += cap.n_vertices
+    boundary, partner = np.concatenate(boundary), np.concatenate(partner)
+    in_rim = np.zeros(n_side, dtype=bool)
+    in_rim[rim] = True
+    if not in_rim[partner].all():  # the spatial weld joins candidates only
+        return None
+    d = verts[boundary] - verts[partner]
+    if not np.all(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2] <= (tol / 2) ** 2):
+        return None
+    apart = np.zeros(len(verts), dtype=bool)
+    for idx in others + [partner]:
+        apart[idx] = True
+    if not points_apart(verts[apart], 3 * tol):
+        return None
+    rep[boundary] = partner
+    return rep

@@ -141,13 +141,18 @@ class BezierPatches:
     closed_v: bool = False
 
     def __post_init__(self) -> None:
-        ctrl = as_array(self.control, "control", shape=(None, None, 4, 4, 3))
+        ctrl = as_array(self.control, "control", shape=(None, None, 4, 4, 3), finite=False)
         if ctrl.shape[0] < 1 or ctrl.shape[1] < 1:
             raise ValueError(f"control: needs at least one patch, got shape {ctrl.shape}")
         ctrl = np.ascontiguousarray(ctrl)
+        # NaN and infinities reach the extremes: two reductions check finiteness and give the scale
+        high, low = float(ctrl.max()), float(ctrl.min())
+        if not (np.isfinite(high) and np.isfinite(low)):
+            bad = int(ctrl.size - np.count_nonzero(np.isfinite(ctrl)))
+            raise ValueError(f"control: contains {bad} NaN or infinite value(s)")
         ctrl.setflags(write=False)
         object.__setattr__(self, "control", ctrl)
-        scale = max(float(np.max(np.abs(ctrl))), 1.0)
+        scale = max(high, -low, 1.0)
         tol = _JOIN_RTOL * scale
         if self.closed_u:
             gap = float(np.max(np.abs(ctrl[-1, :, 3, :] - ctrl[0, :, 0, :])))

@@ -2,7 +2,8 @@
 
 A vectorised triangle-triangle test with a broad phase. The broad phase hashes
 every triangle's bounding box into a grid over two axes and sweeps along the
-third (:func:`candidate_pairs`), keeping the pairs whose boxes overlap. The
+third (:func:`candidate_pairs`; a few faces are compared pair by pair, a few
+hundred swept along one axis), keeping the pairs whose boxes overlap. The
 narrow phase decides each candidate pair by segment-triangle tests (Moller &
 Trumbore 1997): two triangles in general position intersect exactly when an
 edge of one crosses the other. Pairs that share an edge are neighbours and
@@ -27,10 +28,12 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
 from surfaces.validate import as_array
+from surfaces.vectors import cross
 
 __all__ = ["SelfIntersections", "candidate_pairs", "fold_suspects", "folded_faces", "is_fold_free",
            "layered_radial_graph", "self_intersections"]
@@ -90,7 +93,10 @@ def candidate_pairs(corners: np.ndarray) -> np.ndarray:
     cell; a pair whose boxes share several cells is kept in the cell of the
     overlap's low corner only. Long flat slivers (fans of planar caps) then
     meet only the triangles beside them, not everything within their box's
-    extent along the sweep axis.
+    extent along the sweep axis. Cheaper ways give the same pairs on small
+    inputs: up to :data:`SMALL_BROAD_PHASE` triangles every pair of boxes is
+    compared; while a sweep along the longest axis alone makes at most
+    :data:`SWEEP_PAIRS_PER_FACE` raw pairs a triangle, the grid is left out.
 
     Parameters
     ----------
@@ -107,6 +113,23 @@ def candidate_pairs(corners: np.ndarray) -> np.ndarray:
     return np.concatenate(found) if found else np.zeros((0, 2), dtype=np.int64)
 
 
+#: Most triangles whose boxes :func:`candidate_pairs` compares pair by pair (one block), without the grid.
+SMALL_BROAD_PHASE = 96
+
+#: Raw pairs per triangle up to which :func:`candidate_pairs` sweeps along one axis without the grid
+#: (one block); beyond, long slivers would make too many, and the grid keeps them apart.
+SWEEP_PAIRS_PER_FACE = 64
+
+
+@lru_cache(maxsize=8)
+def _all_pairs(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Every pair ``a < b`` of ``n`` items (read-only int64 arrays)."""
+    a, b = np.triu_indices(n, 1)
+    a.flags.writeable = False
+    b.flags.writeable = False
+    return a, b
+
+
 def _candidate_blocks(c: np.ndarray) -> Iterator[np.ndarray]:
     """:func:`candidate_pairs` of corners (T >= 2, 3, 3), block after block (P_i, 2) in the same order.
 
@@ -114,9 +137,32 @@ def _candidate_blocks(c: np.ndarray) -> Iterator[np.ndarray]:
     intersection (:func:`self_intersections` with ``first``) makes only the blocks it tests.
     """
     lo, hi = _box(c)
+    if len(c) <= SMALL_BROAD_PHASE:
+        # every pair's boxes compared at once: cheaper than the grid and the sweep on a few faces
+        a, b = _all_pairs(len(c))
+        keep = (lo[a, 0] <= hi[b, 0]) & (lo[b, 0] <= hi[a, 0])
+        for k in (1, 2):
+            keep &= (lo[a, k] <= hi[b, k]) & (lo[b, k] <= hi[a, k])
+        yield np.stack([a[keep], b[keep]], axis=1)
+        return
     span = hi.max(axis=0) - lo.min(axis=0)
     axis = int(np.argmax(span))
     grid = [k for k in range(3) if k != axis]
+    # one sweep along the longest axis, without the grid, while it makes few raw pairs (a few hundred
+    # suspect faces of a fold check): each box pairs with the boxes after it whose low end does not pass
+    # its high end, then the other two axes are compared
+    order = np.argsort(lo[:, axis], kind="stable")
+    n_after = np.searchsorted(lo[order, axis], hi[order, axis], side="right") - np.arange(1, len(c) + 1)
+    n_after = np.maximum(n_after, 0)
+    if int(n_after.sum()) <= min(_BLOCK, SWEEP_PAIRS_PER_FACE * len(c)):
+        first = np.repeat(np.arange(len(c)), n_after)
+        a = order[first]
+        b = order[first + np.arange(1, len(first) + 1) - np.repeat(np.cumsum(n_after) - n_after, n_after)]
+        keep = (lo[a, grid[0]] <= hi[b, grid[0]]) & (lo[b, grid[0]] <= hi[a, grid[0]])
+        keep &= (lo[a, grid[1]] <= hi[b, grid[1]]) & (lo[b, grid[1]] <= hi[a, grid[1]])
+        a, b = a[keep], b[keep]
+        yield np.stack([np.minimum(a, b), np.maximum(a, b)], axis=1)
+        return
     cell = np.maximum(np.median(hi[:, grid] - lo[:, grid], axis=0), span[grid] * 1e-6 + 1e-300)
     # a few huge triangles would otherwise cover millions of cells: coarsen until bounded
     while np.prod(np.floor(hi[:, grid] / cell) - np.floor(lo[:, grid] / cell) + 1, axis=1).sum() > 8 * len(c) + 1000:
@@ -265,44 +311,40 @@ def _pairs_intersect(corners: np.ndarray, t: np.ndarray, plane: np.ndarray, tol:
     return hit
 
 
-def _edge_hits(p: np.ndarray, q: np.ndarray, tri: np.ndarray, crosses: np.ndarray, eps: float) -> np.ndarray:
-    """:func:`_segment_hits` on the rows where the segment ``crosses`` (N,) the triangle's plane; False elsewhere."""
-    h = np.zeros(len(p), dtype=bool)
-    m = np.flatnonzero(crosses)
-    if len(m):
-        h[m] = _segment_hits(p[m], q[m], tri[m], eps)
-    return h
-
-
 def _pairs_intersect_exact(ta: np.ndarray, tb: np.ndarray, in_b: np.ndarray, in_a: np.ndarray,
                            n_shared: np.ndarray, eps: float, side_a: np.ndarray, side_b: np.ndarray) -> np.ndarray:
     """Segment-triangle tests for pairs of triangles (corners (N, 3, 3); shared corners of a and of b (N, 3)).
 
     ``side_a`` (N, 3) is the side of a's corners of b's plane (+1, -1, or 0 on it), ``side_b`` the
     other way round: an edge whose ends lie beyond the plane on one side cannot cross the triangle.
+    Pairs without a shared corner test every edge of each triangle against the other; pairs
+    sharing one corner the edge opposite it. All the tests of all pairs go through one call of
+    :func:`_segment_hits`.
     """
-    hit = np.zeros(len(ta), dtype=bool)
-    free = n_shared == 0
-    if free.any():
-        a, b, sa, sb = ta[free], tb[free], side_a[free], side_b[free]
-        h = np.zeros(len(a), dtype=bool)
-        for k in range(3):
-            n = (k + 1) % 3
-            h |= _edge_hits(a[:, k], a[:, n], b, sa[:, k] * sa[:, n] <= 0, eps)
-            h |= _edge_hits(b[:, k], b[:, n], a, sb[:, k] * sb[:, n] <= 0, eps)
-        hit[free] = h
-    one = n_shared == 1
-    if one.any():
-        a, b = ta[one], tb[one]
-        side1, side2 = side_a[one], side_b[one]
-        rows = np.arange(len(a))
-        sa = np.argmax(in_b[one], axis=1)  # shared corner of a
-        sb = np.argmax(in_a[one], axis=1)  # shared corner of b
-        # the edge opposite the shared corner
-        a1, a2, b1, b2 = (sa + 1) % 3, (sa + 2) % 3, (sb + 1) % 3, (sb + 2) % 3
-        h = _edge_hits(a[rows, a1], a[rows, a2], b, side1[rows, a1] * side1[rows, a2] <= 0, eps)
-        h |= _edge_hits(b[rows, b1], b[rows, b2], a, side2[rows, b1] * side2[rows, b2] <= 0, eps)
-        hit[one] = h
+    n = len(ta)
+    nxt = np.array([1, 2, 0])
+    rows, seg, ends, other = [], [], [], []
+    for tri, tri_other, side, shared in ((ta, tb, side_a, in_b), (tb, ta, side_b, in_a)):
+        # edge k runs from corner k to corner k + 1; it can cross the other triangle only where its
+        # ends do not lie beyond the other's plane on one side
+        need = side * side[:, nxt] <= 0
+        one = n_shared == 1
+        if one.any():
+            # the edge opposite the shared corner s is edge s + 1
+            opposite = np.zeros((n, 3), dtype=bool)
+            k = np.flatnonzero(one)
+            opposite[k, nxt[np.argmax(shared[k], axis=1)]] = True
+            need &= np.where(one[:, None], opposite, True)
+        r, k = np.nonzero(need)
+        rows.append(r)
+        seg.append(tri[r, k])
+        ends.append(tri[r, nxt[k]])
+        other.append(tri_other[r])
+    r = np.concatenate(rows)
+    hit = np.zeros(n, dtype=bool)
+    if len(r):
+        h = _segment_hits(np.concatenate(seg), np.concatenate(ends), np.concatenate(other), eps)
+        hit[r[h]] = True
     return hit
 
 
@@ -351,7 +393,7 @@ def self_intersections(vertices, triangles, *, eps: float = 1e-9, first: bool = 
     t_pairs = t.astype(np.int32) if len(v) < 2**31 else t
     # degenerate (zero-area) faces cannot be pierced in the interior; they are left out
     corners = v[t]
-    normal = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    normal = cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
     area2 = np.linalg.norm(normal, axis=1)
     lo, hi = _box(corners)
     size = (hi - lo).max(axis=1)
@@ -376,16 +418,20 @@ def self_intersections(vertices, triangles, *, eps: float = 1e-9, first: bool = 
     return SelfIntersections(faces, hits, n_pairs)
 
 
-def _cross2(x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """z component of the cross products of 2D vectors (N, 2)."""
-    return x[:, 0] * y[:, 1] - x[:, 1] * y[:, 0]
-
-
 def _closed_and_oriented(t: np.ndarray, n_vertices: int) -> bool:
     """Whether every directed edge of triangles ``t`` (T, 3) occurs once and its reverse once."""
-    a, b = t.ravel(), t[:, [1, 2, 0]].ravel()
+    a = t.ravel()
+    b = np.empty_like(t)
+    b[:, :2], b[:, 2] = t[:, 1:], t[:, 0]
+    b = b.ravel()
+    if 2 * n_vertices * n_vertices + 2 < 2**31:  # half the bytes to sort
+        a, b = a.astype(np.int32), b.astype(np.int32)
     # one sort: each undirected edge must come exactly twice, once each way (codes 2 key and 2 key + 1)
-    code = np.sort(2 * (np.minimum(a, b) * n_vertices + np.maximum(a, b)) + (a > b))
+    code = np.minimum(a, b) * n_vertices
+    code += np.maximum(a, b)
+    code *= 2
+    code += a > b
+    code.sort()
     return bool(len(code) % 2 == 0 and np.all(code[0::2] % 2 == 0) and np.all(code[1::2] == code[0::2] + 1))
 
 
@@ -399,15 +445,15 @@ ANGLE_BINS = 1024
 MAX_WORRIED_BANDS = 1024
 
 
-def _arcs(p: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Angular range about ``c`` (F, 2) of triangles ``p`` (F, 3, 2): low end and length (rad).
+def _arcs(px: np.ndarray, py: np.ndarray, cx: np.ndarray, cy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Angular range about ``(cx, cy)`` (F,) of triangles with corners ``(px, py)`` (F, 3): low end and length (rad).
 
     Lengths of pi and more mean the triangle may hold ``c`` (then every direction is taken).
     """
-    phi = np.arctan2(p[..., 1] - c[:, None, 1], p[..., 0] - c[:, None, 0])
+    phi = np.arctan2(py - cy[:, None], px - cx[:, None])
     d = (phi[:, 1:] - phi[:, :1] + np.pi) % (2 * np.pi) - np.pi
-    low = np.minimum(d.min(axis=1), 0.0)
-    return phi[:, 0] + low, np.maximum(d.max(axis=1), 0.0) - low
+    low = np.minimum(np.minimum(d[:, 0], d[:, 1]), 0.0)
+    return phi[:, 0] + low, np.maximum(np.maximum(d[:, 0], d[:, 1]), 0.0) - low
 
 
 def _bins(low: np.ndarray, length: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -520,60 +566,73 @@ def fold_suspects(vertices, triangles, *, margin: float = 1e-12) -> np.ndarray |
         return None
     level = np.empty(len(z), dtype=np.int64)
     level[order] = np.cumsum(new_level) - 1
-    lv = level[t]
-    # three-way minimum and maximum: numpy reduces a short middle axis several times slower
-    low = np.minimum(np.minimum(lv[:, 0], lv[:, 1]), lv[:, 2])
-    high = np.maximum(np.maximum(lv[:, 0], lv[:, 1]), lv[:, 2])
+    # column by column (x and y of the vertices, the three corners of the faces): numpy's reductions,
+    # gathers and products along a short last axis cost more than the arithmetic written out
+    t0, t1, t2 = t[:, 0], t[:, 1], t[:, 2]
+    l0, l1, l2 = level[t0], level[t1], level[t2]
+    low = np.minimum(np.minimum(l0, l1), l2)
+    high = np.maximum(np.maximum(l0, l1), l2)
     top = int(level.max())
     flat = high == low
     if top < 1 or np.any(high - low > 1) or np.any(flat & (low != 0) & (low != top)):
         return None
-    xy = v[:, :2] - v[:, :2].mean(axis=0)
-    tiny = margin * (2.0 * float(np.abs(xy).max())) ** 2
+    X, Y = v[:, 0] - v[:, 0].mean(), v[:, 1] - v[:, 1].mean()
+    tiny = margin * (2.0 * max(float(np.abs(X).max()), float(np.abs(Y).max()))) ** 2
     for lvl in (0, top):
-        on = flat & (low == lvl)
-        if on.any():
-            c = xy[t[on]]
-            area = _cross2(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0])
+        on = np.flatnonzero(flat & (low == lvl))
+        if len(on):
+            c0, c1, c2 = t0[on], t1[on], t2[on]
+            x0, y0 = X[c0], Y[c0]
+            area = (X[c1] - x0) * (Y[c2] - y0) - (Y[c1] - y0) * (X[c2] - x0)
             if not (np.all(area > tiny) or np.all(area < -tiny)):
                 return None
     n_bands = top
     band = np.flatnonzero(~flat)
-    tb, base = t[band], low[band]
-    upper = (lv[band] > base[:, None]).view(np.int8)
-    n_up = upper[:, 0] + upper[:, 1] + upper[:, 2]
+    base = low[band]
+    u0, u1, u2 = l0[band] > base, l1[band] > base, l2[band] > base
+    n_up = u0.view(np.int8) + u1.view(np.int8) + u2.view(np.int8)
     one_up = n_up == 1
     # the lone corner (the one on its own level) last, the other two in the face's order before it
-    odd = np.where(one_up[:, None], upper, 1 - upper)
-    lone = odd[:, 1] + 2 * odd[:, 2]
-    r = np.take_along_axis(tb, (lone[:, None] + np.array([1, 2, 0])) % 3, axis=1)
-    p1, p2, x = xy[r[:, 0]], xy[r[:, 1]], xy[r[:, 2]]
+    lone = (u1 == one_up).view(np.int8) + 2 * (u2 == one_up).view(np.int8)
+    corner = 3 * band
+    corner += lone
+    flat_t = t.ravel()
+    r2 = flat_t[corner]
+    r0 = flat_t[corner + np.where(lone == 2, -2, 1)]
+    r1 = flat_t[corner + np.where(lone == 0, 2, -1)]
+    p1x, p1y, p2x, p2y, xx, xy = X[r0], Y[r0], X[r1], Y[r1], X[r2], Y[r2]
     # the cut runs along p1 -> p2 below a lone upper corner and along p2 -> p1 above a lone lower one
     turn = np.where(one_up, 1.0, -1.0)
-    a_mid = (np.where(one_up[:, None], p1, p2) + x) / 2.0
-    b_mid = (np.where(one_up[:, None], p2, p1) + x) / 2.0
-    w = _cross2(a_mid, b_mid)
+    ax, ay = (np.where(one_up, p1x, p2x) + xx) / 2.0, (np.where(one_up, p1y, p2y) + xy) / 2.0
+    bx, by = (np.where(one_up, p2x, p1x) + xx) / 2.0, (np.where(one_up, p2y, p1y) + xy) / 2.0
+    w = ax * by - ay * bx
     area = np.bincount(base, w, n_bands)
-    centre = np.stack([np.bincount(base, (a_mid[:, 0] + b_mid[:, 0]) * w, n_bands),
-                       np.bincount(base, (a_mid[:, 1] + b_mid[:, 1]) * w, n_bands)], axis=1)
-    centre /= 3.0 * np.where(area == 0, 1.0, area)[:, None]
+    denominator = 3.0 * np.where(area == 0, 1.0, area)
+    cx = np.bincount(base, (ax + bx) * w, n_bands) / denominator
+    cy = np.bincount(base, (ay + by) * w, n_bands) / denominator
     for lone_below in (False, True):
         # a band whose faces of one kind all share their lone corner and have no other kind is a fan to it
         kind = (n_up == 2) == lone_below
         apex = np.full(n_bands, -1)
-        apex[base[kind]] = r[kind, 2]
+        apex[base[kind]] = r2[kind]
         fan = apex >= 0
-        fan &= np.bincount(base[kind], r[kind, 2] != apex[base[kind]], n_bands) == 0
+        fan &= np.bincount(base[kind], r2[kind] != apex[base[kind]], n_bands) == 0
         fan &= np.bincount(base[~kind], minlength=n_bands) == 0
-        centre[fan] = xy[apex[fan]]
-    c = centre[base]
-    sign = np.sign(area)[base]
-    good = (sign * turn * _cross2(p1 - c, p2 - c) > tiny) & (sign * turn * _cross2(x - c, p2 - p1) >= 0)
-    am, bm = a_mid - c, b_mid - c
-    winding = np.bincount(base, np.arctan2(_cross2(am, bm), np.einsum("ij,ij->i", am, bm)), n_bands)
+        cx[fan], cy[fan] = X[apex[fan]], Y[apex[fan]]
+    ccx, ccy = cx[base], cy[base]
+    sign = np.sign(area)[base] * turn
+    good = sign * ((p1x - ccx) * (p2y - ccy) - (p1y - ccy) * (p2x - ccx)) > tiny
+    good &= sign * ((xx - ccx) * (p2y - p1y) - (xy - ccy) * (p2x - p1x)) >= 0
+    ax -= ccx
+    ay -= ccy
+    bx -= ccx
+    by -= ccy
+    winding = np.bincount(base, np.arctan2(ax * by - ay * bx, ax * bx + ay * by), n_bands)
     once = (np.abs(np.abs(winding) - 2 * np.pi) < 1.0) & (area != 0)
     suspect = np.zeros(len(t), dtype=bool)
-    worry = np.unique(np.concatenate([base[~good], np.flatnonzero(~once)]))
+    worried = ~once
+    worried[base[~good]] = True
+    worry = np.flatnonzero(worried)
     if len(worry) > MAX_WORRIED_BANDS:
         return None
     # each face's group: its band, or the band its cap closes; every face is looked at from the axis of
@@ -581,15 +640,20 @@ def fold_suspects(vertices, triangles, *, margin: float = 1e-12) -> np.ndarray |
     group = np.where(flat, np.where(low == 0, 0, top - 1), low)
     slot = np.full(n_bands, -1)
     slot[worry] = np.arange(len(worry))
+    near = worried.copy()  # bands within one of a worried band
+    near[1:] |= worried[:-1]
+    near[:-1] |= worried[1:]
+    seen = np.flatnonzero(near[group])
     faces, bands = [], []
     for step in (-1, 0, 1):
-        k = group + step
+        k = group[seen] + step
         ok = np.flatnonzero((k >= 0) & (k < n_bands))
         ok = ok[slot[k[ok]] >= 0]
-        faces.append(ok)
+        faces.append(seen[ok])
         bands.append(k[ok])
     f, k = np.concatenate(faces), np.concatenate(bands)
-    first, count = _bins(*_arcs(xy[t[f]], centre[k]))
+    tf = t[f]
+    first, count = _bins(*_arcs(X[tf], Y[tf], cx[k], cy[k]))
     w = slot[k]
     bad_face = np.zeros(len(t), dtype=bool)
     bad_face[band[~good]] = True

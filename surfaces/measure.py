@@ -23,11 +23,12 @@ from functools import lru_cache
 
 import numpy as np
 
-from surfaces.bezier import BezierPatches, bernstein, control_matrix, tensor_evaluate
-from surfaces.vectors import cross, dot
+from surfaces.bezier import BezierPatches, bernstein
+from surfaces.vectors import cross
 
-#: Patches per chunk, to bound temporary memory on very large grids.
-_PATCH_CHUNK = 16384
+#: Quadrature points (patches times nodes) evaluated per chunk: the temporaries of a chunk (~50 kB
+#: each) stay in the CPU caches, and below the size from which every fresh array costs page faults.
+_POINT_CHUNK = 6400
 
 
 def _gauss(order: int) -> tuple[np.ndarray, np.ndarray]:
@@ -48,35 +49,71 @@ def _gauss_cached(order: int) -> tuple[np.ndarray, np.ndarray]:
     return nodes, weights
 
 
+@lru_cache(maxsize=32)
+def _node_basis(order: int) -> tuple[np.ndarray, np.ndarray]:
+    """Tensor weights of the 16 control points for ``S``, ``S_u``, ``S_v`` at the nodes (3 order^2, 16),
+    and the node weights (order^2,); read-only, made once per order."""
+    t, w = _gauss(order)
+    b0, b1 = bernstein(t), bernstein(t, 1)
+
+    def tensor(bu, bv):
+        return (bu[:, None, :, None] * bv[None, :, None, :]).reshape(-1, 16)
+
+    basis = np.vstack([tensor(b0, b0), tensor(b1, b0), tensor(b0, b1)])
+    weights = np.outer(w, w).ravel()
+    basis.flags.writeable = False
+    weights.flags.writeable = False
+    return basis, weights
+
+
 def _per_patch(patches: BezierPatches, order: int, integrands) -> list[np.ndarray]:
     """Integrate each ``integrand(points, normal)`` over every patch; one array (P,) per integrand.
 
-    ``normal`` is the unnormalised ``S_u x S_v``; points and normals come from one
-    evaluation of all patches at the quadrature nodes (grid-first layout).
+    ``points`` and ``normal`` (the unnormalised ``S_u x S_v``) are (x, y, z) tuples of
+    (order^2, chunk) arrays, one column per patch; one matrix product per chunk evaluates ``S``,
+    ``S_u`` and ``S_v`` at every node, and one more sums the integrand with the node weights.
     """
     if not isinstance(patches, BezierPatches):
         raise ValueError(f"patches: expected BezierPatches, got {type(patches).__name__}")
-    t, w = _gauss(order)
-    b0, b1 = bernstein(t), bernstein(t, 1)
-    ww = np.outer(w, w)[:, :, None]
-    flat = patches.control.reshape(-1, 4, 4, 3)
+    basis, weights = _node_basis(int(order))
+    q = len(weights)
+    flat = patches.control.reshape(-1, 16, 3)
     out = [np.empty(len(flat)) for _ in integrands]
-    for start in range(0, len(flat), _PATCH_CHUNK):
-        sl = slice(start, start + _PATCH_CHUNK)
-        matrix = control_matrix(flat[sl])
-        s = tensor_evaluate(matrix, b0, b0)  # (order, order, P, 3)
-        normal = cross(tensor_evaluate(matrix, b1, b0), tensor_evaluate(matrix, b0, b1))
+    chunk = max(1, _POINT_CHUNK // q)
+    for start in range(0, len(flat), chunk):
+        part = flat[start:start + chunk]
+        k = len(part)
+        # coordinate-major (16, 3, k): every component below is a contiguous (q, k) block
+        values = (basis @ part.transpose(1, 2, 0).reshape(16, 3 * k)).reshape(3, q, 3, k)
+        s, du, dv = values
+        ux, uy, uz = du[:, 0], du[:, 1], du[:, 2]
+        vx, vy, vz = dv[:, 0], dv[:, 1], dv[:, 2]
+        # the cross product written out: numpy's over a short last axis costs more than the arithmetic
+        nx = uy * vz
+        nx -= uz * vy
+        ny = uz * vx
+        ny -= ux * vz
+        nz = ux * vy
+        nz -= uy * vx
+        point, normal = (s[:, 0], s[:, 1], s[:, 2]), (nx, ny, nz)
         for arr, integrand in zip(out, integrands):
-            arr[sl] = (integrand(s, normal) * ww).sum(axis=(0, 1))
+            arr[start:start + k] = weights @ integrand(point, normal)
     return out
 
 
 def _area_density(s, n):
-    return np.sqrt(dot(n, n))
+    a = n[0] * n[0]
+    a += n[1] * n[1]
+    a += n[2] * n[2]
+    return np.sqrt(a, out=a)
 
 
 def _volume_density(s, n):
-    return dot(s, n) / 3.0
+    v = s[0] * n[0]
+    v += s[1] * n[1]
+    v += s[2] * n[2]
+    v /= 3.0
+    return v
 
 
 def _result(values: np.ndarray, patches: BezierPatches, per_patch: bool):
@@ -193,7 +230,7 @@ def flux_z(patches: BezierPatches, order: int = 5) -> float:
     float
         ``int z n_z dA`` in cubed model units.
     """
-    (value,) = _per_patch(patches, order, [lambda s, n: s[..., 2] * n[..., 2]])
+    (value,) = _per_patch(patches, order, [lambda s, n: s[2] * n[2]])
     return float(value.sum())
 
 

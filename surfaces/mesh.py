@@ -16,10 +16,11 @@ watertight, consistently oriented mesh. Vertex normals come from the patches
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 import numpy as np
 
-from surfaces.bezier import BezierPatches, bernstein, control_matrix, tensor_evaluate
+from surfaces.bezier import BezierPatches, bernstein
 from surfaces.topology import directed_edges, edge_keys
 from surfaces.validate import as_array
 from surfaces.vectors import cross, unit
@@ -31,6 +32,7 @@ __all__ = [
     "vertex_normals",
     "weld",
     "weld_map",
+    "points_apart",
     "compact",
     "tessellate",
     "merge_meshes",
@@ -238,6 +240,48 @@ class TriangleMesh:
         )
 
 
+#: Unit direction of :func:`points_apart`'s projection (no axis: points of one plane or line rarely project close).
+_PROBE = np.array([0.5773502691896258, 0.6123724356957946, 0.5400617248673217])
+_PROBE /= np.sqrt(_PROBE @ _PROBE)
+_PROBE.flags.writeable = False
+
+
+def points_apart(points: np.ndarray, distance: float) -> bool:
+    """Whether no two points lie within ``distance``, proven by one projection and a sort.
+
+    The points are projected onto one fixed direction (no coordinate axis) and sorted; when
+    every gap between neighbours exceeds ``distance`` (plus a margin for rounding), no two points
+    are that close. A cheap test for the common case of a weld (seams that do not coincide),
+    instead of a k-d tree.
+
+    Parameters
+    ----------
+    points : (N, 3) float array
+        Positions.
+    distance : float
+        Distance in the points' unit.
+
+    Returns
+    -------
+    bool
+        True: proven apart. False: not proven (two points may be within ``distance``, or merely
+        project close together).
+
+    Examples
+    --------
+    >>> near = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 1e-12]])
+    >>> points_apart(near + [[0, 0, 0], [1, 0, 0]], 0.5), points_apart(near, 1e-9)
+    (True, False)
+    """
+    if len(points) < 2:
+        return True
+    proj = points @ _PROBE
+    proj.sort()
+    # the rounding of the projection stays far below 1e-12 of the largest coordinate
+    slack = 1e-12 * max(1.0, float(np.abs(points).max()))
+    return bool(np.all(np.diff(proj) > distance + slack))
+
+
 def weld_map(points: np.ndarray, tolerance: float, candidates=None) -> np.ndarray:
     """The point each point merges into: the smallest index of its cluster of close points.
 
@@ -269,6 +313,8 @@ def weld_map(points: np.ndarray, tolerance: float, candidates=None) -> np.ndarra
 
     n = len(points)
     idx = np.arange(n) if candidates is None else np.unique(np.asarray(candidates, dtype=np.int64))
+    if points_apart(points[idx], tolerance):
+        return np.arange(n, dtype=np.int64)
     pairs = cKDTree(points[idx]).query_pairs(tolerance, output_type="ndarray")
     if len(pairs) == 0:
         return np.arange(n, dtype=np.int64)
@@ -333,7 +379,8 @@ def weld(mesh: TriangleMesh, tolerance: float | None = None, candidates=None) ->
     if len(verts) == 0:
         return mesh.copy()
     if tolerance is None:
-        diag = float(np.linalg.norm(verts.max(axis=0) - verts.min(axis=0)))
+        # column by column: numpy reduces an (N, 3) array along its first axis several times slower
+        diag = float(np.linalg.norm([verts[:, k].max() - verts[:, k].min() for k in range(3)]))
         tolerance = 1e-9 * max(diag, 1e-300)
     rep = weld_map(verts, tolerance, candidates)
     merged = np.any(rep != np.arange(len(verts)))
@@ -405,34 +452,88 @@ def as_mesh(geometry, name: str = "geometry", samples: int = PATCH_SAMPLES) -> T
 TESSELLATE_BLOCK = 2**20
 
 
-def _grid_index(n_patches: int, n: int, closed: bool) -> tuple[np.ndarray, np.ndarray]:
-    """Patch index and sample index of every global sample along one direction."""
-    count = n_patches * n if closed else n_patches * n + 1
-    g = np.arange(count)
-    patch = np.minimum(g // n, n_patches - 1)
-    return patch, g - patch * n
-
-
 def _grid_triangles(rows: int, cols: int, closed_u: bool, closed_v: bool) -> np.ndarray:
-    """Two triangles per grid cell, oriented so that the face normal is ``du x dv``."""
+    """Two triangles per grid cell, oriented so that the face normal is ``du x dv``.
+
+    Cell ``(g, h)`` has corners ``a = (g, h)``, ``b = (g + 1, h)``, ``c = (g + 1, h + 1)``,
+    ``d = (g, h + 1)`` (wrapping closed directions); all triangles ``(a, b, c)`` first, then all ``(a, c, d)``.
+    """
     gu = np.arange(rows if closed_u else rows - 1)
     gv = np.arange(cols if closed_v else cols - 1)
-    g0, h0 = np.meshgrid(gu, gv, indexing="ij")
-    g1, h1 = (g0 + 1) % rows, (h0 + 1) % cols
-    a, b, c, d = g0 * cols + h0, g1 * cols + h0, g1 * cols + h1, g0 * cols + h1
-    return np.concatenate([np.stack([a, b, c], -1).reshape(-1, 3), np.stack([a, c, d], -1).reshape(-1, 3)])
+    g0, g1 = gu * cols, ((gu + 1) % rows) * cols
+    h0, h1 = gv, (gv + 1) % cols
+    out = np.empty((2, len(gu), len(gv), 3), dtype=np.int64)
+    np.add(g0[:, None], h0, out=out[0, :, :, 0])
+    np.add(g1[:, None], h0, out=out[0, :, :, 1])
+    np.add(g1[:, None], h1, out=out[0, :, :, 2])
+    out[1, :, :, 0] = out[0, :, :, 0]
+    out[1, :, :, 1] = out[0, :, :, 2]
+    np.add(g0[:, None], h1, out=out[1, :, :, 2])
+    return out.reshape(-1, 3)
 
 
-def tessellate(patches: BezierPatches, samples: int = PATCH_SAMPLES, weld_seams: bool = True) -> TriangleMesh:
+@lru_cache(maxsize=32)
+def _sample_basis(n: int, last: bool) -> tuple[np.ndarray, np.ndarray]:
+    """Bernstein values and first derivatives (m, 4) each at the ``m = n + last`` samples
+    ``linspace(0, 1, n + 1)[:m]`` of a patch side; read-only."""
+    t = np.linspace(0.0, 1.0, n + 1)[:n + last]
+    out = bernstein(t), bernstein(t, 1)
+    for x in out:
+        x.flags.writeable = False
+    return out
+
+
+def _lattice_block(control: np.ndarray, nu: int, nv: int, last_u: bool, last_v: bool, out: tuple) -> None:
+    """Points, ``S_u`` and ``S_v`` of patch rows ``control`` (k, C, 4, 4, 3) on their global sample lattice.
+
+    Sample ``a`` of patch row ``i`` is lattice row ``i nu + a`` (likewise along ``v``); ``last_u``/``last_v``
+    add the ``t = 1`` samples of the last patch row/column. Written into ``out`` (3 arrays
+    (k nu + last_u, C nv + last_v, 3)). Separable: the ``u`` basis contracts the rows of
+    control points, then the ``v`` basis the columns (three matrix products in all).
+    """
+    k, cols = control.shape[:2]
+    (bu0, bu1), (bv0, bv1) = _sample_basis(nu, last_u), _sample_basis(nv, last_v)
+    mu, mv = len(bu0), len(bv0)
+    # contract a: (a, k, C, b, 3) -> (2 mu, k, C, b, 3), then b first for the second product
+    along_u = np.vstack([bu0, bu1]) @ control.transpose(2, 0, 1, 3, 4).reshape(4, -1)
+    along_u = along_u.reshape(2 * mu, k, cols, 4, 3).transpose(3, 0, 1, 2, 4).reshape(4, 2, -1)
+    # points and S_v from the values along u, S_u from the derivatives along u: (mv, mu, k, C, 3) each
+    pv = (np.vstack([bv0, bv1]) @ along_u[:, 0]).reshape(2, mv, mu, k, cols, 3)
+    du = (bv0 @ along_u[:, 1]).reshape(mv, mu, k, cols, 3)
+    rows_u, cols_v = k * nu, cols * nv
+    for dst, q in zip(out, (pv[0], du, pv[1])):
+        dst[:rows_u, :cols_v] = q[:nv, :nu].transpose(2, 1, 3, 0, 4).reshape(rows_u, cols_v, 3)
+        if last_v:
+            dst[:rows_u, cols_v] = q[nv, :nu, :, cols - 1].transpose(1, 0, 2).reshape(rows_u, 3)
+        if last_u:
+            dst[rows_u, :cols_v] = q[:nv, nu, k - 1].transpose(1, 0, 2).reshape(cols_v, 3)
+        if last_u and last_v:
+            dst[rows_u, cols_v] = q[nv, nu, k - 1, cols - 1]
+
+
+def _samples_pair(samples) -> tuple[int, int]:
+    """``samples`` (an int, or a pair along ``u`` and ``v``) as two ints of at least 1."""
+    pair = (samples, samples) if np.ndim(samples) == 0 else tuple(samples)
+    if len(pair) != 2:
+        raise ValueError(f"samples: expected an int or a pair (along u, along v), got {samples!r}")
+    nu, nv = int(pair[0]), int(pair[1])
+    if nu < 1 or nv < 1:
+        raise ValueError(f"samples: need at least 1 subdivision per patch side, got {samples}")
+    return nu, nv
+
+
+def tessellate(patches: BezierPatches, samples: int | tuple[int, int] = PATCH_SAMPLES,
+               weld_seams: bool = True) -> TriangleMesh:
     """Triangle mesh of a patch grid with shared seam vertices.
 
     Parameters
     ----------
     patches : BezierPatches
         The surface.
-    samples : int
+    samples : int or (int, int)
         Subdivisions per patch side (``samples x samples`` quads, twice as many
-        triangles per patch); at least 1.
+        triangles per patch); at least 1. A pair gives the subdivisions along
+        ``u`` and along ``v`` (patches of mixed sizes take one count only).
     weld_seams : bool
         Merge vertices on patch seams that coincide in space (poles, edges that
         meet without a closure flag). Keeps closed surfaces watertight.
@@ -466,53 +567,69 @@ def tessellate(patches: BezierPatches, samples: int = PATCH_SAMPLES, weld_seams:
     """
     if not isinstance(patches, BezierPatches):
         raise ValueError(f"patches: expected BezierPatches, got {type(patches).__name__}")
-    n = int(samples)
-    if n < 1:
-        raise ValueError(f"samples: need at least 1 subdivision per patch side, got {samples}")
+    nu, nv = _samples_pair(samples)
     from surfaces.mixed import MixedPatches
 
     if isinstance(patches, MixedPatches):
-        return _tessellate_mixed(patches, n)
+        if nu != nv:
+            raise ValueError(f"samples: patches of mixed sizes take one count, got {samples}")
+        return _tessellate_mixed(patches, nu)
     rows, cols = patches.shape
-    pi, a = _grid_index(rows, n, patches.closed_u)
-    pj, b = _grid_index(cols, n, patches.closed_v)
-    t = np.linspace(0.0, 1.0, n + 1)
-    b0, b1 = bernstein(t), bernstein(t, 1)
-    verts = np.empty((len(pi) * len(pj), 3))
-    normals = np.empty_like(verts)
-    collapsed = np.empty(len(verts), bool)
-    # blocks of patch rows: the (n+1, n+1, rows, C, 3) evaluations of a block are the
-    # temporaries, so the peak follows the mesh itself (small grids are one block)
-    block = max(1, TESSELLATE_BLOCK // ((n + 1) ** 2 * cols))
+    last_u, last_v = not patches.closed_u, not patches.closed_v
+    n_u, n_v = rows * nu + last_u, cols * nv + last_v
+    points, dus, dvs = (np.empty((n_u, n_v, 3)) for _ in range(3))
+    # blocks of patch rows: the (nu+1) (nv+1) samples of every patch of a block are the temporaries,
+    # so the peak follows the mesh itself (small grids are one block)
+    block = max(1, TESSELLATE_BLOCK // ((nu + 1) * (nv + 1) * cols))
     for r0 in range(0, rows, block):
         r1 = min(rows, r0 + block)
-        g = np.flatnonzero((pi >= r0) & (pi < r1))
-        PI, PJ = np.meshgrid(pi[g], pj, indexing="ij")
-        A, B = np.meshgrid(a[g], b, indexing="ij")
-        # grid-first layout (n+1, n+1, rows, C, 3): one matrix product per quantity
-        matrix = control_matrix(patches.control[r0:r1].reshape(-1, 4, 4, 3))
-        shape = (n + 1, n + 1, r1 - r0, cols, 3)
-        index = (A, B, PI - r0, PJ)
-        out = slice(g[0] * len(pj), (g[-1] + 1) * len(pj))
-        verts[out] = tensor_evaluate(matrix, b0, b0).reshape(shape)[index].reshape(-1, 3)
-        dus = tensor_evaluate(matrix, b1, b0).reshape(shape)[index].reshape(-1, 3)
-        dvs = tensor_evaluate(matrix, b0, b1).reshape(shape)[index].reshape(-1, 3)
-        normals[out], collapsed[out] = patches._unit_normals(
-            PI.ravel(), PJ.ravel(), (A / n).ravel(), (B / n).ravel(), dus, dvs, return_degenerate=True
-        )
-        del dus, dvs, matrix
-    tri = _grid_triangles(len(pi), len(pj), patches.closed_u, patches.closed_v)
+        last = last_u and r1 == rows
+        stop = r1 * nu + last
+        _lattice_block(patches.control[r0:r1], nu, nv, last, last_v,
+                       (points[r0 * nu:stop], dus[r0 * nu:stop], dvs[r0 * nu:stop]))
+    verts, dus, dvs = points.reshape(-1, 3), dus.reshape(-1, 3), dvs.reshape(-1, 3)
+    normals, collapsed = _lattice_normals(patches, dus, dvs, n_v, nu, nv)
+    tri = _grid_triangles(n_u, n_v, patches.closed_u, patches.closed_v)
     mesh = TriangleMesh(verts, tri, normals)
     if weld_seams:
         # Seams inside the grid are shared by construction; only the grid's open
         # outer edges and collapsed rows (poles: S_u x S_v = 0) can coincide.
-        edge = np.zeros((len(pi), len(pj)), dtype=bool)
-        if not patches.closed_u:
+        edge = np.zeros((n_u, n_v), dtype=bool)
+        if last_u:
             edge[[0, -1], :] = True
-        if not patches.closed_v:
+        if last_v:
             edge[:, [0, -1]] = True
         mesh = weld(mesh, candidates=np.flatnonzero(edge.ravel() | collapsed))
     return mesh
+
+
+def _lattice_normals(patches: BezierPatches, du: np.ndarray, dv: np.ndarray, n_v: int, nu: int,
+                     nv: int) -> tuple[np.ndarray, np.ndarray]:
+    """Unit normals ``du x dv`` (N, 3) at the lattice samples of :func:`tessellate`, and where they collapse (N,).
+
+    Written out by components; where ``|du x dv| <= 1e-10 |du| |dv|`` (a pole, a collapsed edge)
+    the patches step inside (:meth:`BezierPatches._unit_normals` on those samples alone).
+    """
+    ux, uy, uz = du[:, 0], du[:, 1], du[:, 2]
+    vx, vy, vz = dv[:, 0], dv[:, 1], dv[:, 2]
+    normal = np.empty_like(du)
+    normal[:, 0] = uy * vz - uz * vy
+    normal[:, 1] = uz * vx - ux * vz
+    normal[:, 2] = ux * vy - uy * vx
+    nx, ny, nz = normal[:, 0], normal[:, 1], normal[:, 2]
+    length2 = nx * nx + ny * ny + nz * nz
+    scale2 = (ux * ux + uy * uy + uz * uz) * (vx * vx + vy * vy + vz * vz)
+    collapsed = length2 <= 1e-20 * np.maximum(scale2, 1e-300)
+    if collapsed.any():
+        rows, cols = patches.shape
+        g, h = np.divmod(np.flatnonzero(collapsed), n_v)
+        pi, pj = np.minimum(g // nu, rows - 1), np.minimum(h // nv, cols - 1)
+        normal[collapsed] = patches._unit_normals(pi, pj, (g - pi * nu) / nu, (h - pj * nv) / nv,
+                                                  du[collapsed], dv[collapsed])
+        length2[collapsed] = 1.0
+    with np.errstate(invalid="ignore", divide="ignore"):
+        normal /= np.sqrt(np.where(length2 > 0, length2, 1.0))[:, None]
+    return normal, collapsed
 
 
 def _tessellate_mixed(patches, n: int) -> TriangleMesh:

@@ -116,21 +116,6 @@ def test_mesh_samples_follow_edge_length_and_budget():
     assert mesh_samples(c, budget=1) == (1, 1)
 
 
-def test_split_patches_are_exact_pieces():
-    from slices.body import _split_patches
-    from surfaces.bezier import BezierPatches
-
-    rng = np.random.default_rng(3)
-    control = rng.normal(size=(3, 2, 4, 4, 3))
-    whole, split = BezierPatches(control), BezierPatches(_split_patches(control, 2, 3))
-    assert split.shape == (6, 6)
-    u, v = rng.random(200), rng.random(200)
-    i, j = rng.integers(0, 3, 200), rng.integers(0, 2, 200)
-    iu, jv = np.floor(u * 2).astype(int), np.floor(v * 3).astype(int)
-    np.testing.assert_allclose(split.evaluate(2 * i + iu, 3 * j + jv, 2 * u - iu, 3 * v - jv),
-                               whole.evaluate(i, j, u, v), atol=1e-12)
-
-
 def test_body_records_its_mesh_density(ellipsoid_body):
     from slices.body import mesh_samples
 

@@ -209,3 +209,97 @@ def test_fan_apex_skips_the_programme_only_where_it_would_find_no_kernel(monkeyp
     np.testing.assert_array_equal(fast, slow)
     moved = sum(not np.array_equal(p, hint) for p in slow)
     assert 5 <= moved <= 35  # both outcomes occur: apexes moved into a kernel, and empty kernels
+
+def _slotted(depth: float, width: float = 0.4, n: int = 6) -> np.ndarray:
+    """A square of side 10 with a slot cut in from the top: its walls face apart, so no kernel."""
+    x0, x1 = 5 - width / 2, 5 + width / 2
+    bottom = [(10 * k / n, 0) for k in range(n)]  # many corners, many tangent lines
+    return np.array(bottom + [(10, 0), (10, 10), (x1, 10), (x1, 10 - depth), (x0, 10 - depth), (x0, 10), (0, 10)],
+                    float)
+
+
+@pytest.mark.parametrize("outline", ["slot 0.5", "slot 9", "C", "L"])
+def test_fan_apex_proves_an_empty_kernel_without_the_linear_programme(monkeypatch, outline):
+    import scipy.optimize
+
+    if outline == "L":
+        corners, hint = np.array([(0, 0), (12, 0), (12, 2), (2, 2), (2, 12), (0, 12)], float), np.array([10.0, 10.0])
+    elif outline == "C":
+        # three quarters of a ring: no two walls face apart, three tangent lines make the proof
+        th = np.radians(np.linspace(0, 270, 30))
+        corners = np.vstack([np.stack([10 * np.cos(th), 10 * np.sin(th)], 1),
+                             np.stack([6 * np.cos(th[::-1]), 6 * np.sin(th[::-1])], 1)]) + [100.0, -300.0]
+        hint = np.array([100.0, -300.0])
+    else:
+        corners, hint = _slotted(float(outline.split()[1])), np.array([5.0, 9.95])
+    curve = _polygon_curve(corners, z=1.0)
+    proven = caps.fan_apex(curve, hint)
+    monkeypatch.setattr(caps, "_no_kernel", lambda *a: False)
+    solved = caps.fan_apex(curve, hint)
+    monkeypatch.undo()
+    np.testing.assert_array_equal(proven, solved)  # the same answer with or without the proof
+    if outline == "L":
+        assert 0 < solved[0] < 2 and 0 < solved[1] < 2  # the linear programme's point in the kernel
+        return
+    np.testing.assert_array_equal(solved, hint)
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("linprog called on an empty kernel")
+
+    monkeypatch.setattr(scipy.optimize, "linprog", refuse)
+    np.testing.assert_array_equal(caps.fan_apex(curve, hint), hint)
+
+
+def test_no_kernel_proves_only_what_holds():
+    rng = np.random.default_rng(11)
+    for _ in range(40):
+        # random star-shaped outlines about the origin: the origin is in the kernel
+        t = np.sort(rng.uniform(0, 2 * np.pi, rng.integers(6, 30)))
+        r = rng.uniform(2, 8, len(t))
+        ring = np.stack([r * np.cos(t), r * np.sin(t)], axis=1)
+        edge = np.roll(ring, -1, axis=0) - ring
+        edge /= np.linalg.norm(edge, axis=1)[:, None]
+        a = np.stack([edge[:, 1], -edge[:, 0]], axis=1)  # outward normals: inside is a . p < b
+        b = np.einsum("ij,ij->i", a, ring)
+        start = np.arange(len(a)) % 3 == 0
+        if np.all(b > 0):
+            assert not caps._no_kernel(a, b, start, 1e-9)
+        # every line moved 1 past the origin (the normals of a closed outline surround it): every point
+        # misses some line by 1 at least, which the proof finds
+        assert caps._no_kernel(a, np.full_like(b, -1.0), start, 1e-9)
+        assert not caps._no_kernel(a, np.full_like(b, -1e-10), start, 1e-9)  # not beyond the margin
+
+
+@pytest.mark.parametrize("inset", [True, False])
+def test_welding_caps_by_index_is_the_spatial_weld(monkeypatch, inset):
+    # a blob with half caps and two subdivisions around: the caps' rims are joined to the side's lattice
+    # rows by index arithmetic; the spatial weld (forced) gives the same mesh
+    t = np.linspace(0, 2 * np.pi, 30, endpoint=False)
+    ring = np.stack([(6 + np.cos(3 * t)) * np.cos(t), (6 + np.cos(3 * t)) * np.sin(t)], axis=1)
+    bottom = _polygon_curve(ring, z=2.0)
+    grid = caps.close_side(None, bottom, bottom, (0.0, 0.0), (0.0, 0.0), 1.25, "half", "half")
+    side = tessellate(BezierPatches(grid.control[:, grid.side_columns], closed_u=True), (2, 3))
+    mesh, display = caps.weld_flat_caps(side, grid, 2, inset=inset)
+    assert caps._rim_weld_map(display, side, [caps.planar_cap_mesh(c, 2, s, inset) for c, s in grid.flat_caps],
+                              grid.flat_caps, 2, np.flatnonzero(np.abs(np.abs(side.vertices[:, 2] - 2.0) - 1.25)
+                                                                < 1e-9)) is not None
+    monkeypatch.setattr(caps, "_rim_weld_map", lambda *a: None)
+    spatial, _ = caps.weld_flat_caps(side, grid, 2, inset=inset)
+    np.testing.assert_array_equal(mesh.triangles, spatial.triangles)
+    np.testing.assert_array_equal(mesh.vertices, spatial.vertices)
+    np.testing.assert_array_equal(mesh.vertex_normals, spatial.vertex_normals)
+    assert mesh.is_watertight() and mesh.is_oriented()
+
+
+def test_welding_caps_by_index_falls_back_where_points_nearly_meet():
+    # a rim vertex doubled (a zero-length lattice step): the index map is refused, the spatial weld decides
+    corners = np.array([(0, 0), (4, 0), (4, 0), (4, 4), (0, 4)], float)
+    bottom = _polygon_curve(corners, z=0.0)
+    grid = caps.close_side(None, bottom, bottom, (2.0, 2.0), (2.0, 2.0), 1.0, "half", "half")
+    side = tessellate(BezierPatches(grid.control[:, grid.side_columns], closed_u=True), 1)
+    cap_meshes = [caps.planar_cap_mesh(c, 1, s) for c, s in grid.flat_caps]
+    from surfaces.mesh import merge_meshes
+
+    merged = merge_meshes([side] + cap_meshes)
+    rim = np.flatnonzero(np.abs(np.abs(side.vertices[:, 2]) - 1.0) < 1e-9)
+    assert caps._rim_weld_map(merged, side, cap_meshes, grid.flat_caps, 1, rim) is None

@@ -49,9 +49,15 @@ def test_two_overlapping_spheres_intersect_along_their_circle():
     assert self_intersections(far, t).n_faces == 0
 
 
-def test_broad_phase_matches_brute_force():
+@pytest.mark.parametrize("n, path", [(40, "pairs"), (300, "sweep"), (300, "grid")])
+def test_broad_phase_matches_brute_force(monkeypatch, n, path):
+    import surfaces.intersect as intersect
+
+    assert (n <= intersect.SMALL_BROAD_PHASE) == (path == "pairs")
+    # the sweep along one axis while it makes few raw pairs, else the grid
+    monkeypatch.setattr(intersect, "SWEEP_PAIRS_PER_FACE", 10**6 if path == "sweep" else 0)
     rng = np.random.default_rng(3)
-    corners = rng.uniform(0, 10, (300, 1, 3)) + rng.normal(0, 0.6, (300, 3, 3))
+    corners = rng.uniform(0, 10, (n, 1, 3)) + rng.normal(0, 0.6, (n, 3, 3))
     corners[:5] *= [1.0, 1.0, 0.0]  # a few long flat slivers, like cap fans
     lo, hi = corners.min(axis=1), corners.max(axis=1)
     a, b = np.triu_indices(len(corners), 1)

@@ -154,3 +154,68 @@ def test_as_mesh_accepts_mesh_like_inputs():
         as_mesh(np.zeros((3, 3)), "thing")
     with pytest.raises(ValueError, match="thing.triangles: indices"):
         as_mesh((b.vertices, b.triangles + 8), "thing")
+
+
+@pytest.mark.parametrize("closed_u", [False, True])
+@pytest.mark.parametrize("closed_v", [False, True])
+def test_tessellate_with_a_pair_of_samples_puts_the_lattice_on_the_patches(closed_u, closed_v):
+    rng = np.random.default_rng(5)
+    control = rng.normal(size=(3, 4, 4, 4, 3))
+    # closed directions: the last patch row (column) ends where the first starts
+    if closed_u:
+        control[-1, :, 3] = control[0, :, 0]
+    if closed_v:
+        control[:, -1, :, 3] = control[:, 0, :, 0]
+    patches = BezierPatches(control, closed_u, closed_v)
+    su, sv = 2, 3
+    mesh = tessellate(patches, (su, sv), weld_seams=False)
+    n_u, n_v = 3 * su + (not closed_u), 4 * sv + (not closed_v)
+    assert mesh.n_vertices == n_u * n_v
+    g, h = np.divmod(np.arange(n_u * n_v), n_v)
+    # the lattice of global parameters (i + a / su, j + b / sv), the last sample of an open side at t = 1
+    expect = patches.evaluate_global(g / su, h / sv)
+    np.testing.assert_allclose(mesh.vertices, expect, atol=1e-12)
+    np.testing.assert_allclose(mesh.vertex_normals, patches.normals(*patches.locate(g / su, h / sv)), atol=1e-9)
+    # one count both ways is the square tessellation
+    square = tessellate(patches, 2, weld_seams=False)
+    same = tessellate(patches, (2, 2), weld_seams=False)
+    np.testing.assert_array_equal(square.triangles, same.triangles)
+    np.testing.assert_allclose(square.vertices, same.vertices, atol=1e-12)
+
+
+def test_tessellate_refuses_bad_sample_pairs():
+    patches = BezierPatches(np.random.default_rng(0).normal(size=(1, 1, 4, 4, 3)))
+    for bad in ((0, 2), (2, 3, 4), (1, -1)):
+        with pytest.raises(ValueError, match="samples"):
+            tessellate(patches, bad)
+
+
+def test_points_apart_proves_only_what_holds():
+    from surfaces.mesh import points_apart
+
+    rng = np.random.default_rng(8)
+    pts = rng.uniform(-50, 50, (400, 3))
+    d = np.sqrt(((pts[:, None] - pts[None]) ** 2).sum(-1))
+    closest = d[np.triu_indices(len(pts), 1)].min()
+    assert points_apart(pts, 1e-9)
+    # never proven apart when two points are within the distance (one duplicated, one moved a little)
+    for extra in (pts[7], pts[7] + [0.0, 3e-10, 0.0]):
+        assert not points_apart(np.vstack([pts, extra]), 1e-9)
+    assert not points_apart(pts, closest * 1.01)
+    assert points_apart(pts[:1], 1.0) and points_apart(pts[:0], 1.0)
+
+
+def test_weld_map_skips_the_tree_only_when_points_are_apart(monkeypatch):
+    import scipy.spatial
+
+    pts = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
+    calls = []
+    real = scipy.spatial.cKDTree
+
+    def tree(p, *a, **k):
+        calls.append(len(p))
+        return real(p, *a, **k)
+
+    monkeypatch.setattr(scipy.spatial, "cKDTree", tree)
+    assert weld_map(pts, 1e-9).tolist() == [0, 1, 2, 3] and calls == []
+    assert weld_map(np.vstack([pts, pts[2] + 1e-12]), 1e-9).tolist() == [0, 1, 2, 3, 2] and calls == [5]
