@@ -166,6 +166,19 @@ class Outlines:
         i, j = (np.concatenate(x) for x in zip(*pairs))
         return i[i != j], j[i != j]
 
+    def neighbour_pairs(self) -> tuple[np.ndarray, np.ndarray]:
+        """Every pair ``(i, j)`` of a contour ``i`` and a contour ``j`` on the next plane up (two index arrays).
+
+        Ordered by plane, then by ``i``, then by ``j`` (contours in input order within a plane).
+        """
+        order = np.argsort(self.plane_of, kind="stable")
+        count = np.bincount(self.plane_of, minlength=len(self.planes))
+        first = np.concatenate([[0], np.cumsum(count)[:-1]])
+        block = count[:-1] * count[1:]  # pairs between plane p and p + 1
+        p = np.repeat(np.arange(len(block)), block)
+        r = np.arange(len(p)) - np.repeat(np.cumsum(block) - block, block)
+        return order[first[p] + r // count[p + 1]], order[first[p + 1] + r % count[p + 1]]
+
     def edges_of(self, polygon: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Edge (first-vertex) indices of the contours ``polygon`` (Q,), and which query each belongs to."""
         n = self.size[polygon]
@@ -392,20 +405,13 @@ def chain(contours: list[Contour], spacing: float | None, outlines: Outlines | N
     """
     n = len(contours)
     table = Outlines.of(contours) if outlines is None else outlines
-    hole, z, planes, members = table.hole, table.z, table.planes, table.members()
+    hole, z, planes = table.hole, table.z, table.planes
     succ: list[list[int]] = [[] for _ in range(n)]
     pred: list[list[int]] = [[] for _ in range(n)]
-    lower_all, upper_all, gapped = [], [], []
-    for p, (p0, p1) in enumerate(zip(planes[:-1], planes[1:])):
-        lower, upper = np.repeat(members[p], len(members[p + 1])), np.tile(members[p + 1], len(members[p]))
-        lower_all.append(lower)
-        upper_all.append(upper)
-        gapped.append(np.full(len(lower), spacing is not None and abs((p1 - p0) - spacing) > SPACING_RTOL * spacing))
-    if lower_all:
-        lower, upper, gapped = np.concatenate(lower_all), np.concatenate(upper_all), np.concatenate(gapped)
-    else:
-        lower = upper = np.zeros(0, dtype=int)
-        gapped = np.zeros(0, dtype=bool)
+    lower, upper = table.neighbour_pairs()
+    gap = np.diff(planes)
+    wide = np.zeros(len(gap), dtype=bool) if spacing is None else np.abs(gap - spacing) > SPACING_RTOL * spacing
+    gapped = wide[table.plane_of[lower]]
     # missing planes are fine between separate bodies, not inside one
     ask = gapped | (hole[lower] == hole[upper])
     meets = np.zeros(len(lower), dtype=bool)

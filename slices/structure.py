@@ -182,7 +182,9 @@ def reconstruct_contours(contours: list[Contour], *, spacing: float | None = Non
     opts = surface_options(options, **keywords)
     if not contours:
         raise ValueError("contours: no contours given")
-    planes = np.unique(np.round([c.z for c in contours], 6))
+    # the contours' areas, perimeters, boxes, planes and holes once, for the chains and both slab figures
+    outlines = Outlines.of(contours)
+    planes = outlines.planes
     if irregular and len(planes) > 1:
         d = float(np.median(np.diff(planes)))
     else:
@@ -195,8 +197,6 @@ def reconstruct_contours(contours: list[Contour], *, spacing: float | None = Non
     if d == 0:
         raise ValueError("contours: a single plane has no slice spacing; give spacing (--spacing z,y,x "
                          "on the command line)")
-    # the contours' areas, perimeters, boxes and holes once, for the chains and both slab figures
-    outlines = Outlines.of(contours)
     bodies = chain(contours, None if irregular else d, outlines)
     built = []
     for i, body in enumerate(bodies):

@@ -147,4 +147,9 @@ def test_holes_equal_the_pairwise_containment_count():
     np.testing.assert_array_equal(classify_holes(contours), want)
     assert 5 < sum(want) < 55
     table = chaining.Outlines.of(contours)
-    assert len(table.planes) == 3 and sum(len(m) for m in table.members()) == 60
+    members = table.members()
+    assert len(table.planes) == 3 and sum(len(m) for m in members) == 60
+    # pairs of neighbouring planes, in order of planes, then contours
+    want = [(a, b) for p in range(len(members) - 1) for a in members[p] for b in members[p + 1]]
+    i, j = table.neighbour_pairs()
+    assert list(zip(i.tolist(), j.tolist())) == [(int(a), int(b)) for a, b in want]
