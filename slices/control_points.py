@@ -551,6 +551,54 @@ def _support_crossings(polars: _Polars, n1: int, start_angle: float, points: boo
     start of the second period), their points (``None`` unless ``points``), the
     rays' levels and angles: shapes (C, n1), (C, n1, 2), (C, n1), (C, n1).
     """
+    cr = _crossings(polars, n1, start_angle)
+    return _pick_crossings(cr, cr.outer, cr.first, cr.level_k[cr.outer], polars.arc[polars.off3 + polars.sizes],
+                           start_angle, 2 * np.pi / n1, points)
+
+
+class _Crossings(NamedTuple):
+    """Every outgoing crossing of the rays with the contours (:func:`_crossings`).
+
+    ``ie`` and ``level_k`` give each crossing's edge and ray level; per edge,
+    its start ``(ax, ay)``, direction ``(sx, sy)``, start relative to the
+    origin ``(rx, ry)``, the origin ``(cx, cy)``, arc position at its start and
+    length; ``outer`` and ``first`` (C, n1) the crossing farthest from the
+    origin and the first along the contour of each ray, in the order of the rays.
+    """
+
+    ie: np.ndarray
+    level_k: np.ndarray
+    edge: tuple
+    outer: np.ndarray
+    first: np.ndarray
+
+
+def _crossing_at(cr: _Crossings, idx: np.ndarray, cos_k: np.ndarray, sin_k: np.ndarray, full: bool) -> tuple:
+    """Arc position, then (``full``) point and distance from the origin along the ray, of crossings
+    ``idx`` of ``cr`` on rays of direction ``(cos_k, sin_k)``."""
+    ax, ay, sx, sy, rx, ry, cx, cy, arc_g, edge_len = cr.edge
+    j = cr.ie[idx]
+    sx_j, sy_j = sx[j], sy[j]
+    num = rx[j] * sin_k - ry[j] * cos_k
+    den = sx_j * sin_k - sy_j * cos_k
+    t = np.clip(-num / np.where(den == 0, 1e-300, den), 0.0, 1.0)
+    if not full:
+        return (arc_g[j] + t * edge_len[j],)
+    x, y = ax[j] + t * sx_j, ay[j] + t * sy_j
+    return arc_g[j] + t * edge_len[j], x, y, (x - cx[j]) * cos_k + (y - cy[j]) * sin_k
+
+
+def _ray_table(levels: np.ndarray, start_angle: float, delta: float) -> tuple:
+    """Directions ``(cos, sin)`` of the rays at integer ``levels``, from a table over the levels
+    that occur (the same values as per ray, fewer cosines)."""
+    k_min = int(levels.min(initial=0))
+    table = start_angle + np.arange(k_min, int(levels.max(initial=0)) + 1) * delta
+    lv = levels - k_min
+    return np.cos(table)[lv], np.sin(table)[lv], table[lv]
+
+
+def _crossings(polars: _Polars, n1: int, start_angle: float) -> _Crossings:
+    """The crossings of :func:`_support_crossings` and each ray's two candidate picks."""
     pts, offp, ns, centers, phi, arc, off3 = polars
     n_c = len(ns)
     # the polar-angle record at the start of the second period: the largest phi up to entry n
@@ -582,58 +630,44 @@ def _support_crossings(polars: _Polars, n1: int, start_angle: float, points: boo
     sizes = np.diff(np.r_[starts, len(order)])
     # per edge what its crossings share (x and y apart: 1-D gathers are cheap); the geometry is
     # computed only for the crossings that compete (a level crossed more than once) and the picks
-    a_idx = offp[cid] + e % ns[cid]
+    e_mod = e % ns[cid]
+    a_idx = offp[cid] + e_mod
     b_idx = offp[cid] + (e + 1) % ns[cid]
     ax, ay, bx, by = pts[a_idx, 0], pts[a_idx, 1], pts[b_idx, 0], pts[b_idx, 1]
     cx, cy = centers[cid, 0], centers[cid, 1]
-    sx, sy = bx - ax, by - ay
-    rx, ry = ax - cx, ay - cy
-    edge_len = arc[off3[cid] + e % ns[cid] + 1] - arc[off3[cid] + e % ns[cid]]
-    arc_g = arc[g]
-    # the rays' directions from a table over the levels that occur (the same values, fewer cosines)
-    k_min = int(level_k.min(initial=0))
-    table = start_angle + np.arange(k_min, int(level_k.max(initial=0)) + 1) * delta
-    cos_t, sin_t = np.cos(table), np.sin(table)
-
-    def crossing(idx: np.ndarray, full: bool = True) -> tuple:
-        # arc position, then (full) point and distance from the origin along the ray, of crossings idx
-        j, lv = ie[idx], level_k[idx] - k_min
-        cos_k, sin_k, sx_j, sy_j = cos_t[lv], sin_t[lv], sx[j], sy[j]
-        num = rx[j] * sin_k - ry[j] * cos_k
-        den = sx_j * sin_k - sy_j * cos_k
-        t = np.clip(-num / np.where(den == 0, 1e-300, den), 0.0, 1.0)
-        if not full:
-            return (arc_g[j] + t * edge_len[j],)
-        x, y = ax[j] + t * sx_j, ay[j] + t * sy_j
-        return arc_g[j] + t * edge_len[j], x, y, (x - cx[j]) * cos_k + (y - cy[j]) * sin_k
-
+    a_at = off3[cid] + e_mod
+    edge = (ax, ay, bx - ax, by - ay, ax - cx, ay - cy, cx, cy, arc[g], arc[a_at + 1] - arc[a_at])
     outer = order[starts]  # a level crossed once: its only crossing, either way
-    first = outer.copy()  # (the first crossings along the contour, needed only when unordered)
+    first = outer.copy()
     multi = np.flatnonzero(sizes > 1)
+    cr = _Crossings(ie, level_k, edge, outer.reshape(n_c, n1), first.reshape(n_c, n1))
     if len(multi):
         m_sizes = sizes[multi]
         m_starts = np.cumsum(m_sizes) - m_sizes
         cand = order[np.repeat(starts[multi] - m_starts, m_sizes) + np.arange(int(m_sizes.sum()))]
-        s_c, _, _, radius = crossing(cand)
-
-        def pick_extreme(values: np.ndarray, reduce) -> np.ndarray:
+        cos_k, sin_k, _ = _ray_table(level_k[cand], start_angle, delta)
+        s_c, _, _, radius = _crossing_at(cr, cand, cos_k, sin_k, True)
+        for values, reduce, picks in ((radius, np.maximum, outer), (s_c, np.minimum, first)):
             # per group the crossing of least (or greatest) value, ties to the earliest crossing
             best = np.repeat(reduce.reduceat(values, m_starts), m_sizes)
-            return np.minimum.reduceat(np.where(values == best, cand, len(order)), m_starts)
+            picks[multi] = np.minimum.reduceat(np.where(values == best, cand, len(order)), m_starts)
+    return cr
 
-        outer[multi] = pick_extreme(radius, np.maximum)  # the crossing farthest from the origin
-    pick = outer.reshape(n_c, n1)
-    picked = crossing(pick, full=points)
-    total = arc[off3 + ns]
+
+def _pick_crossings(cr: _Crossings, outer: np.ndarray, first: np.ndarray, levels: np.ndarray, total: np.ndarray,
+                    start_angle: float, delta: float, points: bool) -> tuple:
+    """:func:`_support_crossings` of the rays at ``levels`` (C, R), ray ``k`` at ``start_angle + k
+    delta``, whose outermost and first crossings in ``cr`` are ``outer`` and ``first`` (C, R);
+    ``total`` (C,) the contours' perimeters."""
+    cos_k, sin_k, angle = _ray_table(levels, start_angle, delta)
+    picked = _crossing_at(cr, outer, cos_k, sin_k, points)
     s_pick = picked[0]
     unordered = np.any(np.diff(s_pick, axis=1) <= 0, axis=1) | (s_pick[:, -1] - s_pick[:, 0] >= total)
     if unordered.any():  # then each level's first crossing along the contour
-        if len(multi):
-            first[multi] = pick_extreme(s_c, np.minimum)
-        pick = np.where(unordered[:, None], first.reshape(n_c, n1), pick)
-        picked = crossing(pick, full=points)
+        pick = np.where(unordered[:, None], first, outer)
+        picked = _crossing_at(cr, pick, cos_k, sin_k, points)
     xy = np.stack(picked[1:3], axis=-1) if points else None
-    return picked[0], xy, level_k[pick], table[level_k[pick] - k_min]
+    return picked[0], xy, levels, angle
 
 
 def ray_supports(points, n_rays: int, start_angle: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
@@ -720,7 +754,34 @@ def choose_start_angle(contours, n_rays: int, candidates: int = START_CANDIDATES
 
 def _start_angle(polars: _Polars, n1: int, r: int) -> float:
     """:func:`choose_start_angle` of the contours of ``polars`` (:func:`_polars`, two or more)."""
-    frac = _ray_supports(polars, n1 * r, 0.0, points=False)[0].reshape(len(polars.sizes), n1, r)
+    return _best_rotation(polars, n1, r)[0]
+
+
+def _start_angle_crossings(polars: _Polars, n1: int, r: int) -> tuple[float, tuple]:
+    """:func:`_start_angle` and :func:`_support_crossings` of its ``n1`` rays, which are every
+    ``r``-th of the rays tried: their crossings are picked out of the same pass."""
+    angle, o, cr, level_k, total = _best_rotation(polars, n1, r)
+    # ray k of the chosen rotation is fine level k r + o; a contour's row of fine levels starts
+    # after its polar-angle record, and so does the row of every r-th of them
+    col = (o - level_k[:, :1]) % r + r * np.arange(n1)
+    rows = np.arange(len(total))[:, None]
+    levels = (level_k[rows, col] - o) // r
+    return angle, _pick_crossings(cr, cr.outer[rows, col], cr.first[rows, col], levels, total, angle,
+                                  2 * np.pi / n1, True)
+
+
+def _best_rotation(polars: _Polars, n1: int, r: int) -> tuple:
+    """The start angle of :func:`_start_angle`, its rotation's index, the crossings of all ``n1 r``
+    rays tried, their levels (C, n1 r) and the contours' perimeters (C,)."""
+    nf = n1 * r
+    cr = _crossings(polars, nf, 0.0)
+    total = polars.arc[polars.off3 + polars.sizes]
+    s_arc, _, level_k, _ = _pick_crossings(cr, cr.outer, cr.first, cr.level_k[cr.outer], total, 0.0,
+                                           2 * np.pi / nf, False)
+    # each contour's row runs through nf consecutive levels: ray k sits at column (k - first level) mod nf
+    order = (np.arange(nf) - level_k[:, :1]) % nf
+    frac = (np.take_along_axis(s_arc, order, axis=1) % total[:, None]) / total[:, None]
+    frac = frac.reshape(len(total), n1, r)
     shift = (np.diff(frac, axis=0) + 0.5) % 1.0 - 0.5  # (K-1, N1, R)
     # the median over the rays (np.median's partition and mean of the middle pair, without its overhead)
     half = n1 // 2
@@ -730,7 +791,8 @@ def _start_angle(polars: _Polars, n1: int, r: int) -> float:
         mid = np.partition(shift, (half - 1, half), axis=1)
         shift -= (mid[:, half - 1:half] + mid[:, half:half + 1]) / 2.0
     cost = np.abs(shift).max(axis=1).sum(axis=0)  # (R,)
-    return float(2 * np.pi * int(np.argmin(cost)) / (n1 * r))
+    o = int(np.argmin(cost))
+    return float(2 * np.pi * o / nf), o, cr, level_k, total
 
 
 def lattice_values(u_list, n_lattice: int) -> np.ndarray:

@@ -30,7 +30,7 @@ from slices.control_points import (
     _parameterize_many,
     _polars,
     _quantize_many,
-    _start_angle,
+    _start_angle_crossings,
     _support_crossings,
     lattice_values,
 )
@@ -249,11 +249,13 @@ def slice_curves(contours, z, n_rays: int, n_lattice: int | None = None,
             raise ValueError(f"contours[{i}]: needs at least 3 points, got {len(p)}")
     # the ray origin, polar angles and arc lengths serve both the rotation's choice and the parameters
     polars = _polars(ps)
-    if start_angle is None:
-        start_angle = _start_angle(polars, n1, START_CANDIDATES) if len(ps) > 1 else 0.0
-    start_angle = float(start_angle)
-    params: list[ContourParameters] = _parameterize_many(
-        polars, n1, start_angle, _support_crossings(polars, n1, start_angle))
+    if start_angle is None and len(ps) > 1:
+        # the chosen rotation's rays are among those tried: their crossings come from the same pass
+        start_angle, crossings = _start_angle_crossings(polars, n1, START_CANDIDATES)
+    else:
+        start_angle = 0.0 if start_angle is None else float(start_angle)
+        crossings = _support_crossings(polars, n1, start_angle)
+    params: list[ContourParameters] = _parameterize_many(polars, n1, start_angle, crossings)
     m = n_lattice or lattice_size(max(len(p.u) for p in params))
     arcs = _support_arcs(params, polars.start, polars.sizes)
     outlines = [p.points for p in params]
