@@ -283,8 +283,8 @@ def slice_curves(contours, z, n_rays: int, n_lattice: int | None = None,
     start = np.cumsum(ns) - ns
     curve = np.repeat(np.arange(n_c), ns)
     flat = np.concatenate(outlines)
-    p3 = np.column_stack([flat, zz[curve]])
-    ctrl, knots = blending.overhauser_closed_curves(p3, _geometry_parameters(flat, start, ns, geometry), ns)
+    # in the plane only: every Bezier point of a slice's curve lies at its z exactly
+    ctrl, knots = blending.overhauser_closed_curves(flat, _geometry_parameters(flat, start, ns, geometry), ns)
     # lattice node j sits at t(j), t piecewise linear through (q_i, t_i) (np.interp's formula): on
     # every lattice interval the curve is one cubic piece, cut exactly (Bezier points do not depend
     # on the affine parameter of the interval); the period starts at node q0, so lattice interval
@@ -301,7 +301,12 @@ def slice_curves(contours, z, n_rays: int, n_lattice: int | None = None,
     slope = (k_hi - k_lo) / (x_hi - x_lo)
     b_lo = np.where(x == x_lo, k_lo, slope * (x - x_lo) + k_lo)
     b_hi = np.where(x + 1.0 == x_hi, k_hi, slope * (x + 1.0 - x_lo) + k_lo)
-    cut = blending.restrict_segments(ctrl[g], k_lo, k_hi, b_lo, b_hi).reshape(n_c, m, 4, 3)
+    cut = np.empty((n_c, m, 4, 3))
+    cut[..., 2] = zz[:, None, None]
+    blending._restrict_segments(ctrl[g], k_lo, k_hi, b_lo, b_hi, cut.reshape(n_c * m, 4, 3)[..., :2])
+    p3 = np.empty((len(flat), 3))
+    p3[:, :2] = flat
+    p3[:, 2] = zz[curve]
     return SliceCurves(cut, nodes, np.split(p3, start[1:]), params, float(start_angle))
 
 

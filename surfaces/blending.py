@@ -394,9 +394,15 @@ def restrict_segments(control, start, end, lo, hi) -> np.ndarray:
     k1 = as_array(end, "end", shape=(len(c),))
     b0 = as_array(lo, "lo", shape=(len(c),))
     b1 = as_array(hi, "hi", shape=(len(c),))
-    h = k1 - k0
-    if np.any(h <= 0) or np.any(b1 <= b0):
+    if np.any(k1 <= k0) or np.any(b1 <= b0):
         raise ValueError("start/end, lo/hi: every range must increase strictly")
+    return _restrict_segments(c, k0, k1, b0, b1, np.empty_like(c))
+
+
+def _restrict_segments(c: np.ndarray, k0: np.ndarray, k1: np.ndarray, b0: np.ndarray, b1: np.ndarray,
+                       out: np.ndarray) -> np.ndarray:
+    """:func:`restrict_segments` of validated arrays, written into ``out`` (P, 4, d), which may be a view."""
+    h = k1 - k0
     t = np.empty((len(c), 2))
     t[:, 0] = (b0 - k0) / h
     t[:, 1] = (b1 - k0) / h
@@ -409,13 +415,13 @@ def restrict_segments(control, start, end, lo, hi) -> np.ndarray:
     for b, value in enumerate((-3.0 * r * r, 3.0 * r * (r - 2.0 * t), 3.0 * t * (2.0 * r - t), 3.0 * t * t)):
         basis[:, :, 1, b] = value
     ends = (basis.reshape(len(c), 4, 4) @ c).reshape(len(c), 2, 2, -1)  # (P, end, order, d)
-    hh = h[:, None]
-    w = (b1 - b0)[:, None]
-    out = np.empty_like(c)
-    out[:, 0] = p0 = ends[:, 0, 0]
-    out[:, 3] = p1 = ends[:, 1, 0]
-    out[:, 1] = p0 + w * (ends[:, 0, 1] / hh) / 3.0
-    out[:, 2] = p1 - w * (ends[:, 1, 1] / hh) / 3.0
+    w = ((b1 - b0) / (3.0 * h))[:, None]
+    out[:, 0] = ends[:, 0, 0]
+    out[:, 3] = ends[:, 1, 0]
+    np.multiply(ends[:, 0, 1], w, out=out[:, 1])
+    out[:, 1] += ends[:, 0, 0]
+    np.multiply(ends[:, 1, 1], w, out=out[:, 2])
+    np.subtract(ends[:, 1, 0], out[:, 2], out=out[:, 2])
     return out
 
 
