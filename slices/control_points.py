@@ -459,9 +459,8 @@ def _parameterize_many(polars: _Polars, n1: int, start_angle: float, crossings) 
     if np.any(bad) or np.any(u[last] >= 1.0):
         raise ValueError("points: could not give the contour monotone parameters (degenerate outline)")
     pts = pts_all[rot]
-    cut = start[1:]
-    return [ContourParameters(pp, uu, cc, ss, tt) for pp, uu, cc, ss, tt in zip(
-        np.split(pts, cut), np.split(u, cut), polars.centers, support_xy, np.split(turning, cut))]
+    return [ContourParameters(pts[lo:hi], u[lo:hi], cc, ss, turning[lo:hi])
+            for (lo, hi), cc, ss in zip(bounds, polars.centers, support_xy)]
 
 
 class _Polars(NamedTuple):
@@ -778,19 +777,20 @@ def _best_rotation(polars: _Polars, n1: int, r: int) -> tuple:
     total = polars.arc[polars.off3 + polars.sizes]
     s_arc, _, level_k, _ = _pick_crossings(cr, cr.outer, cr.first, cr.level_k[cr.outer], total, 0.0,
                                            2 * np.pi / nf, False)
-    # each contour's row runs through nf consecutive levels: ray k sits at column (k - first level) mod nf
-    order = (np.arange(nf) - level_k[:, :1]) % nf
-    frac = (np.take_along_axis(s_arc, order, axis=1) % total[:, None]) / total[:, None]
-    frac = frac.reshape(len(total), n1, r)
-    shift = (np.diff(frac, axis=0) + 0.5) % 1.0 - 0.5  # (K-1, N1, R)
+    # each contour's row runs through nf consecutive levels: ray k sits at column (k - first level) mod nf;
+    # gathered as (contour, rotation, ray) so that the median runs along contiguous rows. Only
+    # shifts modulo 1 count, so the unwrapped arc positions need no reduction to one period first.
+    col = (np.arange(r)[:, None] + r * np.arange(n1) - level_k[:, :1, None]) % nf
+    frac = s_arc[np.arange(len(total))[:, None, None], col] / total[:, None, None]
+    shift = (np.diff(frac, axis=0) + 0.5) % 1.0 - 0.5  # (K-1, R, N1)
     # the median over the rays (np.median's partition and mean of the middle pair, without its overhead)
     half = n1 // 2
     if n1 % 2:
-        shift -= np.partition(shift, half, axis=1)[:, half:half + 1]
+        shift -= np.partition(shift, half, axis=2)[:, :, half:half + 1]
     else:
-        mid = np.partition(shift, (half - 1, half), axis=1)
-        shift -= (mid[:, half - 1:half] + mid[:, half:half + 1]) / 2.0
-    cost = np.abs(shift).max(axis=1).sum(axis=0)  # (R,)
+        mid = np.partition(shift, (half - 1, half), axis=2)
+        shift -= (mid[:, :, half - 1:half] + mid[:, :, half:half + 1]) / 2.0
+    cost = np.abs(shift).max(axis=2).sum(axis=0)  # (R,)
     o = int(np.argmin(cost))
     return float(2 * np.pi * o / nf), o, cr, level_k, total
 
@@ -935,7 +935,8 @@ def _quantize_many(us: list, m: int, values: np.ndarray | None) -> list:
     # regression of target - i (pool adjacent violators), rounded and clipped
     r = np.round(_isotonic_fit_runs((target - i).astype(np.float64), start)).astype(np.int64)
     r = np.clip(r, 0, (m - ns)[slice_of])
-    return np.split(r + i, start[1:])
+    r += i
+    return [r[lo:lo + n] for lo, n in zip(start.tolist(), ns.tolist())]
 
 
 def isotonic_fit(y) -> np.ndarray:

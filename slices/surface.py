@@ -141,7 +141,7 @@ def _support_arcs(params: list, start: np.ndarray, sizes: np.ndarray) -> list:
     np.cumsum(cum, axis=1, out=cum)  # one row per contour: every running sum starts afresh
     at_point = local < sizes[curve]
     frac = cum[curve[at_point], local[at_point]] / cum[np.arange(n_c), sizes][curve[at_point]]
-    return np.split(frac, start[1:])
+    return [frac[lo:lo + n] for lo, n in zip(start.tolist(), sizes.tolist())]
 
 
 def aligned_arcs(points, arcs) -> list:
@@ -307,7 +307,8 @@ def slice_curves(contours, z, n_rays: int, n_lattice: int | None = None,
     p3 = np.empty((len(flat), 3))
     p3[:, :2] = flat
     p3[:, 2] = zz[curve]
-    return SliceCurves(cut, nodes, np.split(p3, start[1:]), params, float(start_angle))
+    return SliceCurves(cut, nodes, [p3[lo:lo + n] for lo, n in zip(start.tolist(), ns.tolist())], params,
+                       float(start_angle))
 
 
 # ------------------------------------------------------------------ methods
