@@ -618,15 +618,20 @@ def _crossings(polars: _Polars, n1: int, start_angle: float) -> _Crossings:
     # group the crossings by (contour, level): levels lie in k_base + [1, n1], so one integer key
     # orders them; the input is nearly in that order already, which a stable sort exploits
     key = np.repeat(cid * (n1 + 1) - k_base[cid], count) + level_k
-    order = np.argsort(key, kind="stable")
-    sorted_key = key[order]
-    starts = np.flatnonzero(np.r_[True, sorted_key[1:] != sorted_key[:-1]])
-    if len(starts) != n_c * n1:  # a contour has at most n1 levels: one is missing
-        found = np.bincount(sorted_key[starts] // (n1 + 1), minlength=n_c)
-        bad = int(np.flatnonzero(found != n1)[0])
-        where = "points" if n_c == 1 else f"contours[{bad}]"
-        raise ValueError(f"{where}: found support points for {found[bad]} of {n1} rays")
-    sizes = np.diff(np.r_[starts, len(order)])
+    if len(key) == n_c * n1 and bool(np.all(key[1:] > key[:-1])):
+        # every level crossed once, in order (no fold): nothing to group
+        order = starts = np.arange(len(key))
+        sizes = np.ones(len(key), dtype=np.int64)
+    else:
+        order = np.argsort(key, kind="stable")
+        sorted_key = key[order]
+        starts = np.flatnonzero(np.r_[True, sorted_key[1:] != sorted_key[:-1]])
+        if len(starts) != n_c * n1:  # a contour has at most n1 levels: one is missing
+            found = np.bincount(sorted_key[starts] // (n1 + 1), minlength=n_c)
+            bad = int(np.flatnonzero(found != n1)[0])
+            where = "points" if n_c == 1 else f"contours[{bad}]"
+            raise ValueError(f"{where}: found support points for {found[bad]} of {n1} rays")
+        sizes = np.diff(np.r_[starts, len(order)])
     # per edge what its crossings share (x and y apart: 1-D gathers are cheap); the geometry is
     # computed only for the crossings that compete (a level crossed more than once) and the picks
     e_mod = e % ns[cid]
