@@ -303,7 +303,10 @@ def slice_curves(contours, z, n_rays: int, n_lattice: int | None = None,
     b_hi = np.where(x + 1.0 == x_hi, k_hi, slope * (x + 1.0 - x_lo) + k_lo)
     cut = np.empty((n_c, m, 4, 3))
     cut[..., 2] = zz[:, None, None]
-    blending._restrict_segments(ctrl[g], k_lo, k_hi, b_lo, b_hi, cut.reshape(n_c * m, 4, 3)[..., :2])
+    # coordinate by coordinate, so that every operation of the cut runs along all pieces
+    by_coordinate = np.ascontiguousarray(ctrl.transpose(1, 2, 0))
+    blending._restrict_rows(np.take(by_coordinate, g, axis=2), k_lo, k_hi, b_lo, b_hi, m,
+                            cut.reshape(n_c * m, 4, 3)[..., :2])
     p3 = np.empty((len(flat), 3))
     p3[:, :2] = flat
     p3[:, 2] = zz[curve]

@@ -425,6 +425,49 @@ def _restrict_segments(c: np.ndarray, k0: np.ndarray, k1: np.ndarray, b0: np.nda
     return out
 
 
+def _restrict_rows(c: np.ndarray, k0: np.ndarray, k1: np.ndarray, b0: np.ndarray, b1: np.ndarray,
+                   n_row: int, out: np.ndarray) -> np.ndarray:
+    """:func:`restrict_segments` of pieces that tile closed curves, each breakpoint evaluated once.
+
+    The ``P`` pieces form rows of ``n_row``, each row one closed curve: piece
+    ``i`` ends where the next one in its row starts (the last where the first
+    starts). Where that next piece lies on the same segment (the same ``k0``,
+    ``k1`` and ``c``), its start's point and derivative are the piece's end's;
+    otherwise the piece ends at its segment's end ``k1``. ``c`` (4, d, P) holds
+    each piece's segment, coordinate by coordinate (so that every operation runs
+    along ``P``); the Bezier points go into ``out`` (P, 4, d).
+    """
+    h = k1 - k0
+    s = (b0 - k0) / h
+    p0, p1, p2, p3 = c
+    # de Casteljau at every piece's start: the point, and the derivative per unit of the segment's parameter
+    a0 = s * (p1 - p0) + p0
+    a1 = s * (p2 - p1) + p1
+    a2 = s * (p3 - p2) + p2
+    e0 = s * (a1 - a0) + a0
+    e1 = s * (a2 - a1) + a1
+    tangent = e1 - e0
+    point = s * tangent + e0
+    tangent *= 3.0
+    nxt = np.arange(1, len(s) + 1)
+    nxt[n_row - 1::n_row] -= n_row
+    same = (k0[nxt] == k0) & (k1[nxt] == k1)
+    w = (b1 - b0) / (3.0 * h)
+    ends = np.empty((4,) + point.shape)
+    ends[0] = point
+    np.multiply(w, tangent, out=ends[1])
+    ends[1] += point
+    np.copyto(ends[3], p3)
+    np.copyto(ends[3], np.take(point, nxt, axis=1), where=same)
+    np.subtract(p3, p2, out=ends[2])
+    ends[2] *= 3.0
+    np.copyto(ends[2], np.take(tangent, nxt, axis=1), where=same)
+    ends[2] *= w
+    np.subtract(ends[3], ends[2], out=ends[2])
+    out[...] = ends.transpose(2, 0, 1)
+    return out
+
+
 def blend_weights(n_curves: int, params=None) -> np.ndarray:
     """Bezier weights of the uniform parabolic blending across curves (seed 000, eqs. 13-19).
 
