@@ -284,7 +284,9 @@ def slice_curves(contours, z, n_rays: int, n_lattice: int | None = None,
     curve = np.repeat(np.arange(n_c), ns)
     flat = np.concatenate(outlines)
     # in the plane only: every Bezier point of a slice's curve lies at its z exactly
-    ctrl, knots = blending.overhauser_closed_curves(flat, _geometry_parameters(flat, start, ns, geometry), ns)
+    t, _, _ = blending._closed_parameters(flat, _geometry_parameters(flat, start, ns, geometry), ns)
+    # coordinate by coordinate, so that every operation of the curves and their cut runs along all points
+    by_coordinate, knots = blending._overhauser_closed_by_coordinate(np.ascontiguousarray(flat.T), t, start, ns)
     # lattice node j sits at t(j), t piecewise linear through (q_i, t_i) (np.interp's formula): on
     # every lattice interval the curve is one cubic piece, cut exactly (Bezier points do not depend
     # on the affine parameter of the interval); the period starts at node q0, so lattice interval
@@ -303,8 +305,6 @@ def slice_curves(contours, z, n_rays: int, n_lattice: int | None = None,
     b_hi = np.where(x + 1.0 == x_hi, k_hi, slope * (x + 1.0 - x_lo) + k_lo)
     cut = np.empty((n_c, m, 4, 3))
     cut[..., 2] = zz[:, None, None]
-    # coordinate by coordinate, so that every operation of the cut runs along all pieces
-    by_coordinate = np.ascontiguousarray(ctrl.transpose(1, 2, 0))
     blending._restrict_rows(np.take(by_coordinate, g, axis=2), k_lo, k_hi, b_lo, b_hi, m,
                             cut.reshape(n_c * m, 4, 3)[..., :2])
     p3 = np.empty((len(flat), 3))

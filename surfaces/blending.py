@@ -190,6 +190,13 @@ def overhauser_closed_curves(points, params, sizes) -> tuple[np.ndarray, np.ndar
     True
     """
     pts = as_array(points, "points", ndim=2)
+    t, start, ns = _closed_parameters(pts, params, sizes)
+    return _overhauser_closed(pts, t, start, ns)
+
+
+def _closed_parameters(pts: np.ndarray, params, sizes) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The validated ``params`` and ``sizes`` of :func:`overhauser_closed_curves` of ``pts``,
+    with the curves' first rows."""
     t = as_array(params, "params", shape=(len(pts),))
     ns = np.asarray(sizes)
     if ns.ndim != 1 or not len(ns) or ns.dtype.kind not in "iu" or ns.min() < 3 or int(ns.sum()) != len(pts):
@@ -202,29 +209,45 @@ def overhauser_closed_curves(points, params, sizes) -> tuple[np.ndarray, np.ndar
         raise ValueError("params: must increase strictly along every curve")
     if not np.all(t[start + ns - 1] - t[start] < 1.0):
         raise ValueError("params: a closed curve needs parameters spanning less than one period")
-    return _overhauser_closed(pts, t, start, ns)
+    return t, start, ns
 
 
 def _overhauser_closed(pts: np.ndarray, t: np.ndarray, start: np.ndarray,
                        ns: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """:func:`overhauser_closed_curves` of validated arrays, the curves starting at rows ``start``."""
+    by_coordinate, knots = _overhauser_closed_by_coordinate(np.ascontiguousarray(pts.T), t, start, ns)
+    return np.ascontiguousarray(by_coordinate.transpose(2, 0, 1)), knots
+
+
+def _overhauser_closed_by_coordinate(p: np.ndarray, t: np.ndarray, start: np.ndarray,
+                                     ns: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_overhauser_closed` of the points' coordinates ``p`` (d, N): the Bezier points
+    as (4, d, N) (every operation runs along all points), and the knots."""
     last = start + ns - 1
-    nxt = np.arange(1, len(pts) + 1)
+    n = p.shape[1]
+    nxt = np.arange(1, n + 1)
     nxt[last] = start
-    prv = np.arange(-1, len(pts) - 1)
+    prv = np.arange(-1, n - 1)
     prv[start] = last
     t_next = t[nxt]
     t_next[last] += 1.0
     t_prev = t[prv]
     t_prev[start] -= 1.0
     h1 = t_next - t
-    tan = _middle_slope(pts[prv], pts, pts[nxt], t - t_prev, h1)
-    h = h1[:, None]
-    p_end = pts[nxt]
-    ctrl = np.stack([pts, pts + h * tan / 3.0, p_end - h * tan[nxt] / 3.0, p_end], axis=1)
-    knots = np.empty(len(pts) + len(ns))
+    h0 = t - t_prev
+    p_end = np.take(p, nxt, axis=1)
+    # the derivative at the middle node of the parabola through three nodes (as _middle_slope)
+    tan = ((p - np.take(p, prv, axis=1)) / h0 * h1 + (p_end - p) / h1 * h0) / (h0 + h1)
+    ctrl = np.empty((4,) + p.shape)
+    ctrl[0] = p
+    ctrl[3] = p_end
+    np.multiply(h1, tan / 3.0, out=ctrl[1])
+    ctrl[1] += p
+    np.multiply(h1, np.take(tan, nxt, axis=1) / 3.0, out=ctrl[2])
+    np.subtract(p_end, ctrl[2], out=ctrl[2])
+    knots = np.empty(n + len(ns))
     curve = np.repeat(np.arange(len(ns)), ns)
-    knots[np.arange(len(pts)) + curve] = t
+    knots[np.arange(n) + curve] = t
     knots[last + np.arange(1, len(ns) + 1)] = t[start] + 1.0
     return ctrl, knots
 
