@@ -240,13 +240,17 @@ def slice_curves(contours, z, n_rays: int, n_lattice: int | None = None,
         raise ValueError(f"correspondence: must be one of {CORRESPONDENCES}, got {correspondence!r}")
     if lattice_mode not in LATTICE_MODES:
         raise ValueError(f"lattice_mode: must be one of {LATTICE_MODES}, got {lattice_mode!r}")
-    ps = [as_array(c, f"contours[{i}]", shape=(None, 2)) for i, c in enumerate(contours)]
+    # finite values checked once over all contours (below), the contour named only on failure
+    ps = [as_array(c, f"contours[{i}]", shape=(None, 2), finite=False) for i, c in enumerate(contours)]
     n1 = int(n_rays)
     if n1 < 3:
         raise ValueError(f"n_rays: need at least 3 rays (seed 000, eq. 1), got {n_rays}")
     for i, p in enumerate(ps):
         if len(p) < 3:
             raise ValueError(f"contours[{i}]: needs at least 3 points, got {len(p)}")
+    if not np.isfinite(np.concatenate(ps)).all():
+        for i, c in enumerate(ps):
+            as_array(c, f"contours[{i}]")
     # the ray origin, polar angles and arc lengths serve both the rotation's choice and the parameters
     polars = _polars(ps)
     if start_angle is None and len(ps) > 1:
