@@ -552,8 +552,8 @@ def _support_crossings(polars: _Polars, n1: int, start_angle: float, points: boo
     one array operation over every edge of every contour. Returns, per contour
     (axis 0), the arc positions (unwrapped, increasing in the order of the
     rays, starting with the first ray after the polar-angle record at the
-    start of the second period), their points (``None`` unless ``points``), the
-    rays' levels and angles: shapes (C, n1), (C, n1, 2), (C, n1), (C, n1).
+    start of the second period), their points, the rays' levels and angles
+    (the points and angles ``None`` unless ``points``): shapes (C, n1), (C, n1, 2), (C, n1), (C, n1).
     """
     cr = _crossings(polars, n1, start_angle)
     return _pick_crossings(cr, cr.outer, cr.first, cr.level_k[cr.outer], polars.arc[polars.off3 + polars.sizes],
@@ -598,7 +598,7 @@ def _ray_table(levels: np.ndarray, start_angle: float, delta: float) -> tuple:
     k_min = int(levels.min(initial=0))
     table = start_angle + np.arange(k_min, int(levels.max(initial=0)) + 1) * delta
     lv = levels - k_min
-    return np.cos(table)[lv], np.sin(table)[lv], table[lv]
+    return np.cos(table)[lv], np.sin(table)[lv], table, lv
 
 
 def _crossings(polars: _Polars, n1: int, start_angle: float) -> _Crossings:
@@ -654,7 +654,7 @@ def _crossings(polars: _Polars, n1: int, start_angle: float) -> _Crossings:
         m_sizes = sizes[multi]
         m_starts = np.cumsum(m_sizes) - m_sizes
         cand = order[np.repeat(starts[multi] - m_starts, m_sizes) + np.arange(int(m_sizes.sum()))]
-        cos_k, sin_k, _ = _ray_table(level_k[cand], start_angle, delta)
+        cos_k, sin_k, _, _ = _ray_table(level_k[cand], start_angle, delta)
         s_c, _, _, radius = _crossing_at(cr, cand, cos_k, sin_k, True)
         for values, reduce, picks in ((radius, np.maximum, outer), (s_c, np.minimum, first)):
             # per group the crossing of least (or greatest) value, ties to the earliest crossing
@@ -668,15 +668,16 @@ def _pick_crossings(cr: _Crossings, outer: np.ndarray, first: np.ndarray, levels
     """:func:`_support_crossings` of the rays at ``levels`` (C, R), ray ``k`` at ``start_angle + k
     delta``, whose outermost and first crossings in ``cr`` are ``outer`` and ``first`` (C, R);
     ``total`` (C,) the contours' perimeters."""
-    cos_k, sin_k, angle = _ray_table(levels, start_angle, delta)
+    cos_k, sin_k, table, lv = _ray_table(levels, start_angle, delta)
     picked = _crossing_at(cr, outer, cos_k, sin_k, points)
     s_pick = picked[0]
     unordered = np.any(np.diff(s_pick, axis=1) <= 0, axis=1) | (s_pick[:, -1] - s_pick[:, 0] >= total)
     if unordered.any():  # then each level's first crossing along the contour
         pick = np.where(unordered[:, None], first, outer)
         picked = _crossing_at(cr, pick, cos_k, sin_k, points)
-    xy = np.stack(picked[1:3], axis=-1) if points else None
-    return picked[0], xy, levels, angle
+    if not points:
+        return picked[0], None, levels, None
+    return picked[0], np.stack(picked[1:3], axis=-1), levels, table[lv]
 
 
 def ray_supports(points, n_rays: int, start_angle: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
@@ -792,7 +793,8 @@ def _best_rotation(polars: _Polars, n1: int, r: int) -> tuple:
     # shifts modulo 1 count, so the unwrapped arc positions need no reduction to one period first.
     col = (np.arange(r)[:, None] + r * np.arange(n1) - level_k[:, :1, None]) % nf
     frac = s_arc[np.arange(len(total))[:, None, None], col] / total[:, None, None]
-    shift = (np.diff(frac, axis=0) + 0.5) % 1.0 - 0.5  # (K-1, R, N1)
+    shift = np.diff(frac, axis=0)  # (K-1, R, N1)
+    shift -= np.rint(shift)  # the shortest way round
     # the median over the rays (np.median's partition and mean of the middle pair, without its overhead)
     half = n1 // 2
     if n1 % 2:
