@@ -459,9 +459,8 @@ def _parameterize_many(polars: _Polars, n1: int, start_angle: float, crossings) 
     if np.any(bad) or np.any(u[last] >= 1.0):
         raise ValueError("points: could not give the contour monotone parameters (degenerate outline)")
     pts = pts_all[rot]
-    cut = start[1:]
-    return [ContourParameters(pp, uu, cc, ss, tt) for pp, uu, cc, ss, tt in zip(
-        np.split(pts, cut), np.split(u, cut), polars.centers, support_xy, np.split(turning, cut))]
+    return [ContourParameters(pts[lo:hi], u[lo:hi], cc, ss, turning[lo:hi])
+            for (lo, hi), cc, ss in zip(bounds, polars.centers, support_xy)]
 
 
 class _Polars(NamedTuple):
@@ -495,17 +494,22 @@ def _polars(ps: list) -> _Polars:
     curve = np.repeat(np.arange(n_c), ns)
     nxt = np.arange(1, len(pts) + 1)
     nxt[start + ns - 1] = start
-    q = pts[nxt]
+    # x and y apart: operations along all points run faster than on (N, 2) rows
+    x, y = np.ascontiguousarray(pts.T)
+    qx, qy = x[nxt], y[nxt]
     # area centroids (:func:`_centroid`), the vertex mean of a degenerate zero-area polygon
-    cross = pts[:, 0] * q[:, 1] - q[:, 0] * pts[:, 1]
+    cross = x * qy - qx * y
     a = np.add.reduceat(cross, start) / 2.0
-    extent = (np.maximum.reduceat(pts, start) - np.minimum.reduceat(pts, start)).max(axis=1)
+    extent = np.maximum(np.maximum.reduceat(x, start) - np.minimum.reduceat(x, start),
+                        np.maximum.reduceat(y, start) - np.minimum.reduceat(y, start))
     flat = np.abs(a) < 1e-12 * np.maximum(1.0, extent) ** 2
-    centers = np.add.reduceat((pts + q) * cross[:, None], start, axis=0) / (6.0 * np.where(flat, 1.0, a))[:, None]
+    area6 = 6.0 * np.where(flat, 1.0, a)
+    centers = np.empty((n_c, 2))
+    centers[:, 0] = np.add.reduceat((x + qx) * cross, start) / area6
+    centers[:, 1] = np.add.reduceat((y + qy) * cross, start) / area6
     if flat.any():
         centers[flat] = (np.add.reduceat(pts, start, axis=0) / ns[:, None])[flat]
-    rel = pts - centers[curve]
-    ang = np.arctan2(rel[:, 1], rel[:, 0])
+    ang = np.arctan2(y - centers[curve, 1], x - centers[curve, 0])
     dphi = (ang[nxt] - ang + np.pi) % (2 * np.pi) - np.pi
     for c in np.flatnonzero(np.abs(np.add.reduceat(dphi, start) - 2 * np.pi) > 1e-6):
         # the centroid lies outside (strongly bent outlines): rays from the interior point instead
@@ -516,8 +520,8 @@ def _polars(ps: list) -> _Polars:
         dphi[sl] = (_next(ang[sl]) - ang[sl] + np.pi) % (2 * np.pi) - np.pi
         if abs(dphi[sl].sum() - 2 * np.pi) > 1e-6:
             raise ValueError("points: contour does not wind once counter-clockwise around its interior")
-    d = q - pts
-    edge_len = np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1])
+    dx, dy = qx - x, qy - y
+    edge_len = np.sqrt(dx * dx + dy * dy)
     # running sums over three periods, one row per contour so that each starts afresh
     local = np.arange(len(pts)) - start[curve]
     cols = 1 + local + ns[curve] * np.arange(3)[:, None]  # (3, N)
@@ -548,9 +552,57 @@ def _support_crossings(polars: _Polars, n1: int, start_angle: float, points: boo
     one array operation over every edge of every contour. Returns, per contour
     (axis 0), the arc positions (unwrapped, increasing in the order of the
     rays, starting with the first ray after the polar-angle record at the
-    start of the second period), their points (``None`` unless ``points``), the
-    rays' levels and angles: shapes (C, n1), (C, n1, 2), (C, n1), (C, n1).
+    start of the second period), their points, the rays' levels and angles
+    (the points and angles ``None`` unless ``points``): shapes (C, n1), (C, n1, 2), (C, n1), (C, n1).
     """
+    cr = _crossings(polars, n1, start_angle)
+    return _pick_crossings(cr, cr.outer, cr.first, cr.level_k[cr.outer], polars.arc[polars.off3 + polars.sizes],
+                           start_angle, 2 * np.pi / n1, points)
+
+
+class _Crossings(NamedTuple):
+    """Every outgoing crossing of the rays with the contours (:func:`_crossings`).
+
+    ``ie`` and ``level_k`` give each crossing's edge and ray level; per edge,
+    its start ``(ax, ay)``, direction ``(sx, sy)``, start relative to the
+    origin ``(rx, ry)``, the origin ``(cx, cy)``, arc position at its start and
+    length; ``outer`` and ``first`` (C, n1) the crossing farthest from the
+    origin and the first along the contour of each ray, in the order of the rays.
+    """
+
+    ie: np.ndarray
+    level_k: np.ndarray
+    edge: tuple
+    outer: np.ndarray
+    first: np.ndarray
+
+
+def _crossing_at(cr: _Crossings, idx: np.ndarray, cos_k: np.ndarray, sin_k: np.ndarray, full: bool) -> tuple:
+    """Arc position, then (``full``) point and distance from the origin along the ray, of crossings
+    ``idx`` of ``cr`` on rays of direction ``(cos_k, sin_k)``."""
+    ax, ay, sx, sy, rx, ry, cx, cy, arc_g, edge_len = cr.edge
+    j = cr.ie[idx]
+    sx_j, sy_j = sx[j], sy[j]
+    num = rx[j] * sin_k - ry[j] * cos_k
+    den = sx_j * sin_k - sy_j * cos_k
+    t = np.clip(-num / np.where(den == 0, 1e-300, den), 0.0, 1.0)
+    if not full:
+        return (arc_g[j] + t * edge_len[j],)
+    x, y = ax[j] + t * sx_j, ay[j] + t * sy_j
+    return arc_g[j] + t * edge_len[j], x, y, (x - cx[j]) * cos_k + (y - cy[j]) * sin_k
+
+
+def _ray_table(levels: np.ndarray, start_angle: float, delta: float) -> tuple:
+    """Directions ``(cos, sin)`` of the rays at integer ``levels``, from a table over the levels
+    that occur (the same values as per ray, fewer cosines)."""
+    k_min = int(levels.min(initial=0))
+    table = start_angle + np.arange(k_min, int(levels.max(initial=0)) + 1) * delta
+    lv = levels - k_min
+    return np.cos(table)[lv], np.sin(table)[lv], table, lv
+
+
+def _crossings(polars: _Polars, n1: int, start_angle: float) -> _Crossings:
+    """The crossings of :func:`_support_crossings` and each ray's two candidate picks."""
     pts, offp, ns, centers, phi, arc, off3 = polars
     n_c = len(ns)
     # the polar-angle record at the start of the second period: the largest phi up to entry n
@@ -571,69 +623,61 @@ def _support_crossings(polars: _Polars, n1: int, start_angle: float, points: boo
     # group the crossings by (contour, level): levels lie in k_base + [1, n1], so one integer key
     # orders them; the input is nearly in that order already, which a stable sort exploits
     key = np.repeat(cid * (n1 + 1) - k_base[cid], count) + level_k
-    order = np.argsort(key, kind="stable")
-    sorted_key = key[order]
-    starts = np.flatnonzero(np.r_[True, sorted_key[1:] != sorted_key[:-1]])
-    if len(starts) != n_c * n1:  # a contour has at most n1 levels: one is missing
-        found = np.bincount(sorted_key[starts] // (n1 + 1), minlength=n_c)
-        bad = int(np.flatnonzero(found != n1)[0])
-        where = "points" if n_c == 1 else f"contours[{bad}]"
-        raise ValueError(f"{where}: found support points for {found[bad]} of {n1} rays")
-    sizes = np.diff(np.r_[starts, len(order)])
+    if len(key) == n_c * n1 and bool(np.all(key[1:] > key[:-1])):
+        # every level crossed once, in order (no fold): nothing to group
+        order = starts = np.arange(len(key))
+        sizes = np.ones(len(key), dtype=np.int64)
+    else:
+        order = np.argsort(key, kind="stable")
+        sorted_key = key[order]
+        starts = np.flatnonzero(np.r_[True, sorted_key[1:] != sorted_key[:-1]])
+        if len(starts) != n_c * n1:  # a contour has at most n1 levels: one is missing
+            found = np.bincount(sorted_key[starts] // (n1 + 1), minlength=n_c)
+            bad = int(np.flatnonzero(found != n1)[0])
+            where = "points" if n_c == 1 else f"contours[{bad}]"
+            raise ValueError(f"{where}: found support points for {found[bad]} of {n1} rays")
+        sizes = np.diff(np.r_[starts, len(order)])
     # per edge what its crossings share (x and y apart: 1-D gathers are cheap); the geometry is
     # computed only for the crossings that compete (a level crossed more than once) and the picks
-    a_idx = offp[cid] + e % ns[cid]
+    e_mod = e % ns[cid]
+    a_idx = offp[cid] + e_mod
     b_idx = offp[cid] + (e + 1) % ns[cid]
     ax, ay, bx, by = pts[a_idx, 0], pts[a_idx, 1], pts[b_idx, 0], pts[b_idx, 1]
     cx, cy = centers[cid, 0], centers[cid, 1]
-    sx, sy = bx - ax, by - ay
-    rx, ry = ax - cx, ay - cy
-    edge_len = arc[off3[cid] + e % ns[cid] + 1] - arc[off3[cid] + e % ns[cid]]
-    arc_g = arc[g]
-    # the rays' directions from a table over the levels that occur (the same values, fewer cosines)
-    k_min = int(level_k.min(initial=0))
-    table = start_angle + np.arange(k_min, int(level_k.max(initial=0)) + 1) * delta
-    cos_t, sin_t = np.cos(table), np.sin(table)
-
-    def crossing(idx: np.ndarray, full: bool = True) -> tuple:
-        # arc position, then (full) point and distance from the origin along the ray, of crossings idx
-        j, lv = ie[idx], level_k[idx] - k_min
-        cos_k, sin_k, sx_j, sy_j = cos_t[lv], sin_t[lv], sx[j], sy[j]
-        num = rx[j] * sin_k - ry[j] * cos_k
-        den = sx_j * sin_k - sy_j * cos_k
-        t = np.clip(-num / np.where(den == 0, 1e-300, den), 0.0, 1.0)
-        if not full:
-            return (arc_g[j] + t * edge_len[j],)
-        x, y = ax[j] + t * sx_j, ay[j] + t * sy_j
-        return arc_g[j] + t * edge_len[j], x, y, (x - cx[j]) * cos_k + (y - cy[j]) * sin_k
-
+    a_at = off3[cid] + e_mod
+    edge = (ax, ay, bx - ax, by - ay, ax - cx, ay - cy, cx, cy, arc[g], arc[a_at + 1] - arc[a_at])
     outer = order[starts]  # a level crossed once: its only crossing, either way
-    first = outer.copy()  # (the first crossings along the contour, needed only when unordered)
+    first = outer.copy()
     multi = np.flatnonzero(sizes > 1)
+    cr = _Crossings(ie, level_k, edge, outer.reshape(n_c, n1), first.reshape(n_c, n1))
     if len(multi):
         m_sizes = sizes[multi]
         m_starts = np.cumsum(m_sizes) - m_sizes
         cand = order[np.repeat(starts[multi] - m_starts, m_sizes) + np.arange(int(m_sizes.sum()))]
-        s_c, _, _, radius = crossing(cand)
-
-        def pick_extreme(values: np.ndarray, reduce) -> np.ndarray:
+        cos_k, sin_k, _, _ = _ray_table(level_k[cand], start_angle, delta)
+        s_c, _, _, radius = _crossing_at(cr, cand, cos_k, sin_k, True)
+        for values, reduce, picks in ((radius, np.maximum, outer), (s_c, np.minimum, first)):
             # per group the crossing of least (or greatest) value, ties to the earliest crossing
             best = np.repeat(reduce.reduceat(values, m_starts), m_sizes)
-            return np.minimum.reduceat(np.where(values == best, cand, len(order)), m_starts)
+            picks[multi] = np.minimum.reduceat(np.where(values == best, cand, len(order)), m_starts)
+    return cr
 
-        outer[multi] = pick_extreme(radius, np.maximum)  # the crossing farthest from the origin
-    pick = outer.reshape(n_c, n1)
-    picked = crossing(pick, full=points)
-    total = arc[off3 + ns]
+
+def _pick_crossings(cr: _Crossings, outer: np.ndarray, first: np.ndarray, levels: np.ndarray, total: np.ndarray,
+                    start_angle: float, delta: float, points: bool) -> tuple:
+    """:func:`_support_crossings` of the rays at ``levels`` (C, R), ray ``k`` at ``start_angle + k
+    delta``, whose outermost and first crossings in ``cr`` are ``outer`` and ``first`` (C, R);
+    ``total`` (C,) the contours' perimeters."""
+    cos_k, sin_k, table, lv = _ray_table(levels, start_angle, delta)
+    picked = _crossing_at(cr, outer, cos_k, sin_k, points)
     s_pick = picked[0]
     unordered = np.any(np.diff(s_pick, axis=1) <= 0, axis=1) | (s_pick[:, -1] - s_pick[:, 0] >= total)
     if unordered.any():  # then each level's first crossing along the contour
-        if len(multi):
-            first[multi] = pick_extreme(s_c, np.minimum)
-        pick = np.where(unordered[:, None], first.reshape(n_c, n1), pick)
-        picked = crossing(pick, full=points)
-    xy = np.stack(picked[1:3], axis=-1) if points else None
-    return picked[0], xy, level_k[pick], table[level_k[pick] - k_min]
+        pick = np.where(unordered[:, None], first, outer)
+        picked = _crossing_at(cr, pick, cos_k, sin_k, points)
+    if not points:
+        return picked[0], None, levels, None
+    return picked[0], np.stack(picked[1:3], axis=-1), levels, table[lv]
 
 
 def ray_supports(points, n_rays: int, start_angle: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
@@ -720,17 +764,47 @@ def choose_start_angle(contours, n_rays: int, candidates: int = START_CANDIDATES
 
 def _start_angle(polars: _Polars, n1: int, r: int) -> float:
     """:func:`choose_start_angle` of the contours of ``polars`` (:func:`_polars`, two or more)."""
-    frac = _ray_supports(polars, n1 * r, 0.0, points=False)[0].reshape(len(polars.sizes), n1, r)
-    shift = (np.diff(frac, axis=0) + 0.5) % 1.0 - 0.5  # (K-1, N1, R)
+    return _best_rotation(polars, n1, r)[0]
+
+
+def _start_angle_crossings(polars: _Polars, n1: int, r: int) -> tuple[float, tuple]:
+    """:func:`_start_angle` and :func:`_support_crossings` of its ``n1`` rays, which are every
+    ``r``-th of the rays tried: their crossings are picked out of the same pass."""
+    angle, o, cr, level_k, total = _best_rotation(polars, n1, r)
+    # ray k of the chosen rotation is fine level k r + o; a contour's row of fine levels starts
+    # after its polar-angle record, and so does the row of every r-th of them
+    col = (o - level_k[:, :1]) % r + r * np.arange(n1)
+    rows = np.arange(len(total))[:, None]
+    levels = (level_k[rows, col] - o) // r
+    return angle, _pick_crossings(cr, cr.outer[rows, col], cr.first[rows, col], levels, total, angle,
+                                  2 * np.pi / n1, True)
+
+
+def _best_rotation(polars: _Polars, n1: int, r: int) -> tuple:
+    """The start angle of :func:`_start_angle`, its rotation's index, the crossings of all ``n1 r``
+    rays tried, their levels (C, n1 r) and the contours' perimeters (C,)."""
+    nf = n1 * r
+    cr = _crossings(polars, nf, 0.0)
+    total = polars.arc[polars.off3 + polars.sizes]
+    s_arc, _, level_k, _ = _pick_crossings(cr, cr.outer, cr.first, cr.level_k[cr.outer], total, 0.0,
+                                           2 * np.pi / nf, False)
+    # each contour's row runs through nf consecutive levels: ray k sits at column (k - first level) mod nf;
+    # gathered as (contour, rotation, ray) so that the median runs along contiguous rows. Only
+    # shifts modulo 1 count, so the unwrapped arc positions need no reduction to one period first.
+    col = (np.arange(r)[:, None] + r * np.arange(n1) - level_k[:, :1, None]) % nf
+    frac = s_arc[np.arange(len(total))[:, None, None], col] / total[:, None, None]
+    shift = np.diff(frac, axis=0)  # (K-1, R, N1)
+    shift -= np.rint(shift)  # the shortest way round
     # the median over the rays (np.median's partition and mean of the middle pair, without its overhead)
     half = n1 // 2
     if n1 % 2:
-        shift -= np.partition(shift, half, axis=1)[:, half:half + 1]
+        shift -= np.partition(shift, half, axis=2)[:, :, half:half + 1]
     else:
-        mid = np.partition(shift, (half - 1, half), axis=1)
-        shift -= (mid[:, half - 1:half] + mid[:, half:half + 1]) / 2.0
-    cost = np.abs(shift).max(axis=1).sum(axis=0)  # (R,)
-    return float(2 * np.pi * int(np.argmin(cost)) / (n1 * r))
+        mid = np.partition(shift, (half - 1, half), axis=2)
+        shift -= (mid[:, :, half - 1:half] + mid[:, :, half:half + 1]) / 2.0
+    cost = np.abs(shift).max(axis=2).sum(axis=0)  # (R,)
+    o = int(np.argmin(cost))
+    return float(2 * np.pi * o / nf), o, cr, level_k, total
 
 
 def lattice_values(u_list, n_lattice: int) -> np.ndarray:
@@ -873,7 +947,8 @@ def _quantize_many(us: list, m: int, values: np.ndarray | None) -> list:
     # regression of target - i (pool adjacent violators), rounded and clipped
     r = np.round(_isotonic_fit_runs((target - i).astype(np.float64), start)).astype(np.int64)
     r = np.clip(r, 0, (m - ns)[slice_of])
-    return np.split(r + i, start[1:])
+    r += i
+    return [r[lo:lo + n] for lo, n in zip(start.tolist(), ns.tolist())]
 
 
 def isotonic_fit(y) -> np.ndarray:

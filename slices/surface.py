@@ -30,7 +30,7 @@ from slices.control_points import (
     _parameterize_many,
     _polars,
     _quantize_many,
-    _start_angle,
+    _start_angle_crossings,
     _support_crossings,
     lattice_values,
 )
@@ -141,7 +141,7 @@ def _support_arcs(params: list, start: np.ndarray, sizes: np.ndarray) -> list:
     np.cumsum(cum, axis=1, out=cum)  # one row per contour: every running sum starts afresh
     at_point = local < sizes[curve]
     frac = cum[curve[at_point], local[at_point]] / cum[np.arange(n_c), sizes][curve[at_point]]
-    return np.split(frac, start[1:])
+    return [frac[lo:lo + n] for lo, n in zip(start.tolist(), sizes.tolist())]
 
 
 def aligned_arcs(points, arcs) -> list:
@@ -240,20 +240,26 @@ def slice_curves(contours, z, n_rays: int, n_lattice: int | None = None,
         raise ValueError(f"correspondence: must be one of {CORRESPONDENCES}, got {correspondence!r}")
     if lattice_mode not in LATTICE_MODES:
         raise ValueError(f"lattice_mode: must be one of {LATTICE_MODES}, got {lattice_mode!r}")
-    ps = [as_array(c, f"contours[{i}]", shape=(None, 2)) for i, c in enumerate(contours)]
+    # finite values checked once over all contours (below), the contour named only on failure
+    ps = [as_array(c, f"contours[{i}]", shape=(None, 2), finite=False) for i, c in enumerate(contours)]
     n1 = int(n_rays)
     if n1 < 3:
         raise ValueError(f"n_rays: need at least 3 rays (seed 000, eq. 1), got {n_rays}")
     for i, p in enumerate(ps):
         if len(p) < 3:
             raise ValueError(f"contours[{i}]: needs at least 3 points, got {len(p)}")
+    if not np.isfinite(np.concatenate(ps)).all():
+        for i, c in enumerate(ps):
+            as_array(c, f"contours[{i}]")
     # the ray origin, polar angles and arc lengths serve both the rotation's choice and the parameters
     polars = _polars(ps)
-    if start_angle is None:
-        start_angle = _start_angle(polars, n1, START_CANDIDATES) if len(ps) > 1 else 0.0
-    start_angle = float(start_angle)
-    params: list[ContourParameters] = _parameterize_many(
-        polars, n1, start_angle, _support_crossings(polars, n1, start_angle))
+    if start_angle is None and len(ps) > 1:
+        # the chosen rotation's rays are among those tried: their crossings come from the same pass
+        start_angle, crossings = _start_angle_crossings(polars, n1, START_CANDIDATES)
+    else:
+        start_angle = 0.0 if start_angle is None else float(start_angle)
+        crossings = _support_crossings(polars, n1, start_angle)
+    params: list[ContourParameters] = _parameterize_many(polars, n1, start_angle, crossings)
     m = n_lattice or lattice_size(max(len(p.u) for p in params))
     arcs = _support_arcs(params, polars.start, polars.sizes)
     outlines = [p.points for p in params]
@@ -281,8 +287,10 @@ def slice_curves(contours, z, n_rays: int, n_lattice: int | None = None,
     start = np.cumsum(ns) - ns
     curve = np.repeat(np.arange(n_c), ns)
     flat = np.concatenate(outlines)
-    p3 = np.column_stack([flat, zz[curve]])
-    ctrl, knots = blending.overhauser_closed_curves(p3, _geometry_parameters(flat, start, ns, geometry), ns)
+    # in the plane only: every Bezier point of a slice's curve lies at its z exactly
+    t, _, _ = blending._closed_parameters(flat, _geometry_parameters(flat, start, ns, geometry), ns)
+    # coordinate by coordinate, so that every operation of the curves and their cut runs along all points
+    by_coordinate, knots = blending._overhauser_closed_by_coordinate(np.ascontiguousarray(flat.T), t, start, ns)
     # lattice node j sits at t(j), t piecewise linear through (q_i, t_i) (np.interp's formula): on
     # every lattice interval the curve is one cubic piece, cut exactly (Bezier points do not depend
     # on the affine parameter of the interval); the period starts at node q0, so lattice interval
@@ -299,8 +307,15 @@ def slice_curves(contours, z, n_rays: int, n_lattice: int | None = None,
     slope = (k_hi - k_lo) / (x_hi - x_lo)
     b_lo = np.where(x == x_lo, k_lo, slope * (x - x_lo) + k_lo)
     b_hi = np.where(x + 1.0 == x_hi, k_hi, slope * (x + 1.0 - x_lo) + k_lo)
-    cut = blending.restrict_segments(ctrl[g], k_lo, k_hi, b_lo, b_hi).reshape(n_c, m, 4, 3)
-    return SliceCurves(cut, nodes, np.split(p3, start[1:]), params, float(start_angle))
+    cut = np.empty((n_c, m, 4, 3))
+    cut[..., 2] = zz[:, None, None]
+    blending._restrict_rows(np.take(by_coordinate, g, axis=2), k_lo, k_hi, b_lo, b_hi, m,
+                            cut.reshape(n_c * m, 4, 3)[..., :2])
+    p3 = np.empty((len(flat), 3))
+    p3[:, :2] = flat
+    p3[:, 2] = zz[curve]
+    return SliceCurves(cut, nodes, [p3[lo:lo + n] for lo, n in zip(start.tolist(), ns.tolist())], params,
+                       float(start_angle))
 
 
 # ------------------------------------------------------------------ methods

@@ -190,6 +190,13 @@ def overhauser_closed_curves(points, params, sizes) -> tuple[np.ndarray, np.ndar
     True
     """
     pts = as_array(points, "points", ndim=2)
+    t, start, ns = _closed_parameters(pts, params, sizes)
+    return _overhauser_closed(pts, t, start, ns)
+
+
+def _closed_parameters(pts: np.ndarray, params, sizes) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The validated ``params`` and ``sizes`` of :func:`overhauser_closed_curves` of ``pts``,
+    with the curves' first rows."""
     t = as_array(params, "params", shape=(len(pts),))
     ns = np.asarray(sizes)
     if ns.ndim != 1 or not len(ns) or ns.dtype.kind not in "iu" or ns.min() < 3 or int(ns.sum()) != len(pts):
@@ -202,29 +209,45 @@ def overhauser_closed_curves(points, params, sizes) -> tuple[np.ndarray, np.ndar
         raise ValueError("params: must increase strictly along every curve")
     if not np.all(t[start + ns - 1] - t[start] < 1.0):
         raise ValueError("params: a closed curve needs parameters spanning less than one period")
-    return _overhauser_closed(pts, t, start, ns)
+    return t, start, ns
 
 
 def _overhauser_closed(pts: np.ndarray, t: np.ndarray, start: np.ndarray,
                        ns: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """:func:`overhauser_closed_curves` of validated arrays, the curves starting at rows ``start``."""
+    by_coordinate, knots = _overhauser_closed_by_coordinate(np.ascontiguousarray(pts.T), t, start, ns)
+    return np.ascontiguousarray(by_coordinate.transpose(2, 0, 1)), knots
+
+
+def _overhauser_closed_by_coordinate(p: np.ndarray, t: np.ndarray, start: np.ndarray,
+                                     ns: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_overhauser_closed` of the points' coordinates ``p`` (d, N): the Bezier points
+    as (4, d, N) (every operation runs along all points), and the knots."""
     last = start + ns - 1
-    nxt = np.arange(1, len(pts) + 1)
+    n = p.shape[1]
+    nxt = np.arange(1, n + 1)
     nxt[last] = start
-    prv = np.arange(-1, len(pts) - 1)
+    prv = np.arange(-1, n - 1)
     prv[start] = last
     t_next = t[nxt]
     t_next[last] += 1.0
     t_prev = t[prv]
     t_prev[start] -= 1.0
     h1 = t_next - t
-    tan = _middle_slope(pts[prv], pts, pts[nxt], t - t_prev, h1)
-    h = h1[:, None]
-    p_end = pts[nxt]
-    ctrl = np.stack([pts, pts + h * tan / 3.0, p_end - h * tan[nxt] / 3.0, p_end], axis=1)
-    knots = np.empty(len(pts) + len(ns))
+    h0 = t - t_prev
+    p_end = np.take(p, nxt, axis=1)
+    # the derivative at the middle node of the parabola through three nodes (as _middle_slope)
+    tan = ((p - np.take(p, prv, axis=1)) / h0 * h1 + (p_end - p) / h1 * h0) / (h0 + h1)
+    ctrl = np.empty((4,) + p.shape)
+    ctrl[0] = p
+    ctrl[3] = p_end
+    np.multiply(h1, tan / 3.0, out=ctrl[1])
+    ctrl[1] += p
+    np.multiply(h1, np.take(tan, nxt, axis=1) / 3.0, out=ctrl[2])
+    np.subtract(p_end, ctrl[2], out=ctrl[2])
+    knots = np.empty(n + len(ns))
     curve = np.repeat(np.arange(len(ns)), ns)
-    knots[np.arange(len(pts)) + curve] = t
+    knots[np.arange(n) + curve] = t
     knots[last + np.arange(1, len(ns) + 1)] = t[start] + 1.0
     return ctrl, knots
 
@@ -394,9 +417,15 @@ def restrict_segments(control, start, end, lo, hi) -> np.ndarray:
     k1 = as_array(end, "end", shape=(len(c),))
     b0 = as_array(lo, "lo", shape=(len(c),))
     b1 = as_array(hi, "hi", shape=(len(c),))
-    h = k1 - k0
-    if np.any(h <= 0) or np.any(b1 <= b0):
+    if np.any(k1 <= k0) or np.any(b1 <= b0):
         raise ValueError("start/end, lo/hi: every range must increase strictly")
+    return _restrict_segments(c, k0, k1, b0, b1, np.empty_like(c))
+
+
+def _restrict_segments(c: np.ndarray, k0: np.ndarray, k1: np.ndarray, b0: np.ndarray, b1: np.ndarray,
+                       out: np.ndarray) -> np.ndarray:
+    """:func:`restrict_segments` of validated arrays, written into ``out`` (P, 4, d), which may be a view."""
+    h = k1 - k0
     t = np.empty((len(c), 2))
     t[:, 0] = (b0 - k0) / h
     t[:, 1] = (b1 - k0) / h
@@ -409,13 +438,56 @@ def restrict_segments(control, start, end, lo, hi) -> np.ndarray:
     for b, value in enumerate((-3.0 * r * r, 3.0 * r * (r - 2.0 * t), 3.0 * t * (2.0 * r - t), 3.0 * t * t)):
         basis[:, :, 1, b] = value
     ends = (basis.reshape(len(c), 4, 4) @ c).reshape(len(c), 2, 2, -1)  # (P, end, order, d)
-    hh = h[:, None]
-    w = (b1 - b0)[:, None]
-    out = np.empty_like(c)
-    out[:, 0] = p0 = ends[:, 0, 0]
-    out[:, 3] = p1 = ends[:, 1, 0]
-    out[:, 1] = p0 + w * (ends[:, 0, 1] / hh) / 3.0
-    out[:, 2] = p1 - w * (ends[:, 1, 1] / hh) / 3.0
+    w = ((b1 - b0) / (3.0 * h))[:, None]
+    out[:, 0] = ends[:, 0, 0]
+    out[:, 3] = ends[:, 1, 0]
+    np.multiply(ends[:, 0, 1], w, out=out[:, 1])
+    out[:, 1] += ends[:, 0, 0]
+    np.multiply(ends[:, 1, 1], w, out=out[:, 2])
+    np.subtract(ends[:, 1, 0], out[:, 2], out=out[:, 2])
+    return out
+
+
+def _restrict_rows(c: np.ndarray, k0: np.ndarray, k1: np.ndarray, b0: np.ndarray, b1: np.ndarray,
+                   n_row: int, out: np.ndarray) -> np.ndarray:
+    """:func:`restrict_segments` of pieces that tile closed curves, each breakpoint evaluated once.
+
+    The ``P`` pieces form rows of ``n_row``, each row one closed curve: piece
+    ``i`` ends where the next one in its row starts (the last where the first
+    starts). Where that next piece lies on the same segment (the same ``k0``,
+    ``k1`` and ``c``), its start's point and derivative are the piece's end's;
+    otherwise the piece ends at its segment's end ``k1``. ``c`` (4, d, P) holds
+    each piece's segment, coordinate by coordinate (so that every operation runs
+    along ``P``); the Bezier points go into ``out`` (P, 4, d).
+    """
+    h = k1 - k0
+    s = (b0 - k0) / h
+    p0, p1, p2, p3 = c
+    # de Casteljau at every piece's start: the point, and the derivative per unit of the segment's parameter
+    a0 = s * (p1 - p0) + p0
+    a1 = s * (p2 - p1) + p1
+    a2 = s * (p3 - p2) + p2
+    e0 = s * (a1 - a0) + a0
+    e1 = s * (a2 - a1) + a1
+    tangent = e1 - e0
+    point = s * tangent + e0
+    tangent *= 3.0
+    nxt = np.arange(1, len(s) + 1)
+    nxt[n_row - 1::n_row] -= n_row
+    same = (k0[nxt] == k0) & (k1[nxt] == k1)
+    w = (b1 - b0) / (3.0 * h)
+    ends = np.empty((4,) + point.shape)
+    ends[0] = point
+    np.multiply(w, tangent, out=ends[1])
+    ends[1] += point
+    np.copyto(ends[3], p3)
+    np.copyto(ends[3], np.take(point, nxt, axis=1), where=same)
+    np.subtract(p3, p2, out=ends[2])
+    ends[2] *= 3.0
+    np.copyto(ends[2], np.take(tangent, nxt, axis=1), where=same)
+    ends[2] *= w
+    np.subtract(ends[3], ends[2], out=ends[2])
+    out[...] = ends.transpose(2, 0, 1)
     return out
 
 
@@ -538,16 +610,16 @@ def _blend(c: np.ndarray, closed_u: bool, params, monotone: bool) -> tuple[Bezie
     """:func:`blend_curves` of validated curves, with the limited tangents when ``monotone``."""
     k, m = c.shape[:2]
     w = blend_weights(k, params)
-    # one matrix product over all curves (faster than einsum's batched path)
-    mixed = (w.reshape(-1, k) @ c.reshape(k, -1)).reshape(k - 1, 4, m, 4, 3)
+    # one matrix product over all curves (faster than einsum's batched path), the rows ordered by
+    # Bezier point along v first, so that each of the four is one contiguous block for the limit
+    mixed = (w.transpose(1, 0, 2).reshape(-1, k) @ c.reshape(k, -1)).reshape(4, k - 1, m, 4, 3)
     limited = None
     if monotone:
-        blend = _limit_monotone(mixed.reshape(k - 1, 4, -1), in_place=True)
-        mixed = blend.control.reshape(mixed.shape)
-        limited = blend.limited.reshape(c.shape)
+        q = mixed.reshape(4, k - 1, -1)
+        limited = (_limit_parts(q[0], q[1], q[2], q[3], _tiny(q)) < 1.0).reshape(c.shape)
     # moved as whole 3-vectors (one 24-byte item each), which numpy copies faster than single floats
-    whole = mixed.view(np.dtype((np.void, 8 * 3))).reshape(k - 1, 4, m, 4)
-    control = np.ascontiguousarray(whole.transpose(2, 0, 3, 1)).view(np.float64).reshape(m, k - 1, 4, 4, 3)
+    whole = mixed.view(np.dtype((np.void, 8 * 3))).reshape(4, k - 1, m, 4)
+    control = np.ascontiguousarray(whole.transpose(2, 1, 3, 0)).view(np.float64).reshape(m, k - 1, 4, 4, 3)
     return BezierPatches(control, closed_u=closed_u), limited
 
 
@@ -609,41 +681,52 @@ def limit_monotone(pieces) -> LimitedBlend:
 
 
 def _limit_monotone(p: np.ndarray, in_place: bool = False) -> LimitedBlend:
-    """:func:`limit_monotone` of validated pieces (written into ``p`` itself when ``in_place``).
+    """:func:`limit_monotone` of validated pieces (written into ``p`` itself when ``in_place``)."""
+    q = p if in_place else p.copy()
+    scale = _limit_parts(q[:, 0], q[:, 1], q[:, 2], q[:, 3], _tiny(q))
+    return LimitedBlend(q, scale < 1.0)
+
+
+def _tiny(p: np.ndarray) -> float:
+    """What counts as no rise in :func:`limit_monotone` of pieces ``p``: 1e-12 of their size."""
+    return 1e-12 * (max(float(p.max()), -float(p.min())) + 1.0)
+
+
+def _limit_parts(q0: np.ndarray, q1: np.ndarray, q2: np.ndarray, q3: np.ndarray, tiny: float) -> np.ndarray:
+    """:func:`limit_monotone` of the pieces' four Bezier points ``q0..q3`` (each (K - 1, F)), the inner
+    two limited in place; returns the tangents' scale factors (K, F).
 
     The result's own rows hold the tangents while they are limited, and the
     buffers are reused from step to step: on a body's few hundred thousand
-    coordinates each fresh temporary costs as much in page faults as its arithmetic.
+    coordinates each fresh temporary costs as much in page faults as its
+    arithmetic (and contiguous ``q0..q3`` about half as much time as strided ones).
     """
-    tiny = 1e-12 * (max(float(p.max()), -float(p.min())) + 1.0)
-    q = p if in_place else p.copy()
-    q0, q1, q2, q3 = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
     d = q3 - q0
     np.subtract(q1, q0, out=q1)  # a_k: leaves node k into piece k
     np.subtract(q3, q2, out=q2)  # b_k: enters node k + 1 from piece k
-    rise = np.abs(d)
-    flat = np.flatnonzero(rise <= tiny)  # few: pieces that do not rise in a coordinate
-    scale = np.empty((len(q) + 1,) + d.shape[1:])
+    scale = np.empty((len(q0) + 1,) + d.shape[1:])
     scale[-1] = 1.0
-    wrong = np.empty(d.shape, dtype=bool)
+    np.abs(d, out=scale[:-1])
+    flat = np.flatnonzero(scale[:-1] <= tiny)  # few: pieces that do not rise in a coordinate
+    d_flat = d.ravel()[flat]
     with np.errstate(divide="ignore", invalid="ignore"):
         # the last side's ratio overwrites d, which it reads first
         for side, ratio in ((q1, scale[:-1]), (q2, d)):
-            # a tangent against the piece's own direction, or longer than its rise, overshoots
-            np.multiply(side, d, out=ratio)
-            np.less(ratio, 0.0, out=wrong)
-            np.abs(side, out=ratio)
-            if len(flat):  # any tangent along a piece that does not rise
-                wrong.ravel()[flat] |= ratio.ravel()[flat] > tiny
-            np.divide(rise, ratio, out=ratio)
-            np.fmin(ratio, 1.0, out=ratio)  # also 1 where both are 0 (nan)
-            np.copyto(ratio, 0.0, where=wrong)
+            # rise over tangent: negative (a tangent against the piece's own direction) gives 0, and
+            # beyond 1 (not longer than the rise) nothing to shorten
+            np.divide(d, side, out=ratio)
+            np.clip(ratio, 0.0, 1.0, out=ratio)
+            ratio.ravel()[np.flatnonzero(side == 0.0)] = 1.0  # a zero tangent needs no shortening
+            if len(flat):  # a tangent along a piece that does not rise (even against it) overshoots
+                s_flat = side.ravel()[flat]
+                keep = (np.abs(s_flat) <= tiny) & (s_flat * d_flat >= 0.0)
+                ratio.ravel()[flat] = np.where(keep, np.fmin(np.abs(d_flat) / np.abs(s_flat), 1.0), 0.0)
     np.minimum(scale[1:], d, out=scale[1:])
     q1 *= scale[:-1]
     q1 += q0
     q2 *= scale[1:]
     np.subtract(q3, q2, out=q2)
-    return LimitedBlend(q, scale < 1.0)
+    return scale
 
 
 def from_grid(points, u_params=None, closed_u: bool = False, closed_v: bool = False) -> BezierPatches:

@@ -308,3 +308,22 @@ def test_start_angle_is_the_least_median_removed_shift(n1):
     shift -= np.median(shift, axis=1, keepdims=True)
     expect = 2 * np.pi * int(np.argmin(np.abs(shift).max(axis=1).sum(axis=0))) / (n1 * r)
     assert cp.choose_start_angle(ps, n1, r) == expect
+
+
+@pytest.mark.parametrize("n1, r", [(7, 4), (12, 8), (64, 8)])
+def test_start_angle_crossings_are_those_of_the_chosen_rays(n1, r):
+    """The chosen rotation's crossings, picked out of the pass over all rotations, are the ones a
+    pass over its own rays finds (up to rounding of the rays' angles), folded outlines included."""
+    t = np.linspace(0, 2 * np.pi, 90, endpoint=False)
+    star = np.stack([(10 + 4 * np.cos(5 * t)) * np.cos(t), (10 + 4 * np.cos(5 * t)) * np.sin(t)], 1)
+    a = np.linspace(0.3, 2 * np.pi - 0.3, 70)
+    c_shape = np.vstack([np.stack([12 * np.cos(a), 12 * np.sin(a)], 1),
+                         np.stack([7 * np.cos(a[::-1]), 7 * np.sin(a[::-1])], 1)])
+    ps = [cp.clean_contour(p) for p in (star, c_shape, star[::2] + 3.0, c_shape * 0.5)] + _ragged_outlines()[:2]
+    polars = cp._polars(ps)
+    angle, got = cp._start_angle_crossings(polars, n1, r)
+    assert angle == cp._start_angle(polars, n1, r)
+    expect = cp._support_crossings(polars, n1, angle)
+    np.testing.assert_array_equal(got[2], expect[2])
+    for x, y in zip(got[:2] + got[3:], expect[:2] + expect[3:]):
+        np.testing.assert_allclose(x, y, rtol=0, atol=1e-9)

@@ -136,3 +136,35 @@ def test_monotone_blend_is_blend_curves_with_its_limit():
     np.testing.assert_array_equal(limited, blending.limit_monotone(pieces).limited.reshape(curves.shape))
     with pytest.raises(ValueError, match="at least 2 curves"):
         blending.monotone_blend(curves[:1])
+
+
+def test_restrict_rows_equals_restrict_segments_on_tiled_closed_curves():
+    """Pieces tiling closed curves (rows of equal count, some ending on a knot, the last
+    returning to the first) come out as the independent restriction of each piece."""
+    rng = np.random.default_rng(7)
+    sizes = [5, 9, 7]
+    m = 16
+    pts = np.concatenate([np.column_stack([np.cos(a), np.sin(a)]) * (1 + 0.2 * rng.random((n, 1)))
+                          for n in sizes for a in [np.sort(rng.uniform(0, 2 * np.pi, n))]])
+    t = np.concatenate([np.sort(rng.uniform(0, 1, n)) for n in sizes])
+    ctrl, knots = blending.overhauser_closed_curves(pts, t, sizes)
+    rows = []
+    first = 0
+    for c, n in enumerate(sizes):
+        k = knots[first + c:first + c + n + 1]
+        extra = np.sort(rng.uniform(k[0], k[-1], m - n))
+        b = np.union1d(k, extra)
+        assert len(b) == m + 1
+        seg = np.clip(np.searchsorted(k, 0.5 * (b[:-1] + b[1:])) - 1, 0, n - 1)
+        row = (first + seg, k[seg], k[seg + 1], b[:-1], b[1:])
+        if c == 1:  # a row that starts inside a segment: its last piece ends on that segment too
+            r = int(np.flatnonzero(seg[1:] == seg[:-1])[0]) + 1
+            row = tuple(np.roll(x, -r) for x in row)
+        rows.append(row)
+        first += n
+    g, k0, k1, b0, b1 = (np.concatenate(x) for x in zip(*rows))
+    expect = blending.restrict_segments(ctrl[g], k0, k1, b0, b1)
+    out = np.full((len(g), 4, 3), np.nan)
+    blending._restrict_rows(np.ascontiguousarray(ctrl[g].transpose(1, 2, 0)), k0, k1, b0, b1, m, out[..., :2])
+    np.testing.assert_allclose(out[..., :2], expect, rtol=0, atol=1e-12)
+    assert np.isnan(out[..., 2]).all()  # only the given view is written
