@@ -141,6 +141,21 @@ def _flip(mesh: TriangleMesh) -> TriangleMesh:
     return TriangleMesh(mesh.vertices, mesh.triangles[:, ::-1].copy(), normals)
 
 
+#: Patches per chunk in :func:`mesh_samples` (temporaries of ~100 kB).
+_SAMPLES_CHUNK = 512
+
+
+def _median(x: np.ndarray) -> float:
+    """``np.median`` of a flat array's values (the mean of the two middle ones for an even count), by one partition."""
+    x = x.ravel()
+    half = len(x) // 2
+    if len(x) % 2:
+        return float(np.partition(x, half)[half])
+    part = np.partition(x, half)
+    # the sorted value before the middle one: the largest of those the partition puts before it
+    return float((part[:half].max() + part[half]) / 2.0)
+
+
 def mesh_samples(control: np.ndarray, budget: int = MESH_BUDGET) -> tuple[int, int]:
     """Subdivisions of every patch around (``u``) and across the slices (``v``) for the mesh.
 
@@ -168,22 +183,34 @@ def mesh_samples(control: np.ndarray, budget: int = MESH_BUDGET) -> tuple[int, i
     >>> mesh_samples(c)
     (1, 3)
     """
-    # written out over the short axes (3 legs, 3 coordinates): numpy's reductions along them cost
-    # more than the arithmetic on every body's mesh
-    lengths = []
-    for d in (control[:, :, 1:] - control[:, :, :-1], control[:, :, :, 1:] - control[:, :, :, :-1]):
-        d *= d  # in place: one pass over the legs' coordinates, not one per coordinate
-        length = d[..., 0] + d[..., 1]
-        length += d[..., 2]
-        lengths.append(np.sqrt(length, out=length))
-    lu, lv = lengths  # (R, C, 3, 4) along u, (R, C, 4, 3) along v
-    polygon_u = lu[:, :, 0] + lu[:, :, 1]
-    polygon_u += lu[:, :, 2]
-    polygon_v = lv[..., 0] + lv[..., 1]
-    polygon_v += lv[..., 2]
-    su, sv = (int(np.clip(np.ceil(np.median(p) / EDGE_MM), 1, MAX_SAMPLES)) for p in (polygon_u, polygon_v))
-    n_patches = control.shape[0] * control.shape[1]
-    while su * sv * n_patches > budget and max(su, sv) > 1:
+    # on the flat, contiguous control points (legs between points 12 and 3 values apart: along u and
+    # along v): one long subtraction each, the few pairs that straddle two patches or two rows are
+    # computed and left out; numpy's loops over the short axes of (R, C, 4, 4, 3) cost more than that.
+    # In chunks of patches whose temporaries stay in the CPU caches
+    n = control.shape[0] * control.shape[1]
+    flat = np.ascontiguousarray(control).reshape(-1)
+    polygon_u, polygon_v = np.empty((n, 4)), np.empty((n, 4))
+    buffer = np.empty(min(n, _SAMPLES_CHUNK) * 48)
+    for start in range(0, n, _SAMPLES_CHUNK):
+        stop = min(n, start + _SAMPLES_CHUNK)
+        part = flat[48 * start:48 * stop]
+        d = buffer[:len(part)]
+        for step, polygon in ((12, polygon_u[start:stop]), (3, polygon_v[start:stop])):
+            np.subtract(part[step:], part[:-step], out=d[:-step])
+            d[-step:] = 0.0
+            d *= d
+            xyz = d.reshape(-1, 3)
+            length = xyz[:, 0] + xyz[:, 1]
+            length += xyz[:, 2]
+            leg = np.sqrt(length, out=length).reshape(-1, 16)  # leg from point 4 i + j of each patch
+            if step == 12:  # along u: rows i = 0..2 of legs, one polygon per j
+                np.add(leg[:, 0:4], leg[:, 4:8], out=polygon)
+                polygon += leg[:, 8:12]
+            else:  # along v: legs j = 0..2 of each row i
+                np.add(leg[:, 0::4], leg[:, 1::4], out=polygon)
+                polygon += leg[:, 2::4]
+    su, sv = (int(np.clip(np.ceil(_median(p) / EDGE_MM), 1, MAX_SAMPLES)) for p in (polygon_u, polygon_v))
+    while su * sv * n > budget and max(su, sv) > 1:
         su, sv = (su - 1, sv) if su >= sv else (su, sv - 1)
     return su, sv
 
