@@ -3,8 +3,8 @@
 Seed 000, sections II-III: slice curves on a common lattice
 (:func:`slices.surface.slice_curves`), the side surface across them
 (:func:`slices.surface.side_surface`), the caps (:mod:`slices.caps`), the
-volume and area of the closed patch grid (:func:`surfaces.measure.integrals`),
-the deviation at the control points and the triangle mesh.
+volume and area of the closed patch grid (:func:`slices.caps.grid_integrals`: quadrature on the side,
+closed forms on the caps), the deviation at the control points and the triangle mesh.
 """
 
 from __future__ import annotations
@@ -18,7 +18,6 @@ from slices.chaining import Body
 from slices.io import SPACING_RTOL
 from slices.options import SurfaceOptions
 from slices.surface import blend_overshoot, lattice_size, ruled_surface, side_surface, slice_curves
-from surfaces import measure
 from surfaces.bezier import BezierPatches
 from surfaces.mesh import TriangleMesh, tessellate
 from surfaces.validate import positive
@@ -414,9 +413,7 @@ def build_body_once(body: Body, spacing: float, options: SurfaceOptions | None =
     grid = capmod.close_side(side_ctrl, bottom, top, centers[0, :2], centers[-1, :2], d / 2, low, high)
     patches = BezierPatches(grid.control, closed_u=True)
     side_patches = BezierPatches(grid.control[:, grid.side_columns], closed_u=True)
-    vol_pp, area_pp = measure.integrals(patches, per_patch=True)
-    volume = float(vol_pp.sum())
-    area = float(area_pp[:, grid.side_columns].sum()) + grid.flat_cap_area
+    volume, area = capmod.grid_integrals(grid)
     # deviation at the control points, evaluated on the final surface
     j = np.concatenate(sc.nodes)
     kk = np.concatenate([np.full(len(n), i + prepend) for i, n in enumerate(sc.nodes)])

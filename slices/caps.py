@@ -615,12 +615,16 @@ class CappedGrid:
         flat cap that is part of the surface (not those of ``caps="none"``).
     end_planes : (float, float)
         z of the lowest and highest side boundary in mm (where caps can meet the side).
+    extrusions : (float, float)
+        Heights in mm of the half caps' extrusions (:func:`prism_column`) at the low and the
+        high end, 0 where there is none; they are the first and the last of ``side_columns``.
     """
 
     control: np.ndarray
     side_columns: slice
     flat_caps: tuple
     end_planes: tuple[float, float]
+    extrusions: tuple[float, float] = (0.0, 0.0)
 
     @property
     def flat_cap_area(self) -> float:
@@ -677,7 +681,64 @@ def close_side(side, bottom, top, low_center, high_center, height: float, low: s
         if high != "none":
             flat.append((top, 1.0))
     return CappedGrid(np.concatenate(full, axis=1), slice(first, first + n_side), tuple(flat),
-                      (float(bottom[0, 0, 2]), float(top[0, 0, 2])))
+                      (float(bottom[0, 0, 2]), float(top[0, 0, 2])),
+                      (float(height) if low == "half" else 0.0, float(height) if high == "half" else 0.0))
+
+
+@lru_cache(maxsize=8)
+def _gauss_bezier(order: int) -> tuple[tuple, np.ndarray]:
+    """Bernstein weights (:func:`_bezier_weights`) at the ``order`` Gauss nodes of [0, 1], and the nodes' weights."""
+    x, w = np.polynomial.legendre.leggauss(order)
+    weights = 0.5 * w
+    weights.flags.writeable = False
+    return _bezier_weights(0.5 * (x + 1.0)), weights
+
+
+def grid_integrals(grid: CappedGrid, order: int = 5) -> tuple[float, float]:
+    """Enclosed volume and area of a capped grid, with quadrature on the blended side columns only.
+
+    The sums of :func:`surfaces.measure.integrals` over the whole grid (volume) and over
+    ``side_columns`` plus :attr:`CappedGrid.flat_cap_area` (area), the same up to rounding: the volume
+    is the flux of ``(0, 0, z)`` through the closed grid (:func:`surfaces.measure.side_integrals`),
+    whose cap columns have closed forms. Through a fan over the plane ``z`` it is ``z A`` with ``A`` the
+    signed area of its curve (Green's theorem, :func:`curve_area`; negative below, where ``v`` runs
+    from the apex), through a vertical extrusion nothing; the extrusion's area is its height times its
+    curve's length (Gauss-Legendre of ``order`` points a segment, as the patch quadrature).
+
+    Parameters
+    ----------
+    grid : CappedGrid
+        From :func:`close_side`.
+    order : int
+        Quadrature points per direction (5: exact volume).
+
+    Returns
+    -------
+    volume, area : float
+        mm^3 (signed: positive when the patches face outward) and mm^2.
+    """
+    from surfaces.measure import side_integrals
+
+    ctrl = grid.control
+    side = grid.side_columns
+    low_h, high_h = grid.extrusions
+    first, stop = side.start + (low_h > 0), side.stop - (high_h > 0)
+    volume, area = side_integrals(ctrl[:, first:stop], order) if stop > first else (0.0, 0.0)
+    # the side's end curves (the extrusions' far ends): the caps' outlines
+    bottom, top = ctrl[:, side.start, :, 0], ctrl[:, side.stop - 1, :, 3]
+    a_low, a_high = curve_area(bottom), curve_area(top)
+    if side.start > 0:
+        volume -= float(bottom[0, 0, 2]) * a_low
+    if side.stop < ctrl.shape[1]:
+        volume += float(top[0, 0, 2]) * a_high
+    at_nodes, node_weights = _gauss_bezier(int(order))
+    for h, curve in ((low_h, bottom), (high_h, top)):
+        if h:
+            dx = _points_and_tangents(curve[:, :, 0], at_nodes)[1]
+            dy = _points_and_tangents(curve[:, :, 1], at_nodes)[1]
+            area += h * float(np.sum(np.sqrt(dx * dx + dy * dy) @ node_weights))
+    area += sum(abs(a_low if out_z < 0 else a_high) for _, out_z in grid.flat_caps)
+    return float(volume), float(area)
 
 
 def weld_flat_caps(side: TriangleMesh, grid: CappedGrid, samples: int,

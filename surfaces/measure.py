@@ -67,22 +67,29 @@ def _node_basis(order: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _per_patch(patches: BezierPatches, order: int, integrands) -> list[np.ndarray]:
-    """Integrate each ``integrand(points, normal)`` over every patch; one array (P,) per integrand.
+    """Integrate each ``integrand(points, normal)`` over every patch; one array (P,) per integrand."""
+    if not isinstance(patches, BezierPatches):
+        raise ValueError(f"patches: expected BezierPatches, got {type(patches).__name__}")
+    return _quadrature(patches.control, int(order), integrands)
+
+
+def _quadrature(control: np.ndarray, order: int, integrands) -> list[np.ndarray]:
+    """:func:`_per_patch` on control points (R, C, 4, 4, 3) as they are (a view of a grid's columns too).
 
     ``points`` and ``normal`` (the unnormalised ``S_u x S_v``) are (x, y, z) tuples of
     (order^2, chunk) arrays, one column per patch; one matrix product per chunk evaluates ``S``,
     ``S_u`` and ``S_v`` at every node, and one more sums the integrand with the node weights.
     """
-    if not isinstance(patches, BezierPatches):
-        raise ValueError(f"patches: expected BezierPatches, got {type(patches).__name__}")
-    basis, weights = _node_basis(int(order))
+    basis, weights = _node_basis(order)
     q = len(weights)
-    flat = patches.control.reshape(-1, 16, 3)
-    out = [np.empty(len(flat)) for _ in integrands]
-    chunk = max(1, _POINT_CHUNK // q)
-    for start in range(0, len(flat), chunk):
-        part = flat[start:start + chunk]
+    n_rows, n_cols = control.shape[:2]
+    out = [np.empty(n_rows * n_cols) for _ in integrands]
+    # chunks of whole patch rows: a view of some columns is copied a chunk at a time
+    rows = max(1, _POINT_CHUNK // (q * n_cols))
+    for r in range(0, n_rows, rows):
+        part = control[r:r + rows].reshape(-1, 16, 3)
         k = len(part)
+        start = r * n_cols
         # coordinate-major (16, 3, k): every component below is a contiguous (q, k) block
         values = (basis @ part.transpose(1, 2, 0).reshape(16, 3 * k)).reshape(3, q, 3, k)
         s, du, dv = values
@@ -99,6 +106,62 @@ def _per_patch(patches: BezierPatches, order: int, integrands) -> list[np.ndarra
         for arr, integrand in zip(out, integrands):
             arr[start:start + k] = weights @ integrand(point, normal)
     return out
+
+
+def side_integrals(control: np.ndarray, order: int = 5) -> tuple[float, float]:
+    """Summed flux of ``(0, 0, z)`` and area of the patches ``control`` (R, C, 4, 4, 3), unchecked.
+
+    Over a closed grid the flux is its volume (:func:`flux_z`; positive when ``S_u x S_v`` points
+    outward), and equals :func:`integrals`' volume up to rounding; over some of its columns it is their
+    share of it. For callers that hold a valid grid (a view of some of its columns too), without
+    building :class:`surfaces.bezier.BezierPatches`.
+
+    Parameters
+    ----------
+    control : numpy.ndarray, shape (R, C, 4, 4, 3)
+        Finite control points (mm), taken as they are.
+    order : int
+        Quadrature points per direction (5: the flux is exact).
+
+    Returns
+    -------
+    flux, area : float
+        mm^3 and mm^2.
+    """
+    basis, weights = _node_basis(int(order))
+    q = len(weights)
+    n_rows, n_cols = control.shape[:2]
+    flux = area = 0.0
+    # chunks of whole patch rows: a view of some columns is copied a chunk at a time
+    rows = max(1, _POINT_CHUNK // (q * n_cols))
+    for r in range(0, n_rows, rows):
+        part = control[r:r + rows].reshape(-1, 16, 3)
+        k = len(part)
+        coords = part.transpose(1, 2, 0).reshape(16, 3 * k)
+        # z alone of the points (the flux of (0, 0, z) needs no more), all of both derivatives
+        z = basis[:q] @ coords[:, 2 * k:]
+        du, dv = (basis[q:] @ coords).reshape(2, q, 3, k)
+        ux, uy, uz = du[:, 0], du[:, 1], du[:, 2]
+        vx, vy, vz = dv[:, 0], dv[:, 1], dv[:, 2]
+        # S_u x S_v written out, one scratch array for the products subtracted
+        t = uz * vy
+        nx = uy * vz
+        nx -= t
+        np.multiply(ux, vz, out=t)
+        ny = uz * vx
+        ny -= t
+        np.multiply(uy, vx, out=t)
+        nz = ux * vy
+        nz -= t
+        z *= nz
+        flux += float(np.sum(weights @ z))
+        nx *= nx
+        ny *= ny
+        nx += ny
+        nz *= nz
+        nx += nz
+        area += float(np.sum(weights @ np.sqrt(nx, out=nx)))
+    return flux, area
 
 
 def _area_density(s, n):
