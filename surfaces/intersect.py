@@ -556,16 +556,17 @@ def fold_suspects(vertices, triangles, *, margin: float = 1e-12) -> np.ndarray |
     if not _closed_and_oriented(t, len(v)):
         return None
     z = v[:, 2]
-    order = np.argsort(z, kind="stable")
-    zs = z[order]
-    tol = LEVEL_RTOL * max(float(np.abs(z).max()), 1e-300)
-    new_level = np.concatenate([[True], np.diff(zs) > tol])
+    zs = np.sort(z)
+    tol = LEVEL_RTOL * max(float(max(zs[-1], -zs[0])), 1e-300)
+    new_level = np.empty(len(zs), dtype=bool)
+    new_level[0] = True
+    np.greater(zs[1:] - zs[:-1], tol, out=new_level[1:])
     starts = np.flatnonzero(new_level)
     # a chain of small steps must not make one level of a slope
     if np.any(np.append(zs[starts[1:] - 1], zs[-1]) - zs[starts] > 4 * tol):
         return None
-    level = np.empty(len(z), dtype=np.int64)
-    level[order] = np.cumsum(new_level) - 1
+    # a vertex's level: the last level starting at or below its z (levels are apart by more than tol)
+    level = np.searchsorted(zs[starts], z, side="right") - 1
     # column by column (x and y of the vertices, the three corners of the faces): numpy's reductions,
     # gathers and products along a short last axis cost more than the arithmetic written out
     t0, t1, t2 = t[:, 0], t[:, 1], t[:, 2]
@@ -610,15 +611,15 @@ def fold_suspects(vertices, triangles, *, margin: float = 1e-12) -> np.ndarray |
     denominator = 3.0 * np.where(area == 0, 1.0, area)
     cx = np.bincount(base, (ax + bx) * w, n_bands) / denominator
     cy = np.bincount(base, (ay + by) * w, n_bands) / denominator
-    for lone_below in (False, True):
-        # a band whose faces of one kind all share their lone corner and have no other kind is a fan to it
-        kind = (n_up == 2) == lone_below
-        apex = np.full(n_bands, -1)
-        apex[base[kind]] = r2[kind]
-        fan = apex >= 0
-        fan &= np.bincount(base[kind], r2[kind] != apex[base[kind]], n_bands) == 0
-        fan &= np.bincount(base[~kind], minlength=n_bands) == 0
-        cx[fan], cy[fan] = X[apex[fan]], Y[apex[fan]]
+    # a band whose faces are all of one kind (lone corner above, or all below) and share their lone
+    # corner is a fan to it
+    n_faces = np.bincount(base, minlength=n_bands)
+    n_one_up = np.bincount(base, one_up, n_bands)
+    apex = np.full(n_bands, -1)
+    apex[base] = r2
+    fan = (n_faces > 0) & ((n_one_up == 0) | (n_one_up == n_faces))
+    fan &= np.bincount(base, r2 != apex[base], n_bands) == 0
+    cx[fan], cy[fan] = X[apex[fan]], Y[apex[fan]]
     ccx, ccy = cx[base], cy[base]
     sign = np.sign(area)[base] * turn
     good = sign * ((p1x - ccx) * (p2y - ccy) - (p1y - ccy) * (p2x - ccx)) > tiny
