@@ -780,10 +780,34 @@ def weld_flat_caps(side: TriangleMesh, grid: CappedGrid, samples: int,
     rep = _rim_weld_map(merged, side, caps, grid.flat_caps, int(samples), rim)
     if rep is None:
         return weld(merged, candidates=candidates), merged
-    tri = rep[merged.triangles]
-    keep = (tri[:, 0] != tri[:, 1]) & (tri[:, 1] != tri[:, 2]) & (tri[:, 2] != tri[:, 0])
-    return compact(TriangleMesh(merged.vertices, tri[keep], merged.vertex_normals, merged.vertex_colors,
-                                dict(merged.metadata))), merged
+    return _welded(merged, side, rep), merged
+
+
+def _welded(merged: TriangleMesh, side: TriangleMesh, rep: np.ndarray) -> TriangleMesh:
+    """``compact`` of ``merged`` with its vertices mapped by ``rep`` (its collapsed triangles dropped).
+
+    ``rep`` moves cap vertices only; when the side's triangles use every side vertex (a lattice),
+    the side's vertices and triangles are taken as they are and only the caps' are renumbered.
+    """
+    n_side, t_side = side.n_vertices, side.n_triangles
+    cap_tri = rep[merged.triangles[t_side:]]
+    keep = (cap_tri[:, 0] != cap_tri[:, 1]) & (cap_tri[:, 1] != cap_tri[:, 2]) & (cap_tri[:, 2] != cap_tri[:, 0])
+    cap_tri = cap_tri[keep]
+    used = np.zeros(merged.n_vertices, dtype=bool)
+    used[side.triangles.ravel()] = True
+    if not used[:n_side].all() or merged.vertex_colors is not None:
+        tri = rep[merged.triangles]
+        keep = (tri[:, 0] != tri[:, 1]) & (tri[:, 1] != tri[:, 2]) & (tri[:, 2] != tri[:, 0])
+        return compact(TriangleMesh(merged.vertices, tri[keep], merged.vertex_normals, merged.vertex_colors,
+                                    dict(merged.metadata)))
+    used[cap_tri.ravel()] = True
+    new_index = np.cumsum(used) - 1
+    normals = merged.vertex_normals
+    return TriangleMesh(
+        np.concatenate([side.vertices, merged.vertices[n_side:][used[n_side:]]]),
+        np.concatenate([side.triangles, new_index[cap_tri]]),
+        None if normals is None else np.concatenate([side.vertex_normals, normals[n_side:][used[n_side:]]]),
+        None, dict(merged.metadata))
 
 
 def _rim_weld_map(merged: TriangleMesh, side: TriangleMesh, caps: list, flat_caps: tuple, samples: int,
