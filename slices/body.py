@@ -411,8 +411,10 @@ def build_body_once(body: Body, spacing: float, options: SurfaceOptions | None =
             return curves[0][j, 0]
 
     grid = capmod.close_side(side_ctrl, bottom, top, centers[0, :2], centers[-1, :2], d / 2, low, high)
-    patches = BezierPatches(grid.control, closed_u=True)
-    side_patches = BezierPatches(grid.control[:, grid.side_columns], closed_u=True)
+    # the grid's columns are the checked side's and caps over its end curves: finite and closed as the
+    # side is (close_side checks its inputs)
+    patches = BezierPatches._trusted(grid.control, closed_u=True)
+    side_patches = BezierPatches._trusted(grid.control[:, grid.side_columns], closed_u=True)
     volume, area = capmod.grid_integrals(grid)
     # deviation at the control points, evaluated on the final surface
     j = np.concatenate(sc.nodes)

@@ -798,12 +798,12 @@ def _welded(merged: TriangleMesh, side: TriangleMesh, rep: np.ndarray) -> Triang
     if not used[:n_side].all() or merged.vertex_colors is not None:
         tri = rep[merged.triangles]
         keep = (tri[:, 0] != tri[:, 1]) & (tri[:, 1] != tri[:, 2]) & (tri[:, 2] != tri[:, 0])
-        return compact(TriangleMesh(merged.vertices, tri[keep], merged.vertex_normals, merged.vertex_colors,
+        return compact(TriangleMesh._trusted(merged.vertices, tri[keep], merged.vertex_normals, merged.vertex_colors,
                                     dict(merged.metadata)))
     used[cap_tri.ravel()] = True
     new_index = np.cumsum(used) - 1
     normals = merged.vertex_normals
-    return TriangleMesh(
+    return TriangleMesh._trusted(
         np.concatenate([side.vertices, merged.vertices[n_side:][used[n_side:]]]),
         np.concatenate([side.triangles, new_index[cap_tri]]),
         None if normals is None else np.concatenate([side.vertex_normals, normals[n_side:][used[n_side:]]]),

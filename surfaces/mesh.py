@@ -164,6 +164,17 @@ class TriangleMesh:
             if value is not None:
                 setattr(self, name, as_array(value, name, shape=(len(self.vertices), 3)))
 
+    @classmethod
+    def _trusted(cls, vertices: np.ndarray, triangles: np.ndarray, vertex_normals: np.ndarray | None = None,
+                 vertex_colors: np.ndarray | None = None, metadata: dict | None = None) -> TriangleMesh:
+        """A mesh of arrays known to be valid (made from checked meshes or patches), without the checks."""
+        out = object.__new__(cls)
+        out.vertices = np.asarray(vertices, dtype=np.float64)
+        out.triangles = np.asarray(triangles, dtype=np.int64)
+        out.vertex_normals, out.vertex_colors = vertex_normals, vertex_colors
+        out.metadata = {} if metadata is None else metadata
+        return out
+
     @property
     def n_vertices(self) -> int:
         """Number of vertices ``V``."""
@@ -346,7 +357,7 @@ def compact(mesh: TriangleMesh) -> TriangleMesh:
     used = np.zeros(mesh.n_vertices, dtype=bool)
     used[mesh.triangles.ravel()] = True
     new_index = np.cumsum(used) - 1
-    return TriangleMesh(
+    return TriangleMesh._trusted(
         mesh.vertices[used],
         new_index[mesh.triangles].reshape(-1, 3),
         None if mesh.vertex_normals is None else mesh.vertex_normals[used],
@@ -389,7 +400,7 @@ def weld(mesh: TriangleMesh, tolerance: float | None = None, candidates=None) ->
     if not merged and keep.all() and candidates is not None:
         return mesh  # nothing to merge (the common case of an open or flagged-closed grid)
     return compact(
-        TriangleMesh(verts, tri[keep], mesh.vertex_normals, mesh.vertex_colors, dict(mesh.metadata))
+        TriangleMesh._trusted(verts, tri[keep], mesh.vertex_normals, mesh.vertex_colors, dict(mesh.metadata))
     )
 
 
@@ -590,7 +601,8 @@ def tessellate(patches: BezierPatches, samples: int | tuple[int, int] = PATCH_SA
     verts, dus, dvs = points.reshape(-1, 3), dus.reshape(-1, 3), dvs.reshape(-1, 3)
     normals, collapsed = _lattice_normals(patches, dus, dvs, n_v, nu, nv)
     tri = _grid_triangles(n_u, n_v, patches.closed_u, patches.closed_v)
-    mesh = TriangleMesh(verts, tri, normals)
+    # from checked patches: finite points and unit normals, the lattice's own triangles
+    mesh = TriangleMesh._trusted(verts, tri, normals)
     if weld_seams:
         # Seams inside the grid are shared by construction; only the grid's open
         # outer edges and collapsed rows (poles: S_u x S_v = 0) can coincide.
@@ -738,5 +750,5 @@ def merge_meshes(meshes, weld_vertices: bool = False) -> TriangleMesh:
         if all(m.vertex_colors is not None for m in meshes)
         else None
     )
-    out = TriangleMesh(verts, tri, normals, colors)
+    out = TriangleMesh._trusted(verts, tri, normals, colors)
     return weld(out) if weld_vertices else out
