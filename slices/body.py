@@ -185,14 +185,16 @@ def mesh_samples(control: np.ndarray, budget: int = MESH_BUDGET) -> tuple[int, i
     # on the flat, contiguous control points (legs between points 12 and 3 values apart: along u and
     # along v): one long subtraction each, the few pairs that straddle two patches or two rows are
     # computed and left out; numpy's loops over the short axes of (R, C, 4, 4, 3) cost more than that.
-    # In chunks of patches whose temporaries stay in the CPU caches
-    n = control.shape[0] * control.shape[1]
-    flat = np.ascontiguousarray(control).reshape(-1)
+    # In chunks of whole patch rows whose temporaries stay in the CPU caches (a view of some columns
+    # of a grid is copied a chunk at a time)
+    rows, cols = control.shape[:2]
+    n = rows * cols
     polygon_u, polygon_v = np.empty((n, 4)), np.empty((n, 4))
-    buffer = np.empty(min(n, _SAMPLES_CHUNK) * 48)
-    for start in range(0, n, _SAMPLES_CHUNK):
-        stop = min(n, start + _SAMPLES_CHUNK)
-        part = flat[48 * start:48 * stop]
+    chunk_rows = max(1, _SAMPLES_CHUNK // cols)
+    buffer = np.empty(min(rows, chunk_rows) * cols * 48)
+    for r in range(0, rows, chunk_rows):
+        part = np.ascontiguousarray(control[r:r + chunk_rows]).reshape(-1)
+        start, stop = r * cols, r * cols + len(part) // 48
         d = buffer[:len(part)]
         for step, polygon in ((12, polygon_u[start:stop]), (3, polygon_v[start:stop])):
             np.subtract(part[step:], part[:-step], out=d[:-step])
