@@ -323,7 +323,12 @@ def weld_map(points: np.ndarray, tolerance: float, candidates=None) -> np.ndarra
     from scipy.spatial import cKDTree
 
     n = len(points)
-    idx = np.arange(n) if candidates is None else np.unique(np.asarray(candidates, dtype=np.int64))
+    if candidates is None:
+        idx = np.arange(n)
+    else:
+        idx = np.asarray(candidates, dtype=np.int64).ravel()
+        if len(idx) > 1 and not np.all(idx[1:] > idx[:-1]):  # already sorted and unique: as np.unique gives
+            idx = np.unique(idx)
     if points_apart(points[idx], tolerance):
         return np.arange(n, dtype=np.int64)
     pairs = cKDTree(points[idx]).query_pairs(tolerance, output_type="ndarray")
@@ -366,6 +371,13 @@ def compact(mesh: TriangleMesh) -> TriangleMesh:
     )
 
 
+def _weld_tolerance(verts: np.ndarray) -> float:
+    """:func:`weld`'s default tolerance: ``1e-9`` times the bounding-box diagonal of ``verts`` (V, 3)."""
+    # column by column: numpy reduces an (N, 3) array along its first axis several times slower
+    diag = float(np.linalg.norm([verts[:, k].max() - verts[:, k].min() for k in range(3)]))
+    return 1e-9 * max(diag, 1e-300)
+
+
 def weld(mesh: TriangleMesh, tolerance: float | None = None, candidates=None) -> TriangleMesh:
     """Merge coincident vertices and drop the triangles that collapse.
 
@@ -390,9 +402,7 @@ def weld(mesh: TriangleMesh, tolerance: float | None = None, candidates=None) ->
     if len(verts) == 0:
         return mesh.copy()
     if tolerance is None:
-        # column by column: numpy reduces an (N, 3) array along its first axis several times slower
-        diag = float(np.linalg.norm([verts[:, k].max() - verts[:, k].min() for k in range(3)]))
-        tolerance = 1e-9 * max(diag, 1e-300)
+        tolerance = _weld_tolerance(verts)
     rep = weld_map(verts, tolerance, candidates)
     merged = np.any(rep != np.arange(len(verts)))
     tri = rep[mesh.triangles] if merged else mesh.triangles
@@ -611,7 +621,13 @@ def tessellate(patches: BezierPatches, samples: int | tuple[int, int] = PATCH_SA
             edge[[0, -1], :] = True
         if last_v:
             edge[:, [0, -1]] = True
-        mesh = weld(mesh, candidates=np.flatnonzero(edge.ravel() | collapsed))
+        candidates = np.flatnonzero(edge.ravel() | collapsed)
+        # the lattice's triangles have three distinct corners where each closed direction has two
+        # samples or more: when no candidates merge, weld would return the mesh as it is
+        distinct = (n_u > 1 or not patches.closed_u) and (n_v > 1 or not patches.closed_v)
+        if not (distinct and np.array_equal(weld_map(verts, _weld_tolerance(verts), candidates),
+                                            np.arange(len(verts)))):
+            mesh = weld(mesh, candidates=candidates)
     return mesh
 
 

@@ -238,3 +238,12 @@ def test_meshes_made_from_checked_ones_equal_the_checked_construction():
     assert compact(extra).n_vertices == len(v)
     trusted = Mesh._trusted(np.array(v, dtype=np.float32), np.asarray(t, dtype=np.int32))
     assert trusted.vertices.dtype == np.float64 and trusted.triangles.dtype == np.int64
+
+
+def test_weld_map_takes_candidates_in_any_order_and_repeated():
+    pts = np.array([[0.0, 0, 0], [1, 0, 0], [0, 0, 1e-12], [1, 0, 1e-12], [5, 5, 5]])
+    want = weld_map(pts, 1e-9).tolist()
+    assert want == [0, 1, 0, 1, 4]
+    for cand in ([0, 1, 2, 3], [3, 2, 1, 0, 0], [[0, 1], [2, 3]]):
+        assert weld_map(pts, 1e-9, cand).tolist() == want
+    assert weld_map(pts, 1e-9, [0, 1, 3]).tolist() == [0, 1, 2, 1, 4]
