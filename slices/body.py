@@ -394,7 +394,9 @@ def build_body_once(body: Body, spacing: float, options: SurfaceOptions | None =
                       start_angle=opts.start_angle, correspondence=opts.correspondence,
                       lattice_mode=opts.lattice_mode)
     curves = sc.curves
-    centers = np.array([np.append(p.center, zk) for p, zk in zip(sc.params, z)])
+    centers = np.empty((len(z), 3))
+    centers[:, :2] = [p.center for p in sc.params]
+    centers[:, 2] = z
     stack, prepend = capmod.add_dome_rings(curves, centers, d / 2, low, high)
     n_limited = 0
     if len(stack) >= 2:
@@ -420,7 +422,7 @@ def build_body_once(body: Body, spacing: float, options: SurfaceOptions | None =
     volume, area = capmod.grid_integrals(grid)
     # deviation at the control points, evaluated on the final surface
     j = np.concatenate(sc.nodes)
-    kk = np.concatenate([np.full(len(n), i + prepend) for i, n in enumerate(sc.nodes)])
+    kk = np.repeat(np.arange(prepend, prepend + len(sc.nodes)), [len(n) for n in sc.nodes])
     pts = np.concatenate(sc.points)
     dev = float(np.max(np.linalg.norm(node_eval(j, kk) - pts, axis=1)))
     tri_mesh = display = density = None
