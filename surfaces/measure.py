@@ -87,11 +87,12 @@ def _quadrature(control: np.ndarray, order: int, integrands) -> list[np.ndarray]
     # chunks of whole patch rows: a view of some columns is copied a chunk at a time
     rows = max(1, _POINT_CHUNK // (q * n_cols))
     for r in range(0, n_rows, rows):
-        part = control[r:r + rows].reshape(-1, 16, 3)
-        k = len(part)
+        part = control[r:r + rows]
+        k = part.shape[0] * n_cols
         start = r * n_cols
-        # coordinate-major (16, 3, k): every component below is a contiguous (q, k) block
-        values = (basis @ part.transpose(1, 2, 0).reshape(16, 3 * k)).reshape(3, q, 3, k)
+        # coordinate-major (16, 3, k) in one copy: every component below is a contiguous (q, k) block
+        coords = np.ascontiguousarray(part.transpose(2, 3, 4, 0, 1)).reshape(16, 3 * k)
+        values = (basis @ coords).reshape(3, q, 3, k)
         s, du, dv = values
         ux, uy, uz = du[:, 0], du[:, 1], du[:, 2]
         vx, vy, vz = dv[:, 0], dv[:, 1], dv[:, 2]
@@ -135,9 +136,10 @@ def side_integrals(control: np.ndarray, order: int = 5) -> tuple[float, float]:
     # chunks of whole patch rows: a view of some columns is copied a chunk at a time
     rows = max(1, _POINT_CHUNK // (q * n_cols))
     for r in range(0, n_rows, rows):
-        part = control[r:r + rows].reshape(-1, 16, 3)
-        k = len(part)
-        coords = part.transpose(1, 2, 0).reshape(16, 3 * k)
+        part = control[r:r + rows]
+        k = part.shape[0] * n_cols
+        # coordinate-major (16, 3, k) in one copy: every component below is a contiguous (q, k) block
+        coords = np.ascontiguousarray(part.transpose(2, 3, 4, 0, 1)).reshape(16, 3 * k)
         # z alone of the points (the flux of (0, 0, z) needs no more), all of both derivatives
         z = basis[:q] @ coords[:, 2 * k:]
         du, dv = (basis[q:] @ coords).reshape(2, q, 3, k)
