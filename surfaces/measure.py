@@ -66,6 +66,15 @@ def _node_basis(order: int) -> tuple[np.ndarray, np.ndarray]:
     return basis, weights
 
 
+@lru_cache(maxsize=32)
+def _derivative_basis(order: int) -> np.ndarray:
+    """The ``S_u`` and ``S_v`` rows of :func:`_node_basis` (2 order^2, 16), contiguous and read-only."""
+    basis, weights = _node_basis(order)
+    out = np.ascontiguousarray(basis[len(weights):])
+    out.flags.writeable = False
+    return out
+
+
 def _per_patch(patches: BezierPatches, order: int, integrands) -> list[np.ndarray]:
     """Integrate each ``integrand(points, normal)`` over every patch; one array (P,) per integrand."""
     if not isinstance(patches, BezierPatches):
@@ -131,6 +140,7 @@ def side_integrals(control: np.ndarray, order: int = 5) -> tuple[float, float]:
     """
     basis, weights = _node_basis(int(order))
     q = len(weights)
+    derivatives = _derivative_basis(int(order))
     n_rows, n_cols = control.shape[:2]
     flux = area = 0.0
     # chunks of whole patch rows: a view of some columns is copied a chunk at a time
@@ -138,13 +148,14 @@ def side_integrals(control: np.ndarray, order: int = 5) -> tuple[float, float]:
     for r in range(0, n_rows, rows):
         part = control[r:r + rows]
         k = part.shape[0] * n_cols
-        # coordinate-major (16, 3, k) in one copy: every component below is a contiguous (q, k) block
-        coords = np.ascontiguousarray(part.transpose(2, 3, 4, 0, 1)).reshape(16, 3 * k)
-        # z alone of the points (the flux of (0, 0, z) needs no more), all of both derivatives
-        z = basis[:q] @ coords[:, 2 * k:]
-        du, dv = (basis[q:] @ coords).reshape(2, q, 3, k)
-        ux, uy, uz = du[:, 0], du[:, 1], du[:, 2]
-        vx, vy, vz = dv[:, 0], dv[:, 1], dv[:, 2]
+        # coordinate-major (16, 3, k) in one copy
+        coords = np.ascontiguousarray(part.transpose(2, 3, 4, 0, 1)).reshape(16, 3, k)
+        # z alone of the points (the flux of (0, 0, z) needs no more); S_u and S_v one coordinate a
+        # product, so that every component below is one contiguous (q, k) block
+        z = basis[:q] @ coords[:, 2]
+        ux, vx = (derivatives @ coords[:, 0]).reshape(2, q, k)
+        uy, vy = (derivatives @ coords[:, 1]).reshape(2, q, k)
+        uz, vz = (derivatives @ coords[:, 2]).reshape(2, q, k)
         # S_u x S_v written out, one scratch array for the products subtracted
         t = uz * vy
         nx = uy * vz
