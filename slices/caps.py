@@ -724,19 +724,24 @@ def grid_integrals(grid: CappedGrid, order: int = 5) -> tuple[float, float]:
     low_h, high_h = grid.extrusions
     first, stop = side.start + (low_h > 0), side.stop - (high_h > 0)
     volume, area = side_integrals(ctrl[:, first:stop], order) if stop > first else (0.0, 0.0)
-    # the side's end curves (the extrusions' far ends): the caps' outlines
-    bottom, top = ctrl[:, side.start, :, 0], ctrl[:, side.stop - 1, :, 3]
-    a_low, a_high = curve_area(bottom), curve_area(top)
+    # the side's end curves (the extrusions' far ends), the caps' outlines: both at once, (2 M, 4) a
+    # coordinate; their areas as curve_area's
+    ends = np.stack([ctrl[:, side.start, :, 0], ctrl[:, side.stop - 1, :, 3]])
+    n_seg = ends.shape[1]
+    ex, ey = ends[..., 0].reshape(-1, 4), ends[..., 1].reshape(-1, 4)
+    x, dx = _points_and_tangents(ex, _GAUSS3_BEZIER)
+    y, dy = _points_and_tangents(ey, _GAUSS3_BEZIER)
+    twice = (x * dy - y * dx) @ _GAUSS3_WEIGHTS
+    a_low, a_high = (0.25 * float(np.sum(twice[:n_seg])), 0.25 * float(np.sum(twice[n_seg:])))
     if side.start > 0:
-        volume -= float(bottom[0, 0, 2]) * a_low
+        volume -= float(ends[0, 0, 0, 2]) * a_low
     if side.stop < ctrl.shape[1]:
-        volume += float(top[0, 0, 2]) * a_high
-    at_nodes, node_weights = _gauss_bezier(int(order))
-    for h, curve in ((low_h, bottom), (high_h, top)):
-        if h:
-            dx = _points_and_tangents(curve[:, :, 0], at_nodes)[1]
-            dy = _points_and_tangents(curve[:, :, 1], at_nodes)[1]
-            area += h * float(np.sum(np.sqrt(dx * dx + dy * dy) @ node_weights))
+        volume += float(ends[1, 0, 0, 2]) * a_high
+    if low_h or high_h:
+        at_nodes, node_weights = _gauss_bezier(int(order))
+        tx, ty = _points_and_tangents(ex, at_nodes)[1], _points_and_tangents(ey, at_nodes)[1]
+        length = np.sqrt(tx * tx + ty * ty) @ node_weights
+        area += low_h * float(np.sum(length[:n_seg])) + high_h * float(np.sum(length[n_seg:]))
     area += sum(abs(a_low if out_z < 0 else a_high) for _, out_z in grid.flat_caps)
     return float(volume), float(area)
 
