@@ -144,17 +144,6 @@ def _flip(mesh: TriangleMesh) -> TriangleMesh:
 _SAMPLES_CHUNK = 512
 
 
-def _median(x: np.ndarray) -> float:
-    """``np.median`` of a flat array's values (the mean of the two middle ones for an even count), by one partition."""
-    x = x.ravel()
-    half = len(x) // 2
-    if len(x) % 2:
-        return float(np.partition(x, half)[half])
-    part = np.partition(x, half)
-    # the sorted value before the middle one: the largest of those the partition puts before it
-    return float((part[:half].max() + part[half]) / 2.0)
-
-
 def mesh_samples(control: np.ndarray, budget: int = MESH_BUDGET) -> tuple[int, int]:
     """Subdivisions of every patch around (``u``) and across the slices (``v``) for the mesh.
 
@@ -210,7 +199,7 @@ def mesh_samples(control: np.ndarray, budget: int = MESH_BUDGET) -> tuple[int, i
             else:  # along v: legs j = 0..2 of each row i
                 np.add(leg[:, 0::4], leg[:, 1::4], out=polygon)
                 polygon += leg[:, 2::4]
-    su, sv = (int(np.clip(np.ceil(_median(p) / EDGE_MM), 1, MAX_SAMPLES)) for p in (polygon_u, polygon_v))
+    su, sv = (int(np.clip(np.ceil(capmod._median(p) / EDGE_MM), 1, MAX_SAMPLES)) for p in (polygon_u, polygon_v))
     while su * sv * n > budget and max(su, sv) > 1:
         su, sv = (su - 1, sv) if su >= sv else (su, sv - 1)
     return su, sv

@@ -431,6 +431,17 @@ def _inset_ring(xy: np.ndarray, distance: float) -> np.ndarray:
     return xy + direction * (distance / np.maximum(half, 0.25))[:, None]
 
 
+def _median(x: np.ndarray) -> float:
+    """``np.median`` of an array's values (the mean of the two middle ones for an even count), by one partition."""
+    x = x.ravel()
+    half = len(x) // 2
+    part = np.partition(x, half)
+    if len(x) % 2:
+        return float(part[half])
+    # the sorted value before the middle one: the largest of those the partition puts before it
+    return float((part[:half].max() + part[half]) / 2.0)
+
+
 def _cap_polygon(xy: np.ndarray, inset: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """Points and counter-clockwise triangles of a flat cap over a counter-clockwise ring.
 
@@ -447,9 +458,10 @@ def _cap_polygon(xy: np.ndarray, inset: bool = True) -> tuple[np.ndarray, np.nda
     following = _following(xy)
     edge = _lengths(following - xy)
     # the fan from the mean: the outline's area
-    d0, d1 = xy - xy.mean(axis=0), following - xy.mean(axis=0)
+    mean = xy.mean(axis=0)
+    d0, d1 = xy - mean, following - mean
     total = 0.5 * float(np.sum(d0[:, 0] * d1[:, 1] - d0[:, 1] * d1[:, 0]))
-    distance = CAP_INSET * float(np.median(edge)) if inset else 0.0
+    distance = CAP_INSET * _median(edge) if inset else 0.0
     strip = _strip(n)
     for _ in range(4):
         if distance <= 1e-9 * max(1.0, float(np.abs(xy).max())):

@@ -129,7 +129,8 @@ def test_body_records_its_mesh_density(ellipsoid_body):
 @pytest.mark.parametrize("shape", [(3, 2), (37, 29), (1, 1), (64, 9)])
 def test_mesh_samples_equals_the_median_of_every_control_polygon(shape):
     # chunked over the flat control points: the same polygons and medians as written per patch
-    from slices.body import EDGE_MM, MAX_SAMPLES, _median, mesh_samples
+    from slices.body import EDGE_MM, MAX_SAMPLES, mesh_samples
+    from slices.caps import _median
 
     rng = np.random.default_rng(sum(shape))
     c = rng.normal(scale=3.0, size=shape + (4, 4, 3))
