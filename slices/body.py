@@ -140,7 +140,7 @@ def _flip(mesh: TriangleMesh) -> TriangleMesh:
     return TriangleMesh(mesh.vertices, mesh.triangles[:, ::-1].copy(), normals)
 
 
-#: Patches per chunk in :func:`mesh_samples` (temporaries of ~100 kB).
+#: Patches per chunk in :func:`mesh_samples` (temporaries of ~200 kB).
 _SAMPLES_CHUNK = 512
 
 
