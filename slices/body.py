@@ -3,8 +3,8 @@
 Seed 000, sections II-III: slice curves on a common lattice
 (:func:`slices.surface.slice_curves`), the side surface across them
 (:func:`slices.surface.side_surface`), the caps (:mod:`slices.caps`), the
-volume and area of the closed patch grid (:func:`surfaces.measure.integrals`),
-the deviation at the control points and the triangle mesh.
+volume and area of the closed patch grid (:func:`slices.caps.grid_integrals`: quadrature on the side,
+closed forms on the caps), the deviation at the control points and the triangle mesh.
 """
 
 from __future__ import annotations
@@ -18,7 +18,6 @@ from slices.chaining import Body
 from slices.io import SPACING_RTOL
 from slices.options import SurfaceOptions
 from slices.surface import blend_overshoot, lattice_size, ruled_surface, side_surface, slice_curves
-from surfaces import measure
 from surfaces.bezier import BezierPatches
 from surfaces.mesh import TriangleMesh, tessellate
 from surfaces.validate import positive
@@ -141,6 +140,10 @@ def _flip(mesh: TriangleMesh) -> TriangleMesh:
     return TriangleMesh(mesh.vertices, mesh.triangles[:, ::-1].copy(), normals)
 
 
+#: Patches per chunk in :func:`mesh_samples` (temporaries of ~200 kB).
+_SAMPLES_CHUNK = 512
+
+
 def mesh_samples(control: np.ndarray, budget: int = MESH_BUDGET) -> tuple[int, int]:
     """Subdivisions of every patch around (``u``) and across the slices (``v``) for the mesh.
 
@@ -168,22 +171,36 @@ def mesh_samples(control: np.ndarray, budget: int = MESH_BUDGET) -> tuple[int, i
     >>> mesh_samples(c)
     (1, 3)
     """
-    # written out over the short axes (3 legs, 3 coordinates): numpy's reductions along them cost
-    # more than the arithmetic on every body's mesh
-    lengths = []
-    for d in (control[:, :, 1:] - control[:, :, :-1], control[:, :, :, 1:] - control[:, :, :, :-1]):
-        d *= d  # in place: one pass over the legs' coordinates, not one per coordinate
-        length = d[..., 0] + d[..., 1]
-        length += d[..., 2]
-        lengths.append(np.sqrt(length, out=length))
-    lu, lv = lengths  # (R, C, 3, 4) along u, (R, C, 4, 3) along v
-    polygon_u = lu[:, :, 0] + lu[:, :, 1]
-    polygon_u += lu[:, :, 2]
-    polygon_v = lv[..., 0] + lv[..., 1]
-    polygon_v += lv[..., 2]
-    su, sv = (int(np.clip(np.ceil(np.median(p) / EDGE_MM), 1, MAX_SAMPLES)) for p in (polygon_u, polygon_v))
-    n_patches = control.shape[0] * control.shape[1]
-    while su * sv * n_patches > budget and max(su, sv) > 1:
+    # on the flat, contiguous control points (legs between points 12 and 3 values apart: along u and
+    # along v): one long subtraction each, the few pairs that straddle two patches or two rows are
+    # computed and left out; numpy's loops over the short axes of (R, C, 4, 4, 3) cost more than that.
+    # In chunks of whole patch rows whose temporaries stay in the CPU caches (a view of some columns
+    # of a grid is copied a chunk at a time)
+    rows, cols = control.shape[:2]
+    n = rows * cols
+    polygon_u, polygon_v = np.empty((n, 4)), np.empty((n, 4))
+    chunk_rows = max(1, _SAMPLES_CHUNK // cols)
+    buffer = np.empty(min(rows, chunk_rows) * cols * 48)
+    for r in range(0, rows, chunk_rows):
+        part = np.ascontiguousarray(control[r:r + chunk_rows]).reshape(-1)
+        start, stop = r * cols, r * cols + len(part) // 48
+        d = buffer[:len(part)]
+        for step, polygon in ((12, polygon_u[start:stop]), (3, polygon_v[start:stop])):
+            np.subtract(part[step:], part[:-step], out=d[:-step])
+            d[-step:] = 0.0
+            d *= d
+            xyz = d.reshape(-1, 3)
+            length = xyz[:, 0] + xyz[:, 1]
+            length += xyz[:, 2]
+            leg = np.sqrt(length, out=length).reshape(-1, 16)  # leg from point 4 i + j of each patch
+            if step == 12:  # along u: rows i = 0..2 of legs, one polygon per j
+                np.add(leg[:, 0:4], leg[:, 4:8], out=polygon)
+                polygon += leg[:, 8:12]
+            else:  # along v: legs j = 0..2 of each row i
+                np.add(leg[:, 0::4], leg[:, 1::4], out=polygon)
+                polygon += leg[:, 2::4]
+    su, sv = (int(np.clip(np.ceil(capmod._median(p) / EDGE_MM), 1, MAX_SAMPLES)) for p in (polygon_u, polygon_v))
+    while su * sv * n > budget and max(su, sv) > 1:
         su, sv = (su - 1, sv) if su >= sv else (su, sv - 1)
     return su, sv
 
@@ -366,7 +383,9 @@ def build_body_once(body: Body, spacing: float, options: SurfaceOptions | None =
                       start_angle=opts.start_angle, correspondence=opts.correspondence,
                       lattice_mode=opts.lattice_mode)
     curves = sc.curves
-    centers = np.array([np.append(p.center, zk) for p, zk in zip(sc.params, z)])
+    centers = np.empty((len(z), 3))
+    centers[:, :2] = [p.center for p in sc.params]
+    centers[:, 2] = z
     stack, prepend = capmod.add_dome_rings(curves, centers, d / 2, low, high)
     n_limited = 0
     if len(stack) >= 2:
@@ -385,14 +404,14 @@ def build_body_once(body: Body, spacing: float, options: SurfaceOptions | None =
             return curves[0][j, 0]
 
     grid = capmod.close_side(side_ctrl, bottom, top, centers[0, :2], centers[-1, :2], d / 2, low, high)
-    patches = BezierPatches(grid.control, closed_u=True)
-    side_patches = BezierPatches(grid.control[:, grid.side_columns], closed_u=True)
-    vol_pp, area_pp = measure.integrals(patches, per_patch=True)
-    volume = float(vol_pp.sum())
-    area = float(area_pp[:, grid.side_columns].sum()) + grid.flat_cap_area
+    # the grid's columns are the checked side's and caps over its end curves: finite and closed as the
+    # side is (close_side checks its inputs)
+    patches = BezierPatches._trusted(grid.control, closed_u=True)
+    side_patches = BezierPatches._trusted(grid.control[:, grid.side_columns], closed_u=True)
+    volume, area = capmod.grid_integrals(grid)
     # deviation at the control points, evaluated on the final surface
     j = np.concatenate(sc.nodes)
-    kk = np.concatenate([np.full(len(n), i + prepend) for i, n in enumerate(sc.nodes)])
+    kk = np.repeat(np.arange(prepend, prepend + len(sc.nodes)), [len(n) for n in sc.nodes])
     pts = np.concatenate(sc.points)
     dev = float(np.max(np.linalg.norm(node_eval(j, kk) - pts, axis=1)))
     tri_mesh = display = density = None

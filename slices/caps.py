@@ -431,6 +431,17 @@ def _inset_ring(xy: np.ndarray, distance: float) -> np.ndarray:
     return xy + direction * (distance / np.maximum(half, 0.25))[:, None]
 
 
+def _median(x: np.ndarray) -> float:
+    """``np.median`` of an array's values (the mean of the two middle ones for an even count), by one partition."""
+    x = x.ravel()
+    half = len(x) // 2
+    part = np.partition(x, half)
+    if len(x) % 2:
+        return float(part[half])
+    # the sorted value before the middle one: the largest of those the partition puts before it
+    return float((part[:half].max() + part[half]) / 2.0)
+
+
 def _cap_polygon(xy: np.ndarray, inset: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """Points and counter-clockwise triangles of a flat cap over a counter-clockwise ring.
 
@@ -447,9 +458,10 @@ def _cap_polygon(xy: np.ndarray, inset: bool = True) -> tuple[np.ndarray, np.nda
     following = _following(xy)
     edge = _lengths(following - xy)
     # the fan from the mean: the outline's area
-    d0, d1 = xy - xy.mean(axis=0), following - xy.mean(axis=0)
+    mean = xy.mean(axis=0)
+    d0, d1 = xy - mean, following - mean
     total = 0.5 * float(np.sum(d0[:, 0] * d1[:, 1] - d0[:, 1] * d1[:, 0]))
-    distance = CAP_INSET * float(np.median(edge)) if inset else 0.0
+    distance = CAP_INSET * _median(edge) if inset else 0.0
     strip = _strip(n)
     for _ in range(4):
         if distance <= 1e-9 * max(1.0, float(np.abs(xy).max())):
@@ -615,12 +627,16 @@ class CappedGrid:
         flat cap that is part of the surface (not those of ``caps="none"``).
     end_planes : (float, float)
         z of the lowest and highest side boundary in mm (where caps can meet the side).
+    extrusions : (float, float)
+        Heights in mm of the half caps' extrusions (:func:`prism_column`) at the low and the
+        high end, 0 where there is none; they are the first and the last of ``side_columns``.
     """
 
     control: np.ndarray
     side_columns: slice
     flat_caps: tuple
     end_planes: tuple[float, float]
+    extrusions: tuple[float, float] = (0.0, 0.0)
 
     @property
     def flat_cap_area(self) -> float:
@@ -677,7 +693,69 @@ def close_side(side, bottom, top, low_center, high_center, height: float, low: s
         if high != "none":
             flat.append((top, 1.0))
     return CappedGrid(np.concatenate(full, axis=1), slice(first, first + n_side), tuple(flat),
-                      (float(bottom[0, 0, 2]), float(top[0, 0, 2])))
+                      (float(bottom[0, 0, 2]), float(top[0, 0, 2])),
+                      (float(height) if low == "half" else 0.0, float(height) if high == "half" else 0.0))
+
+
+@lru_cache(maxsize=8)
+def _gauss_bezier(order: int) -> tuple[tuple, np.ndarray]:
+    """Bernstein weights (:func:`_bezier_weights`) at the ``order`` Gauss nodes of [0, 1], and the nodes' weights."""
+    x, w = np.polynomial.legendre.leggauss(order)
+    weights = 0.5 * w
+    weights.flags.writeable = False
+    return _bezier_weights(0.5 * (x + 1.0)), weights
+
+
+def grid_integrals(grid: CappedGrid, order: int = 5) -> tuple[float, float]:
+    """Enclosed volume and area of a capped grid, with quadrature on the blended side columns only.
+
+    The sums of :func:`surfaces.measure.integrals` over the whole grid (volume) and over
+    ``side_columns`` plus :attr:`CappedGrid.flat_cap_area` (area), the same up to rounding: the volume
+    is the flux of ``(0, 0, z)`` through the closed grid (:func:`surfaces.measure.side_integrals`),
+    whose cap columns have closed forms. Through a fan over the plane ``z`` it is ``z A`` with ``A`` the
+    signed area of its curve (Green's theorem, :func:`curve_area`; negative below, where ``v`` runs
+    from the apex), through a vertical extrusion nothing; the extrusion's area is its height times its
+    curve's length (Gauss-Legendre of ``order`` points a segment, as the patch quadrature).
+
+    Parameters
+    ----------
+    grid : CappedGrid
+        From :func:`close_side`.
+    order : int
+        Quadrature points per direction (5: exact volume).
+
+    Returns
+    -------
+    volume, area : float
+        mm^3 (signed: positive when the patches face outward) and mm^2.
+    """
+    from surfaces.measure import side_integrals
+
+    ctrl = grid.control
+    side = grid.side_columns
+    low_h, high_h = grid.extrusions
+    first, stop = side.start + (low_h > 0), side.stop - (high_h > 0)
+    volume, area = side_integrals(ctrl[:, first:stop], order) if stop > first else (0.0, 0.0)
+    # the side's end curves (the extrusions' far ends), the caps' outlines: both at once, (2 M, 4) a
+    # coordinate; their areas as curve_area's
+    ends = np.stack([ctrl[:, side.start, :, 0], ctrl[:, side.stop - 1, :, 3]])
+    n_seg = ends.shape[1]
+    ex, ey = ends[..., 0].reshape(-1, 4), ends[..., 1].reshape(-1, 4)
+    x, dx = _points_and_tangents(ex, _GAUSS3_BEZIER)
+    y, dy = _points_and_tangents(ey, _GAUSS3_BEZIER)
+    twice = (x * dy - y * dx) @ _GAUSS3_WEIGHTS
+    a_low, a_high = (0.25 * float(np.sum(twice[:n_seg])), 0.25 * float(np.sum(twice[n_seg:])))
+    if side.start > 0:
+        volume -= float(ends[0, 0, 0, 2]) * a_low
+    if side.stop < ctrl.shape[1]:
+        volume += float(ends[1, 0, 0, 2]) * a_high
+    if low_h or high_h:
+        at_nodes, node_weights = _gauss_bezier(int(order))
+        tx, ty = _points_and_tangents(ex, at_nodes)[1], _points_and_tangents(ey, at_nodes)[1]
+        length = np.sqrt(tx * tx + ty * ty) @ node_weights
+        area += low_h * float(np.sum(length[:n_seg])) + high_h * float(np.sum(length[n_seg:]))
+    area += sum(abs(a_low if out_z < 0 else a_high) for _, out_z in grid.flat_caps)
+    return float(volume), float(area)
 
 
 def weld_flat_caps(side: TriangleMesh, grid: CappedGrid, samples: int,
@@ -719,10 +797,34 @@ def weld_flat_caps(side: TriangleMesh, grid: CappedGrid, samples: int,
     rep = _rim_weld_map(merged, side, caps, grid.flat_caps, int(samples), rim)
     if rep is None:
         return weld(merged, candidates=candidates), merged
-    tri = rep[merged.triangles]
-    keep = (tri[:, 0] != tri[:, 1]) & (tri[:, 1] != tri[:, 2]) & (tri[:, 2] != tri[:, 0])
-    return compact(TriangleMesh(merged.vertices, tri[keep], merged.vertex_normals, merged.vertex_colors,
-                                dict(merged.metadata))), merged
+    return _welded(merged, side, rep), merged
+
+
+def _welded(merged: TriangleMesh, side: TriangleMesh, rep: np.ndarray) -> TriangleMesh:
+    """``compact`` of ``merged`` with its vertices mapped by ``rep`` (its collapsed triangles dropped).
+
+    ``rep`` moves cap vertices only; when the side's triangles use every side vertex (a lattice),
+    the side's vertices and triangles are taken as they are and only the caps' are renumbered.
+    """
+    n_side, t_side = side.n_vertices, side.n_triangles
+    cap_tri = rep[merged.triangles[t_side:]]
+    keep = (cap_tri[:, 0] != cap_tri[:, 1]) & (cap_tri[:, 1] != cap_tri[:, 2]) & (cap_tri[:, 2] != cap_tri[:, 0])
+    cap_tri = cap_tri[keep]
+    used = np.zeros(merged.n_vertices, dtype=bool)
+    used[side.triangles.ravel()] = True
+    if not used[:n_side].all() or merged.vertex_colors is not None:
+        tri = rep[merged.triangles]
+        keep = (tri[:, 0] != tri[:, 1]) & (tri[:, 1] != tri[:, 2]) & (tri[:, 2] != tri[:, 0])
+        return compact(TriangleMesh._trusted(merged.vertices, tri[keep], merged.vertex_normals, merged.vertex_colors,
+                                    dict(merged.metadata)))
+    used[cap_tri.ravel()] = True
+    new_index = np.cumsum(used) - 1
+    normals = merged.vertex_normals
+    return TriangleMesh._trusted(
+        np.concatenate([side.vertices, merged.vertices[n_side:][used[n_side:]]]),
+        np.concatenate([side.triangles, new_index[cap_tri]]),
+        None if normals is None else np.concatenate([side.vertex_normals, normals[n_side:][used[n_side:]]]),
+        None, dict(merged.metadata))
 
 
 def _rim_weld_map(merged: TriangleMesh, side: TriangleMesh, caps: list, flat_caps: tuple, samples: int,

@@ -167,6 +167,21 @@ class BezierPatches:
                     f"closed_v: the last patch column does not join the first (gap {gap:.3g})"
                 )
 
+    @classmethod
+    def _trusted(cls, control: np.ndarray, closed_u: bool = False, closed_v: bool = False) -> BezierPatches:
+        """Patches over control points known to be valid (from checked patches), without the checks.
+
+        ``control`` (R, C, 4, 4, 3) float64, finite, closing where flagged; kept as a read-only view,
+        not copied (a view of some columns of a grid too).
+        """
+        ctrl = control.view()
+        ctrl.setflags(write=False)
+        out = object.__new__(cls)
+        object.__setattr__(out, "control", ctrl)
+        object.__setattr__(out, "closed_u", bool(closed_u))
+        object.__setattr__(out, "closed_v", bool(closed_v))
+        return out
+
     # ------------------------------------------------------------------ shape
     @property
     def shape(self) -> tuple[int, int]:

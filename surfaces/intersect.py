@@ -420,19 +420,25 @@ def self_intersections(vertices, triangles, *, eps: float = 1e-9, first: bool = 
 
 def _closed_and_oriented(t: np.ndarray, n_vertices: int) -> bool:
     """Whether every directed edge of triangles ``t`` (T, 3) occurs once and its reverse once."""
+    # half the bytes to sort where the codes fit
+    t = t.astype(np.int32) if 2 * n_vertices * n_vertices + 2 < 2**31 else t
     a = t.ravel()
     b = np.empty_like(t)
     b[:, :2], b[:, 2] = t[:, 1:], t[:, 0]
     b = b.ravel()
-    if 2 * n_vertices * n_vertices + 2 < 2**31:  # half the bytes to sort
-        a, b = a.astype(np.int32), b.astype(np.int32)
     # one sort: each undirected edge must come exactly twice, once each way (codes 2 key and 2 key + 1)
-    code = np.minimum(a, b) * n_vertices
-    code += np.maximum(a, b)
-    code *= 2
+    code = np.minimum(a, b)
+    code *= 2 * n_vertices
+    high = np.maximum(a, b)
+    high *= 2
+    code += high
     code += a > b
     code.sort()
-    return bool(len(code) % 2 == 0 and np.all(code[0::2] % 2 == 0) and np.all(code[1::2] == code[0::2] + 1))
+    if len(code) % 2:
+        return False
+    first, second = code[0::2], code[1::2]
+    first += 1
+    return bool(np.array_equal(second, first) and np.all(second & 1))
 
 
 #: Relative spread of ``z`` (of the largest ``|z|``) within one level of :func:`fold_suspects`.
@@ -556,16 +562,17 @@ def fold_suspects(vertices, triangles, *, margin: float = 1e-12) -> np.ndarray |
     if not _closed_and_oriented(t, len(v)):
         return None
     z = v[:, 2]
-    order = np.argsort(z, kind="stable")
-    zs = z[order]
-    tol = LEVEL_RTOL * max(float(np.abs(z).max()), 1e-300)
-    new_level = np.concatenate([[True], np.diff(zs) > tol])
+    zs = np.sort(z)
+    tol = LEVEL_RTOL * max(float(max(zs[-1], -zs[0])), 1e-300)
+    new_level = np.empty(len(zs), dtype=bool)
+    new_level[0] = True
+    np.greater(zs[1:] - zs[:-1], tol, out=new_level[1:])
     starts = np.flatnonzero(new_level)
     # a chain of small steps must not make one level of a slope
     if np.any(np.append(zs[starts[1:] - 1], zs[-1]) - zs[starts] > 4 * tol):
         return None
-    level = np.empty(len(z), dtype=np.int64)
-    level[order] = np.cumsum(new_level) - 1
+    # a vertex's level: the last level starting at or below its z (levels are apart by more than tol)
+    level = np.searchsorted(zs[starts], z, side="right") - 1
     # column by column (x and y of the vertices, the three corners of the faces): numpy's reductions,
     # gathers and products along a short last axis cost more than the arithmetic written out
     t0, t1, t2 = t[:, 0], t[:, 1], t[:, 2]
@@ -598,31 +605,33 @@ def fold_suspects(vertices, triangles, *, margin: float = 1e-12) -> np.ndarray |
     corner += lone
     flat_t = t.ravel()
     r2 = flat_t[corner]
-    r0 = flat_t[corner + np.where(lone == 2, -2, 1)]
-    r1 = flat_t[corner + np.where(lone == 0, 2, -1)]
-    p1x, p1y, p2x, p2y, xx, xy = X[r0], Y[r0], X[r1], Y[r1], X[r2], Y[r2]
-    # the cut runs along p1 -> p2 below a lone upper corner and along p2 -> p1 above a lone lower one
-    turn = np.where(one_up, 1.0, -1.0)
-    ax, ay = (np.where(one_up, p1x, p2x) + xx) / 2.0, (np.where(one_up, p1y, p2y) + xy) / 2.0
-    bx, by = (np.where(one_up, p2x, p1x) + xx) / 2.0, (np.where(one_up, p2y, p1y) + xy) / 2.0
+    to_p1, to_p2 = np.where(lone == 2, -2, 1), np.where(lone == 0, 2, -1)
+    # the cut runs along p1 -> p2 below a lone upper corner and along p2 -> p1 above a lone lower one:
+    # the corners taken in the cut's order (a, b), so the turns below need no sign per face (swapping
+    # the two negates a cross product exactly)
+    ra = flat_t[corner + np.where(one_up, to_p1, to_p2)]
+    rb = flat_t[corner + np.where(one_up, to_p2, to_p1)]
+    pax, pay, pbx, pby, xx, xy = X[ra], Y[ra], X[rb], Y[rb], X[r2], Y[r2]
+    ax, ay = (pax + xx) / 2.0, (pay + xy) / 2.0
+    bx, by = (pbx + xx) / 2.0, (pby + xy) / 2.0
     w = ax * by - ay * bx
     area = np.bincount(base, w, n_bands)
     denominator = 3.0 * np.where(area == 0, 1.0, area)
     cx = np.bincount(base, (ax + bx) * w, n_bands) / denominator
     cy = np.bincount(base, (ay + by) * w, n_bands) / denominator
-    for lone_below in (False, True):
-        # a band whose faces of one kind all share their lone corner and have no other kind is a fan to it
-        kind = (n_up == 2) == lone_below
-        apex = np.full(n_bands, -1)
-        apex[base[kind]] = r2[kind]
-        fan = apex >= 0
-        fan &= np.bincount(base[kind], r2[kind] != apex[base[kind]], n_bands) == 0
-        fan &= np.bincount(base[~kind], minlength=n_bands) == 0
-        cx[fan], cy[fan] = X[apex[fan]], Y[apex[fan]]
+    # a band whose faces are all of one kind (lone corner above, or all below) and share their lone
+    # corner is a fan to it
+    n_faces = np.bincount(base, minlength=n_bands)
+    n_one_up = np.bincount(base, one_up, n_bands)
+    apex = np.full(n_bands, -1)
+    apex[base] = r2
+    fan = (n_faces > 0) & ((n_one_up == 0) | (n_one_up == n_faces))
+    fan &= np.bincount(base, r2 != apex[base], n_bands) == 0
+    cx[fan], cy[fan] = X[apex[fan]], Y[apex[fan]]
     ccx, ccy = cx[base], cy[base]
-    sign = np.sign(area)[base] * turn
-    good = sign * ((p1x - ccx) * (p2y - ccy) - (p1y - ccy) * (p2x - ccx)) > tiny
-    good &= sign * ((xx - ccx) * (p2y - p1y) - (xy - ccy) * (p2x - p1x)) >= 0
+    sign = np.sign(area)[base]
+    good = sign * ((pax - ccx) * (pby - ccy) - (pay - ccy) * (pbx - ccx)) > tiny
+    good &= sign * ((xx - ccx) * (pby - pay) - (xy - ccy) * (pbx - pax)) >= 0
     ax -= ccx
     ay -= ccy
     bx -= ccx

@@ -66,25 +66,42 @@ def _node_basis(order: int) -> tuple[np.ndarray, np.ndarray]:
     return basis, weights
 
 
+@lru_cache(maxsize=32)
+def _derivative_basis(order: int) -> np.ndarray:
+    """The ``S_u`` and ``S_v`` rows of :func:`_node_basis` (2 order^2, 16), contiguous and read-only."""
+    basis, weights = _node_basis(order)
+    out = np.ascontiguousarray(basis[len(weights):])
+    out.flags.writeable = False
+    return out
+
+
 def _per_patch(patches: BezierPatches, order: int, integrands) -> list[np.ndarray]:
-    """Integrate each ``integrand(points, normal)`` over every patch; one array (P,) per integrand.
+    """Integrate each ``integrand(points, normal)`` over every patch; one array (P,) per integrand."""
+    if not isinstance(patches, BezierPatches):
+        raise ValueError(f"patches: expected BezierPatches, got {type(patches).__name__}")
+    return _quadrature(patches.control, int(order), integrands)
+
+
+def _quadrature(control: np.ndarray, order: int, integrands) -> list[np.ndarray]:
+    """:func:`_per_patch` on control points (R, C, 4, 4, 3) as they are (a view of a grid's columns too).
 
     ``points`` and ``normal`` (the unnormalised ``S_u x S_v``) are (x, y, z) tuples of
     (order^2, chunk) arrays, one column per patch; one matrix product per chunk evaluates ``S``,
     ``S_u`` and ``S_v`` at every node, and one more sums the integrand with the node weights.
     """
-    if not isinstance(patches, BezierPatches):
-        raise ValueError(f"patches: expected BezierPatches, got {type(patches).__name__}")
-    basis, weights = _node_basis(int(order))
+    basis, weights = _node_basis(order)
     q = len(weights)
-    flat = patches.control.reshape(-1, 16, 3)
-    out = [np.empty(len(flat)) for _ in integrands]
-    chunk = max(1, _POINT_CHUNK // q)
-    for start in range(0, len(flat), chunk):
-        part = flat[start:start + chunk]
-        k = len(part)
-        # coordinate-major (16, 3, k): every component below is a contiguous (q, k) block
-        values = (basis @ part.transpose(1, 2, 0).reshape(16, 3 * k)).reshape(3, q, 3, k)
+    n_rows, n_cols = control.shape[:2]
+    out = [np.empty(n_rows * n_cols) for _ in integrands]
+    # chunks of whole patch rows: a view of some columns is copied a chunk at a time
+    rows = max(1, _POINT_CHUNK // (q * n_cols))
+    for r in range(0, n_rows, rows):
+        part = control[r:r + rows]
+        k = part.shape[0] * n_cols
+        start = r * n_cols
+        # coordinate-major (16, 3, k) in one copy: every component below is a contiguous (q, k) block
+        coords = np.ascontiguousarray(part.transpose(2, 3, 4, 0, 1)).reshape(16, 3 * k)
+        values = (basis @ coords).reshape(3, q, 3, k)
         s, du, dv = values
         ux, uy, uz = du[:, 0], du[:, 1], du[:, 2]
         vx, vy, vz = dv[:, 0], dv[:, 1], dv[:, 2]
@@ -99,6 +116,65 @@ def _per_patch(patches: BezierPatches, order: int, integrands) -> list[np.ndarra
         for arr, integrand in zip(out, integrands):
             arr[start:start + k] = weights @ integrand(point, normal)
     return out
+
+
+def side_integrals(control: np.ndarray, order: int = 5) -> tuple[float, float]:
+    """Summed flux of ``(0, 0, z)`` and area of the patches ``control`` (R, C, 4, 4, 3), unchecked.
+
+    Over a closed grid the flux is its volume (:func:`flux_z`; positive when ``S_u x S_v`` points
+    outward), and equals :func:`integrals`' volume up to rounding; over some of its columns it is their
+    share of it. For callers that hold a valid grid (a view of some of its columns too), without
+    building :class:`surfaces.bezier.BezierPatches`.
+
+    Parameters
+    ----------
+    control : numpy.ndarray, shape (R, C, 4, 4, 3)
+        Finite control points (mm), taken as they are.
+    order : int
+        Quadrature points per direction (5: the flux is exact).
+
+    Returns
+    -------
+    flux, area : float
+        mm^3 and mm^2.
+    """
+    basis, weights = _node_basis(int(order))
+    q = len(weights)
+    derivatives = _derivative_basis(int(order))
+    n_rows, n_cols = control.shape[:2]
+    flux = area = 0.0
+    # chunks of whole patch rows: a view of some columns is copied a chunk at a time
+    rows = max(1, _POINT_CHUNK // (q * n_cols))
+    for r in range(0, n_rows, rows):
+        part = control[r:r + rows]
+        k = part.shape[0] * n_cols
+        # coordinate-major (16, 3, k) in one copy
+        coords = np.ascontiguousarray(part.transpose(2, 3, 4, 0, 1)).reshape(16, 3, k)
+        # z alone of the points (the flux of (0, 0, z) needs no more); S_u and S_v one coordinate a
+        # product, so that every component below is one contiguous (q, k) block
+        z = basis[:q] @ coords[:, 2]
+        ux, vx = (derivatives @ coords[:, 0]).reshape(2, q, k)
+        uy, vy = (derivatives @ coords[:, 1]).reshape(2, q, k)
+        uz, vz = (derivatives @ coords[:, 2]).reshape(2, q, k)
+        # S_u x S_v written out, one scratch array for the products subtracted
+        t = uz * vy
+        nx = uy * vz
+        nx -= t
+        np.multiply(ux, vz, out=t)
+        ny = uz * vx
+        ny -= t
+        np.multiply(uy, vx, out=t)
+        nz = ux * vy
+        nz -= t
+        z *= nz
+        flux += float(np.sum(weights @ z))
+        nx *= nx
+        ny *= ny
+        nx += ny
+        nz *= nz
+        nx += nz
+        area += float(np.sum(weights @ np.sqrt(nx, out=nx)))
+    return flux, area
 
 
 def _area_density(s, n):

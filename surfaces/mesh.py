@@ -164,6 +164,17 @@ class TriangleMesh:
             if value is not None:
                 setattr(self, name, as_array(value, name, shape=(len(self.vertices), 3)))
 
+    @classmethod
+    def _trusted(cls, vertices: np.ndarray, triangles: np.ndarray, vertex_normals: np.ndarray | None = None,
+                 vertex_colors: np.ndarray | None = None, metadata: dict | None = None) -> TriangleMesh:
+        """A mesh of arrays known to be valid (made from checked meshes or patches), without the checks."""
+        out = object.__new__(cls)
+        out.vertices = np.asarray(vertices, dtype=np.float64)
+        out.triangles = np.asarray(triangles, dtype=np.int64)
+        out.vertex_normals, out.vertex_colors = vertex_normals, vertex_colors
+        out.metadata = {} if metadata is None else metadata
+        return out
+
     @property
     def n_vertices(self) -> int:
         """Number of vertices ``V``."""
@@ -312,7 +323,12 @@ def weld_map(points: np.ndarray, tolerance: float, candidates=None) -> np.ndarra
     from scipy.spatial import cKDTree
 
     n = len(points)
-    idx = np.arange(n) if candidates is None else np.unique(np.asarray(candidates, dtype=np.int64))
+    if candidates is None:
+        idx = np.arange(n)
+    else:
+        idx = np.asarray(candidates, dtype=np.int64).ravel()
+        if len(idx) > 1 and not np.all(idx[1:] > idx[:-1]):  # already sorted and unique: as np.unique gives
+            idx = np.unique(idx)
     if points_apart(points[idx], tolerance):
         return np.arange(n, dtype=np.int64)
     pairs = cKDTree(points[idx]).query_pairs(tolerance, output_type="ndarray")
@@ -346,13 +362,20 @@ def compact(mesh: TriangleMesh) -> TriangleMesh:
     used = np.zeros(mesh.n_vertices, dtype=bool)
     used[mesh.triangles.ravel()] = True
     new_index = np.cumsum(used) - 1
-    return TriangleMesh(
+    return TriangleMesh._trusted(
         mesh.vertices[used],
         new_index[mesh.triangles].reshape(-1, 3),
         None if mesh.vertex_normals is None else mesh.vertex_normals[used],
         None if mesh.vertex_colors is None else mesh.vertex_colors[used],
         dict(mesh.metadata),
     )
+
+
+def _weld_tolerance(verts: np.ndarray) -> float:
+    """:func:`weld`'s default tolerance: ``1e-9`` times the bounding-box diagonal of ``verts`` (V, 3)."""
+    # column by column: numpy reduces an (N, 3) array along its first axis several times slower
+    diag = float(np.linalg.norm([verts[:, k].max() - verts[:, k].min() for k in range(3)]))
+    return 1e-9 * max(diag, 1e-300)
 
 
 def weld(mesh: TriangleMesh, tolerance: float | None = None, candidates=None) -> TriangleMesh:
@@ -379,9 +402,7 @@ def weld(mesh: TriangleMesh, tolerance: float | None = None, candidates=None) ->
     if len(verts) == 0:
         return mesh.copy()
     if tolerance is None:
-        # column by column: numpy reduces an (N, 3) array along its first axis several times slower
-        diag = float(np.linalg.norm([verts[:, k].max() - verts[:, k].min() for k in range(3)]))
-        tolerance = 1e-9 * max(diag, 1e-300)
+        tolerance = _weld_tolerance(verts)
     rep = weld_map(verts, tolerance, candidates)
     merged = np.any(rep != np.arange(len(verts)))
     tri = rep[mesh.triangles] if merged else mesh.triangles
@@ -389,7 +410,7 @@ def weld(mesh: TriangleMesh, tolerance: float | None = None, candidates=None) ->
     if not merged and keep.all() and candidates is not None:
         return mesh  # nothing to merge (the common case of an open or flagged-closed grid)
     return compact(
-        TriangleMesh(verts, tri[keep], mesh.vertex_normals, mesh.vertex_colors, dict(mesh.metadata))
+        TriangleMesh._trusted(verts, tri[keep], mesh.vertex_normals, mesh.vertex_colors, dict(mesh.metadata))
     )
 
 
@@ -590,7 +611,8 @@ def tessellate(patches: BezierPatches, samples: int | tuple[int, int] = PATCH_SA
     verts, dus, dvs = points.reshape(-1, 3), dus.reshape(-1, 3), dvs.reshape(-1, 3)
     normals, collapsed = _lattice_normals(patches, dus, dvs, n_v, nu, nv)
     tri = _grid_triangles(n_u, n_v, patches.closed_u, patches.closed_v)
-    mesh = TriangleMesh(verts, tri, normals)
+    # from checked patches: finite points and unit normals, the lattice's own triangles
+    mesh = TriangleMesh._trusted(verts, tri, normals)
     if weld_seams:
         # Seams inside the grid are shared by construction; only the grid's open
         # outer edges and collapsed rows (poles: S_u x S_v = 0) can coincide.
@@ -599,7 +621,13 @@ def tessellate(patches: BezierPatches, samples: int | tuple[int, int] = PATCH_SA
             edge[[0, -1], :] = True
         if last_v:
             edge[:, [0, -1]] = True
-        mesh = weld(mesh, candidates=np.flatnonzero(edge.ravel() | collapsed))
+        candidates = np.flatnonzero(edge.ravel() | collapsed)
+        # the lattice's triangles have three distinct corners where each closed direction has two
+        # samples or more: when no candidates merge, weld would return the mesh as it is
+        distinct = (n_u > 1 or not patches.closed_u) and (n_v > 1 or not patches.closed_v)
+        if not (distinct and np.array_equal(weld_map(verts, _weld_tolerance(verts), candidates),
+                                            np.arange(len(verts)))):
+            mesh = weld(mesh, candidates=candidates)
     return mesh
 
 
@@ -738,5 +766,5 @@ def merge_meshes(meshes, weld_vertices: bool = False) -> TriangleMesh:
         if all(m.vertex_colors is not None for m in meshes)
         else None
     )
-    out = TriangleMesh(verts, tri, normals, colors)
+    out = TriangleMesh._trusted(verts, tri, normals, colors)
     return weld(out) if weld_vertices else out

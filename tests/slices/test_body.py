@@ -124,3 +124,21 @@ def test_body_records_its_mesh_density(ellipsoid_body):
     assert adaptive.mesh_samples == mesh_samples(side)
     assert build_body(ellipsoid_body, 2.5, SurfaceOptions(samples=2)).mesh_samples == (2, 2)
     assert build_body(ellipsoid_body, 2.5, mesh=False).mesh_samples is None
+
+
+@pytest.mark.parametrize("shape", [(3, 2), (37, 29), (1, 1), (64, 9)])
+def test_mesh_samples_equals_the_median_of_every_control_polygon(shape):
+    # chunked over the flat control points: the same polygons and medians as written per patch
+    from slices.body import EDGE_MM, MAX_SAMPLES, mesh_samples
+    from slices.caps import _median
+
+    rng = np.random.default_rng(sum(shape))
+    c = rng.normal(scale=3.0, size=shape + (4, 4, 3))
+    pu = np.linalg.norm(np.diff(c, axis=2), axis=-1).sum(axis=2)
+    pv = np.linalg.norm(np.diff(c, axis=3), axis=-1).sum(axis=3)
+    for p in (pu, pv, pu[..., :3]):
+        assert _median(p.copy()) == pytest.approx(np.median(p), rel=1e-15, abs=0)
+    want = tuple(int(np.clip(np.ceil(np.median(p) / EDGE_MM), 1, MAX_SAMPLES)) for p in (pu, pv))
+    budget = 10**9
+    assert mesh_samples(c, budget) == want
+    assert mesh_samples(np.asfortranarray(c), budget) == want

@@ -303,3 +303,42 @@ def test_welding_caps_by_index_falls_back_where_points_nearly_meet():
     merged = merge_meshes([side] + cap_meshes)
     rim = np.flatnonzero(np.abs(np.abs(side.vertices[:, 2]) - 1.0) < 1e-9)
     assert caps._rim_weld_map(merged, side, cap_meshes, grid.flat_caps, 1, rim) is None
+
+
+def _wavy_side(n_rows=12, n_cols=3, clockwise=False):
+    """A blended-looking side (M, S, 4, 4, 3): a wobbling ring whose radius and centre change with z."""
+    t = np.linspace(0, 2 * np.pi, 3 * n_rows + 1)[:-1]
+    if clockwise:
+        t = -t
+    z = np.linspace(0.0, 6.0, 3 * n_cols + 1)
+    r = 3 + 0.4 * np.cos(3 * t)[:, None] + 0.2 * np.sin(z)[None, :]
+    pts = np.stack([r * np.cos(t)[:, None] + 0.1 * z, r * np.sin(t)[:, None], np.broadcast_to(z, r.shape)], -1)
+    pts = np.concatenate([pts, pts[:1]])
+    ctrl = np.empty((n_rows, n_cols, 4, 4, 3))
+    for i in range(4):
+        for j in range(4):
+            ctrl[:, :, i, j] = pts[i:i + 3 * n_rows:3][:, j:j + 3 * n_cols:3]
+    return ctrl
+
+
+@pytest.mark.parametrize("clockwise", [False, True])
+@pytest.mark.parametrize("low,high", [("flat", "flat"), ("half", "half"), ("none", "half"), ("half", "none"),
+                                      ("flat", "half"), ("none", "none")])
+def test_grid_integrals_equal_the_quadrature_of_every_column(low, high, clockwise):
+    side = _wavy_side(clockwise=clockwise)
+    grid = caps.close_side(side, side[:, 0, :, 0], side[:, -1, :, 3], (0.2, 0.1), (0.3, -0.1), 1.25, low, high)
+    assert grid.extrusions == (1.25 if low == "half" else 0.0, 1.25 if high == "half" else 0.0)
+    vol_pp, area_pp = measure.integrals(BezierPatches(grid.control, closed_u=True), per_patch=True)
+    volume, area = caps.grid_integrals(grid)
+    assert volume == pytest.approx(vol_pp.sum(), rel=1e-12)
+    assert area == pytest.approx(area_pp[:, grid.side_columns].sum() + grid.flat_cap_area, rel=1e-12)
+    assert (volume > 0) != clockwise
+
+
+def test_grid_integrals_of_a_half_capped_single_slice():
+    curve = _polygon_curve(SQUARE, z=2.0)
+    grid = caps.close_side(None, curve, curve, (2, 2), (2, 2), 0.5, "half", "half")
+    volume, area = caps.grid_integrals(grid)
+    # a 4 x 4 x 1 box: its volume and its whole surface (walls and both caps)
+    assert volume == pytest.approx(16.0, rel=1e-12)
+    assert area == pytest.approx(16.0 + 16.0 + 16.0, rel=1e-12)

@@ -101,3 +101,18 @@ def test_flipped_reverses_normals_and_transform_is_affine():
     np.testing.assert_allclose(
         moved.evaluate_global(u, u), bp.evaluate_global(u, u) @ rot.T + [1, 2, 3], atol=1e-12
     )
+
+
+def test_trusted_patches_are_the_checked_ones_without_a_copy():
+    rng = np.random.default_rng(3)
+    control = rng.normal(size=(3, 5, 4, 4, 3))
+    columns = control[:, 1:4]
+    trusted = BezierPatches._trusted(columns, closed_v=True)
+    checked = BezierPatches(columns, closed_u=False, closed_v=False)
+    assert np.shares_memory(trusted.control, control) and not trusted.control.flags.writeable
+    assert control.flags.writeable  # the caller's array stays as it was
+    assert np.array_equal(trusted.control, checked.control) and trusted.shape == checked.shape
+    assert (trusted.closed_u, trusted.closed_v) == (False, True)
+    u = np.array([0.0, 0.3, 1.0])
+    assert np.allclose(trusted.evaluate(np.zeros(3, int), np.ones(3, int), u, u),
+                       checked.evaluate(np.zeros(3, int), np.ones(3, int), u, u), rtol=0, atol=0)

@@ -120,3 +120,24 @@ def test_a_uv_sphere_is_proven():
     v2, t2 = np.vstack([v, v + [3.0, 0, 0]]), np.vstack([t, t + len(v)])
     s2 = fold_suspects(v2, t2)
     assert s2 is None or s2.all()
+
+
+def test_closed_and_oriented_against_counting_the_directed_edges():
+    from collections import Counter
+
+    from surfaces.intersect import _closed_and_oriented
+
+    def by_counting(t):
+        edges = Counter((int(a), int(b)) for tri in t for a, b in zip(tri, np.roll(tri, -1)))
+        return all(c == 1 and edges.get((b, a)) == 1 for (a, b), c in edges.items())
+
+    # a closed octahedron, then broken: one face flipped, one removed, one repeated, two joined ones
+    octa = np.array([[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]])
+    flipped = octa.copy()
+    flipped[0] = flipped[0, ::-1]
+    cases = [octa, flipped, octa[1:], np.vstack([octa, octa[:1]]), np.vstack([octa, octa[:2, ::-1]])]
+    rng = np.random.default_rng(5)
+    cases += [rng.integers(0, 6, size=(8, 3)) for _ in range(20)]
+    for t in cases:
+        assert _closed_and_oriented(np.asarray(t, dtype=np.int64), 6) == by_counting(t)
+    assert _closed_and_oriented(octa, 6)

@@ -85,3 +85,16 @@ def test_gauss_nodes_cached_read_only_and_exact():
     np.testing.assert_array_equal(w, 0.5 * v)
     with pytest.raises(ValueError, match="order"):
         _gauss(0)
+
+
+@pytest.mark.parametrize("shape", [(1, 1), (7, 3), (300, 2)])
+def test_side_integrals_equal_flux_z_and_area_on_a_view_of_some_columns(shape):
+    from surfaces.measure import side_integrals
+
+    rng = np.random.default_rng(shape[0])
+    grid = rng.normal(size=(shape[0], shape[1] + 2, 4, 4, 3))
+    columns = grid[:, 1:-1]  # not contiguous
+    patches = BezierPatches(columns)
+    flux, ar = side_integrals(columns)
+    assert flux == pytest.approx(flux_z(patches), rel=1e-12)
+    assert ar == pytest.approx(area(patches, order=5), rel=1e-12)

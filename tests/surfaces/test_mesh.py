@@ -219,3 +219,31 @@ def test_weld_map_skips_the_tree_only_when_points_are_apart(monkeypatch):
     monkeypatch.setattr(scipy.spatial, "cKDTree", tree)
     assert weld_map(pts, 1e-9).tolist() == [0, 1, 2, 3] and calls == []
     assert weld_map(np.vstack([pts, pts[2] + 1e-12]), 1e-9).tolist() == [0, 1, 2, 3, 2] and calls == [5]
+
+
+def test_meshes_made_from_checked_ones_equal_the_checked_construction():
+    # compact, merge_meshes and tessellate build their results unchecked: the same fields as checked
+    from surfaces.mesh import TriangleMesh as Mesh
+
+    b = box([0, 0, 0], [1, 2, 3])
+    v, t = b.vertices, b.triangles
+    mesh = Mesh(v, t, np.tile([0.0, 0.0, 1.0], (len(v), 1)))
+    extra = Mesh(np.vstack([v, [[9.0, 9.0, 9.0]]]), t, np.tile([0.0, 0.0, 1.0], (len(v) + 1, 1)))
+    for out in (merge_meshes([mesh, extra]), compact(extra)):
+        checked = Mesh(out.vertices, out.triangles, out.vertex_normals, out.vertex_colors, out.metadata)
+        for name in ("vertices", "triangles", "vertex_normals"):
+            a, b = getattr(out, name), getattr(checked, name)
+            assert a.dtype == b.dtype and np.array_equal(a, b)
+        assert out.vertex_colors is None and out.metadata == {}
+    assert compact(extra).n_vertices == len(v)
+    trusted = Mesh._trusted(np.array(v, dtype=np.float32), np.asarray(t, dtype=np.int32))
+    assert trusted.vertices.dtype == np.float64 and trusted.triangles.dtype == np.int64
+
+
+def test_weld_map_takes_candidates_in_any_order_and_repeated():
+    pts = np.array([[0.0, 0, 0], [1, 0, 0], [0, 0, 1e-12], [1, 0, 1e-12], [5, 5, 5]])
+    want = weld_map(pts, 1e-9).tolist()
+    assert want == [0, 1, 0, 1, 4]
+    for cand in ([0, 1, 2, 3], [3, 2, 1, 0, 0], [[0, 1], [2, 3]]):
+        assert weld_map(pts, 1e-9, cand).tolist() == want
+    assert weld_map(pts, 1e-9, [0, 1, 3]).tolist() == [0, 1, 2, 1, 4]
