@@ -214,15 +214,21 @@ def test_batched_quantize_and_isotonic_fit_equal_the_single_ones(seed):
     assert cp.isotonic_fit([]).shape == (0,)
 
 
-def test_support_crossings_of_many_contours_equal_each_alone():
-    """The batched rays give every contour what it gets alone, folded outlines included."""
+def _ragged_outlines():
     t = np.linspace(0, 2 * np.pi, 90, endpoint=False)
     star = np.stack([(10 + 4 * np.cos(5 * t)) * np.cos(t), (10 + 4 * np.cos(5 * t)) * np.sin(t)], 1)
-    # a C-shaped outline: rays through the gap cross it several times (the outermost crossing is the support)
     a = np.linspace(0.3, 2 * np.pi - 0.3, 70)
     c_shape = np.vstack([np.stack([12 * np.cos(a), 12 * np.sin(a)], 1),
                          np.stack([7 * np.cos(a[::-1]), 7 * np.sin(a[::-1])], 1)])
-    ps = [cp.clean_contour(p) for p in (star, c_shape, star[::2] + 3.0, c_shape * 0.5)]
+    square = np.array([[-1.0, -1], [1, -1], [1, 1], [-1, 1]])
+    return [cp.clean_contour(p) for p in (star, c_shape, square, star[::3] + 3.0, c_shape[::2] * 0.5)]
+
+
+def test_support_crossings_of_many_contours_equal_each_alone():
+    """The batched rays give every contour what it gets alone, folded outlines included."""
+    # a C-shaped outline among them: rays through the gap cross it several times (the outermost
+    # crossing is the support)
+    ps = _ragged_outlines()
     polars = cp._polars(ps)
     for n1, start in ((12, 0.0), (96, 0.05)):
         together = cp._support_crossings(polars, n1, start)
@@ -236,16 +242,6 @@ def test_support_crossings_of_many_contours_equal_each_alone():
             rel = xy[i] - center
             np.testing.assert_allclose(rel[:, 0] * np.sin(ang[i]) - rel[:, 1] * np.cos(ang[i]), 0, atol=1e-9)
             assert np.all(rel[:, 0] * np.cos(ang[i]) + rel[:, 1] * np.sin(ang[i]) > 0)
-
-
-def _ragged_outlines():
-    t = np.linspace(0, 2 * np.pi, 90, endpoint=False)
-    star = np.stack([(10 + 4 * np.cos(5 * t)) * np.cos(t), (10 + 4 * np.cos(5 * t)) * np.sin(t)], 1)
-    a = np.linspace(0.3, 2 * np.pi - 0.3, 70)
-    c_shape = np.vstack([np.stack([12 * np.cos(a), 12 * np.sin(a)], 1),
-                         np.stack([7 * np.cos(a[::-1]), 7 * np.sin(a[::-1])], 1)])
-    square = np.array([[-1.0, -1], [1, -1], [1, 1], [-1, 1]])
-    return [cp.clean_contour(p) for p in (star, c_shape, square, star[::3] + 3.0, c_shape[::2] * 0.5)]
 
 
 def test_polars_of_many_contours_equal_each_alone():
