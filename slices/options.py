@@ -55,6 +55,16 @@ class SurfaceOptions:
         Tessellation subdivisions per patch side; None gives each body edges of
         about :data:`slices.body.EDGE_MM` around and across the slices
         (:func:`slices.body.mesh_samples`).
+    monotone : bool
+        Limit the blend across the slices to be monotone and shape-preserving
+        (:func:`surfaces.blending.limit_monotone`) on the first surface tried.
+        Default False: the seed's blend is kept where its mesh does not fold
+        (the limit flattens every extremum across the slices, and doubles the
+        distance to a smooth true surface), and a body whose mesh folds is
+        rebuilt with the limit anyway (:data:`slices.body.FALLBACKS`).
+    unfold : bool
+        Check every body's mesh for self-intersecting faces and rebuild folded
+        bodies (:func:`slices.body.build_body`).
 
     Examples
     --------
@@ -74,7 +84,7 @@ class SurfaceOptions:
     correspondence: str = "seed"
     start_angle: float | None = None
     samples: int | None = None
-    monotone: bool = True
+    monotone: bool = False
     unfold: bool = True
 
     def __post_init__(self) -> None:
