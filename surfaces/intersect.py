@@ -526,13 +526,24 @@ def _lattice_shape(t: np.ndarray, n_vertices: int) -> tuple[int, int] | None:
     cols = int(t[0, 1])
     if cols < 2 or t[0, 0] != 0 or t[0, 2] != cols + 1:
         return None
-    wrap = int(np.argmax(t[:, 1] < t[:, 0]))
-    rows = wrap // (cols - 1) + 1
-    if wrap == 0 or wrap % (cols - 1) or rows < 3 or rows * cols > n_vertices or 2 * rows * (cols - 1) > len(t):
+    # the cells of the last level (every cols - 1-th triangle from cols - 2): the first that wraps is on the last ring
+    last = t[cols - 2::cols - 1]
+    rows = int(np.argmax(last[:, 1] < last[:, 0])) + 1
+    if rows < 3 or rows * cols > n_vertices or 2 * rows * (cols - 1) > len(t):
         return None
     if not np.array_equal(t[:2 * rows * (cols - 1)], _grid_triangles(rows, cols, True, False)):
         return None
     return rows, cols
+
+
+def _beyond(sign: np.ndarray, e: np.ndarray, bound: float | None) -> np.ndarray:
+    """``sign * e > bound`` (``>= 0`` for None) for band signs ``sign`` (C,) of ``e`` (R, C), without the products
+    when every band turns one way (negating is exact)."""
+    if np.all(sign > 0):
+        return e >= 0 if bound is None else e > bound
+    if np.all(sign < 0):
+        return e <= 0 if bound is None else e < -bound
+    return sign * e >= 0 if bound is None else sign * e > bound
 
 
 def _lattice_suspects(v: np.ndarray, t: np.ndarray, rows: int, cols: int, margin: float) -> np.ndarray | None:
@@ -547,10 +558,10 @@ def _lattice_suspects(v: np.ndarray, t: np.ndarray, rows: int, cols: int, margin
     """
     n, n_side = rows * cols, 2 * rows * (cols - 1)
     z = v[:, 2]
-    tol = LEVEL_RTOL * max(float(max(z.max(), -z.min())), 1e-300)
     zs = z[:n].reshape(rows, cols)
     lo, hi = zs.min(axis=0), zs.max(axis=0)
     zc = z[n:]
+    tol = LEVEL_RTOL * max(float(max(hi.max(), -lo.min(), *(zc.max(), -zc.min()) if len(zc) else ())), 1e-300)
     cap_low = zc < (hi[0] + lo[1]) / 2
     for end, on in ((0, cap_low), (-1, ~cap_low)):
         if on.any():
@@ -607,10 +618,10 @@ def _lattice_suspects(v: np.ndarray, t: np.ndarray, rows: int, cols: int, margin
     q1nx, q1ny = np.roll(q1x, -1, axis=0), np.roll(q1y, -1, axis=0)
     ex, ey = xn - xs, yn - ys
     # face (a, b, c): edge on ring h, lone corner (g + 1, h + 1); face (a, c, d): edge on ring h + 1, lone (g, h)
-    good0 = sign * (q0x * q0ny - q0y * q0nx) > tiny
-    good0 &= sign * (q1nx * ey[:, :-1] - q1ny * ex[:, :-1]) >= 0
-    good1 = sign * (q1x * q1ny - q1y * q1nx) > tiny
-    good1 &= sign * (q0x * ey[:, 1:] - q0y * ex[:, 1:]) >= 0
+    good0 = _beyond(sign, q0x * q0ny - q0y * q0nx, tiny)
+    good0 &= _beyond(sign, q1nx * ey[:, :-1] - q1ny * ex[:, :-1], None)
+    good1 = _beyond(sign, q1x * q1ny - q1y * q1nx, tiny)
+    good1 &= _beyond(sign, q0x * ey[:, 1:] - q0y * ex[:, 1:], None)
     mx -= cx
     my -= cy
     dx -= cx
