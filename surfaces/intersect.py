@@ -460,10 +460,14 @@ def _arcs(px: np.ndarray, py: np.ndarray, cx: np.ndarray, cy: np.ndarray) -> tup
 
     Lengths of pi and more mean the triangle may hold ``c`` (then every direction is taken).
     """
-    phi = np.arctan2(py - cy[:, None], px - cx[:, None])
-    d = (phi[:, 1:] - phi[:, :1] + np.pi) % (2 * np.pi) - np.pi
-    low = np.minimum(np.minimum(d[:, 0], d[:, 1]), 0.0)
-    return phi[:, 0] + low, np.maximum(np.maximum(d[:, 0], d[:, 1]), 0.0) - low
+    return _angle_arcs(np.arctan2(py - cy[:, None], px - cx[:, None]))
+
+
+def _angle_arcs(phi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_arcs` from the corners' angles ``phi`` (..., 3) (rad)."""
+    d = (phi[..., 1:] - phi[..., :1] + np.pi) % (2 * np.pi) - np.pi
+    low = np.minimum(np.minimum(d[..., 0], d[..., 1]), 0.0)
+    return phi[..., 0] + low, np.maximum(np.maximum(d[..., 0], d[..., 1]), 0.0) - low
 
 
 def _bins(low: np.ndarray, length: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -475,8 +479,14 @@ def _bins(low: np.ndarray, length: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _arc_suspects(t: np.ndarray, X: np.ndarray, Y: np.ndarray, group: np.ndarray, bad_face: np.ndarray,
-                  once: np.ndarray, worried: np.ndarray, cx: np.ndarray, cy: np.ndarray) -> np.ndarray | None:
-    """The suspects of :func:`fold_suspects` from its per-face groups and bad faces and its per-band axes."""
+                  once: np.ndarray, worried: np.ndarray, cx: np.ndarray, cy: np.ndarray,
+                  rings: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray | None:
+    """The suspects of :func:`fold_suspects` from its per-face groups and bad faces and its per-band axes.
+
+    ``rings``: the ``x`` and ``y`` (R, C) of a mesh of :func:`_lattice_shape`, whose side faces are then
+    seen from the axes through the angles of their rings' vertices (each once per ring and axis, not
+    once per corner; the same angles).
+    """
     n_bands = len(once)
     suspect = np.zeros(len(t), dtype=bool)
     worry = np.flatnonzero(worried)
@@ -489,7 +499,8 @@ def _arc_suspects(t: np.ndarray, X: np.ndarray, Y: np.ndarray, group: np.ndarray
     near = worried.copy()  # bands within one of a worried band
     near[1:] |= worried[:-1]
     near[:-1] |= worried[1:]
-    seen = np.flatnonzero(near[group])
+    n_side = 0 if rings is None else 2 * rings[0].shape[0] * n_bands
+    seen = n_side + np.flatnonzero(near[group[n_side:]])
     faces, bands = [], []
     for step in (-1, 0, 1):
         k = group[seen] + step
@@ -500,6 +511,10 @@ def _arc_suspects(t: np.ndarray, X: np.ndarray, Y: np.ndarray, group: np.ndarray
     f, k = np.concatenate(faces), np.concatenate(bands)
     tf = t[f]
     first, count = _bins(*_arcs(X[tf], Y[tf], cx[k], cy[k]))
+    if rings is not None:
+        f_side, k_side, first_side, count_side = _lattice_arcs(rings[0], rings[1], worry, cx, cy)
+        f, k = np.concatenate([f_side, f]), np.concatenate([k_side, k])
+        first, count = np.concatenate([first_side, first]), np.concatenate([count_side, count])
     w = slot[k]
     # a bad face marks the bins of its arc about its own band's axis (a full arc: all of them)
     bad = bad_face[f] & (group[f] == k)
@@ -513,6 +528,31 @@ def _arc_suspects(t: np.ndarray, X: np.ndarray, Y: np.ndarray, group: np.ndarray
     hit = (prefix[w, first + count] - prefix[w, first] > 0) | ~once[k]
     suspect[f[hit]] = True
     return suspect
+
+
+def _lattice_arcs(xs: np.ndarray, ys: np.ndarray, worry: np.ndarray, cx: np.ndarray,
+                  cy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The (face, band) pairs of :func:`_arc_suspects` for the side faces of a lattice (x, y (R, C)).
+
+    Each band ``j`` within one of a worried band ``k``, its faces seen from ``k``'s axis: their
+    indices, ``k``, and their arcs' first bin and bin count (as :func:`_bins` of :func:`_arcs`), all
+    (2 R P,) for the P pairs.
+    """
+    rows, cols = xs.shape
+    j = (worry[:, None] + np.arange(-1, 2)).ravel()
+    k = np.repeat(worry, 3)
+    ok = (j >= 0) & (j < cols - 1)
+    j, k = j[ok], k[ok]
+    # the angles of rings j and j + 1 about k's axis, (R, P) each
+    low = np.arctan2(ys[:, j] - cy[k], xs[:, j] - cx[k])
+    high = np.arctan2(ys[:, j + 1] - cy[k], xs[:, j + 1] - cx[k])
+    low_n, high_n = np.roll(low, -1, axis=0), np.roll(high, -1, axis=0)
+    # cell g's faces (a, b, c) = ((g, j), (g + 1, j), (g + 1, j + 1)), (a, c, d) = ((g, j), (g + 1, j + 1), (g, j + 1))
+    phi = np.stack([np.stack([low, low_n, high_n], axis=-1), np.stack([low, high_n, high], axis=-1)])
+    first, count = _bins(*_angle_arcs(phi))
+    cell = np.arange(rows)[:, None] * (cols - 1) + j
+    face = np.stack([cell, cell + rows * (cols - 1)])
+    return face.ravel(), np.broadcast_to(k, face.shape).ravel(), first.ravel(), count.ravel()
 
 
 def _lattice_shape(t: np.ndarray, n_vertices: int) -> tuple[int, int] | None:
@@ -640,7 +680,7 @@ def _lattice_suspects(v: np.ndarray, t: np.ndarray, rows: int, cols: int, margin
     bad_face = np.zeros(len(t), dtype=bool)
     bad_face[:n_side // 2] = ~good0.ravel()
     bad_face[n_side // 2:n_side] = ~good1.ravel()
-    return _arc_suspects(t, X, Y, group, bad_face, once, worried, cx, cy)
+    return _arc_suspects(t, X, Y, group, bad_face, once, worried, cx, cy, (xs, ys))
 
 
 def fold_suspects(vertices, triangles, *, margin: float = 1e-12) -> np.ndarray | None:
