@@ -451,6 +451,10 @@ LEVEL_RTOL = 1e-13
 #: Angular bins of a band's circle in :func:`fold_suspects` (arcs are widened to whole bins and one more).
 ANGLE_BINS = 1024
 
+#: From this many faces on, :func:`fold_suspects` takes the lattice form where it applies (on fewer, its
+#: fixed cost outweighs the gathers it spares; both forms give the same suspects).
+LATTICE_MIN_FACES = 5000
+
 #: Above this many bands with faces turning back, :func:`fold_suspects` gives up (the exact test is as cheap).
 MAX_WORRIED_BANDS = 1024
 
@@ -772,7 +776,7 @@ def fold_suspects(vertices, triangles, *, margin: float = 1e-12) -> np.ndarray |
     if len(t) < 4:
         return None
     t = t.astype(np.int64, copy=False)
-    shape = _lattice_shape(t, len(v))
+    shape = _lattice_shape(t, len(v)) if len(t) >= LATTICE_MIN_FACES else None
     if shape is not None:
         suspect = _lattice_suspects(v, t, *shape, margin)
         if suspect is not None:

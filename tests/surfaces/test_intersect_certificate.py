@@ -160,7 +160,9 @@ def _same(a: np.ndarray | None, b: np.ndarray | None) -> bool:
 def test_lattice_form_clears_what_the_general_form_clears(monkeypatch):
     """On the body meshes (side lattice and caps), perturbed copies and the fold phantoms the lattice form
     gives the general form's suspects, face for face."""
+    import surfaces.intersect as si
     from surfaces.intersect import _lattice_shape
+    monkeypatch.setattr(si, "LATTICE_MIN_FACES", 0)  # the small meshes here take the lattice form too
     rng = np.random.default_rng(11)
     meshes = []
     for trial in range(6):
@@ -185,7 +187,9 @@ def test_lattice_form_clears_what_the_general_form_clears(monkeypatch):
 
 def test_lattice_form_declines_what_is_not_a_lattice(monkeypatch):
     """A lattice whose triangles are shuffled or whose rings leave their level goes to the general form."""
+    import surfaces.intersect as si
     from surfaces.intersect import _lattice_shape
+    monkeypatch.setattr(si, "LATTICE_MIN_FACES", 0)
     rng = np.random.default_rng(3)
     contours = [Contour(2.0 * k, _star(rng, 40, 1.0)) for k in range(4)]
     _, mesh = next(_body_meshes(contours, 2.0, "flat"))
