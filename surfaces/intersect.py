@@ -32,6 +32,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from surfaces.mesh import _grid_triangles
 from surfaces.validate import as_array
 from surfaces.vectors import cross
 
@@ -422,10 +423,13 @@ def _closed_and_oriented(t: np.ndarray, n_vertices: int) -> bool:
     """Whether every directed edge of triangles ``t`` (T, 3) occurs once and its reverse once."""
     # half the bytes to sort where the codes fit
     t = t.astype(np.int32) if 2 * n_vertices * n_vertices + 2 < 2**31 else t
-    a = t.ravel()
     b = np.empty_like(t)
     b[:, :2], b[:, 2] = t[:, 1:], t[:, 0]
-    b = b.ravel()
+    return _edges_paired(t.ravel(), b.ravel(), n_vertices)
+
+
+def _edges_paired(a: np.ndarray, b: np.ndarray, n_vertices: int) -> bool:
+    """Whether every directed edge ``a -> b`` (E,) occurs once and its reverse once."""
     # one sort: each undirected edge must come exactly twice, once each way (codes 2 key and 2 key + 1)
     code = np.minimum(a, b)
     code *= 2 * n_vertices
@@ -447,6 +451,10 @@ LEVEL_RTOL = 1e-13
 #: Angular bins of a band's circle in :func:`fold_suspects` (arcs are widened to whole bins and one more).
 ANGLE_BINS = 1024
 
+#: From this many faces on, :func:`fold_suspects` takes the lattice form where it applies (on fewer, its
+#: fixed cost outweighs the gathers it spares; both forms give the same suspects).
+LATTICE_MIN_FACES = 5000
+
 #: Above this many bands with faces turning back, :func:`fold_suspects` gives up (the exact test is as cheap).
 MAX_WORRIED_BANDS = 1024
 
@@ -456,10 +464,14 @@ def _arcs(px: np.ndarray, py: np.ndarray, cx: np.ndarray, cy: np.ndarray) -> tup
 
     Lengths of pi and more mean the triangle may hold ``c`` (then every direction is taken).
     """
-    phi = np.arctan2(py - cy[:, None], px - cx[:, None])
-    d = (phi[:, 1:] - phi[:, :1] + np.pi) % (2 * np.pi) - np.pi
-    low = np.minimum(np.minimum(d[:, 0], d[:, 1]), 0.0)
-    return phi[:, 0] + low, np.maximum(np.maximum(d[:, 0], d[:, 1]), 0.0) - low
+    return _angle_arcs(np.arctan2(py - cy[:, None], px - cx[:, None]))
+
+
+def _angle_arcs(phi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_arcs` from the corners' angles ``phi`` (..., 3) (rad)."""
+    d = (phi[..., 1:] - phi[..., :1] + np.pi) % (2 * np.pi) - np.pi
+    low = np.minimum(np.minimum(d[..., 0], d[..., 1]), 0.0)
+    return phi[..., 0] + low, np.maximum(np.maximum(d[..., 0], d[..., 1]), 0.0) - low
 
 
 def _bins(low: np.ndarray, length: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -468,6 +480,211 @@ def _bins(low: np.ndarray, length: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     count = np.ceil(length / (2 * np.pi) * ANGLE_BINS).astype(np.int64) + 3
     full = length >= np.pi * (1 - 1e-9)
     return np.where(full, 0, first % ANGLE_BINS), np.where(full, ANGLE_BINS, np.minimum(count, ANGLE_BINS))
+
+
+def _arc_suspects(t: np.ndarray, X: np.ndarray, Y: np.ndarray, group: np.ndarray, bad_face: np.ndarray,
+                  once: np.ndarray, worried: np.ndarray, cx: np.ndarray, cy: np.ndarray,
+                  rings: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray | None:
+    """The suspects of :func:`fold_suspects` from its per-face groups and bad faces and its per-band axes.
+
+    ``rings``: the ``x`` and ``y`` (R, C) of a mesh of :func:`_lattice_shape`, whose side faces are then
+    seen from the axes through the angles of their rings' vertices (each once per ring and axis, not
+    once per corner; the same angles).
+    """
+    n_bands = len(once)
+    suspect = np.zeros(len(t), dtype=bool)
+    worry = np.flatnonzero(worried)
+    if len(worry) > MAX_WORRIED_BANDS:
+        return None
+    # every face is looked at from the axis of each worried band within one of its group, all (face,
+    # band) pairs at once
+    slot = np.full(n_bands, -1)
+    slot[worry] = np.arange(len(worry))
+    near = worried.copy()  # bands within one of a worried band
+    near[1:] |= worried[:-1]
+    near[:-1] |= worried[1:]
+    n_side = 0 if rings is None else 2 * rings[0].shape[0] * n_bands
+    seen = n_side + np.flatnonzero(near[group[n_side:]])
+    faces, bands = [], []
+    for step in (-1, 0, 1):
+        k = group[seen] + step
+        ok = np.flatnonzero((k >= 0) & (k < n_bands))
+        ok = ok[slot[k[ok]] >= 0]
+        faces.append(seen[ok])
+        bands.append(k[ok])
+    f, k = np.concatenate(faces), np.concatenate(bands)
+    tf = t[f]
+    first, count = _bins(*_arcs(X[tf], Y[tf], cx[k], cy[k]))
+    if rings is not None:
+        f_side, k_side, first_side, count_side = _lattice_arcs(rings[0], rings[1], worry, cx, cy)
+        f, k = np.concatenate([f_side, f]), np.concatenate([k_side, k])
+        first, count = np.concatenate([first_side, first]), np.concatenate([count_side, count])
+    w = slot[k]
+    # a bad face marks the bins of its arc about its own band's axis (a full arc: all of them)
+    bad = bad_face[f] & (group[f] == k)
+    cover = np.zeros((len(worry), 2 * ANGLE_BINS + 1), dtype=np.int32)
+    np.add.at(cover, (w[bad], first[bad]), 1)
+    np.add.at(cover, (w[bad], first[bad] + count[bad]), -1)
+    cover = np.cumsum(cover, axis=1)[:, :2 * ANGLE_BINS]
+    taken = (cover[:, :ANGLE_BINS] + cover[:, ANGLE_BINS:]) > 0
+    prefix = np.zeros((len(worry), 2 * ANGLE_BINS + 1), dtype=np.int32)
+    prefix[:, 1:] = np.cumsum(np.tile(taken, 2), axis=1)
+    hit = (prefix[w, first + count] - prefix[w, first] > 0) | ~once[k]
+    suspect[f[hit]] = True
+    return suspect
+
+
+def _lattice_arcs(xs: np.ndarray, ys: np.ndarray, worry: np.ndarray, cx: np.ndarray,
+                  cy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The (face, band) pairs of :func:`_arc_suspects` for the side faces of a lattice (x, y (R, C)).
+
+    Each band ``j`` within one of a worried band ``k``, its faces seen from ``k``'s axis: their
+    indices, ``k``, and their arcs' first bin and bin count (as :func:`_bins` of :func:`_arcs`), all
+    (2 R P,) for the P pairs.
+    """
+    rows, cols = xs.shape
+    j = (worry[:, None] + np.arange(-1, 2)).ravel()
+    k = np.repeat(worry, 3)
+    ok = (j >= 0) & (j < cols - 1)
+    j, k = j[ok], k[ok]
+    # the angles of rings j and j + 1 about k's axis, (R, P) each
+    low = np.arctan2(ys[:, j] - cy[k], xs[:, j] - cx[k])
+    high = np.arctan2(ys[:, j + 1] - cy[k], xs[:, j + 1] - cx[k])
+    low_n, high_n = np.roll(low, -1, axis=0), np.roll(high, -1, axis=0)
+    # cell g's faces (a, b, c) = ((g, j), (g + 1, j), (g + 1, j + 1)), (a, c, d) = ((g, j), (g + 1, j + 1), (g, j + 1))
+    phi = np.stack([np.stack([low, low_n, high_n], axis=-1), np.stack([low, high_n, high], axis=-1)])
+    first, count = _bins(*_angle_arcs(phi))
+    cell = np.arange(rows)[:, None] * (cols - 1) + j
+    face = np.stack([cell, cell + rows * (cols - 1)])
+    return face.ravel(), np.broadcast_to(k, face.shape).ravel(), first.ravel(), count.ravel()
+
+
+def _lattice_shape(t: np.ndarray, n_vertices: int) -> tuple[int, int] | None:
+    """Rings and levels ``(R, C)`` when ``t`` begins with the triangles of a lattice, else None.
+
+    The lattice is :func:`surfaces.mesh.tessellate`'s of a side closed along its rings: vertex ``g C + h``
+    is sample ``g`` of ring ``h``, and the first ``2 R (C - 1)`` triangles are its cells' (all ``(a, b, c)``
+    first, then all ``(a, c, d)``). Recognised from the first triangle and the first one that wraps, then
+    compared whole.
+    """
+    cols = int(t[0, 1])
+    if cols < 2 or t[0, 0] != 0 or t[0, 2] != cols + 1:
+        return None
+    # the cells of the last level (every cols - 1-th triangle from cols - 2): the first that wraps is on the last ring
+    last = t[cols - 2::cols - 1]
+    rows = int(np.argmax(last[:, 1] < last[:, 0])) + 1
+    if rows < 3 or rows * cols > n_vertices or 2 * rows * (cols - 1) > len(t):
+        return None
+    if not np.array_equal(t[:2 * rows * (cols - 1)], _grid_triangles(rows, cols, True, False)):
+        return None
+    return rows, cols
+
+
+def _beyond(sign: np.ndarray, e: np.ndarray, bound: float | None) -> np.ndarray:
+    """``sign * e > bound`` (``>= 0`` for None) for band signs ``sign`` (C,) of ``e`` (R, C), without the products
+    when every band turns one way (negating is exact)."""
+    if np.all(sign > 0):
+        return e >= 0 if bound is None else e > bound
+    if np.all(sign < 0):
+        return e <= 0 if bound is None else e < -bound
+    return sign * e >= 0 if bound is None else sign * e > bound
+
+
+def _lattice_suspects(v: np.ndarray, t: np.ndarray, rows: int, cols: int, margin: float) -> np.ndarray | None:
+    """:func:`fold_suspects` on a mesh of :func:`_lattice_shape` when it clears every face, else None.
+
+    The same proof and the same per-face quantities, taken along the lattice's rings instead of
+    gathered face by face: each ring's steps ``p_{g+1} - p_g`` serve the two bands it borders, the
+    mid-height cut of a band is the ring of midpoints ``M_g`` of its columns and of its diagonals
+    ``D_g``, each shared by two faces' cuts. Only the band axes' centroid sums run in another order
+    (a rounding apart). None when anything is not as the lattice form needs (the levels are not the
+    lattice's columns, a face is not good, a winding is not one): then the general form decides.
+    """
+    n, n_side = rows * cols, 2 * rows * (cols - 1)
+    z = v[:, 2]
+    zs = z[:n].reshape(rows, cols)
+    lo, hi = zs.min(axis=0), zs.max(axis=0)
+    zc = z[n:]
+    tol = LEVEL_RTOL * max(float(max(hi.max(), -lo.min(), *(zc.max(), -zc.min()) if len(zc) else ())), 1e-300)
+    cap_low = zc < (hi[0] + lo[1]) / 2
+    for end, on in ((0, cap_low), (-1, ~cap_low)):
+        if on.any():
+            lo[end], hi[end] = min(lo[end], zc[on].min()), max(hi[end], zc[on].max())
+    # each column (with the cap vertices of its end) one level of the general form: its values within
+    # tol of each other, apart by more than tol from the next column's
+    if np.any(hi - lo > tol) or np.any(lo[1:] - hi[:-1] <= tol):
+        return None
+    level = np.empty(len(v), dtype=np.int64)
+    level[:n].reshape(rows, cols)[:] = np.arange(cols)
+    level[n:] = np.where(cap_low, 0, cols - 1)
+    tc = t[n_side:]
+    lc = level[tc]
+    if np.any(lc[:, 0] != lc[:, 1]) or np.any(lc[:, 0] != lc[:, 2]):
+        return None
+    # closed and oriented: the lattice's inner edges pair by construction, its two boundary rings and
+    # the caps' (flat, so on the end levels where the lattice has boundary edges only) must pair up
+    g = np.arange(rows) * cols
+    gn = np.roll(g, -1)
+    top = cols - 1
+    a = np.concatenate([g, gn + top, tc.ravel()])
+    b = np.empty_like(tc)
+    b[:, :2], b[:, 2] = tc[:, 1:], tc[:, 0]
+    if not _edges_paired(a, np.concatenate([gn, g + top, b.ravel()]), len(v)):
+        return None
+    X, Y = v[:, 0] - v[:, 0].mean(), v[:, 1] - v[:, 1].mean()
+    tiny = margin * (2.0 * max(float(np.abs(X).max()), float(np.abs(Y).max()))) ** 2
+    for lvl in (0, top):
+        on = np.flatnonzero(lc[:, 0] == lvl)
+        if len(on):
+            c0, c1, c2 = tc[on, 0], tc[on, 1], tc[on, 2]
+            x0, y0 = X[c0], Y[c0]
+            area = (X[c1] - x0) * (Y[c2] - y0) - (Y[c1] - y0) * (X[c2] - x0)
+            if not (np.all(area > tiny) or np.all(area < -tiny)):
+                return None
+    xs, ys = X[:n].reshape(rows, cols), Y[:n].reshape(rows, cols)
+    xn, yn = np.roll(xs, -1, axis=0), np.roll(ys, -1, axis=0)
+    # the cut of band h at mid-height: M_g -> D_g (face (a, c, d) of cell g), D_g -> M_{g+1} (face (a, b, c))
+    mx, my = (xs[:, 1:] + xs[:, :-1]) / 2.0, (ys[:, 1:] + ys[:, :-1]) / 2.0
+    dx, dy = (xs[:, :-1] + xn[:, 1:]) / 2.0, (ys[:, :-1] + yn[:, 1:]) / 2.0
+    mnx, mny = np.roll(mx, -1, axis=0), np.roll(my, -1, axis=0)
+    w0 = dx * mny - dy * mnx
+    w1 = mx * dy - my * dx
+    area = w0.sum(axis=0) + w1.sum(axis=0)
+    if np.any(area == 0):
+        return None
+    cx = (((dx + mnx) * w0).sum(axis=0) + ((mx + dx) * w1).sum(axis=0)) / (3.0 * area)
+    cy = (((dy + mny) * w0).sum(axis=0) + ((my + dy) * w1).sum(axis=0)) / (3.0 * area)
+    sign = np.sign(area)
+    # the rings seen from the axes of the bands below (q1) and above (q0) them
+    q0x, q0y = xs[:, :-1] - cx, ys[:, :-1] - cy
+    q1x, q1y = xs[:, 1:] - cx, ys[:, 1:] - cy
+    q0nx, q0ny = np.roll(q0x, -1, axis=0), np.roll(q0y, -1, axis=0)
+    q1nx, q1ny = np.roll(q1x, -1, axis=0), np.roll(q1y, -1, axis=0)
+    ex, ey = xn - xs, yn - ys
+    # face (a, b, c): edge on ring h, lone corner (g + 1, h + 1); face (a, c, d): edge on ring h + 1, lone (g, h)
+    good0 = _beyond(sign, q0x * q0ny - q0y * q0nx, tiny)
+    good0 &= _beyond(sign, q1nx * ey[:, :-1] - q1ny * ex[:, :-1], None)
+    good1 = _beyond(sign, q1x * q1ny - q1y * q1nx, tiny)
+    good1 &= _beyond(sign, q0x * ey[:, 1:] - q0y * ex[:, 1:], None)
+    mx -= cx
+    my -= cy
+    dx -= cx
+    dy -= cy
+    mnx -= cx
+    mny -= cy
+    winding = (np.arctan2(dx * mny - dy * mnx, dx * mnx + dy * mny).sum(axis=0)
+               + np.arctan2(mx * dy - my * dx, mx * dx + my * dy).sum(axis=0))
+    once = np.abs(np.abs(winding) - 2 * np.pi) < 1.0
+    worried = ~once | ~good0.all(axis=0) | ~good1.all(axis=0)
+    if not worried.any():
+        return np.zeros(len(t), dtype=bool)
+    group = np.empty(len(t), dtype=np.int64)
+    group[:n_side].reshape(2 * rows, cols - 1)[:] = np.arange(cols - 1)
+    group[n_side:] = np.where(lc[:, 0] == 0, 0, cols - 2)
+    bad_face = np.zeros(len(t), dtype=bool)
+    bad_face[:n_side // 2] = ~good0.ravel()
+    bad_face[n_side // 2:n_side] = ~good1.ravel()
+    return _arc_suspects(t, X, Y, group, bad_face, once, worried, cx, cy, (xs, ys))
 
 
 def fold_suspects(vertices, triangles, *, margin: float = 1e-12) -> np.ndarray | None:
@@ -559,6 +776,11 @@ def fold_suspects(vertices, triangles, *, margin: float = 1e-12) -> np.ndarray |
     if len(t) < 4:
         return None
     t = t.astype(np.int64, copy=False)
+    shape = _lattice_shape(t, len(v)) if len(t) >= LATTICE_MIN_FACES else None
+    if shape is not None:
+        suspect = _lattice_suspects(v, t, *shape, margin)
+        if suspect is not None:
+            return suspect
     if not _closed_and_oriented(t, len(v)):
         return None
     z = v[:, 2]
@@ -638,46 +860,13 @@ def fold_suspects(vertices, triangles, *, margin: float = 1e-12) -> np.ndarray |
     by -= ccy
     winding = np.bincount(base, np.arctan2(ax * by - ay * bx, ax * bx + ay * by), n_bands)
     once = (np.abs(np.abs(winding) - 2 * np.pi) < 1.0) & (area != 0)
-    suspect = np.zeros(len(t), dtype=bool)
     worried = ~once
     worried[base[~good]] = True
-    worry = np.flatnonzero(worried)
-    if len(worry) > MAX_WORRIED_BANDS:
-        return None
-    # each face's group: its band, or the band its cap closes; every face is looked at from the axis of
-    # each worried band within one of its group, all (face, band) pairs at once
+    # each face's group: its band, or the band its cap closes
     group = np.where(flat, np.where(low == 0, 0, top - 1), low)
-    slot = np.full(n_bands, -1)
-    slot[worry] = np.arange(len(worry))
-    near = worried.copy()  # bands within one of a worried band
-    near[1:] |= worried[:-1]
-    near[:-1] |= worried[1:]
-    seen = np.flatnonzero(near[group])
-    faces, bands = [], []
-    for step in (-1, 0, 1):
-        k = group[seen] + step
-        ok = np.flatnonzero((k >= 0) & (k < n_bands))
-        ok = ok[slot[k[ok]] >= 0]
-        faces.append(seen[ok])
-        bands.append(k[ok])
-    f, k = np.concatenate(faces), np.concatenate(bands)
-    tf = t[f]
-    first, count = _bins(*_arcs(X[tf], Y[tf], cx[k], cy[k]))
-    w = slot[k]
     bad_face = np.zeros(len(t), dtype=bool)
     bad_face[band[~good]] = True
-    # a bad face marks the bins of its arc about its own band's axis (a full arc: all of them)
-    bad = bad_face[f] & (group[f] == k)
-    cover = np.zeros((len(worry), 2 * ANGLE_BINS + 1), dtype=np.int32)
-    np.add.at(cover, (w[bad], first[bad]), 1)
-    np.add.at(cover, (w[bad], first[bad] + count[bad]), -1)
-    cover = np.cumsum(cover, axis=1)[:, :2 * ANGLE_BINS]
-    taken = (cover[:, :ANGLE_BINS] + cover[:, ANGLE_BINS:]) > 0
-    prefix = np.zeros((len(worry), 2 * ANGLE_BINS + 1), dtype=np.int32)
-    prefix[:, 1:] = np.cumsum(np.tile(taken, 2), axis=1)
-    hit = (prefix[w, first + count] - prefix[w, first] > 0) | ~once[k]
-    suspect[f[hit]] = True
-    return suspect
+    return _arc_suspects(t, X, Y, group, bad_face, once, worried, cx, cy)
 
 
 def layered_radial_graph(vertices, triangles, *, margin: float = 1e-12) -> bool:

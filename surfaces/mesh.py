@@ -515,8 +515,13 @@ def _lattice_block(control: np.ndarray, nu: int, nv: int, last_u: bool, last_v: 
     k, cols = control.shape[:2]
     (bu0, bu1), (bv0, bv1) = _sample_basis(nu, last_u), _sample_basis(nv, last_v)
     mu, mv = len(bu0), len(bv0)
-    # contract a: (a, k, C, b, 3) -> (2 mu, k, C, b, 3), then b first for the second product
-    along_u = np.vstack([bu0, bu1]) @ control.transpose(2, 0, 1, 3, 4).reshape(4, -1)
+    # contract a: (a, k, C, b, 3) -> (2 mu, k, C, b, 3), then b first for the second product; over the
+    # rows of control points the samples weigh (one sample per patch, t = 0, weighs two of four): the
+    # others add exact zeros, and copying them is most of the product's cost
+    basis_u = np.vstack([bu0, bu1])
+    weighed = np.flatnonzero(np.any(basis_u != 0, axis=0))
+    rows = slice(int(weighed[0]), int(weighed[-1]) + 1)
+    along_u = basis_u[:, rows] @ control.transpose(2, 0, 1, 3, 4)[rows].reshape(rows.stop - rows.start, -1)
     along_u = along_u.reshape(2 * mu, k, cols, 4, 3).transpose(3, 0, 1, 2, 4).reshape(4, 2, -1)
     # points and S_v from the values along u, S_u from the derivatives along u: (mv, mu, k, C, 3) each
     pv = (np.vstack([bv0, bv1]) @ along_u[:, 0]).reshape(2, mv, mu, k, cols, 3)

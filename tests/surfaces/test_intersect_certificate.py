@@ -141,3 +141,63 @@ def test_closed_and_oriented_against_counting_the_directed_edges():
     for t in cases:
         assert _closed_and_oriented(np.asarray(t, dtype=np.int64), 6) == by_counting(t)
     assert _closed_and_oriented(octa, 6)
+
+
+def _both_forms(monkeypatch, v: np.ndarray, t: np.ndarray) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """Suspects of the lattice form (where it applies) and of the general form alone."""
+    import surfaces.intersect as si
+    lattice = fold_suspects(v, t)
+    with monkeypatch.context() as m:
+        m.setattr(si, "_lattice_shape", lambda t, n: None)
+        general = fold_suspects(v, t)
+    return lattice, general
+
+
+def _same(a: np.ndarray | None, b: np.ndarray | None) -> bool:
+    return (a is None and b is None) or (a is not None and b is not None and np.array_equal(a, b))
+
+
+def test_lattice_form_clears_what_the_general_form_clears(monkeypatch):
+    """On the body meshes (side lattice and caps), perturbed copies and the fold phantoms the lattice form
+    gives the general form's suspects, face for face."""
+    import surfaces.intersect as si
+    from surfaces.intersect import _lattice_shape
+    monkeypatch.setattr(si, "LATTICE_MIN_FACES", 0)  # the small meshes here take the lattice form too
+    rng = np.random.default_rng(11)
+    meshes = []
+    for trial in range(6):
+        contours = [Contour(2.0 * k, _star(rng, int(rng.integers(24, 60)), 1.0 + trial)) for k in range(4)]
+        meshes += [m for _, m in _body_meshes(contours, 2.0, ("flat", "half", "dome")[trial % 3])]
+    for name in ("hook", "closing_c"):
+        meshes += [m for _, m in _body_meshes(fold_stack(name), 3.0, "half", FALLBACKS)]
+    n_lattice = n_suspect = 0
+    for mesh in meshes:
+        t = mesh.triangles
+        n_lattice += _lattice_shape(t.astype(np.int64), len(mesh.vertices)) is not None
+        for scale in (0.0, 0.01, 0.3, 3.0):
+            v = mesh.vertices.copy()
+            moved = rng.choice(len(v), size=4, replace=False)
+            v[moved, :2] += rng.normal(0, scale, (4, 2))
+            lattice, general = _both_forms(monkeypatch, v, t)
+            assert _same(lattice, general)
+            n_suspect += general is not None and bool(general.any())
+    assert n_lattice >= len(meshes) // 2  # the lattice form is exercised
+    assert n_suspect >= 5  # on meshes with suspects too
+
+
+def test_lattice_form_declines_what_is_not_a_lattice(monkeypatch):
+    """A lattice whose triangles are shuffled or whose rings leave their level goes to the general form."""
+    import surfaces.intersect as si
+    from surfaces.intersect import _lattice_shape
+    monkeypatch.setattr(si, "LATTICE_MIN_FACES", 0)
+    rng = np.random.default_rng(3)
+    contours = [Contour(2.0 * k, _star(rng, 40, 1.0)) for k in range(4)]
+    _, mesh = next(_body_meshes(contours, 2.0, "flat"))
+    t = mesh.triangles.astype(np.int64)
+    assert _lattice_shape(t, len(mesh.vertices)) is not None
+    shuffled = t[rng.permutation(len(t))]
+    assert _lattice_shape(shuffled, len(mesh.vertices)) is None
+    v = mesh.vertices.copy()
+    v[5, 2] += 0.5  # off its level: the mesh is no longer layered
+    lattice, general = _both_forms(monkeypatch, v, t)
+    assert general is None and lattice is None
