@@ -38,7 +38,7 @@ sys.path.insert(0, str(ROOT))
 from common import Table, write_results  # noqa: E402
 
 from datasets_synthetic.phantoms import make_phantom  # noqa: E402
-from slices.control_points import clean_contour  # noqa: E402
+from slices.polygons import clean_contour  # noqa: E402
 from slices.io import Contour, load  # noqa: E402
 from slices.structure import reconstruct_contours  # noqa: E402
 

@@ -60,7 +60,7 @@ def hook_stack(radius: float = 10.0, neck: float = 0.3, length: float = 8.0, hei
 
     Examples
     --------
-    >>> from slices.control_points import signed_area
+    >>> from slices.polygons import signed_area
     >>> s = hook_stack()
     >>> len(s), [round(signed_area(c.points)) for c in s[1:4]]
     (5, [314, 334, 314])
@@ -107,7 +107,7 @@ def closing_c_stack(radius: float = 12.0, cavity: float = 9.0, channel_deg: floa
     --------
     The disc encloses more than twice the C:
 
-    >>> from slices.control_points import signed_area
+    >>> from slices.polygons import signed_area
     >>> s = closing_c_stack()
     >>> round(signed_area(s[-1].points) / signed_area(s[0].points), 2)
     2.3

@@ -35,7 +35,8 @@ from __future__ import annotations
 from slices.body import BodySurface, build_body
 from slices.chaining import Body, chain, slab_volume
 from slices.compose import compose_rois
-from slices.control_points import ContourParameters, clean_contour, parameterize, signed_area
+from slices.control_points import ContourParameters, parameterize
+from slices.polygons import clean_contour, signed_area
 from slices.io import Contour, ContourStack, list_rois, load, read_rtstruct
 from slices.options import ReadOptions, SurfaceOptions
 from slices.pipeline import SlicesReconstruction, reconstruct

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from slices.control_points import signed_area
+from slices.polygons import signed_area
 from slices.io import SPACING_RTOL, Contour
 
 #: Pixels along the longer side of the raster used for overlap tests.
@@ -188,7 +188,7 @@ class Outlines:
 
     def crossings(self, point: np.ndarray, polygon: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Whether each point (Q, 2) is inside contour ``polygon[k]`` (crossing number, as
-        :func:`slices.control_points.points_in_polygon`), and its distance to that outline in mm."""
+        :func:`slices.polygons.points_in_polygon`), and its distance to that outline in mm."""
         e, k = self.edges_of(polygon)
         a, b, q = self.points[e], self.points[self.after[e]], point[k]
         d, w = b - a, q - a
@@ -326,7 +326,7 @@ def split_contour(parent: np.ndarray, children: list[np.ndarray]) -> list[np.nda
     from scipy.spatial import cKDTree
     from skimage.measure import find_contours
 
-    from slices.control_points import clean_contour
+    from slices.polygons import clean_contour
 
     everything = np.vstack([parent, *children])
     lo = everything.min(axis=0)

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from slices.control_points import clean_contour, signed_area
+from slices.polygons import clean_contour, signed_area
 from surfaces.validate import as_array, positive
 
 #: Relative tolerance on slice spacing (a fraction of the spacing).

@@ -139,7 +139,7 @@ def reconstruct_contours(contours: list[Contour], *, spacing: float | None = Non
     Parameters
     ----------
     contours : list of Contour
-        Counter-clockwise contours (see :func:`slices.control_points.clean_contour`).
+        Counter-clockwise contours (see :func:`slices.polygons.clean_contour`).
     spacing : float, optional
         Slice spacing in mm; checked against the planes (taken from them when omitted).
     irregular : bool

@@ -903,13 +903,18 @@ def folded_faces(vertices, triangles) -> np.ndarray:
         The same mask as :func:`self_intersections` gives: every crossing pair lies
         among the suspects of :func:`fold_suspects`.
     """
-    t = np.asarray(triangles)
+    return _exact_on_suspects(vertices, np.asarray(triangles), first=False)
+
+
+def _exact_on_suspects(vertices, t: np.ndarray, first: bool) -> np.ndarray:
+    """Crossing faces (T,) bool by :func:`self_intersections` on the suspects of :func:`fold_suspects` only
+    (on every face where the certificate does not apply); ``first`` stops at the first crossing found."""
     suspects = fold_suspects(vertices, t)
     if suspects is None:
-        return self_intersections(vertices, t).faces
+        return self_intersections(vertices, t, first=first).faces
     out = np.zeros(len(t), dtype=bool)
     if suspects.any():
-        out[np.flatnonzero(suspects)] = self_intersections(vertices, t[suspects]).faces
+        out[np.flatnonzero(suspects)] = self_intersections(vertices, t[suspects], first=first).faces
     return out
 
 
@@ -930,8 +935,4 @@ def is_fold_free(vertices, triangles) -> bool:
     -------
     bool
     """
-    t = np.asarray(triangles)
-    suspects = fold_suspects(vertices, t)
-    if suspects is None:
-        return self_intersections(vertices, t, first=True).n_faces == 0
-    return not suspects.any() or self_intersections(vertices, t[suspects], first=True).n_faces == 0
+    return not _exact_on_suspects(vertices, np.asarray(triangles), first=True).any()

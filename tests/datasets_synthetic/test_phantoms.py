@@ -10,7 +10,7 @@ from scipy.integrate import quad, simpson
 from skimage.measure import points_in_poly
 
 from datasets_synthetic.phantoms import SHAPES, Kidney, make_phantom, write_phantom
-from slices.control_points import signed_area
+from slices.polygons import signed_area
 
 
 def _plane_areas(contours):

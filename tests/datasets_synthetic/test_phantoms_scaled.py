@@ -7,7 +7,7 @@ import pytest
 
 from datasets_synthetic.phantoms import make_phantom
 from datasets_synthetic.phantoms.scaled import Ellipsoid, Kidney, ScaledSection
-from slices.control_points import signed_area
+from slices.polygons import signed_area
 
 
 def _parametric_area(points):

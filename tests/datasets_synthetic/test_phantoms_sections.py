@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from datasets_synthetic.phantoms import MIN_SECTION_FRACTION, SHAPES, make_phantom
-from slices.control_points import signed_area
+from slices.polygons import signed_area
 
 
 def _orient(p, q, r):

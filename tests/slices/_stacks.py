@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from datasets_synthetic.phantoms import make_phantom
-from slices.control_points import clean_contour
+from slices.polygons import clean_contour
 from slices.io import Contour
 
 

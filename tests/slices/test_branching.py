@@ -8,7 +8,7 @@ import pytest
 from datasets_synthetic.phantoms.trouser import trouser_contours, trouser_volume
 from slices import chaining
 from slices.chaining import split_contour
-from slices.control_points import clean_contour, signed_area
+from slices.polygons import clean_contour, signed_area
 from slices.io import Contour
 from slices.structure import reconstruct_contours
 from slices.summary import chaining_text

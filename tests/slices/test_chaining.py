@@ -7,7 +7,7 @@ import pytest
 
 from slices import chaining
 from slices.chaining import chain, classify_holes, overlaps, slab_volume
-from slices.control_points import centroid, clean_contour, signed_area
+from slices.polygons import centroid, clean_contour, signed_area
 from slices.io import Contour
 from tests.slices._stacks import branching_stack, circle
 
@@ -133,7 +133,7 @@ def test_outline_table_equals_the_per_contour_figures():
 def test_holes_equal_the_pairwise_containment_count():
     # nested and overlapping random outlines on a few planes: the table's parity of containing
     # contours equals counting them pair by pair with points_in_polygon
-    from slices.control_points import points_in_polygon
+    from slices.polygons import points_in_polygon
 
     rng = np.random.default_rng(4)
     contours = [Contour(float(rng.integers(0, 3)), _star(rng, rng.uniform(-3, 3), rng.uniform(-3, 3),

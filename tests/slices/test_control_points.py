@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from slices import control_points as cp
+from slices import polygons as pg
 
 
 def _ellipse(n, a=30.0, b=20.0, phase=0.0, center=(0.0, 0.0)):
@@ -33,7 +34,7 @@ def _spiral_fold(n=400):
 @pytest.mark.parametrize("shape", ["ellipse", "c", "fold"])
 def test_parameters_monotone_and_start_at_ray0(n_rays, shape):
     pts = {"ellipse": _ellipse(90, center=(5, -3)), "c": _folded(), "fold": _spiral_fold()}[shape]
-    pts = cp.clean_contour(pts)
+    pts = pg.clean_contour(pts)
     par = cp.parameterize(pts, n_rays)
     assert np.all(np.diff(par.u) > 0) and par.u[0] >= 0 and par.u[-1] < 1
     assert len(par.support) == n_rays
@@ -66,7 +67,7 @@ def test_chord_length_inside_segments():
 
 
 def test_turning_points_in_folds_get_even_parameters():
-    par = cp.parameterize(cp.clean_contour(_spiral_fold()), 64)
+    par = cp.parameterize(pg.clean_contour(_spiral_fold()), 64)
     assert par.turning.sum() > 0 and par.turning.sum() % 2 == 0
     # eq. 4: inside a segment the turning points split [u_k, u_k+1] evenly
     seg = np.floor(par.u[par.turning] * 64 + 1e-9).astype(int)
@@ -79,15 +80,15 @@ def test_turning_points_in_folds_get_even_parameters():
 def test_tangent_ray_keeps_monotone():
     # a vertex exactly on ray 1 where the contour touches the ray and turns back
     pts = np.array([[10, 0], [8, 8], [7.0, 7.0], [0, 10], [-10, 0], [0, -10]], float)
-    par = cp.parameterize(cp.clean_contour(pts), 8)
+    par = cp.parameterize(pg.clean_contour(pts), 8)
     assert np.all(np.diff(par.u) > 0)
 
 
 def test_centroid_outside_uses_interior_point():
-    pts = cp.clean_contour(_folded())
-    assert not cp.points_in_polygon(cp.centroid(pts)[None], pts)[0]
+    pts = pg.clean_contour(_folded())
+    assert not pg.points_in_polygon(pg.centroid(pts)[None], pts)[0]
     par = cp.parameterize(pts, 32)
-    assert cp.points_in_polygon(par.center[None], pts)[0]
+    assert pg.points_in_polygon(par.center[None], pts)[0]
 
 
 def test_quantize_keeps_order():
@@ -100,14 +101,14 @@ def test_quantize_keeps_order():
 
 def test_clean_contour_orients_and_checks():
     cw = _ellipse(20)[::-1]
-    out = cp.clean_contour(np.vstack([cw, cw[:1]]))  # repeated closing point dropped
-    assert len(out) == 20 and cp.signed_area(out) > 0
+    out = pg.clean_contour(np.vstack([cw, cw[:1]]))  # repeated closing point dropped
+    assert len(out) == 20 and pg.signed_area(out) > 0
     with pytest.raises(ValueError, match="at least 3"):
-        cp.clean_contour([[0, 0], [1, 1], [1, 1]])
+        pg.clean_contour([[0, 0], [1, 1], [1, 1]])
     with pytest.raises(ValueError, match="self-intersecting"):
-        cp.clean_contour([[0, 0], [10, 10], [10, 0], [0, 10]])
+        pg.clean_contour([[0, 0], [10, 10], [10, 0], [0, 10]])
     with pytest.raises(ValueError, match="zero area"):
-        cp.clean_contour([[0, 0], [1, 1], [2, 2]])
+        pg.clean_contour([[0, 0], [1, 1], [2, 2]])
 
 
 @pytest.mark.parametrize("seed", range(6))
@@ -115,7 +116,7 @@ def test_self_intersections_match_brute_force(seed):
     rng = np.random.default_rng(seed)
     n = 25
     pts = rng.uniform(0, 10, (n, 2))
-    got = {tuple(p) for p in cp.self_intersections(pts)}
+    got = {tuple(p) for p in pg.self_intersections(pts)}
     a, b = pts, np.roll(pts, -1, axis=0)
 
     def orient(p, q, r):
@@ -140,7 +141,7 @@ def _kidney_like(n=400):
 
 
 def test_support_point_is_the_outermost_crossing():
-    pts = cp.clean_contour(_kidney_like())
+    pts = pg.clean_contour(_kidney_like())
     par = cp.parameterize(pts, 64)
     frac, xy = cp.ray_supports(pts, 64)
     np.testing.assert_allclose(xy, par.support, atol=1e-9)
@@ -161,7 +162,7 @@ def test_support_point_is_the_outermost_crossing():
 
 
 def test_balanced_lattice_is_even_in_arc_length():
-    pts = cp.clean_contour(_kidney_like(300))
+    pts = pg.clean_contour(_kidney_like(300))
     par = cp.parameterize(pts, 64)
     closed = np.vstack([par.support[:1], par.points, par.support[:1]])
     cum = np.cumsum(np.linalg.norm(np.diff(closed, axis=0), axis=1))
@@ -180,7 +181,7 @@ def test_start_angle_keeps_supports_steady_across_slices():
     from datasets_synthetic.phantoms import make_phantom
 
     cs = make_phantom("kidney").contours(2.5, n_points=64, seed=1)
-    conts = [cp.clean_contour(c["points"]) for c in cs]
+    conts = [pg.clean_contour(c["points"]) for c in cs]
     angle = cp.choose_start_angle(conts, 64)
     assert 0 <= angle < 2 * np.pi / 64
 
@@ -221,7 +222,7 @@ def _ragged_outlines():
     c_shape = np.vstack([np.stack([12 * np.cos(a), 12 * np.sin(a)], 1),
                          np.stack([7 * np.cos(a[::-1]), 7 * np.sin(a[::-1])], 1)])
     square = np.array([[-1.0, -1], [1, -1], [1, 1], [-1, 1]])
-    return [cp.clean_contour(p) for p in (star, c_shape, square, star[::3] + 3.0, c_shape[::2] * 0.5)]
+    return [pg.clean_contour(p) for p in (star, c_shape, square, star[::3] + 3.0, c_shape[::2] * 0.5)]
 
 
 def test_support_crossings_of_many_contours_equal_each_alone():
@@ -255,9 +256,9 @@ def test_polars_of_many_contours_equal_each_alone():
         np.testing.assert_array_equal(together.phi[sl], alone.phi)
         np.testing.assert_array_equal(together.arc[sl], alone.arc)
         # closed forms: the centroid, three turns of polar angle, three perimeters
-        if cp.points_in_polygon(cp.centroid(p)[None], p)[0]:  # else the rays start from an interior point
-            np.testing.assert_allclose(alone.centers[0], cp.centroid(p), atol=1e-12)
-        assert cp.points_in_polygon(alone.centers, p)[0]
+        if pg.points_in_polygon(pg.centroid(p)[None], p)[0]:  # else the rays start from an interior point
+            np.testing.assert_allclose(alone.centers[0], pg.centroid(p), atol=1e-12)
+        assert pg.points_in_polygon(alone.centers, p)[0]
         np.testing.assert_allclose(alone.phi[-1] - alone.phi[0], 6 * np.pi, atol=1e-9)
         perimeter = np.linalg.norm(np.roll(p, -1, axis=0) - p, axis=1).sum()
         np.testing.assert_allclose(alone.arc[[n, 2 * n, 3 * n]], perimeter * np.arange(1, 4), rtol=1e-12)
@@ -296,7 +297,7 @@ def test_balanced_lattice_values_of_many_slices_equal_the_running_mean():
 
 @pytest.mark.parametrize("n1", [7, 8])
 def test_start_angle_is_the_least_median_removed_shift(n1):
-    ps = _ragged_outlines()[:2] + [cp.clean_contour(p) for p in _ragged_outlines()[:2]]
+    ps = _ragged_outlines()[:2] + [pg.clean_contour(p) for p in _ragged_outlines()[:2]]
     ps = [p * (1.0 + 0.05 * i) + 0.3 * i for i, p in enumerate(ps)]
     r = 4
     frac = cp._ray_supports(cp._polars(ps), n1 * r, 0.0)[0].reshape(len(ps), n1, r)
@@ -315,7 +316,7 @@ def test_start_angle_crossings_are_those_of_the_chosen_rays(n1, r):
     a = np.linspace(0.3, 2 * np.pi - 0.3, 70)
     c_shape = np.vstack([np.stack([12 * np.cos(a), 12 * np.sin(a)], 1),
                          np.stack([7 * np.cos(a[::-1]), 7 * np.sin(a[::-1])], 1)])
-    ps = [cp.clean_contour(p) for p in (star, c_shape, star[::2] + 3.0, c_shape * 0.5)] + _ragged_outlines()[:2]
+    ps = [pg.clean_contour(p) for p in (star, c_shape, star[::2] + 3.0, c_shape * 0.5)] + _ragged_outlines()[:2]
     polars = cp._polars(ps)
     angle, got = cp._start_angle_crossings(polars, n1, r)
     assert angle == cp._start_angle(polars, n1, r)

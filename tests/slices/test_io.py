@@ -10,7 +10,7 @@ import pytest
 
 from datasets_synthetic.phantoms import make_phantom, write_phantom
 from slices import io
-from slices.control_points import signed_area
+from slices.polygons import signed_area
 
 
 def _write_json(path, contours):

@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from slices.control_points import clean_contour, signed_area
+from slices.polygons import clean_contour, signed_area
 from slices.io import Contour, open_keyholes, read_contour_json
 from slices.structure import reconstruct_contours
 

@@ -9,7 +9,7 @@ import pytest
 
 from datasets_synthetic.phantoms import make_phantom
 from slices.chaining import planning_volumes, slab_volume
-from slices.control_points import clean_contour
+from slices.polygons import clean_contour
 from slices.io import Contour
 from workbench.runs.slices import reconstruct_to_folder
 

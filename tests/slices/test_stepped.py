@@ -9,7 +9,7 @@ from datasets_synthetic.fold_stacks import FOLD_STACKS, closing_c_stack, fold_st
 from slices.body import FALLBACKS, build_body, build_stepped
 from slices.caps import end_kinds
 from slices.chaining import chain
-from slices.control_points import signed_area
+from slices.polygons import signed_area
 from slices.options import surface_options
 from slices.structure import SLIVER_FRACTIONS, _collapse_slivers, _unfold_slivers, reconstruct_contours
 from slices.summary import chaining_text

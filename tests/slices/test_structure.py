@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from slices.caps import curve_area
-from slices.control_points import signed_area
+from slices.polygons import signed_area
 from slices.io import Contour
 from slices.options import ReadOptions, SurfaceOptions
 from slices.structure import reconstruct_contours, reconstruct_roi, solid_union

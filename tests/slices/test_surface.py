@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from datasets_synthetic.phantoms import make_phantom
-from slices.control_points import clean_contour
+from slices.polygons import clean_contour
 from slices.surface import LATTICE_MODES, METHODS, lattice_size, side_surface, slice_curves
 from tests.slices._stacks import circle, phantom_stack
 
@@ -191,7 +191,7 @@ def test_a_smooth_body_keeps_the_seed_blend_unlimited():
     # the monotone limit flattens every extremum across the slices: by default it is kept for bodies
     # whose blend folds, and a smooth ellipsoid keeps the seed's blend, closer to its true volume
     from datasets_synthetic.phantoms import make_phantom
-    from slices.control_points import clean_contour
+    from slices.polygons import clean_contour
     from slices.io import Contour
     from slices.structure import reconstruct_contours
 
