@@ -325,21 +325,23 @@ NodeEval = Callable[[np.ndarray, np.ndarray], np.ndarray]
 
 
 def _corner_eval(patches: BezierPatches, n_slices: int) -> NodeEval:
+    # node (j, k) is a patch corner, u = 0 and v = 0 (or 1 on the last slice): there the surface is
+    # the corner's control point exactly (the other Bernstein weights are 0), so a gather evaluates it
+    corners = patches.control[:, :, 0, ::3]  # (M, K - 1, 2, 3): v = 0 and v = 1
+    last = n_slices - 2
+
     def at(j: np.ndarray, k: np.ndarray) -> np.ndarray:
-        col = np.minimum(k, n_slices - 2)
-        v = (k > n_slices - 2).astype(np.float64)
-        return patches.evaluate(j, col, np.zeros(len(j)), v)
+        kk = np.asarray(k)
+        return corners[j, np.minimum(kk, last), (kk > last).astype(np.intp)]
 
     return at
 
 
 def _side_blending(curves: np.ndarray, v: np.ndarray, monotone: bool = False) -> tuple[BezierPatches, NodeEval]:
-    if not monotone:
-        patches = blending.blend_curves(curves, closed_u=True, params=v)
-    else:
-        patches, limited = blending.monotone_blend(curves, closed_u=True, params=v)
-        if len(curves) >= 3:
-            _last_overshoot[:] = [curves.copy(), v.copy(), _overshoot_count(limited)]
+    # side_surface has checked the curves (finite) and v (strictly increasing)
+    patches, limited = blending._blend(curves, True, v, bool(monotone), trusted=True)
+    if monotone and len(curves) >= 3:
+        _last_overshoot[:] = [curves.copy(), v.copy(), _overshoot_count(limited)]
     return patches, _corner_eval(patches, len(curves))
 
 

@@ -97,6 +97,12 @@ def overhauser_tangents(points, params=None, closed: bool = False) -> np.ndarray
         h0 = t - np.concatenate([[t[-1] - 1.0], t[:-1]])
         h1 = np.concatenate([t[1:], [t[0] + 1.0]]) - t
         return _middle_slope(prev_p, pts, next_p, h0, h1)
+    return _open_tangents(pts, t)
+
+
+def _open_tangents(pts: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """:func:`overhauser_tangents` of an open curve's validated points (n, d) and parameters (n,)."""
+    n = len(pts)
     if n == 2:
         slope = (pts[1] - pts[0]) / (t[1] - t[0])
         return np.stack([slope, slope])
@@ -521,8 +527,14 @@ def blend_weights(n_curves: int, params=None) -> np.ndarray:
         v = as_array(params, "params", shape=(n,))
         if np.any(np.diff(v) <= 0):
             raise ValueError("params: must increase strictly")
+    return _blend_weights(n, None if params is None else v)
+
+
+def _blend_weights(n: int, v: np.ndarray | None) -> np.ndarray:
+    """:func:`blend_weights` of ``n >= 2`` curves at validated, strictly increasing ``v`` (or uniform)."""
+    if v is not None:
         # tangent rows (dC/dv) are the Overhauser tangents of the identity "points"
-        tangent = overhauser_tangents(np.eye(n), v, closed=False)
+        tangent = _open_tangents(np.eye(n), v)
         h = np.diff(v)[:, None]
         eye = np.eye(n)
         j = np.arange(n - 1)
@@ -606,21 +618,44 @@ def monotone_blend(curves, closed_u: bool = True, params=None) -> tuple[BezierPa
     return _blend(c, closed_u, params, True)
 
 
-def _blend(c: np.ndarray, closed_u: bool, params, monotone: bool) -> tuple[BezierPatches, np.ndarray | None]:
-    """:func:`blend_curves` of validated curves, with the limited tangents when ``monotone``."""
+def _blend(c: np.ndarray, closed_u: bool, params, monotone: bool,
+           trusted: bool = False) -> tuple[BezierPatches, np.ndarray | None]:
+    """:func:`blend_curves` of validated curves, with the limited tangents when ``monotone``.
+
+    ``trusted``: ``c`` is finite and ``params`` (or None) validated, strictly increasing, as
+    :func:`slices.surface.side_surface` checks them; the patches then skip their finiteness check
+    (a blend of finite curves is finite), only the closing of ``u`` is checked.
+    """
     k, m = c.shape[:2]
-    w = blend_weights(k, params)
-    # one matrix product over all curves (faster than einsum's batched path), the rows ordered by
-    # Bezier point along v first, so that each of the four is one contiguous block for the limit
-    mixed = (w.transpose(1, 0, 2).reshape(-1, k) @ c.reshape(k, -1)).reshape(4, k - 1, m, 4, 3)
+    w = blend_weights(k, params) if not trusted else _blend_weights(k, None if params is None else params)
+    # moved as whole 3-vectors (one 24-byte item each), which numpy copies faster than single floats
+    item = np.dtype((np.void, 8 * 3))
     limited = None
     if monotone:
+        # one matrix product over all curves (faster than einsum's batched path), the rows ordered by
+        # Bezier point along v first, so that each of the four is one contiguous block for the limit
+        mixed = (w.transpose(1, 0, 2).reshape(-1, k) @ c.reshape(k, -1)).reshape(4, k - 1, m, 4, 3)
         q = mixed.reshape(4, k - 1, -1)
         limited = (_limit_parts(q[0], q[1], q[2], q[3], _tiny(q)) < 1.0).reshape(c.shape)
-    # moved as whole 3-vectors (one 24-byte item each), which numpy copies faster than single floats
-    whole = mixed.view(np.dtype((np.void, 8 * 3))).reshape(4, k - 1, m, 4)
-    control = np.ascontiguousarray(whole.transpose(2, 1, 3, 0)).view(np.float64).reshape(m, k - 1, 4, 4, 3)
-    return BezierPatches(control, closed_u=closed_u), limited
+        whole = mixed.view(item).reshape(4, k - 1, m, 4)
+        control = np.ascontiguousarray(whole.transpose(2, 1, 3, 0)).view(np.float64).reshape(m, k - 1, 4, 4, 3)
+    else:
+        # the first and last Bezier points along v are the curves themselves (weight rows of the
+        # identity): copied, and only the inner two come from a matrix product, written straight
+        # into the patches' layout
+        cc = np.ascontiguousarray(c)
+        inner = (w[:, 1:3].transpose(1, 0, 2).reshape(-1, k) @ cc.reshape(k, -1)).reshape(2, k - 1, m, 4, 3)
+        control = np.empty((m, k - 1, 4, 4, 3))
+        into = control.view(item).reshape(m, k - 1, 4, 4).transpose(3, 1, 0, 2)  # (b, K - 1, M, 4)
+        curve_items = cc.view(item).reshape(k, m, 4)
+        into[0] = curve_items[:-1]
+        into[1:3] = inner.view(item).reshape(2, k - 1, m, 4)
+        into[3] = curve_items[1:]
+    if not trusted:
+        return BezierPatches(control, closed_u=closed_u), limited
+    if closed_u:
+        BezierPatches(control[[0, -1]], closed_u=True)  # raises where the last row does not join the first
+    return BezierPatches._trusted(control, closed_u=closed_u), limited
 
 
 @dataclass(frozen=True)

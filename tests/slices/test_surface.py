@@ -204,3 +204,33 @@ def test_a_smooth_body_keeps_the_seed_blend_unlimited():
     assert limited.bodies[0].n_limited > 1000
     assert plain.bodies[0].self_intersecting_faces == 0
     assert abs(plain.volume_mm3 - exact) < abs(limited.volume_mm3 - exact)
+
+
+@pytest.mark.parametrize("method", sorted(METHODS))
+def test_node_eval_is_the_surface_at_the_patch_corners(ellipsoid, method):
+    conts, z = ellipsoid
+    sc = slice_curves(conts, z, 32)
+    patches, node_eval = side_surface(sc.curves, method, v=z)
+    rows, cols = patches.shape
+    k = len(z)
+    j = np.tile(np.arange(sc.curves.shape[1]), k)
+    kk = np.repeat(np.arange(k), sc.curves.shape[1])
+    if method == "bspline":
+        return  # evaluated from the spline itself, not at patch corners
+    at = patches.evaluate(j, np.minimum(kk, cols - 1), np.zeros(len(j)), (kk > cols - 1).astype(float))
+    np.testing.assert_array_equal(node_eval(j, kk), at)
+
+
+def test_side_blend_equals_the_checked_blend_and_checks_the_closing(ellipsoid):
+    from surfaces.blending import blend_curves
+
+    conts, z = ellipsoid
+    sc = slice_curves(conts, z, 32)
+    patches, _ = side_surface(sc.curves, "blending", v=z)
+    np.testing.assert_array_equal(patches.control, blend_curves(sc.curves, params=z).control)
+    open_curves = sc.curves.copy()
+    open_curves[:, -1, 3] += 1.0
+    with pytest.raises(ValueError, match="closed_u"):
+        side_surface(open_curves, "blending", v=z)
+    with pytest.raises(ValueError, match="NaN"):
+        side_surface(np.where(open_curves > 5, np.nan, open_curves), "blending", v=z)

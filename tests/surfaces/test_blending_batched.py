@@ -168,3 +168,22 @@ def test_restrict_rows_equals_restrict_segments_on_tiled_closed_curves():
     blending._restrict_rows(np.ascontiguousarray(ctrl[g].transpose(1, 2, 0)), k0, k1, b0, b1, m, out[..., :2])
     np.testing.assert_allclose(out[..., :2], expect, rtol=0, atol=1e-12)
     assert np.isnan(out[..., 2]).all()  # only the given view is written
+
+
+@pytest.mark.parametrize("monotone", [False, True])
+def test_blend_matches_the_dense_weights(monotone):
+    # every Bezier point of the patches is the weights' combination of the curves (the inner two
+    # along v from one product, the outer two copied from the curves)
+    rng = np.random.default_rng(5)
+    k, m = 6, 7
+    curves = rng.normal(size=(k, m, 4, 3))
+    curves[:, -1, 3] = curves[:, 0, 0]
+    v = np.cumsum(rng.uniform(0.5, 2.0, k))
+    patches = blending.blend_curves(curves, params=v, monotone=monotone)
+    w = blending.blend_weights(k, v)
+    dense = np.einsum("jbk,kmax->mjabx", w, curves)
+    if monotone:
+        assert np.all(patches.control[..., [0, 3], :] == dense[..., [0, 3], :])
+    else:
+        np.testing.assert_allclose(patches.control, dense, rtol=0, atol=1e-12)
+        assert np.array_equal(patches.control[..., 0, :], curves[:-1].transpose(1, 0, 2, 3))
