@@ -144,14 +144,15 @@ def _parameterize_many(polars: _Polars, n1: int, start_angle: float, crossings) 
     a_vert = (polars.arc[off3[curve] + local] - (s0 - total)[curve]) % tot
     a_vert[np.abs(a_vert - tot) <= 1e-12 * tot] = 0.0
     bounds = list(zip(start.tolist(), (start + ns).tolist()))
-    # ragged sorts and searches contour by contour: one cheap call each, exact (no shifted keys)
-    rot = np.concatenate([lo + np.argsort(a_vert[lo:hi], kind="stable") for lo, hi in bounds])
+    # ragged sorts and searches of all contours in one call each, on (contour, value) keys: complex
+    # numbers compare lexicographically, so each contour's order is its own, exactly (no shifted keys)
+    rot = np.argsort(curve + 1j * a_vert, kind="stable")
     a_vert = a_vert[rot]
     local_rot = rot - start[curve]
     # unwrapped polar angle of each vertex on the period that starts at support 0
     periods = np.maximum(np.ceil((s0[curve] - polars.arc[off3[curve] + ns[curve] + local_rot]) / tot - 1e-12), 0.0)
     phi_v = polars.phi[off3[curve] + ns[curve] + local_rot] + 2 * np.pi * periods
-    seg_of = np.concatenate([np.searchsorted(sig, a_vert[lo:hi], side="right") for sig, (lo, hi) in zip(sigma, bounds)])
+    seg_of = np.searchsorted((rows + 1j * sigma).ravel(), curve + 1j * a_vert, side="right") - curve * (n1 + 1)
     seg_of = np.clip(seg_of - 1, 0, n1 - 1)
     key = curve * n1 + seg_of
     seg_lo = ang[np.arange(n_c), first][curve] + seg_of * delta
@@ -189,10 +190,14 @@ def _parameterize_many(polars: _Polars, n1: int, start_angle: float, crossings) 
     at_turn = curve[t_idx] * (n1 + 1) + seg_of[t_idx] + 1 + np.arange(len(t_idx))
     anchor_arc[at_turn] = a_vert[t_idx]
     anchor_u[at_turn] = u_turn
-    a_lo = at_sigma[:, 0].tolist()
-    a_hi = (at_sigma[:, -1] + 1).tolist()
-    u = np.concatenate([np.interp(a_vert[lo:hi], anchor_arc[al:ah], anchor_u[al:ah])
-                        for (lo, hi), al, ah in zip(bounds, a_lo, a_hi)])
+    # np.interp of each vertex on its contour's anchors, its interval known: the vertices run in order
+    # of arc, so the last anchor at or before a vertex is its segment's sigma or the segment's latest
+    # turning point so far (0 <= a_vert < total: never before the first anchor or at the last)
+    passed = np.cumsum(turning) - first_in_seg[key]  # turning points of the segment up to the vertex
+    j = at_sigma[curve, seg_of] + passed
+    x_j = anchor_arc[j]
+    u = (anchor_u[j + 1] - anchor_u[j]) / (anchor_arc[j + 1] - x_j) * (a_vert - x_j) + anchor_u[j]
+    u[a_vert == x_j] = anchor_u[j][a_vert == x_j]
     u[t_idx] = u_turn
     bad = (np.diff(u) <= 0) & (curve[1:] == curve[:-1])
     if np.any(bad) or np.any(u[last] >= 1.0):
@@ -626,11 +631,27 @@ def _balanced_values(u_all: np.ndarray, arc_all: np.ndarray, sizes: np.ndarray, 
     fp[inner] = arc_all
     xp[off + sizes + 1] = 1.0
     fp[off + sizes + 1] = 1.0
-    grid = np.unique(np.concatenate([[0.0, 1.0], u_all]))
-    # summed slice after slice (axis 0 of a C-ordered stack), as the running mean of one slice at a time
-    mean = np.array([np.interp(grid, xp[lo:hi], fp[lo:hi]) for lo, hi in zip(off.tolist(), (off + sizes + 2).tolist())])
-    mean = mean.sum(axis=0) / n_c
-    values = np.unique(np.interp(np.arange(m) / m, mean, grid))
+    grid, where = np.unique(np.concatenate([[0.0, 1.0], u_all]), return_inverse=True)
+    # each slice's arc is piecewise linear in u with its breakpoints on the grid, so the slices' sum on
+    # the grid is a running sum: of the slopes' changes for the slope on every grid interval, then of
+    # slope times width (a jump only where u = 0 repeats the start), one pass instead of one per slice
+    at = np.zeros(len(xp), dtype=np.int64)  # each breakpoint's grid index
+    at[inner] = where[2:]
+    at[off + sizes + 1] = len(grid) - 1
+    width, rise = np.diff(xp), np.diff(fp)
+    inside = np.ones(len(width), dtype=bool)
+    inside[(off + sizes + 1)[:-1]] = False  # from one slice's (1, 1) to the next one's (0, 0)
+    sloped = inside & (width > 0)
+    jump = inside & (width <= 0)
+    slope = rise[sloped] / width[sloped]
+    n_g = len(grid)
+    change = np.bincount(at[:-1][sloped], slope, minlength=n_g) - np.bincount(at[1:][sloped], slope, minlength=n_g)
+    total = np.zeros(n_g)
+    total[1:] = np.cumsum(np.cumsum(change[:-1]) * np.diff(grid))
+    if jump.any():
+        total += np.cumsum(np.bincount(at[1:][jump], rise[jump], minlength=n_g))
+    total[-1] = n_c  # every slice ends at (1, 1)
+    values = np.unique(np.interp(np.arange(m) / m, total / n_c, grid))
     values = values[values < 1.0]
     if len(values) < int(sizes.max()):
         values = np.arange(m) / m

@@ -290,7 +290,8 @@ def test_balanced_lattice_values_of_many_slices_equal_the_running_mean():
         mean += np.interp(grid, np.r_[0.0, u, 1.0], np.r_[0.0, a, 1.0])
     mean /= len(us)
     expect = np.unique(np.interp(np.arange(m) / m, mean, grid))
-    np.testing.assert_array_equal(cp.balanced_lattice_values(us, arcs, m), expect[expect < 1.0])
+    # the sum runs over slopes on the grid, not slice after slice: equal to rounding
+    np.testing.assert_allclose(cp.balanced_lattice_values(us, arcs, m), expect[expect < 1.0], rtol=0, atol=1e-14)
     with pytest.raises(ValueError, match="arc_list"):
         cp.balanced_lattice_values(us, [a[:-1] for a in arcs], m)
 
@@ -324,3 +325,14 @@ def test_start_angle_crossings_are_those_of_the_chosen_rays(n1, r):
     np.testing.assert_array_equal(got[2], expect[2])
     for x, y in zip(got[:2] + got[3:], expect[:2] + expect[3:]):
         np.testing.assert_allclose(x, y, rtol=0, atol=1e-9)
+
+
+def test_balanced_lattice_values_with_a_point_at_u_zero():
+    # u = 0 repeats the start (0, 0) with the point's own arc: the running mean jumps there as np.interp does
+    us = [np.array([0.0, 0.3, 0.6]), np.array([0.1, 0.5, 0.7, 0.9])]
+    arcs = [np.array([0.05, 0.4, 0.7]), np.array([0.2, 0.45, 0.8, 0.85])]
+    m = 12
+    grid = np.unique(np.concatenate([[0.0, 1.0], *us]))
+    mean = sum(np.interp(grid, np.r_[0.0, u, 1.0], np.r_[0.0, a, 1.0]) for u, a in zip(us, arcs)) / 2
+    expect = np.unique(np.interp(np.arange(m) / m, mean, grid))
+    np.testing.assert_allclose(cp.balanced_lattice_values(us, arcs, m), expect[expect < 1.0], rtol=0, atol=1e-14)
