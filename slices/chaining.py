@@ -131,7 +131,7 @@ class Outlines:
         p = np.concatenate([np.asarray(c.points, dtype=np.float64) for c in contours])
         after = np.arange(1, len(p) + 1)
         after[start + size - 1] = start
-        q = p[after]
+        q = np.take(p, after, axis=0)  # faster than p[after] for (N, 2) rows
         cross = p[:, 0] * q[:, 1] - q[:, 0] * p[:, 1]
         area = np.add.reduceat(cross, start) / 2.0
         d = q - p
@@ -160,6 +160,8 @@ class Outlines:
 
     def same_plane_pairs(self) -> tuple[np.ndarray, np.ndarray]:
         """Every ordered pair ``(i, j)``, ``i != j``, of contours on one plane (two index arrays)."""
+        if len(self.planes) == len(self.plane_of):  # one contour per plane (most structures): no pairs
+            return np.zeros(0, dtype=int), np.zeros(0, dtype=int)
         pairs = [(np.repeat(m, len(m)), np.tile(m, len(m))) for m in self.members() if len(m) > 1]
         if not pairs:
             return np.zeros(0, dtype=int), np.zeros(0, dtype=int)
@@ -190,17 +192,20 @@ class Outlines:
         """Whether each point (Q, 2) is inside contour ``polygon[k]`` (crossing number, as
         :func:`slices.polygons.points_in_polygon`), and its distance to that outline in mm."""
         e, k = self.edges_of(polygon)
-        a, b, q = self.points[e], self.points[self.after[e]], point[k]
-        d, w = b - a, q - a
-        straddle = (a[:, 1] > q[:, 1]) != (b[:, 1] > q[:, 1])
+        # x and y apart: gathers of single floats run many times faster than of (N, 2) rows
+        px, py = self.points[:, 0], self.points[:, 1]
+        f = self.after[e]
+        ax, ay, qx, qy = px[e], py[e], point[:, 0][k], point[:, 1][k]
+        dx, dy = px[f] - ax, py[f] - ay
+        wx, wy = qx - ax, qy - ay
+        straddle = (ay > qy) != (py[f] > qy)
         with np.errstate(divide="ignore", invalid="ignore"):
-            xc = a[:, 0] + w[:, 1] * d[:, 0] / d[:, 1]
+            xc = ax + wy * dx / dy
         first = np.concatenate([[0], np.cumsum(self.size[polygon])[:-1]])
-        crossings = np.add.reduceat((straddle & (q[:, 0] < xc)).astype(np.int64), first)
-        length2 = d[:, 0] ** 2 + d[:, 1] ** 2
-        t = np.clip(np.divide(w[:, 0] * d[:, 0] + w[:, 1] * d[:, 1], length2, out=np.zeros(len(e)),
-                              where=length2 > 0), 0.0, 1.0)
-        gap = np.sqrt(np.minimum.reduceat((w[:, 0] - t * d[:, 0]) ** 2 + (w[:, 1] - t * d[:, 1]) ** 2, first))
+        crossings = np.add.reduceat((straddle & (qx < xc)).astype(np.int64), first)
+        length2 = dx**2 + dy**2
+        t = np.clip(np.divide(wx * dx + wy * dy, length2, out=np.zeros(len(e)), where=length2 > 0), 0.0, 1.0)
+        gap = np.sqrt(np.minimum.reduceat((wx - t * dx) ** 2 + (wy - t * dy) ** 2, first))
         return crossings % 2 == 1, gap
 
     def inside_depth(self, point: np.ndarray, polygon: np.ndarray) -> np.ndarray:

@@ -133,12 +133,12 @@ def _parameterize_many(polars: _Polars, n1: int, start_angle: float, crossings) 
     rows = np.arange(n_c)[:, None]
     first = np.argmax(level_k % n1 == 0, axis=1)
     order = (np.arange(n1) + first[:, None]) % n1
-    s0 = s_arc[np.arange(n_c), first]
+    s0 = _at(s_arc, np.arange(n_c), first)
     sigma = np.empty((n_c, n1 + 1))
-    sigma[:, :n1] = (s_arc[rows, order] - s0[:, None]) % total[:, None]
+    sigma[:, :n1] = (_at(s_arc, rows, order) - s0[:, None]) % total[:, None]
     sigma[:, n1] = total
     sigma[:, 0] = 0.0
-    support_xy = support_xy[rows, order]
+    support_xy = np.take(support_xy.reshape(-1, 2), rows * n1 + order, axis=0)
     # vertex arc positions relative to support 0, in [0, total)
     tot = total[curve]
     a_vert = (polars.arc[off3[curve] + local] - (s0 - total)[curve]) % tot
@@ -155,7 +155,7 @@ def _parameterize_many(polars: _Polars, n1: int, start_angle: float, crossings) 
     seg_of = np.searchsorted((rows + 1j * sigma).ravel(), curve + 1j * a_vert, side="right") - curve * (n1 + 1)
     seg_of = np.clip(seg_of - 1, 0, n1 - 1)
     key = curve * n1 + seg_of
-    seg_lo = ang[np.arange(n_c), first][curve] + seg_of * delta
+    seg_lo = _at(ang, np.arange(n_c), first)[curve] + seg_of * delta
     folded_vertex = (phi_v < seg_lo - 1e-9) | (phi_v > seg_lo + delta + 1e-9)
     folded_seg = np.zeros(n_c * n1, dtype=bool)
     folded_seg[key[folded_vertex]] = True
@@ -168,7 +168,7 @@ def _parameterize_many(polars: _Polars, n1: int, start_angle: float, crossings) 
     d_in = phi_v - phi_v[prv]
     d_in[start] = phi_v[start] - (phi_v[last] - 2 * np.pi)
     d_out = d_in[nxt]
-    sigma_of = sigma[curve, seg_of]
+    sigma_of = _at(sigma, curve, seg_of)
     turning = (np.sign(d_in) * np.sign(d_out) < 0) & folded_seg[key]
     turning &= ~(np.abs(a_vert - sigma_of) <= 1e-9 * tot)
     # eq. 4: turning points spread evenly inside their segment
@@ -194,7 +194,7 @@ def _parameterize_many(polars: _Polars, n1: int, start_angle: float, crossings) 
     # of arc, so the last anchor at or before a vertex is its segment's sigma or the segment's latest
     # turning point so far (0 <= a_vert < total: never before the first anchor or at the last)
     passed = np.cumsum(turning) - first_in_seg[key]  # turning points of the segment up to the vertex
-    j = at_sigma[curve, seg_of] + passed
+    j = _at(at_sigma, curve, seg_of) + passed
     x_j = anchor_arc[j]
     u = (anchor_u[j + 1] - anchor_u[j]) / (anchor_arc[j + 1] - x_j) * (a_vert - x_j) + anchor_u[j]
     u[a_vert == x_j] = anchor_u[j][a_vert == x_j]
@@ -202,9 +202,14 @@ def _parameterize_many(polars: _Polars, n1: int, start_angle: float, crossings) 
     bad = (np.diff(u) <= 0) & (curve[1:] == curve[:-1])
     if np.any(bad) or np.any(u[last] >= 1.0):
         raise ValueError("points: could not give the contour monotone parameters (degenerate outline)")
-    pts = pts_all[rot]
+    pts = np.take(pts_all, rot, axis=0)
     return [ContourParameters(pts[lo:hi], u[lo:hi], cc, ss, turning[lo:hi])
             for (lo, hi), cc, ss in zip(bounds, polars.centers, support_xy)]
+
+
+def _at(a: np.ndarray, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """``a[rows, cols]`` of a 2-D array by one flat gather (two index arrays cost numpy several times more)."""
+    return a.reshape(-1)[rows * a.shape[1] + cols]
 
 
 class _Polars(NamedTuple):
@@ -253,7 +258,7 @@ def _polars(ps: list) -> _Polars:
     centers[:, 1] = np.add.reduceat((y + qy) * cross, start) / area6
     if flat.any():
         centers[flat] = (np.add.reduceat(pts, start, axis=0) / ns[:, None])[flat]
-    ang = np.arctan2(y - centers[curve, 1], x - centers[curve, 0])
+    ang = np.arctan2(y - centers[:, 1][curve], x - centers[:, 0][curve])
     dphi = (ang[nxt] - ang + np.pi) % (2 * np.pi) - np.pi
     for c in np.flatnonzero(np.abs(np.add.reduceat(dphi, start) - 2 * np.pi) > 1e-6):
         # the centroid lies outside (strongly bent outlines): rays from the interior point instead
@@ -269,15 +274,18 @@ def _polars(ps: list) -> _Polars:
     # running sums over three periods, one row per contour so that each starts afresh
     local = np.arange(len(pts)) - start[curve]
     cols = 1 + local + ns[curve] * np.arange(3)[:, None]  # (3, N)
-    acc = np.zeros((2, n_c, 3 * int(ns.max()) + 1))
-    acc[0, curve, cols] = dphi
-    acc[1, curve, cols] = edge_len
+    width = 3 * int(ns.max()) + 1
+    acc = np.zeros((2, n_c, width))
+    at = curve * width + cols  # flat positions in one contour's row (one index: faster than two)
+    acc[0].reshape(-1)[at] = dphi
+    acc[1].reshape(-1)[at] = edge_len
     np.cumsum(acc, axis=2, out=acc)
     size3 = 3 * ns + 1
     off3 = np.cumsum(size3) - size3
     c3 = np.repeat(np.arange(n_c), size3)
     i3 = np.arange(len(c3)) - off3[c3]
-    return _Polars(pts, start, ns, centers, ang[start][c3] + acc[0, c3, i3], acc[1, c3, i3], off3)
+    at3 = c3 * width + i3
+    return _Polars(pts, start, ns, centers, ang[start][c3] + acc[0].reshape(-1)[at3], acc[1].reshape(-1)[at3], off3)
 
 
 def _support_crossings(polars: _Polars, n1: int, start_angle: float, points: bool = True):
@@ -386,8 +394,9 @@ def _crossings(polars: _Polars, n1: int, start_angle: float) -> _Crossings:
     e_mod = e % ns[cid]
     a_idx = offp[cid] + e_mod
     b_idx = offp[cid] + (e + 1) % ns[cid]
-    ax, ay, bx, by = pts[a_idx, 0], pts[a_idx, 1], pts[b_idx, 0], pts[b_idx, 1]
-    cx, cy = centers[cid, 0], centers[cid, 1]
+    px, py = pts[:, 0], pts[:, 1]  # gathers of single floats: faster than of (N, 2) rows
+    ax, ay, bx, by = px[a_idx], py[a_idx], px[b_idx], py[b_idx]
+    cx, cy = centers[:, 0][cid], centers[:, 1][cid]
     a_at = off3[cid] + e_mod
     edge = (ax, ay, bx - ax, by - ay, ax - cx, ay - cy, cx, cy, arc[g], arc[a_at + 1] - arc[a_at])
     outer = order[starts]  # a level crossed once: its only crossing, either way
@@ -519,8 +528,8 @@ def _start_angle_crossings(polars: _Polars, n1: int, r: int) -> tuple[float, tup
     # after its polar-angle record, and so does the row of every r-th of them
     col = (o - level_k[:, :1]) % r + r * np.arange(n1)
     rows = np.arange(len(total))[:, None]
-    levels = (level_k[rows, col] - o) // r
-    return angle, _pick_crossings(cr, cr.outer[rows, col], cr.first[rows, col], levels, total, angle,
+    levels = (_at(level_k, rows, col) - o) // r
+    return angle, _pick_crossings(cr, _at(cr.outer, rows, col), _at(cr.first, rows, col), levels, total, angle,
                                   2 * np.pi / n1, True)
 
 
@@ -536,7 +545,7 @@ def _best_rotation(polars: _Polars, n1: int, r: int) -> tuple:
     # gathered as (contour, rotation, ray) so that the median runs along contiguous rows. Only
     # shifts modulo 1 count, so the unwrapped arc positions need no reduction to one period first.
     col = (np.arange(r)[:, None] + r * np.arange(n1) - level_k[:, :1, None]) % nf
-    frac = s_arc[np.arange(len(total))[:, None, None], col] / total[:, None, None]
+    frac = _at(s_arc, np.arange(len(total))[:, None, None], col) / total[:, None, None]
     shift = np.diff(frac, axis=0)  # (K-1, R, N1)
     shift -= np.rint(shift)  # the shortest way round
     # the median over the rays (np.median's partition and mean of the middle pair, without its overhead)

@@ -113,15 +113,17 @@ def _geometry_parameters(points: np.ndarray, start: np.ndarray, sizes: np.ndarra
     local = np.arange(len(points)) - start[curve]
     nxt = np.arange(1, len(points) + 1)
     nxt[start + sizes - 1] = start
-    d = points[nxt] - points
+    d = np.take(points, nxt, axis=0) - points
     seg = np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1])
     if kind == "centripetal":
         seg = np.sqrt(seg)
     # one row per contour, so that every running sum starts afresh at its contour
-    cum = np.zeros((n_c, int(sizes.max()) + 1))
-    cum[curve, local + 1] = seg
-    cum = np.cumsum(cum, axis=1)
-    return cum[curve, local] / cum[np.arange(n_c), sizes][curve]
+    width = int(sizes.max()) + 1
+    cum = np.zeros((n_c, width))
+    at = curve * width + local  # flat positions (one index: faster than two)
+    cum.reshape(-1)[at + 1] = seg
+    np.cumsum(cum, axis=1, out=cum)
+    return cum.reshape(-1)[at] / cum.reshape(-1)[np.arange(n_c) * width + sizes][curve]
 
 
 def _support_arcs(params: list, start: np.ndarray, sizes: np.ndarray) -> list:
@@ -133,14 +135,16 @@ def _support_arcs(params: list, start: np.ndarray, sizes: np.ndarray) -> list:
     first = start + np.arange(n_c)
     nxt = np.arange(1, len(closed) + 1)
     nxt[first + sizes] = first
-    d = closed[nxt] - closed
+    d = np.take(closed, nxt, axis=0) - closed
     curve = np.repeat(np.arange(n_c), sizes + 1)
     local = np.arange(len(closed)) - first[curve]
-    cum = np.zeros((n_c, int(sizes.max()) + 1))
-    cum[curve, local] = np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1])
+    width = int(sizes.max()) + 1
+    cum = np.zeros((n_c, width))
+    at = curve * width + local  # flat positions (one index: faster than two)
+    cum.reshape(-1)[at] = np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1])
     np.cumsum(cum, axis=1, out=cum)  # one row per contour: every running sum starts afresh
     at_point = local < sizes[curve]
-    frac = cum[curve[at_point], local[at_point]] / cum[np.arange(n_c), sizes][curve[at_point]]
+    frac = cum.reshape(-1)[at[at_point]] / cum.reshape(-1)[np.arange(n_c) * width + sizes][curve[at_point]]
     return [frac[lo:lo + n] for lo, n in zip(start.tolist(), sizes.tolist())]
 
 
