@@ -337,7 +337,11 @@ def _crossing_at(cr: _Crossings, idx: np.ndarray, cos_k: np.ndarray, sin_k: np.n
     sx_j, sy_j = sx[j], sy[j]
     num = rx[j] * sin_k - ry[j] * cos_k
     den = sx_j * sin_k - sy_j * cos_k
-    t = np.clip(-num / np.where(den == 0, 1e-300, den), 0.0, 1.0)
+    den[den == 0] = 1e-300
+    t = np.negative(num, out=num)
+    t /= den
+    np.maximum(t, 0.0, out=t)  # np.clip's result, without its wrapper
+    np.minimum(t, 1.0, out=t)
     if not full:
         return (arc_g[j] + t * edge_len[j],)
     x, y = ax[j] + t * sx_j, ay[j] + t * sy_j
@@ -424,7 +428,7 @@ def _pick_crossings(cr: _Crossings, outer: np.ndarray, first: np.ndarray, levels
     cos_k, sin_k, table, lv = _ray_table(levels, start_angle, delta)
     picked = _crossing_at(cr, outer, cos_k, sin_k, points)
     s_pick = picked[0]
-    unordered = np.any(np.diff(s_pick, axis=1) <= 0, axis=1) | (s_pick[:, -1] - s_pick[:, 0] >= total)
+    unordered = (s_pick[:, 1:] <= s_pick[:, :-1]).any(axis=1) | (s_pick[:, -1] - s_pick[:, 0] >= total)
     if unordered.any():  # then each level's first crossing along the contour
         pick = np.where(unordered[:, None], first, outer)
         picked = _crossing_at(cr, pick, cos_k, sin_k, points)

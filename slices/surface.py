@@ -244,14 +244,20 @@ def slice_curves(contours, z, n_rays: int, n_lattice: int | None = None,
         raise ValueError(f"correspondence: must be one of {CORRESPONDENCES}, got {correspondence!r}")
     if lattice_mode not in LATTICE_MODES:
         raise ValueError(f"lattice_mode: must be one of {LATTICE_MODES}, got {lattice_mode!r}")
-    # finite values checked once over all contours (below), the contour named only on failure
-    ps = [as_array(c, f"contours[{i}]", shape=(None, 2), finite=False) for i, c in enumerate(contours)]
+    # finite values checked once over all contours (below), the contour named only on failure; the
+    # shapes checked in one pass, as_array naming the contour only where one is wrong
+    try:
+        ps = [np.asarray(c, dtype=np.float64) for c in contours]
+    except (TypeError, ValueError):
+        ps = []
+    if len(ps) != len(contours) or any(p.ndim != 2 or p.shape[1] != 2 for p in ps):
+        ps = [as_array(c, f"contours[{i}]", shape=(None, 2), finite=False) for i, c in enumerate(contours)]
     n1 = int(n_rays)
     if n1 < 3:
         raise ValueError(f"n_rays: need at least 3 rays (seed 000, eq. 1), got {n_rays}")
-    for i, p in enumerate(ps):
-        if len(p) < 3:
-            raise ValueError(f"contours[{i}]: needs at least 3 points, got {len(p)}")
+    if ps and min(len(p) for p in ps) < 3:
+        i = next(i for i, p in enumerate(ps) if len(p) < 3)
+        raise ValueError(f"contours[{i}]: needs at least 3 points, got {len(ps[i])}")
     if not np.isfinite(np.concatenate(ps)).all():
         for i, c in enumerate(ps):
             as_array(c, f"contours[{i}]")
