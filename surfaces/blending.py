@@ -35,7 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from surfaces.bezier import BezierPatches, bernstein
+from surfaces.bezier import _JOIN_RTOL, BezierPatches, bernstein
 from surfaces.knots import chord_lengths
 from surfaces.validate import as_array
 
@@ -114,6 +114,26 @@ def _open_tangents(pts: np.ndarray, t: np.ndarray) -> np.ndarray:
     out[0] = d0 - (d1 - d0) * h[0] / (h[0] + h[1])
     e0, e1 = (pts[-2] - pts[-3]) / h[-2], (pts[-1] - pts[-2]) / h[-1]
     out[-1] = e1 + (e1 - e0) * h[-1] / (h[-2] + h[-1])
+    return out
+
+
+def _identity_tangents(t: np.ndarray) -> np.ndarray:
+    """:func:`_open_tangents` of the identity's rows (``n >= 3`` points) at parameters ``t``, from its
+    three diagonals: the same operations on the non-zero entries (the zeros add exactly nothing)."""
+    n = len(t)
+    h = np.diff(t)
+    h0, h1 = h[:-1], h[1:]
+    out = np.zeros((n, n))
+    i = np.arange(1, n - 1)
+    # _middle_slope's ((p1 - p0) / h0 * h1 + (p2 - p1) / h1 * h0) / (h0 + h1) at columns i - 1, i, i + 1
+    out[i, i - 1] = (-1.0 / h0 * h1) / (h0 + h1)
+    out[i, i] = (1.0 / h0 * h1 + -1.0 / h1 * h0) / (h0 + h1)
+    out[i, i + 1] = (1.0 / h1 * h0) / (h0 + h1)
+    # the end rows: the one parabola's derivative at its first / last node
+    d0, d1 = np.array([-1.0, 1.0, 0.0]) / h[0], np.array([0.0, -1.0, 1.0]) / h[1]
+    out[0, :3] = d0 - (d1 - d0) * h[0] / (h[0] + h[1])
+    e0, e1 = np.array([-1.0, 1.0, 0.0]) / h[-2], np.array([0.0, -1.0, 1.0]) / h[-1]
+    out[-1, -3:] = e1 + (e1 - e0) * h[-1] / (h[-2] + h[-1])
     return out
 
 
@@ -534,7 +554,7 @@ def _blend_weights(n: int, v: np.ndarray | None) -> np.ndarray:
     """:func:`blend_weights` of ``n >= 2`` curves at validated, strictly increasing ``v`` (or uniform)."""
     if v is not None:
         # tangent rows (dC/dv) are the Overhauser tangents of the identity "points"
-        tangent = _open_tangents(np.eye(n), v)
+        tangent = _open_tangents(np.eye(n), v) if n < 3 else _identity_tangents(v)
         h = np.diff(v)[:, None]
         eye = np.eye(n)
         j = np.arange(n - 1)
@@ -653,8 +673,11 @@ def _blend(c: np.ndarray, closed_u: bool, params, monotone: bool,
         into[3] = curve_items[1:]
     if not trusted:
         return BezierPatches(control, closed_u=closed_u), limited
-    if closed_u:
-        BezierPatches(control[[0, -1]], closed_u=True)  # raises where the last row does not join the first
+    if closed_u:  # BezierPatches' test of the closing, on the two rows it compares
+        ends = control[::max(m - 1, 1)]
+        gap = float(np.max(np.abs(control[-1, :, 3] - control[0, :, 0])))
+        if gap > _JOIN_RTOL * max(float(ends.max()), -float(ends.min()), 1.0):
+            raise ValueError(f"closed_u: the last patch row does not join the first (gap {gap:.3g})")
     return BezierPatches._trusted(control, closed_u=closed_u), limited
 
 

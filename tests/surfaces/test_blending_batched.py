@@ -187,3 +187,10 @@ def test_blend_matches_the_dense_weights(monotone):
     else:
         np.testing.assert_allclose(patches.control, dense, rtol=0, atol=1e-12)
         assert np.array_equal(patches.control[..., 0, :], curves[:-1].transpose(1, 0, 2, 3))
+
+
+@pytest.mark.parametrize("n", [3, 4, 7, 26])
+def test_identity_tangents_equal_the_tangents_of_the_identity(n):
+    rng = np.random.default_rng(n)
+    t = np.cumsum(rng.uniform(0.1, 3.0, n)) - 5.0
+    np.testing.assert_array_equal(blending._identity_tangents(t), blending.overhauser_tangents(np.eye(n), t))
