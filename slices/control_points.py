@@ -362,27 +362,29 @@ def _crossings(polars: _Polars, n1: int, start_angle: float) -> _Crossings:
     pts, offp, ns, centers, phi, arc, off3 = polars
     n_c = len(ns)
     # the polar-angle record at the start of the second period: the largest phi up to entry n
-    bounds = np.stack([off3, off3 + ns + 1], axis=1).ravel()
+    bounds = np.empty(2 * n_c, dtype=np.int64)
+    bounds[0::2] = off3
+    bounds[1::2] = off3 + ns + 1
     record_n = np.maximum.reduceat(phi, bounds)[::2]  # the odd segments run to the next contour
     delta = 2 * np.pi / n1
     k_base = np.floor((record_n - start_angle) / delta).astype(np.int64)
     # every edge of the second and third periods, contour by contour
     cid = np.repeat(np.arange(n_c), 2 * ns)
-    e = np.arange(len(cid)) - np.repeat(np.cumsum(2 * ns) - 2 * ns, 2 * ns) + np.repeat(ns, 2 * ns)
+    e = np.arange(len(cid)) - np.repeat(np.cumsum(2 * ns) - 3 * ns, 2 * ns)
     g = off3[cid] + e
     # every outgoing crossing of the N1 ray levels after the record at the start of the second period
     k_lo = np.maximum(np.floor((phi[g] - start_angle) / delta).astype(np.int64), k_base[cid])
     k_hi = np.minimum(np.floor((phi[g + 1] - start_angle) / delta).astype(np.int64), k_base[cid] + n1)
     count = np.maximum(k_hi - k_lo, 0)
     ie = np.repeat(np.arange(len(cid)), count)  # the edge of every crossing
-    level_k = np.repeat(k_lo + 1 - (np.cumsum(count) - count), count) + np.arange(len(ie))
+    level_k = (k_lo + 1 - (np.cumsum(count) - count))[ie] + np.arange(len(ie))
     # group the crossings by (contour, level): levels lie in k_base + [1, n1], so one integer key
     # orders them; the input is nearly in that order already, which a stable sort exploits
-    key = np.repeat(cid * (n1 + 1) - k_base[cid], count) + level_k
+    key = (cid * (n1 + 1) - k_base[cid])[ie] + level_k
     if len(key) == n_c * n1 and bool(np.all(key[1:] > key[:-1])):
         # every level crossed once, in order (no fold): nothing to group
         order = starts = np.arange(len(key))
-        sizes = np.ones(len(key), dtype=np.int64)
+        sizes = None
     else:
         order = np.argsort(key, kind="stable")
         sorted_key = key[order]
@@ -403,9 +405,9 @@ def _crossings(polars: _Polars, n1: int, start_angle: float) -> _Crossings:
     cx, cy = centers[:, 0][cid], centers[:, 1][cid]
     a_at = off3[cid] + e_mod
     edge = (ax, ay, bx - ax, by - ay, ax - cx, ay - cy, cx, cy, arc[g], arc[a_at + 1] - arc[a_at])
-    outer = order[starts]  # a level crossed once: its only crossing, either way
+    outer = order[starts] if sizes is not None else order  # a level crossed once: its only crossing
     first = outer.copy()
-    multi = np.flatnonzero(sizes > 1)
+    multi = np.flatnonzero(sizes > 1) if sizes is not None else ()
     cr = _Crossings(ie, level_k, edge, outer.reshape(n_c, n1), first.reshape(n_c, n1))
     if len(multi):
         m_sizes = sizes[multi]
@@ -548,9 +550,13 @@ def _best_rotation(polars: _Polars, n1: int, r: int) -> tuple:
     # each contour's row runs through nf consecutive levels: ray k sits at column (k - first level) mod nf;
     # gathered as (contour, rotation, ray) so that the median runs along contiguous rows. Only
     # shifts modulo 1 count, so the unwrapped arc positions need no reduction to one period first.
-    col = (np.arange(r)[:, None] + r * np.arange(n1) - level_k[:, :1, None]) % nf
-    frac = _at(s_arc, np.arange(len(total))[:, None, None], col) / total[:, None, None]
-    shift = np.diff(frac, axis=0)  # (K-1, R, N1)
+    n_c = len(total)
+    frac = s_arc / total[:, None]
+    # the row rolled so that column k r + o holds ray k of rotation o, then seen as (contour, rotation, ray)
+    frac = _at(frac, np.arange(n_c)[:, None], (np.arange(nf) - level_k[:, :1]) % nf).reshape(n_c, n1, r)
+    frac = frac.transpose(0, 2, 1)
+    shift = np.empty((n_c - 1, r, n1))
+    np.subtract(frac[1:], frac[:-1], out=shift)  # (K-1, R, N1)
     shift -= np.rint(shift)  # the shortest way round
     # the median over the rays (np.median's partition and mean of the middle pair, without its overhead)
     half = n1 // 2
