@@ -204,7 +204,8 @@ class Outlines:
         first = np.concatenate([[0], np.cumsum(self.size[polygon])[:-1]])
         crossings = np.add.reduceat((straddle & (qx < xc)).astype(np.int64), first)
         length2 = dx**2 + dy**2
-        t = np.clip(np.divide(wx * dx + wy * dy, length2, out=np.zeros(len(e)), where=length2 > 0), 0.0, 1.0)
+        t = np.divide(wx * dx + wy * dy, length2, out=np.zeros(len(e)), where=length2 > 0)
+        np.minimum(np.maximum(t, 0.0, out=t), 1.0, out=t)  # np.clip without its wrapper
         gap = np.sqrt(np.minimum.reduceat((wx - t * dx) ** 2 + (wy - t * dy) ** 2, first))
         return crossings % 2 == 1, gap
 

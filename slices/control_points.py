@@ -153,7 +153,8 @@ def _parameterize_many(polars: _Polars, n1: int, start_angle: float, crossings) 
     periods = np.maximum(np.ceil((s0[curve] - polars.arc[off3[curve] + ns[curve] + local_rot]) / tot - 1e-12), 0.0)
     phi_v = polars.phi[off3[curve] + ns[curve] + local_rot] + 2 * np.pi * periods
     seg_of = np.searchsorted((rows + 1j * sigma).ravel(), curve + 1j * a_vert, side="right") - curve * (n1 + 1)
-    seg_of = np.clip(seg_of - 1, 0, n1 - 1)
+    seg_of -= 1
+    np.minimum(np.maximum(seg_of, 0, out=seg_of), n1 - 1, out=seg_of)  # np.clip without its wrapper
     key = curve * n1 + seg_of
     seg_lo = _at(ang, np.arange(n_c), first)[curve] + seg_of * delta
     folded_vertex = (phi_v < seg_lo - 1e-9) | (phi_v > seg_lo + delta + 1e-9)
@@ -199,8 +200,8 @@ def _parameterize_many(polars: _Polars, n1: int, start_angle: float, crossings) 
     u = (anchor_u[j + 1] - anchor_u[j]) / (anchor_arc[j + 1] - x_j) * (a_vert - x_j) + anchor_u[j]
     u[a_vert == x_j] = anchor_u[j][a_vert == x_j]
     u[t_idx] = u_turn
-    bad = (np.diff(u) <= 0) & (curve[1:] == curve[:-1])
-    if np.any(bad) or np.any(u[last] >= 1.0):
+    bad = (u[1:] <= u[:-1]) & (curve[1:] == curve[:-1])
+    if bad.any() or (u[last] >= 1.0).any():
         raise ValueError("points: could not give the contour monotone parameters (degenerate outline)")
     pts = np.take(pts_all, rot, axis=0)
     return [ContourParameters(pts[lo:hi], u[lo:hi], cc, ss, turning[lo:hi])
@@ -719,13 +720,14 @@ def _quantize_many(us: list, m: int, values: np.ndarray | None) -> list:
         target = np.minimum(np.round(uu * m).astype(np.int64), m - 1)
     else:
         lv = values
-        hi = np.clip(np.searchsorted(lv, uu), 1, m - 1)
+        hi = np.searchsorted(lv, uu)
+        np.minimum(np.maximum(hi, 1, out=hi), m - 1, out=hi)  # np.clip without its wrapper
         target = np.where(np.abs(lv[hi - 1] - uu) <= np.abs(lv[hi] - uu), hi - 1, hi)
         target = np.where(uu > lv[-1] + 0.5 * (1.0 + lv[0] - lv[-1]), m - 1, target)
     # strictly increasing indices closest (least squares) to the targets: isotonic
     # regression of target - i (pool adjacent violators), rounded and clipped
     r = np.round(_isotonic_fit_runs((target - i).astype(np.float64), start)).astype(np.int64)
-    r = np.clip(r, 0, (m - ns)[slice_of])
+    np.minimum(np.maximum(r, 0, out=r), (m - ns)[slice_of], out=r)
     r += i
     return [r[lo:lo + n] for lo, n in zip(start.tolist(), ns.tolist())]
 
