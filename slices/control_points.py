@@ -123,6 +123,12 @@ def _parameterize_many(polars: _Polars, n1: int, start_angle: float, crossings) 
 
     Every contour's steps are those of one contour alone, on concatenated arrays.
     """
+    return _parameterize_flat(polars, n1, start_angle, crossings)[0]
+
+
+def _parameterize_flat(polars: _Polars, n1: int, start_angle: float, crossings) -> tuple:
+    """:func:`_parameterize_many`, and the contours' points (N, 2) and parameters (N,) one after the
+    other (each contour as in its :class:`ContourParameters`) and the support points (C, n1, 2)."""
     pts_all, start, ns, off3 = polars.pts, polars.start, polars.sizes, polars.off3
     n_c = len(ns)
     curve = np.repeat(np.arange(n_c), ns)
@@ -204,8 +210,9 @@ def _parameterize_many(polars: _Polars, n1: int, start_angle: float, crossings) 
     if bad.any() or (u[last] >= 1.0).any():
         raise ValueError("points: could not give the contour monotone parameters (degenerate outline)")
     pts = np.take(pts_all, rot, axis=0)
-    return [ContourParameters(pts[lo:hi], u[lo:hi], cc, ss, turning[lo:hi])
-            for (lo, hi), cc, ss in zip(bounds, polars.centers, support_xy)]
+    params = [ContourParameters(pts[lo:hi], u[lo:hi], cc, ss, turning[lo:hi])
+              for (lo, hi), cc, ss in zip(bounds, polars.centers, support_xy)]
+    return params, pts, u, support_xy
 
 
 def _at(a: np.ndarray, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
@@ -712,9 +719,15 @@ def quantize(u, n_lattice: int, values=None) -> np.ndarray:
 def _quantize_many(us: list, m: int, values: np.ndarray | None) -> list:
     """:func:`quantize` of every slice's validated parameters (each at most ``m``) in one pass."""
     ns = np.array([len(u) for u in us], dtype=np.int64)
-    uu = np.concatenate(us)
     start = np.cumsum(ns) - ns
-    slice_of = np.repeat(np.arange(len(us)), ns)
+    r = _quantize_flat(np.concatenate(us), start, ns, m, values)
+    return [r[lo:lo + n] for lo, n in zip(start.tolist(), ns.tolist())]
+
+
+def _quantize_flat(uu: np.ndarray, start: np.ndarray, ns: np.ndarray, m: int, values: np.ndarray | None) -> np.ndarray:
+    """:func:`_quantize_many` of the slices' parameters one after the other (slice ``c`` the ``ns[c]``
+    from ``start[c]``), the lattice indices likewise."""
+    slice_of = np.repeat(np.arange(len(ns)), ns)
     i = np.arange(len(uu)) - start[slice_of]
     if values is None:
         target = np.minimum(np.round(uu * m).astype(np.int64), m - 1)
@@ -729,7 +742,7 @@ def _quantize_many(us: list, m: int, values: np.ndarray | None) -> list:
     r = np.round(_isotonic_fit_runs((target - i).astype(np.float64), start)).astype(np.int64)
     np.minimum(np.maximum(r, 0, out=r), (m - ns)[slice_of], out=r)
     r += i
-    return [r[lo:lo + n] for lo, n in zip(start.tolist(), ns.tolist())]
+    return r
 
 
 def isotonic_fit(y) -> np.ndarray:

@@ -25,11 +25,10 @@ import numpy as np
 
 from slices.control_points import (
     START_CANDIDATES,
-    ContourParameters,
     _balanced_values,
-    _parameterize_many,
+    _parameterize_flat,
     _polars,
-    _quantize_many,
+    _quantize_flat,
     _start_angle_crossings,
     _support_crossings,
     lattice_values,
@@ -103,18 +102,19 @@ def lattice_size(max_points: int, lattice_factor: float = SurfaceOptions.lattice
 def _geometry_parameters(points: np.ndarray, start: np.ndarray, sizes: np.ndarray, kind: str) -> np.ndarray:
     """Parameters that shape each closed contour between its points: chord length or centripetal.
 
-    ``points`` (N, 2) holds the contours one after the other, contour ``c`` the
-    ``sizes[c]`` rows from ``start[c]``; each gets parameters in ``[0, 1)``.
+    ``points`` (2, N) holds the contours' x and y one after the other, contour ``c`` the
+    ``sizes[c]`` columns from ``start[c]``; each gets parameters in ``[0, 1)``.
     """
     if kind not in ("centripetal", "chord"):
         raise ValueError(f"geometry: must be 'chord' or 'centripetal', got {kind!r}")
     n_c = len(sizes)
+    n = points.shape[1]
     curve = np.repeat(np.arange(n_c), sizes)
-    local = np.arange(len(points)) - start[curve]
-    nxt = np.arange(1, len(points) + 1)
+    local = np.arange(n) - start[curve]
+    nxt = np.arange(1, n + 1)
     nxt[start + sizes - 1] = start
-    d = np.take(points, nxt, axis=0) - points
-    seg = np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1])
+    dx, dy = np.take(points, nxt, axis=1) - points
+    seg = np.sqrt(dx * dx + dy * dy)
     if kind == "centripetal":
         seg = np.sqrt(seg)
     # one row per contour, so that every running sum starts afresh at its contour
@@ -126,26 +126,30 @@ def _geometry_parameters(points: np.ndarray, start: np.ndarray, sizes: np.ndarra
     return cum.reshape(-1)[at] / cum.reshape(-1)[np.arange(n_c) * width + sizes][curve]
 
 
-def _support_arcs(params: list, start: np.ndarray, sizes: np.ndarray) -> list:
-    """Per contour, its points' arc length from support point 0 (the same ray on every slice),
-    as a fraction of the perimeter; ``start``/``sizes`` place the contours one after the other."""
+def _support_arcs(support0: np.ndarray, points: np.ndarray, start: np.ndarray, sizes: np.ndarray) -> np.ndarray:
+    """The contours' points' arc length from their support point 0 (the same ray on every slice),
+    as a fraction of the perimeter; ``points`` (N, 2) the contours one after the other (``start``,
+    ``sizes``), ``support0`` (C, 2) their support points 0; shape (N,)."""
     n_c = len(sizes)
-    # contour c's support point 0, then its points, from row start[c] + c; the last edge returns to the first
-    closed = np.concatenate([x for par in params for x in (par.support[:1], par.points)])
+    n = len(points)
+    # contour c's support point 0, then its points, from column start[c] + c; the last edge returns
+    # to the first (x and y apart: operations along all points)
     first = start + np.arange(n_c)
-    nxt = np.arange(1, len(closed) + 1)
+    closed = np.empty((2, n + n_c))
+    closed[:, first] = support0.T
+    closed[:, np.arange(n) + np.repeat(np.arange(1, n_c + 1), sizes)] = points.T
+    nxt = np.arange(1, n + n_c + 1)
     nxt[first + sizes] = first
-    d = np.take(closed, nxt, axis=0) - closed
+    dx, dy = np.take(closed, nxt, axis=1) - closed
     curve = np.repeat(np.arange(n_c), sizes + 1)
-    local = np.arange(len(closed)) - first[curve]
+    local = np.arange(n + n_c) - first[curve]
     width = int(sizes.max()) + 1
     cum = np.zeros((n_c, width))
     at = curve * width + local  # flat positions (one index: faster than two)
-    cum.reshape(-1)[at] = np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1])
+    cum.reshape(-1)[at] = np.sqrt(dx * dx + dy * dy)
     np.cumsum(cum, axis=1, out=cum)  # one row per contour: every running sum starts afresh
     at_point = local < sizes[curve]
-    frac = cum.reshape(-1)[at[at_point]] / cum.reshape(-1)[np.arange(n_c) * width + sizes][curve[at_point]]
-    return [frac[lo:lo + n] for lo, n in zip(start.tolist(), sizes.tolist())]
+    return cum.reshape(-1)[at[at_point]] / cum.reshape(-1)[np.arange(n_c) * width + sizes][curve[at_point]]
 
 
 def aligned_arcs(points, arcs) -> list:
@@ -269,43 +273,44 @@ def slice_curves(contours, z, n_rays: int, n_lattice: int | None = None,
     else:
         start_angle = 0.0 if start_angle is None else float(start_angle)
         crossings = _support_crossings(polars, n1, start_angle)
-    params: list[ContourParameters] = _parameterize_many(polars, n1, start_angle, crossings)
-    m = n_lattice or lattice_size(max(len(p.u) for p in params))
-    arcs = _support_arcs(params, polars.start, polars.sizes)
-    outlines = [p.points for p in params]
+    params, flat, u_flat, support_xy = _parameterize_flat(polars, n1, start_angle, crossings)
+    # every contour keeps its point count: the tables of the polars place the outlines, too
+    ns, start = polars.sizes, polars.start
+    n_c = len(ns)
+    bounds = list(zip(start.tolist(), (start + ns).tolist()))
+    m = n_lattice or lattice_size(int(ns.max()))
+    arc_flat = _support_arcs(support_xy[:, 0], flat, start, ns)
     if correspondence == "aligned":
         # each outline starts at its point of smallest shifted arc length, so u increases along it
-        us = aligned_arcs(outlines, arcs)
+        us = aligned_arcs([flat[lo:hi] for lo, hi in bounds], [arc_flat[lo:hi] for lo, hi in bounds])
         first = [int(np.argmin(u)) for u in us]
-        outlines = [np.roll(o, -f, axis=0) for o, f in zip(outlines, first)]
-        us = arcs = [np.roll(u, -f) for u, f in zip(us, first)]
-    else:
-        us = [p.u for p in params] if correspondence == "seed" else arcs
+        flat = np.concatenate([np.roll(flat[lo:hi], -f, axis=0) for (lo, hi), f in zip(bounds, first)])
+        u_flat = arc_flat = np.concatenate([np.roll(u, -f) for u, f in zip(us, first)])
+    elif correspondence == "arc":
+        u_flat = arc_flat
     if lattice_mode == "union":
-        values = np.unique(np.concatenate(us))
+        values = np.unique(u_flat)
     elif lattice_mode == "balanced":
-        values = _balanced_values(np.concatenate(us), np.concatenate(arcs), polars.sizes, m)
+        values = _balanced_values(u_flat, arc_flat, ns, m)
     else:
-        values = lattice_values(us, m) if lattice_mode == "adaptive" else np.arange(m) / m
+        values = (lattice_values([u_flat[lo:hi] for lo, hi in bounds], m) if lattice_mode == "adaptive"
+                  else np.arange(m) / m)
     m = len(values)
-    longest = max(len(u) for u in us)
+    longest = int(ns.max())
     if longest > m:
         raise ValueError(f"n_lattice: {m} lattice values cannot hold {longest} distinct parameters")
-    nodes = _quantize_many(us, m, values)
-    ns = np.array([len(o) for o in outlines], dtype=np.int64)
-    n_c = len(ns)
-    start = np.cumsum(ns) - ns
+    q = _quantize_flat(u_flat, start, ns, m, values)
+    nodes = [q[lo:hi] for lo, hi in bounds]
     curve = np.repeat(np.arange(n_c), ns)
-    flat = np.concatenate(outlines)
-    # in the plane only: every Bezier point of a slice's curve lies at its z exactly
-    t, _, _ = blending._closed_parameters(flat, _geometry_parameters(flat, start, ns, geometry), ns)
     # coordinate by coordinate, so that every operation of the curves and their cut runs along all points
-    by_coordinate, knots = blending._overhauser_closed_by_coordinate(np.ascontiguousarray(flat.T), t, start, ns)
+    flat_xy = np.ascontiguousarray(flat.T)
+    # in the plane only: every Bezier point of a slice's curve lies at its z exactly
+    t, _, _ = blending._closed_parameters(flat, _geometry_parameters(flat_xy, start, ns, geometry), ns)
+    by_coordinate, knots = blending._overhauser_closed_by_coordinate(flat_xy, t, start, ns)
     # lattice node j sits at t(j), t piecewise linear through (q_i, t_i) (np.interp's formula): on
     # every lattice interval the curve is one cubic piece, cut exactly (Bezier points do not depend
     # on the affine parameter of the interval); the period starts at node q0, so lattice interval
     # L of slice c is [x, x + 1] with x = L, or L + M before q0
-    q = np.concatenate(nodes)
     q_next = np.append(q[1:], 0)
     q_next[start + ns - 1] = q[start] + m
     lattice = np.arange(m)
@@ -324,8 +329,7 @@ def slice_curves(contours, z, n_rays: int, n_lattice: int | None = None,
     p3 = np.empty((len(flat), 3))
     p3[:, :2] = flat
     p3[:, 2] = zz[curve]
-    return SliceCurves(cut, nodes, [p3[lo:lo + n] for lo, n in zip(start.tolist(), ns.tolist())], params,
-                       float(start_angle))
+    return SliceCurves(cut, nodes, [p3[lo:hi] for lo, hi in bounds], params, float(start_angle))
 
 
 # ------------------------------------------------------------------ methods
