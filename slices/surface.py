@@ -136,8 +136,10 @@ def _support_arcs(support0: np.ndarray, points: np.ndarray, start: np.ndarray, s
     # to the first (x and y apart: operations along all points)
     first = start + np.arange(n_c)
     closed = np.empty((2, n + n_c))
-    closed[:, first] = support0.T
-    closed[:, np.arange(n) + np.repeat(np.arange(1, n_c + 1), sizes)] = points.T
+    at_vertex = np.arange(n) + np.repeat(np.arange(1, n_c + 1), sizes)
+    for xy in (0, 1):  # scatters of single floats: faster than of columns
+        closed[xy][first] = support0[:, xy]
+        closed[xy][at_vertex] = points[:, xy]
     nxt = np.arange(1, n + n_c + 1)
     nxt[first + sizes] = first
     dx, dy = np.take(closed, nxt, axis=1) - closed

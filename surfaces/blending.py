@@ -231,7 +231,7 @@ def _closed_parameters(pts: np.ndarray, params, sizes) -> tuple[np.ndarray, np.n
     start = np.cumsum(ns) - ns
     inner = np.ones(len(pts), dtype=bool)
     inner[start] = False
-    if np.any(np.diff(t)[inner[1:]] <= 0):
+    if (t[1:] <= t[:-1])[inner[1:]].any():
         raise ValueError("params: must increase strictly along every curve")
     if not np.all(t[start + ns - 1] - t[start] < 1.0):
         raise ValueError("params: a closed curve needs parameters spanning less than one period")
