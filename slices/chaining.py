@@ -280,13 +280,18 @@ def _overlapping(table: Outlines, contours: list[Contour], i: np.ndarray, j: np.
     k = np.flatnonzero(meet)
     if not len(k):
         return out
-    # each pair's two centroids, each tested against both outlines
-    point = np.concatenate([table.centroid[i[k]], table.centroid[j[k]]])
-    point = np.concatenate([point, point])
-    polygon = np.concatenate([i[k], j[k], j[k], i[k]])
-    depth = table.inside_depth(point, polygon).reshape(4, len(k))
+    # each pair's two centroids, each tested against both outlines: i's centroid first, j's only
+    # where that does not settle the pair (usually none: neighbouring slices overlap around them)
     margin = _SURE_PIXELS * pixel[k]
-    sure = ((depth[0] > margin) & (depth[2] > margin)) | ((depth[1] > margin) & (depth[3] > margin))
+    sure = np.zeros(len(k), dtype=bool)
+    for a, b in ((i, j), (j, i)):
+        ask = np.flatnonzero(~sure)
+        if not len(ask):
+            break
+        own, other = a[k[ask]], b[k[ask]]
+        point = table.centroid[own]
+        depth = table.inside_depth(np.concatenate([point, point]), np.concatenate([own, other]))
+        sure[ask] = (depth[:len(ask)] > margin[ask]) & (depth[len(ask):] > margin[ask])
     out[k[sure]] = True
     for m in k[~sure]:
         out[m] = overlaps(contours[i[m]].points, contours[j[m]].points)
