@@ -316,8 +316,14 @@ def slice_curves(contours, z, n_rays: int, n_lattice: int | None = None,
     q_next = np.append(q[1:], 0)
     q_next[start + ns - 1] = q[start] + m
     lattice = np.arange(m)
-    x = lattice + m * (lattice < q[start][:, None])  # (C, M)
-    g = np.searchsorted(curve * 2 * m + q, (np.arange(n_c)[:, None] * 2 * m + x).ravel(), side="right") - 1
+    before = lattice < q[start][:, None]  # (C, M)
+    x = lattice + m * before
+    # the node that starts each interval's segment: the last at or before L (a running count of the
+    # nodes passed), or the last node of the slice before q0 (the closing segment)
+    passed = np.zeros((n_c, m), dtype=np.int64)
+    passed.reshape(-1)[curve * m + q] = 1
+    np.cumsum(passed, axis=1, out=passed)
+    g = np.where(before, (start + ns - 1)[:, None], start[:, None] + passed - 1).ravel()
     x = x.ravel().astype(np.float64)
     k_lo, k_hi = knots[g + curve[g]], knots[g + curve[g] + 1]
     x_lo, x_hi = q[g].astype(np.float64), q_next[g].astype(np.float64)
