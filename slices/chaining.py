@@ -127,11 +127,11 @@ class Outlines:
     def of(cls, contours: list[Contour]) -> Outlines:
         """The table of ``contours`` (a list of :class:`slices.io.Contour`, at least one)."""
         size = np.array([len(c.points) for c in contours])
-        start = np.concatenate([[0], np.cumsum(size)[:-1]])
+        start = np.concatenate([[0], size.cumsum()[:-1]])
         p = np.concatenate([np.asarray(c.points, dtype=np.float64) for c in contours])
         after = np.arange(1, len(p) + 1)
         after[start + size - 1] = start
-        q = np.take(p, after, axis=0)  # faster than p[after] for (N, 2) rows
+        q = p.take(after, axis=0)  # faster than p[after] for (N, 2) rows
         cross = p[:, 0] * q[:, 1] - q[:, 0] * p[:, 1]
         area = np.add.reduceat(cross, start) / 2.0
         d = q - p
@@ -156,13 +156,13 @@ class Outlines:
     def members(self) -> list[np.ndarray]:
         """The contours of each plane, in order of the planes (a list of P index arrays)."""
         order = np.argsort(self.plane_of, kind="stable")
-        return np.split(order, np.cumsum(np.bincount(self.plane_of, minlength=len(self.planes)))[:-1])
+        return np.split(order, np.bincount(self.plane_of, minlength=len(self.planes)).cumsum()[:-1])
 
     def same_plane_pairs(self) -> tuple[np.ndarray, np.ndarray]:
         """Every ordered pair ``(i, j)``, ``i != j``, of contours on one plane (two index arrays)."""
         if len(self.planes) == len(self.plane_of):  # one contour per plane (most structures): no pairs
             return np.zeros(0, dtype=int), np.zeros(0, dtype=int)
-        pairs = [(np.repeat(m, len(m)), np.tile(m, len(m))) for m in self.members() if len(m) > 1]
+        pairs = [(m.repeat(len(m)), np.tile(m, len(m))) for m in self.members() if len(m) > 1]
         if not pairs:
             return np.zeros(0, dtype=int), np.zeros(0, dtype=int)
         i, j = (np.concatenate(x) for x in zip(*pairs))
@@ -175,18 +175,18 @@ class Outlines:
         """
         order = np.argsort(self.plane_of, kind="stable")
         count = np.bincount(self.plane_of, minlength=len(self.planes))
-        first = np.concatenate([[0], np.cumsum(count)[:-1]])
+        first = np.concatenate([[0], count.cumsum()[:-1]])
         block = count[:-1] * count[1:]  # pairs between plane p and p + 1
-        p = np.repeat(np.arange(len(block)), block)
-        r = np.arange(len(p)) - np.repeat(np.cumsum(block) - block, block)
+        p = np.arange(len(block)).repeat(block)
+        r = np.arange(len(p)) - (block.cumsum() - block).repeat(block)
         return order[first[p] + r // count[p + 1]], order[first[p + 1] + r % count[p + 1]]
 
     def edges_of(self, polygon: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Edge (first-vertex) indices of the contours ``polygon`` (Q,), and which query each belongs to."""
         n = self.size[polygon]
-        query = np.repeat(np.arange(len(polygon)), n)
-        first = np.concatenate([[0], np.cumsum(n)[:-1]])
-        return np.arange(len(query)) - np.repeat(first - self.start[polygon], n), query
+        query = np.arange(len(polygon)).repeat(n)
+        first = np.concatenate([[0], n.cumsum()[:-1]])
+        return np.arange(len(query)) - (first - self.start[polygon]).repeat(n), query
 
     def crossings(self, point: np.ndarray, polygon: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Whether each point (Q, 2) is inside contour ``polygon[k]`` (crossing number, as
@@ -201,7 +201,7 @@ class Outlines:
         straddle = (ay > qy) != (py[f] > qy)
         with np.errstate(divide="ignore", invalid="ignore"):
             xc = ax + wy * dx / dy
-        first = np.concatenate([[0], np.cumsum(self.size[polygon])[:-1]])
+        first = np.concatenate([[0], self.size[polygon].cumsum()[:-1]])
         crossings = np.add.reduceat((straddle & (qx < xc)).astype(np.int64), first)
         length2 = dx**2 + dy**2
         t = np.divide(wx * dx + wy * dy, length2, out=np.zeros(len(e)), where=length2 > 0)

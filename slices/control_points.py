@@ -131,7 +131,7 @@ def _parameterize_flat(polars: _Polars, n1: int, start_angle: float, crossings) 
     other (each contour as in its :class:`ContourParameters`) and the support points (C, n1, 2)."""
     pts_all, start, ns, off3 = polars.pts, polars.start, polars.sizes, polars.off3
     n_c = len(ns)
-    curve = np.repeat(np.arange(n_c), ns)
+    curve = np.arange(n_c).repeat(ns)
     local = np.arange(len(pts_all)) - start[curve]
     total = polars.arc[off3 + ns]
     delta = 2 * np.pi / n1
@@ -144,7 +144,7 @@ def _parameterize_flat(polars: _Polars, n1: int, start_angle: float, crossings) 
     sigma[:, :n1] = (_at(s_arc, rows, order) - s0[:, None]) % total[:, None]
     sigma[:, n1] = total
     sigma[:, 0] = 0.0
-    support_xy = np.take(support_xy.reshape(-1, 2), rows * n1 + order, axis=0)
+    support_xy = support_xy.reshape(-1, 2).take(rows * n1 + order, axis=0)
     # vertex arc positions relative to support 0, in [0, total)
     tot = total[curve]
     a_vert = (polars.arc[off3[curve] + local] - (s0 - total)[curve]) % tot
@@ -182,7 +182,7 @@ def _parameterize_flat(polars: _Polars, n1: int, start_angle: float, crossings) 
     t_idx = np.flatnonzero(turning)
     t_key = key[t_idx]
     n2 = np.bincount(t_key, minlength=n_c * n1)
-    first_in_seg = np.cumsum(n2) - n2
+    first_in_seg = n2.cumsum() - n2
     rank = np.arange(len(t_idx)) - first_in_seg[t_key] + 1
     u_turn = (seg_of[t_idx] + rank / (n2[t_key] + 1.0)) / n1
     # eq. 5: chord length between consecutive anchors (support and turning points); a turning point lies
@@ -200,7 +200,7 @@ def _parameterize_flat(polars: _Polars, n1: int, start_angle: float, crossings) 
     # np.interp of each vertex on its contour's anchors, its interval known: the vertices run in order
     # of arc, so the last anchor at or before a vertex is its segment's sigma or the segment's latest
     # turning point so far (0 <= a_vert < total: never before the first anchor or at the last)
-    passed = np.cumsum(turning) - first_in_seg[key]  # turning points of the segment up to the vertex
+    passed = turning.cumsum() - first_in_seg[key]  # turning points of the segment up to the vertex
     j = _at(at_sigma, curve, seg_of) + passed
     x_j = anchor_arc[j]
     u = (anchor_u[j + 1] - anchor_u[j]) / (anchor_arc[j + 1] - x_j) * (a_vert - x_j) + anchor_u[j]
@@ -209,7 +209,7 @@ def _parameterize_flat(polars: _Polars, n1: int, start_angle: float, crossings) 
     bad = (u[1:] <= u[:-1]) & (curve[1:] == curve[:-1])
     if bad.any() or (u[last] >= 1.0).any():
         raise ValueError("points: could not give the contour monotone parameters (degenerate outline)")
-    pts = np.take(pts_all, rot, axis=0)
+    pts = pts_all.take(rot, axis=0)
     params = [ContourParameters(pts[lo:hi], u[lo:hi], cc, ss, turning[lo:hi])
               for (lo, hi), cc, ss in zip(bounds, polars.centers, support_xy)]
     return params, pts, u, support_xy
@@ -247,8 +247,8 @@ def _polars(ps: list) -> _Polars:
     ns = np.array([len(p) for p in ps], dtype=np.int64)
     n_c = len(ns)
     pts = np.concatenate(ps) if n_c > 1 else ps[0]
-    start = np.cumsum(ns) - ns
-    curve = np.repeat(np.arange(n_c), ns)
+    start = ns.cumsum() - ns
+    curve = np.arange(n_c).repeat(ns)
     nxt = np.arange(1, len(pts) + 1)
     nxt[start + ns - 1] = start
     # x and y apart: operations along all points run faster than on (N, 2) rows
@@ -287,10 +287,10 @@ def _polars(ps: list) -> _Polars:
     at = curve * width + cols  # flat positions in one contour's row (one index: faster than two)
     acc[0].reshape(-1)[at] = dphi
     acc[1].reshape(-1)[at] = edge_len
-    np.cumsum(acc, axis=2, out=acc)
+    acc.cumsum(axis=2, out=acc)
     size3 = 3 * ns + 1
-    off3 = np.cumsum(size3) - size3
-    c3 = np.repeat(np.arange(n_c), size3)
+    off3 = size3.cumsum() - size3
+    c3 = np.arange(n_c).repeat(size3)
     i3 = np.arange(len(c3)) - off3[c3]
     at3 = c3 * width + i3
     return _Polars(pts, start, ns, centers, ang[start][c3] + acc[0].reshape(-1)[at3], acc[1].reshape(-1)[at3], off3)
@@ -377,15 +377,15 @@ def _crossings(polars: _Polars, n1: int, start_angle: float) -> _Crossings:
     delta = 2 * np.pi / n1
     k_base = np.floor((record_n - start_angle) / delta).astype(np.int64)
     # every edge of the second and third periods, contour by contour
-    cid = np.repeat(np.arange(n_c), 2 * ns)
-    e = np.arange(len(cid)) - np.repeat(np.cumsum(2 * ns) - 3 * ns, 2 * ns)
+    cid = np.arange(n_c).repeat(2 * ns)
+    e = np.arange(len(cid)) - ((2 * ns).cumsum() - 3 * ns).repeat(2 * ns)
     g = off3[cid] + e
     # every outgoing crossing of the N1 ray levels after the record at the start of the second period
     k_lo = np.maximum(np.floor((phi[g] - start_angle) / delta).astype(np.int64), k_base[cid])
     k_hi = np.minimum(np.floor((phi[g + 1] - start_angle) / delta).astype(np.int64), k_base[cid] + n1)
     count = np.maximum(k_hi - k_lo, 0)
-    ie = np.repeat(np.arange(len(cid)), count)  # the edge of every crossing
-    level_k = (k_lo + 1 - (np.cumsum(count) - count))[ie] + np.arange(len(ie))
+    ie = np.arange(len(cid)).repeat(count)  # the edge of every crossing
+    level_k = (k_lo + 1 - (count.cumsum() - count))[ie] + np.arange(len(ie))
     # group the crossings by (contour, level): levels lie in k_base + [1, n1], so one integer key
     # orders them; the input is nearly in that order already, which a stable sort exploits
     key = (cid * (n1 + 1) - k_base[cid])[ie] + level_k
@@ -419,13 +419,13 @@ def _crossings(polars: _Polars, n1: int, start_angle: float) -> _Crossings:
     cr = _Crossings(ie, level_k, edge, outer.reshape(n_c, n1), first.reshape(n_c, n1))
     if len(multi):
         m_sizes = sizes[multi]
-        m_starts = np.cumsum(m_sizes) - m_sizes
-        cand = order[np.repeat(starts[multi] - m_starts, m_sizes) + np.arange(int(m_sizes.sum()))]
+        m_starts = m_sizes.cumsum() - m_sizes
+        cand = order[(starts[multi] - m_starts).repeat(m_sizes) + np.arange(int(m_sizes.sum()))]
         cos_k, sin_k, _, _ = _ray_table(level_k[cand], start_angle, delta)
         s_c, _, _, radius = _crossing_at(cr, cand, cos_k, sin_k, True)
         for values, reduce, picks in ((radius, np.maximum, outer), (s_c, np.minimum, first)):
             # per group the crossing of least (or greatest) value, ties to the earliest crossing
-            best = np.repeat(reduce.reduceat(values, m_starts), m_sizes)
+            best = reduce.reduceat(values, m_starts).repeat(m_sizes)
             picks[multi] = np.minimum.reduceat(np.where(values == best, cand, len(order)), m_starts)
     return cr
 
@@ -651,10 +651,10 @@ def _balanced_values(u_all: np.ndarray, arc_all: np.ndarray, sizes: np.ndarray, 
     """:func:`balanced_lattice_values` of every slice's validated parameters and arcs one after the other."""
     n_c = len(sizes)
     # each slice's (u, arc) between (0, 0) and (1, 1)
-    off = np.cumsum(sizes + 2) - (sizes + 2)
+    off = (sizes + 2).cumsum() - (sizes + 2)
     xp = np.zeros(len(u_all) + 2 * n_c)
     fp = np.zeros_like(xp)
-    inner = np.arange(len(u_all)) + np.repeat(2 * np.arange(n_c) + 1, sizes)
+    inner = np.arange(len(u_all)) + (2 * np.arange(n_c) + 1).repeat(sizes)
     xp[inner] = u_all
     fp[inner] = arc_all
     xp[off + sizes + 1] = 1.0
@@ -675,9 +675,9 @@ def _balanced_values(u_all: np.ndarray, arc_all: np.ndarray, sizes: np.ndarray, 
     n_g = len(grid)
     change = np.bincount(at[:-1][sloped], slope, minlength=n_g) - np.bincount(at[1:][sloped], slope, minlength=n_g)
     total = np.zeros(n_g)
-    total[1:] = np.cumsum(np.cumsum(change[:-1]) * np.diff(grid))
+    total[1:] = (change[:-1].cumsum() * np.diff(grid)).cumsum()
     if jump.any():
-        total += np.cumsum(np.bincount(at[1:][jump], rise[jump], minlength=n_g))
+        total += np.bincount(at[1:][jump], rise[jump], minlength=n_g).cumsum()
     total[-1] = n_c  # every slice ends at (1, 1)
     values = np.unique(np.interp(np.arange(m) / m, total / n_c, grid))
     values = values[values < 1.0]
@@ -720,7 +720,7 @@ def quantize(u, n_lattice: int, values=None) -> np.ndarray:
 def _quantize_many(us: list, m: int, values: np.ndarray | None) -> list:
     """:func:`quantize` of every slice's validated parameters (each at most ``m``) in one pass."""
     ns = np.array([len(u) for u in us], dtype=np.int64)
-    start = np.cumsum(ns) - ns
+    start = ns.cumsum() - ns
     r = _quantize_flat(np.concatenate(us), start, ns, m, values)
     return [r[lo:lo + n] for lo, n in zip(start.tolist(), ns.tolist())]
 
@@ -728,7 +728,7 @@ def _quantize_many(us: list, m: int, values: np.ndarray | None) -> list:
 def _quantize_flat(uu: np.ndarray, start: np.ndarray, ns: np.ndarray, m: int, values: np.ndarray | None) -> np.ndarray:
     """:func:`_quantize_many` of the slices' parameters one after the other (slice ``c`` the ``ns[c]``
     from ``start[c]``), the lattice indices likewise."""
-    slice_of = np.repeat(np.arange(len(ns)), ns)
+    slice_of = np.arange(len(ns)).repeat(ns)
     i = np.arange(len(uu)) - start[slice_of]
     if values is None:
         target = np.minimum(np.round(uu * m).astype(np.int64), m - 1)
@@ -787,7 +787,7 @@ def _isotonic_fit_runs(y: np.ndarray, starts: np.ndarray) -> np.ndarray:
         bad = (s[:-1] * w[1:] > s[1:] * w[:-1]) & ~first[1:]  # mean of a block above the next one's
         if not bad.any():
             break
-        group = np.cumsum(np.concatenate([[True], ~bad])) - 1
+        group = np.concatenate([[True], ~bad]).cumsum() - 1
         s, w = np.bincount(group, s), np.bincount(group, w)
         first = np.bincount(group, first).astype(bool)
-    return np.repeat(s / w, w.astype(np.int64))
+    return (s / w).repeat(w.astype(np.int64))

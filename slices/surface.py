@@ -109,11 +109,11 @@ def _geometry_parameters(points: np.ndarray, start: np.ndarray, sizes: np.ndarra
         raise ValueError(f"geometry: must be 'chord' or 'centripetal', got {kind!r}")
     n_c = len(sizes)
     n = points.shape[1]
-    curve = np.repeat(np.arange(n_c), sizes)
+    curve = np.arange(n_c).repeat(sizes)
     local = np.arange(n) - start[curve]
     nxt = np.arange(1, n + 1)
     nxt[start + sizes - 1] = start
-    dx, dy = np.take(points, nxt, axis=1) - points
+    dx, dy = points.take(nxt, axis=1) - points
     seg = np.sqrt(dx * dx + dy * dy)
     if kind == "centripetal":
         seg = np.sqrt(seg)
@@ -122,7 +122,7 @@ def _geometry_parameters(points: np.ndarray, start: np.ndarray, sizes: np.ndarra
     cum = np.zeros((n_c, width))
     at = curve * width + local  # flat positions (one index: faster than two)
     cum.reshape(-1)[at + 1] = seg
-    np.cumsum(cum, axis=1, out=cum)
+    cum.cumsum(axis=1, out=cum)
     return cum.reshape(-1)[at] / cum.reshape(-1)[np.arange(n_c) * width + sizes][curve]
 
 
@@ -136,20 +136,20 @@ def _support_arcs(support0: np.ndarray, points: np.ndarray, start: np.ndarray, s
     # to the first (x and y apart: operations along all points)
     first = start + np.arange(n_c)
     closed = np.empty((2, n + n_c))
-    at_vertex = np.arange(n) + np.repeat(np.arange(1, n_c + 1), sizes)
+    at_vertex = np.arange(n) + np.arange(1, n_c + 1).repeat(sizes)
     for xy in (0, 1):  # scatters of single floats: faster than of columns
         closed[xy][first] = support0[:, xy]
         closed[xy][at_vertex] = points[:, xy]
     nxt = np.arange(1, n + n_c + 1)
     nxt[first + sizes] = first
-    dx, dy = np.take(closed, nxt, axis=1) - closed
-    curve = np.repeat(np.arange(n_c), sizes + 1)
+    dx, dy = closed.take(nxt, axis=1) - closed
+    curve = np.arange(n_c).repeat(sizes + 1)
     local = np.arange(n + n_c) - first[curve]
     width = int(sizes.max()) + 1
     cum = np.zeros((n_c, width))
     at = curve * width + local  # flat positions (one index: faster than two)
     cum.reshape(-1)[at] = np.sqrt(dx * dx + dy * dy)
-    np.cumsum(cum, axis=1, out=cum)  # one row per contour: every running sum starts afresh
+    cum.cumsum(axis=1, out=cum)  # one row per contour: every running sum starts afresh
     at_point = local < sizes[curve]
     return cum.reshape(-1)[at[at_point]] / cum.reshape(-1)[np.arange(n_c) * width + sizes][curve[at_point]]
 
@@ -196,7 +196,7 @@ def aligned_arcs(points, arcs) -> list:
         shapes.append(np.fft.fft(w - w.mean()))
     # shift d of slice k against k - 1 maximises sum_i Re(conj(w_{k-1}[i]) w_k[i + d])
     corr = np.real(np.fft.ifft(np.conj(np.stack(shapes[:-1])) * np.stack(shapes[1:]), axis=1))
-    shift = np.concatenate([[0.0], np.cumsum(np.argmax(corr, axis=1) / ALIGN_SAMPLES)]) if len(shapes) > 1 else [0.0]
+    shift = np.concatenate([[0.0], (np.argmax(corr, axis=1) / ALIGN_SAMPLES).cumsum()]) if len(shapes) > 1 else [0.0]
     return [np.mod(arc - s, 1.0) for arc, s in zip(arcs, shift)]
 
 
@@ -303,7 +303,7 @@ def slice_curves(contours, z, n_rays: int, n_lattice: int | None = None,
         raise ValueError(f"n_lattice: {m} lattice values cannot hold {longest} distinct parameters")
     q = _quantize_flat(u_flat, start, ns, m, values)
     nodes = [q[lo:hi] for lo, hi in bounds]
-    curve = np.repeat(np.arange(n_c), ns)
+    curve = np.arange(n_c).repeat(ns)
     # coordinate by coordinate, so that every operation of the curves and their cut runs along all points
     flat_xy = np.ascontiguousarray(flat.T)
     # in the plane only: every Bezier point of a slice's curve lies at its z exactly
@@ -322,7 +322,7 @@ def slice_curves(contours, z, n_rays: int, n_lattice: int | None = None,
     # nodes passed), or the last node of the slice before q0 (the closing segment)
     passed = np.zeros((n_c, m), dtype=np.int64)
     passed.reshape(-1)[curve * m + q] = 1
-    np.cumsum(passed, axis=1, out=passed)
+    passed.cumsum(axis=1, out=passed)
     g = np.where(before, (start + ns - 1)[:, None], start[:, None] + passed - 1).ravel()
     x = x.ravel().astype(np.float64)
     k_lo, k_hi = knots[g + curve[g]], knots[g + curve[g] + 1]
@@ -332,7 +332,7 @@ def slice_curves(contours, z, n_rays: int, n_lattice: int | None = None,
     b_hi = np.where(x + 1.0 == x_hi, k_hi, slope * (x + 1.0 - x_lo) + k_lo)
     cut = np.empty((n_c, m, 4, 3))
     cut[..., 2] = zz[:, None, None]
-    blending._restrict_rows(np.take(by_coordinate, g, axis=2), k_lo, k_hi, b_lo, b_hi, m,
+    blending._restrict_rows(by_coordinate.take(g, axis=2), k_lo, k_hi, b_lo, b_hi, m,
                             cut.reshape(n_c * m, 4, 3)[..., :2])
     p3 = np.empty((len(flat), 3))
     p3[:, :2] = flat

@@ -50,7 +50,7 @@ def _chord_parameters(points: np.ndarray, closed: bool, coincide: str) -> np.nda
     seg = seg.reshape(len(seg), -1).mean(axis=1)
     if np.any(seg <= 0):
         raise ValueError(f"points: {coincide} (zero chord length)")
-    t = np.concatenate([[0.0], np.cumsum(seg)])
+    t = np.concatenate([[0.0], seg.cumsum()])
     return t[:-1] / t[-1] if closed else t
 
 
@@ -228,7 +228,7 @@ def _closed_parameters(pts: np.ndarray, params, sizes) -> tuple[np.ndarray, np.n
     if ns.ndim != 1 or not len(ns) or ns.dtype.kind not in "iu" or ns.min() < 3 or int(ns.sum()) != len(pts):
         raise ValueError(f"sizes: need integer counts of at least 3 points summing to {len(pts)}, got {sizes!r}")
     ns = ns.astype(np.int64)
-    start = np.cumsum(ns) - ns
+    start = ns.cumsum() - ns
     inner = np.ones(len(pts), dtype=bool)
     inner[start] = False
     if (t[1:] <= t[:-1])[inner[1:]].any():
@@ -261,18 +261,18 @@ def _overhauser_closed_by_coordinate(p: np.ndarray, t: np.ndarray, start: np.nda
     t_prev[start] -= 1.0
     h1 = t_next - t
     h0 = t - t_prev
-    p_end = np.take(p, nxt, axis=1)
+    p_end = p.take(nxt, axis=1)
     # the derivative at the middle node of the parabola through three nodes (as _middle_slope)
-    tan = ((p - np.take(p, prv, axis=1)) / h0 * h1 + (p_end - p) / h1 * h0) / (h0 + h1)
+    tan = ((p - p.take(prv, axis=1)) / h0 * h1 + (p_end - p) / h1 * h0) / (h0 + h1)
     ctrl = np.empty((4,) + p.shape)
     ctrl[0] = p
     ctrl[3] = p_end
     np.multiply(h1, tan / 3.0, out=ctrl[1])
     ctrl[1] += p
-    np.multiply(h1, np.take(tan, nxt, axis=1) / 3.0, out=ctrl[2])
+    np.multiply(h1, tan.take(nxt, axis=1) / 3.0, out=ctrl[2])
     np.subtract(p_end, ctrl[2], out=ctrl[2])
     knots = np.empty(n + len(ns))
-    curve = np.repeat(np.arange(len(ns)), ns)
+    curve = np.arange(len(ns)).repeat(ns)
     knots[np.arange(n) + curve] = t
     knots[last + np.arange(1, len(ns) + 1)] = t[start] + 1.0
     return ctrl, knots
@@ -389,8 +389,8 @@ def restrict_curves(control, knots, sizes, breakpoints) -> np.ndarray:
         raise ValueError(f"breakpoints: need at least 2 per curve, got {b.shape[1]}")
     if np.any(np.diff(b, axis=1) <= 0):
         raise ValueError("breakpoints: must increase strictly")
-    kstart = np.cumsum(ns + 1) - (ns + 1)
-    curve = np.repeat(np.arange(n_c), ns + 1)
+    kstart = (ns + 1).cumsum() - (ns + 1)
+    curve = np.arange(n_c).repeat(ns + 1)
     lo, hi = k[kstart], k[kstart + ns]
     if np.any(np.diff(k)[(curve[1:] == curve[:-1])] <= 0):
         raise ValueError("knots: must increase strictly along every curve")
@@ -406,9 +406,9 @@ def restrict_curves(control, knots, sizes, breakpoints) -> np.ndarray:
     # evaluate each interval's ends inside the segment that contains the interval's midpoint
     mid = (0.5 * (keyed_b[:, :-1] + keyed_b[:, 1:])).ravel()
     g = np.searchsorted(key, mid, side="right") - 1
-    local = np.clip(g - kstart[np.repeat(np.arange(n_c), b.shape[1] - 1)], 0, np.repeat(ns - 1, b.shape[1] - 1))
-    first_knot = np.repeat(kstart, b.shape[1] - 1) + local
-    seg = first_knot - np.repeat(np.arange(n_c), b.shape[1] - 1)
+    local = np.clip(g - kstart[np.arange(n_c).repeat(b.shape[1] - 1)], 0, (ns - 1).repeat(b.shape[1] - 1))
+    first_knot = kstart.repeat(b.shape[1] - 1) + local
+    seg = first_knot - np.arange(n_c).repeat(b.shape[1] - 1)
     out = restrict_segments(ctrl[seg], k[first_knot], k[first_knot + 1], b[:, :-1].ravel(), b[:, 1:].ravel())
     return out.reshape(n_c, b.shape[1] - 1, 4, ctrl.shape[2])
 
@@ -507,10 +507,10 @@ def _restrict_rows(c: np.ndarray, k0: np.ndarray, k1: np.ndarray, b0: np.ndarray
     np.multiply(w, tangent, out=ends[1])
     ends[1] += point
     np.copyto(ends[3], p3)
-    np.copyto(ends[3], np.take(point, nxt, axis=1), where=same)
+    np.copyto(ends[3], point.take(nxt, axis=1), where=same)
     np.subtract(p3, p2, out=ends[2])
     ends[2] *= 3.0
-    np.copyto(ends[2], np.take(tangent, nxt, axis=1), where=same)
+    np.copyto(ends[2], tangent.take(nxt, axis=1), where=same)
     ends[2] *= w
     np.subtract(ends[3], ends[2], out=ends[2])
     out[...] = ends.transpose(2, 0, 1)
