@@ -420,7 +420,7 @@ def chain(contours: list[Contour], spacing: float | None, outlines: Outlines | N
     succ: list[list[int]] = [[] for _ in range(n)]
     pred: list[list[int]] = [[] for _ in range(n)]
     lower, upper = table.neighbour_pairs()
-    gap = np.diff(planes)
+    gap = planes[1:] - planes[:-1]
     wide = np.zeros(len(gap), dtype=bool) if spacing is None else np.abs(gap - spacing) > SPACING_RTOL * spacing
     gapped = wide[table.plane_of[lower]]
     # missing planes are fine between separate bodies, not inside one

@@ -666,7 +666,7 @@ def _balanced_values(u_all: np.ndarray, arc_all: np.ndarray, sizes: np.ndarray, 
     at = np.zeros(len(xp), dtype=np.int64)  # each breakpoint's grid index
     at[inner] = where[2:]
     at[off + sizes + 1] = len(grid) - 1
-    width, rise = np.diff(xp), np.diff(fp)
+    width, rise = xp[1:] - xp[:-1], fp[1:] - fp[:-1]
     inside = np.ones(len(width), dtype=bool)
     inside[(off + sizes + 1)[:-1]] = False  # from one slice's (1, 1) to the next one's (0, 0)
     sloped = inside & (width > 0)
@@ -675,7 +675,7 @@ def _balanced_values(u_all: np.ndarray, arc_all: np.ndarray, sizes: np.ndarray, 
     n_g = len(grid)
     change = np.bincount(at[:-1][sloped], slope, minlength=n_g) - np.bincount(at[1:][sloped], slope, minlength=n_g)
     total = np.zeros(n_g)
-    total[1:] = (change[:-1].cumsum() * np.diff(grid)).cumsum()
+    total[1:] = (change[:-1].cumsum() * (grid[1:] - grid[:-1])).cumsum()
     if jump.any():
         total += np.bincount(at[1:][jump], rise[jump], minlength=n_g).cumsum()
     total[-1] = n_c  # every slice ends at (1, 1)

@@ -495,6 +495,6 @@ def side_surface(curves, method: str = "blending", v=None, monotone: bool = Fals
     if len(c) < 2:
         raise ValueError(f"curves: need at least 2 slices for a side surface, got {len(c)}")
     vv = np.arange(len(c), dtype=np.float64) if v is None else as_array(v, "v", shape=(len(c),))
-    if np.any(np.diff(vv) <= 0):
+    if (vv[1:] <= vv[:-1]).any():
         raise ValueError("v: slice positions must increase strictly")
     return METHODS[method](c, vv, monotone=bool(monotone))

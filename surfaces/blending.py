@@ -121,7 +121,7 @@ def _identity_tangents(t: np.ndarray) -> np.ndarray:
     """:func:`_open_tangents` of the identity's rows (``n >= 3`` points) at parameters ``t``, from its
     three diagonals: the same operations on the non-zero entries (the zeros add exactly nothing)."""
     n = len(t)
-    h = np.diff(t)
+    h = t[1:] - t[:-1]
     h0, h1 = h[:-1], h[1:]
     out = np.zeros((n, n))
     i = np.arange(1, n - 1)
@@ -555,7 +555,7 @@ def _blend_weights(n: int, v: np.ndarray | None) -> np.ndarray:
     if v is not None:
         # tangent rows (dC/dv) are the Overhauser tangents of the identity "points"
         tangent = _open_tangents(np.eye(n), v) if n < 3 else _identity_tangents(v)
-        h = np.diff(v)[:, None]
+        h = (v[1:] - v[:-1])[:, None]
         eye = np.eye(n)
         j = np.arange(n - 1)
         return np.stack(
