@@ -256,12 +256,12 @@ def slice_curves(contours, z, n_rays: int, n_lattice: int | None = None,
         ps = [np.asarray(c, dtype=np.float64) for c in contours]
     except (TypeError, ValueError):
         ps = []
-    if len(ps) != len(contours) or any(p.ndim != 2 or p.shape[1] != 2 for p in ps):
+    if len(ps) != len(contours) or any([p.ndim != 2 or p.shape[1] != 2 for p in ps]):
         ps = [as_array(c, f"contours[{i}]", shape=(None, 2), finite=False) for i, c in enumerate(contours)]
     n1 = int(n_rays)
     if n1 < 3:
         raise ValueError(f"n_rays: need at least 3 rays (seed 000, eq. 1), got {n_rays}")
-    if ps and min(len(p) for p in ps) < 3:
+    if ps and min(map(len, ps)) < 3:
         i = next(i for i, p in enumerate(ps) if len(p) < 3)
         raise ValueError(f"contours[{i}]: needs at least 3 points, got {len(ps[i])}")
     if not np.isfinite(np.concatenate(ps)).all():
