@@ -124,11 +124,11 @@ def _identity_tangents(t: np.ndarray) -> np.ndarray:
     h = t[1:] - t[:-1]
     h0, h1 = h[:-1], h[1:]
     out = np.zeros((n, n))
-    i = np.arange(1, n - 1)
+    diagonal = out.reshape(-1)[n + 1:n * (n - 1):n + 1]  # entries (i, i) of the inner rows, a view
     # _middle_slope's ((p1 - p0) / h0 * h1 + (p2 - p1) / h1 * h0) / (h0 + h1) at columns i - 1, i, i + 1
-    out[i, i - 1] = (-1.0 / h0 * h1) / (h0 + h1)
-    out[i, i] = (1.0 / h0 * h1 + -1.0 / h1 * h0) / (h0 + h1)
-    out[i, i + 1] = (1.0 / h1 * h0) / (h0 + h1)
+    out.reshape(-1)[n:n * (n - 1):n + 1] = (-1.0 / h0 * h1) / (h0 + h1)
+    diagonal[:] = (1.0 / h0 * h1 + -1.0 / h1 * h0) / (h0 + h1)
+    out.reshape(-1)[n + 2:n * (n - 1) + 2:n + 1] = (1.0 / h1 * h0) / (h0 + h1)
     # the end rows: the one parabola's derivative at its first / last node
     d0, d1 = np.array([-1.0, 1.0, 0.0]) / h[0], np.array([0.0, -1.0, 1.0]) / h[1]
     out[0, :3] = d0 - (d1 - d0) * h[0] / (h[0] + h[1])
