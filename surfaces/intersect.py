@@ -28,7 +28,6 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from dataclasses import dataclass
-from functools import lru_cache
 
 import numpy as np
 
@@ -122,15 +121,6 @@ SMALL_BROAD_PHASE = 96
 SWEEP_PAIRS_PER_FACE = 64
 
 
-@lru_cache(maxsize=8)
-def _all_pairs(n: int) -> tuple[np.ndarray, np.ndarray]:
-    """Every pair ``a < b`` of ``n`` items (read-only int64 arrays)."""
-    a, b = np.triu_indices(n, 1)
-    a.flags.writeable = False
-    b.flags.writeable = False
-    return a, b
-
-
 def _candidate_blocks(c: np.ndarray) -> Iterator[np.ndarray]:
     """:func:`candidate_pairs` of corners (T >= 2, 3, 3), block after block (P_i, 2) in the same order.
 
@@ -140,11 +130,12 @@ def _candidate_blocks(c: np.ndarray) -> Iterator[np.ndarray]:
     lo, hi = _box(c)
     if len(c) <= SMALL_BROAD_PHASE:
         # every pair's boxes compared at once: cheaper than the grid and the sweep on a few faces
-        a, b = _all_pairs(len(c))
-        keep = (lo[a, 0] <= hi[b, 0]) & (lo[b, 0] <= hi[a, 0])
-        for k in (1, 2):
-            keep &= (lo[a, k] <= hi[b, k]) & (lo[b, k] <= hi[a, k])
-        yield np.stack([a[keep], b[keep]], axis=1)
+        # as an (n, n) table: broadcasting costs less than gathering both boxes of every pair
+        meet = np.triu(np.ones((len(c), len(c)), dtype=bool), 1)
+        for k in range(3):
+            meet &= lo[:, None, k] <= hi[None, :, k]
+            meet &= hi[:, None, k] >= lo[None, :, k]
+        yield np.argwhere(meet)
         return
     span = hi.max(axis=0) - lo.min(axis=0)
     axis = int(np.argmax(span))
