@@ -28,7 +28,6 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from dataclasses import dataclass
-from functools import lru_cache
 
 import numpy as np
 
@@ -122,15 +121,6 @@ SMALL_BROAD_PHASE = 96
 SWEEP_PAIRS_PER_FACE = 64
 
 
-@lru_cache(maxsize=8)
-def _all_pairs(n: int) -> tuple[np.ndarray, np.ndarray]:
-    """Every pair ``a < b`` of ``n`` items (read-only int64 arrays)."""
-    a, b = np.triu_indices(n, 1)
-    a.flags.writeable = False
-    b.flags.writeable = False
-    return a, b
-
-
 def _candidate_blocks(c: np.ndarray) -> Iterator[np.ndarray]:
     """:func:`candidate_pairs` of corners (T >= 2, 3, 3), block after block (P_i, 2) in the same order.
 
@@ -140,11 +130,12 @@ def _candidate_blocks(c: np.ndarray) -> Iterator[np.ndarray]:
     lo, hi = _box(c)
     if len(c) <= SMALL_BROAD_PHASE:
         # every pair's boxes compared at once: cheaper than the grid and the sweep on a few faces
-        a, b = _all_pairs(len(c))
-        keep = (lo[a, 0] <= hi[b, 0]) & (lo[b, 0] <= hi[a, 0])
-        for k in (1, 2):
-            keep &= (lo[a, k] <= hi[b, k]) & (lo[b, k] <= hi[a, k])
-        yield np.stack([a[keep], b[keep]], axis=1)
+        # as an (n, n) table: broadcasting costs less than gathering both boxes of every pair
+        meet = np.triu(np.ones((len(c), len(c)), dtype=bool), 1)
+        for k in range(3):
+            meet &= lo[:, None, k] <= hi[None, :, k]
+            meet &= hi[:, None, k] >= lo[None, :, k]
+        yield np.argwhere(meet)
         return
     span = hi.max(axis=0) - lo.min(axis=0)
     axis = int(np.argmax(span))
@@ -469,9 +460,28 @@ def _arcs(px: np.ndarray, py: np.ndarray, cx: np.ndarray, cy: np.ndarray) -> tup
 
 def _angle_arcs(phi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """:func:`_arcs` from the corners' angles ``phi`` (..., 3) (rad)."""
-    d = (phi[..., 1:] - phi[..., :1] + np.pi) % (2 * np.pi) - np.pi
-    low = np.minimum(np.minimum(d[..., 0], d[..., 1]), 0.0)
-    return phi[..., 0] + low, np.maximum(np.maximum(d[..., 0], d[..., 1]), 0.0) - low
+    return _steps_arcs(phi[..., 0], phi[..., 1] - phi[..., 0], phi[..., 2] - phi[..., 0])
+
+
+def _wrap(d: np.ndarray) -> np.ndarray:
+    """Angle differences ``d`` of angles in [-pi, pi] brought into [-pi, pi), in place."""
+    # one turn at most either way: a masked subtraction, several times cheaper than a float modulo
+    np.subtract(d, 2 * np.pi, out=d, where=d >= np.pi)
+    np.add(d, 2 * np.pi, out=d, where=d < -np.pi)
+    return d
+
+
+def _steps_arcs(phi0: np.ndarray, d1: np.ndarray, d2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_arcs` of triangles from the angle of one corner and the differences to the other two's
+    (fresh arrays, wrapped in place), all of one shape (rad)."""
+    d1, d2 = _wrap(d1), _wrap(d2)
+    low = np.minimum(d1, d2)
+    np.minimum(low, 0.0, out=low)
+    high = np.maximum(d1, d2)
+    np.maximum(high, 0.0, out=high)
+    high -= low
+    low += phi0
+    return low, high
 
 
 def _bins(low: np.ndarray, length: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -547,13 +557,18 @@ def _lattice_arcs(xs: np.ndarray, ys: np.ndarray, worry: np.ndarray, cx: np.ndar
     k = np.repeat(worry, 3)
     ok = (j >= 0) & (j < cols - 1)
     j, k = j[ok], k[ok]
-    # the angles of rings j and j + 1 about k's axis, (R, P) each
+    # the angles of rings j and j + 1 about k's axis, (R + 1, P) each, the first ring repeated last
     low = np.arctan2(ys[:, j] - cy[k], xs[:, j] - cx[k])
     high = np.arctan2(ys[:, j + 1] - cy[k], xs[:, j + 1] - cx[k])
-    low_n, high_n = np.roll(low, -1, axis=0), np.roll(high, -1, axis=0)
-    # cell g's faces (a, b, c) = ((g, j), (g + 1, j), (g + 1, j + 1)), (a, c, d) = ((g, j), (g + 1, j + 1), (g, j + 1))
-    phi = np.stack([np.stack([low, low_n, high_n], axis=-1), np.stack([low, high_n, high], axis=-1)])
-    first, count = _bins(*_angle_arcs(phi))
+    low, high = np.vstack([low, low[:1]]), np.vstack([high, high[:1]])
+    a, low_n, high_n, high = low[:-1], low[1:], high[1:], high[:-1]
+    # cell g's faces (a, b, c) = ((g, j), (g + 1, j), (g + 1, j + 1)), (a, c, d) = ((g, j), (g + 1, j + 1), (g, j + 1)):
+    # the angles of b, c, d less a's, c's shared by both
+    to_c = high_n - a
+    arcs = np.empty((2, 2) + a.shape)
+    arcs[0] = _steps_arcs(a, low_n - a, to_c.copy())
+    arcs[1] = _steps_arcs(a, to_c, high - a)
+    first, count = _bins(arcs[:, 0], arcs[:, 1])
     cell = np.arange(rows)[:, None] * (cols - 1) + j
     face = np.stack([cell, cell + rows * (cols - 1)])
     return face.ravel(), np.broadcast_to(k, face.shape).ravel(), first.ravel(), count.ravel()
@@ -588,6 +603,33 @@ def _beyond(sign: np.ndarray, e: np.ndarray, bound: float | None) -> np.ndarray:
     if np.all(sign < 0):
         return e <= 0 if bound is None else e < -bound
     return sign * e >= 0 if bound is None else sign * e > bound
+
+
+def _crossings(px: np.ndarray, py: np.ndarray, qx: np.ndarray, qy: np.ndarray) -> tuple[tuple, np.ndarray]:
+    """Signed crossings of the half-line ``y = 0, x > 0`` by edges ``p -> q`` (points relative to the
+    half-line's origin, arrays of one shape): the index tuple of the edges that cross ``y = 0`` and each
+    one's count, +1 upward with the origin on its left, -1 downward with it on its right, else 0 (int8).
+
+    Summed over a closed chain: its winding number about the origin, the same integer as its angle
+    steps summed over 2 pi wherever no edge passes through the origin, without an arctangent a vertex;
+    the turns are taken only on the few edges that cross ``y = 0``.
+    """
+    up = py <= 0
+    at = np.nonzero(up != (qy <= 0))
+    turn = px[at] * qy[at] - py[at] * qx[at]
+    up = up[at]
+    return at, (up & (turn > 0)).view(np.int8) - (~up & (turn < 0)).view(np.int8)
+
+
+def _winds_once(mx: np.ndarray, my: np.ndarray, dx: np.ndarray, dy: np.ndarray, mnx: np.ndarray,
+                mny: np.ndarray) -> np.ndarray:
+    """Whether the closed chains ``M_g -> D_g -> M_{g+1}`` (points relative to their column's axis, (R, B)
+    each, one chain per column) wind once about the axis, either way (:func:`_crossings`); (B,) bool."""
+    winding = np.zeros(mx.shape[1])
+    for chain in ((mx, my, dx, dy), (dx, dy, mnx, mny)):
+        (_, band), step = _crossings(*chain)
+        winding += np.bincount(band, step, len(winding))
+    return np.abs(winding) == 1
 
 
 def _lattice_suspects(v: np.ndarray, t: np.ndarray, rows: int, cols: int, margin: float) -> np.ndarray | None:
@@ -641,12 +683,19 @@ def _lattice_suspects(v: np.ndarray, t: np.ndarray, rows: int, cols: int, margin
             area = (X[c1] - x0) * (Y[c2] - y0) - (Y[c1] - y0) * (X[c2] - x0)
             if not (np.all(area > tiny) or np.all(area < -tiny)):
                 return None
-    xs, ys = X[:n].reshape(rows, cols), Y[:n].reshape(rows, cols)
-    xn, yn = np.roll(xs, -1, axis=0), np.roll(ys, -1, axis=0)
+    # the rings with the first repeated last (R + 1, C): each ring's next is a view, not a rolled copy
+    xe, ye = np.empty((rows + 1, cols)), np.empty((rows + 1, cols))
+    xe[:rows], ye[:rows] = X[:n].reshape(rows, cols), Y[:n].reshape(rows, cols)
+    xe[rows], ye[rows] = xe[0], ye[0]
+    xs, ys, xn, yn = xe[:-1], ye[:-1], xe[1:], ye[1:]
     # the cut of band h at mid-height: M_g -> D_g (face (a, c, d) of cell g), D_g -> M_{g+1} (face (a, b, c))
-    mx, my = (xs[:, 1:] + xs[:, :-1]) / 2.0, (ys[:, 1:] + ys[:, :-1]) / 2.0
-    dx, dy = (xs[:, :-1] + xn[:, 1:]) / 2.0, (ys[:, :-1] + yn[:, 1:]) / 2.0
-    mnx, mny = np.roll(mx, -1, axis=0), np.roll(my, -1, axis=0)
+    mex, mey = xe[:, 1:] + xe[:, :-1], ye[:, 1:] + ye[:, :-1]
+    mex /= 2.0
+    mey /= 2.0
+    mx, my, mnx, mny = mex[:-1], mey[:-1], mex[1:], mey[1:]
+    dx, dy = xs[:, :-1] + xn[:, 1:], ys[:, :-1] + yn[:, 1:]
+    dx /= 2.0
+    dy /= 2.0
     w0 = dx * mny - dy * mnx
     w1 = mx * dy - my * dx
     area = w0.sum(axis=0) + w1.sum(axis=0)
@@ -655,26 +704,23 @@ def _lattice_suspects(v: np.ndarray, t: np.ndarray, rows: int, cols: int, margin
     cx = (((dx + mnx) * w0).sum(axis=0) + ((mx + dx) * w1).sum(axis=0)) / (3.0 * area)
     cy = (((dy + mny) * w0).sum(axis=0) + ((my + dy) * w1).sum(axis=0)) / (3.0 * area)
     sign = np.sign(area)
-    # the rings seen from the axes of the bands below (q1) and above (q0) them
-    q0x, q0y = xs[:, :-1] - cx, ys[:, :-1] - cy
-    q1x, q1y = xs[:, 1:] - cx, ys[:, 1:] - cy
-    q0nx, q0ny = np.roll(q0x, -1, axis=0), np.roll(q0y, -1, axis=0)
-    q1nx, q1ny = np.roll(q1x, -1, axis=0), np.roll(q1y, -1, axis=0)
+    # the rings seen from the axes of the bands below (q1) and above (q0) them, (R + 1, C - 1) each
+    qe0x, qe0y = xe[:, :-1] - cx, ye[:, :-1] - cy
+    qe1x, qe1y = xe[:, 1:] - cx, ye[:, 1:] - cy
+    q0x, q0y, q0nx, q0ny = qe0x[:-1], qe0y[:-1], qe0x[1:], qe0y[1:]
+    q1x, q1y, q1nx, q1ny = qe1x[:-1], qe1y[:-1], qe1x[1:], qe1y[1:]
     ex, ey = xn - xs, yn - ys
     # face (a, b, c): edge on ring h, lone corner (g + 1, h + 1); face (a, c, d): edge on ring h + 1, lone (g, h)
     good0 = _beyond(sign, q0x * q0ny - q0y * q0nx, tiny)
     good0 &= _beyond(sign, q1nx * ey[:, :-1] - q1ny * ex[:, :-1], None)
     good1 = _beyond(sign, q1x * q1ny - q1y * q1nx, tiny)
     good1 &= _beyond(sign, q0x * ey[:, 1:] - q0y * ex[:, 1:], None)
-    mx -= cx
-    my -= cy
+    # the cut's winding about the axis: M_g and D_g seen from it, M_{g+1} a view of the next row
+    mex -= cx
+    mey -= cy
     dx -= cx
     dy -= cy
-    mnx -= cx
-    mny -= cy
-    winding = (np.arctan2(dx * mny - dy * mnx, dx * mnx + dy * mny).sum(axis=0)
-               + np.arctan2(mx * dy - my * dx, mx * dx + my * dy).sum(axis=0))
-    once = np.abs(np.abs(winding) - 2 * np.pi) < 1.0
+    once = _winds_once(mx, my, dx, dy, mnx, mny)
     worried = ~once | ~good0.all(axis=0) | ~good1.all(axis=0)
     if not worried.any():
         return np.zeros(len(t), dtype=bool)
@@ -858,8 +904,8 @@ def fold_suspects(vertices, triangles, *, margin: float = 1e-12) -> np.ndarray |
     ay -= ccy
     bx -= ccx
     by -= ccy
-    winding = np.bincount(base, np.arctan2(ax * by - ay * bx, ax * bx + ay * by), n_bands)
-    once = (np.abs(np.abs(winding) - 2 * np.pi) < 1.0) & (area != 0)
+    (edge,), step = _crossings(ax, ay, bx, by)
+    once = (np.abs(np.bincount(base[edge], step, n_bands)) == 1) & (area != 0)
     worried = ~once
     worried[base[~good]] = True
     # each face's group: its band, or the band its cap closes

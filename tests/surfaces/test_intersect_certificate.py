@@ -201,3 +201,23 @@ def test_lattice_form_declines_what_is_not_a_lattice(monkeypatch):
     v[5, 2] += 0.5  # off its level: the mesh is no longer layered
     lattice, general = _both_forms(monkeypatch, v, t)
     assert general is None and lattice is None
+
+
+def test_crossing_winding_equals_the_summed_angle_steps():
+    """The certificate's windings (signed crossings of a half-line) against the angle steps summed over
+    2 pi, on random closed chains about the origin that wind 0, 1, 2 times either way or wander."""
+    from surfaces.intersect import _crossings
+
+    rng = np.random.default_rng(7)
+    for trial in range(300):
+        n = int(rng.integers(3, 60))
+        turns = int(rng.integers(-2, 3))
+        angle = np.sort(rng.uniform(0, 2 * np.pi * max(abs(turns), 1), n)) * (1 if turns >= 0 else -1)
+        radius = rng.uniform(0.2, 3.0, n)
+        x, y = radius * np.cos(angle), radius * np.sin(angle)
+        if turns == 0 or trial % 5 == 0:  # off-centre chains, the origin inside or out
+            x, y = x + rng.uniform(-3, 3), y + rng.uniform(-3, 3)
+        xn, yn = np.roll(x, -1), np.roll(y, -1)
+        expected = np.arctan2(x * yn - y * xn, x * xn + y * yn).sum() / (2 * np.pi)
+        (at,), step = _crossings(x, y, xn, yn)
+        assert int(step.sum()) == round(expected), trial

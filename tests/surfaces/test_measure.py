@@ -98,3 +98,24 @@ def test_side_integrals_equal_flux_z_and_area_on_a_view_of_some_columns(shape):
     flux, ar = side_integrals(columns)
     assert flux == pytest.approx(flux_z(patches), rel=1e-12)
     assert ar == pytest.approx(area(patches, order=5), rel=1e-12)
+
+
+@pytest.mark.parametrize("shape", [(1, 1), (9, 4), (400, 3)])
+def test_side_integrals_of_layered_patches_equal_flux_z_and_area(shape):
+    """Patches whose rows of control points lie at one height each (a side between planar slices) take
+    the horizontal-S_u path; mixed with patches that do not, every chunk takes its own."""
+    from surfaces.measure import side_integrals
+
+    rng = np.random.default_rng(shape[0] + 1)
+    grid = rng.normal(size=shape + (4, 4, 3))
+    grid[..., 2] = rng.normal(size=shape + (1, 4))  # z by patch and v index alone
+    patches = BezierPatches(grid)
+    flux, ar = side_integrals(grid)
+    assert flux == pytest.approx(flux_z(patches), rel=1e-12)
+    assert ar == pytest.approx(area(patches, order=5), rel=1e-12)
+    mixed = grid.copy()
+    mixed[-1, -1, 1, 2, 2] += 0.5  # one patch's row no longer level
+    patches = BezierPatches(mixed)
+    flux, ar = side_integrals(mixed)
+    assert flux == pytest.approx(flux_z(patches), rel=1e-12)
+    assert ar == pytest.approx(area(patches, order=5), rel=1e-12)
