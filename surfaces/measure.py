@@ -146,7 +146,8 @@ def side_integrals(control: np.ndarray, order: int = 5) -> tuple[float, float]:
     basis, weights = _node_basis(order)
     q, n = len(weights), order
     derivatives = _derivative_basis(order)
-    v_basis, v_derivative = _v_basis(order)
+    v_weighted, v_derivative = _v_basis(order)
+    w = _gauss(order)[1]
     n_rows, n_cols = control.shape[:2]
     flux = area = 0.0
     # chunks of whole patch rows: a view of some columns is copied a chunk at a time
@@ -162,12 +163,11 @@ def side_integrals(control: np.ndarray, order: int = 5) -> tuple[float, float]:
         nz = ux * vy
         t = uy * vx
         nz -= t
-        if np.array_equal(cz[4:].reshape(3, 4, k), np.broadcast_to(cz[:4], (3, 4, k))):
+        if not (cz[4:].reshape(3, 4, k) != cz[:4]).any():
             # every row of control points at one height (a side between planar slices): S_u is
-            # horizontal, z and z_v vary with v alone, and |S_u x S_v|^2 = (x_u^2 + y_u^2) z_v^2 + nz^2
-            z = v_basis @ cz[:4]
-            np.multiply(nz.reshape(n, n, k), z, out=t.reshape(n, n, k))
-            flux += float(np.sum(weights @ t))
+            # horizontal, z and z_v vary with v alone, and |S_u x S_v|^2 = (x_u^2 + y_u^2) z_v^2 + nz^2.
+            # The flux sum_ij w_i w_j z_j nz_ij: nz summed over u first, then against the weighted z
+            flux += float(np.dot(w @ nz.reshape(n, n * k), (v_weighted @ cz[:4]).reshape(-1)))
             dz = v_derivative @ cz[:4]
             dz *= dz
             ux *= ux
@@ -176,7 +176,7 @@ def side_integrals(control: np.ndarray, order: int = 5) -> tuple[float, float]:
             ux.reshape(n, n, k)[:] *= dz
             nz *= nz
             ux += nz
-            area += float(np.sum(weights @ np.sqrt(ux, out=ux)))
+            area += float(np.dot(np.sqrt(ux, out=ux).sum(axis=1), weights))
             continue
         z = basis[:q] @ cz
         uz, vz = (derivatives @ cz).reshape(2, q, k)
@@ -200,9 +200,10 @@ def side_integrals(control: np.ndarray, order: int = 5) -> tuple[float, float]:
 
 @lru_cache(maxsize=32)
 def _v_basis(order: int) -> tuple[np.ndarray, np.ndarray]:
-    """Bernstein weights (order, 4) of the points and derivatives at the ``v`` nodes (read-only)."""
-    t, _ = _gauss(order)
-    b0, b1 = bernstein(t), bernstein(t, 1)
+    """Bernstein weights (order, 4) of the points, times the nodes' Gauss weights, and of the derivatives
+    at the ``v`` nodes (read-only)."""
+    t, w = _gauss(order)
+    b0, b1 = w[:, None] * bernstein(t), bernstein(t, 1)
     b0.flags.writeable = False
     b1.flags.writeable = False
     return b0, b1
