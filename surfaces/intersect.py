@@ -625,10 +625,12 @@ def _winds_once(mx: np.ndarray, my: np.ndarray, dx: np.ndarray, dy: np.ndarray, 
                 mny: np.ndarray) -> np.ndarray:
     """Whether the closed chains ``M_g -> D_g -> M_{g+1}`` (points relative to their column's axis, (R, B)
     each, one chain per column) wind once about the axis, either way (:func:`_crossings`); (B,) bool."""
-    winding = np.zeros(mx.shape[1])
+    n_bands = mx.shape[1]
+    winding = np.zeros(n_bands)
     for chain in ((mx, my, dx, dy), (dx, dy, mnx, mny)):
-        (_, band), step = _crossings(*chain)
-        winding += np.bincount(band, step, len(winding))
+        # on the flat rows (contiguous): one index an edge, cheaper to find and gather than (row, band) pairs
+        (at,), step = _crossings(*(c.reshape(-1) for c in chain))
+        winding += np.bincount(at % n_bands, step, n_bands)
     return np.abs(winding) == 1
 
 
@@ -666,23 +668,27 @@ def _lattice_suspects(v: np.ndarray, t: np.ndarray, rows: int, cols: int, margin
     # closed and oriented: the lattice's inner edges pair by construction, its two boundary rings and
     # the caps' (flat, so on the end levels where the lattice has boundary edges only) must pair up
     g = np.arange(rows) * cols
-    gn = np.roll(g, -1)
+    gn = g + cols  # the next ring's first vertex, the last ring's the first ring's
+    gn[-1] = 0
     top = cols - 1
-    a = np.concatenate([g, gn + top, tc.ravel()])
-    b = np.empty_like(tc)
+    # half the bytes to sort where the codes fit (as in _closed_and_oriented)
+    small = 2 * len(v) * len(v) + 2 < 2**31
+    a = np.concatenate([g, gn + top, tc.ravel()], dtype=np.int32 if small else np.int64)
+    b = np.empty_like(tc, dtype=a.dtype)
     b[:, :2], b[:, 2] = tc[:, 1:], tc[:, 0]
-    if not _edges_paired(a, np.concatenate([gn, g + top, b.ravel()]), len(v)):
+    if not _edges_paired(a, np.concatenate([gn, g + top, b.ravel()], dtype=a.dtype), len(v)):
         return None
     X, Y = v[:, 0] - v[:, 0].mean(), v[:, 1] - v[:, 1].mean()
     tiny = margin * (2.0 * max(float(np.abs(X).max()), float(np.abs(Y).max()))) ** 2
-    for lvl in (0, top):
-        on = np.flatnonzero(lc[:, 0] == lvl)
-        if len(on):
-            c0, c1, c2 = tc[on, 0], tc[on, 1], tc[on, 2]
-            x0, y0 = X[c0], Y[c0]
-            area = (X[c1] - x0) * (Y[c2] - y0) - (Y[c1] - y0) * (X[c2] - x0)
-            if not (np.all(area > tiny) or np.all(area < -tiny)):
-                return None
+    # every cap face's turn at once (the same products per face), then each end level's apart
+    c0, c1, c2 = tc[:, 0], tc[:, 1], tc[:, 2]
+    x0, y0 = X[c0], Y[c0]
+    turn = (X[c1] - x0) * (Y[c2] - y0) - (Y[c1] - y0) * (X[c2] - x0)
+    cap_face_low = lc[:, 0] == 0
+    for on in (cap_face_low, lc[:, 0] == top):
+        area = turn[on]
+        if len(area) and not (np.all(area > tiny) or np.all(area < -tiny)):
+            return None
     # the rings with the first repeated last (R + 1, C): each ring's next is a view, not a rolled copy
     xe, ye = np.empty((rows + 1, cols)), np.empty((rows + 1, cols))
     xe[:rows], ye[:rows] = X[:n].reshape(rows, cols), Y[:n].reshape(rows, cols)
@@ -726,7 +732,7 @@ def _lattice_suspects(v: np.ndarray, t: np.ndarray, rows: int, cols: int, margin
         return np.zeros(len(t), dtype=bool)
     group = np.empty(len(t), dtype=np.int64)
     group[:n_side].reshape(2 * rows, cols - 1)[:] = np.arange(cols - 1)
-    group[n_side:] = np.where(lc[:, 0] == 0, 0, cols - 2)
+    group[n_side:] = np.where(cap_face_low, 0, cols - 2)
     bad_face = np.zeros(len(t), dtype=bool)
     bad_face[:n_side // 2] = ~good0.ravel()
     bad_face[n_side // 2:n_side] = ~good1.ravel()
