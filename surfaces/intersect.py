@@ -535,11 +535,17 @@ def _arc_suspects(t: np.ndarray, X: np.ndarray, Y: np.ndarray, group: np.ndarray
     cover = np.zeros((len(worry), 2 * ANGLE_BINS + 1), dtype=np.int32)
     np.add.at(cover, (w[bad], first[bad]), 1)
     np.add.at(cover, (w[bad], first[bad] + count[bad]), -1)
-    cover = np.cumsum(cover, axis=1)[:, :2 * ANGLE_BINS]
+    cover = cover.cumsum(axis=1)[:, :2 * ANGLE_BINS]
     taken = (cover[:, :ANGLE_BINS] + cover[:, ANGLE_BINS:]) > 0
+    # the taken bins counted over two turns: the second turn's counts are the first's plus a whole turn's
     prefix = np.zeros((len(worry), 2 * ANGLE_BINS + 1), dtype=np.int32)
-    prefix[:, 1:] = np.cumsum(np.tile(taken, 2), axis=1)
-    hit = (prefix[w, first + count] - prefix[w, first] > 0) | ~once[k]
+    turn = prefix[:, 1:ANGLE_BINS + 1]
+    taken.cumsum(axis=1, out=turn)
+    np.add(turn, turn[:, -1:], out=prefix[:, ANGLE_BINS + 1:])
+    # gathered from the flat table (one index a pick, not (row, column) pairs)
+    at = w * (2 * ANGLE_BINS + 1) + first
+    flat = prefix.reshape(-1)
+    hit = (flat[at + count] - flat[at] > 0) | ~once[k]
     suspect[f[hit]] = True
     return suspect
 
