@@ -571,10 +571,11 @@ def _lattice_arcs(xs: np.ndarray, ys: np.ndarray, worry: np.ndarray, cx: np.ndar
     # cell g's faces (a, b, c) = ((g, j), (g + 1, j), (g + 1, j + 1)), (a, c, d) = ((g, j), (g + 1, j + 1), (g, j + 1)):
     # the angles of b, c, d less a's, c's shared by both
     to_c = high_n - a
-    arcs = np.empty((2, 2) + a.shape)
-    arcs[0] = _steps_arcs(a, low_n - a, to_c.copy())
-    arcs[1] = _steps_arcs(a, to_c, high - a)
-    first, count = _bins(arcs[:, 0], arcs[:, 1])
+    # the two faces' low ends and lengths each one contiguous block, as _bins reads them
+    low_ends, lengths = np.empty((2, 2) + a.shape)
+    low_ends[0], lengths[0] = _steps_arcs(a, low_n - a, to_c.copy())
+    low_ends[1], lengths[1] = _steps_arcs(a, to_c, high - a)
+    first, count = _bins(low_ends, lengths)
     cell = np.arange(rows)[:, None] * (cols - 1) + j
     face = np.stack([cell, cell + rows * (cols - 1)])
     return face.ravel(), np.broadcast_to(k, face.shape).ravel(), first.ravel(), count.ravel()
