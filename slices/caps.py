@@ -78,7 +78,20 @@ def _points_and_tangents(x: np.ndarray, weights: tuple) -> tuple[np.ndarray, np.
             3 * (d0 * (x[:, 1] - x[:, 0]) + d1 * (x[:, 2] - x[:, 1]) + d2 * (x[:, 3] - x[:, 2])))
 
 
-_APEX_WEIGHTS = _bezier_weights(np.arange(APEX_SAMPLES) / APEX_SAMPLES)
+def _sample_matrix(weights: tuple) -> np.ndarray:
+    """The points and tangents of :func:`_points_and_tangents` as one matrix (4, 2 S), read-only.
+
+    A coordinate ``x`` (M, 4) of Bezier segments times it gives their values (the first ``S``
+    columns) and tangents (the last ``S``) at the parameters of ``weights`` in one product.
+    """
+    k0, k1, k2, k3, d0, d1, d2 = weights
+    out = np.vstack([np.hstack([k0, -3 * d0]), np.hstack([k1, 3 * (d0 - d1)]), np.hstack([k2, 3 * (d1 - d2)]),
+                     np.hstack([k3, 3 * d2])])
+    out.flags.writeable = False
+    return out
+
+
+_APEX_MATRIX = _sample_matrix(_bezier_weights(np.arange(APEX_SAMPLES) / APEX_SAMPLES))
 
 #: Rounds of added half-planes, and half-planes added per round, with which :func:`fan_apex`
 #: tries to prove a kernel empty before it solves the whole linear programme.
@@ -112,9 +125,10 @@ def fan_apex(curve, hint) -> np.ndarray:
     """
     c = as_array(curve, "curve", shape=(None, 4, 3))
     p = as_array(hint, "hint", shape=(2,))
-    # x and y of the points and tangents at the samples, (M * APEX_SAMPLES,) each (segment-major)
-    qx, tx = (a.ravel() for a in _points_and_tangents(c[:, :, 0], _APEX_WEIGHTS))
-    qy, ty = (a.ravel() for a in _points_and_tangents(c[:, :, 1], _APEX_WEIGHTS))
+    # x and y of the points and tangents at the samples, (M * APEX_SAMPLES,) each (segment-major): one
+    # product for both coordinates
+    sampled = c[:, :, :2].transpose(2, 0, 1) @ _APEX_MATRIX
+    (qx, qy), (tx, ty) = (sampled[:, :, :APEX_SAMPLES].reshape(2, -1), sampled[:, :, APEX_SAMPLES:].reshape(2, -1))
     length = np.sqrt(tx * tx + ty * ty)
     keep = np.flatnonzero(length > 1e-12 * max(1.0, float(length.max(initial=0.0))))
     qx, qy, length = qx[keep], qy[keep], length[keep]
@@ -237,6 +251,35 @@ def _no_kernel(a: np.ndarray, b: np.ndarray, start: np.ndarray, tol: float) -> b
     return False
 
 
+def _fan_points(curve: np.ndarray, center: np.ndarray, toward_center: bool) -> np.ndarray:
+    """Control points (M, 4, 4, 3) of :func:`fan_column`: ``center + w_b (curve_a - center)``.
+
+    One product with the weights of the four ``b`` laid out per coordinate (each output is a single
+    weighted value: the same rounding as the product itself), then the centre added.
+    """
+    rows = (curve - center).reshape(-1, 3) @ _FAN_MATRIX[bool(toward_center)]
+    rows += np.tile(center, 4)
+    return rows.reshape(len(curve), 4, 4, 3)
+
+
+def _prism_points(curve: np.ndarray, height: float) -> np.ndarray:
+    """Control points (M, 4, 4, 3) of :func:`prism_column`: the curve repeated for the four ``b``, z raised."""
+    rows = curve.reshape(-1, 3) @ _FAN_MATRIX[2]
+    rows[:, 2::3] += height * (1.0 - _FAN_WEIGHTS) if height < 0 else height * _FAN_WEIGHTS
+    return rows.reshape(len(curve), 4, 4, 3)
+
+
+#: ``v`` of the control points of a fan or prism column (bilinear in ``v``).
+_FAN_WEIGHTS = np.arange(4) / 3.0
+_FAN_WEIGHTS.flags.writeable = False
+
+#: (3, 12) matrices taking a point's x, y, z to the four ``b`` of a control-point row: weighted from the
+#: apex to the curve (:func:`_fan_points`), from the curve to the apex, and repeated (:func:`_prism_points`).
+_FAN_MATRIX = tuple(np.kron(w[None, :], np.eye(3)) for w in (_FAN_WEIGHTS, _FAN_WEIGHTS[::-1], np.ones(4)))
+for _m in _FAN_MATRIX:
+    _m.flags.writeable = False
+
+
 def fan_column(curve, center, toward_center: bool) -> np.ndarray:
     """One patch column of degenerate fan patches between a closed curve and a point.
 
@@ -257,11 +300,7 @@ def fan_column(curve, center, toward_center: bool) -> np.ndarray:
     """
     c = as_array(curve, "curve", shape=(None, 4, 3))
     p = as_array(center, "center", shape=(3,))
-    w = np.arange(4) / 3.0
-    if toward_center:
-        w = w[::-1]
-    ctrl = p[None, None, None, :] + w[None, None, :, None] * (c[:, :, None, :] - p)
-    return ctrl[:, None]
+    return _fan_points(c, p, toward_center)[:, None]
 
 
 def prism_column(curve, height: float) -> np.ndarray:
@@ -280,11 +319,7 @@ def prism_column(curve, height: float) -> np.ndarray:
     numpy.ndarray, shape (M, 1, 4, 4, 3)
     """
     c = as_array(curve, "curve", shape=(None, 4, 3))
-    w = np.arange(4) / 3.0
-    dz = height * (1.0 - w) if height < 0 else height * w
-    ctrl = np.repeat(c[:, :, None, :], 4, axis=2).copy()
-    ctrl[..., 2] += dz[None, None, :]
-    return ctrl[:, None]
+    return _prism_points(c, float(height))[:, None]
 
 
 def dome_rings(curve, center, height: float, upward: bool, n_rings: int = DOME_RINGS) -> np.ndarray:
@@ -328,12 +363,20 @@ _GAUSS3_NODES.flags.writeable = False
 _GAUSS3_WEIGHTS.flags.writeable = False
 _GAUSS3_BEZIER = _bezier_weights(_GAUSS3_NODES)
 
+#: ``H`` of :func:`curve_area`: the area ``1/2 integral (x y' - y x')`` of one cubic Bezier segment is
+#: ``x^T H y`` for the x and y (4,) of its control points (one matrix product for every segment, instead
+#: of the quadrature's sixteen small products).
+_AREA_FORM = np.array([[0.0, 6.0, 3.0, 1.0], [-6.0, 0.0, 3.0, 3.0], [-3.0, -3.0, 0.0, 6.0],
+                       [-1.0, -3.0, -6.0, 0.0]]) / 20.0
+_AREA_FORM.flags.writeable = False
+
 
 def curve_area(curve) -> float:
     """Signed area enclosed by a closed planar Bezier curve (Green's theorem).
 
     ``A = 1/2 * integral (x y' - y x') du``, a degree-5 polynomial per
-    segment, integrated exactly with 3-point Gauss-Legendre.
+    segment whose integral is a bilinear form of the segment's control points,
+    ``x^T H y`` (:data:`_AREA_FORM`, exact).
 
     Parameters
     ----------
@@ -346,9 +389,7 @@ def curve_area(curve) -> float:
         mm^2, positive for a counter-clockwise curve seen from +z.
     """
     c = as_array(curve, "curve", shape=(None, 4, 3))
-    x, dx = _points_and_tangents(c[:, :, 0], _GAUSS3_BEZIER)
-    y, dy = _points_and_tangents(c[:, :, 1], _GAUSS3_BEZIER)
-    return float(0.25 * np.sum((x * dy - y * dx) * _GAUSS3_WEIGHTS))
+    return float(np.sum((c[:, :, 0] @ _AREA_FORM) * c[:, :, 1]))
 
 
 #: Width of the flat band round a flat cap's inner ring, as a fraction of the median boundary edge.
@@ -668,32 +709,37 @@ def close_side(side, bottom, top, low_center, high_center, height: float, low: s
     """
     bottom = as_array(bottom, "bottom", shape=(None, 4, 3))
     top = as_array(top, "top", shape=bottom.shape)
-    full = [] if side is None else [as_array(side, "side", shape=(len(bottom), None, 4, 4, 3))]
-    if low == "half":
-        full.insert(0, prism_column(bottom, -height))
-        bottom = bottom.copy()
-        bottom[..., 2] -= height
-    if high == "half":
-        full.append(prism_column(top, height))
-        top = top.copy()
-        top[..., 2] += height
-    if not full:
+    n_mid = 0
+    if side is not None:
+        side = as_array(side, "side", shape=(len(bottom), None, 4, 4, 3))
+        n_mid = side.shape[1]
+    n_side = n_mid + (low == "half") + (high == "half")
+    if not n_side:
         raise ValueError("side: a single slice has no side surface; it needs a half cap at one end at least")
-    n_side = sum(c.shape[1] for c in full)
-    # one concatenation of every column (side, extrusions and fans): the grid is copied once
+    # every column (fans, extrusions, side) written into the grid in place: the side is copied once
+    first = int(low != "dome")
+    stop = first + n_side
+    control = np.empty((len(bottom), stop + (high != "dome"), 4, 4, 3))
+    k = first
+    if low == "half":
+        control[:, k] = _prism_points(bottom, -float(height))
+        bottom = control[:, k, :, 0]  # the curve lowered by the height, as the extrusion's own edge
+        k += 1
+    if side is not None:
+        control[:, k:k + n_mid] = side
+    if high == "half":
+        control[:, stop - 1] = _prism_points(top, float(height))
+        top = control[:, stop - 1, :, 3]
     flat = []
-    first = 0
     if low != "dome":
-        full.insert(0, fan_column(bottom, np.append(fan_apex(bottom, low_center), bottom[0, 0, 2]), False))
-        first = 1
+        control[:, 0] = _fan_points(bottom, np.append(fan_apex(bottom, low_center), bottom[0, 0, 2]), False)
         if low != "none":
             flat.append((bottom, -1.0))
     if high != "dome":
-        full.append(fan_column(top, np.append(fan_apex(top, high_center), top[0, 0, 2]), True))
+        control[:, stop] = _fan_points(top, np.append(fan_apex(top, high_center), top[0, 0, 2]), True)
         if high != "none":
             flat.append((top, 1.0))
-    return CappedGrid(np.concatenate(full, axis=1), slice(first, first + n_side), tuple(flat),
-                      (float(bottom[0, 0, 2]), float(top[0, 0, 2])),
+    return CappedGrid(control, slice(first, stop), tuple(flat), (float(bottom[0, 0, 2]), float(top[0, 0, 2])),
                       (float(height) if low == "half" else 0.0, float(height) if high == "half" else 0.0))
 
 
