@@ -45,16 +45,6 @@ CAP_KINDS = ("none", "flat", "half", "dome")
 DOME_RINGS = 3
 
 
-def _bezier_points(curve: np.ndarray, s: np.ndarray) -> np.ndarray:
-    """Points of every Bezier segment at local parameters ``s``: (M, len(s), 3)."""
-    s = s[None, :, None]
-    c = curve[:, None]
-    return (
-        (1 - s) ** 3 * c[:, :, 0] + 3 * s * (1 - s) ** 2 * c[:, :, 1]
-        + 3 * s**2 * (1 - s) * c[:, :, 2] + s**3 * c[:, :, 3]
-    )
-
-
 #: Points per Bezier segment at which :func:`fan_apex` tests that a fan does not fold.
 APEX_SAMPLES = 8
 
@@ -426,6 +416,14 @@ def _fan(n: int) -> np.ndarray:
 
 
 @lru_cache(maxsize=64)
+def _banded_fan(n: int) -> np.ndarray:
+    """:func:`_strip` of ``n`` and the fan of :func:`_fan` over the inner ring (its centre ``2 n``), read-only."""
+    out = np.concatenate([_strip(n), _fan(n) + n])
+    out.flags.writeable = False
+    return out
+
+
+@lru_cache(maxsize=64)
 def _strip(n: int) -> np.ndarray:
     """Triangles of the band between a ring of ``n`` and the inner ring ``n .. 2n - 1`` (read-only)."""
     i = np.arange(n)
@@ -444,7 +442,7 @@ def _triangulate_ccw(xy: np.ndarray) -> np.ndarray:
     import manifold3d
 
     n = len(xy)
-    rel = xy - xy.mean(axis=0)
+    rel = xy - xy.sum(axis=0) / n
     ang = np.arctan2(rel[:, 1], rel[:, 0])
     turn = (ang - _previous(ang) + np.pi) % (2 * np.pi) - np.pi
     if np.all(turn > 0) and turn.sum() > np.pi:
@@ -459,17 +457,27 @@ def _signed_areas(xy: np.ndarray, tri: np.ndarray) -> np.ndarray:
     return e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
 
 
-def _inset_ring(xy: np.ndarray, distance: float) -> np.ndarray:
-    """A counter-clockwise ring moved inward by ``distance`` (mitred, the mitre limited to 4x)."""
-    t_out = _following(xy) - xy
-    t_out /= np.maximum(_lengths(t_out), 1e-300)[:, None]
+def _inset_directions(step: np.ndarray, edge: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Mitre directions of a counter-clockwise ring and their lengths' floors, for :func:`_inset_ring`.
+
+    ``step`` (N, 2) are the ring's edges (from each point to the next) and ``edge`` (N,) their lengths.
+    Point ``i`` moves inward along ``direction[i]`` by ``distance / scale[i]`` (mitred, the mitre
+    limited to 4x); the same for every distance tried.
+    """
+    t_out = step / np.maximum(edge, 1e-300)[:, None]
     t_in = _previous(t_out)
     # inward (left) normals of the incoming and outgoing edges
     n_in, n_out = t_in[:, ::-1] * _LEFT, t_out[:, ::-1] * _LEFT
     bis = n_in + n_out
     half = _lengths(bis) / 2
     direction = np.where(half[:, None] > 1e-9, bis / np.maximum(2 * half, 1e-300)[:, None], n_out)
-    return xy + direction * (distance / np.maximum(half, 0.25))[:, None]
+    return direction, np.maximum(half, 0.25)
+
+
+def _inset_ring(xy: np.ndarray, distance: float, mitre: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+    """A counter-clockwise ring moved inward by ``distance`` along its mitres (:func:`_inset_directions`)."""
+    direction, scale = mitre
+    return xy + direction * (distance / scale)[:, None]
 
 
 def _median(x: np.ndarray) -> float:
@@ -497,20 +505,24 @@ def _cap_polygon(xy: np.ndarray, inset: bool = True) -> tuple[np.ndarray, np.nda
     """
     n = len(xy)
     following = _following(xy)
-    edge = _lengths(following - xy)
-    # the fan from the mean: the outline's area
-    mean = xy.mean(axis=0)
+    step = following - xy
+    edge = _lengths(step)
+    # the fan from the mean: the outline's area (sum over count: numpy's mean, without its wrappers)
+    mean = xy.sum(axis=0) / n
     d0, d1 = xy - mean, following - mean
     total = 0.5 * float(np.sum(d0[:, 0] * d1[:, 1] - d0[:, 1] * d1[:, 0]))
     distance = CAP_INSET * _median(edge) if inset else 0.0
-    strip = _strip(n)
+    smallest = 1e-9 * max(1.0, float(np.abs(xy).max()))
+    mitre = _inset_directions(step, edge) if distance > smallest else None
     for _ in range(4):
-        if distance <= 1e-9 * max(1.0, float(np.abs(xy).max())):
+        if distance <= smallest:
             break
-        inner = _inset_ring(xy, distance)
+        inner = _inset_ring(xy, distance, mitre)
         tri = _triangulate_ccw(inner)
-        pts = np.vstack([xy, inner, inner.mean(axis=0)[None]]) if tri.max(initial=0) >= n else np.vstack([xy, inner])
-        tri = np.concatenate([strip, tri + n])
+        if tri.max(initial=0) >= n:  # the fan from the inner ring's mean
+            pts, tri = np.vstack([xy, inner, inner.sum(axis=0)[None] / n]), _banded_fan(n)
+        else:
+            pts, tri = np.vstack([xy, inner]), np.concatenate([_strip(n), tri + n])
         s = _signed_areas(pts, tri)
         # a valid inset: no triangle turned over and no overlap (the areas add up to the outline's)
         if np.all(s > 0) and abs(0.5 * float(s.sum()) - total) <= 1e-9 * abs(total) + 1e-12:
@@ -545,21 +557,26 @@ def planar_cap_mesh(curve, samples: int, outward_z: float, inset: bool = True) -
         to the side (:func:`weld_flat_caps`) the inner ring keeps the cap's normal.
     """
     c = as_array(curve, "curve", shape=(None, 4, 3))
-    s = np.arange(int(samples)) / int(samples)
-    ring = _bezier_points(c, s).reshape(-1, 3)
+    ring = (c.reshape(len(c), 12) @ _ring_matrix(int(samples))).reshape(-1, 3)
     xy = ring[:, :2]
     n = len(xy)
     following = _following(xy)
     area = 0.5 * float(np.dot(xy[:, 0], following[:, 1]) - np.dot(xy[:, 1], following[:, 0]))
     # work on a counter-clockwise copy; the boundary vertices keep the curve's order
-    order = np.arange(n) if area > 0 else np.arange(n)[::-1]
-    pts, tri = _cap_polygon(xy[order], inset)
+    if area > 0:
+        pts, tri = _cap_polygon(np.ascontiguousarray(xy), inset)
+        tri = np.array(tri)  # the cap's own (the fan's triangles are kept read-only)
+        vertices = np.empty((len(pts), 3))
+        vertices[:, :2] = pts
+    else:
+        order = np.arange(n)[::-1]
+        pts, tri = _cap_polygon(xy[order], inset)
+        index = np.concatenate([order, np.arange(n, len(pts))])
+        tri = index[tri]
+        vertices = np.empty((len(pts), 3))
+        vertices[index, :2] = pts
     if len(tri) == 0:
         raise ValueError("cap: the end contour could not be triangulated")
-    index = np.concatenate([order, np.arange(n, len(pts))])
-    tri = index[tri]
-    vertices = np.empty((len(pts), 3))
-    vertices[index, :2] = pts
     vertices[:, 2] = ring[0, 2]
     vertices[:n] = ring
     # every triangle is counter-clockwise seen from +z: one flip for a bottom cap
@@ -567,7 +584,21 @@ def planar_cap_mesh(curve, samples: int, outward_z: float, inset: bool = True) -
         tri = tri[:, ::-1].copy()
     normal = np.zeros_like(vertices)
     normal[:, 2] = 1.0 if outward_z > 0 else -1.0
-    return TriangleMesh(vertices, tri, normal)
+    # from a checked curve: finite points, the triangles of its own ring
+    return TriangleMesh._trusted(vertices, tri, normal)
+
+
+@lru_cache(maxsize=16)
+def _ring_matrix(samples: int) -> np.ndarray:
+    """(12, 3 S): a Bezier segment's control points (4, 3) flattened to its ``S`` points at ``u = a / S``, read-only.
+
+    The Bernstein weights of :func:`_bezier_weights` laid out per coordinate: one product for a whole
+    curve's boundary samples.
+    """
+    k = np.stack(_bezier_weights(np.arange(samples) / samples)[:4])  # (4, S)
+    out = np.einsum("ks,xy->kxsy", k, np.eye(3)).reshape(12, 3 * samples)
+    out.flags.writeable = False
+    return out
 
 
 def end_kinds(caps: str, start: str, stop: str, n_contours: int = 2) -> tuple[str, str]:
@@ -834,7 +865,7 @@ def weld_flat_caps(side: TriangleMesh, grid: CappedGrid, samples: int,
         return side, side
     # only vertices in the end planes can be shared with the caps
     zv = side.vertices[:, 2]
-    tol = 1e-7 * max(1.0, float(np.abs(side.vertices).max()))
+    tol = 1e-7 * max(1.0, float(side.vertices.max()), -float(side.vertices.min()))
     low, high = grid.end_planes
     rim = np.flatnonzero((np.abs(zv - low) < tol) | (np.abs(zv - high) < tol))
     caps = [planar_cap_mesh(c, samples, s, inset) for c, s in grid.flat_caps]
@@ -856,20 +887,22 @@ def _welded(merged: TriangleMesh, side: TriangleMesh, rep: np.ndarray) -> Triang
     cap_tri = rep[merged.triangles[t_side:]]
     keep = (cap_tri[:, 0] != cap_tri[:, 1]) & (cap_tri[:, 1] != cap_tri[:, 2]) & (cap_tri[:, 2] != cap_tri[:, 0])
     cap_tri = cap_tri[keep]
-    used = np.zeros(merged.n_vertices, dtype=bool)
-    used[side.triangles.ravel()] = True
-    if not used[:n_side].all() or merged.vertex_colors is not None:
+    # every side vertex used: a count per vertex costs half of marking them in a mask
+    if merged.vertex_colors is not None or not np.bincount(side.triangles.ravel(), minlength=n_side).all():
         tri = rep[merged.triangles]
         keep = (tri[:, 0] != tri[:, 1]) & (tri[:, 1] != tri[:, 2]) & (tri[:, 2] != tri[:, 0])
         return compact(TriangleMesh._trusted(merged.vertices, tri[keep], merged.vertex_normals, merged.vertex_colors,
                                     dict(merged.metadata)))
-    used[cap_tri.ravel()] = True
-    new_index = np.cumsum(used) - 1
+    # the side's vertices keep their numbers, the caps' used ones follow
+    used = np.zeros(merged.n_vertices - n_side, dtype=bool)
+    cap_vertex = cap_tri.ravel()
+    used[cap_vertex[cap_vertex >= n_side] - n_side] = True
+    new_index = np.concatenate([np.arange(n_side), n_side - 1 + np.cumsum(used)])
     normals = merged.vertex_normals
     return TriangleMesh._trusted(
-        np.concatenate([side.vertices, merged.vertices[n_side:][used[n_side:]]]),
+        np.concatenate([side.vertices, merged.vertices[n_side:][used]]),
         np.concatenate([side.triangles, new_index[cap_tri]]),
-        None if normals is None else np.concatenate([side.vertex_normals, normals[n_side:][used[n_side:]]]),
+        None if normals is None else np.concatenate([side.vertex_normals, normals[n_side:][used]]),
         None, dict(merged.metadata))
 
 

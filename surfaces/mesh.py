@@ -806,9 +806,14 @@ def merge_meshes(meshes, weld_vertices: bool = False) -> TriangleMesh:
     meshes = list(meshes)
     if not meshes:
         raise ValueError("meshes: need at least one mesh")
-    offsets = np.cumsum([0] + [m.n_vertices for m in meshes[:-1]])
     verts = np.concatenate([m.vertices for m in meshes])
-    tri = np.concatenate([m.triangles + o for m, o in zip(meshes, offsets)])
+    # each mesh's triangles offset straight into the result (no copy of each first)
+    tri = np.empty((sum(m.n_triangles for m in meshes), 3), dtype=np.int64)
+    offset = start = 0
+    for m in meshes:
+        np.add(m.triangles, offset, out=tri[start:start + m.n_triangles])
+        offset += m.n_vertices
+        start += m.n_triangles
     normals = (
         np.concatenate([m.vertex_normals for m in meshes])
         if all(m.vertex_normals is not None for m in meshes)
