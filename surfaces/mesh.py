@@ -689,18 +689,31 @@ def _lattice_normals(patches: BezierPatches, du: np.ndarray, dv: np.ndarray, n_v
     """Unit normals ``du x dv`` (N, 3) at the lattice samples of :func:`tessellate`, and where they collapse (N,).
 
     Written out by components; where ``|du x dv| <= 1e-10 |du| |dv|`` (a pole, a collapsed edge)
-    the patches step inside (:meth:`BezierPatches._unit_normals` on those samples alone).
+    the patches step inside (:meth:`BezierPatches._unit_normals` on those samples alone). The test
+    runs on the samples that a bound of ``|du| |dv|`` over all of them cannot clear (usually none).
     """
     ux, uy, uz = du[:, 0], du[:, 1], du[:, 2]
     vx, vy, vz = dv[:, 0], dv[:, 1], dv[:, 2]
     normal = np.empty_like(du)
-    normal[:, 0] = uy * vz - uz * vy
-    normal[:, 1] = uz * vx - ux * vz
-    normal[:, 2] = ux * vy - uy * vx
     nx, ny, nz = normal[:, 0], normal[:, 1], normal[:, 2]
-    length2 = nx * nx + ny * ny + nz * nz
-    scale2 = (ux * ux + uy * uy + uz * uz) * (vx * vx + vy * vy + vz * vz)
-    collapsed = length2 <= 1e-20 * np.maximum(scale2, 1e-300)
+    np.multiply(uy, vz, out=nx)
+    nx -= uz * vy
+    np.multiply(uz, vx, out=ny)
+    ny -= ux * vz
+    np.multiply(ux, vy, out=nz)
+    nz -= uy * vx
+    length2 = nx * nx
+    length2 += ny * ny
+    length2 += nz * nz
+    # |du|^2 |dv|^2 <= 9 max|du_i|^2 max|dv_i|^2 (with a margin for rounding): where the normal is longer
+    # than that allows, it has not collapsed
+    bound = 9.0001 * max(float(du.max()), -float(du.min())) ** 2 * max(float(dv.max()), -float(dv.min())) ** 2
+    suspect = np.flatnonzero(length2 <= 1e-20 * max(bound, 1e-300))
+    collapsed = np.zeros(len(du), dtype=bool)
+    if len(suspect):
+        (ax, ay, az), (bx, by, bz) = du[suspect].T, dv[suspect].T
+        scale2 = (ax * ax + ay * ay + az * az) * (bx * bx + by * by + bz * bz)
+        collapsed[suspect] = length2[suspect] <= 1e-20 * np.maximum(scale2, 1e-300)
     if collapsed.any():
         rows, cols = patches.shape
         g, h = np.divmod(np.flatnonzero(collapsed), n_v)
@@ -708,8 +721,9 @@ def _lattice_normals(patches: BezierPatches, du: np.ndarray, dv: np.ndarray, n_v
         normal[collapsed] = patches._unit_normals(pi, pj, (g - pi * nu) / nu, (h - pj * nv) / nv,
                                                   du[collapsed], dv[collapsed])
         length2[collapsed] = 1.0
+    # every other normal is longer than zero
     with np.errstate(invalid="ignore", divide="ignore"):
-        normal /= np.sqrt(np.where(length2 > 0, length2, 1.0))[:, None]
+        normal /= np.sqrt(length2)[:, None]
     return normal, collapsed
 
 
