@@ -140,7 +140,7 @@ def _flip(mesh: TriangleMesh) -> TriangleMesh:
     return TriangleMesh(mesh.vertices, mesh.triangles[:, ::-1].copy(), normals)
 
 
-#: Patches per chunk in :func:`_polygon_medians` (temporaries of ~200 kB).
+#: Patches per chunk in :func:`mesh_samples` (temporaries of ~200 kB).
 _SAMPLES_CHUNK = 512
 
 
@@ -171,70 +171,38 @@ def mesh_samples(control: np.ndarray, budget: int = MESH_BUDGET) -> tuple[int, i
     >>> mesh_samples(c)
     (1, 3)
     """
-    n = control.shape[0] * control.shape[1]
-    su, sv = (int(np.clip(np.ceil(m / EDGE_MM), 1, MAX_SAMPLES)) for m in _polygon_medians(control))
+    # on the flat, contiguous control points (legs between points 12 and 3 values apart: along u and
+    # along v): one long subtraction each, the few pairs that straddle two patches or two rows are
+    # computed and left out; numpy's loops over the short axes of (R, C, 4, 4, 3) cost more than that.
+    # In chunks of whole patch rows whose temporaries stay in the CPU caches (a view of some columns
+    # of a grid is copied a chunk at a time)
+    rows, cols = control.shape[:2]
+    n = rows * cols
+    polygon_u, polygon_v = np.empty((n, 4)), np.empty((n, 4))
+    chunk_rows = max(1, _SAMPLES_CHUNK // cols)
+    buffer = np.empty(min(rows, chunk_rows) * cols * 48)
+    for r in range(0, rows, chunk_rows):
+        part = np.ascontiguousarray(control[r:r + chunk_rows]).reshape(-1)
+        start, stop = r * cols, r * cols + len(part) // 48
+        d = buffer[:len(part)]
+        for step, polygon in ((12, polygon_u[start:stop]), (3, polygon_v[start:stop])):
+            np.subtract(part[step:], part[:-step], out=d[:-step])
+            d[-step:] = 0.0
+            d *= d
+            xyz = d.reshape(-1, 3)
+            length = xyz[:, 0] + xyz[:, 1]
+            length += xyz[:, 2]
+            leg = np.sqrt(length, out=length).reshape(-1, 16)  # leg from point 4 i + j of each patch
+            if step == 12:  # along u: rows i = 0..2 of legs, one polygon per j
+                np.add(leg[:, 0:4], leg[:, 4:8], out=polygon)
+                polygon += leg[:, 8:12]
+            else:  # along v: legs j = 0..2 of each row i
+                np.add(leg[:, 0::4], leg[:, 1::4], out=polygon)
+                polygon += leg[:, 2::4]
+    su, sv = (int(np.clip(np.ceil(capmod._median(p) / EDGE_MM), 1, MAX_SAMPLES)) for p in (polygon_u, polygon_v))
     while su * sv * n > budget and max(su, sv) > 1:
         su, sv = (su - 1, sv) if su >= sv else (su, sv - 1)
     return su, sv
-
-
-def _polygon_medians(control: np.ndarray, shared: bool = True) -> tuple[float, float]:
-    """Medians of the lengths of every patch's four control polygons along ``u`` and the four along ``v``.
-
-    On rows of control points (patch row ``i``, point row ``a``; each row the ``4 cols`` points of that
-    ``a`` across the patches): legs along ``u`` join two rows, legs along ``v`` neighbouring points in a
-    row, one long subtraction each (numpy's loops over the short axes of (R, C, 4, 4, 3) cost more).
-    Where the last row of every patch row is the first of the next, bit for bit (a grid's shared
-    seams), that row is taken once: a quarter fewer legs each way, the same lengths, and the polygons
-    along ``v`` of a shared row counted twice, as every patch counts its own (``shared=False``, or a
-    row that differs, takes every row). In chunks of patch rows whose temporaries stay in the CPU caches.
-    """
-    rows, cols = control.shape[:2]
-    width = cols * 12
-    shared = shared and rows > 1
-    per = 3 if shared else 4
-    polygon_u, polygon_v = np.empty((rows, cols * 4)), np.empty((rows * per + shared, cols))
-    chunk = max(1, _SAMPLES_CHUNK // cols)
-    for r in range(0, rows, chunk):
-        k = min(chunk, rows - r)
-        last = shared and r + k == rows  # the last patch row's own last row of points
-        # rows of points, the next patch row's first row included for the legs along u
-        points = np.empty((k * per + (shared and not last) + last, width))
-        points[:k * per].reshape(k, per, cols, 4, 3)[...] = control[r:r + k, :, :per].transpose(0, 2, 1, 3, 4)
-        if shared:
-            points[k * per] = (control[r + k, :, 0] if not last else control[rows - 1, :, 3]).reshape(-1)
-            # each patch row's own last row of points against the next one's first, as taken
-            if not np.array_equal(control[r:r + k, :, 3].reshape(k, width), points[3::3]):
-                return _polygon_medians(control, shared=False)
-        # along u: legs between neighbouring rows, three to a polygon (per patch row: rows 0-1, 1-2, 2-3)
-        d = points[1:] - points[:-1]
-        legs = _leg_lengths(d).reshape(-1, cols * 4)
-        out = polygon_u[r:r + k]
-        np.add(legs[0::per][:k], legs[1::per][:k], out=out)
-        out += legs[2::per][:k]
-        # along v: legs between neighbouring points of a row, three to a polygon (points 0-1, 1-2, 2-3)
-        own = points[:k * per + last]
-        d = np.empty_like(own)
-        # on the flat rows: the legs that straddle two rows are the last of each, cleared
-        np.subtract(own.reshape(-1)[3:], own.reshape(-1)[:-3], out=d.reshape(-1)[:-3])
-        d[:, -3:] = 0.0
-        legs = _leg_lengths(d).reshape(len(own), cols, 4)
-        out = polygon_v[r * per:r * per + len(own)]
-        np.add(legs[..., 0], legs[..., 1], out=out)
-        out += legs[..., 2]
-    if shared:
-        # a shared row is the last row of one patch row and the first of the next: counted by both
-        polygon_v = np.concatenate([polygon_v.ravel(), polygon_v[3:3 * rows:3].ravel()])
-    return capmod._median(polygon_u), capmod._median(polygon_v)
-
-
-def _leg_lengths(d: np.ndarray) -> np.ndarray:
-    """Lengths of the vectors laid out as consecutive x, y, z in ``d`` (overwritten with their squares)."""
-    d *= d
-    xyz = d.reshape(-1, 3)
-    length = xyz[:, 0] + xyz[:, 1]
-    length += xyz[:, 2]
-    return np.sqrt(length, out=length)
 
 
 def body_lattice_size(body: Body, lattice_factor: float) -> int:

@@ -142,25 +142,3 @@ def test_mesh_samples_equals_the_median_of_every_control_polygon(shape):
     budget = 10**9
     assert mesh_samples(c, budget) == want
     assert mesh_samples(np.asfortranarray(c), budget) == want
-
-
-@pytest.mark.parametrize("shape", [(2, 3), (37, 29), (64, 9), (160, 25)])
-@pytest.mark.parametrize("seams", ["shared", "one row differs", "apart"])
-def test_polygon_medians_take_shared_rows_of_points_once(shape, seams):
-    # a grid whose patch rows share their seam rows bit for bit takes those rows once; one that differs
-    # anywhere (by 1e-12 mm) takes every row: the medians of every patch's own polygons either way
-    from slices.body import _polygon_medians, mesh_samples
-    from slices.caps import _median
-
-    rng = np.random.default_rng(sum(shape))
-    c = rng.normal(scale=2.0, size=shape + (4, 4, 3))
-    if seams != "apart":
-        c[:-1, :, 3] = c[1:, :, 0]
-    if seams == "one row differs":
-        c[shape[0] - 2, shape[1] // 2, 3, 1, 2] += 1e-12
-    pu = np.linalg.norm(np.diff(c, axis=2), axis=-1).sum(axis=2)
-    pv = np.linalg.norm(np.diff(c, axis=3), axis=-1).sum(axis=3)
-    got = _polygon_medians(c)
-    assert got == _polygon_medians(c, shared=False)
-    assert got == pytest.approx((_median(pu), _median(pv)), rel=1e-15, abs=0)
-    assert mesh_samples(np.asfortranarray(c)) == mesh_samples(c)
