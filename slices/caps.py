@@ -121,16 +121,18 @@ def fan_apex(curve, hint) -> np.ndarray:
     (qx, qy), (tx, ty) = (sampled[:, :, :APEX_SAMPLES].reshape(2, -1), sampled[:, :, APEX_SAMPLES:].reshape(2, -1))
     length = np.sqrt(tx * tx + ty * ty)
     keep = np.flatnonzero(length > 1e-12 * max(1.0, float(length.max(initial=0.0))))
-    qx, qy, length = qx[keep], qy[keep], length[keep]
-    tx, ty = tx[keep] / length, ty[keep] / length
+    if len(keep) < len(length):  # tangents that vanish (cusps, repeated points) say nothing
+        qx, qy, length, tx, ty = qx[keep], qy[keep], length[keep], tx[keep], ty[keep]
+    tx, ty = tx / length, ty / length
     orient = 1.0 if curve_area(c) > 0 else -1.0
     # seen from p, the curve turns counter-clockwise (for a counter-clockwise curve) where
-    # cross(q - p, t) > 0, i.e. a . p < b with a = (t_y, -t_x), b = cross(q, t)
+    # cross(q - p, t) > 0, i.e. a . p < b with a = (t_y, -t_x), b = cross(q, t); the half-planes
+    # a are built only when p is not inside them all
+    b = orient * (qx * ty - qy * tx)
+    if np.all(orient * (ty * p[0] - tx * p[1]) < b):
+        return p
     a = np.empty((len(keep), 2))
     a[:, 0], a[:, 1] = orient * ty, orient * -tx
-    b = orient * (qx * ty - qy * tx)
-    if np.all(a @ p < b):
-        return p
     extent = max(float(np.ptp(qx)), float(np.ptp(qy)))
     # fewer constraints allow a larger margin: where the tangents at the segments' starts (and the
     # few more that cutting planes add) leave no kernel by more than the solver's tolerance, the
