@@ -180,9 +180,13 @@ def mesh_samples(control: np.ndarray, budget: int = MESH_BUDGET) -> tuple[int, i
     n = rows * cols
     polygon_u, polygon_v = np.empty((n, 4)), np.empty((n, 4))
     chunk_rows = max(1, _SAMPLES_CHUNK // cols)
-    buffer = np.empty(min(rows, chunk_rows) * cols * 48)
+    # every chunk in the same memory: fresh arrays per chunk cost their allocations' page faults
+    buffer, points = np.empty((2, min(rows, chunk_rows) * cols * 48))
+    lengths = np.empty(len(buffer) // 3)
     for r in range(0, rows, chunk_rows):
-        part = np.ascontiguousarray(control[r:r + chunk_rows]).reshape(-1)
+        block = control[r:r + chunk_rows]
+        part = points[:block.size]
+        part.reshape(block.shape)[...] = block
         start, stop = r * cols, r * cols + len(part) // 48
         d = buffer[:len(part)]
         for step, polygon in ((12, polygon_u[start:stop]), (3, polygon_v[start:stop])):
@@ -190,7 +194,7 @@ def mesh_samples(control: np.ndarray, budget: int = MESH_BUDGET) -> tuple[int, i
             d[-step:] = 0.0
             d *= d
             xyz = d.reshape(-1, 3)
-            length = xyz[:, 0] + xyz[:, 1]
+            length = np.add(xyz[:, 0], xyz[:, 1], out=lengths[:len(xyz)])
             length += xyz[:, 2]
             leg = np.sqrt(length, out=length).reshape(-1, 16)  # leg from point 4 i + j of each patch
             if step == 12:  # along u: rows i = 0..2 of legs, one polygon per j
