@@ -140,8 +140,17 @@ def _flip(mesh: TriangleMesh) -> TriangleMesh:
     return TriangleMesh(mesh.vertices, mesh.triangles[:, ::-1].copy(), normals)
 
 
-#: Patches per chunk in :func:`mesh_samples` (temporaries of ~200 kB).
-_SAMPLES_CHUNK = 512
+#: Patches per chunk in :func:`_polygon_lengths` (temporaries of ~200 kB in single precision).
+_SAMPLES_CHUNK = 1024
+
+#: Bound on the relative error of :func:`mesh_samples`'s single-precision polygon lengths, relative to
+#: the polygon's length plus the largest coordinate (some ten roundings of 2^-24 each; 2^-18 is 64).
+_SINGLE_ERROR = 2.0**-18
+
+
+def _samples(median: float) -> int:
+    """Subdivisions for a median control polygon length (mm)."""
+    return int(np.clip(np.ceil(median / EDGE_MM), 1, MAX_SAMPLES))
 
 
 def mesh_samples(control: np.ndarray, budget: int = MESH_BUDGET) -> tuple[int, int]:
@@ -171,38 +180,70 @@ def mesh_samples(control: np.ndarray, budget: int = MESH_BUDGET) -> tuple[int, i
     >>> mesh_samples(c)
     (1, 3)
     """
-    # on the flat, contiguous control points (legs between points 12 and 3 values apart: along u and
-    # along v): one long subtraction each, the few pairs that straddle two patches or two rows are
-    # computed and left out; numpy's loops over the short axes of (R, C, 4, 4, 3) cost more than that.
-    # In chunks of whole patch rows whose temporaries stay in the CPU caches (a view of some columns
-    # of a grid is copied a chunk at a time)
+    # the medians in single precision (half the memory traffic), trusted where the bound on their error
+    # cannot move them across a multiple of EDGE_MM: an order statistic moves no further than the values
+    # do, each by at most _SINGLE_ERROR (length + reach). Where it could, or for coordinates whose
+    # squares a float32 might not hold, the double-precision polygons decide
+    with np.errstate(over="ignore", invalid="ignore"):  # coordinates beyond float32 become inf
+        polygons, reach = _polygon_lengths(control, np.float32)
+    picked = [None]
+    if reach < 1e15:
+        picked = []
+        for p in polygons:
+            m = capmod._median(p)
+            margin = 2 * _SINGLE_ERROR * (m + reach)
+            low, high = _samples(m - margin), _samples(m + margin)
+            picked.append(low if low == high else None)
+    if None in picked:
+        picked = [_samples(capmod._median(p)) for p in _polygon_lengths(control, np.float64)[0]]
+    su, sv = picked
+    n = control.shape[0] * control.shape[1]
+    while su * sv * n > budget and max(su, sv) > 1:
+        su, sv = (su - 1, sv) if su >= sv else (su, sv - 1)
+    return su, sv
+
+
+def _polygon_lengths(control: np.ndarray, dtype: type) -> tuple[tuple[np.ndarray, np.ndarray], float]:
+    """Lengths of the patches' control polygons along ``u`` and along ``v`` and the largest coordinate.
+
+    Returns ``((polygon_u, polygon_v), reach)``: shapes (rows * cols, 4) in mm, computed in ``dtype``
+    (float64 or float32) from the copied points on, and the largest absolute coordinate as copied (mm;
+    NaN or inf when some is).
+    """
+    # the points copied into three coordinate planes, so that the legs along u and along v are one long
+    # subtraction each (points 4 and 1 apart in a patch's 16); the few pairs that straddle two patches
+    # are computed and left out: numpy's loops over the short axes of (R, C, 4, 4, 3) cost more than
+    # that. In chunks of whole patch rows whose temporaries stay in the CPU caches, every chunk in the
+    # same memory (fresh arrays per chunk cost their allocations' page faults)
     rows, cols = control.shape[:2]
     n = rows * cols
-    polygon_u, polygon_v = np.empty((n, 4)), np.empty((n, 4))
+    polygon_u, polygon_v = np.empty((n, 4), dtype), np.empty((n, 4), dtype)
     chunk_rows = max(1, _SAMPLES_CHUNK // cols)
-    buffer = np.empty(min(rows, chunk_rows) * cols * 48)
+    size = min(rows, chunk_rows) * cols * 16
+    planes, diff = np.empty((2, 3, size), dtype)
+    lengths = np.empty(size, dtype)
+    reach = 0.0
     for r in range(0, rows, chunk_rows):
-        part = np.ascontiguousarray(control[r:r + chunk_rows]).reshape(-1)
-        start, stop = r * cols, r * cols + len(part) // 48
-        d = buffer[:len(part)]
-        for step, polygon in ((12, polygon_u[start:stop]), (3, polygon_v[start:stop])):
-            np.subtract(part[step:], part[:-step], out=d[:-step])
-            d[-step:] = 0.0
-            d *= d
-            xyz = d.reshape(-1, 3)
-            length = xyz[:, 0] + xyz[:, 1]
-            length += xyz[:, 2]
+        block = control[r:r + chunk_rows]
+        k = block.shape[0] * cols * 16
+        points, d = planes[:, :k], diff[:, :k]
+        points.reshape((3,) + block.shape[:-1])[...] = np.moveaxis(block, -1, 0)
+        reach = float(np.max([reach, points.max(), -points.min()]))  # NaN stays NaN
+        start, stop = r * cols, r * cols + k // 16
+        for step, polygon in ((4, polygon_u[start:stop]), (1, polygon_v[start:stop])):
+            np.subtract(points[:, step:], points[:, :-step], out=d[:, :-step])
+            d[:, -step:] = 0.0
+            np.square(d, out=d)
+            length = np.add(d[0], d[1], out=lengths[:k])
+            length += d[2]
             leg = np.sqrt(length, out=length).reshape(-1, 16)  # leg from point 4 i + j of each patch
-            if step == 12:  # along u: rows i = 0..2 of legs, one polygon per j
+            if step == 4:  # along u: rows i = 0..2 of legs, one polygon per j
                 np.add(leg[:, 0:4], leg[:, 4:8], out=polygon)
                 polygon += leg[:, 8:12]
             else:  # along v: legs j = 0..2 of each row i
                 np.add(leg[:, 0::4], leg[:, 1::4], out=polygon)
                 polygon += leg[:, 2::4]
-    su, sv = (int(np.clip(np.ceil(capmod._median(p) / EDGE_MM), 1, MAX_SAMPLES)) for p in (polygon_u, polygon_v))
-    while su * sv * n > budget and max(su, sv) > 1:
-        su, sv = (su - 1, sv) if su >= sv else (su, sv - 1)
-    return su, sv
+    return (polygon_u, polygon_v), reach
 
 
 def body_lattice_size(body: Body, lattice_factor: float) -> int:

@@ -45,16 +45,6 @@ CAP_KINDS = ("none", "flat", "half", "dome")
 DOME_RINGS = 3
 
 
-def _bezier_points(curve: np.ndarray, s: np.ndarray) -> np.ndarray:
-    """Points of every Bezier segment at local parameters ``s``: (M, len(s), 3)."""
-    s = s[None, :, None]
-    c = curve[:, None]
-    return (
-        (1 - s) ** 3 * c[:, :, 0] + 3 * s * (1 - s) ** 2 * c[:, :, 1]
-        + 3 * s**2 * (1 - s) * c[:, :, 2] + s**3 * c[:, :, 3]
-    )
-
-
 #: Points per Bezier segment at which :func:`fan_apex` tests that a fan does not fold.
 APEX_SAMPLES = 8
 
@@ -78,7 +68,20 @@ def _points_and_tangents(x: np.ndarray, weights: tuple) -> tuple[np.ndarray, np.
             3 * (d0 * (x[:, 1] - x[:, 0]) + d1 * (x[:, 2] - x[:, 1]) + d2 * (x[:, 3] - x[:, 2])))
 
 
-_APEX_WEIGHTS = _bezier_weights(np.arange(APEX_SAMPLES) / APEX_SAMPLES)
+def _sample_matrix(weights: tuple) -> np.ndarray:
+    """The points and tangents of :func:`_points_and_tangents` as one matrix (4, 2 S), read-only.
+
+    A coordinate ``x`` (M, 4) of Bezier segments times it gives their values (the first ``S``
+    columns) and tangents (the last ``S``) at the parameters of ``weights`` in one product.
+    """
+    k0, k1, k2, k3, d0, d1, d2 = weights
+    out = np.vstack([np.hstack([k0, -3 * d0]), np.hstack([k1, 3 * (d0 - d1)]), np.hstack([k2, 3 * (d1 - d2)]),
+                     np.hstack([k3, 3 * d2])])
+    out.flags.writeable = False
+    return out
+
+
+_APEX_MATRIX = _sample_matrix(_bezier_weights(np.arange(APEX_SAMPLES) / APEX_SAMPLES))
 
 #: Rounds of added half-planes, and half-planes added per round, with which :func:`fan_apex`
 #: tries to prove a kernel empty before it solves the whole linear programme.
@@ -112,21 +115,24 @@ def fan_apex(curve, hint) -> np.ndarray:
     """
     c = as_array(curve, "curve", shape=(None, 4, 3))
     p = as_array(hint, "hint", shape=(2,))
-    # x and y of the points and tangents at the samples, (M * APEX_SAMPLES,) each (segment-major)
-    qx, tx = (a.ravel() for a in _points_and_tangents(c[:, :, 0], _APEX_WEIGHTS))
-    qy, ty = (a.ravel() for a in _points_and_tangents(c[:, :, 1], _APEX_WEIGHTS))
+    # x and y of the points and tangents at the samples, (M * APEX_SAMPLES,) each (segment-major): one
+    # product for both coordinates
+    sampled = c[:, :, :2].transpose(2, 0, 1) @ _APEX_MATRIX
+    (qx, qy), (tx, ty) = (sampled[:, :, :APEX_SAMPLES].reshape(2, -1), sampled[:, :, APEX_SAMPLES:].reshape(2, -1))
     length = np.sqrt(tx * tx + ty * ty)
     keep = np.flatnonzero(length > 1e-12 * max(1.0, float(length.max(initial=0.0))))
-    qx, qy, length = qx[keep], qy[keep], length[keep]
-    tx, ty = tx[keep] / length, ty[keep] / length
+    if len(keep) < len(length):  # tangents that vanish (cusps, repeated points) say nothing
+        qx, qy, length, tx, ty = qx[keep], qy[keep], length[keep], tx[keep], ty[keep]
+    tx, ty = tx / length, ty / length
     orient = 1.0 if curve_area(c) > 0 else -1.0
     # seen from p, the curve turns counter-clockwise (for a counter-clockwise curve) where
-    # cross(q - p, t) > 0, i.e. a . p < b with a = (t_y, -t_x), b = cross(q, t)
+    # cross(q - p, t) > 0, i.e. a . p < b with a = (t_y, -t_x), b = cross(q, t); the half-planes
+    # a are built only when p is not inside them all
+    b = orient * (qx * ty - qy * tx)
+    if np.all(orient * (ty * p[0] - tx * p[1]) < b):
+        return p
     a = np.empty((len(keep), 2))
     a[:, 0], a[:, 1] = orient * ty, orient * -tx
-    b = orient * (qx * ty - qy * tx)
-    if np.all(a @ p < b):
-        return p
     extent = max(float(np.ptp(qx)), float(np.ptp(qy)))
     # fewer constraints allow a larger margin: where the tangents at the segments' starts (and the
     # few more that cutting planes add) leave no kernel by more than the solver's tolerance, the
@@ -237,6 +243,35 @@ def _no_kernel(a: np.ndarray, b: np.ndarray, start: np.ndarray, tol: float) -> b
     return False
 
 
+def _fan_points(curve: np.ndarray, center: np.ndarray, toward_center: bool) -> np.ndarray:
+    """Control points (M, 4, 4, 3) of :func:`fan_column`: ``center + w_b (curve_a - center)``.
+
+    One product with the weights of the four ``b`` laid out per coordinate (each output is a single
+    weighted value: the same rounding as the product itself), then the centre added.
+    """
+    rows = (curve - center).reshape(-1, 3) @ _FAN_MATRIX[bool(toward_center)]
+    rows += np.tile(center, 4)
+    return rows.reshape(len(curve), 4, 4, 3)
+
+
+def _prism_points(curve: np.ndarray, height: float) -> np.ndarray:
+    """Control points (M, 4, 4, 3) of :func:`prism_column`: the curve repeated for the four ``b``, z raised."""
+    rows = curve.reshape(-1, 3) @ _FAN_MATRIX[2]
+    rows[:, 2::3] += height * (1.0 - _FAN_WEIGHTS) if height < 0 else height * _FAN_WEIGHTS
+    return rows.reshape(len(curve), 4, 4, 3)
+
+
+#: ``v`` of the control points of a fan or prism column (bilinear in ``v``).
+_FAN_WEIGHTS = np.arange(4) / 3.0
+_FAN_WEIGHTS.flags.writeable = False
+
+#: (3, 12) matrices taking a point's x, y, z to the four ``b`` of a control-point row: weighted from the
+#: apex to the curve (:func:`_fan_points`), from the curve to the apex, and repeated (:func:`_prism_points`).
+_FAN_MATRIX = tuple(np.kron(w[None, :], np.eye(3)) for w in (_FAN_WEIGHTS, _FAN_WEIGHTS[::-1], np.ones(4)))
+for _m in _FAN_MATRIX:
+    _m.flags.writeable = False
+
+
 def fan_column(curve, center, toward_center: bool) -> np.ndarray:
     """One patch column of degenerate fan patches between a closed curve and a point.
 
@@ -257,11 +292,7 @@ def fan_column(curve, center, toward_center: bool) -> np.ndarray:
     """
     c = as_array(curve, "curve", shape=(None, 4, 3))
     p = as_array(center, "center", shape=(3,))
-    w = np.arange(4) / 3.0
-    if toward_center:
-        w = w[::-1]
-    ctrl = p[None, None, None, :] + w[None, None, :, None] * (c[:, :, None, :] - p)
-    return ctrl[:, None]
+    return _fan_points(c, p, toward_center)[:, None]
 
 
 def prism_column(curve, height: float) -> np.ndarray:
@@ -280,11 +311,7 @@ def prism_column(curve, height: float) -> np.ndarray:
     numpy.ndarray, shape (M, 1, 4, 4, 3)
     """
     c = as_array(curve, "curve", shape=(None, 4, 3))
-    w = np.arange(4) / 3.0
-    dz = height * (1.0 - w) if height < 0 else height * w
-    ctrl = np.repeat(c[:, :, None, :], 4, axis=2).copy()
-    ctrl[..., 2] += dz[None, None, :]
-    return ctrl[:, None]
+    return _prism_points(c, float(height))[:, None]
 
 
 def dome_rings(curve, center, height: float, upward: bool, n_rings: int = DOME_RINGS) -> np.ndarray:
@@ -328,12 +355,20 @@ _GAUSS3_NODES.flags.writeable = False
 _GAUSS3_WEIGHTS.flags.writeable = False
 _GAUSS3_BEZIER = _bezier_weights(_GAUSS3_NODES)
 
+#: ``H`` of :func:`curve_area`: the area ``1/2 integral (x y' - y x')`` of one cubic Bezier segment is
+#: ``x^T H y`` for the x and y (4,) of its control points (one matrix product for every segment, instead
+#: of the quadrature's sixteen small products).
+_AREA_FORM = np.array([[0.0, 6.0, 3.0, 1.0], [-6.0, 0.0, 3.0, 3.0], [-3.0, -3.0, 0.0, 6.0],
+                       [-1.0, -3.0, -6.0, 0.0]]) / 20.0
+_AREA_FORM.flags.writeable = False
+
 
 def curve_area(curve) -> float:
     """Signed area enclosed by a closed planar Bezier curve (Green's theorem).
 
     ``A = 1/2 * integral (x y' - y x') du``, a degree-5 polynomial per
-    segment, integrated exactly with 3-point Gauss-Legendre.
+    segment whose integral is a bilinear form of the segment's control points,
+    ``x^T H y`` (:data:`_AREA_FORM`, exact).
 
     Parameters
     ----------
@@ -346,9 +381,7 @@ def curve_area(curve) -> float:
         mm^2, positive for a counter-clockwise curve seen from +z.
     """
     c = as_array(curve, "curve", shape=(None, 4, 3))
-    x, dx = _points_and_tangents(c[:, :, 0], _GAUSS3_BEZIER)
-    y, dy = _points_and_tangents(c[:, :, 1], _GAUSS3_BEZIER)
-    return float(0.25 * np.sum((x * dy - y * dx) * _GAUSS3_WEIGHTS))
+    return float(np.sum((c[:, :, 0] @ _AREA_FORM) * c[:, :, 1]))
 
 
 #: Width of the flat band round a flat cap's inner ring, as a fraction of the median boundary edge.
@@ -385,6 +418,14 @@ def _fan(n: int) -> np.ndarray:
 
 
 @lru_cache(maxsize=64)
+def _banded_fan(n: int) -> np.ndarray:
+    """:func:`_strip` of ``n`` and the fan of :func:`_fan` over the inner ring (its centre ``2 n``), read-only."""
+    out = np.concatenate([_strip(n), _fan(n) + n])
+    out.flags.writeable = False
+    return out
+
+
+@lru_cache(maxsize=64)
 def _strip(n: int) -> np.ndarray:
     """Triangles of the band between a ring of ``n`` and the inner ring ``n .. 2n - 1`` (read-only)."""
     i = np.arange(n)
@@ -403,7 +444,7 @@ def _triangulate_ccw(xy: np.ndarray) -> np.ndarray:
     import manifold3d
 
     n = len(xy)
-    rel = xy - xy.mean(axis=0)
+    rel = xy - xy.sum(axis=0) / n
     ang = np.arctan2(rel[:, 1], rel[:, 0])
     turn = (ang - _previous(ang) + np.pi) % (2 * np.pi) - np.pi
     if np.all(turn > 0) and turn.sum() > np.pi:
@@ -418,17 +459,27 @@ def _signed_areas(xy: np.ndarray, tri: np.ndarray) -> np.ndarray:
     return e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
 
 
-def _inset_ring(xy: np.ndarray, distance: float) -> np.ndarray:
-    """A counter-clockwise ring moved inward by ``distance`` (mitred, the mitre limited to 4x)."""
-    t_out = _following(xy) - xy
-    t_out /= np.maximum(_lengths(t_out), 1e-300)[:, None]
+def _inset_directions(step: np.ndarray, edge: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Mitre directions of a counter-clockwise ring and their lengths' floors, for :func:`_inset_ring`.
+
+    ``step`` (N, 2) are the ring's edges (from each point to the next) and ``edge`` (N,) their lengths.
+    Point ``i`` moves inward along ``direction[i]`` by ``distance / scale[i]`` (mitred, the mitre
+    limited to 4x); the same for every distance tried.
+    """
+    t_out = step / np.maximum(edge, 1e-300)[:, None]
     t_in = _previous(t_out)
     # inward (left) normals of the incoming and outgoing edges
     n_in, n_out = t_in[:, ::-1] * _LEFT, t_out[:, ::-1] * _LEFT
     bis = n_in + n_out
     half = _lengths(bis) / 2
     direction = np.where(half[:, None] > 1e-9, bis / np.maximum(2 * half, 1e-300)[:, None], n_out)
-    return xy + direction * (distance / np.maximum(half, 0.25))[:, None]
+    return direction, np.maximum(half, 0.25)
+
+
+def _inset_ring(xy: np.ndarray, distance: float, mitre: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+    """A counter-clockwise ring moved inward by ``distance`` along its mitres (:func:`_inset_directions`)."""
+    direction, scale = mitre
+    return xy + direction * (distance / scale)[:, None]
 
 
 def _median(x: np.ndarray) -> float:
@@ -456,20 +507,24 @@ def _cap_polygon(xy: np.ndarray, inset: bool = True) -> tuple[np.ndarray, np.nda
     """
     n = len(xy)
     following = _following(xy)
-    edge = _lengths(following - xy)
-    # the fan from the mean: the outline's area
-    mean = xy.mean(axis=0)
+    step = following - xy
+    edge = _lengths(step)
+    # the fan from the mean: the outline's area (sum over count: numpy's mean, without its wrappers)
+    mean = xy.sum(axis=0) / n
     d0, d1 = xy - mean, following - mean
     total = 0.5 * float(np.sum(d0[:, 0] * d1[:, 1] - d0[:, 1] * d1[:, 0]))
     distance = CAP_INSET * _median(edge) if inset else 0.0
-    strip = _strip(n)
+    smallest = 1e-9 * max(1.0, float(np.abs(xy).max()))
+    mitre = _inset_directions(step, edge) if distance > smallest else None
     for _ in range(4):
-        if distance <= 1e-9 * max(1.0, float(np.abs(xy).max())):
+        if distance <= smallest:
             break
-        inner = _inset_ring(xy, distance)
+        inner = _inset_ring(xy, distance, mitre)
         tri = _triangulate_ccw(inner)
-        pts = np.vstack([xy, inner, inner.mean(axis=0)[None]]) if tri.max(initial=0) >= n else np.vstack([xy, inner])
-        tri = np.concatenate([strip, tri + n])
+        if tri.max(initial=0) >= n:  # the fan from the inner ring's mean
+            pts, tri = np.vstack([xy, inner, inner.sum(axis=0)[None] / n]), _banded_fan(n)
+        else:
+            pts, tri = np.vstack([xy, inner]), np.concatenate([_strip(n), tri + n])
         s = _signed_areas(pts, tri)
         # a valid inset: no triangle turned over and no overlap (the areas add up to the outline's)
         if np.all(s > 0) and abs(0.5 * float(s.sum()) - total) <= 1e-9 * abs(total) + 1e-12:
@@ -504,21 +559,26 @@ def planar_cap_mesh(curve, samples: int, outward_z: float, inset: bool = True) -
         to the side (:func:`weld_flat_caps`) the inner ring keeps the cap's normal.
     """
     c = as_array(curve, "curve", shape=(None, 4, 3))
-    s = np.arange(int(samples)) / int(samples)
-    ring = _bezier_points(c, s).reshape(-1, 3)
+    ring = (c.reshape(len(c), 12) @ _ring_matrix(int(samples))).reshape(-1, 3)
     xy = ring[:, :2]
     n = len(xy)
     following = _following(xy)
     area = 0.5 * float(np.dot(xy[:, 0], following[:, 1]) - np.dot(xy[:, 1], following[:, 0]))
     # work on a counter-clockwise copy; the boundary vertices keep the curve's order
-    order = np.arange(n) if area > 0 else np.arange(n)[::-1]
-    pts, tri = _cap_polygon(xy[order], inset)
+    if area > 0:
+        pts, tri = _cap_polygon(np.ascontiguousarray(xy), inset)
+        tri = np.array(tri)  # the cap's own (the fan's triangles are kept read-only)
+        vertices = np.empty((len(pts), 3))
+        vertices[:, :2] = pts
+    else:
+        order = np.arange(n)[::-1]
+        pts, tri = _cap_polygon(xy[order], inset)
+        index = np.concatenate([order, np.arange(n, len(pts))])
+        tri = index[tri]
+        vertices = np.empty((len(pts), 3))
+        vertices[index, :2] = pts
     if len(tri) == 0:
         raise ValueError("cap: the end contour could not be triangulated")
-    index = np.concatenate([order, np.arange(n, len(pts))])
-    tri = index[tri]
-    vertices = np.empty((len(pts), 3))
-    vertices[index, :2] = pts
     vertices[:, 2] = ring[0, 2]
     vertices[:n] = ring
     # every triangle is counter-clockwise seen from +z: one flip for a bottom cap
@@ -526,7 +586,21 @@ def planar_cap_mesh(curve, samples: int, outward_z: float, inset: bool = True) -
         tri = tri[:, ::-1].copy()
     normal = np.zeros_like(vertices)
     normal[:, 2] = 1.0 if outward_z > 0 else -1.0
-    return TriangleMesh(vertices, tri, normal)
+    # from a checked curve: finite points, the triangles of its own ring
+    return TriangleMesh._trusted(vertices, tri, normal)
+
+
+@lru_cache(maxsize=16)
+def _ring_matrix(samples: int) -> np.ndarray:
+    """(12, 3 S): a Bezier segment's control points (4, 3) flattened to its ``S`` points at ``u = a / S``, read-only.
+
+    The Bernstein weights of :func:`_bezier_weights` laid out per coordinate: one product for a whole
+    curve's boundary samples.
+    """
+    k = np.stack(_bezier_weights(np.arange(samples) / samples)[:4])  # (4, S)
+    out = np.einsum("ks,xy->kxsy", k, np.eye(3)).reshape(12, 3 * samples)
+    out.flags.writeable = False
+    return out
 
 
 def end_kinds(caps: str, start: str, stop: str, n_contours: int = 2) -> tuple[str, str]:
@@ -668,32 +742,37 @@ def close_side(side, bottom, top, low_center, high_center, height: float, low: s
     """
     bottom = as_array(bottom, "bottom", shape=(None, 4, 3))
     top = as_array(top, "top", shape=bottom.shape)
-    full = [] if side is None else [as_array(side, "side", shape=(len(bottom), None, 4, 4, 3))]
-    if low == "half":
-        full.insert(0, prism_column(bottom, -height))
-        bottom = bottom.copy()
-        bottom[..., 2] -= height
-    if high == "half":
-        full.append(prism_column(top, height))
-        top = top.copy()
-        top[..., 2] += height
-    if not full:
+    n_mid = 0
+    if side is not None:
+        side = as_array(side, "side", shape=(len(bottom), None, 4, 4, 3))
+        n_mid = side.shape[1]
+    n_side = n_mid + (low == "half") + (high == "half")
+    if not n_side:
         raise ValueError("side: a single slice has no side surface; it needs a half cap at one end at least")
-    n_side = sum(c.shape[1] for c in full)
-    # one concatenation of every column (side, extrusions and fans): the grid is copied once
+    # every column (fans, extrusions, side) written into the grid in place: the side is copied once
+    first = int(low != "dome")
+    stop = first + n_side
+    control = np.empty((len(bottom), stop + (high != "dome"), 4, 4, 3))
+    k = first
+    if low == "half":
+        control[:, k] = _prism_points(bottom, -float(height))
+        bottom = control[:, k, :, 0]  # the curve lowered by the height, as the extrusion's own edge
+        k += 1
+    if side is not None:
+        control[:, k:k + n_mid] = side
+    if high == "half":
+        control[:, stop - 1] = _prism_points(top, float(height))
+        top = control[:, stop - 1, :, 3]
     flat = []
-    first = 0
     if low != "dome":
-        full.insert(0, fan_column(bottom, np.append(fan_apex(bottom, low_center), bottom[0, 0, 2]), False))
-        first = 1
+        control[:, 0] = _fan_points(bottom, np.append(fan_apex(bottom, low_center), bottom[0, 0, 2]), False)
         if low != "none":
             flat.append((bottom, -1.0))
     if high != "dome":
-        full.append(fan_column(top, np.append(fan_apex(top, high_center), top[0, 0, 2]), True))
+        control[:, stop] = _fan_points(top, np.append(fan_apex(top, high_center), top[0, 0, 2]), True)
         if high != "none":
             flat.append((top, 1.0))
-    return CappedGrid(np.concatenate(full, axis=1), slice(first, first + n_side), tuple(flat),
-                      (float(bottom[0, 0, 2]), float(top[0, 0, 2])),
+    return CappedGrid(control, slice(first, stop), tuple(flat), (float(bottom[0, 0, 2]), float(top[0, 0, 2])),
                       (float(height) if low == "half" else 0.0, float(height) if high == "half" else 0.0))
 
 
@@ -788,7 +867,7 @@ def weld_flat_caps(side: TriangleMesh, grid: CappedGrid, samples: int,
         return side, side
     # only vertices in the end planes can be shared with the caps
     zv = side.vertices[:, 2]
-    tol = 1e-7 * max(1.0, float(np.abs(side.vertices).max()))
+    tol = 1e-7 * max(1.0, float(side.vertices.max()), -float(side.vertices.min()))
     low, high = grid.end_planes
     rim = np.flatnonzero((np.abs(zv - low) < tol) | (np.abs(zv - high) < tol))
     caps = [planar_cap_mesh(c, samples, s, inset) for c, s in grid.flat_caps]
@@ -810,20 +889,22 @@ def _welded(merged: TriangleMesh, side: TriangleMesh, rep: np.ndarray) -> Triang
     cap_tri = rep[merged.triangles[t_side:]]
     keep = (cap_tri[:, 0] != cap_tri[:, 1]) & (cap_tri[:, 1] != cap_tri[:, 2]) & (cap_tri[:, 2] != cap_tri[:, 0])
     cap_tri = cap_tri[keep]
-    used = np.zeros(merged.n_vertices, dtype=bool)
-    used[side.triangles.ravel()] = True
-    if not used[:n_side].all() or merged.vertex_colors is not None:
+    # every side vertex used: a count per vertex costs half of marking them in a mask
+    if merged.vertex_colors is not None or not np.bincount(side.triangles.ravel(), minlength=n_side).all():
         tri = rep[merged.triangles]
         keep = (tri[:, 0] != tri[:, 1]) & (tri[:, 1] != tri[:, 2]) & (tri[:, 2] != tri[:, 0])
         return compact(TriangleMesh._trusted(merged.vertices, tri[keep], merged.vertex_normals, merged.vertex_colors,
                                     dict(merged.metadata)))
-    used[cap_tri.ravel()] = True
-    new_index = np.cumsum(used) - 1
+    # the side's vertices keep their numbers, the caps' used ones follow
+    used = np.zeros(merged.n_vertices - n_side, dtype=bool)
+    cap_vertex = cap_tri.ravel()
+    used[cap_vertex[cap_vertex >= n_side] - n_side] = True
+    new_index = np.concatenate([np.arange(n_side), n_side - 1 + np.cumsum(used)])
     normals = merged.vertex_normals
     return TriangleMesh._trusted(
-        np.concatenate([side.vertices, merged.vertices[n_side:][used[n_side:]]]),
+        np.concatenate([side.vertices, merged.vertices[n_side:][used]]),
         np.concatenate([side.triangles, new_index[cap_tri]]),
-        None if normals is None else np.concatenate([side.vertex_normals, normals[n_side:][used[n_side:]]]),
+        None if normals is None else np.concatenate([side.vertex_normals, normals[n_side:][used]]),
         None, dict(merged.metadata))
 
 

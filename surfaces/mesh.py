@@ -478,7 +478,30 @@ def _grid_triangles(rows: int, cols: int, closed_u: bool, closed_v: bool) -> np.
 
     Cell ``(g, h)`` has corners ``a = (g, h)``, ``b = (g + 1, h)``, ``c = (g + 1, h + 1)``,
     ``d = (g, h + 1)`` (wrapping closed directions); all triangles ``(a, b, c)`` first, then all ``(a, c, d)``.
+    A new array each call; on lattices of up to :data:`_KEPT_LATTICE` vertices a copy of the one kept
+    per shape (copying is ten times cheaper than building it; larger ones are built, so the kept
+    arrays stay small).
     """
+    shape = (int(rows), int(cols), bool(closed_u), bool(closed_v))
+    if rows * cols <= _KEPT_LATTICE:
+        return _kept_triangles(*shape).copy()
+    return _lattice_triangles(*shape)
+
+
+#: Most vertices of a lattice whose triangles :func:`_grid_triangles` keeps (at most 8 shapes, 3 MB each).
+_KEPT_LATTICE = 1 << 16
+
+
+@lru_cache(maxsize=8)
+def _kept_triangles(rows: int, cols: int, closed_u: bool, closed_v: bool) -> np.ndarray:
+    """:func:`_lattice_triangles`, kept read-only."""
+    out = _lattice_triangles(rows, cols, closed_u, closed_v)
+    out.flags.writeable = False
+    return out
+
+
+def _lattice_triangles(rows: int, cols: int, closed_u: bool, closed_v: bool) -> np.ndarray:
+    """The triangles of :func:`_grid_triangles`, built."""
     gu = np.arange(rows if closed_u else rows - 1)
     gv = np.arange(cols if closed_v else cols - 1)
     g0, g1 = gu * cols, ((gu + 1) % rows) * cols
@@ -504,37 +527,62 @@ def _sample_basis(n: int, last: bool) -> tuple[np.ndarray, np.ndarray]:
     return out
 
 
+@lru_cache(maxsize=32)
+def _lattice_weights(nu: int, nv: int, last_u: bool, last_v: bool) -> dict:
+    """Matrices taking a patch's control values ``(a, b, x)`` to its samples on the lattice, read-only.
+
+    Keys ``(u_part, v_part, quantity)``: ``u_part`` 0 for the ``nu`` samples below ``t = 1`` along ``u``,
+    1 for the ``t = 1`` sample (there when ``last_u``), likewise ``v_part``; quantity 0 points, 1 ``S_u``,
+    2 ``S_v``. Values ``(lo, hi, w)``: ``w`` (hi - lo, m) acts on the patch's 48 values ``lo:hi``, the
+    range of those that weigh (at ``t = 0`` along ``u`` the rows ``a`` of 2 or 3 only), its columns
+    ``(s, t, x)`` are the patch's samples in lattice order.
+    """
+    (bu0, bu1), (bv0, bv1) = _sample_basis(nu, last_u), _sample_basis(nv, last_v)
+    eye = np.eye(3)
+    out = {}
+    for pu, rows in ((0, slice(0, nu)), (1, slice(nu, nu + 1))):
+        for pv, cols in ((0, slice(0, nv)), (1, slice(nv, nv + 1))):
+            if (pu and not last_u) or (pv and not last_v):
+                continue
+            for q, (bu, bv) in enumerate(((bu0, bv0), (bu1, bv0), (bu0, bv1))):
+                w = np.einsum("sa,tb,xy->abxsty", bu[rows], bv[cols], eye).reshape(48, -1)
+                weighed = np.flatnonzero(np.any(w != 0, axis=1))
+                lo, hi = (int(weighed[0]), int(weighed[-1]) + 1) if len(weighed) else (0, 0)
+                w = np.ascontiguousarray(w[lo:hi])
+                w.flags.writeable = False
+                out[pu, pv, q] = (lo, hi, w)
+    return out
+
+
 def _lattice_block(control: np.ndarray, nu: int, nv: int, last_u: bool, last_v: bool, out: tuple) -> None:
     """Points, ``S_u`` and ``S_v`` of patch rows ``control`` (k, C, 4, 4, 3) on their global sample lattice.
 
     Sample ``a`` of patch row ``i`` is lattice row ``i nu + a`` (likewise along ``v``); ``last_u``/``last_v``
     add the ``t = 1`` samples of the last patch row/column. Written into ``out`` (3 arrays
-    (k nu + last_u, C nv + last_v, 3)). Separable: the ``u`` basis contracts the rows of
-    control points, then the ``v`` basis the columns (three matrix products in all).
+    (k nu + last_u, C nv + last_v, 3)). One matrix product per quantity over the control values that
+    weigh (:func:`_lattice_weights`), read in place (a view of some columns of a grid too), whose rows
+    are lattice rows as they are when ``nu`` is 1: no copy or reordering of the control points.
     """
     k, cols = control.shape[:2]
-    (bu0, bu1), (bv0, bv1) = _sample_basis(nu, last_u), _sample_basis(nv, last_v)
-    mu, mv = len(bu0), len(bv0)
-    # contract a: (a, k, C, b, 3) -> (2 mu, k, C, b, 3), then b first for the second product; over the
-    # rows of control points the samples weigh (one sample per patch, t = 0, weighs two of four): the
-    # others add exact zeros, and copying them is most of the product's cost
-    basis_u = np.vstack([bu0, bu1])
-    weighed = np.flatnonzero(np.any(basis_u != 0, axis=0))
-    rows = slice(int(weighed[0]), int(weighed[-1]) + 1)
-    along_u = basis_u[:, rows] @ control.transpose(2, 0, 1, 3, 4)[rows].reshape(rows.stop - rows.start, -1)
-    along_u = along_u.reshape(2 * mu, k, cols, 4, 3).transpose(3, 0, 1, 2, 4).reshape(4, 2, -1)
-    # points and S_v from the values along u, S_u from the derivatives along u: (mv, mu, k, C, 3) each
-    pv = (np.vstack([bv0, bv1]) @ along_u[:, 0]).reshape(2, mv, mu, k, cols, 3)
-    du = (bv0 @ along_u[:, 1]).reshape(mv, mu, k, cols, 3)
+    weights = _lattice_weights(nu, nv, last_u, last_v)
+    values = control.reshape(k, cols, 48)
     rows_u, cols_v = k * nu, cols * nv
-    for dst, q in zip(out, (pv[0], du, pv[1])):
-        dst[:rows_u, :cols_v] = q[:nv, :nu].transpose(2, 1, 3, 0, 4).reshape(rows_u, cols_v, 3)
+    for q, dst in enumerate(out):
+        lo, hi, w = weights[0, 0, q]
+        grid = values[:, :, lo:hi] @ w  # (k, C, nu nv 3)
+        if nu == 1:
+            dst[:rows_u, :cols_v] = grid.reshape(rows_u, cols_v, 3)
+        else:
+            dst[:rows_u, :cols_v] = grid.reshape(k, cols, nu, nv, 3).transpose(0, 2, 1, 3, 4).reshape(rows_u, cols_v, 3)
         if last_v:
-            dst[:rows_u, cols_v] = q[nv, :nu, :, cols - 1].transpose(1, 0, 2).reshape(rows_u, 3)
+            lo, hi, w = weights[0, 1, q]
+            dst[:rows_u, cols_v] = (values[:, cols - 1, lo:hi] @ w).reshape(rows_u, 3)
         if last_u:
-            dst[rows_u, :cols_v] = q[:nv, nu, k - 1].transpose(1, 0, 2).reshape(cols_v, 3)
+            lo, hi, w = weights[1, 0, q]
+            dst[rows_u, :cols_v] = (values[k - 1, :, lo:hi] @ w).reshape(cols_v, 3)
         if last_u and last_v:
-            dst[rows_u, cols_v] = q[nv, nu, k - 1, cols - 1]
+            lo, hi, w = weights[1, 1, q]
+            dst[rows_u, cols_v] = values[k - 1, cols - 1, lo:hi] @ w
 
 
 def _samples_pair(samples) -> tuple[int, int]:
@@ -641,18 +689,31 @@ def _lattice_normals(patches: BezierPatches, du: np.ndarray, dv: np.ndarray, n_v
     """Unit normals ``du x dv`` (N, 3) at the lattice samples of :func:`tessellate`, and where they collapse (N,).
 
     Written out by components; where ``|du x dv| <= 1e-10 |du| |dv|`` (a pole, a collapsed edge)
-    the patches step inside (:meth:`BezierPatches._unit_normals` on those samples alone).
+    the patches step inside (:meth:`BezierPatches._unit_normals` on those samples alone). The test
+    runs on the samples that a bound of ``|du| |dv|`` over all of them cannot clear (usually none).
     """
     ux, uy, uz = du[:, 0], du[:, 1], du[:, 2]
     vx, vy, vz = dv[:, 0], dv[:, 1], dv[:, 2]
     normal = np.empty_like(du)
-    normal[:, 0] = uy * vz - uz * vy
-    normal[:, 1] = uz * vx - ux * vz
-    normal[:, 2] = ux * vy - uy * vx
     nx, ny, nz = normal[:, 0], normal[:, 1], normal[:, 2]
-    length2 = nx * nx + ny * ny + nz * nz
-    scale2 = (ux * ux + uy * uy + uz * uz) * (vx * vx + vy * vy + vz * vz)
-    collapsed = length2 <= 1e-20 * np.maximum(scale2, 1e-300)
+    np.multiply(uy, vz, out=nx)
+    nx -= uz * vy
+    np.multiply(uz, vx, out=ny)
+    ny -= ux * vz
+    np.multiply(ux, vy, out=nz)
+    nz -= uy * vx
+    length2 = nx * nx
+    length2 += ny * ny
+    length2 += nz * nz
+    # |du|^2 |dv|^2 <= 9 max|du_i|^2 max|dv_i|^2 (with a margin for rounding): where the normal is longer
+    # than that allows, it has not collapsed
+    bound = 9.0001 * max(float(du.max()), -float(du.min())) ** 2 * max(float(dv.max()), -float(dv.min())) ** 2
+    suspect = np.flatnonzero(length2 <= 1e-20 * max(bound, 1e-300))
+    collapsed = np.zeros(len(du), dtype=bool)
+    if len(suspect):
+        (ax, ay, az), (bx, by, bz) = du[suspect].T, dv[suspect].T
+        scale2 = (ax * ax + ay * ay + az * az) * (bx * bx + by * by + bz * bz)
+        collapsed[suspect] = length2[suspect] <= 1e-20 * np.maximum(scale2, 1e-300)
     if collapsed.any():
         rows, cols = patches.shape
         g, h = np.divmod(np.flatnonzero(collapsed), n_v)
@@ -660,8 +721,9 @@ def _lattice_normals(patches: BezierPatches, du: np.ndarray, dv: np.ndarray, n_v
         normal[collapsed] = patches._unit_normals(pi, pj, (g - pi * nu) / nu, (h - pj * nv) / nv,
                                                   du[collapsed], dv[collapsed])
         length2[collapsed] = 1.0
+    # every other normal is longer than zero
     with np.errstate(invalid="ignore", divide="ignore"):
-        normal /= np.sqrt(np.where(length2 > 0, length2, 1.0))[:, None]
+        normal /= np.sqrt(length2)[:, None]
     return normal, collapsed
 
 
@@ -758,9 +820,14 @@ def merge_meshes(meshes, weld_vertices: bool = False) -> TriangleMesh:
     meshes = list(meshes)
     if not meshes:
         raise ValueError("meshes: need at least one mesh")
-    offsets = np.cumsum([0] + [m.n_vertices for m in meshes[:-1]])
     verts = np.concatenate([m.vertices for m in meshes])
-    tri = np.concatenate([m.triangles + o for m, o in zip(meshes, offsets)])
+    # each mesh's triangles offset straight into the result (no copy of each first)
+    tri = np.empty((sum(m.n_triangles for m in meshes), 3), dtype=np.int64)
+    offset = start = 0
+    for m in meshes:
+        np.add(m.triangles, offset, out=tri[start:start + m.n_triangles])
+        offset += m.n_vertices
+        start += m.n_triangles
     normals = (
         np.concatenate([m.vertex_normals for m in meshes])
         if all(m.vertex_normals is not None for m in meshes)

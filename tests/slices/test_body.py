@@ -142,3 +142,40 @@ def test_mesh_samples_equals_the_median_of_every_control_polygon(shape):
     budget = 10**9
     assert mesh_samples(c, budget) == want
     assert mesh_samples(np.asfortranarray(c), budget) == want
+
+
+@pytest.mark.parametrize("offset", [0.0, 300.0])
+def test_mesh_samples_decides_in_double_precision_near_a_multiple_of_the_edge(offset):
+    # polygons a nanometre longer than one and two edges: single precision cannot tell them from
+    # exactly one and two edges (which would give one subdivision fewer each way)
+    from slices.body import EDGE_MM, _polygon_lengths, mesh_samples
+
+    c = np.full((40, 10, 4, 4, 3), offset)
+    c[..., 0] += (EDGE_MM + 1e-9) * np.arange(4)[:, None] / 3
+    c[..., 2] += (2 * EDGE_MM + 1e-9) * np.arange(4)[None, :] / 3
+    (pu, pv), _ = _polygon_lengths(c, np.float32)
+    assert np.ceil(np.median(pu) / EDGE_MM) == 1 and np.ceil(np.median(pv) / EDGE_MM) == 2
+    assert mesh_samples(c) == (2, 3)
+    c[..., 0] -= 2e-9 * np.arange(4)[:, None] / 3  # a nanometre shorter
+    assert mesh_samples(c) == (1, 3)
+
+
+def test_mesh_samples_single_precision_agrees_with_double():
+    from slices.body import EDGE_MM, MAX_SAMPLES, _polygon_lengths, mesh_samples
+    from slices.caps import _median
+
+    rng = np.random.default_rng(7)
+    for scale in (0.1, 0.7, 1.3, 2.0, 4.0):
+        c = rng.normal(scale=scale, size=(50, 7, 4, 4, 3)) + rng.normal(scale=200.0, size=3)
+        (pu, pv), reach = _polygon_lengths(c, np.float64)
+        assert reach == pytest.approx(np.abs(c).max(), rel=1e-15)
+        want = tuple(int(np.clip(np.ceil(_median(p) / EDGE_MM), 1, MAX_SAMPLES)) for p in (pu, pv))
+        assert mesh_samples(c, 10**9) == want
+    # coordinates too large for single-precision squares, or for a float32 at all: double precision
+    c = np.zeros((4, 3, 4, 4, 3))
+    c[..., 2] = 3.0 * EDGE_MM * np.arange(4)[None, :] / 3
+    for far, reach in ((1e17, 2e17), (1e39, np.inf)):
+        c[..., 0] = far * (1 + np.arange(4)[:, None] / 3)
+        with np.errstate(over="ignore", invalid="ignore"):
+            assert _polygon_lengths(c, np.float32)[1] == pytest.approx(reach, rel=1e-7)
+        assert mesh_samples(c) == (MAX_SAMPLES, 3)

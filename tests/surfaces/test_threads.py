@@ -1,0 +1,55 @@
+"""One BLAS thread for thin products: the limit holds inside, is restored after, and costs little."""
+
+from __future__ import annotations
+
+import numpy as np
+from threadpoolctl import threadpool_info
+
+import surfaces.threads as threads
+from slices.io import Contour
+
+
+def _blas_threads() -> dict:
+    return {i["filepath"]: i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"}
+
+
+def test_one_blas_thread_limits_and_restores():
+    before = _blas_threads()
+    with threads.one_blas_thread():
+        assert all(n == 1 for n in _blas_threads().values())
+        float(np.ones(4) @ np.ones(4))
+    assert _blas_threads() == before
+
+
+def test_the_controller_is_kept_until_a_module_is_imported(monkeypatch):
+    with threads.one_blas_thread():
+        pass
+    kept = threads._controller()
+    assert threads._controller() is kept
+    import sys
+    import types
+
+    monkeypatch.setitem(sys.modules, "_a_module_imported_later", types.ModuleType("_a_module_imported_later"))
+    fresh = threads._controller()
+    assert fresh is not kept and threads._controller() is fresh
+
+
+def test_reconstruct_contours_builds_its_bodies_on_one_blas_thread(monkeypatch):
+    import slices.structure as structure
+
+    seen = []
+    build = structure.build_stepped
+
+    def spy(*args, **kwargs):
+        seen.append(_blas_threads())
+        return build(*args, **kwargs)
+
+    monkeypatch.setattr(structure, "build_stepped", spy)
+    before = _blas_threads()
+    t = np.linspace(0, 2 * np.pi, 32, endpoint=False)
+    circle = 10 * np.stack([np.cos(t), np.sin(t)], axis=1)
+    structure.reconstruct_contours([Contour(z, circle) for z in (0.0, 5.0, 10.0)], caps="flat")
+    assert seen and all(n == 1 for s in seen for n in s.values())
+    # libraries loaded on the way (SciPy's own BLAS) are new; the ones there before are restored
+    after = _blas_threads()
+    assert {k: after[k] for k in before} == before
