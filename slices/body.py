@@ -17,7 +17,7 @@ from slices import caps as capmod
 from slices.chaining import Body
 from slices.io import SPACING_RTOL
 from slices.options import SurfaceOptions
-from slices.surface import blend_overshoot, lattice_size, ruled_surface, side_surface, slice_curves
+from slices.surface import _side_surface, blend_overshoot, lattice_size, ruled_surface, slice_curves
 from surfaces.bezier import BezierPatches
 from surfaces.mesh import TriangleMesh, tessellate
 from surfaces.validate import positive
@@ -429,11 +429,16 @@ def build_body_once(body: Body, spacing: float, options: SurfaceOptions | None =
     centers[:, 2] = z
     stack, prepend = capmod.add_dome_rings(curves, centers, d / 2, low, high)
     n_limited = 0
+    buffer = None
+    if len(stack) >= 2 and not ruled and opts.method == "blending":
+        # the blend writes the side straight into the capped grid's columns (no copy of the ~1.5 MB side)
+        buffer, mid = capmod._grid_buffer(stack.shape[1], len(stack) - 1, low, high)
     if len(stack) >= 2:
         if ruled:
             side, node_eval = ruled_surface(stack)
         else:
-            side, node_eval = side_surface(stack, opts.method, v=stack[:, 0, 0, 2], monotone=opts.monotone)
+            side, node_eval = _side_surface(stack, opts.method, stack[:, 0, 0, 2], opts.monotone,
+                                            out=None if buffer is None else buffer[:, mid])
         if opts.monotone and opts.method == "blending" and not ruled:
             n_limited = blend_overshoot(stack, stack[:, 0, 0, 2])
         side_ctrl, bottom, top = side.control, side.control[:, 0, :, 0], side.control[:, -1, :, 3]
@@ -444,7 +449,10 @@ def build_body_once(body: Body, spacing: float, options: SurfaceOptions | None =
         def node_eval(j, kk):
             return curves[0][j, 0]
 
-    grid = capmod.close_side(side_ctrl, bottom, top, centers[0, :2], centers[-1, :2], d / 2, low, high)
+    if buffer is None:
+        grid = capmod.close_side(side_ctrl, bottom, top, centers[0, :2], centers[-1, :2], d / 2, low, high)
+    else:
+        grid = capmod._close_grid(buffer, bottom, top, centers[0, :2], centers[-1, :2], d / 2, low, high)
     # the grid's columns are the checked side's and caps over its end curves: finite and closed as the
     # side is (close_side checks its inputs)
     patches = BezierPatches._trusted(grid.control, closed_u=True)

@@ -746,20 +746,33 @@ def close_side(side, bottom, top, low_center, high_center, height: float, low: s
     if side is not None:
         side = as_array(side, "side", shape=(len(bottom), None, 4, 4, 3))
         n_mid = side.shape[1]
-    n_side = n_mid + (low == "half") + (high == "half")
-    if not n_side:
+    if not n_mid and "half" not in (low, high):
         raise ValueError("side: a single slice has no side surface; it needs a half cap at one end at least")
     # every column (fans, extrusions, side) written into the grid in place: the side is copied once
-    first = int(low != "dome")
-    stop = first + n_side
-    control = np.empty((len(bottom), stop + (high != "dome"), 4, 4, 3))
-    k = first
-    if low == "half":
-        control[:, k] = _prism_points(bottom, -float(height))
-        bottom = control[:, k, :, 0]  # the curve lowered by the height, as the extrusion's own edge
-        k += 1
+    control, mid = _grid_buffer(len(bottom), n_mid, low, high)
     if side is not None:
-        control[:, k:k + n_mid] = side
+        control[:, mid] = side
+    return _close_grid(control, bottom, top, low_center, high_center, height, low, high)
+
+
+def _grid_buffer(m: int, n_mid: int, low: str, high: str) -> tuple[np.ndarray, slice]:
+    """An unwritten capped grid (M, C, 4, 4, 3) for ``n_mid`` side columns, and the slice of those columns.
+
+    The side surface written into those columns (:func:`slices.surface.side_surface`'s blend can), then
+    :func:`_close_grid` fills the caps' columns around it: the side's points are written once.
+    """
+    first = int(low != "dome") + (low == "half")
+    return np.empty((m, first + n_mid + (high == "half") + (high != "dome"), 4, 4, 3)), slice(first, first + n_mid)
+
+
+def _close_grid(control: np.ndarray, bottom: np.ndarray, top: np.ndarray, low_center, high_center, height: float,
+                low: str, high: str) -> CappedGrid:
+    """:func:`close_side` on a :func:`_grid_buffer` whose side columns hold the side (validated inputs)."""
+    first = int(low != "dome")
+    stop = control.shape[1] - (high != "dome")
+    if low == "half":
+        control[:, first] = _prism_points(bottom, -float(height))
+        bottom = control[:, first, :, 0]  # the curve lowered by the height, as the extrusion's own edge
     if high == "half":
         control[:, stop - 1] = _prism_points(top, float(height))
         top = control[:, stop - 1, :, 3]

@@ -359,9 +359,10 @@ def _corner_eval(patches: BezierPatches, n_slices: int) -> NodeEval:
     return at
 
 
-def _side_blending(curves: np.ndarray, v: np.ndarray, monotone: bool = False) -> tuple[BezierPatches, NodeEval]:
+def _side_blending(curves: np.ndarray, v: np.ndarray, monotone: bool = False,
+                   out: np.ndarray | None = None) -> tuple[BezierPatches, NodeEval]:
     # side_surface has checked the curves (finite) and v (strictly increasing)
-    patches, limited = blending._blend(curves, True, v, bool(monotone), trusted=True)
+    patches, limited = blending._blend(curves, True, v, bool(monotone), trusted=True, out=out)
     if monotone and len(curves) >= 3:
         _last_overshoot[:] = [curves.copy(), v.copy(), _overshoot_count(limited)]
     return patches, _corner_eval(patches, len(curves))
@@ -489,6 +490,16 @@ def side_surface(curves, method: str = "blending", v=None, monotone: bool = Fals
     node_eval : callable
         ``node_eval(j, k) -> (N, 3)``: the surface at lattice node ``j`` of slice ``k``.
     """
+    return _side_surface(curves, method, v, monotone)
+
+
+def _side_surface(curves, method: str, v, monotone: bool,
+                  out: np.ndarray | None = None) -> tuple[BezierPatches, NodeEval]:
+    """:func:`side_surface`; with ``out`` (blending only) the patches are written there and are a view of it.
+
+    ``out``: float64 (M, K - 1, 4, 4, 3), its last three axes contiguous: the side columns of a capped
+    grid (:func:`slices.caps._grid_buffer`), so that the side's points are written once.
+    """
     c = as_array(curves, "curves", shape=(None, None, 4, 3))
     if method not in METHODS:
         raise ValueError(f"method: must be one of {tuple(METHODS)}, got {method!r}")
@@ -497,4 +508,8 @@ def side_surface(curves, method: str = "blending", v=None, monotone: bool = Fals
     vv = np.arange(len(c), dtype=np.float64) if v is None else as_array(v, "v", shape=(len(c),))
     if (vv[1:] <= vv[:-1]).any():
         raise ValueError("v: slice positions must increase strictly")
+    if out is not None:
+        if method != "blending":
+            raise ValueError(f"out: only the blending method writes into a given array, not {method!r}")
+        return _side_blending(c, vv, monotone=bool(monotone), out=out)
     return METHODS[method](c, vv, monotone=bool(monotone))

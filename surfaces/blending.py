@@ -639,38 +639,41 @@ def monotone_blend(curves, closed_u: bool = True, params=None) -> tuple[BezierPa
 
 
 def _blend(c: np.ndarray, closed_u: bool, params, monotone: bool,
-           trusted: bool = False) -> tuple[BezierPatches, np.ndarray | None]:
+           trusted: bool = False, out: np.ndarray | None = None) -> tuple[BezierPatches, np.ndarray | None]:
     """:func:`blend_curves` of validated curves, with the limited tangents when ``monotone``.
 
     ``trusted``: ``c`` is finite and ``params`` (or None) validated, strictly increasing, as
     :func:`slices.surface.side_surface` checks them; the patches then skip their finiteness check
     (a blend of finite curves is finite), only the closing of ``u`` is checked.
+    ``out``: float64 (M, K - 1, 4, 4, 3) with its last three axes contiguous (such as the side
+    columns of a capped grid): the control points are written there and the patches are a view of it.
     """
     k, m = c.shape[:2]
     w = blend_weights(k, params) if not trusted else _blend_weights(k, None if params is None else params)
     # moved as whole 3-vectors (one 24-byte item each), which numpy copies faster than single floats
     item = np.dtype((np.void, 8 * 3))
     limited = None
+    control = np.empty((m, k - 1, 4, 4, 3)) if out is None else out
+    # the patches' points as whole 3-vectors (indexed, not reshaped: a view of a strided ``out`` too)
+    into = control.view(item)[..., 0]  # (M, K - 1, 4, 4)
     if monotone:
         # one matrix product over all curves (faster than einsum's batched path), the rows ordered by
         # Bezier point along v first, so that each of the four is one contiguous block for the limit
         mixed = (w.transpose(1, 0, 2).reshape(-1, k) @ c.reshape(k, -1)).reshape(4, k - 1, m, 4, 3)
         q = mixed.reshape(4, k - 1, -1)
         limited = (_limit_parts(q[0], q[1], q[2], q[3], _tiny(q)) < 1.0).reshape(c.shape)
-        whole = mixed.view(item).reshape(4, k - 1, m, 4)
-        control = np.ascontiguousarray(whole.transpose(2, 1, 3, 0)).view(np.float64).reshape(m, k - 1, 4, 4, 3)
+        into[...] = mixed.view(item).reshape(4, k - 1, m, 4).transpose(2, 1, 3, 0)
     else:
         # the first and last Bezier points along v are the curves themselves (weight rows of the
         # identity): copied, and only the inner two come from a matrix product, written straight
         # into the patches' layout
         cc = np.ascontiguousarray(c)
         inner = (w[:, 1:3].transpose(1, 0, 2).reshape(-1, k) @ cc.reshape(k, -1)).reshape(2, k - 1, m, 4, 3)
-        control = np.empty((m, k - 1, 4, 4, 3))
-        into = control.view(item).reshape(m, k - 1, 4, 4).transpose(3, 1, 0, 2)  # (b, K - 1, M, 4)
+        by_b = into.transpose(3, 1, 0, 2)  # (b, K - 1, M, 4)
         curve_items = cc.view(item).reshape(k, m, 4)
-        into[0] = curve_items[:-1]
-        into[1:3] = inner.view(item).reshape(2, k - 1, m, 4)
-        into[3] = curve_items[1:]
+        by_b[0] = curve_items[:-1]
+        by_b[1:3] = inner.view(item).reshape(2, k - 1, m, 4)
+        by_b[3] = curve_items[1:]
     if not trusted:
         return BezierPatches(control, closed_u=closed_u), limited
     if closed_u:  # BezierPatches' test of the closing, on the two rows it compares

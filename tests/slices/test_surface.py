@@ -234,3 +234,32 @@ def test_side_blend_equals_the_checked_blend_and_checks_the_closing(ellipsoid):
         side_surface(open_curves, "blending", v=z)
     with pytest.raises(ValueError, match="NaN"):
         side_surface(np.where(open_curves > 5, np.nan, open_curves), "blending", v=z)
+
+
+@pytest.mark.parametrize("monotone", [False, True])
+@pytest.mark.parametrize("low, high", [("flat", "flat"), ("half", "half"), ("half", "none"), ("dome", "flat")])
+def test_side_written_into_the_capped_grid_is_close_side_of_the_blend(monotone, low, high):
+    """The blend written straight into a capped grid's side columns gives close_side's grid, bit for bit."""
+    from slices import caps
+    from slices.surface import _side_surface
+
+    rng = np.random.default_rng(3)
+    curves = rng.normal(size=(5, 7, 4, 3))
+    curves[:, -1, 3] = curves[:, 0, 0]  # closed in u
+    curves[..., 2] = np.arange(5.0)[:, None, None] * 2.0  # planar slices
+    v = curves[:, 0, 0, 2]
+    side, at = side_surface(curves, "blending", v=v, monotone=monotone)
+    want = caps.close_side(side.control, side.control[:, 0, :, 0], side.control[:, -1, :, 3], (0.1, 0.2),
+                           (0.0, -0.1), 1.0, low, high)
+    buffer, mid = caps._grid_buffer(7, 4, low, high)
+    into, at_into = _side_surface(curves, "blending", v, monotone, out=buffer[:, mid])
+    assert np.shares_memory(into.control, buffer) and np.array_equal(into.control, side.control)
+    got = caps._close_grid(buffer, into.control[:, 0, :, 0], into.control[:, -1, :, 3], (0.1, 0.2), (0.0, -0.1),
+                           1.0, low, high)
+    assert np.array_equal(got.control, want.control) and got.side_columns == want.side_columns
+    assert got.end_planes == want.end_planes and got.extrusions == want.extrusions
+    assert all(np.array_equal(a, b) and s == t for (a, s), (b, t) in zip(got.flat_caps, want.flat_caps))
+    j, k = np.array([0, 3, 6]), np.array([0, 2, 4])
+    assert np.array_equal(at_into(j, k), at(j, k))
+    with pytest.raises(ValueError, match="out"):
+        _side_surface(curves, "coons", v, monotone, out=buffer[:, mid])
