@@ -488,15 +488,20 @@ def _restrict_rows(c: np.ndarray, k0: np.ndarray, k1: np.ndarray, b0: np.ndarray
     """
     h = k1 - k0
     s = (b0 - k0) / h
-    p0, p1, p2, p3 = c
-    # de Casteljau at every piece's start: the point, and the derivative per unit of the segment's parameter
-    a0 = s * (p1 - p0) + p0
-    a1 = s * (p2 - p1) + p1
-    a2 = s * (p3 - p2) + p2
-    e0 = s * (a1 - a0) + a0
-    e1 = s * (a2 - a1) + a1
-    tangent = e1 - e0
-    point = s * tangent + e0
+    # de Casteljau at every piece's start, each level one operation over all pieces and coordinates
+    # (the same roundings as point by point: s (p1 - p0) + p0, ...)
+    a = c[1:] - c[:-1]
+    a *= s
+    a += c[:-1]
+    e = a[1:] - a[:-1]
+    e *= s
+    e += a[:-1]
+    # the derivative per unit of the segment's parameter and the point, one block for the next pieces
+    start = np.empty((2,) + c.shape[1:])
+    tangent, point = start
+    np.subtract(e[1], e[0], out=tangent)
+    np.multiply(s, tangent, out=point)
+    point += e[0]
     tangent *= 3.0
     nxt = np.arange(1, len(s) + 1)
     nxt[n_row - 1::n_row] -= n_row
@@ -506,11 +511,11 @@ def _restrict_rows(c: np.ndarray, k0: np.ndarray, k1: np.ndarray, b0: np.ndarray
     ends[0] = point
     np.multiply(w, tangent, out=ends[1])
     ends[1] += point
-    np.copyto(ends[3], p3)
-    np.copyto(ends[3], point.take(nxt, axis=1), where=same)
-    np.subtract(p3, p2, out=ends[2])
+    np.subtract(c[3], c[2], out=ends[2])
     ends[2] *= 3.0
-    np.copyto(ends[2], tangent.take(nxt, axis=1), where=same)
+    ends[3] = c[3]
+    # where the next piece lies on the same segment, its start's derivative and point are this one's end's
+    np.copyto(ends[2:], start.take(nxt, axis=2), where=same)
     ends[2] *= w
     np.subtract(ends[3], ends[2], out=ends[2])
     out[...] = ends.transpose(2, 0, 1)
