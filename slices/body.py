@@ -462,7 +462,10 @@ def build_body_once(body: Body, spacing: float, options: SurfaceOptions | None =
     j = np.concatenate(sc.nodes)
     kk = np.repeat(np.arange(prepend, prepend + len(sc.nodes)), [len(n) for n in sc.nodes])
     pts = np.concatenate(sc.points)
-    dev = float(np.max(np.linalg.norm(node_eval(j, kk) - pts, axis=1)))
+    # the largest distance as the root of the largest sum of squares (np.linalg.norm's sum, in its order)
+    gap = node_eval(j, kk) - pts
+    gap *= gap
+    dev = float(np.sqrt(np.max(gap[:, 0] + gap[:, 1] + gap[:, 2])))
     tri_mesh = display = density = None
     if mesh:
         if opts.samples:
@@ -481,7 +484,7 @@ def build_body_once(body: Body, spacing: float, options: SurfaceOptions | None =
             tri_mesh, display = _flip(tri_mesh), _flip(display)
     return BodySurface(
         body, patches, grid.side_columns, tri_mesh, display, volume, area, dev,
-        int(len(pts)), int(sum(int(p.turning.sum()) for p in sc.params)), int(curves.shape[1]),
+        int(len(pts)), int(np.count_nonzero(np.concatenate([p.turning for p in sc.params]))), int(curves.shape[1]),
         float(sc.start_angle), n_limited, (low, high),
         (abs(capmod.curve_area(curves[0])), abs(capmod.curve_area(curves[-1]))), float(d),
         mesh_samples=density,
