@@ -41,6 +41,9 @@ __all__ = ["SelfIntersections", "candidate_pairs", "fold_suspects", "folded_face
 #: Candidate pairs tested per vectorised block (bounds the memory of the narrow phase).
 _BLOCK = 200_000
 
+#: Default relative tolerance of :func:`self_intersections`' segment-triangle tests.
+_EPS = 1e-9
+
 
 @dataclass(frozen=True)
 class SelfIntersections:
@@ -131,7 +134,9 @@ def _candidate_blocks(c: np.ndarray) -> Iterator[np.ndarray]:
     if len(c) <= SMALL_BROAD_PHASE:
         # every pair's boxes compared at once: cheaper than the grid and the sweep on a few faces
         # as an (n, n) table: broadcasting costs less than gathering both boxes of every pair
-        meet = np.triu(np.ones((len(c), len(c)), dtype=bool), 1)
+        # (the upper triangle by one comparison of indices: np.triu builds a mask and copies)
+        idx = np.arange(len(c))
+        meet = idx[:, None] < idx
         for k in range(3):
             meet &= lo[:, None, k] <= hi[None, :, k]
             meet &= hi[:, None, k] >= lo[None, :, k]
@@ -340,7 +345,7 @@ def _pairs_intersect_exact(ta: np.ndarray, tb: np.ndarray, in_b: np.ndarray, in_
     return hit
 
 
-def self_intersections(vertices, triangles, *, eps: float = 1e-9, first: bool = False) -> SelfIntersections:
+def self_intersections(vertices, triangles, *, eps: float = _EPS, first: bool = False) -> SelfIntersections:
     """Faces of a triangle mesh that intersect other faces.
 
     Parameters
@@ -371,15 +376,25 @@ def self_intersections(vertices, triangles, *, eps: float = 1e-9, first: bool = 
     >>> r.faces.tolist(), r.pairs.tolist()
     ([True, True, False], [[0, 1]])
     """
+    t = np.asarray(triangles)
+    v, t = _checked(vertices, t.reshape(0, 3) if t.size == 0 else t)
+    return _self_intersections(v, t, eps, first)
+
+
+def _checked(vertices, triangles) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices (V, 3) float64 and triangles (T, 3) int64 of a mesh, validated (one pass for the
+    certificate and the exact test, :func:`_exact_on_suspects`)."""
     v = as_array(vertices, "vertices", shape=(None, 3))
     t = np.asarray(triangles)
-    if t.size == 0:
-        t = t.reshape(0, 3)
     if t.ndim != 2 or t.shape[1] != 3 or not np.issubdtype(t.dtype, np.integer):
         raise ValueError(f"triangles: expected an integer array of shape (T, 3), got {t.shape} {t.dtype}")
     if t.size and (t.min() < 0 or t.max() >= len(v)):
         raise ValueError(f"triangles: indices must lie in [0, {len(v)})")
-    t = t.astype(np.int64, copy=False)
+    return v, t.astype(np.int64, copy=False)
+
+
+def _self_intersections(v: np.ndarray, t: np.ndarray, eps: float, first: bool) -> SelfIntersections:
+    """:func:`self_intersections` of validated vertices (V, 3) float64 and triangles (T, 3) int64 (:func:`_checked`)."""
     faces = np.zeros(len(t), dtype=bool)
     # the narrow phase compares vertex indices of every candidate pair: half the bytes in int32
     t_pairs = t.astype(np.int32) if len(v) < 2**31 else t
@@ -826,15 +841,13 @@ def fold_suspects(vertices, triangles, *, margin: float = 1e-12) -> np.ndarray |
     >>> int(fold_suspects(v, band + caps).sum()) > 0
     True
     """
-    v = as_array(vertices, "vertices", shape=(None, 3))
-    t = np.asarray(triangles)
-    if t.ndim != 2 or t.shape[1] != 3 or not np.issubdtype(t.dtype, np.integer):
-        raise ValueError(f"triangles: expected an integer array of shape (T, 3), got {t.shape} {t.dtype}")
-    if t.size and (t.min() < 0 or t.max() >= len(v)):
-        raise ValueError(f"triangles: indices must lie in [0, {len(v)})")
+    return _fold_suspects(*_checked(vertices, triangles), margin)
+
+
+def _fold_suspects(v: np.ndarray, t: np.ndarray, margin: float = 1e-12) -> np.ndarray | None:
+    """:func:`fold_suspects` of validated vertices (V, 3) float64 and triangles (T, 3) int64 (:func:`_checked`)."""
     if len(t) < 4:
         return None
-    t = t.astype(np.int64, copy=False)
     shape = _lattice_shape(t, len(v)) if len(t) >= LATTICE_MIN_FACES else None
     if shape is not None:
         suspect = _lattice_suspects(v, t, *shape, margin)
@@ -968,12 +981,13 @@ def folded_faces(vertices, triangles) -> np.ndarray:
 def _exact_on_suspects(vertices, t: np.ndarray, first: bool) -> np.ndarray:
     """Crossing faces (T,) bool by :func:`self_intersections` on the suspects of :func:`fold_suspects` only
     (on every face where the certificate does not apply); ``first`` stops at the first crossing found."""
-    suspects = fold_suspects(vertices, t)
+    v, t = _checked(vertices, t)
+    suspects = _fold_suspects(v, t)
     if suspects is None:
-        return self_intersections(vertices, t, first=first).faces
+        return _self_intersections(v, t, _EPS, first).faces
     out = np.zeros(len(t), dtype=bool)
     if suspects.any():
-        out[np.flatnonzero(suspects)] = self_intersections(vertices, t[suspects], first=first).faces
+        out[np.flatnonzero(suspects)] = _self_intersections(v, t[suspects], _EPS, first).faces
     return out
 
 
