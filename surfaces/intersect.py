@@ -271,10 +271,9 @@ def _shared_corners(ta: np.ndarray, tb: np.ndarray) -> tuple[np.ndarray, np.ndar
     Returns ``in_b`` and ``in_a``, (P, 3) bool each: corner ``i`` of ``a`` is a corner of ``b``;
     corner ``j`` of ``b`` is a corner of ``a``.
     """
-    eq = [[ta[:, i] == tb[:, j] for j in range(3)] for i in range(3)]
-    in_b = np.stack([eq[i][0] | eq[i][1] | eq[i][2] for i in range(3)], axis=1)
-    in_a = np.stack([eq[0][j] | eq[1][j] | eq[2][j] for j in range(3)], axis=1)
-    return in_b, in_a
+    # every (corner of a, corner of b) at once, (P, 3, 3); the ors along either short axis written out
+    eq = ta[:, :, None] == tb[:, None, :]
+    return eq[:, :, 0] | eq[:, :, 1] | eq[:, :, 2], eq[:, 0] | eq[:, 1] | eq[:, 2]
 
 
 def _pairs_intersect(corners: np.ndarray, t: np.ndarray, plane: np.ndarray, tol: np.ndarray,
@@ -303,14 +302,15 @@ def _pairs_intersect(corners: np.ndarray, t: np.ndarray, plane: np.ndarray, tol:
     keep = ~(a_apart | b_apart)
     sub = k[keep]
     if len(sub):
-        hit[sub] = _pairs_intersect_exact(corners[a[sub]], corners[b[sub]], in_b[sub], in_a[sub], n_shared[sub],
-                                          eps, side_a[keep], side_b[keep])
+        hit[sub] = _pairs_intersect_exact(corners[a[sub]], corners[b[sub]], in_b[sub], in_a[sub], eps,
+                                          side_a[keep], side_b[keep])
     return hit
 
 
-def _pairs_intersect_exact(ta: np.ndarray, tb: np.ndarray, in_b: np.ndarray, in_a: np.ndarray,
-                           n_shared: np.ndarray, eps: float, side_a: np.ndarray, side_b: np.ndarray) -> np.ndarray:
-    """Segment-triangle tests for pairs of triangles (corners (N, 3, 3); shared corners of a and of b (N, 3)).
+def _pairs_intersect_exact(ta: np.ndarray, tb: np.ndarray, in_b: np.ndarray, in_a: np.ndarray, eps: float,
+                           side_a: np.ndarray, side_b: np.ndarray) -> np.ndarray:
+    """Segment-triangle tests for pairs of triangles (corners (N, 3, 3); shared corners of a and of b (N, 3),
+    at most one a pair).
 
     ``side_a`` (N, 3) is the side of a's corners of b's plane (+1, -1, or 0 on it), ``side_b`` the
     other way round: an edge whose ends lie beyond the plane on one side cannot cross the triangle.
@@ -319,30 +319,23 @@ def _pairs_intersect_exact(ta: np.ndarray, tb: np.ndarray, in_b: np.ndarray, in_
     :func:`_segment_hits`.
     """
     n = len(ta)
+    # both ways at once, a's edges against b first, then b's against a: the tests in the same order
+    tri = np.concatenate([ta, tb])
+    side = np.concatenate([side_a, side_b])
+    shared = np.concatenate([in_b, in_a])
     nxt = np.array([1, 2, 0])
-    rows, seg, ends, other = [], [], [], []
-    for tri, tri_other, side, shared in ((ta, tb, side_a, in_b), (tb, ta, side_b, in_a)):
-        # edge k runs from corner k to corner k + 1; it can cross the other triangle only where its
-        # ends do not lie beyond the other's plane on one side
-        need = side * side[:, nxt] <= 0
-        one = n_shared == 1
-        if one.any():
-            # the edge opposite the shared corner s is edge s + 1
-            opposite = np.zeros((n, 3), dtype=bool)
-            k = np.flatnonzero(one)
-            opposite[k, nxt[np.argmax(shared[k], axis=1)]] = True
-            need &= np.where(one[:, None], opposite, True)
-        r, k = np.nonzero(need)
-        rows.append(r)
-        seg.append(tri[r, k])
-        ends.append(tri[r, nxt[k]])
-        other.append(tri_other[r])
-    r = np.concatenate(rows)
-    hit = np.zeros(n, dtype=bool)
+    # edge k runs from corner k to corner k + 1; it can cross the other triangle only where its ends do
+    # not lie beyond the other's plane on one side, and (a shared corner) only as the edge opposite it,
+    # the one that touches no shared corner (pairs share at most one corner here)
+    need = side * side[:, nxt] <= 0
+    need &= ~(shared | shared[:, nxt])
+    r, k = np.nonzero(need)
+    hit = np.zeros(2 * n, dtype=bool)
     if len(r):
-        h = _segment_hits(np.concatenate(seg), np.concatenate(ends), np.concatenate(other), eps)
+        corner = tri.reshape(-1, 3)
+        h = _segment_hits(corner[3 * r + k], corner[3 * r + nxt[k]], np.concatenate([tb, ta])[r], eps)
         hit[r[h]] = True
-    return hit
+    return hit[:n] | hit[n:]
 
 
 def self_intersections(vertices, triangles, *, eps: float = _EPS, first: bool = False) -> SelfIntersections:
