@@ -447,7 +447,8 @@ def _edges_paired(a: np.ndarray, b: np.ndarray, n_vertices: int) -> bool:
 #: Relative spread of ``z`` (of the largest ``|z|``) within one level of :func:`fold_suspects`.
 LEVEL_RTOL = 1e-13
 
-#: Angular bins of a band's circle in :func:`fold_suspects` (arcs are widened to whole bins and one more).
+#: Angular bins of a band's circle in :func:`fold_suspects` (arcs are widened to whole bins and one more;
+#: a power of two).
 ANGLE_BINS = 1024
 
 #: From this many faces on, :func:`fold_suspects` takes the lattice form where it applies (on fewer, its
@@ -497,7 +498,9 @@ def _bins(low: np.ndarray, length: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     first = np.floor((low + np.pi) / (2 * np.pi) * ANGLE_BINS).astype(np.int64) - 1
     count = np.ceil(length / (2 * np.pi) * ANGLE_BINS).astype(np.int64) + 3
     full = length >= np.pi * (1 - 1e-9)
-    return np.where(full, 0, first % ANGLE_BINS), np.where(full, ANGLE_BINS, np.minimum(count, ANGLE_BINS))
+    # the bins a power of two: the modulo of a two's complement integer is its low bits (no division)
+    np.bitwise_and(first, ANGLE_BINS - 1, out=first)
+    return np.where(full, 0, first), np.where(full, ANGLE_BINS, np.minimum(count, ANGLE_BINS))
 
 
 def _arc_suspects(t: np.ndarray, X: np.ndarray, Y: np.ndarray, group: np.ndarray, bad_face: np.ndarray,
