@@ -150,15 +150,19 @@ def _parameterize_flat(polars: _Polars, n1: int, start_angle: float, crossings) 
     a_vert = (polars.arc[off3[curve] + local] - (s0 - total)[curve]) % tot
     a_vert[np.abs(a_vert - tot) <= 1e-12 * tot] = 0.0
     bounds = list(zip(start.tolist(), (start + ns).tolist()))
-    # ragged sorts and searches of all contours in one call each, on (contour, value) keys: complex
-    # numbers compare lexicographically, so each contour's order is its own, exactly (no shifted keys)
+    # the ragged sort of all contours in one call, on (contour, value) keys: complex numbers compare
+    # lexicographically, so each contour's order is its own, exactly (no shifted keys)
     rot = np.argsort(curve + 1j * a_vert, kind="stable")
     a_vert = a_vert[rot]
     local_rot = rot - start[curve]
     # unwrapped polar angle of each vertex on the period that starts at support 0
     periods = np.maximum(np.ceil((s0[curve] - polars.arc[off3[curve] + ns[curve] + local_rot]) / tot - 1e-12), 0.0)
     phi_v = polars.phi[off3[curve] + ns[curve] + local_rot] + 2 * np.pi * periods
-    seg_of = np.searchsorted((rows + 1j * sigma).ravel(), curve + 1j * a_vert, side="right") - curve * (n1 + 1)
+    # each contour's vertices in its own segments (a search of n1 + 1 values a contour: cheaper than one
+    # search on (contour, value) keys, whose complex comparisons cost several times a float's)
+    seg_of = np.empty(len(a_vert), dtype=np.int64)
+    for c, (lo, hi) in enumerate(bounds):
+        seg_of[lo:hi] = sigma[c].searchsorted(a_vert[lo:hi], side="right")
     seg_of -= 1
     np.minimum(np.maximum(seg_of, 0, out=seg_of), n1 - 1, out=seg_of)  # np.clip without its wrapper
     key = curve * n1 + seg_of
