@@ -369,16 +369,17 @@ def self_intersections(vertices, triangles, *, eps: float = _EPS, first: bool = 
     >>> r.faces.tolist(), r.pairs.tolist()
     ([True, True, False], [[0, 1]])
     """
-    t = np.asarray(triangles)
-    v, t = _checked(vertices, t.reshape(0, 3) if t.size == 0 else t)
-    return _self_intersections(v, t, eps, first)
+    return _self_intersections(*_checked(vertices, triangles, empty=True), eps, first)
 
 
-def _checked(vertices, triangles) -> tuple[np.ndarray, np.ndarray]:
+def _checked(vertices, triangles, empty: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Vertices (V, 3) float64 and triangles (T, 3) int64 of a mesh, validated (one pass for the
-    certificate and the exact test, :func:`_exact_on_suspects`)."""
+    certificate and the exact test, :func:`_exact_on_suspects`); with ``empty``, no triangles in any
+    shape are none."""
     v = as_array(vertices, "vertices", shape=(None, 3))
     t = np.asarray(triangles)
+    if empty and t.size == 0:
+        t = t.reshape(0, 3)
     if t.ndim != 2 or t.shape[1] != 3 or not np.issubdtype(t.dtype, np.integer):
         raise ValueError(f"triangles: expected an integer array of shape (T, 3), got {t.shape} {t.dtype}")
     if t.size and (t.min() < 0 or t.max() >= len(v)):
