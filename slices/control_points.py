@@ -150,15 +150,19 @@ def _parameterize_flat(polars: _Polars, n1: int, start_angle: float, crossings) 
     a_vert = (polars.arc[off3[curve] + local] - (s0 - total)[curve]) % tot
     a_vert[np.abs(a_vert - tot) <= 1e-12 * tot] = 0.0
     bounds = list(zip(start.tolist(), (start + ns).tolist()))
-    # ragged sorts and searches of all contours in one call each, on (contour, value) keys: complex
-    # numbers compare lexicographically, so each contour's order is its own, exactly (no shifted keys)
+    # the ragged sort of all contours in one call, on (contour, value) keys: complex numbers compare
+    # lexicographically, so each contour's order is its own, exactly (no shifted keys)
     rot = np.argsort(curve + 1j * a_vert, kind="stable")
     a_vert = a_vert[rot]
     local_rot = rot - start[curve]
     # unwrapped polar angle of each vertex on the period that starts at support 0
     periods = np.maximum(np.ceil((s0[curve] - polars.arc[off3[curve] + ns[curve] + local_rot]) / tot - 1e-12), 0.0)
     phi_v = polars.phi[off3[curve] + ns[curve] + local_rot] + 2 * np.pi * periods
-    seg_of = np.searchsorted((rows + 1j * sigma).ravel(), curve + 1j * a_vert, side="right") - curve * (n1 + 1)
+    # each contour's vertices in its own segments (a search of n1 + 1 values a contour: cheaper than one
+    # search on (contour, value) keys, whose complex comparisons cost several times a float's)
+    seg_of = np.empty(len(a_vert), dtype=np.int64)
+    for c, (lo, hi) in enumerate(bounds):
+        seg_of[lo:hi] = sigma[c].searchsorted(a_vert[lo:hi], side="right")
     seg_of -= 1
     np.minimum(np.maximum(seg_of, 0, out=seg_of), n1 - 1, out=seg_of)  # np.clip without its wrapper
     key = curve * n1 + seg_of
@@ -316,7 +320,7 @@ def _support_crossings(polars: _Polars, n1: int, start_angle: float, points: boo
     (the points and angles ``None`` unless ``points``): shapes (C, n1), (C, n1, 2), (C, n1), (C, n1).
     """
     cr = _crossings(polars, n1, start_angle)
-    return _pick_crossings(cr, cr.outer, cr.first, cr.level_k[cr.outer], polars.arc[polars.off3 + polars.sizes],
+    return _pick_crossings(cr, cr.outer, cr.first, cr.levels(), polars.arc[polars.off3 + polars.sizes],
                            start_angle, 2 * np.pi / n1, points)
 
 
@@ -327,7 +331,9 @@ class _Crossings(NamedTuple):
     its start ``(ax, ay)``, direction ``(sx, sy)``, start relative to the
     origin ``(rx, ry)``, the origin ``(cx, cy)``, arc position at its start and
     length; ``outer`` and ``first`` (C, n1) the crossing farthest from the
-    origin and the first along the contour of each ray, in the order of the rays.
+    origin and the first along the contour of each ray, in the order of the rays;
+    ``single`` when every level is crossed once (then both are ``0, 1, 2, ...`` in
+    one array: a gather by them is the identity, and the first is the outermost).
     """
 
     ie: np.ndarray
@@ -335,13 +341,18 @@ class _Crossings(NamedTuple):
     edge: tuple
     outer: np.ndarray
     first: np.ndarray
+    single: bool
+
+    def levels(self) -> np.ndarray:
+        """The levels (C, n1) of the :attr:`outer` crossings."""
+        return self.level_k.reshape(self.outer.shape) if self.single else self.level_k[self.outer]
 
 
 def _crossing_at(cr: _Crossings, idx: np.ndarray, cos_k: np.ndarray, sin_k: np.ndarray, full: bool) -> tuple:
     """Arc position, then (``full``) point and distance from the origin along the ray, of crossings
     ``idx`` of ``cr`` on rays of direction ``(cos_k, sin_k)``."""
     ax, ay, sx, sy, rx, ry, cx, cy, arc_g, edge_len = cr.edge
-    j = cr.ie[idx]
+    j = cr.ie.reshape(idx.shape) if cr.single and idx is cr.outer else cr.ie[idx]
     sx_j, sy_j = sx[j], sy[j]
     num = rx[j] * sin_k - ry[j] * cos_k
     den = sx_j * sin_k - sy_j * cos_k
@@ -414,9 +425,9 @@ def _crossings(polars: _Polars, n1: int, start_angle: float) -> _Crossings:
     a_at = off3[cid] + e_mod
     edge = (ax, ay, bx - ax, by - ay, ax - cx, ay - cy, cx, cy, arc[g], arc[a_at + 1] - arc[a_at])
     outer = order[starts] if sizes is not None else order  # a level crossed once: its only crossing
-    first = outer.copy()
     multi = np.flatnonzero(sizes > 1) if sizes is not None else ()
-    cr = _Crossings(ie, level_k, edge, outer.reshape(n_c, n1), first.reshape(n_c, n1))
+    first = outer.copy() if len(multi) else outer  # the two picks differ only where a level is crossed again
+    cr = _Crossings(ie, level_k, edge, outer.reshape(n_c, n1), first.reshape(n_c, n1), sizes is None)
     if len(multi):
         m_sizes = sizes[multi]
         m_starts = m_sizes.cumsum() - m_sizes
@@ -439,7 +450,7 @@ def _pick_crossings(cr: _Crossings, outer: np.ndarray, first: np.ndarray, levels
     picked = _crossing_at(cr, outer, cos_k, sin_k, points)
     s_pick = picked[0]
     unordered = (s_pick[:, 1:] <= s_pick[:, :-1]).any(axis=1) | (s_pick[:, -1] - s_pick[:, 0] >= total)
-    if unordered.any():  # then each level's first crossing along the contour
+    if unordered.any() and not cr.single:  # then each level's first crossing along the contour (the same when single)
         pick = np.where(unordered[:, None], first, outer)
         picked = _crossing_at(cr, pick, cos_k, sin_k, points)
     if not points:
@@ -553,15 +564,18 @@ def _best_rotation(polars: _Polars, n1: int, r: int) -> tuple:
     nf = n1 * r
     cr = _crossings(polars, nf, 0.0)
     total = polars.arc[polars.off3 + polars.sizes]
-    s_arc, _, level_k, _ = _pick_crossings(cr, cr.outer, cr.first, cr.level_k[cr.outer], total, 0.0,
+    s_arc, _, level_k, _ = _pick_crossings(cr, cr.outer, cr.first, cr.levels(), total, 0.0,
                                            2 * np.pi / nf, False)
     # each contour's row runs through nf consecutive levels: ray k sits at column (k - first level) mod nf;
     # gathered as (contour, rotation, ray) so that the median runs along contiguous rows. Only
     # shifts modulo 1 count, so the unwrapped arc positions need no reduction to one period first.
     n_c = len(total)
     frac = s_arc / total[:, None]
-    # the row rolled so that column k r + o holds ray k of rotation o, then seen as (contour, rotation, ray)
-    frac = _at(frac, np.arange(n_c)[:, None], (np.arange(nf) - level_k[:, :1]) % nf).reshape(n_c, n1, r)
+    # the row rolled so that column k r + o holds ray k of rotation o, then seen as (contour, rotation, ray):
+    # read from the row written twice over, from column (-first level) mod nf on (one index a value, no modulo)
+    twice = np.concatenate([frac, frac], axis=1).reshape(-1)
+    at = (-level_k[:, 0]) % nf + np.arange(n_c) * (2 * nf)
+    frac = twice[at[:, None] + np.arange(nf)].reshape(n_c, n1, r)
     frac = frac.transpose(0, 2, 1)
     shift = np.empty((n_c - 1, r, n1))
     np.subtract(frac[1:], frac[:-1], out=shift)  # (K-1, R, N1)

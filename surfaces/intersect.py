@@ -41,6 +41,9 @@ __all__ = ["SelfIntersections", "candidate_pairs", "fold_suspects", "folded_face
 #: Candidate pairs tested per vectorised block (bounds the memory of the narrow phase).
 _BLOCK = 200_000
 
+#: Default relative tolerance of :func:`self_intersections`' segment-triangle tests.
+_EPS = 1e-9
+
 
 @dataclass(frozen=True)
 class SelfIntersections:
@@ -131,7 +134,9 @@ def _candidate_blocks(c: np.ndarray) -> Iterator[np.ndarray]:
     if len(c) <= SMALL_BROAD_PHASE:
         # every pair's boxes compared at once: cheaper than the grid and the sweep on a few faces
         # as an (n, n) table: broadcasting costs less than gathering both boxes of every pair
-        meet = np.triu(np.ones((len(c), len(c)), dtype=bool), 1)
+        # (the upper triangle by one comparison of indices: np.triu builds a mask and copies)
+        idx = np.arange(len(c))
+        meet = idx[:, None] < idx
         for k in range(3):
             meet &= lo[:, None, k] <= hi[None, :, k]
             meet &= hi[:, None, k] >= lo[None, :, k]
@@ -266,10 +271,9 @@ def _shared_corners(ta: np.ndarray, tb: np.ndarray) -> tuple[np.ndarray, np.ndar
     Returns ``in_b`` and ``in_a``, (P, 3) bool each: corner ``i`` of ``a`` is a corner of ``b``;
     corner ``j`` of ``b`` is a corner of ``a``.
     """
-    eq = [[ta[:, i] == tb[:, j] for j in range(3)] for i in range(3)]
-    in_b = np.stack([eq[i][0] | eq[i][1] | eq[i][2] for i in range(3)], axis=1)
-    in_a = np.stack([eq[0][j] | eq[1][j] | eq[2][j] for j in range(3)], axis=1)
-    return in_b, in_a
+    # every (corner of a, corner of b) at once, (P, 3, 3); the ors along either short axis written out
+    eq = ta[:, :, None] == tb[:, None, :]
+    return eq[:, :, 0] | eq[:, :, 1] | eq[:, :, 2], eq[:, 0] | eq[:, 1] | eq[:, 2]
 
 
 def _pairs_intersect(corners: np.ndarray, t: np.ndarray, plane: np.ndarray, tol: np.ndarray,
@@ -298,14 +302,15 @@ def _pairs_intersect(corners: np.ndarray, t: np.ndarray, plane: np.ndarray, tol:
     keep = ~(a_apart | b_apart)
     sub = k[keep]
     if len(sub):
-        hit[sub] = _pairs_intersect_exact(corners[a[sub]], corners[b[sub]], in_b[sub], in_a[sub], n_shared[sub],
-                                          eps, side_a[keep], side_b[keep])
+        hit[sub] = _pairs_intersect_exact(corners[a[sub]], corners[b[sub]], in_b[sub], in_a[sub], eps,
+                                          side_a[keep], side_b[keep])
     return hit
 
 
-def _pairs_intersect_exact(ta: np.ndarray, tb: np.ndarray, in_b: np.ndarray, in_a: np.ndarray,
-                           n_shared: np.ndarray, eps: float, side_a: np.ndarray, side_b: np.ndarray) -> np.ndarray:
-    """Segment-triangle tests for pairs of triangles (corners (N, 3, 3); shared corners of a and of b (N, 3)).
+def _pairs_intersect_exact(ta: np.ndarray, tb: np.ndarray, in_b: np.ndarray, in_a: np.ndarray, eps: float,
+                           side_a: np.ndarray, side_b: np.ndarray) -> np.ndarray:
+    """Segment-triangle tests for pairs of triangles (corners (N, 3, 3); shared corners of a and of b (N, 3),
+    at most one a pair).
 
     ``side_a`` (N, 3) is the side of a's corners of b's plane (+1, -1, or 0 on it), ``side_b`` the
     other way round: an edge whose ends lie beyond the plane on one side cannot cross the triangle.
@@ -314,33 +319,26 @@ def _pairs_intersect_exact(ta: np.ndarray, tb: np.ndarray, in_b: np.ndarray, in_
     :func:`_segment_hits`.
     """
     n = len(ta)
+    # both ways at once, a's edges against b first, then b's against a: the tests in the same order
+    tri = np.concatenate([ta, tb])
+    side = np.concatenate([side_a, side_b])
+    shared = np.concatenate([in_b, in_a])
     nxt = np.array([1, 2, 0])
-    rows, seg, ends, other = [], [], [], []
-    for tri, tri_other, side, shared in ((ta, tb, side_a, in_b), (tb, ta, side_b, in_a)):
-        # edge k runs from corner k to corner k + 1; it can cross the other triangle only where its
-        # ends do not lie beyond the other's plane on one side
-        need = side * side[:, nxt] <= 0
-        one = n_shared == 1
-        if one.any():
-            # the edge opposite the shared corner s is edge s + 1
-            opposite = np.zeros((n, 3), dtype=bool)
-            k = np.flatnonzero(one)
-            opposite[k, nxt[np.argmax(shared[k], axis=1)]] = True
-            need &= np.where(one[:, None], opposite, True)
-        r, k = np.nonzero(need)
-        rows.append(r)
-        seg.append(tri[r, k])
-        ends.append(tri[r, nxt[k]])
-        other.append(tri_other[r])
-    r = np.concatenate(rows)
-    hit = np.zeros(n, dtype=bool)
+    # edge k runs from corner k to corner k + 1; it can cross the other triangle only where its ends do
+    # not lie beyond the other's plane on one side, and (a shared corner) only as the edge opposite it,
+    # the one that touches no shared corner (pairs share at most one corner here)
+    need = side * side[:, nxt] <= 0
+    need &= ~(shared | shared[:, nxt])
+    r, k = np.nonzero(need)
+    hit = np.zeros(2 * n, dtype=bool)
     if len(r):
-        h = _segment_hits(np.concatenate(seg), np.concatenate(ends), np.concatenate(other), eps)
+        corner = tri.reshape(-1, 3)
+        h = _segment_hits(corner[3 * r + k], corner[3 * r + nxt[k]], np.concatenate([tb, ta])[r], eps)
         hit[r[h]] = True
-    return hit
+    return hit[:n] | hit[n:]
 
 
-def self_intersections(vertices, triangles, *, eps: float = 1e-9, first: bool = False) -> SelfIntersections:
+def self_intersections(vertices, triangles, *, eps: float = _EPS, first: bool = False) -> SelfIntersections:
     """Faces of a triangle mesh that intersect other faces.
 
     Parameters
@@ -371,15 +369,26 @@ def self_intersections(vertices, triangles, *, eps: float = 1e-9, first: bool = 
     >>> r.faces.tolist(), r.pairs.tolist()
     ([True, True, False], [[0, 1]])
     """
+    return _self_intersections(*_checked(vertices, triangles, empty=True), eps, first)
+
+
+def _checked(vertices, triangles, empty: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices (V, 3) float64 and triangles (T, 3) int64 of a mesh, validated (one pass for the
+    certificate and the exact test, :func:`_exact_on_suspects`); with ``empty``, no triangles in any
+    shape are none."""
     v = as_array(vertices, "vertices", shape=(None, 3))
     t = np.asarray(triangles)
-    if t.size == 0:
+    if empty and t.size == 0:
         t = t.reshape(0, 3)
     if t.ndim != 2 or t.shape[1] != 3 or not np.issubdtype(t.dtype, np.integer):
         raise ValueError(f"triangles: expected an integer array of shape (T, 3), got {t.shape} {t.dtype}")
     if t.size and (t.min() < 0 or t.max() >= len(v)):
         raise ValueError(f"triangles: indices must lie in [0, {len(v)})")
-    t = t.astype(np.int64, copy=False)
+    return v, t.astype(np.int64, copy=False)
+
+
+def _self_intersections(v: np.ndarray, t: np.ndarray, eps: float, first: bool) -> SelfIntersections:
+    """:func:`self_intersections` of validated vertices (V, 3) float64 and triangles (T, 3) int64 (:func:`_checked`)."""
     faces = np.zeros(len(t), dtype=bool)
     # the narrow phase compares vertex indices of every candidate pair: half the bytes in int32
     t_pairs = t.astype(np.int32) if len(v) < 2**31 else t
@@ -439,7 +448,8 @@ def _edges_paired(a: np.ndarray, b: np.ndarray, n_vertices: int) -> bool:
 #: Relative spread of ``z`` (of the largest ``|z|``) within one level of :func:`fold_suspects`.
 LEVEL_RTOL = 1e-13
 
-#: Angular bins of a band's circle in :func:`fold_suspects` (arcs are widened to whole bins and one more).
+#: Angular bins of a band's circle in :func:`fold_suspects` (arcs are widened to whole bins and one more;
+#: a power of two).
 ANGLE_BINS = 1024
 
 #: From this many faces on, :func:`fold_suspects` takes the lattice form where it applies (on fewer, its
@@ -489,7 +499,9 @@ def _bins(low: np.ndarray, length: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     first = np.floor((low + np.pi) / (2 * np.pi) * ANGLE_BINS).astype(np.int64) - 1
     count = np.ceil(length / (2 * np.pi) * ANGLE_BINS).astype(np.int64) + 3
     full = length >= np.pi * (1 - 1e-9)
-    return np.where(full, 0, first % ANGLE_BINS), np.where(full, ANGLE_BINS, np.minimum(count, ANGLE_BINS))
+    # the bins a power of two: the modulo of a two's complement integer is its low bits (no division)
+    np.bitwise_and(first, ANGLE_BINS - 1, out=first)
+    return np.where(full, 0, first), np.where(full, ANGLE_BINS, np.minimum(count, ANGLE_BINS))
 
 
 def _arc_suspects(t: np.ndarray, X: np.ndarray, Y: np.ndarray, group: np.ndarray, bad_face: np.ndarray,
@@ -826,15 +838,13 @@ def fold_suspects(vertices, triangles, *, margin: float = 1e-12) -> np.ndarray |
     >>> int(fold_suspects(v, band + caps).sum()) > 0
     True
     """
-    v = as_array(vertices, "vertices", shape=(None, 3))
-    t = np.asarray(triangles)
-    if t.ndim != 2 or t.shape[1] != 3 or not np.issubdtype(t.dtype, np.integer):
-        raise ValueError(f"triangles: expected an integer array of shape (T, 3), got {t.shape} {t.dtype}")
-    if t.size and (t.min() < 0 or t.max() >= len(v)):
-        raise ValueError(f"triangles: indices must lie in [0, {len(v)})")
+    return _fold_suspects(*_checked(vertices, triangles), margin)
+
+
+def _fold_suspects(v: np.ndarray, t: np.ndarray, margin: float = 1e-12) -> np.ndarray | None:
+    """:func:`fold_suspects` of validated vertices (V, 3) float64 and triangles (T, 3) int64 (:func:`_checked`)."""
     if len(t) < 4:
         return None
-    t = t.astype(np.int64, copy=False)
     shape = _lattice_shape(t, len(v)) if len(t) >= LATTICE_MIN_FACES else None
     if shape is not None:
         suspect = _lattice_suspects(v, t, *shape, margin)
@@ -968,12 +978,13 @@ def folded_faces(vertices, triangles) -> np.ndarray:
 def _exact_on_suspects(vertices, t: np.ndarray, first: bool) -> np.ndarray:
     """Crossing faces (T,) bool by :func:`self_intersections` on the suspects of :func:`fold_suspects` only
     (on every face where the certificate does not apply); ``first`` stops at the first crossing found."""
-    suspects = fold_suspects(vertices, t)
+    v, t = _checked(vertices, t)
+    suspects = _fold_suspects(v, t)
     if suspects is None:
-        return self_intersections(vertices, t, first=first).faces
+        return _self_intersections(v, t, _EPS, first).faces
     out = np.zeros(len(t), dtype=bool)
     if suspects.any():
-        out[np.flatnonzero(suspects)] = self_intersections(vertices, t[suspects], first=first).faces
+        out[np.flatnonzero(suspects)] = _self_intersections(v, t[suspects], _EPS, first).faces
     return out
 
 

@@ -264,6 +264,27 @@ def test_polars_of_many_contours_equal_each_alone():
         np.testing.assert_allclose(alone.arc[[n, 2 * n, 3 * n]], perimeter * np.arange(1, 4), rtol=1e-12)
 
 
+@pytest.mark.parametrize("n1", [16, 64, 512])
+def test_crossings_crossed_once_pick_what_the_general_picks_do(n1):
+    """Where every ray level is crossed once (:attr:`_Crossings.single`) the picks skip their gathers and
+    the second pick; the general path on the same crossings gives the same values."""
+    t = np.linspace(0, 2 * np.pi, 90, endpoint=False)
+    convex = [np.stack([(8 + k) * np.cos(t), (5 + k) * np.sin(t)], 1) for k in range(4)]
+    for ps, single in ((convex, True), (_ragged_outlines(), False)):
+        polars = cp._polars([pg.clean_contour(p) for p in ps])
+        cr = cp._crossings(polars, n1, 0.0)
+        assert cr.single is single
+        general = cr._replace(single=False, first=cr.first.copy())
+        total = polars.arc[polars.off3 + polars.sizes]
+        np.testing.assert_array_equal(cr.levels(), cr.level_k[cr.outer])
+        for points in (False, True):
+            fast = cp._pick_crossings(cr, cr.outer, cr.first, cr.levels(), total, 0.0, 2 * np.pi / n1, points)
+            slow = cp._pick_crossings(general, general.outer, general.first, general.level_k[general.outer], total,
+                                      0.0, 2 * np.pi / n1, points)
+            for x, y in zip(fast, slow):
+                np.testing.assert_array_equal(x, y)
+
+
 @pytest.mark.parametrize("n1, start", [(12, 0.0), (64, 0.05), (96, 0.3)])
 def test_parameters_of_many_contours_equal_each_alone(n1, start):
     ps = _ragged_outlines()
