@@ -115,7 +115,9 @@ def summarize(input_path, stack: ContourStack, rec: Reconstruction, mesh: Triang
         Seconds per stage: ``read_time_s`` (reading the input into contours),
         ``surface_time_s`` (from the contours in memory to the bodies' meshes: chaining, bodies,
         fold checks), ``union_time_s`` (the bodies united, or the composition with the
-        other ROIs: their reading included) and ``reference_time_s``.
+        other ROIs: their reading included) and ``reference_time_s``. The libraries the surface
+        and union stages call are loaded before the clocks start
+        (:data:`slices.pipeline.STAGE_MODULES`): the stages time their work, not imports.
     checks : dict, optional
         ``watertight`` and ``oriented`` of ``mesh`` when the caller has checked them
         already (:meth:`surfaces.mesh.TriangleMesh.is_watertight`, ``is_oriented``);

@@ -152,3 +152,33 @@ def test_reading_is_timed_apart_from_the_surface(ellipsoid, monkeypatch):
     s = reconstruct(path, n_rays=32, samples=1, reference=False).summary
     assert s["read_time_s"] >= 0.2 and s["surface_time_s"] < s["time_s"] - 0.2
     assert s["union_time_s"] >= 0 and s["time_s"] >= s["read_time_s"] + s["surface_time_s"] + s["union_time_s"]
+
+
+def test_the_stage_clocks_time_no_imports(ellipsoid):
+    """In a fresh process the surface and union stages import nothing: their libraries are loaded before
+    the clocks start (``surface_time_s`` of an ordinary organ is ~10 ms; SciPy's first import ~0.2 s)."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    path, _, _ = ellipsoid
+    script = (
+        "import sys\n"
+        "import slices.pipeline as p\n"
+        "seen = {}\n"
+        "def spy(name, real):\n"
+        "    def run(*a, **k):\n"
+        "        before = set(sys.modules)\n"
+        "        out = real(*a, **k)\n"
+        "        seen[name] = sorted(set(sys.modules) - before)\n"
+        "        return out\n"
+        "    return run\n"
+        "p.reconstruct_contours = spy('surface', p.reconstruct_contours)\n"
+        "p.Reconstruction.solid_mesh = spy('union', p.Reconstruction.solid_mesh)\n"
+        f"p.reconstruct({str(path)!r}, n_rays=32, reference=False, union='yes')\n"
+        "print(seen)\n"
+    )
+    root = Path(__file__).resolve().parents[2]
+    out = subprocess.run([sys.executable, "-c", script], cwd=root, capture_output=True, text=True, check=True)
+    seen = eval(out.stdout.strip().splitlines()[-1])
+    assert seen == {"surface": [], "union": []}

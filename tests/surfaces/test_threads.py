@@ -21,17 +21,35 @@ def test_one_blas_thread_limits_and_restores():
     assert _blas_threads() == before
 
 
-def test_the_controller_is_kept_until_a_module_is_imported(monkeypatch):
+def test_the_controller_is_kept_until_a_compiled_module_is_imported(monkeypatch):
+    import importlib.machinery
+    import sys
+    import types
+
     with threads.one_blas_thread():
         pass
     kept = threads._controller()
     assert threads._controller() is kept
-    import sys
-    import types
-
-    monkeypatch.setitem(sys.modules, "_a_module_imported_later", types.ModuleType("_a_module_imported_later"))
+    # a pure Python module loads no library: the view stands
+    monkeypatch.setitem(sys.modules, "_a_python_module_imported_later", types.ModuleType("_a_python_module"))
+    assert threads._controller() is kept
+    # a compiled one may bring its own BLAS: a fresh view, then kept again
+    compiled = types.ModuleType("_a_compiled_module")
+    compiled.__file__ = "/somewhere/_a_compiled_module" + importlib.machinery.EXTENSION_SUFFIXES[0]
+    monkeypatch.setitem(sys.modules, "_a_compiled_module_imported_later", compiled)
     fresh = threads._controller()
     assert fresh is not kept and threads._controller() is fresh
+    # modules removed: the import order says nothing, a fresh view
+    monkeypatch.delitem(sys.modules, "_a_compiled_module_imported_later")
+    monkeypatch.delitem(sys.modules, "_a_python_module_imported_later")
+    assert threads._controller() is not fresh
+
+
+def test_prepare_takes_the_view_that_the_limit_then_uses():
+    threads.prepare()
+    kept = threads._controller()
+    with threads.one_blas_thread():
+        assert threads._controller() is kept
 
 
 def test_reconstruct_contours_builds_its_bodies_on_one_blas_thread(monkeypatch):
