@@ -33,7 +33,6 @@ import numpy as np
 
 from surfaces.mesh import _grid_triangles
 from surfaces.validate import as_array
-from surfaces.vectors import cross
 
 __all__ = ["SelfIntersections", "candidate_pairs", "fold_suspects", "folded_faces", "is_fold_free",
            "layered_radial_graph", "self_intersections"]
@@ -124,13 +123,14 @@ SMALL_BROAD_PHASE = 96
 SWEEP_PAIRS_PER_FACE = 64
 
 
-def _candidate_blocks(c: np.ndarray) -> Iterator[np.ndarray]:
+def _candidate_blocks(c: np.ndarray, box: tuple | None = None) -> Iterator[np.ndarray]:
     """:func:`candidate_pairs` of corners (T >= 2, 3, 3), block after block (P_i, 2) in the same order.
 
     The sort is global, the pairs are made block by block: a caller that stops at the first
     intersection (:func:`self_intersections` with ``first``) makes only the blocks it tests.
+    ``box``: the triangles' :func:`_box` when the caller has it.
     """
-    lo, hi = _box(c)
+    lo, hi = _box(c) if box is None else box
     if len(c) <= SMALL_BROAD_PHASE:
         # every pair's boxes compared at once: cheaper than the grid and the sweep on a few faces
         # as an (n, n) table: broadcasting costs less than gathering both boxes of every pair
@@ -140,7 +140,8 @@ def _candidate_blocks(c: np.ndarray) -> Iterator[np.ndarray]:
         for k in range(3):
             meet &= lo[:, None, k] <= hi[None, :, k]
             meet &= hi[:, None, k] >= lo[None, :, k]
-        yield np.argwhere(meet)
+        a, b = np.nonzero(meet)  # np.argwhere's pairs, without its wrapper
+        yield np.stack([a, b], axis=1)
         return
     span = hi.max(axis=0) - lo.min(axis=0)
     axis = int(np.argmax(span))
@@ -394,12 +395,18 @@ def _self_intersections(v: np.ndarray, t: np.ndarray, eps: float, first: bool) -
     t_pairs = t.astype(np.int32) if len(v) < 2**31 else t
     # degenerate (zero-area) faces cannot be pierced in the interior; they are left out
     corners = v[t]
-    normal = cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
-    area2 = np.linalg.norm(normal, axis=1)
+    # per face: normal, offset, |normal| (the plane test's scale), one (T, 5) table written column by
+    # column (numpy's cross, norm and einsum over a last axis of 3 cost more than the arithmetic)
+    plane = np.empty((len(t), 5))
+    c0 = _columns(corners[:, 0])
+    normal = _cross(_minus(_columns(corners[:, 1]), c0), _minus(_columns(corners[:, 2]), c0))
+    plane[:, 0], plane[:, 1], plane[:, 2] = normal
+    plane[:, 3] = _dot(normal, c0)
+    area2 = plane[:, 4]
+    np.sqrt(_dot(normal, normal), out=area2)
     lo, hi = _box(corners)
-    size = (hi - lo).max(axis=1)
-    # per face: normal, offset, |normal| (the plane test's scale)
-    plane = np.column_stack([normal, np.einsum("ij,ij->i", normal, corners[:, 0]), area2])
+    extent = hi - lo
+    size = np.maximum(np.maximum(extent[:, 0], extent[:, 1]), extent[:, 2])
     # a plane-distance tolerance far above rounding, far below any crossing the segment tests accept
     tol = (eps * 1e-3) * size
     good = np.flatnonzero(area2 > 1e-12 * np.maximum(size, 1e-300) ** 2)
@@ -407,7 +414,7 @@ def _self_intersections(v: np.ndarray, t: np.ndarray, eps: float, first: bool) -
     n_pairs = 0
     # each block of the broad phase goes through the narrow phase at once: with ``first``, the
     # pairs after the first intersecting block are never made
-    for block in _candidate_blocks(corners[good]) if len(good) >= 2 else ():
+    for block in _candidate_blocks(corners[good], (lo[good], hi[good])) if len(good) >= 2 else ():
         p = good[block]
         n_pairs += len(p)
         hit = _pairs_intersect(corners, t_pairs, plane, tol, p[:, 0], p[:, 1], eps)
