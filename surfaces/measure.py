@@ -26,9 +26,10 @@ import numpy as np
 from surfaces.bezier import BezierPatches, bernstein
 from surfaces.vectors import cross
 
-#: Quadrature points (patches times nodes) evaluated per chunk: the temporaries of a chunk (~50 kB
-#: each) stay in the CPU caches, and below the size from which every fresh array costs page faults.
-_POINT_CHUNK = 6400
+#: Quadrature points (patches times nodes) evaluated per chunk: the temporaries of a chunk (~200 kB
+#: each) stay in the CPU caches, in few enough chunks that the per-operation costs stay small (measured
+#: on real sides of 4,000-12,000 patches: 7 % faster than chunks of 6,400, three times faster than none).
+_POINT_CHUNK = 25600
 
 
 def _gauss(order: int) -> tuple[np.ndarray, np.ndarray]:
