@@ -935,7 +935,6 @@ def _rim_weld_map(merged: TriangleMesh, side: TriangleMesh, caps: list, flat_cap
     lattice, points that nearly coincide): then the spatial weld decides.
     """
     verts = merged.vertices
-    # column by column: numpy reduces an (N, 3) array along its first axis several times slower
     # the extents from a coordinate-major copy: reductions along a column of (N, 3) rows stride through it
     by_coordinate = np.ascontiguousarray(verts.T)
     ext = by_coordinate.max(axis=1) - by_coordinate.min(axis=1)
