@@ -36,7 +36,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from surfaces.mesh import TriangleMesh, compact, merge_meshes, points_apart, weld
+from surfaces.mesh import TriangleMesh, _weld_tolerance, compact, merge_meshes, points_apart, weld
 from surfaces.validate import as_array, positive
 
 CAP_KINDS = ("none", "flat", "half", "dome")
@@ -935,11 +935,7 @@ def _rim_weld_map(merged: TriangleMesh, side: TriangleMesh, caps: list, flat_cap
     lattice, points that nearly coincide): then the spatial weld decides.
     """
     verts = merged.vertices
-    # the extents from a coordinate-major copy: reductions along a column of (N, 3) rows stride through it
-    by_coordinate = np.ascontiguousarray(verts.T)
-    ext = by_coordinate.max(axis=1) - by_coordinate.min(axis=1)
-    diag = float(np.sqrt(ext[0] ** 2 + ext[1] ** 2 + ext[2] ** 2))
-    tol = 1e-9 * max(diag, 1e-300)
+    tol = _weld_tolerance(verts)  # the spatial weld's own
     rep = np.arange(len(verts))
     n_side = side.n_vertices
     boundary, partner, others = [], [], [rim]

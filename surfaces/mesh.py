@@ -373,8 +373,10 @@ def compact(mesh: TriangleMesh) -> TriangleMesh:
 
 def _weld_tolerance(verts: np.ndarray) -> float:
     """:func:`weld`'s default tolerance: ``1e-9`` times the bounding-box diagonal of ``verts`` (V, 3)."""
-    # column by column: numpy reduces an (N, 3) array along its first axis several times slower
-    diag = float(np.linalg.norm([verts[:, k].max() - verts[:, k].min() for k in range(3)]))
+    # the extents from a coordinate-major copy: numpy reduces an (N, 3) array along its first axis, or
+    # along one of its strided columns, several times slower
+    by_coordinate = np.ascontiguousarray(verts.T)
+    diag = float(np.linalg.norm(by_coordinate.max(axis=1) - by_coordinate.min(axis=1)))
     return 1e-9 * max(diag, 1e-300)
 
 
