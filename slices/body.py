@@ -428,7 +428,7 @@ def build_body_once(body: Body, spacing: float, options: SurfaceOptions | None =
     centers = np.empty((len(z), 3))
     centers[:, :2] = [p.center for p in sc.params]
     centers[:, 2] = z
-    stack, prepend = capmod.add_dome_rings(curves, centers, d / 2, low, high)
+    stack, prepend = capmod._add_dome_rings(curves, centers, d / 2, low, high)
     n_limited = 0
     buffer = None
     if len(stack) >= 2 and not ruled and opts.method == "blending":
@@ -487,6 +487,6 @@ def build_body_once(body: Body, spacing: float, options: SurfaceOptions | None =
         body, patches, grid.side_columns, tri_mesh, display, volume, area, dev,
         int(len(pts)), int(np.count_nonzero(np.concatenate([p.turning for p in sc.params]))), int(curves.shape[1]),
         float(sc.start_angle), n_limited, (low, high),
-        (abs(capmod.curve_area(curves[0])), abs(capmod.curve_area(curves[-1]))), float(d),
+        (abs(capmod._curve_area(curves[0])), abs(capmod._curve_area(curves[-1]))), float(d),
         mesh_samples=density,
     )

@@ -113,8 +113,11 @@ def fan_apex(curve, hint) -> np.ndarray:
         programme: the largest distance to every tangent line), else ``hint``
         (an outline with an empty kernel, such as a deep notch).
     """
-    c = as_array(curve, "curve", shape=(None, 4, 3))
-    p = as_array(hint, "hint", shape=(2,))
+    return _fan_apex(as_array(curve, "curve", shape=(None, 4, 3)), as_array(hint, "hint", shape=(2,)))
+
+
+def _fan_apex(c: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """:func:`fan_apex` of a validated curve (M, 4, 3) and hint (2,) (a closed grid's own end curves)."""
     # x and y of the points and tangents at the samples, (M * APEX_SAMPLES,) each (segment-major): one
     # product for both coordinates
     sampled = c[:, :, :2].transpose(2, 0, 1) @ _APEX_MATRIX
@@ -124,7 +127,7 @@ def fan_apex(curve, hint) -> np.ndarray:
     if len(keep) < len(length):  # tangents that vanish (cusps, repeated points) say nothing
         qx, qy, length, tx, ty = qx[keep], qy[keep], length[keep], tx[keep], ty[keep]
     tx, ty = tx / length, ty / length
-    orient = 1.0 if curve_area(c) > 0 else -1.0
+    orient = 1.0 if _curve_area(c) > 0 else -1.0
     # seen from p, the curve turns counter-clockwise (for a counter-clockwise curve) where
     # cross(q - p, t) > 0, i.e. a . p < b with a = (t_y, -t_x), b = cross(q, t); the half-planes
     # a are built only when p is not inside them all
@@ -380,7 +383,11 @@ def curve_area(curve) -> float:
     float
         mm^2, positive for a counter-clockwise curve seen from +z.
     """
-    c = as_array(curve, "curve", shape=(None, 4, 3))
+    return _curve_area(as_array(curve, "curve", shape=(None, 4, 3)))
+
+
+def _curve_area(c: np.ndarray) -> float:
+    """:func:`curve_area` of a validated curve (M, 4, 3) (one built from checked ones)."""
     return float(np.sum((c[:, :, 0] @ _AREA_FORM) * c[:, :, 1]))
 
 
@@ -558,7 +565,11 @@ def planar_cap_mesh(curve, samples: int, outward_z: float, inset: bool = True) -
         Every vertex normal is ``(0, 0, outward_z)``; once the boundary is welded
         to the side (:func:`weld_flat_caps`) the inner ring keeps the cap's normal.
     """
-    c = as_array(curve, "curve", shape=(None, 4, 3))
+    return _planar_cap_mesh(as_array(curve, "curve", shape=(None, 4, 3)), samples, outward_z, inset)
+
+
+def _planar_cap_mesh(c: np.ndarray, samples: int, outward_z: float, inset: bool = True) -> TriangleMesh:
+    """:func:`planar_cap_mesh` of a validated curve (M, 4, 3) (a closed grid's own flat cap)."""
     ring = (c.reshape(len(c), 12) @ _ring_matrix(int(samples))).reshape(-1, 3)
     xy = ring[:, :2]
     n = len(xy)
@@ -675,7 +686,15 @@ def add_dome_rings(curves, centers, height: float, low: str, high: str) -> tuple
         Number of rings below the first slice curve.
     """
     c = as_array(curves, "curves", shape=(None, None, 4, 3))
-    p = as_array(centers, "centers", shape=(len(c), 3))
+    stack, prepend = _add_dome_rings(c, as_array(centers, "centers", shape=(len(c), 3)), height, low, high)
+    return (stack.copy() if stack is c else stack), prepend
+
+
+def _add_dome_rings(c: np.ndarray, p: np.ndarray, height: float, low: str, high: str) -> tuple[np.ndarray, int]:
+    """:func:`add_dome_rings` of validated curves (K, M, 4, 3) and centres (K, 3); the curves themselves,
+    not a copy, when neither end is a dome (the callers only read the stack)."""
+    if low != "dome" and high != "dome":
+        return c, 0
     low_rings = high_rings = np.zeros((0,) + c.shape[1:])
     if low == "dome":
         low_rings = dome_rings(c[0], p[0], height, upward=False)[::-1]
@@ -715,7 +734,7 @@ class CappedGrid:
     @property
     def flat_cap_area(self) -> float:
         """Area of the flat caps in mm^2 (:func:`curve_area`)."""
-        return float(sum(abs(curve_area(c)) for c, _ in self.flat_caps))
+        return float(sum(abs(_curve_area(c)) for c, _ in self.flat_caps))
 
 
 def close_side(side, bottom, top, low_center, high_center, height: float, low: str, high: str) -> CappedGrid:
@@ -742,6 +761,8 @@ def close_side(side, bottom, top, low_center, high_center, height: float, low: s
     """
     bottom = as_array(bottom, "bottom", shape=(None, 4, 3))
     top = as_array(top, "top", shape=bottom.shape)
+    low_center = as_array(low_center, "low_center", shape=(2,))
+    high_center = as_array(high_center, "high_center", shape=(2,))
     n_mid = 0
     if side is not None:
         side = as_array(side, "side", shape=(len(bottom), None, 4, 4, 3))
@@ -778,11 +799,11 @@ def _close_grid(control: np.ndarray, bottom: np.ndarray, top: np.ndarray, low_ce
         top = control[:, stop - 1, :, 3]
     flat = []
     if low != "dome":
-        control[:, 0] = _fan_points(bottom, np.append(fan_apex(bottom, low_center), bottom[0, 0, 2]), False)
+        control[:, 0] = _fan_points(bottom, np.append(_fan_apex(bottom, low_center), bottom[0, 0, 2]), False)
         if low != "none":
             flat.append((bottom, -1.0))
     if high != "dome":
-        control[:, stop] = _fan_points(top, np.append(fan_apex(top, high_center), top[0, 0, 2]), True)
+        control[:, stop] = _fan_points(top, np.append(_fan_apex(top, high_center), top[0, 0, 2]), True)
         if high != "none":
             flat.append((top, 1.0))
     return CappedGrid(control, slice(first, stop), tuple(flat), (float(bottom[0, 0, 2]), float(top[0, 0, 2])),
@@ -883,7 +904,7 @@ def weld_flat_caps(side: TriangleMesh, grid: CappedGrid, samples: int,
     tol = 1e-7 * max(1.0, float(side.vertices.max()), -float(side.vertices.min()))
     low, high = grid.end_planes
     rim = np.flatnonzero((np.abs(zv - low) < tol) | (np.abs(zv - high) < tol))
-    caps = [planar_cap_mesh(c, samples, s, inset) for c, s in grid.flat_caps]
+    caps = [_planar_cap_mesh(c, samples, s, inset) for c, s in grid.flat_caps]
     merged = merge_meshes([side] + caps)
     candidates = np.concatenate([rim, np.arange(side.n_vertices, merged.n_vertices)])
     rep = _rim_weld_map(merged, side, caps, grid.flat_caps, int(samples), rim)

@@ -105,6 +105,22 @@ def test_welded_box_is_watertight():
     assert caps.weld_flat_caps(side, open_grid, 3) == (side, side)
     with pytest.raises(ValueError, match="single slice"):
         caps.close_side(None, bottom, bottom, (2.0, 2.0), (2.0, 2.0), 1.5, "flat", "none")
+    with pytest.raises(ValueError, match="low_center"):
+        caps.close_side(None, bottom, bottom, (2.0, 2.0, 0.0), (2.0, 2.0), 1.5, "half", "half")
+    with pytest.raises(ValueError, match="high_center"):
+        caps.close_side(None, bottom, bottom, (2.0, 2.0), (np.nan, 2.0), 1.5, "half", "half")
+
+
+def test_dome_rings_leave_the_curves_as_they_are_without_domes():
+    curve = _polygon_curve(SQUARE, z=0.0)
+    curves = np.stack([curve, curve + [0.0, 0.0, 2.0]])
+    stack, prepend = caps.add_dome_rings(curves, np.zeros((2, 3)), 1.0, "half", "flat")
+    # the public function hands back its own array; the body's private path reads the curves in place
+    assert prepend == 0 and np.array_equal(stack, curves) and not np.shares_memory(stack, curves)
+    inner, _ = caps._add_dome_rings(curves, np.zeros((2, 3)), 1.0, "half", "flat")
+    assert inner is curves
+    domed, prepend = caps.add_dome_rings(curves, np.zeros((2, 3)), 1.0, "dome", "flat")
+    assert prepend > 0 and np.array_equal(domed[prepend:], curves)
 
 
 def test_written_cap_shades_flat_with_its_own_normal():
