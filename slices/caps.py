@@ -60,16 +60,9 @@ def _bezier_weights(s: np.ndarray) -> tuple:
     return out
 
 
-def _points_and_tangents(x: np.ndarray, weights: tuple) -> tuple[np.ndarray, np.ndarray]:
-    """One coordinate ``x`` (M, 4) of Bezier segments at the parameters of ``weights``: values and tangents (M, S)."""
-    k0, k1, k2, k3, d0, d1, d2 = weights
-    x = x[:, :, None]
-    return (k0 * x[:, 0] + k1 * x[:, 1] + k2 * x[:, 2] + k3 * x[:, 3],
-            3 * (d0 * (x[:, 1] - x[:, 0]) + d1 * (x[:, 2] - x[:, 1]) + d2 * (x[:, 3] - x[:, 2])))
-
-
 def _sample_matrix(weights: tuple) -> np.ndarray:
-    """The points and tangents of :func:`_points_and_tangents` as one matrix (4, 2 S), read-only.
+    """The points and tangents at the parameters of ``weights`` (:func:`_bezier_weights`) as one matrix
+    (4, 2 S), read-only.
 
     A coordinate ``x`` (M, 4) of Bezier segments times it gives their values (the first ``S``
     columns) and tangents (the last ``S``) at the parameters of ``weights`` in one product.
@@ -350,13 +343,6 @@ def dome_rings(curve, center, height: float, upward: bool, n_rings: int = DOME_R
     rings[-1] = p + np.array([0.0, 0.0, (1.0 if upward else -1.0) * h])
     return rings
 
-
-#: 3-point Gauss-Legendre nodes on [0, 1] and weights on [-1, 1] of :func:`curve_area`: computed once, not per cap.
-_GAUSS3_NODES = 0.5 * (np.polynomial.legendre.leggauss(3)[0] + 1.0)
-_GAUSS3_WEIGHTS = np.polynomial.legendre.leggauss(3)[1]
-_GAUSS3_NODES.flags.writeable = False
-_GAUSS3_WEIGHTS.flags.writeable = False
-_GAUSS3_BEZIER = _bezier_weights(_GAUSS3_NODES)
 
 #: ``H`` of :func:`curve_area`: the area ``1/2 integral (x y' - y x')`` of one cubic Bezier segment is
 #: ``x^T H y`` for the x and y (4,) of its control points (one matrix product for every segment, instead
@@ -811,6 +797,17 @@ def _close_grid(control: np.ndarray, bottom: np.ndarray, top: np.ndarray, low_ce
 
 
 @lru_cache(maxsize=8)
+@lru_cache(maxsize=8)
+def _gauss_tangents(order: int) -> tuple[np.ndarray, np.ndarray]:
+    """Weights (4, order) of a cubic Bezier segment's control values for its tangent at the ``order``
+    Gauss nodes of [0, 1] (``3 (d0 (P1 - P0) + d1 (P2 - P1) + d2 (P3 - P2))``), and the nodes' weights,
+    read-only."""
+    at_nodes, weights = _gauss_bezier(order)
+    tangent = np.ascontiguousarray(_sample_matrix(at_nodes)[:, order:])
+    tangent.flags.writeable = False
+    return tangent, weights
+
+
 def _gauss_bezier(order: int) -> tuple[tuple, np.ndarray]:
     """Bernstein weights (:func:`_bezier_weights`) at the ``order`` Gauss nodes of [0, 1], and the nodes' weights."""
     x, w = np.polynomial.legendre.leggauss(order)
@@ -849,22 +846,18 @@ def grid_integrals(grid: CappedGrid, order: int = 5) -> tuple[float, float]:
     low_h, high_h = grid.extrusions
     first, stop = side.start + (low_h > 0), side.stop - (high_h > 0)
     volume, area = side_integrals(ctrl[:, first:stop], order) if stop > first else (0.0, 0.0)
-    # the side's end curves (the extrusions' far ends), the caps' outlines: both at once, (2 M, 4) a
-    # coordinate; their areas as curve_area's
+    # the side's end curves (the extrusions' far ends), the caps' outlines; their areas are curve_area's
     ends = np.stack([ctrl[:, side.start, :, 0], ctrl[:, side.stop - 1, :, 3]])
     n_seg = ends.shape[1]
-    ex, ey = ends[..., 0].reshape(-1, 4), ends[..., 1].reshape(-1, 4)
-    x, dx = _points_and_tangents(ex, _GAUSS3_BEZIER)
-    y, dy = _points_and_tangents(ey, _GAUSS3_BEZIER)
-    twice = (x * dy - y * dx) @ _GAUSS3_WEIGHTS
-    a_low, a_high = (0.25 * float(np.sum(twice[:n_seg])), 0.25 * float(np.sum(twice[n_seg:])))
+    a_low, a_high = _curve_area(ends[0]), _curve_area(ends[1])
     if side.start > 0:
         volume -= float(ends[0, 0, 0, 2]) * a_low
     if side.stop < ctrl.shape[1]:
         volume += float(ends[1, 0, 0, 2]) * a_high
     if low_h or high_h:
-        at_nodes, node_weights = _gauss_bezier(int(order))
-        tx, ty = _points_and_tangents(ex, at_nodes)[1], _points_and_tangents(ey, at_nodes)[1]
+        # the tangents of both curves at the Gauss nodes, one product a coordinate, (2 M, order) each
+        tangent, node_weights = _gauss_tangents(int(order))
+        tx, ty = ends[..., 0].reshape(-1, 4) @ tangent, ends[..., 1].reshape(-1, 4) @ tangent
         length = np.sqrt(tx * tx + ty * ty) @ node_weights
         area += low_h * float(np.sum(length[:n_seg])) + high_h * float(np.sum(length[n_seg:]))
     area += sum(abs(a_low if out_z < 0 else a_high) for _, out_z in grid.flat_caps)

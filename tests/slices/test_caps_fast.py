@@ -19,11 +19,21 @@ def _wavy_curve(n_seg: int, seed: int, z: float = 2.0) -> np.ndarray:
     return pts[idx]
 
 
+def _points_and_tangents(x: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """One coordinate ``x`` (M, 4) of cubic Bezier segments at parameters ``s``: values and tangents (M, S),
+    from the Bernstein polynomials written out (the reference the library's matrices are checked against)."""
+    x, u = x[:, :, None], 1.0 - s
+    values = u**3 * x[:, 0] + 3 * s * u**2 * x[:, 1] + 3 * s**2 * u * x[:, 2] + s**3 * x[:, 3]
+    tangents = 3 * (u**2 * (x[:, 1] - x[:, 0]) + 2 * s * u * (x[:, 2] - x[:, 1]) + s**2 * (x[:, 3] - x[:, 2]))
+    return values, tangents
+
+
 def _quadrature_area(curve: np.ndarray) -> float:
     """The 3-point Gauss-Legendre form of Green's theorem that curve_area replaced."""
-    x, dx = caps._points_and_tangents(curve[:, :, 0], caps._GAUSS3_BEZIER)
-    y, dy = caps._points_and_tangents(curve[:, :, 1], caps._GAUSS3_BEZIER)
-    return float(0.25 * np.sum((x * dy - y * dx) * caps._GAUSS3_WEIGHTS))
+    nodes, weights = np.polynomial.legendre.leggauss(3)
+    x, dx = _points_and_tangents(curve[:, :, 0], 0.5 * (nodes + 1.0))
+    y, dy = _points_and_tangents(curve[:, :, 1], 0.5 * (nodes + 1.0))
+    return float(0.25 * np.sum((x * dy - y * dx) * weights))
 
 
 @pytest.mark.parametrize("seed", range(6))
@@ -51,7 +61,7 @@ def test_sampling_matrix_gives_the_points_and_tangents():
     curve = _wavy_curve(11, 3)
     sampled = curve[:, :, :2].transpose(2, 0, 1) @ caps._APEX_MATRIX
     for k in range(2):
-        q, t = caps._points_and_tangents(curve[:, :, k], caps._bezier_weights(np.arange(8) / 8))
+        q, t = _points_and_tangents(curve[:, :, k], np.arange(8) / 8)
         np.testing.assert_allclose(sampled[k, :, :8], q, rtol=0, atol=1e-12)
         np.testing.assert_allclose(sampled[k, :, 8:], t, rtol=0, atol=1e-11)
 
@@ -105,3 +115,14 @@ def test_cap_ring_is_the_bezier_curve_at_the_tessellation_samples(samples):
     want = np.einsum("ks,mkx->msx", b, curve).reshape(-1, 3)
     np.testing.assert_allclose(mesh.vertices[:len(want)], want, rtol=0, atol=1e-12)
     assert mesh.triangles.flags.writeable and mesh.triangles.dtype == np.int64
+
+
+@pytest.mark.parametrize("order", [3, 5, 8])
+def test_gauss_tangents_give_the_tangents_at_the_nodes(order):
+    curve = _wavy_curve(9, order)
+    tangent, weights = caps._gauss_tangents(order)
+    nodes = 0.5 * (np.polynomial.legendre.leggauss(order)[0] + 1.0)
+    for k in range(2):
+        np.testing.assert_allclose(curve[:, :, k] @ tangent, _points_and_tangents(curve[:, :, k], nodes)[1],
+                                   rtol=0, atol=1e-11)
+    assert weights.sum() == pytest.approx(1.0, rel=1e-14)
