@@ -503,9 +503,13 @@ def _restrict_rows(c: np.ndarray, k0: np.ndarray, k1: np.ndarray, b0: np.ndarray
     np.multiply(s, tangent, out=point)
     point += e[0]
     tangent *= 3.0
-    nxt = np.arange(1, len(s) + 1)
-    nxt[n_row - 1::n_row] -= n_row
-    same = (k0[nxt] == k0) & (k1[nxt] == k1)
+    # the next piece in the row by slices of the (rows, n_row) view (a gather costs more)
+    rows = len(s) // n_row
+    k0r, k1r = k0.reshape(rows, n_row), k1.reshape(rows, n_row)
+    same = np.empty((rows, n_row), dtype=bool)
+    np.equal(k0r[:, 1:], k0r[:, :-1], out=same[:, :-1])
+    same[:, :-1] &= k1r[:, 1:] == k1r[:, :-1]
+    same[:, -1] = (k0r[:, 0] == k0r[:, -1]) & (k1r[:, 0] == k1r[:, -1])
     w = (b1 - b0) / (3.0 * h)
     ends = np.empty((4,) + point.shape)
     ends[0] = point
@@ -515,7 +519,9 @@ def _restrict_rows(c: np.ndarray, k0: np.ndarray, k1: np.ndarray, b0: np.ndarray
     ends[2] *= 3.0
     ends[3] = c[3]
     # where the next piece lies on the same segment, its start's derivative and point are this one's end's
-    np.copyto(ends[2:], start.take(nxt, axis=2), where=same)
+    by_row, start_by_row = ends[2:].reshape(2, -1, rows, n_row), start.reshape(2, -1, rows, n_row)
+    np.copyto(by_row[..., :-1], start_by_row[..., 1:], where=same[:, :-1])
+    np.copyto(by_row[..., -1], start_by_row[..., 0], where=same[:, -1])
     ends[2] *= w
     np.subtract(ends[3], ends[2], out=ends[2])
     out[...] = ends.transpose(2, 0, 1)
