@@ -801,15 +801,21 @@ def _isotonic_fit_runs(y: np.ndarray, starts: np.ndarray) -> np.ndarray:
     blocks (bincount of one value is the value), so each run comes out as
     alone. ``starts`` is increasing and begins at 0 (empty for an empty ``y``).
     """
-    s = y.astype(np.float64, copy=True)
+    s = y.astype(np.float64, copy=False)  # only read: every pass makes new sums
     w = np.ones(len(s))
-    first = np.zeros(len(s), dtype=bool)
-    first[starts] = True  # the blocks that begin a run
+    inner = np.ones(len(s), dtype=bool)
+    inner[starts] = False  # the blocks that do not begin a run
     while len(s) > 1:
-        bad = (s[:-1] * w[1:] > s[1:] * w[:-1]) & ~first[1:]  # mean of a block above the next one's
+        bad = s[:-1] * w[1:] > s[1:] * w[:-1]  # mean of a block above the next one's
+        bad &= inner[1:]
         if not bad.any():
             break
-        group = np.concatenate([[True], ~bad]).cumsum() - 1
+        keep = np.empty(len(s), dtype=bool)  # the blocks that begin a pooled block
+        keep[0] = True
+        np.logical_not(bad, out=keep[1:])
+        group = keep.cumsum()
+        group -= 1
         s, w = np.bincount(group, s), np.bincount(group, w)
-        first = np.bincount(group, first).astype(bool)
+        # a pooled block begins a run where its first block does (bad never pools across a start)
+        inner = inner[keep]
     return (s / w).repeat(w.astype(np.int64))
