@@ -136,15 +136,20 @@ def _parameterize_flat(polars: _Polars, n1: int, start_angle: float, crossings) 
     total = polars.arc[off3 + ns]
     delta = 2 * np.pi / n1
     s_arc, support_xy, level_k, ang = crossings
-    rows = np.arange(n_c)[:, None]
-    first = np.argmax(level_k % n1 == 0, axis=1)
-    order = (np.arange(n1) + first[:, None]) % n1
-    s0 = _at(s_arc, np.arange(n_c), first)
+    # each contour's row runs through n1 consecutive levels: the one of ray 0 (a multiple of n1) sits
+    # at column (-first level) mod n1, and the rays follow it round the row (no modulo per entry)
+    first = (-level_k[:, 0]) % n1
+    at = np.arange(n1) + first[:, None]
+    at -= n1 * (at >= n1)
+    row_at = np.arange(0, n_c * n1, n1)
+    at += row_at[:, None]  # flat positions (one index: faster than two)
+    ray0 = row_at + first
+    s0 = s_arc.reshape(-1)[ray0]
     sigma = np.empty((n_c, n1 + 1))
-    sigma[:, :n1] = (_at(s_arc, rows, order) - s0[:, None]) % total[:, None]
+    sigma[:, :n1] = (s_arc.reshape(-1)[at] - s0[:, None]) % total[:, None]
     sigma[:, n1] = total
     sigma[:, 0] = 0.0
-    support_xy = support_xy.reshape(-1, 2).take(rows * n1 + order, axis=0)
+    support_xy = support_xy.reshape(-1, 2).take(at, axis=0)
     # vertex arc positions relative to support 0, in [0, total)
     tot = total[curve]
     a_vert = (polars.arc[off3[curve] + local] - (s0 - total)[curve]) % tot
@@ -166,7 +171,7 @@ def _parameterize_flat(polars: _Polars, n1: int, start_angle: float, crossings) 
     seg_of -= 1
     np.minimum(np.maximum(seg_of, 0, out=seg_of), n1 - 1, out=seg_of)  # np.clip without its wrapper
     key = curve * n1 + seg_of
-    seg_lo = _at(ang, np.arange(n_c), first)[curve] + seg_of * delta
+    seg_lo = ang.reshape(-1)[ray0][curve] + seg_of * delta
     folded_vertex = (phi_v < seg_lo - 1e-9) | (phi_v > seg_lo + delta + 1e-9)
     folded_seg = np.zeros(n_c * n1, dtype=bool)
     folded_seg[key[folded_vertex]] = True
