@@ -208,12 +208,12 @@ class Outlines:
         ax, ay, qx, qy = px[e], py[e], point[:, 0][k], point[:, 1][k]
         dx, dy = px[f] - ax, py[f] - ay
         wx, wy = qx - ax, qy - ay
-        straddle = (ay > qy) != (py[f] > qy)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            xc = ax + wy * dx / dy
+        # the crossing only on the edges that straddle the point's line (few; dy is not 0 there)
+        at = ((ay > qy) != (py[f] > qy)).nonzero()[0]
+        xc = ax[at] + wy[at] * dx[at] / dy[at]
+        crossings = np.bincount(k[at[qx[at] < xc]], minlength=len(polygon))
         n = self.size[polygon]
         first = n.cumsum() - n
-        crossings = np.add.reduceat((straddle & (qx < xc)).astype(np.int64), first)
         length2 = dx**2 + dy**2
         t = np.divide(wx * dx + wy * dy, length2, out=np.zeros(len(e)), where=length2 > 0)
         np.minimum(np.maximum(t, 0.0, out=t), 1.0, out=t)  # np.clip without its wrapper
@@ -438,7 +438,7 @@ def chain(contours: list[Contour], spacing: float | None, outlines: Outlines | N
     ask = gapped | (hole[lower] == hole[upper])
     meets = np.zeros(len(lower), dtype=bool)
     meets[ask] = _overlapping(table, contours, lower[ask], upper[ask])
-    if np.any(meets & gapped):
+    if (meets & gapped).any():
         p0 = z[lower[meets & gapped][0]]
         p1 = z[upper[meets & gapped][0]]
         raise ValueError(
