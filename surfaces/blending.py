@@ -572,12 +572,13 @@ def _blend_weights(n: int, v: np.ndarray | None) -> np.ndarray:
         out = np.zeros((n - 1, 4, n))
         np.divide(h * tangent[:-1], 3.0, out=out[:, 1])
         np.subtract(0.0, h * tangent[1:] / 3.0, out=out[:, 2])
-        flat = out.reshape(n - 1, 4 * n)
-        j = np.arange(n - 1)
-        flat[j, j] = 1.0
-        flat[j, n + j] += 1.0
-        flat[j, 2 * n + j + 1] += 1.0
-        flat[j, 3 * n + j + 1] = 1.0
+        # entry (j, b, j) or (j, b, j + 1) lies at j (4 n + 1) + b n (+ 1): a strided view each
+        flat = out.reshape(-1)
+        step = 4 * n + 1
+        flat[0::step] = 1.0
+        flat[n::step] += 1.0
+        flat[2 * n + 1::step] += 1.0
+        flat[3 * n + 1::step] = 1.0
         return out
     tangent = np.zeros((n, n))
     if n == 2:
