@@ -286,9 +286,9 @@ def _overlapping(table: Outlines, contours: list[Contour], i: np.ndarray, j: np.
     if not len(i):
         return out
     lo_i, hi_i, lo_j, hi_j = table.low[i], table.high[i], table.low[j], table.high[j]
-    meet = np.all(np.maximum(lo_i, lo_j) <= np.minimum(hi_i, hi_j), axis=1)
+    meet = (np.maximum(lo_i, lo_j) <= np.minimum(hi_i, hi_j)).all(axis=1)
     pixel = (np.maximum(hi_i, hi_j) - np.minimum(lo_i, lo_j)).max(axis=1) / (_RASTER - 1)
-    k = np.flatnonzero(meet)
+    k = meet.nonzero()[0]
     if not len(k):
         return out
     # each pair's two centroids, each tested against both outlines: i's centroid first, j's only
@@ -296,7 +296,7 @@ def _overlapping(table: Outlines, contours: list[Contour], i: np.ndarray, j: np.
     margin = _SURE_PIXELS * pixel[k]
     sure = np.zeros(len(k), dtype=bool)
     for a, b in ((i, j), (j, i)):
-        ask = np.flatnonzero(~sure)
+        ask = (~sure).nonzero()[0]
         if not len(ask):
             break
         own, other = a[k[ask]], b[k[ask]]

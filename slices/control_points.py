@@ -188,7 +188,7 @@ def _parameterize_flat(polars: _Polars, n1: int, start_angle: float, crossings) 
     turning = (np.sign(d_in) * np.sign(d_out) < 0) & folded_seg[key]
     turning &= ~(np.abs(a_vert - sigma_of) <= 1e-9 * tot)
     # eq. 4: turning points spread evenly inside their segment
-    t_idx = np.flatnonzero(turning)
+    t_idx = turning.nonzero()[0]
     t_key = key[t_idx]
     n2 = np.bincount(t_key, minlength=n_c * n1)
     first_in_seg = n2.cumsum() - n2
@@ -199,7 +199,9 @@ def _parameterize_flat(polars: _Polars, n1: int, start_angle: float, crossings) 
     # turning points of the segments before k, a turning point after its segment's sigma
     anchor_arc = np.empty(n_c * (n1 + 1) + len(t_idx))
     anchor_u = np.empty_like(anchor_arc)
-    n_before = np.append(first_in_seg.reshape(n_c, n1), (first_in_seg[n1 - 1::n1] + n2[n1 - 1::n1])[:, None], axis=1)
+    n_before = np.empty((n_c, n1 + 1), dtype=first_in_seg.dtype)
+    n_before[:, :n1] = first_in_seg.reshape(n_c, n1)
+    n_before[:, n1] = first_in_seg[n1 - 1::n1] + n2[n1 - 1::n1]
     at_sigma = (np.arange(n_c) * (n1 + 1))[:, None] + np.arange(n1 + 1) + n_before
     anchor_arc[at_sigma] = sigma
     anchor_u[at_sigma] = np.arange(n1 + 1) / n1
@@ -277,7 +279,7 @@ def _polars(ps: list) -> _Polars:
         centers[flat] = (np.add.reduceat(pts, start, axis=0) / ns[:, None])[flat]
     ang = np.arctan2(y - centers[:, 1][curve], x - centers[:, 0][curve])
     dphi = (ang[nxt] - ang + np.pi) % (2 * np.pi) - np.pi
-    for c in np.flatnonzero(np.abs(np.add.reduceat(dphi, start) - 2 * np.pi) > 1e-6):
+    for c in (np.abs(np.add.reduceat(dphi, start) - 2 * np.pi) > 1e-6).nonzero()[0]:
         # the centroid lies outside (strongly bent outlines): rays from the interior point instead
         sl = slice(start[c], start[c] + ns[c])
         centers[c] = interior_point(pts[sl])
@@ -408,7 +410,7 @@ def _crossings(polars: _Polars, n1: int, start_angle: float) -> _Crossings:
     # group the crossings by (contour, level): levels lie in k_base + [1, n1], so one integer key
     # orders them; the input is nearly in that order already, which a stable sort exploits
     key = (cid * (n1 + 1) - k_base_e)[ie] + level_k
-    if len(key) == n_c * n1 and bool(np.all(key[1:] > key[:-1])):
+    if len(key) == n_c * n1 and bool((key[1:] > key[:-1]).all()):
         # every level crossed once, in order (no fold): nothing to group
         order = starts = np.arange(len(key))
         sizes = None
@@ -438,7 +440,7 @@ def _crossings(polars: _Polars, n1: int, start_angle: float) -> _Crossings:
     a_at = off3[cid] + e_mod
     edge = (ax, ay, bx - ax, by - ay, ax - cx, ay - cy, cx, cy, arc[g], arc[a_at + 1] - arc[a_at])
     outer = order[starts] if sizes is not None else order  # a level crossed once: its only crossing
-    multi = np.flatnonzero(sizes > 1) if sizes is not None else ()
+    multi = (sizes > 1).nonzero()[0] if sizes is not None else ()
     first = outer.copy() if len(multi) else outer  # the two picks differ only where a level is crossed again
     cr = _Crossings(ie, level_k, edge, outer.reshape(n_c, n1), first.reshape(n_c, n1), sizes is None)
     if len(multi):
@@ -468,7 +470,9 @@ def _pick_crossings(cr: _Crossings, outer: np.ndarray, first: np.ndarray, levels
         picked = _crossing_at(cr, pick, cos_k, sin_k, points)
     if not points:
         return picked[0], None, levels, None
-    return picked[0], np.stack(picked[1:3], axis=-1), levels, table[lv]
+    xy = np.empty(levels.shape + (2,))
+    xy[..., 0], xy[..., 1] = picked[1:3]
+    return picked[0], xy, levels, table[lv]
 
 
 def ray_supports(points, n_rays: int, start_angle: float = 0.0) -> tuple[np.ndarray, np.ndarray]:

@@ -233,7 +233,7 @@ def _closed_parameters(pts: np.ndarray, params, sizes) -> tuple[np.ndarray, np.n
     inner[start] = False
     if (t[1:] <= t[:-1])[inner[1:]].any():
         raise ValueError("params: must increase strictly along every curve")
-    if not np.all(t[start + ns - 1] - t[start] < 1.0):
+    if not (t[start + ns - 1] - t[start] < 1.0).all():
         raise ValueError("params: a closed curve needs parameters spanning less than one period")
     return t, start, ns
 
@@ -697,7 +697,7 @@ def _blend(c: np.ndarray, closed_u: bool, params, monotone: bool,
         return BezierPatches(control, closed_u=closed_u), limited
     if closed_u:  # BezierPatches' test of the closing, on the two rows it compares
         ends = control[::max(m - 1, 1)]
-        gap = float(np.max(np.abs(control[-1, :, 3] - control[0, :, 0])))
+        gap = float(np.abs(control[-1, :, 3] - control[0, :, 0]).max())
         if gap > _JOIN_RTOL * max(float(ends.max()), -float(ends.min()), 1.0):
             raise ValueError(f"closed_u: the last patch row does not join the first (gap {gap:.3g})")
     return BezierPatches._trusted(control, closed_u=closed_u), limited
