@@ -690,7 +690,19 @@ def _balanced_values(u_all: np.ndarray, arc_all: np.ndarray, sizes: np.ndarray, 
     fp[inner] = arc_all
     xp[off + sizes + 1] = 1.0
     fp[off + sizes + 1] = 1.0
-    grid, where = np.unique(np.concatenate([[0.0, 1.0], u_all]), return_inverse=True)
+    # np.unique(..., return_inverse=True)'s own steps (the same sort), without its wrapper; the
+    # parameters are finite (no NaN to hold as one)
+    pooled = np.empty(len(u_all) + 2)
+    pooled[:2] = 0.0, 1.0
+    pooled[2:] = u_all
+    perm = pooled.argsort()
+    pooled = pooled[perm]
+    new_value = np.empty(len(pooled), dtype=bool)
+    new_value[0] = True
+    np.not_equal(pooled[1:], pooled[:-1], out=new_value[1:])
+    grid = pooled[new_value]
+    where = np.empty(len(pooled), dtype=np.intp)
+    where[perm] = new_value.cumsum() - 1
     # each slice's arc is piecewise linear in u with its breakpoints on the grid, so the slices' sum on
     # the grid is a running sum: of the slopes' changes for the slope on every grid interval, then of
     # slope times width (a jump only where u = 0 repeats the start), one pass instead of one per slice
@@ -710,7 +722,12 @@ def _balanced_values(u_all: np.ndarray, arc_all: np.ndarray, sizes: np.ndarray, 
     if jump.any():
         total += np.bincount(at[1:][jump], rise[jump], minlength=n_g).cumsum()
     total[-1] = n_c  # every slice ends at (1, 1)
-    values = np.unique(np.interp(np.arange(m) / m, total / n_c, grid))
+    values = np.interp(np.arange(m) / m, total / n_c, grid)
+    # increasing (as a rule): its distinct values by one comparison with the previous, else np.unique
+    distinct = np.empty(len(values), dtype=bool)
+    distinct[0] = True
+    np.greater(values[1:], values[:-1], out=distinct[1:])
+    values = values[distinct] if (values[1:] >= values[:-1]).all() else np.unique(values)
     values = values[values < 1.0]
     if len(values) < int(sizes.max()):
         values = np.arange(m) / m
@@ -765,13 +782,15 @@ def _quantize_flat(uu: np.ndarray, start: np.ndarray, ns: np.ndarray, m: int, va
         target = np.minimum(np.round(uu * m).astype(np.int64), m - 1)
     else:
         lv = values
-        hi = np.searchsorted(lv, uu)
+        hi = lv.searchsorted(uu)
         np.minimum(np.maximum(hi, 1, out=hi), m - 1, out=hi)  # np.clip without its wrapper
-        target = np.where(np.abs(lv[hi - 1] - uu) <= np.abs(lv[hi] - uu), hi - 1, hi)
-        target = np.where(uu > lv[-1] + 0.5 * (1.0 + lv[0] - lv[-1]), m - 1, target)
+        lo = hi - 1
+        # the lower neighbour where it is at least as near (a boolean subtracted: one pass, no np.where)
+        target = hi - (np.abs(lv[lo] - uu) <= np.abs(lv[hi] - uu))
+        target[uu > lv[-1] + 0.5 * (1.0 + lv[0] - lv[-1])] = m - 1
     # strictly increasing indices closest (least squares) to the targets: isotonic
     # regression of target - i (pool adjacent violators), rounded and clipped
-    r = np.round(_isotonic_fit_runs((target - i).astype(np.float64), start)).astype(np.int64)
+    r = _isotonic_fit_runs((target - i).astype(np.float64), start).round().astype(np.int64)
     np.minimum(np.maximum(r, 0, out=r), (m - ns)[slice_of], out=r)
     r += i
     return r
