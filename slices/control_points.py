@@ -426,16 +426,20 @@ def _crossings(polars: _Polars, n1: int, start_angle: float) -> _Crossings:
         sizes = np.diff(np.r_[starts, len(order)])
     # per edge what its crossings share (x and y apart: 1-D gathers are cheap); the geometry is
     # computed only for the crossings that compete (a level crossed more than once) and the picks
-    # e lies in [n, 3 n) for a contour of n points: its vertex and the next one by subtraction
-    # (integer modulo is several times slower than the subtractions and comparisons)
+    # e lies in [n, 3 n) for a contour of n points: its vertex by subtraction (integer modulo is
+    # several times slower than the subtractions and comparisons)
     ns_e = ns[cid]
     e_mod = e - ns_e
     e_mod -= ns_e * (e_mod >= ns_e)
     a_idx = offp[cid] + e_mod
-    b_idx = a_idx + 1
-    b_idx -= ns_e * (e_mod == ns_e - 1)
     px, py = pts[:, 0], pts[:, 1]  # gathers of single floats: faster than of (N, 2) rows
-    ax, ay, bx, by = px[a_idx], py[a_idx], px[b_idx], py[b_idx]
+    ax, ay = px[a_idx], py[a_idx]
+    # each edge ends where the next one of its contour starts; the last of a contour's two periods
+    # at the contour's vertex 0
+    block_end = (2 * ns).cumsum() - 1
+    bx, by = np.empty_like(ax), np.empty_like(ay)
+    bx[:-1], by[:-1] = ax[1:], ay[1:]
+    bx[block_end], by[block_end] = px[offp], py[offp]
     cx, cy = centers[:, 0][cid], centers[:, 1][cid]
     a_at = off3[cid] + e_mod
     edge = (ax, ay, bx - ax, by - ay, ax - cx, ay - cy, cx, cy, arc[g], arc[a_at + 1] - arc[a_at])
