@@ -249,15 +249,17 @@ class _Polars(NamedTuple):
     off3: np.ndarray
 
 
-def _polars(ps: list) -> _Polars:
+def _polars(ps: list, pts: np.ndarray | None = None) -> _Polars:
     """Ray origin, unwrapped polar angle and arc length of every validated (n_c >= 3, 2) contour at once.
 
     The origin is the area centroid, or, when the contour does not wind once
     around it, the interior point farthest from the outline (:func:`interior_point`).
+    ``pts``: the contours one after the other (N, 2) float64 when the caller has joined them already.
     """
     ns = np.array([len(p) for p in ps], dtype=np.int64)
     n_c = len(ns)
-    pts = np.concatenate(ps) if n_c > 1 else ps[0]
+    if pts is None:
+        pts = np.concatenate(ps) if n_c > 1 else ps[0]
     start = ns.cumsum() - ns
     curve = np.arange(n_c).repeat(ns)
     nxt = np.arange(1, len(pts) + 1)

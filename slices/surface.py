@@ -264,11 +264,12 @@ def slice_curves(contours, z, n_rays: int, n_lattice: int | None = None,
     if ps and min(map(len, ps)) < 3:
         i = next(i for i, p in enumerate(ps) if len(p) < 3)
         raise ValueError(f"contours[{i}]: needs at least 3 points, got {len(ps[i])}")
-    if not np.isfinite(np.concatenate(ps)).all():
+    joined = np.concatenate(ps)
+    if not np.isfinite(joined).all():
         for i, c in enumerate(ps):
             as_array(c, f"contours[{i}]")
     # the ray origin, polar angles and arc lengths serve both the rotation's choice and the parameters
-    polars = _polars(ps)
+    polars = _polars(ps, joined)
     if start_angle is None and len(ps) > 1:
         # the chosen rotation's rays are among those tried: their crossings come from the same pass
         start_angle, crossings = _start_angle_crossings(polars, n1, START_CANDIDATES)
