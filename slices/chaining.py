@@ -127,7 +127,7 @@ class Outlines:
     def of(cls, contours: list[Contour]) -> Outlines:
         """The table of ``contours`` (a list of :class:`slices.io.Contour`, at least one)."""
         size = np.array([len(c.points) for c in contours])
-        start = np.concatenate([[0], size.cumsum()[:-1]])
+        start = size.cumsum() - size
         p = np.concatenate([np.asarray(c.points, dtype=np.float64) for c in contours])
         after = np.arange(1, len(p) + 1)
         after[start + size - 1] = start
@@ -142,8 +142,18 @@ class Outlines:
         with np.errstate(divide="ignore", invalid="ignore"):
             centroid = np.where(flat[:, None], np.add.reduceat(p, start) / size[:, None],
                                 moment / (6.0 * area[:, None]))
-        z = np.round([c.z for c in contours], 6)
-        planes, plane_of = np.unique(z, return_inverse=True)
+        z = np.round(np.array([c.z for c in contours]), 6)
+        # np.unique(z, return_inverse=True)'s own steps (the same sort), without its wrapper
+        order = z.argsort()
+        sorted_z = z[order]
+        new_plane = np.empty(len(z), dtype=bool)
+        new_plane[:1] = True
+        np.not_equal(sorted_z[1:], sorted_z[:-1], out=new_plane[1:])
+        planes = sorted_z[new_plane]
+        plane_of = np.empty(len(z), dtype=np.intp)
+        plane_of[order] = new_plane.cumsum() - 1
+        if sorted_z[-1] != sorted_z[-1]:  # NaN planes: np.unique's, which holds them as one
+            planes, plane_of = np.unique(z, return_inverse=True)
         table = cls(p, start, size, after, area, perimeter, centroid, low, high, z, planes, plane_of,
                     np.zeros(len(contours), dtype=bool))
         # holes by containment among the contours of each plane: all pairs of one plane at once
@@ -185,7 +195,7 @@ class Outlines:
         """Edge (first-vertex) indices of the contours ``polygon`` (Q,), and which query each belongs to."""
         n = self.size[polygon]
         query = np.arange(len(polygon)).repeat(n)
-        first = np.concatenate([[0], n.cumsum()[:-1]])
+        first = n.cumsum() - n
         return np.arange(len(query)) - (first - self.start[polygon]).repeat(n), query
 
     def crossings(self, point: np.ndarray, polygon: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -198,11 +208,12 @@ class Outlines:
         ax, ay, qx, qy = px[e], py[e], point[:, 0][k], point[:, 1][k]
         dx, dy = px[f] - ax, py[f] - ay
         wx, wy = qx - ax, qy - ay
-        straddle = (ay > qy) != (py[f] > qy)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            xc = ax + wy * dx / dy
-        first = np.concatenate([[0], self.size[polygon].cumsum()[:-1]])
-        crossings = np.add.reduceat((straddle & (qx < xc)).astype(np.int64), first)
+        # the crossing only on the edges that straddle the point's line (few; dy is not 0 there)
+        at = ((ay > qy) != (py[f] > qy)).nonzero()[0]
+        xc = ax[at] + wy[at] * dx[at] / dy[at]
+        crossings = np.bincount(k[at[qx[at] < xc]], minlength=len(polygon))
+        n = self.size[polygon]
+        first = n.cumsum() - n
         length2 = dx**2 + dy**2
         t = np.divide(wx * dx + wy * dy, length2, out=np.zeros(len(e)), where=length2 > 0)
         np.minimum(np.maximum(t, 0.0, out=t), 1.0, out=t)  # np.clip without its wrapper
@@ -275,9 +286,9 @@ def _overlapping(table: Outlines, contours: list[Contour], i: np.ndarray, j: np.
     if not len(i):
         return out
     lo_i, hi_i, lo_j, hi_j = table.low[i], table.high[i], table.low[j], table.high[j]
-    meet = np.all(np.maximum(lo_i, lo_j) <= np.minimum(hi_i, hi_j), axis=1)
+    meet = (np.maximum(lo_i, lo_j) <= np.minimum(hi_i, hi_j)).all(axis=1)
     pixel = (np.maximum(hi_i, hi_j) - np.minimum(lo_i, lo_j)).max(axis=1) / (_RASTER - 1)
-    k = np.flatnonzero(meet)
+    k = meet.nonzero()[0]
     if not len(k):
         return out
     # each pair's two centroids, each tested against both outlines: i's centroid first, j's only
@@ -285,7 +296,7 @@ def _overlapping(table: Outlines, contours: list[Contour], i: np.ndarray, j: np.
     margin = _SURE_PIXELS * pixel[k]
     sure = np.zeros(len(k), dtype=bool)
     for a, b in ((i, j), (j, i)):
-        ask = np.flatnonzero(~sure)
+        ask = (~sure).nonzero()[0]
         if not len(ask):
             break
         own, other = a[k[ask]], b[k[ask]]
@@ -427,7 +438,7 @@ def chain(contours: list[Contour], spacing: float | None, outlines: Outlines | N
     ask = gapped | (hole[lower] == hole[upper])
     meets = np.zeros(len(lower), dtype=bool)
     meets[ask] = _overlapping(table, contours, lower[ask], upper[ask])
-    if np.any(meets & gapped):
+    if (meets & gapped).any():
         p0 = z[lower[meets & gapped][0]]
         p1 = z[upper[meets & gapped][0]]
         raise ValueError(

@@ -136,15 +136,20 @@ def _parameterize_flat(polars: _Polars, n1: int, start_angle: float, crossings) 
     total = polars.arc[off3 + ns]
     delta = 2 * np.pi / n1
     s_arc, support_xy, level_k, ang = crossings
-    rows = np.arange(n_c)[:, None]
-    first = np.argmax(level_k % n1 == 0, axis=1)
-    order = (np.arange(n1) + first[:, None]) % n1
-    s0 = _at(s_arc, np.arange(n_c), first)
+    # each contour's row runs through n1 consecutive levels: the one of ray 0 (a multiple of n1) sits
+    # at column (-first level) mod n1, and the rays follow it round the row (no modulo per entry)
+    first = (-level_k[:, 0]) % n1
+    at = np.arange(n1) + first[:, None]
+    at -= n1 * (at >= n1)
+    row_at = np.arange(0, n_c * n1, n1)
+    at += row_at[:, None]  # flat positions (one index: faster than two)
+    ray0 = row_at + first
+    s0 = s_arc.reshape(-1)[ray0]
     sigma = np.empty((n_c, n1 + 1))
-    sigma[:, :n1] = (_at(s_arc, rows, order) - s0[:, None]) % total[:, None]
+    sigma[:, :n1] = (s_arc.reshape(-1)[at] - s0[:, None]) % total[:, None]
     sigma[:, n1] = total
     sigma[:, 0] = 0.0
-    support_xy = support_xy.reshape(-1, 2).take(rows * n1 + order, axis=0)
+    support_xy = support_xy.reshape(-1, 2).take(at, axis=0)
     # vertex arc positions relative to support 0, in [0, total)
     tot = total[curve]
     a_vert = (polars.arc[off3[curve] + local] - (s0 - total)[curve]) % tot
@@ -166,7 +171,7 @@ def _parameterize_flat(polars: _Polars, n1: int, start_angle: float, crossings) 
     seg_of -= 1
     np.minimum(np.maximum(seg_of, 0, out=seg_of), n1 - 1, out=seg_of)  # np.clip without its wrapper
     key = curve * n1 + seg_of
-    seg_lo = _at(ang, np.arange(n_c), first)[curve] + seg_of * delta
+    seg_lo = ang.reshape(-1)[ray0][curve] + seg_of * delta
     folded_vertex = (phi_v < seg_lo - 1e-9) | (phi_v > seg_lo + delta + 1e-9)
     folded_seg = np.zeros(n_c * n1, dtype=bool)
     folded_seg[key[folded_vertex]] = True
@@ -183,7 +188,7 @@ def _parameterize_flat(polars: _Polars, n1: int, start_angle: float, crossings) 
     turning = (np.sign(d_in) * np.sign(d_out) < 0) & folded_seg[key]
     turning &= ~(np.abs(a_vert - sigma_of) <= 1e-9 * tot)
     # eq. 4: turning points spread evenly inside their segment
-    t_idx = np.flatnonzero(turning)
+    t_idx = turning.nonzero()[0]
     t_key = key[t_idx]
     n2 = np.bincount(t_key, minlength=n_c * n1)
     first_in_seg = n2.cumsum() - n2
@@ -194,7 +199,9 @@ def _parameterize_flat(polars: _Polars, n1: int, start_angle: float, crossings) 
     # turning points of the segments before k, a turning point after its segment's sigma
     anchor_arc = np.empty(n_c * (n1 + 1) + len(t_idx))
     anchor_u = np.empty_like(anchor_arc)
-    n_before = np.append(first_in_seg.reshape(n_c, n1), (first_in_seg[n1 - 1::n1] + n2[n1 - 1::n1])[:, None], axis=1)
+    n_before = np.empty((n_c, n1 + 1), dtype=first_in_seg.dtype)
+    n_before[:, :n1] = first_in_seg.reshape(n_c, n1)
+    n_before[:, n1] = first_in_seg[n1 - 1::n1] + n2[n1 - 1::n1]
     at_sigma = (np.arange(n_c) * (n1 + 1))[:, None] + np.arange(n1 + 1) + n_before
     anchor_arc[at_sigma] = sigma
     anchor_u[at_sigma] = np.arange(n1 + 1) / n1
@@ -242,15 +249,17 @@ class _Polars(NamedTuple):
     off3: np.ndarray
 
 
-def _polars(ps: list) -> _Polars:
+def _polars(ps: list, pts: np.ndarray | None = None) -> _Polars:
     """Ray origin, unwrapped polar angle and arc length of every validated (n_c >= 3, 2) contour at once.
 
     The origin is the area centroid, or, when the contour does not wind once
     around it, the interior point farthest from the outline (:func:`interior_point`).
+    ``pts``: the contours one after the other (N, 2) float64 when the caller has joined them already.
     """
     ns = np.array([len(p) for p in ps], dtype=np.int64)
     n_c = len(ns)
-    pts = np.concatenate(ps) if n_c > 1 else ps[0]
+    if pts is None:
+        pts = np.concatenate(ps) if n_c > 1 else ps[0]
     start = ns.cumsum() - ns
     curve = np.arange(n_c).repeat(ns)
     nxt = np.arange(1, len(pts) + 1)
@@ -272,7 +281,7 @@ def _polars(ps: list) -> _Polars:
         centers[flat] = (np.add.reduceat(pts, start, axis=0) / ns[:, None])[flat]
     ang = np.arctan2(y - centers[:, 1][curve], x - centers[:, 0][curve])
     dphi = (ang[nxt] - ang + np.pi) % (2 * np.pi) - np.pi
-    for c in np.flatnonzero(np.abs(np.add.reduceat(dphi, start) - 2 * np.pi) > 1e-6):
+    for c in (np.abs(np.add.reduceat(dphi, start) - 2 * np.pi) > 1e-6).nonzero()[0]:
         # the centroid lies outside (strongly bent outlines): rays from the interior point instead
         sl = slice(start[c], start[c] + ns[c])
         centers[c] = interior_point(pts[sl])
@@ -391,16 +400,19 @@ def _crossings(polars: _Polars, n1: int, start_angle: float) -> _Crossings:
     cid = np.arange(n_c).repeat(2 * ns)
     e = np.arange(len(cid)) - ((2 * ns).cumsum() - 3 * ns).repeat(2 * ns)
     g = off3[cid] + e
-    # every outgoing crossing of the N1 ray levels after the record at the start of the second period
-    k_lo = np.maximum(np.floor((phi[g] - start_angle) / delta).astype(np.int64), k_base[cid])
-    k_hi = np.minimum(np.floor((phi[g + 1] - start_angle) / delta).astype(np.int64), k_base[cid] + n1)
+    # every outgoing crossing of the N1 ray levels after the record at the start of the second period;
+    # every entry's level computed once (the edges' starts and ends overlap), then gathered
+    level = np.floor((phi - start_angle) / delta).astype(np.int64)
+    k_base_e = k_base[cid]
+    k_lo = np.maximum(level[g], k_base_e)
+    k_hi = np.minimum(level[g + 1], k_base_e + n1)
     count = np.maximum(k_hi - k_lo, 0)
     ie = np.arange(len(cid)).repeat(count)  # the edge of every crossing
     level_k = (k_lo + 1 - (count.cumsum() - count))[ie] + np.arange(len(ie))
     # group the crossings by (contour, level): levels lie in k_base + [1, n1], so one integer key
     # orders them; the input is nearly in that order already, which a stable sort exploits
-    key = (cid * (n1 + 1) - k_base[cid])[ie] + level_k
-    if len(key) == n_c * n1 and bool(np.all(key[1:] > key[:-1])):
+    key = (cid * (n1 + 1) - k_base_e)[ie] + level_k
+    if len(key) == n_c * n1 and bool((key[1:] > key[:-1]).all()):
         # every level crossed once, in order (no fold): nothing to group
         order = starts = np.arange(len(key))
         sizes = None
@@ -416,16 +428,25 @@ def _crossings(polars: _Polars, n1: int, start_angle: float) -> _Crossings:
         sizes = np.diff(np.r_[starts, len(order)])
     # per edge what its crossings share (x and y apart: 1-D gathers are cheap); the geometry is
     # computed only for the crossings that compete (a level crossed more than once) and the picks
-    e_mod = e % ns[cid]
+    # e lies in [n, 3 n) for a contour of n points: its vertex by subtraction (integer modulo is
+    # several times slower than the subtractions and comparisons)
+    ns_e = ns[cid]
+    e_mod = e - ns_e
+    e_mod -= ns_e * (e_mod >= ns_e)
     a_idx = offp[cid] + e_mod
-    b_idx = offp[cid] + (e + 1) % ns[cid]
     px, py = pts[:, 0], pts[:, 1]  # gathers of single floats: faster than of (N, 2) rows
-    ax, ay, bx, by = px[a_idx], py[a_idx], px[b_idx], py[b_idx]
+    ax, ay = px[a_idx], py[a_idx]
+    # each edge ends where the next one of its contour starts; the last of a contour's two periods
+    # at the contour's vertex 0
+    block_end = (2 * ns).cumsum() - 1
+    bx, by = np.empty_like(ax), np.empty_like(ay)
+    bx[:-1], by[:-1] = ax[1:], ay[1:]
+    bx[block_end], by[block_end] = px[offp], py[offp]
     cx, cy = centers[:, 0][cid], centers[:, 1][cid]
     a_at = off3[cid] + e_mod
     edge = (ax, ay, bx - ax, by - ay, ax - cx, ay - cy, cx, cy, arc[g], arc[a_at + 1] - arc[a_at])
     outer = order[starts] if sizes is not None else order  # a level crossed once: its only crossing
-    multi = np.flatnonzero(sizes > 1) if sizes is not None else ()
+    multi = (sizes > 1).nonzero()[0] if sizes is not None else ()
     first = outer.copy() if len(multi) else outer  # the two picks differ only where a level is crossed again
     cr = _Crossings(ie, level_k, edge, outer.reshape(n_c, n1), first.reshape(n_c, n1), sizes is None)
     if len(multi):
@@ -455,7 +476,9 @@ def _pick_crossings(cr: _Crossings, outer: np.ndarray, first: np.ndarray, levels
         picked = _crossing_at(cr, pick, cos_k, sin_k, points)
     if not points:
         return picked[0], None, levels, None
-    return picked[0], np.stack(picked[1:3], axis=-1), levels, table[lv]
+    xy = np.empty(levels.shape + (2,))
+    xy[..., 0], xy[..., 1] = picked[1:3]
+    return picked[0], xy, levels, table[lv]
 
 
 def ray_supports(points, n_rays: int, start_angle: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
@@ -673,7 +696,19 @@ def _balanced_values(u_all: np.ndarray, arc_all: np.ndarray, sizes: np.ndarray, 
     fp[inner] = arc_all
     xp[off + sizes + 1] = 1.0
     fp[off + sizes + 1] = 1.0
-    grid, where = np.unique(np.concatenate([[0.0, 1.0], u_all]), return_inverse=True)
+    # np.unique(..., return_inverse=True)'s own steps (the same sort), without its wrapper; the
+    # parameters are finite (no NaN to hold as one)
+    pooled = np.empty(len(u_all) + 2)
+    pooled[:2] = 0.0, 1.0
+    pooled[2:] = u_all
+    perm = pooled.argsort()
+    pooled = pooled[perm]
+    new_value = np.empty(len(pooled), dtype=bool)
+    new_value[0] = True
+    np.not_equal(pooled[1:], pooled[:-1], out=new_value[1:])
+    grid = pooled[new_value]
+    where = np.empty(len(pooled), dtype=np.intp)
+    where[perm] = new_value.cumsum() - 1
     # each slice's arc is piecewise linear in u with its breakpoints on the grid, so the slices' sum on
     # the grid is a running sum: of the slopes' changes for the slope on every grid interval, then of
     # slope times width (a jump only where u = 0 repeats the start), one pass instead of one per slice
@@ -693,7 +728,12 @@ def _balanced_values(u_all: np.ndarray, arc_all: np.ndarray, sizes: np.ndarray, 
     if jump.any():
         total += np.bincount(at[1:][jump], rise[jump], minlength=n_g).cumsum()
     total[-1] = n_c  # every slice ends at (1, 1)
-    values = np.unique(np.interp(np.arange(m) / m, total / n_c, grid))
+    values = np.interp(np.arange(m) / m, total / n_c, grid)
+    # increasing (as a rule): its distinct values by one comparison with the previous, else np.unique
+    distinct = np.empty(len(values), dtype=bool)
+    distinct[0] = True
+    np.greater(values[1:], values[:-1], out=distinct[1:])
+    values = values[distinct] if (values[1:] >= values[:-1]).all() else np.unique(values)
     values = values[values < 1.0]
     if len(values) < int(sizes.max()):
         values = np.arange(m) / m
@@ -748,13 +788,15 @@ def _quantize_flat(uu: np.ndarray, start: np.ndarray, ns: np.ndarray, m: int, va
         target = np.minimum(np.round(uu * m).astype(np.int64), m - 1)
     else:
         lv = values
-        hi = np.searchsorted(lv, uu)
+        hi = lv.searchsorted(uu)
         np.minimum(np.maximum(hi, 1, out=hi), m - 1, out=hi)  # np.clip without its wrapper
-        target = np.where(np.abs(lv[hi - 1] - uu) <= np.abs(lv[hi] - uu), hi - 1, hi)
-        target = np.where(uu > lv[-1] + 0.5 * (1.0 + lv[0] - lv[-1]), m - 1, target)
+        lo = hi - 1
+        # the lower neighbour where it is at least as near (a boolean subtracted: one pass, no np.where)
+        target = hi - (np.abs(lv[lo] - uu) <= np.abs(lv[hi] - uu))
+        target[uu > lv[-1] + 0.5 * (1.0 + lv[0] - lv[-1])] = m - 1
     # strictly increasing indices closest (least squares) to the targets: isotonic
     # regression of target - i (pool adjacent violators), rounded and clipped
-    r = np.round(_isotonic_fit_runs((target - i).astype(np.float64), start)).astype(np.int64)
+    r = _isotonic_fit_runs((target - i).astype(np.float64), start).round().astype(np.int64)
     np.minimum(np.maximum(r, 0, out=r), (m - ns)[slice_of], out=r)
     r += i
     return r
@@ -793,15 +835,21 @@ def _isotonic_fit_runs(y: np.ndarray, starts: np.ndarray) -> np.ndarray:
     blocks (bincount of one value is the value), so each run comes out as
     alone. ``starts`` is increasing and begins at 0 (empty for an empty ``y``).
     """
-    s = y.astype(np.float64, copy=True)
+    s = y.astype(np.float64, copy=False)  # only read: every pass makes new sums
     w = np.ones(len(s))
-    first = np.zeros(len(s), dtype=bool)
-    first[starts] = True  # the blocks that begin a run
+    inner = np.ones(len(s), dtype=bool)
+    inner[starts] = False  # the blocks that do not begin a run
     while len(s) > 1:
-        bad = (s[:-1] * w[1:] > s[1:] * w[:-1]) & ~first[1:]  # mean of a block above the next one's
+        bad = s[:-1] * w[1:] > s[1:] * w[:-1]  # mean of a block above the next one's
+        bad &= inner[1:]
         if not bad.any():
             break
-        group = np.concatenate([[True], ~bad]).cumsum() - 1
+        keep = np.empty(len(s), dtype=bool)  # the blocks that begin a pooled block
+        keep[0] = True
+        np.logical_not(bad, out=keep[1:])
+        group = keep.cumsum()
+        group -= 1
         s, w = np.bincount(group, s), np.bincount(group, w)
-        first = np.bincount(group, first).astype(bool)
+        # a pooled block begins a run where its first block does (bad never pools across a start)
+        inner = inner[keep]
     return (s / w).repeat(w.astype(np.int64))

@@ -264,11 +264,12 @@ def slice_curves(contours, z, n_rays: int, n_lattice: int | None = None,
     if ps and min(map(len, ps)) < 3:
         i = next(i for i, p in enumerate(ps) if len(p) < 3)
         raise ValueError(f"contours[{i}]: needs at least 3 points, got {len(ps[i])}")
-    if not np.isfinite(np.concatenate(ps)).all():
+    joined = np.concatenate(ps)
+    if not np.isfinite(joined).all():
         for i, c in enumerate(ps):
             as_array(c, f"contours[{i}]")
     # the ray origin, polar angles and arc lengths serve both the rotation's choice and the parameters
-    polars = _polars(ps)
+    polars = _polars(ps, joined)
     if start_angle is None and len(ps) > 1:
         # the chosen rotation's rays are among those tried: their crossings come from the same pass
         start_angle, crossings = _start_angle_crossings(polars, n1, START_CANDIDATES)
@@ -313,20 +314,23 @@ def slice_curves(contours, z, n_rays: int, n_lattice: int | None = None,
     # every lattice interval the curve is one cubic piece, cut exactly (Bezier points do not depend
     # on the affine parameter of the interval); the period starts at node q0, so lattice interval
     # L of slice c is [x, x + 1] with x = L, or L + M before q0
-    q_next = np.append(q[1:], 0)
-    q_next[start + ns - 1] = q[start] + m
+    # the nodes' lattice indices as floats (exact), converted before they are gathered
+    x_node = q.astype(np.float64)
+    x_next = np.empty(len(q))
+    x_next[:-1] = x_node[1:]
+    x_next[start + ns - 1] = q[start] + m
     lattice = np.arange(m)
     before = lattice < q[start][:, None]  # (C, M)
-    x = lattice + m * before
+    x = (lattice + m * before).ravel().astype(np.float64)
     # the node that starts each interval's segment: the last at or before L (a running count of the
     # nodes passed), or the last node of the slice before q0 (the closing segment)
     passed = np.zeros((n_c, m), dtype=np.int64)
     passed.reshape(-1)[curve * m + q] = 1
     passed.cumsum(axis=1, out=passed)
     g = np.where(before, (start + ns - 1)[:, None], start[:, None] + passed - 1).ravel()
-    x = x.ravel().astype(np.float64)
-    k_lo, k_hi = knots[g + curve[g]], knots[g + curve[g] + 1]
-    x_lo, x_hi = q[g].astype(np.float64), q_next[g].astype(np.float64)
+    at_knot = g + curve[g]
+    k_lo, k_hi = knots[at_knot], knots[at_knot + 1]
+    x_lo, x_hi = x_node[g], x_next[g]
     slope = (k_hi - k_lo) / (x_hi - x_lo)
     b_lo = np.where(x == x_lo, k_lo, slope * (x - x_lo) + k_lo)
     b_hi = np.where(x + 1.0 == x_hi, k_hi, slope * (x + 1.0 - x_lo) + k_lo)

@@ -233,7 +233,7 @@ def _closed_parameters(pts: np.ndarray, params, sizes) -> tuple[np.ndarray, np.n
     inner[start] = False
     if (t[1:] <= t[:-1])[inner[1:]].any():
         raise ValueError("params: must increase strictly along every curve")
-    if not np.all(t[start + ns - 1] - t[start] < 1.0):
+    if not (t[start + ns - 1] - t[start] < 1.0).all():
         raise ValueError("params: a closed curve needs parameters spanning less than one period")
     return t, start, ns
 
@@ -503,9 +503,13 @@ def _restrict_rows(c: np.ndarray, k0: np.ndarray, k1: np.ndarray, b0: np.ndarray
     np.multiply(s, tangent, out=point)
     point += e[0]
     tangent *= 3.0
-    nxt = np.arange(1, len(s) + 1)
-    nxt[n_row - 1::n_row] -= n_row
-    same = (k0[nxt] == k0) & (k1[nxt] == k1)
+    # the next piece in the row by slices of the (rows, n_row) view (a gather costs more)
+    rows = len(s) // n_row
+    k0r, k1r = k0.reshape(rows, n_row), k1.reshape(rows, n_row)
+    same = np.empty((rows, n_row), dtype=bool)
+    np.equal(k0r[:, 1:], k0r[:, :-1], out=same[:, :-1])
+    same[:, :-1] &= k1r[:, 1:] == k1r[:, :-1]
+    same[:, -1] = (k0r[:, 0] == k0r[:, -1]) & (k1r[:, 0] == k1r[:, -1])
     w = (b1 - b0) / (3.0 * h)
     ends = np.empty((4,) + point.shape)
     ends[0] = point
@@ -515,7 +519,9 @@ def _restrict_rows(c: np.ndarray, k0: np.ndarray, k1: np.ndarray, b0: np.ndarray
     ends[2] *= 3.0
     ends[3] = c[3]
     # where the next piece lies on the same segment, its start's derivative and point are this one's end's
-    np.copyto(ends[2:], start.take(nxt, axis=2), where=same)
+    by_row, start_by_row = ends[2:].reshape(2, -1, rows, n_row), start.reshape(2, -1, rows, n_row)
+    np.copyto(by_row[..., :-1], start_by_row[..., 1:], where=same[:, :-1])
+    np.copyto(by_row[..., -1], start_by_row[..., 0], where=same[:, -1])
     ends[2] *= w
     np.subtract(ends[3], ends[2], out=ends[2])
     out[...] = ends.transpose(2, 0, 1)
@@ -566,12 +572,13 @@ def _blend_weights(n: int, v: np.ndarray | None) -> np.ndarray:
         out = np.zeros((n - 1, 4, n))
         np.divide(h * tangent[:-1], 3.0, out=out[:, 1])
         np.subtract(0.0, h * tangent[1:] / 3.0, out=out[:, 2])
-        flat = out.reshape(n - 1, 4 * n)
-        j = np.arange(n - 1)
-        flat[j, j] = 1.0
-        flat[j, n + j] += 1.0
-        flat[j, 2 * n + j + 1] += 1.0
-        flat[j, 3 * n + j + 1] = 1.0
+        # entry (j, b, j) or (j, b, j + 1) lies at j (4 n + 1) + b n (+ 1): a strided view each
+        flat = out.reshape(-1)
+        step = 4 * n + 1
+        flat[0::step] = 1.0
+        flat[n::step] += 1.0
+        flat[2 * n + 1::step] += 1.0
+        flat[3 * n + 1::step] = 1.0
         return out
     tangent = np.zeros((n, n))
     if n == 2:
@@ -676,20 +683,21 @@ def _blend(c: np.ndarray, closed_u: bool, params, monotone: bool,
         into[...] = mixed.view(item).reshape(4, k - 1, m, 4).transpose(2, 1, 3, 0)
     else:
         # the first and last Bezier points along v are the curves themselves (weight rows of the
-        # identity): copied, and only the inner two come from a matrix product, written straight
-        # into the patches' layout
+        # identity): copied, and only the inner two come from a matrix product; all four are laid
+        # out by Bezier point along v first (contiguous blocks), then scattered into the patches'
+        # layout in one pass (faster than one scatter per Bezier point)
         cc = np.ascontiguousarray(c)
-        inner = (w[:, 1:3].transpose(1, 0, 2).reshape(-1, k) @ cc.reshape(k, -1)).reshape(2, k - 1, m, 4, 3)
-        by_b = into.transpose(3, 1, 0, 2)  # (b, K - 1, M, 4)
-        curve_items = cc.view(item).reshape(k, m, 4)
-        by_b[0] = curve_items[:-1]
-        by_b[1:3] = inner.view(item).reshape(2, k - 1, m, 4)
-        by_b[3] = curve_items[1:]
+        by_b = np.empty((4, k - 1, m, 4, 3))
+        by_b[0] = cc[:-1]
+        np.matmul(w[:, 1:3].transpose(1, 0, 2).reshape(-1, k), cc.reshape(k, -1),
+                  out=by_b[1:3].reshape(2 * (k - 1), -1))
+        by_b[3] = cc[1:]
+        into[...] = by_b.view(item).reshape(4, k - 1, m, 4).transpose(2, 1, 3, 0)
     if not trusted:
         return BezierPatches(control, closed_u=closed_u), limited
     if closed_u:  # BezierPatches' test of the closing, on the two rows it compares
         ends = control[::max(m - 1, 1)]
-        gap = float(np.max(np.abs(control[-1, :, 3] - control[0, :, 0])))
+        gap = float(np.abs(control[-1, :, 3] - control[0, :, 0]).max())
         if gap > _JOIN_RTOL * max(float(ends.max()), -float(ends.min()), 1.0):
             raise ValueError(f"closed_u: the last patch row does not join the first (gap {gap:.3g})")
     return BezierPatches._trusted(control, closed_u=closed_u), limited

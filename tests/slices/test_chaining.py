@@ -130,6 +130,19 @@ def test_outline_table_equals_the_per_contour_figures():
     np.testing.assert_allclose(depth, [0.5, -2.0])
 
 
+def test_outline_planes_equal_np_unique_of_the_rounded_z():
+    # the table's distinct planes and each contour's plane are np.unique's of z rounded to 1e-6 mm:
+    # shuffled planes, repeats, values apart by less than the rounding, and NaN planes (held as one)
+    rng = np.random.default_rng(5)
+    tri = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
+    for zs in (rng.permutation(np.r_[np.arange(8) * 2.5, [5.0, 5.0000001, -0.0, 0.0]]),
+               np.array([3.0, np.nan, 1.0, np.nan, 3.0]), np.array([7.25])):
+        table = chaining.Outlines.of([Contour(float(z), tri) for z in zs])
+        planes, plane_of = np.unique(np.round(zs, 6), return_inverse=True)
+        np.testing.assert_array_equal(table.planes, planes)
+        np.testing.assert_array_equal(table.plane_of, plane_of)
+
+
 def test_holes_equal_the_pairwise_containment_count():
     # nested and overlapping random outlines on a few planes: the table's parity of containing
     # contours equals counting them pair by pair with points_in_polygon
