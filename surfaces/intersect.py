@@ -533,21 +533,27 @@ def _arc_suspects(t: np.ndarray, X: np.ndarray, Y: np.ndarray, group: np.ndarray
     near[1:] |= worried[:-1]
     near[:-1] |= worried[1:]
     n_side = 0 if rings is None else 2 * rings[0].shape[0] * n_bands
-    seen = n_side + np.flatnonzero(near[group[n_side:]])
-    faces, bands = [], []
-    for step in (-1, 0, 1):
-        k = group[seen] + step
-        ok = np.flatnonzero((k >= 0) & (k < n_bands))
-        ok = ok[slot[k[ok]] >= 0]
-        faces.append(seen[ok])
-        bands.append(k[ok])
-    f, k = np.concatenate(faces), np.concatenate(bands)
-    tf = t[f]
-    first, count = _bins(*_arcs(X[tf], Y[tf], cx[k], cy[k]))
+    seen = n_side + near[group[n_side:]].nonzero()[0]
+    if len(seen) or rings is None:
+        faces, bands = [], []
+        for step in (-1, 0, 1):
+            k = group[seen] + step
+            ok = ((k >= 0) & (k < n_bands)).nonzero()[0]
+            ok = ok[slot[k[ok]] >= 0]
+            faces.append(seen[ok])
+            bands.append(k[ok])
+        f, k = np.concatenate(faces), np.concatenate(bands)
+        tf = t[f]
+        first, count = _bins(*_arcs(X[tf], Y[tf], cx[k], cy[k]))
     if rings is not None:
         f_side, k_side, first_side, count_side = _lattice_arcs(rings[0], rings[1], worry, cx, cy)
-        f, k = np.concatenate([f_side, f]), np.concatenate([k_side, k])
-        first, count = np.concatenate([first_side, first]), np.concatenate([count_side, count])
+        if len(seen):
+            f, k = np.concatenate([f_side, f]), np.concatenate([k_side, k])
+            first, count = np.concatenate([first_side, first]), np.concatenate([count_side, count])
+        else:
+            # no cap face lies near a worried band (the worried bands are inner ones): the side faces alone,
+            # without some thirty calls on empty arrays
+            f, k, first, count = f_side, k_side, first_side, count_side
     w = slot[k]
     # a bad face marks the bins of its arc about its own band's axis (a full arc: all of them)
     bad = bad_face[f] & (group[f] == k)
@@ -621,12 +627,12 @@ def _lattice_shape(t: np.ndarray, n_vertices: int) -> tuple[int, int] | None:
     return rows, cols
 
 
-def _beyond(sign: np.ndarray, e: np.ndarray, bound: float | None) -> np.ndarray:
+def _beyond(way: int, sign: np.ndarray, e: np.ndarray, bound: float | None) -> np.ndarray:
     """``sign * e > bound`` (``>= 0`` for None) for band signs ``sign`` (C,) of ``e`` (R, C), without the products
-    when every band turns one way (negating is exact)."""
-    if np.all(sign > 0):
+    when every band turns one way (``way`` +1 or -1, else 0; negating is exact)."""
+    if way > 0:
         return e >= 0 if bound is None else e > bound
-    if np.all(sign < 0):
+    if way < 0:
         return e <= 0 if bound is None else e < -bound
     return sign * e >= 0 if bound is None else sign * e > bound
 
@@ -647,17 +653,14 @@ def _crossings(px: np.ndarray, py: np.ndarray, qx: np.ndarray, qy: np.ndarray) -
     return at, (up & (turn > 0)).view(np.int8) - (~up & (turn < 0)).view(np.int8)
 
 
-def _winds_once(mx: np.ndarray, my: np.ndarray, dx: np.ndarray, dy: np.ndarray, mnx: np.ndarray,
-                mny: np.ndarray) -> np.ndarray:
-    """Whether the closed chains ``M_g -> D_g -> M_{g+1}`` (points relative to their column's axis, (R, B)
-    each, one chain per column) wind once about the axis, either way (:func:`_crossings`); (B,) bool."""
-    n_bands = mx.shape[1]
-    winding = np.zeros(n_bands)
-    for chain in ((mx, my, dx, dy), (dx, dy, mnx, mny)):
-        # on the flat rows (contiguous): one index an edge, cheaper to find and gather than (row, band) pairs
-        (at,), step = _crossings(*(c.reshape(-1) for c in chain))
-        winding += np.bincount(at % n_bands, step, n_bands)
-    return np.abs(winding) == 1
+def _winds_once(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Whether the closed chains of points ``(x, y)`` (N + 1, B) (relative to their column's axis, one chain per
+    column running down its rows, the last row the first again) wind once about the axis, either way
+    (:func:`_crossings`); (B,) bool."""
+    n_bands = x.shape[1]
+    # on the flat rows (contiguous): one index an edge, cheaper to find and gather than (row, band) pairs
+    (at,), step = _crossings(x[:-1].reshape(-1), y[:-1].reshape(-1), x[1:].reshape(-1), y[1:].reshape(-1))
+    return np.abs(np.bincount(at % n_bands, step, n_bands)) == 1
 
 
 def _lattice_suspects(v: np.ndarray, t: np.ndarray, rows: int, cols: int, margin: float) -> np.ndarray | None:
@@ -715,44 +718,45 @@ def _lattice_suspects(v: np.ndarray, t: np.ndarray, rows: int, cols: int, margin
         area = turn[on]
         if len(area) and not (np.all(area > tiny) or np.all(area < -tiny)):
             return None
-    # the rings with the first repeated last (R + 1, C): each ring's next is a view, not a rolled copy
-    xe, ye = np.empty((rows + 1, cols)), np.empty((rows + 1, cols))
-    xe[:rows], ye[:rows] = X[:n].reshape(rows, cols), Y[:n].reshape(rows, cols)
-    xe[rows], ye[rows] = xe[0], ye[0]
-    xs, ys, xn, yn = xe[:-1], ye[:-1], xe[1:], ye[1:]
+    # the rings with the first repeated last, x and y stacked (2, R + 1, C): each ring's next is a view, not a
+    # rolled copy, and one call serves both coordinates wherever they are treated alike
+    xy = np.empty((2, rows + 1, cols))
+    xy[0, :rows], xy[1, :rows] = X[:n].reshape(rows, cols), Y[:n].reshape(rows, cols)
+    xy[:, rows] = xy[:, 0]
+    xs, ys, xn, yn = xy[0, :-1], xy[1, :-1], xy[0, 1:], xy[1, 1:]
     # the cut of band h at mid-height: M_g -> D_g (face (a, c, d) of cell g), D_g -> M_{g+1} (face (a, b, c))
-    mex, mey = xe[:, 1:] + xe[:, :-1], ye[:, 1:] + ye[:, :-1]
-    mex /= 2.0
-    mey /= 2.0
-    mx, my, mnx, mny = mex[:-1], mey[:-1], mex[1:], mey[1:]
-    dx, dy = xs[:, :-1] + xn[:, 1:], ys[:, :-1] + yn[:, 1:]
-    dx /= 2.0
-    dy /= 2.0
+    me = xy[:, :, 1:] + xy[:, :, :-1]
+    me /= 2.0
+    d = xy[:, :-1, :-1] + xy[:, 1:, 1:]
+    d /= 2.0
+    mx, my, mnx, mny = me[0, :-1], me[1, :-1], me[0, 1:], me[1, 1:]
+    dx, dy = d[0], d[1]
     w0 = dx * mny - dy * mnx
     w1 = mx * dy - my * dx
     area = w0.sum(axis=0) + w1.sum(axis=0)
-    if np.any(area == 0):
+    if (area == 0).any():
         return None
     cx = (((dx + mnx) * w0).sum(axis=0) + ((mx + dx) * w1).sum(axis=0)) / (3.0 * area)
     cy = (((dy + mny) * w0).sum(axis=0) + ((my + dy) * w1).sum(axis=0)) / (3.0 * area)
+    axis = np.stack([cx, cy])[:, None]
     sign = np.sign(area)
+    way = 1 if (sign > 0).all() else -1 if (sign < 0).all() else 0
     # the rings seen from the axes of the bands below (q1) and above (q0) them, (R + 1, C - 1) each
-    qe0x, qe0y = xe[:, :-1] - cx, ye[:, :-1] - cy
-    qe1x, qe1y = xe[:, 1:] - cx, ye[:, 1:] - cy
-    q0x, q0y, q0nx, q0ny = qe0x[:-1], qe0y[:-1], qe0x[1:], qe0y[1:]
-    q1x, q1y, q1nx, q1ny = qe1x[:-1], qe1y[:-1], qe1x[1:], qe1y[1:]
+    qe0, qe1 = xy[:, :, :-1] - axis, xy[:, :, 1:] - axis
+    q0x, q0y, q0nx, q0ny = qe0[0, :-1], qe0[1, :-1], qe0[0, 1:], qe0[1, 1:]
+    q1x, q1y, q1nx, q1ny = qe1[0, :-1], qe1[1, :-1], qe1[0, 1:], qe1[1, 1:]
     ex, ey = xn - xs, yn - ys
     # face (a, b, c): edge on ring h, lone corner (g + 1, h + 1); face (a, c, d): edge on ring h + 1, lone (g, h)
-    good0 = _beyond(sign, q0x * q0ny - q0y * q0nx, tiny)
-    good0 &= _beyond(sign, q1nx * ey[:, :-1] - q1ny * ex[:, :-1], None)
-    good1 = _beyond(sign, q1x * q1ny - q1y * q1nx, tiny)
-    good1 &= _beyond(sign, q0x * ey[:, 1:] - q0y * ex[:, 1:], None)
-    # the cut's winding about the axis: M_g and D_g seen from it, M_{g+1} a view of the next row
-    mex -= cx
-    mey -= cy
-    dx -= cx
-    dy -= cy
-    once = _winds_once(mx, my, dx, dy, mnx, mny)
+    good0 = _beyond(way, sign, q0x * q0ny - q0y * q0nx, tiny)
+    good0 &= _beyond(way, sign, q1nx * ey[:, :-1] - q1ny * ex[:, :-1], None)
+    good1 = _beyond(way, sign, q1x * q1ny - q1y * q1nx, tiny)
+    good1 &= _beyond(way, sign, q0x * ey[:, 1:] - q0y * ex[:, 1:], None)
+    # the cut's winding about the axis: its points seen from it, one closed chain a column, M_g in the even
+    # rows and D_g in the odd ones (2, 2 R + 1, C - 1), so that its edges are consecutive rows
+    chain = np.empty((2, 2 * rows + 1, cols - 1))
+    np.subtract(me, axis, out=chain[:, 0::2])
+    np.subtract(d, axis, out=chain[:, 1::2])
+    once = _winds_once(chain[0], chain[1])
     worried = ~once | ~good0.all(axis=0) | ~good1.all(axis=0)
     if not worried.any():
         return np.zeros(len(t), dtype=bool)
