@@ -491,7 +491,11 @@ def _wrap(d: np.ndarray) -> np.ndarray:
 def _steps_arcs(phi0: np.ndarray, d1: np.ndarray, d2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """:func:`_arcs` of triangles from the angle of one corner and the differences to the other two's
     (fresh arrays, wrapped in place), all of one shape (rad)."""
-    d1, d2 = _wrap(d1), _wrap(d2)
+    return _wrapped_arcs(phi0, _wrap(d1), _wrap(d2))
+
+
+def _wrapped_arcs(phi0: np.ndarray, d1: np.ndarray, d2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_steps_arcs` of differences ``d1``, ``d2`` already in [-pi, pi) (rad)."""
     low = np.minimum(d1, d2)
     np.minimum(low, 0.0, out=low)
     high = np.maximum(d1, d2)
@@ -513,10 +517,11 @@ def _bins(low: np.ndarray, length: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def _arc_suspects(t: np.ndarray, X: np.ndarray, Y: np.ndarray, group: np.ndarray, bad_face: np.ndarray,
                   once: np.ndarray, worried: np.ndarray, cx: np.ndarray, cy: np.ndarray,
-                  rings: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray | None:
+                  rings: np.ndarray | None = None) -> np.ndarray | None:
     """The suspects of :func:`fold_suspects` from its per-face groups and bad faces and its per-band axes.
 
-    ``rings``: the ``x`` and ``y`` (R, C) of a mesh of :func:`_lattice_shape`, whose side faces are then
+    ``rings``: the ``x`` and ``y`` (2, R + 1, C) of a mesh of :func:`_lattice_shape` (its first ring repeated
+    last), whose side faces are then
     seen from the axes through the angles of their rings' vertices (each once per ring and axis, not
     once per corner; the same angles).
     """
@@ -532,7 +537,7 @@ def _arc_suspects(t: np.ndarray, X: np.ndarray, Y: np.ndarray, group: np.ndarray
     near = worried.copy()  # bands within one of a worried band
     near[1:] |= worried[:-1]
     near[:-1] |= worried[1:]
-    n_side = 0 if rings is None else 2 * rings[0].shape[0] * n_bands
+    n_side = 0 if rings is None else 2 * (rings.shape[1] - 1) * n_bands
     seen = n_side + near[group[n_side:]].nonzero()[0]
     if len(seen) or rings is None:
         faces, bands = [], []
@@ -546,7 +551,7 @@ def _arc_suspects(t: np.ndarray, X: np.ndarray, Y: np.ndarray, group: np.ndarray
         tf = t[f]
         first, count = _bins(*_arcs(X[tf], Y[tf], cx[k], cy[k]))
     if rings is not None:
-        f_side, k_side, first_side, count_side = _lattice_arcs(rings[0], rings[1], worry, cx, cy)
+        f_side, k_side, first_side, count_side = _lattice_arcs(rings, worry, cx, cy)
         if len(seen):
             f, k = np.concatenate([f_side, f]), np.concatenate([k_side, k])
             first, count = np.concatenate([first_side, first]), np.concatenate([count_side, count])
@@ -575,35 +580,40 @@ def _arc_suspects(t: np.ndarray, X: np.ndarray, Y: np.ndarray, group: np.ndarray
     return suspect
 
 
-def _lattice_arcs(xs: np.ndarray, ys: np.ndarray, worry: np.ndarray, cx: np.ndarray,
+def _lattice_arcs(xy: np.ndarray, worry: np.ndarray, cx: np.ndarray,
                   cy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """The (face, band) pairs of :func:`_arc_suspects` for the side faces of a lattice (x, y (R, C)).
+    """The (face, band) pairs of :func:`_arc_suspects` for the side faces of a lattice (x and y (2, R + 1, C),
+    the first ring repeated last).
 
     Each band ``j`` within one of a worried band ``k``, its faces seen from ``k``'s axis: their
     indices, ``k``, and their arcs' first bin and bin count (as :func:`_bins` of :func:`_arcs`), all
     (2 R P,) for the P pairs.
     """
-    rows, cols = xs.shape
+    rows, cols = xy.shape[1] - 1, xy.shape[2]
     j = (worry[:, None] + np.arange(-1, 2)).ravel()
     k = np.repeat(worry, 3)
     ok = (j >= 0) & (j < cols - 1)
     j, k = j[ok], k[ok]
-    # the angles of rings j and j + 1 about k's axis, (R + 1, P) each, the first ring repeated last
-    low = np.arctan2(ys[:, j] - cy[k], xs[:, j] - cx[k])
-    high = np.arctan2(ys[:, j + 1] - cy[k], xs[:, j + 1] - cx[k])
-    low, high = np.vstack([low, low[:1]]), np.vstack([high, high[:1]])
-    a, low_n, high_n, high = low[:-1], low[1:], high[1:], high[:-1]
+    n_pairs = len(j)
+    # the angles of rings j (first P columns) and j + 1 (last P) about k's axis, (R + 1, 2 P), in one pass
+    pick = np.concatenate([j, j + 1])
+    at = np.concatenate([k, k])
+    angle = np.arctan2(xy[1][:, pick] - cy[at], xy[0][:, pick] - cx[at])
+    low, high = angle[:, :n_pairs], angle[:, n_pairs:]
+    a = low[:-1]
     # cell g's faces (a, b, c) = ((g, j), (g + 1, j), (g + 1, j + 1)), (a, c, d) = ((g, j), (g + 1, j + 1), (g, j + 1)):
-    # the angles of b, c, d less a's, c's shared by both
-    to_c = high_n - a
-    # the two faces' low ends and lengths each one contiguous block, as _bins reads them
-    low_ends, lengths = np.empty((2, 2) + a.shape)
-    low_ends[0], lengths[0] = _steps_arcs(a, low_n - a, to_c.copy())
-    low_ends[1], lengths[1] = _steps_arcs(a, to_c, high - a)
-    first, count = _bins(low_ends, lengths)
-    cell = np.arange(rows)[:, None] * (cols - 1) + j
-    face = np.stack([cell, cell + rows * (cols - 1)])
-    return face.ravel(), np.broadcast_to(k, face.shape).ravel(), first.ravel(), count.ravel()
+    # the angles of b, c, d less a's, c's shared by both; both faces' two steps in one (2, 2, R, P) block,
+    # so that each step of _steps_arcs is one call for both faces
+    step = np.empty((2, 2, rows, n_pairs))
+    np.subtract(low[1:], a, out=step[0, 0])
+    np.subtract(high[1:], a, out=step[0, 1])
+    step[1, 0] = step[0, 1]
+    np.subtract(high[:-1], a, out=step[1, 1])
+    first, count = _bins(*_wrapped_arcs(a, *_wrap(step).swapaxes(0, 1)))
+    face = np.empty((2, rows, n_pairs), dtype=np.int64)
+    np.add(np.arange(0, rows * (cols - 1), cols - 1)[:, None], j, out=face[0])
+    np.add(face[0], rows * (cols - 1), out=face[1])
+    return face.reshape(-1), np.broadcast_to(k, face.shape).ravel(), first.reshape(-1), count.reshape(-1)
 
 
 def _lattice_shape(t: np.ndarray, n_vertices: int) -> tuple[int, int] | None:
@@ -766,7 +776,7 @@ def _lattice_suspects(v: np.ndarray, t: np.ndarray, rows: int, cols: int, margin
     bad_face = np.zeros(len(t), dtype=bool)
     bad_face[:n_side // 2] = ~good0.ravel()
     bad_face[n_side // 2:n_side] = ~good1.ravel()
-    return _arc_suspects(t, X, Y, group, bad_face, once, worried, cx, cy, (xs, ys))
+    return _arc_suspects(t, X, Y, group, bad_face, once, worried, cx, cy, xy)
 
 
 def fold_suspects(vertices, triangles, *, margin: float = 1e-12) -> np.ndarray | None:
