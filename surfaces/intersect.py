@@ -135,13 +135,14 @@ def _candidate_blocks(c: np.ndarray, box: tuple | None = None) -> Iterator[np.nd
         # every pair's boxes compared at once: cheaper than the grid and the sweep on a few faces
         # as an (n, n) table: broadcasting costs less than gathering both boxes of every pair
         # (the upper triangle by one comparison of indices: np.triu builds a mask and copies)
+        # (the six comparisons in one call: lo_a <= hi_b and -hi_a <= -lo_b along each axis, negating exactly,
+        # with the boxes' six coordinates along the first axis of the table, contiguous, so that its rows are long)
+        low = np.concatenate([lo, -hi], axis=1).T.copy()
+        high = np.concatenate([hi, -lo], axis=1).T.copy()
+        meet = (low[:, :, None] <= high[:, None, :]).all(axis=0)
         idx = np.arange(len(c))
-        meet = idx[:, None] < idx
-        for k in range(3):
-            meet &= lo[:, None, k] <= hi[None, :, k]
-            meet &= hi[:, None, k] >= lo[None, :, k]
-        a, b = np.nonzero(meet)  # np.argwhere's pairs, without its wrapper
-        yield np.stack([a, b], axis=1)
+        meet &= idx[:, None] < idx
+        yield _pair_rows(*meet.nonzero())  # np.argwhere's pairs, without its wrapper
         return
     span = hi.max(axis=0) - lo.min(axis=0)
     axis = int(np.argmax(span))
@@ -159,7 +160,7 @@ def _candidate_blocks(c: np.ndarray, box: tuple | None = None) -> Iterator[np.nd
         keep = (lo[a, grid[0]] <= hi[b, grid[0]]) & (lo[b, grid[0]] <= hi[a, grid[0]])
         keep &= (lo[a, grid[1]] <= hi[b, grid[1]]) & (lo[b, grid[1]] <= hi[a, grid[1]])
         a, b = a[keep], b[keep]
-        yield np.stack([np.minimum(a, b), np.maximum(a, b)], axis=1)
+        yield _pair_rows(a, b, ordered=False)
         return
     cell = np.maximum(np.median(hi[:, grid] - lo[:, grid], axis=0), span[grid] * 1e-6 + 1e-300)
     # a few huge triangles would otherwise cover millions of cells: coarsen until bounded
@@ -201,8 +202,20 @@ def _candidate_blocks(c: np.ndarray, box: tuple | None = None) -> Iterator[np.nd
         for k in (1, 2):
             keep &= (ba[:, k] <= bb[:, k + 3]) & (bb[:, k] <= ba[:, k + 3])
         a, b = a[keep], b[keep]
-        yield np.stack([np.minimum(a, b), np.maximum(a, b)], axis=1)
+        yield _pair_rows(a, b, ordered=False)
         start = stop
+
+
+def _pair_rows(a: np.ndarray, b: np.ndarray, ordered: bool = True) -> np.ndarray:
+    """Pairs (P, 2) int64 of face indices ``a``, ``b`` (P,); unless ``ordered``, each pair's lower index
+    first. Written column by column into one array: cheaper than np.stack on a few hundred pairs."""
+    pairs = np.empty((len(a), 2), dtype=np.int64)
+    if ordered:
+        pairs[:, 0], pairs[:, 1] = a, b
+    else:
+        np.minimum(a, b, out=pairs[:, 0])
+        np.maximum(a, b, out=pairs[:, 1])
+    return pairs
 
 
 def _columns(x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -292,49 +305,51 @@ def _pairs_intersect(corners: np.ndarray, t: np.ndarray, plane: np.ndarray, tol:
     # lie on one side of the other's plane cannot touch it. Pairs sharing corner V: if b's other
     # corners lie on one side of a's plane, b meets that plane in V alone, so a and b meet in V
     # alone. Neighbours across an edge never count.
-    k = np.flatnonzero(n_shared < 2)
+    k = (n_shared < 2).nonzero()[0]
     if not len(k):
         return hit
+    m = len(k)
+    # both ways at once, in one set of rows: a's corners against b's plane (the first m rows), then b's
+    # against a's (the sums of the tolerances commute exactly)
     ak, bk = a[k], b[k]
-    pa, pb = plane[ak], plane[bk]
-    tol_k = tol[ak] + tol[bk]
-    a_apart, side_a = _one_side(corners, ak, pb, tol_k * pb[:, 4], in_b[k])
-    b_apart, side_b = _one_side(corners, bk, pa, tol_k * pa[:, 4], in_a[k])
-    keep = ~(a_apart | b_apart)
+    face, other = np.concatenate([ak, bk]), np.concatenate([bk, ak])
+    po = plane[other]
+    shared = np.concatenate([in_b[k], in_a[k]])
+    apart, side = _one_side(corners, face, po, (tol[face] + tol[other]) * po[:, 4], shared)
+    keep = ~(apart[:m] | apart[m:])
     sub = k[keep]
     if len(sub):
-        hit[sub] = _pairs_intersect_exact(corners[a[sub]], corners[b[sub]], in_b[sub], in_a[sub], eps,
-                                          side_a[keep], side_b[keep])
+        both = np.concatenate([keep, keep])
+        hit[sub] = _pairs_intersect_exact(corners, face[both], other[both], shared[both], eps, side[both])
     return hit
 
 
-def _pairs_intersect_exact(ta: np.ndarray, tb: np.ndarray, in_b: np.ndarray, in_a: np.ndarray, eps: float,
-                           side_a: np.ndarray, side_b: np.ndarray) -> np.ndarray:
-    """Segment-triangle tests for pairs of triangles (corners (N, 3, 3); shared corners of a and of b (N, 3),
-    at most one a pair).
+def _pairs_intersect_exact(corners: np.ndarray, face: np.ndarray, other: np.ndarray, shared: np.ndarray,
+                           eps: float, side: np.ndarray) -> np.ndarray:
+    """Segment-triangle tests for N pairs of triangles, both ways: rows ``face`` (2 N,) of ``corners``
+    (T, 3, 3) against rows ``other`` (2 N,), the pairs' ``a`` against ``b`` in the first N rows, then ``b``
+    against ``a`` in the same order; ``shared`` (2 N, 3) the corners of ``face`` that are corners of
+    ``other`` (at most one a pair); the hit of every pair (N,).
 
-    ``side_a`` (N, 3) is the side of a's corners of b's plane (+1, -1, or 0 on it), ``side_b`` the
-    other way round: an edge whose ends lie beyond the plane on one side cannot cross the triangle.
+    ``side`` (2 N, 3) is the side of the corners of ``face`` of the plane of ``other`` (+1, -1, or 0 on
+    it): an edge whose ends lie beyond the plane on one side cannot cross the triangle.
     Pairs without a shared corner test every edge of each triangle against the other; pairs
     sharing one corner the edge opposite it. All the tests of all pairs go through one call of
     :func:`_segment_hits`.
     """
-    n = len(ta)
-    # both ways at once, a's edges against b first, then b's against a: the tests in the same order
-    tri = np.concatenate([ta, tb])
-    side = np.concatenate([side_a, side_b])
-    shared = np.concatenate([in_b, in_a])
+    n = len(face) // 2
     nxt = np.array([1, 2, 0])
     # edge k runs from corner k to corner k + 1; it can cross the other triangle only where its ends do
     # not lie beyond the other's plane on one side, and (a shared corner) only as the edge opposite it,
     # the one that touches no shared corner (pairs share at most one corner here)
     need = side * side[:, nxt] <= 0
     need &= ~(shared | shared[:, nxt])
-    r, k = np.nonzero(need)
+    r, k = need.nonzero()
     hit = np.zeros(2 * n, dtype=bool)
     if len(r):
-        corner = tri.reshape(-1, 3)
-        h = _segment_hits(corner[3 * r + k], corner[3 * r + nxt[k]], np.concatenate([tb, ta])[r], eps)
+        corner = corners.reshape(-1, 3)
+        fr = 3 * face[r]
+        h = _segment_hits(corner[fr + k], corner[fr + nxt[k]], corners[other[r]], eps)
         hit[r[h]] = True
     return hit[:n] | hit[n:]
 
