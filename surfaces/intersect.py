@@ -398,7 +398,8 @@ def _checked(vertices, triangles, empty: bool = False) -> tuple[np.ndarray, np.n
         t = t.reshape(0, 3)
     if t.ndim != 2 or t.shape[1] != 3 or not np.issubdtype(t.dtype, np.integer):
         raise ValueError(f"triangles: expected an integer array of shape (T, 3), got {t.shape} {t.dtype}")
-    if t.size and (t.min() < 0 or t.max() >= len(v)):
+    # one reduction for both bounds: a negative index read unsigned lies beyond any vertex count
+    if t.size and t.view(f"u{t.itemsize}").max() >= len(v):
         raise ValueError(f"triangles: indices must lie in [0, {len(v)})")
     return v, t.astype(np.int64, copy=False)
 
@@ -424,7 +425,7 @@ def _self_intersections(v: np.ndarray, t: np.ndarray, eps: float, first: bool) -
     size = np.maximum(np.maximum(extent[:, 0], extent[:, 1]), extent[:, 2])
     # a plane-distance tolerance far above rounding, far below any crossing the segment tests accept
     tol = (eps * 1e-3) * size
-    good = np.flatnonzero(area2 > 1e-12 * np.maximum(size, 1e-300) ** 2)
+    good = (area2 > 1e-12 * np.maximum(size, 1e-300) ** 2).nonzero()[0]
     found = []
     n_pairs = 0
     # each block of the broad phase goes through the narrow phase at once: with ``first``, the
@@ -464,7 +465,7 @@ def _edges_paired(a: np.ndarray, b: np.ndarray, n_vertices: int) -> bool:
         return False
     first, second = code[0::2], code[1::2]
     first += 1
-    return bool(np.array_equal(second, first) and np.all(second & 1))
+    return bool((second == first).all() and (second & 1).all())
 
 
 #: Relative spread of ``z`` (of the largest ``|z|``) within one level of :func:`fold_suspects`.
@@ -542,7 +543,7 @@ def _arc_suspects(t: np.ndarray, X: np.ndarray, Y: np.ndarray, group: np.ndarray
     """
     n_bands = len(once)
     suspect = np.zeros(len(t), dtype=bool)
-    worry = np.flatnonzero(worried)
+    worry = worried.nonzero()[0]
     if len(worry) > MAX_WORRIED_BANDS:
         return None
     # every face is looked at from the axis of each worried band within one of its group, all (face,
@@ -710,14 +711,14 @@ def _lattice_suspects(v: np.ndarray, t: np.ndarray, rows: int, cols: int, margin
             lo[end], hi[end] = min(lo[end], zc[on].min()), max(hi[end], zc[on].max())
     # each column (with the cap vertices of its end) one level of the general form: its values within
     # tol of each other, apart by more than tol from the next column's
-    if np.any(hi - lo > tol) or np.any(lo[1:] - hi[:-1] <= tol):
+    if (hi - lo > tol).any() or (lo[1:] - hi[:-1] <= tol).any():
         return None
     level = np.empty(len(v), dtype=np.int64)
     level[:n].reshape(rows, cols)[:] = np.arange(cols)
     level[n:] = np.where(cap_low, 0, cols - 1)
     tc = t[n_side:]
     lc = level[tc]
-    if np.any(lc[:, 0] != lc[:, 1]) or np.any(lc[:, 0] != lc[:, 2]):
+    if (lc[:, 0] != lc[:, 1]).any() or (lc[:, 0] != lc[:, 2]).any():
         return None
     # closed and oriented: the lattice's inner edges pair by construction, its two boundary rings and
     # the caps' (flat, so on the end levels where the lattice has boundary edges only) must pair up
@@ -741,7 +742,7 @@ def _lattice_suspects(v: np.ndarray, t: np.ndarray, rows: int, cols: int, margin
     cap_face_low = lc[:, 0] == 0
     for on in (cap_face_low, lc[:, 0] == top):
         area = turn[on]
-        if len(area) and not (np.all(area > tiny) or np.all(area < -tiny)):
+        if len(area) and not ((area > tiny).all() or (area < -tiny).all()):
             return None
     # the rings with the first repeated last, x and y stacked (2, R + 1, C): each ring's next is a view, not a
     # rolled copy, and one call serves both coordinates wherever they are treated alike
@@ -894,9 +895,9 @@ def _fold_suspects(v: np.ndarray, t: np.ndarray, margin: float = 1e-12) -> np.nd
     new_level = np.empty(len(zs), dtype=bool)
     new_level[0] = True
     np.greater(zs[1:] - zs[:-1], tol, out=new_level[1:])
-    starts = np.flatnonzero(new_level)
+    starts = new_level.nonzero()[0]
     # a chain of small steps must not make one level of a slope
-    if np.any(np.append(zs[starts[1:] - 1], zs[-1]) - zs[starts] > 4 * tol):
+    if (np.append(zs[starts[1:] - 1], zs[-1]) - zs[starts] > 4 * tol).any():
         return None
     # a vertex's level: the last level starting at or below its z (levels are apart by more than tol)
     level = np.searchsorted(zs[starts], z, side="right") - 1
@@ -908,20 +909,20 @@ def _fold_suspects(v: np.ndarray, t: np.ndarray, margin: float = 1e-12) -> np.nd
     high = np.maximum(np.maximum(l0, l1), l2)
     top = int(level.max())
     flat = high == low
-    if top < 1 or np.any(high - low > 1) or np.any(flat & (low != 0) & (low != top)):
+    if top < 1 or (high - low > 1).any() or (flat & (low != 0) & (low != top)).any():
         return None
     X, Y = v[:, 0] - v[:, 0].mean(), v[:, 1] - v[:, 1].mean()
     tiny = margin * (2.0 * max(float(np.abs(X).max()), float(np.abs(Y).max()))) ** 2
     for lvl in (0, top):
-        on = np.flatnonzero(flat & (low == lvl))
+        on = (flat & (low == lvl)).nonzero()[0]
         if len(on):
             c0, c1, c2 = t0[on], t1[on], t2[on]
             x0, y0 = X[c0], Y[c0]
             area = (X[c1] - x0) * (Y[c2] - y0) - (Y[c1] - y0) * (X[c2] - x0)
-            if not (np.all(area > tiny) or np.all(area < -tiny)):
+            if not ((area > tiny).all() or (area < -tiny).all()):
                 return None
     n_bands = top
-    band = np.flatnonzero(~flat)
+    band = (~flat).nonzero()[0]
     base = low[band]
     u0, u1, u2 = l0[band] > base, l1[band] > base, l2[band] > base
     n_up = u0.view(np.int8) + u1.view(np.int8) + u2.view(np.int8)
@@ -1020,7 +1021,7 @@ def _exact_on_suspects(vertices, t: np.ndarray, first: bool) -> np.ndarray:
         return _self_intersections(v, t, _EPS, first).faces
     out = np.zeros(len(t), dtype=bool)
     if suspects.any():
-        out[np.flatnonzero(suspects)] = _self_intersections(v, t[suspects], _EPS, first).faces
+        out[suspects] = _self_intersections(v, t[suspects], _EPS, first).faces
     return out
 
 
