@@ -629,7 +629,9 @@ def _lattice_arcs(xy: np.ndarray, worry: np.ndarray, cx: np.ndarray,
     face = np.empty((2, rows, n_pairs), dtype=np.int64)
     np.add(np.arange(0, rows * (cols - 1), cols - 1)[:, None], j, out=face[0])
     np.add(face[0], rows * (cols - 1), out=face[1])
-    return face.reshape(-1), np.broadcast_to(k, face.shape).ravel(), first.reshape(-1), count.reshape(-1)
+    band = np.empty((2 * rows, n_pairs), dtype=k.dtype)
+    band[:] = k
+    return face.reshape(-1), band.reshape(-1), first.reshape(-1), count.reshape(-1)
 
 
 def _lattice_shape(t: np.ndarray, n_vertices: int) -> tuple[int, int] | None:
@@ -762,9 +764,11 @@ def _lattice_suspects(v: np.ndarray, t: np.ndarray, rows: int, cols: int, margin
     area = w0.sum(axis=0) + w1.sum(axis=0)
     if (area == 0).any():
         return None
-    cx = (((dx + mnx) * w0).sum(axis=0) + ((mx + dx) * w1).sum(axis=0)) / (3.0 * area)
-    cy = (((dy + mny) * w0).sum(axis=0) + ((my + dy) * w1).sum(axis=0)) / (3.0 * area)
-    axis = np.stack([cx, cy])[:, None]
+    # the band axes written into one (2, 1, C - 1) array, which the rings are then seen from at once
+    axis = np.empty((2, 1, cols - 1))
+    cx, cy = axis[0, 0], axis[1, 0]
+    np.divide(((dx + mnx) * w0).sum(axis=0) + ((mx + dx) * w1).sum(axis=0), 3.0 * area, out=cx)
+    np.divide(((dy + mny) * w0).sum(axis=0) + ((my + dy) * w1).sum(axis=0), 3.0 * area, out=cy)
     sign = np.sign(area)
     way = 1 if (sign > 0).all() else -1 if (sign < 0).all() else 0
     # the rings seen from the axes of the bands below (q1) and above (q0) them, (R + 1, C - 1) each
