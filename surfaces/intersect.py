@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from surfaces.mesh import _grid_triangles
+from surfaces.mesh import _KEPT_LATTICE, _grid_triangles, _kept_triangles
 from surfaces.validate import as_array
 
 __all__ = ["SelfIntersections", "candidate_pairs", "fold_suspects", "folded_faces", "is_fold_free",
@@ -650,7 +650,10 @@ def _lattice_shape(t: np.ndarray, n_vertices: int) -> tuple[int, int] | None:
     rows = int(np.argmax(last[:, 1] < last[:, 0])) + 1
     if rows < 3 or rows * cols > n_vertices or 2 * rows * (cols - 1) > len(t):
         return None
-    if not np.array_equal(t[:2 * rows * (cols - 1)], _grid_triangles(rows, cols, True, False)):
+    # compared with the lattice's triangles as surfaces.mesh keeps them per shape (read-only; no copy to make)
+    lattice = (_kept_triangles(rows, cols, True, False) if rows * cols <= _KEPT_LATTICE
+               else _grid_triangles(rows, cols, True, False))
+    if not (t[:2 * rows * (cols - 1)] == lattice).all():
         return None
     return rows, cols
 
