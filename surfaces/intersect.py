@@ -479,6 +479,10 @@ ANGLE_BINS = 1024
 #: fixed cost outweighs the gathers it spares; both forms give the same suspects).
 LATTICE_MIN_FACES = 5000
 
+#: Up to this many bad faces' arcs, :func:`fold_suspects` compares every arc with them directly, without the
+#: table of taken bins (both give the same suspects).
+FEW_BAD_ARCS = 8
+
 #: Above this many bands with faces turning back, :func:`fold_suspects` gives up (the exact test is as cheap).
 MAX_WORRIED_BANDS = 1024
 
@@ -577,21 +581,33 @@ def _arc_suspects(t: np.ndarray, X: np.ndarray, Y: np.ndarray, group: np.ndarray
             f, k, first, count = f_side, k_side, first_side, count_side
     w = slot[k]
     # a bad face marks the bins of its arc about its own band's axis (a full arc: all of them)
-    bad = bad_face[f] & (group[f] == k)
-    cover = np.zeros((len(worry), 2 * ANGLE_BINS + 1), dtype=np.int32)
-    np.add.at(cover, (w[bad], first[bad]), 1)
-    np.add.at(cover, (w[bad], first[bad] + count[bad]), -1)
-    cover = cover.cumsum(axis=1)[:, :2 * ANGLE_BINS]
-    taken = (cover[:, :ANGLE_BINS] + cover[:, ANGLE_BINS:]) > 0
-    # the taken bins counted over two turns: the second turn's counts are the first's plus a whole turn's
-    prefix = np.zeros((len(worry), 2 * ANGLE_BINS + 1), dtype=np.int32)
-    turn = prefix[:, 1:ANGLE_BINS + 1]
-    taken.cumsum(axis=1, out=turn)
-    np.add(turn, turn[:, -1:], out=prefix[:, ANGLE_BINS + 1:])
-    # gathered from the flat table (one index a pick, not (row, column) pairs)
-    at = w * (2 * ANGLE_BINS + 1) + first
-    flat = prefix.reshape(-1)
-    hit = (flat[at + count] - flat[at] > 0) | ~once[k]
+    bad = (bad_face[f] & (group[f] == k)).nonzero()[0]
+    if len(bad) <= FEW_BAD_ARCS:
+        # a few bad arcs: each (face, band) arc compared with the bad arcs of its band at once. Two arcs of
+        # whole bins on the circle share a bin exactly when one starts within the other: the same answer as
+        # the table of taken bins below
+        # ((B, F) tables: the long axis last)
+        bw, bf, bc = w[bad, None], first[bad, None], count[bad, None]
+        meet = ((bf - first) & (ANGLE_BINS - 1)) < count
+        meet |= ((first - bf) & (ANGLE_BINS - 1)) < bc
+        meet &= w == bw
+        hit = meet.any(axis=0)
+    else:
+        cover = np.zeros((len(worry), 2 * ANGLE_BINS + 1), dtype=np.int32)
+        np.add.at(cover, (w[bad], first[bad]), 1)
+        np.add.at(cover, (w[bad], first[bad] + count[bad]), -1)
+        cover = cover.cumsum(axis=1)[:, :2 * ANGLE_BINS]
+        taken = (cover[:, :ANGLE_BINS] + cover[:, ANGLE_BINS:]) > 0
+        # the taken bins counted over two turns: the second turn's counts are the first's plus a whole turn's
+        prefix = np.zeros((len(worry), 2 * ANGLE_BINS + 1), dtype=np.int32)
+        turn = prefix[:, 1:ANGLE_BINS + 1]
+        taken.cumsum(axis=1, out=turn)
+        np.add(turn, turn[:, -1:], out=prefix[:, ANGLE_BINS + 1:])
+        # gathered from the flat table (one index a pick, not (row, column) pairs)
+        at = w * (2 * ANGLE_BINS + 1) + first
+        flat = prefix.reshape(-1)
+        hit = flat[at + count] - flat[at] > 0
+    hit |= ~once[k]
     suspect[f[hit]] = True
     return suspect
 
