@@ -479,9 +479,9 @@ ANGLE_BINS = 1024
 #: fixed cost outweighs the gathers it spares; both forms give the same suspects).
 LATTICE_MIN_FACES = 5000
 
-#: Up to this many bad faces' arcs, :func:`fold_suspects` compares every arc with them directly, without the
-#: table of taken bins (both give the same suspects).
-FEW_BAD_ARCS = 8
+#: Up to this many (arc, bad arc) pairs, :func:`fold_suspects` compares every arc with the bad faces' arcs
+#: directly, without the table of taken bins (both give the same suspects; beyond, the table is cheaper).
+DIRECT_ARC_PAIRS = 1 << 15
 
 #: Above this many bands with faces turning back, :func:`fold_suspects` gives up (the exact test is as cheap).
 MAX_WORRIED_BANDS = 1024
@@ -582,7 +582,7 @@ def _arc_suspects(t: np.ndarray, X: np.ndarray, Y: np.ndarray, group: np.ndarray
     w = slot[k]
     # a bad face marks the bins of its arc about its own band's axis (a full arc: all of them)
     bad = (bad_face[f] & (group[f] == k)).nonzero()[0]
-    if len(bad) <= FEW_BAD_ARCS:
+    if len(bad) * len(f) <= DIRECT_ARC_PAIRS:
         # a few bad arcs: each (face, band) arc compared with the bad arcs of its band at once. Two arcs of
         # whole bins on the circle share a bin exactly when one starts within the other: the same answer as
         # the table of taken bins below

@@ -200,9 +200,9 @@ def test_few_bad_arcs_compared_directly_give_the_table_of_taken_bins(monkeypatch
                 moved = rng.choice(len(v), size=int(rng.integers(1, 12)), replace=False)
                 v[moved, :2] += rng.normal(0, scale, (len(moved), 2))
                 got = []
-                for few in (-1, 10**9):  # the table always, the direct comparison always
+                for pairs in (-1, 10**12):  # the table always, the direct comparison always
                     with monkeypatch.context() as m:
-                        m.setattr(si, "FEW_BAD_ARCS", few)
+                        m.setattr(si, "DIRECT_ARC_PAIRS", pairs)
                         got.append(_both_forms(monkeypatch, v, mesh.triangles))
                 assert _same(got[0][0], got[1][0]) and _same(got[0][1], got[1][1])
                 n_bad += got[0][1] is not None and bool(got[0][1].any())
