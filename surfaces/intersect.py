@@ -771,11 +771,16 @@ def _lattice_suspects(v: np.ndarray, t: np.ndarray, rows: int, cols: int, margin
     xy[0, :rows], xy[1, :rows] = X[:n].reshape(rows, cols), Y[:n].reshape(rows, cols)
     xy[:, rows] = xy[:, 0]
     xs, ys, xn, yn = xy[0, :-1], xy[1, :-1], xy[0, 1:], xy[1, 1:]
-    # the cut of band h at mid-height: M_g -> D_g (face (a, c, d) of cell g), D_g -> M_{g+1} (face (a, b, c))
-    me = xy[:, :, 1:] + xy[:, :, :-1]
-    me /= 2.0
-    d = xy[:, :-1, :-1] + xy[:, 1:, 1:]
-    d /= 2.0
+    # the cut of band h at mid-height: M_g -> D_g (face (a, c, d) of cell g), D_g -> M_{g+1} (face (a, b, c)),
+    # one closed chain a column, M_g in the even rows and D_g in the odd ones (2, 2 R + 1, C - 1), so that its
+    # edges are consecutive rows; written in place, in a buffer that then takes the rings seen from the axes
+    # (a few large arrays fewer: fresh ones cost page faults)
+    buffer = np.empty((2, 2 * rows + 2, cols - 1))
+    chain = buffer[:, :-1]
+    me, d = chain[:, 0::2], chain[:, 1::2]
+    np.add(xy[:, :, 1:], xy[:, :, :-1], out=me)
+    np.add(xy[:, :-1, :-1], xy[:, 1:, 1:], out=d)
+    chain /= 2.0
     mx, my, mnx, mny = me[0, :-1], me[1, :-1], me[0, 1:], me[1, 1:]
     dx, dy = d[0], d[1]
     w0 = dx * mny - dy * mnx
@@ -790,8 +795,15 @@ def _lattice_suspects(v: np.ndarray, t: np.ndarray, rows: int, cols: int, margin
     np.divide(((dy + mny) * w0).sum(axis=0) + ((my + dy) * w1).sum(axis=0), 3.0 * area, out=cy)
     sign = np.sign(area)
     way = 1 if (sign > 0).all() else -1 if (sign < 0).all() else 0
-    # the rings seen from the axes of the bands below (q1) and above (q0) them, (R + 1, C - 1) each
-    qe0, qe1 = xy[:, :, :-1] - axis, xy[:, :, 1:] - axis
+    # the cut's winding about the axis: its points seen from it
+    chain -= axis
+    once = _winds_once(chain[0], chain[1])
+    # the rings seen from the axes of the bands below (q1) and above (q0) them, (2, R + 1, C - 1) each, in the
+    # chain's buffer
+    qe = buffer.reshape(2, 2, rows + 1, cols - 1)
+    qe0, qe1 = qe
+    np.subtract(xy[:, :, :-1], axis, out=qe0)
+    np.subtract(xy[:, :, 1:], axis, out=qe1)
     q0x, q0y, q0nx, q0ny = qe0[0, :-1], qe0[1, :-1], qe0[0, 1:], qe0[1, 1:]
     q1x, q1y, q1nx, q1ny = qe1[0, :-1], qe1[1, :-1], qe1[0, 1:], qe1[1, 1:]
     ex, ey = xn - xs, yn - ys
@@ -800,12 +812,6 @@ def _lattice_suspects(v: np.ndarray, t: np.ndarray, rows: int, cols: int, margin
     good0 &= _beyond(way, sign, q1nx * ey[:, :-1] - q1ny * ex[:, :-1], None)
     good1 = _beyond(way, sign, q1x * q1ny - q1y * q1nx, tiny)
     good1 &= _beyond(way, sign, q0x * ey[:, 1:] - q0y * ex[:, 1:], None)
-    # the cut's winding about the axis: its points seen from it, one closed chain a column, M_g in the even
-    # rows and D_g in the odd ones (2, 2 R + 1, C - 1), so that its edges are consecutive rows
-    chain = np.empty((2, 2 * rows + 1, cols - 1))
-    np.subtract(me, axis, out=chain[:, 0::2])
-    np.subtract(d, axis, out=chain[:, 1::2])
-    once = _winds_once(chain[0], chain[1])
     worried = ~once | ~good0.all(axis=0) | ~good1.all(axis=0)
     if not worried.any():
         return np.zeros(len(t), dtype=bool)
