@@ -526,10 +526,21 @@ def _wrapped_arcs(phi0: np.ndarray, d1: np.ndarray, d2: np.ndarray) -> tuple[np.
 
 
 def _bins(low: np.ndarray, length: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """First bin and bin count (F,) of arcs, widened by one bin each side (rounding of the angles)."""
-    first = np.floor((low + np.pi) / (2 * np.pi) * ANGLE_BINS).astype(np.int64) - 1
-    count = np.ceil(length / (2 * np.pi) * ANGLE_BINS).astype(np.int64) + 3
+    """First bin and bin count (F,) of arcs, widened by one bin each side (rounding of the angles).
+
+    ``low`` and ``length`` are fresh arrays (of :func:`_wrapped_arcs`), overwritten: the operations run in
+    place, the same ones in the same order as ``(low + pi) / (2 pi) * bins``.
+    """
     full = length >= np.pi * (1 - 1e-9)
+    low += np.pi
+    low /= 2 * np.pi
+    low *= ANGLE_BINS
+    first = np.floor(low, out=low).astype(np.int64)
+    first -= 1
+    length /= 2 * np.pi
+    length *= ANGLE_BINS
+    count = np.ceil(length).astype(np.int64)
+    count += 3
     # the bins a power of two: the modulo of a two's complement integer is its low bits (no division)
     np.bitwise_and(first, ANGLE_BINS - 1, out=first)
     return np.where(full, 0, first), np.where(full, ANGLE_BINS, np.minimum(count, ANGLE_BINS))
@@ -586,10 +597,11 @@ def _arc_suspects(t: np.ndarray, X: np.ndarray, Y: np.ndarray, group: np.ndarray
         # a few bad arcs: each (face, band) arc compared with the bad arcs of its band at once. Two arcs of
         # whole bins on the circle share a bin exactly when one starts within the other: the same answer as
         # the table of taken bins below
-        # ((B, F) tables: the long axis last)
-        bw, bf, bc = w[bad, None], first[bad, None], count[bad, None]
-        meet = ((bf - first) & (ANGLE_BINS - 1)) < count
-        meet |= ((first - bf) & (ANGLE_BINS - 1)) < bc
+        # ((B, F) tables: the long axis last; the bins in int16, a quarter of the bytes to write)
+        first16, count16 = first.astype(np.int16), count.astype(np.int16)
+        bw, bf, bc = w[bad, None], first16[bad, None], count16[bad, None]
+        meet = ((bf - first16) & (ANGLE_BINS - 1)) < count16
+        meet |= ((first16 - bf) & (ANGLE_BINS - 1)) < bc
         meet &= w == bw
         hit = meet.any(axis=0)
     else:
