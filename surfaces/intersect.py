@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from surfaces.mesh import _grid_triangles
+from surfaces.mesh import _KEPT_LATTICE, _grid_triangles, _kept_triangles
 from surfaces.validate import as_array
 
 __all__ = ["SelfIntersections", "candidate_pairs", "fold_suspects", "folded_faces", "is_fold_free",
@@ -135,13 +135,14 @@ def _candidate_blocks(c: np.ndarray, box: tuple | None = None) -> Iterator[np.nd
         # every pair's boxes compared at once: cheaper than the grid and the sweep on a few faces
         # as an (n, n) table: broadcasting costs less than gathering both boxes of every pair
         # (the upper triangle by one comparison of indices: np.triu builds a mask and copies)
+        # (the six comparisons in one call: lo_a <= hi_b and -hi_a <= -lo_b along each axis, negating exactly,
+        # with the boxes' six coordinates along the first axis of the table, contiguous, so that its rows are long)
+        low = np.concatenate([lo, -hi], axis=1).T.copy()
+        high = np.concatenate([hi, -lo], axis=1).T.copy()
+        meet = (low[:, :, None] <= high[:, None, :]).all(axis=0)
         idx = np.arange(len(c))
-        meet = idx[:, None] < idx
-        for k in range(3):
-            meet &= lo[:, None, k] <= hi[None, :, k]
-            meet &= hi[:, None, k] >= lo[None, :, k]
-        a, b = np.nonzero(meet)  # np.argwhere's pairs, without its wrapper
-        yield np.stack([a, b], axis=1)
+        meet &= idx[:, None] < idx
+        yield _pair_rows(*meet.nonzero())  # np.argwhere's pairs, without its wrapper
         return
     span = hi.max(axis=0) - lo.min(axis=0)
     axis = int(np.argmax(span))
@@ -159,7 +160,7 @@ def _candidate_blocks(c: np.ndarray, box: tuple | None = None) -> Iterator[np.nd
         keep = (lo[a, grid[0]] <= hi[b, grid[0]]) & (lo[b, grid[0]] <= hi[a, grid[0]])
         keep &= (lo[a, grid[1]] <= hi[b, grid[1]]) & (lo[b, grid[1]] <= hi[a, grid[1]])
         a, b = a[keep], b[keep]
-        yield np.stack([np.minimum(a, b), np.maximum(a, b)], axis=1)
+        yield _pair_rows(a, b, ordered=False)
         return
     cell = np.maximum(np.median(hi[:, grid] - lo[:, grid], axis=0), span[grid] * 1e-6 + 1e-300)
     # a few huge triangles would otherwise cover millions of cells: coarsen until bounded
@@ -201,8 +202,20 @@ def _candidate_blocks(c: np.ndarray, box: tuple | None = None) -> Iterator[np.nd
         for k in (1, 2):
             keep &= (ba[:, k] <= bb[:, k + 3]) & (bb[:, k] <= ba[:, k + 3])
         a, b = a[keep], b[keep]
-        yield np.stack([np.minimum(a, b), np.maximum(a, b)], axis=1)
+        yield _pair_rows(a, b, ordered=False)
         start = stop
+
+
+def _pair_rows(a: np.ndarray, b: np.ndarray, ordered: bool = True) -> np.ndarray:
+    """Pairs (P, 2) int64 of face indices ``a``, ``b`` (P,); unless ``ordered``, each pair's lower index
+    first. Written column by column into one array: cheaper than np.stack on a few hundred pairs."""
+    pairs = np.empty((len(a), 2), dtype=np.int64)
+    if ordered:
+        pairs[:, 0], pairs[:, 1] = a, b
+    else:
+        np.minimum(a, b, out=pairs[:, 0])
+        np.maximum(a, b, out=pairs[:, 1])
+    return pairs
 
 
 def _columns(x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -292,49 +305,51 @@ def _pairs_intersect(corners: np.ndarray, t: np.ndarray, plane: np.ndarray, tol:
     # lie on one side of the other's plane cannot touch it. Pairs sharing corner V: if b's other
     # corners lie on one side of a's plane, b meets that plane in V alone, so a and b meet in V
     # alone. Neighbours across an edge never count.
-    k = np.flatnonzero(n_shared < 2)
+    k = (n_shared < 2).nonzero()[0]
     if not len(k):
         return hit
+    m = len(k)
+    # both ways at once, in one set of rows: a's corners against b's plane (the first m rows), then b's
+    # against a's (the sums of the tolerances commute exactly)
     ak, bk = a[k], b[k]
-    pa, pb = plane[ak], plane[bk]
-    tol_k = tol[ak] + tol[bk]
-    a_apart, side_a = _one_side(corners, ak, pb, tol_k * pb[:, 4], in_b[k])
-    b_apart, side_b = _one_side(corners, bk, pa, tol_k * pa[:, 4], in_a[k])
-    keep = ~(a_apart | b_apart)
+    face, other = np.concatenate([ak, bk]), np.concatenate([bk, ak])
+    po = plane[other]
+    shared = np.concatenate([in_b[k], in_a[k]])
+    apart, side = _one_side(corners, face, po, (tol[face] + tol[other]) * po[:, 4], shared)
+    keep = ~(apart[:m] | apart[m:])
     sub = k[keep]
     if len(sub):
-        hit[sub] = _pairs_intersect_exact(corners[a[sub]], corners[b[sub]], in_b[sub], in_a[sub], eps,
-                                          side_a[keep], side_b[keep])
+        both = np.concatenate([keep, keep])
+        hit[sub] = _pairs_intersect_exact(corners, face[both], other[both], shared[both], eps, side[both])
     return hit
 
 
-def _pairs_intersect_exact(ta: np.ndarray, tb: np.ndarray, in_b: np.ndarray, in_a: np.ndarray, eps: float,
-                           side_a: np.ndarray, side_b: np.ndarray) -> np.ndarray:
-    """Segment-triangle tests for pairs of triangles (corners (N, 3, 3); shared corners of a and of b (N, 3),
-    at most one a pair).
+def _pairs_intersect_exact(corners: np.ndarray, face: np.ndarray, other: np.ndarray, shared: np.ndarray,
+                           eps: float, side: np.ndarray) -> np.ndarray:
+    """Segment-triangle tests for N pairs of triangles, both ways: rows ``face`` (2 N,) of ``corners``
+    (T, 3, 3) against rows ``other`` (2 N,), the pairs' ``a`` against ``b`` in the first N rows, then ``b``
+    against ``a`` in the same order; ``shared`` (2 N, 3) the corners of ``face`` that are corners of
+    ``other`` (at most one a pair); the hit of every pair (N,).
 
-    ``side_a`` (N, 3) is the side of a's corners of b's plane (+1, -1, or 0 on it), ``side_b`` the
-    other way round: an edge whose ends lie beyond the plane on one side cannot cross the triangle.
+    ``side`` (2 N, 3) is the side of the corners of ``face`` of the plane of ``other`` (+1, -1, or 0 on
+    it): an edge whose ends lie beyond the plane on one side cannot cross the triangle.
     Pairs without a shared corner test every edge of each triangle against the other; pairs
     sharing one corner the edge opposite it. All the tests of all pairs go through one call of
     :func:`_segment_hits`.
     """
-    n = len(ta)
-    # both ways at once, a's edges against b first, then b's against a: the tests in the same order
-    tri = np.concatenate([ta, tb])
-    side = np.concatenate([side_a, side_b])
-    shared = np.concatenate([in_b, in_a])
+    n = len(face) // 2
     nxt = np.array([1, 2, 0])
     # edge k runs from corner k to corner k + 1; it can cross the other triangle only where its ends do
     # not lie beyond the other's plane on one side, and (a shared corner) only as the edge opposite it,
     # the one that touches no shared corner (pairs share at most one corner here)
     need = side * side[:, nxt] <= 0
     need &= ~(shared | shared[:, nxt])
-    r, k = np.nonzero(need)
+    r, k = need.nonzero()
     hit = np.zeros(2 * n, dtype=bool)
     if len(r):
-        corner = tri.reshape(-1, 3)
-        h = _segment_hits(corner[3 * r + k], corner[3 * r + nxt[k]], np.concatenate([tb, ta])[r], eps)
+        corner = corners.reshape(-1, 3)
+        fr = 3 * face[r]
+        h = _segment_hits(corner[fr + k], corner[fr + nxt[k]], corners[other[r]], eps)
         hit[r[h]] = True
     return hit[:n] | hit[n:]
 
@@ -383,7 +398,8 @@ def _checked(vertices, triangles, empty: bool = False) -> tuple[np.ndarray, np.n
         t = t.reshape(0, 3)
     if t.ndim != 2 or t.shape[1] != 3 or not np.issubdtype(t.dtype, np.integer):
         raise ValueError(f"triangles: expected an integer array of shape (T, 3), got {t.shape} {t.dtype}")
-    if t.size and (t.min() < 0 or t.max() >= len(v)):
+    # one reduction for both bounds: a negative index read unsigned lies beyond any vertex count
+    if t.size and t.view(f"u{t.itemsize}").max() >= len(v):
         raise ValueError(f"triangles: indices must lie in [0, {len(v)})")
     return v, t.astype(np.int64, copy=False)
 
@@ -409,7 +425,7 @@ def _self_intersections(v: np.ndarray, t: np.ndarray, eps: float, first: bool) -
     size = np.maximum(np.maximum(extent[:, 0], extent[:, 1]), extent[:, 2])
     # a plane-distance tolerance far above rounding, far below any crossing the segment tests accept
     tol = (eps * 1e-3) * size
-    good = np.flatnonzero(area2 > 1e-12 * np.maximum(size, 1e-300) ** 2)
+    good = (area2 > 1e-12 * np.maximum(size, 1e-300) ** 2).nonzero()[0]
     found = []
     n_pairs = 0
     # each block of the broad phase goes through the narrow phase at once: with ``first``, the
@@ -449,7 +465,7 @@ def _edges_paired(a: np.ndarray, b: np.ndarray, n_vertices: int) -> bool:
         return False
     first, second = code[0::2], code[1::2]
     first += 1
-    return bool(np.array_equal(second, first) and np.all(second & 1))
+    return bool((second == first).all() and (second & 1).all())
 
 
 #: Relative spread of ``z`` (of the largest ``|z|``) within one level of :func:`fold_suspects`.
@@ -462,6 +478,10 @@ ANGLE_BINS = 1024
 #: From this many faces on, :func:`fold_suspects` takes the lattice form where it applies (on fewer, its
 #: fixed cost outweighs the gathers it spares; both forms give the same suspects).
 LATTICE_MIN_FACES = 5000
+
+#: Up to this many (arc, bad arc) pairs, :func:`fold_suspects` compares every arc with the bad faces' arcs
+#: directly, without the table of taken bins (both give the same suspects; beyond, the table is cheaper).
+DIRECT_ARC_PAIRS = 1 << 15
 
 #: Above this many bands with faces turning back, :func:`fold_suspects` gives up (the exact test is as cheap).
 MAX_WORRIED_BANDS = 1024
@@ -491,7 +511,11 @@ def _wrap(d: np.ndarray) -> np.ndarray:
 def _steps_arcs(phi0: np.ndarray, d1: np.ndarray, d2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """:func:`_arcs` of triangles from the angle of one corner and the differences to the other two's
     (fresh arrays, wrapped in place), all of one shape (rad)."""
-    d1, d2 = _wrap(d1), _wrap(d2)
+    return _wrapped_arcs(phi0, _wrap(d1), _wrap(d2))
+
+
+def _wrapped_arcs(phi0: np.ndarray, d1: np.ndarray, d2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_steps_arcs` of differences ``d1``, ``d2`` already in [-pi, pi) (rad)."""
     low = np.minimum(d1, d2)
     np.minimum(low, 0.0, out=low)
     high = np.maximum(d1, d2)
@@ -502,10 +526,21 @@ def _steps_arcs(phi0: np.ndarray, d1: np.ndarray, d2: np.ndarray) -> tuple[np.nd
 
 
 def _bins(low: np.ndarray, length: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """First bin and bin count (F,) of arcs, widened by one bin each side (rounding of the angles)."""
-    first = np.floor((low + np.pi) / (2 * np.pi) * ANGLE_BINS).astype(np.int64) - 1
-    count = np.ceil(length / (2 * np.pi) * ANGLE_BINS).astype(np.int64) + 3
+    """First bin and bin count (F,) of arcs, widened by one bin each side (rounding of the angles).
+
+    ``low`` and ``length`` are fresh arrays (of :func:`_wrapped_arcs`), overwritten: the operations run in
+    place, the same ones in the same order as ``(low + pi) / (2 pi) * bins``.
+    """
     full = length >= np.pi * (1 - 1e-9)
+    low += np.pi
+    low /= 2 * np.pi
+    low *= ANGLE_BINS
+    first = np.floor(low, out=low).astype(np.int64)
+    first -= 1
+    length /= 2 * np.pi
+    length *= ANGLE_BINS
+    count = np.ceil(length).astype(np.int64)
+    count += 3
     # the bins a power of two: the modulo of a two's complement integer is its low bits (no division)
     np.bitwise_and(first, ANGLE_BINS - 1, out=first)
     return np.where(full, 0, first), np.where(full, ANGLE_BINS, np.minimum(count, ANGLE_BINS))
@@ -513,16 +548,17 @@ def _bins(low: np.ndarray, length: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def _arc_suspects(t: np.ndarray, X: np.ndarray, Y: np.ndarray, group: np.ndarray, bad_face: np.ndarray,
                   once: np.ndarray, worried: np.ndarray, cx: np.ndarray, cy: np.ndarray,
-                  rings: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray | None:
+                  rings: np.ndarray | None = None) -> np.ndarray | None:
     """The suspects of :func:`fold_suspects` from its per-face groups and bad faces and its per-band axes.
 
-    ``rings``: the ``x`` and ``y`` (R, C) of a mesh of :func:`_lattice_shape`, whose side faces are then
+    ``rings``: the ``x`` and ``y`` (2, R + 1, C) of a mesh of :func:`_lattice_shape` (its first ring repeated
+    last), whose side faces are then
     seen from the axes through the angles of their rings' vertices (each once per ring and axis, not
     once per corner; the same angles).
     """
     n_bands = len(once)
     suspect = np.zeros(len(t), dtype=bool)
-    worry = np.flatnonzero(worried)
+    worry = worried.nonzero()[0]
     if len(worry) > MAX_WORRIED_BANDS:
         return None
     # every face is looked at from the axis of each worried band within one of its group, all (face,
@@ -532,72 +568,98 @@ def _arc_suspects(t: np.ndarray, X: np.ndarray, Y: np.ndarray, group: np.ndarray
     near = worried.copy()  # bands within one of a worried band
     near[1:] |= worried[:-1]
     near[:-1] |= worried[1:]
-    n_side = 0 if rings is None else 2 * rings[0].shape[0] * n_bands
-    seen = n_side + np.flatnonzero(near[group[n_side:]])
-    faces, bands = [], []
-    for step in (-1, 0, 1):
-        k = group[seen] + step
-        ok = np.flatnonzero((k >= 0) & (k < n_bands))
-        ok = ok[slot[k[ok]] >= 0]
-        faces.append(seen[ok])
-        bands.append(k[ok])
-    f, k = np.concatenate(faces), np.concatenate(bands)
-    tf = t[f]
-    first, count = _bins(*_arcs(X[tf], Y[tf], cx[k], cy[k]))
+    n_side = 0 if rings is None else 2 * (rings.shape[1] - 1) * n_bands
+    seen = n_side + near[group[n_side:]].nonzero()[0]
+    if len(seen) or rings is None:
+        faces, bands = [], []
+        for step in (-1, 0, 1):
+            k = group[seen] + step
+            ok = ((k >= 0) & (k < n_bands)).nonzero()[0]
+            ok = ok[slot[k[ok]] >= 0]
+            faces.append(seen[ok])
+            bands.append(k[ok])
+        f, k = np.concatenate(faces), np.concatenate(bands)
+        tf = t[f]
+        first, count = _bins(*_arcs(X[tf], Y[tf], cx[k], cy[k]))
     if rings is not None:
-        f_side, k_side, first_side, count_side = _lattice_arcs(rings[0], rings[1], worry, cx, cy)
-        f, k = np.concatenate([f_side, f]), np.concatenate([k_side, k])
-        first, count = np.concatenate([first_side, first]), np.concatenate([count_side, count])
+        f_side, k_side, first_side, count_side = _lattice_arcs(rings, worry, cx, cy)
+        if len(seen):
+            f, k = np.concatenate([f_side, f]), np.concatenate([k_side, k])
+            first, count = np.concatenate([first_side, first]), np.concatenate([count_side, count])
+        else:
+            # no cap face lies near a worried band (the worried bands are inner ones): the side faces alone,
+            # without some thirty calls on empty arrays
+            f, k, first, count = f_side, k_side, first_side, count_side
     w = slot[k]
     # a bad face marks the bins of its arc about its own band's axis (a full arc: all of them)
-    bad = bad_face[f] & (group[f] == k)
-    cover = np.zeros((len(worry), 2 * ANGLE_BINS + 1), dtype=np.int32)
-    np.add.at(cover, (w[bad], first[bad]), 1)
-    np.add.at(cover, (w[bad], first[bad] + count[bad]), -1)
-    cover = cover.cumsum(axis=1)[:, :2 * ANGLE_BINS]
-    taken = (cover[:, :ANGLE_BINS] + cover[:, ANGLE_BINS:]) > 0
-    # the taken bins counted over two turns: the second turn's counts are the first's plus a whole turn's
-    prefix = np.zeros((len(worry), 2 * ANGLE_BINS + 1), dtype=np.int32)
-    turn = prefix[:, 1:ANGLE_BINS + 1]
-    taken.cumsum(axis=1, out=turn)
-    np.add(turn, turn[:, -1:], out=prefix[:, ANGLE_BINS + 1:])
-    # gathered from the flat table (one index a pick, not (row, column) pairs)
-    at = w * (2 * ANGLE_BINS + 1) + first
-    flat = prefix.reshape(-1)
-    hit = (flat[at + count] - flat[at] > 0) | ~once[k]
+    bad = (bad_face[f] & (group[f] == k)).nonzero()[0]
+    if len(bad) * len(f) <= DIRECT_ARC_PAIRS:
+        # a few bad arcs: each (face, band) arc compared with the bad arcs of its band at once. Two arcs of
+        # whole bins on the circle share a bin exactly when one starts within the other: the same answer as
+        # the table of taken bins below
+        # ((B, F) tables: the long axis last; the bins in int16, a quarter of the bytes to write)
+        first16, count16 = first.astype(np.int16), count.astype(np.int16)
+        bw, bf, bc = w[bad, None], first16[bad, None], count16[bad, None]
+        meet = ((bf - first16) & (ANGLE_BINS - 1)) < count16
+        meet |= ((first16 - bf) & (ANGLE_BINS - 1)) < bc
+        meet &= w == bw
+        hit = meet.any(axis=0)
+    else:
+        cover = np.zeros((len(worry), 2 * ANGLE_BINS + 1), dtype=np.int32)
+        np.add.at(cover, (w[bad], first[bad]), 1)
+        np.add.at(cover, (w[bad], first[bad] + count[bad]), -1)
+        cover = cover.cumsum(axis=1)[:, :2 * ANGLE_BINS]
+        taken = (cover[:, :ANGLE_BINS] + cover[:, ANGLE_BINS:]) > 0
+        # the taken bins counted over two turns: the second turn's counts are the first's plus a whole turn's
+        prefix = np.zeros((len(worry), 2 * ANGLE_BINS + 1), dtype=np.int32)
+        turn = prefix[:, 1:ANGLE_BINS + 1]
+        taken.cumsum(axis=1, out=turn)
+        np.add(turn, turn[:, -1:], out=prefix[:, ANGLE_BINS + 1:])
+        # gathered from the flat table (one index a pick, not (row, column) pairs)
+        at = w * (2 * ANGLE_BINS + 1) + first
+        flat = prefix.reshape(-1)
+        hit = flat[at + count] - flat[at] > 0
+    hit |= ~once[k]
     suspect[f[hit]] = True
     return suspect
 
 
-def _lattice_arcs(xs: np.ndarray, ys: np.ndarray, worry: np.ndarray, cx: np.ndarray,
+def _lattice_arcs(xy: np.ndarray, worry: np.ndarray, cx: np.ndarray,
                   cy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """The (face, band) pairs of :func:`_arc_suspects` for the side faces of a lattice (x, y (R, C)).
+    """The (face, band) pairs of :func:`_arc_suspects` for the side faces of a lattice (x and y (2, R + 1, C),
+    the first ring repeated last).
 
     Each band ``j`` within one of a worried band ``k``, its faces seen from ``k``'s axis: their
     indices, ``k``, and their arcs' first bin and bin count (as :func:`_bins` of :func:`_arcs`), all
     (2 R P,) for the P pairs.
     """
-    rows, cols = xs.shape
+    rows, cols = xy.shape[1] - 1, xy.shape[2]
     j = (worry[:, None] + np.arange(-1, 2)).ravel()
     k = np.repeat(worry, 3)
     ok = (j >= 0) & (j < cols - 1)
     j, k = j[ok], k[ok]
-    # the angles of rings j and j + 1 about k's axis, (R + 1, P) each, the first ring repeated last
-    low = np.arctan2(ys[:, j] - cy[k], xs[:, j] - cx[k])
-    high = np.arctan2(ys[:, j + 1] - cy[k], xs[:, j + 1] - cx[k])
-    low, high = np.vstack([low, low[:1]]), np.vstack([high, high[:1]])
-    a, low_n, high_n, high = low[:-1], low[1:], high[1:], high[:-1]
+    n_pairs = len(j)
+    # the angles of rings j (first P columns) and j + 1 (last P) about k's axis, (R + 1, 2 P), in one pass
+    pick = np.concatenate([j, j + 1])
+    at = np.concatenate([k, k])
+    angle = np.arctan2(xy[1][:, pick] - cy[at], xy[0][:, pick] - cx[at])
+    low, high = angle[:, :n_pairs], angle[:, n_pairs:]
+    a = low[:-1]
     # cell g's faces (a, b, c) = ((g, j), (g + 1, j), (g + 1, j + 1)), (a, c, d) = ((g, j), (g + 1, j + 1), (g, j + 1)):
-    # the angles of b, c, d less a's, c's shared by both
-    to_c = high_n - a
-    # the two faces' low ends and lengths each one contiguous block, as _bins reads them
-    low_ends, lengths = np.empty((2, 2) + a.shape)
-    low_ends[0], lengths[0] = _steps_arcs(a, low_n - a, to_c.copy())
-    low_ends[1], lengths[1] = _steps_arcs(a, to_c, high - a)
-    first, count = _bins(low_ends, lengths)
-    cell = np.arange(rows)[:, None] * (cols - 1) + j
-    face = np.stack([cell, cell + rows * (cols - 1)])
-    return face.ravel(), np.broadcast_to(k, face.shape).ravel(), first.ravel(), count.ravel()
+    # the angles of b, c, d less a's, c's shared by both; both faces' two steps in one (2, 2, R, P) block,
+    # so that each step of _steps_arcs is one call for both faces
+    step = np.empty((2, 2, rows, n_pairs))
+    np.subtract(low[1:], a, out=step[0, 0])
+    np.subtract(high[1:], a, out=step[0, 1])
+    step[1, 0] = step[0, 1]
+    np.subtract(high[:-1], a, out=step[1, 1])
+    first, count = _bins(*_wrapped_arcs(a, *_wrap(step).swapaxes(0, 1)))
+    face = np.empty((2, rows, n_pairs), dtype=np.int64)
+    np.add(np.arange(0, rows * (cols - 1), cols - 1)[:, None], j, out=face[0])
+    np.add(face[0], rows * (cols - 1), out=face[1])
+    band = np.empty((2 * rows, n_pairs), dtype=k.dtype)
+    band[:] = k
+    return face.reshape(-1), band.reshape(-1), first.reshape(-1), count.reshape(-1)
 
 
 def _lattice_shape(t: np.ndarray, n_vertices: int) -> tuple[int, int] | None:
@@ -616,17 +678,20 @@ def _lattice_shape(t: np.ndarray, n_vertices: int) -> tuple[int, int] | None:
     rows = int(np.argmax(last[:, 1] < last[:, 0])) + 1
     if rows < 3 or rows * cols > n_vertices or 2 * rows * (cols - 1) > len(t):
         return None
-    if not np.array_equal(t[:2 * rows * (cols - 1)], _grid_triangles(rows, cols, True, False)):
+    # compared with the lattice's triangles as surfaces.mesh keeps them per shape (read-only; no copy to make)
+    lattice = (_kept_triangles(rows, cols, True, False) if rows * cols <= _KEPT_LATTICE
+               else _grid_triangles(rows, cols, True, False))
+    if not (t[:2 * rows * (cols - 1)] == lattice).all():
         return None
     return rows, cols
 
 
-def _beyond(sign: np.ndarray, e: np.ndarray, bound: float | None) -> np.ndarray:
+def _beyond(way: int, sign: np.ndarray, e: np.ndarray, bound: float | None) -> np.ndarray:
     """``sign * e > bound`` (``>= 0`` for None) for band signs ``sign`` (C,) of ``e`` (R, C), without the products
-    when every band turns one way (negating is exact)."""
-    if np.all(sign > 0):
+    when every band turns one way (``way`` +1 or -1, else 0; negating is exact)."""
+    if way > 0:
         return e >= 0 if bound is None else e > bound
-    if np.all(sign < 0):
+    if way < 0:
         return e <= 0 if bound is None else e < -bound
     return sign * e >= 0 if bound is None else sign * e > bound
 
@@ -647,17 +712,14 @@ def _crossings(px: np.ndarray, py: np.ndarray, qx: np.ndarray, qy: np.ndarray) -
     return at, (up & (turn > 0)).view(np.int8) - (~up & (turn < 0)).view(np.int8)
 
 
-def _winds_once(mx: np.ndarray, my: np.ndarray, dx: np.ndarray, dy: np.ndarray, mnx: np.ndarray,
-                mny: np.ndarray) -> np.ndarray:
-    """Whether the closed chains ``M_g -> D_g -> M_{g+1}`` (points relative to their column's axis, (R, B)
-    each, one chain per column) wind once about the axis, either way (:func:`_crossings`); (B,) bool."""
-    n_bands = mx.shape[1]
-    winding = np.zeros(n_bands)
-    for chain in ((mx, my, dx, dy), (dx, dy, mnx, mny)):
-        # on the flat rows (contiguous): one index an edge, cheaper to find and gather than (row, band) pairs
-        (at,), step = _crossings(*(c.reshape(-1) for c in chain))
-        winding += np.bincount(at % n_bands, step, n_bands)
-    return np.abs(winding) == 1
+def _winds_once(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Whether the closed chains of points ``(x, y)`` (N + 1, B) (relative to their column's axis, one chain per
+    column running down its rows, the last row the first again) wind once about the axis, either way
+    (:func:`_crossings`); (B,) bool."""
+    n_bands = x.shape[1]
+    # on the flat rows (contiguous): one index an edge, cheaper to find and gather than (row, band) pairs
+    (at,), step = _crossings(x[:-1].reshape(-1), y[:-1].reshape(-1), x[1:].reshape(-1), y[1:].reshape(-1))
+    return np.abs(np.bincount(at % n_bands, step, n_bands)) == 1
 
 
 def _lattice_suspects(v: np.ndarray, t: np.ndarray, rows: int, cols: int, margin: float) -> np.ndarray | None:
@@ -682,14 +744,14 @@ def _lattice_suspects(v: np.ndarray, t: np.ndarray, rows: int, cols: int, margin
             lo[end], hi[end] = min(lo[end], zc[on].min()), max(hi[end], zc[on].max())
     # each column (with the cap vertices of its end) one level of the general form: its values within
     # tol of each other, apart by more than tol from the next column's
-    if np.any(hi - lo > tol) or np.any(lo[1:] - hi[:-1] <= tol):
+    if (hi - lo > tol).any() or (lo[1:] - hi[:-1] <= tol).any():
         return None
     level = np.empty(len(v), dtype=np.int64)
     level[:n].reshape(rows, cols)[:] = np.arange(cols)
     level[n:] = np.where(cap_low, 0, cols - 1)
     tc = t[n_side:]
     lc = level[tc]
-    if np.any(lc[:, 0] != lc[:, 1]) or np.any(lc[:, 0] != lc[:, 2]):
+    if (lc[:, 0] != lc[:, 1]).any() or (lc[:, 0] != lc[:, 2]).any():
         return None
     # closed and oriented: the lattice's inner edges pair by construction, its two boundary rings and
     # the caps' (flat, so on the end levels where the lattice has boundary edges only) must pair up
@@ -713,56 +775,65 @@ def _lattice_suspects(v: np.ndarray, t: np.ndarray, rows: int, cols: int, margin
     cap_face_low = lc[:, 0] == 0
     for on in (cap_face_low, lc[:, 0] == top):
         area = turn[on]
-        if len(area) and not (np.all(area > tiny) or np.all(area < -tiny)):
+        if len(area) and not ((area > tiny).all() or (area < -tiny).all()):
             return None
-    # the rings with the first repeated last (R + 1, C): each ring's next is a view, not a rolled copy
-    xe, ye = np.empty((rows + 1, cols)), np.empty((rows + 1, cols))
-    xe[:rows], ye[:rows] = X[:n].reshape(rows, cols), Y[:n].reshape(rows, cols)
-    xe[rows], ye[rows] = xe[0], ye[0]
-    xs, ys, xn, yn = xe[:-1], ye[:-1], xe[1:], ye[1:]
-    # the cut of band h at mid-height: M_g -> D_g (face (a, c, d) of cell g), D_g -> M_{g+1} (face (a, b, c))
-    mex, mey = xe[:, 1:] + xe[:, :-1], ye[:, 1:] + ye[:, :-1]
-    mex /= 2.0
-    mey /= 2.0
-    mx, my, mnx, mny = mex[:-1], mey[:-1], mex[1:], mey[1:]
-    dx, dy = xs[:, :-1] + xn[:, 1:], ys[:, :-1] + yn[:, 1:]
-    dx /= 2.0
-    dy /= 2.0
+    # the rings with the first repeated last, x and y stacked (2, R + 1, C): each ring's next is a view, not a
+    # rolled copy, and one call serves both coordinates wherever they are treated alike
+    xy = np.empty((2, rows + 1, cols))
+    xy[0, :rows], xy[1, :rows] = X[:n].reshape(rows, cols), Y[:n].reshape(rows, cols)
+    xy[:, rows] = xy[:, 0]
+    xs, ys, xn, yn = xy[0, :-1], xy[1, :-1], xy[0, 1:], xy[1, 1:]
+    # the cut of band h at mid-height: M_g -> D_g (face (a, c, d) of cell g), D_g -> M_{g+1} (face (a, b, c)),
+    # one closed chain a column, M_g in the even rows and D_g in the odd ones (2, 2 R + 1, C - 1), so that its
+    # edges are consecutive rows; written in place, in a buffer that then takes the rings seen from the axes
+    # (a few large arrays fewer: fresh ones cost page faults)
+    buffer = np.empty((2, 2 * rows + 2, cols - 1))
+    chain = buffer[:, :-1]
+    me, d = chain[:, 0::2], chain[:, 1::2]
+    np.add(xy[:, :, 1:], xy[:, :, :-1], out=me)
+    np.add(xy[:, :-1, :-1], xy[:, 1:, 1:], out=d)
+    chain /= 2.0
+    mx, my, mnx, mny = me[0, :-1], me[1, :-1], me[0, 1:], me[1, 1:]
+    dx, dy = d[0], d[1]
     w0 = dx * mny - dy * mnx
     w1 = mx * dy - my * dx
     area = w0.sum(axis=0) + w1.sum(axis=0)
-    if np.any(area == 0):
+    if (area == 0).any():
         return None
-    cx = (((dx + mnx) * w0).sum(axis=0) + ((mx + dx) * w1).sum(axis=0)) / (3.0 * area)
-    cy = (((dy + mny) * w0).sum(axis=0) + ((my + dy) * w1).sum(axis=0)) / (3.0 * area)
+    # the band axes written into one (2, 1, C - 1) array, which the rings are then seen from at once
+    axis = np.empty((2, 1, cols - 1))
+    cx, cy = axis[0, 0], axis[1, 0]
+    np.divide(((dx + mnx) * w0).sum(axis=0) + ((mx + dx) * w1).sum(axis=0), 3.0 * area, out=cx)
+    np.divide(((dy + mny) * w0).sum(axis=0) + ((my + dy) * w1).sum(axis=0), 3.0 * area, out=cy)
     sign = np.sign(area)
-    # the rings seen from the axes of the bands below (q1) and above (q0) them, (R + 1, C - 1) each
-    qe0x, qe0y = xe[:, :-1] - cx, ye[:, :-1] - cy
-    qe1x, qe1y = xe[:, 1:] - cx, ye[:, 1:] - cy
-    q0x, q0y, q0nx, q0ny = qe0x[:-1], qe0y[:-1], qe0x[1:], qe0y[1:]
-    q1x, q1y, q1nx, q1ny = qe1x[:-1], qe1y[:-1], qe1x[1:], qe1y[1:]
+    way = 1 if (sign > 0).all() else -1 if (sign < 0).all() else 0
+    # the cut's winding about the axis: its points seen from it
+    chain -= axis
+    once = _winds_once(chain[0], chain[1])
+    # the rings seen from the axes of the bands below (q1) and above (q0) them, (2, R + 1, C - 1) each, in the
+    # chain's buffer
+    qe = buffer.reshape(2, 2, rows + 1, cols - 1)
+    qe0, qe1 = qe
+    np.subtract(xy[:, :, :-1], axis, out=qe0)
+    np.subtract(xy[:, :, 1:], axis, out=qe1)
+    q0x, q0y, q0nx, q0ny = qe0[0, :-1], qe0[1, :-1], qe0[0, 1:], qe0[1, 1:]
+    q1x, q1y, q1nx, q1ny = qe1[0, :-1], qe1[1, :-1], qe1[0, 1:], qe1[1, 1:]
     ex, ey = xn - xs, yn - ys
     # face (a, b, c): edge on ring h, lone corner (g + 1, h + 1); face (a, c, d): edge on ring h + 1, lone (g, h)
-    good0 = _beyond(sign, q0x * q0ny - q0y * q0nx, tiny)
-    good0 &= _beyond(sign, q1nx * ey[:, :-1] - q1ny * ex[:, :-1], None)
-    good1 = _beyond(sign, q1x * q1ny - q1y * q1nx, tiny)
-    good1 &= _beyond(sign, q0x * ey[:, 1:] - q0y * ex[:, 1:], None)
-    # the cut's winding about the axis: M_g and D_g seen from it, M_{g+1} a view of the next row
-    mex -= cx
-    mey -= cy
-    dx -= cx
-    dy -= cy
-    once = _winds_once(mx, my, dx, dy, mnx, mny)
+    good0 = _beyond(way, sign, q0x * q0ny - q0y * q0nx, tiny)
+    good0 &= _beyond(way, sign, q1nx * ey[:, :-1] - q1ny * ex[:, :-1], None)
+    good1 = _beyond(way, sign, q1x * q1ny - q1y * q1nx, tiny)
+    good1 &= _beyond(way, sign, q0x * ey[:, 1:] - q0y * ex[:, 1:], None)
     worried = ~once | ~good0.all(axis=0) | ~good1.all(axis=0)
     if not worried.any():
         return np.zeros(len(t), dtype=bool)
-    group = np.empty(len(t), dtype=np.int64)
+    group = np.empty(len(t), dtype=np.int32)  # half the bytes of a fresh array (the bands fit)
     group[:n_side].reshape(2 * rows, cols - 1)[:] = np.arange(cols - 1)
     group[n_side:] = np.where(cap_face_low, 0, cols - 2)
     bad_face = np.zeros(len(t), dtype=bool)
     bad_face[:n_side // 2] = ~good0.ravel()
     bad_face[n_side // 2:n_side] = ~good1.ravel()
-    return _arc_suspects(t, X, Y, group, bad_face, once, worried, cx, cy, (xs, ys))
+    return _arc_suspects(t, X, Y, group, bad_face, once, worried, cx, cy, xy)
 
 
 def fold_suspects(vertices, triangles, *, margin: float = 1e-12) -> np.ndarray | None:
@@ -865,9 +936,9 @@ def _fold_suspects(v: np.ndarray, t: np.ndarray, margin: float = 1e-12) -> np.nd
     new_level = np.empty(len(zs), dtype=bool)
     new_level[0] = True
     np.greater(zs[1:] - zs[:-1], tol, out=new_level[1:])
-    starts = np.flatnonzero(new_level)
+    starts = new_level.nonzero()[0]
     # a chain of small steps must not make one level of a slope
-    if np.any(np.append(zs[starts[1:] - 1], zs[-1]) - zs[starts] > 4 * tol):
+    if (np.append(zs[starts[1:] - 1], zs[-1]) - zs[starts] > 4 * tol).any():
         return None
     # a vertex's level: the last level starting at or below its z (levels are apart by more than tol)
     level = np.searchsorted(zs[starts], z, side="right") - 1
@@ -879,20 +950,20 @@ def _fold_suspects(v: np.ndarray, t: np.ndarray, margin: float = 1e-12) -> np.nd
     high = np.maximum(np.maximum(l0, l1), l2)
     top = int(level.max())
     flat = high == low
-    if top < 1 or np.any(high - low > 1) or np.any(flat & (low != 0) & (low != top)):
+    if top < 1 or (high - low > 1).any() or (flat & (low != 0) & (low != top)).any():
         return None
     X, Y = v[:, 0] - v[:, 0].mean(), v[:, 1] - v[:, 1].mean()
     tiny = margin * (2.0 * max(float(np.abs(X).max()), float(np.abs(Y).max()))) ** 2
     for lvl in (0, top):
-        on = np.flatnonzero(flat & (low == lvl))
+        on = (flat & (low == lvl)).nonzero()[0]
         if len(on):
             c0, c1, c2 = t0[on], t1[on], t2[on]
             x0, y0 = X[c0], Y[c0]
             area = (X[c1] - x0) * (Y[c2] - y0) - (Y[c1] - y0) * (X[c2] - x0)
-            if not (np.all(area > tiny) or np.all(area < -tiny)):
+            if not ((area > tiny).all() or (area < -tiny).all()):
                 return None
     n_bands = top
-    band = np.flatnonzero(~flat)
+    band = (~flat).nonzero()[0]
     base = low[band]
     u0, u1, u2 = l0[band] > base, l1[band] > base, l2[band] > base
     n_up = u0.view(np.int8) + u1.view(np.int8) + u2.view(np.int8)
@@ -991,7 +1062,7 @@ def _exact_on_suspects(vertices, t: np.ndarray, first: bool) -> np.ndarray:
         return _self_intersections(v, t, _EPS, first).faces
     out = np.zeros(len(t), dtype=bool)
     if suspects.any():
-        out[np.flatnonzero(suspects)] = _self_intersections(v, t[suspects], _EPS, first).faces
+        out[suspects] = _self_intersections(v, t[suspects], _EPS, first).faces
     return out
 
 

@@ -185,6 +185,30 @@ def test_lattice_form_clears_what_the_general_form_clears(monkeypatch):
     assert n_suspect >= 5  # on meshes with suspects too
 
 
+def test_few_bad_arcs_compared_directly_give_the_table_of_taken_bins(monkeypatch):
+    """The suspects from the direct comparison of every arc with a few bad ones are the suspects from the
+    table of taken bins, in both forms, on perturbed body meshes with bad faces."""
+    import surfaces.intersect as si
+    monkeypatch.setattr(si, "LATTICE_MIN_FACES", 0)
+    rng = np.random.default_rng(5)
+    n_bad = 0
+    for trial in range(6):
+        contours = [Contour(2.0 * k, _star(rng, int(rng.integers(24, 60)), 1.0 + trial)) for k in range(4)]
+        for _, mesh in _body_meshes(contours, 2.0, ("flat", "half", "dome")[trial % 3]):
+            for scale in (0.05, 0.3, 1.0):
+                v = mesh.vertices.copy()
+                moved = rng.choice(len(v), size=int(rng.integers(1, 12)), replace=False)
+                v[moved, :2] += rng.normal(0, scale, (len(moved), 2))
+                got = []
+                for pairs in (-1, 10**12):  # the table always, the direct comparison always
+                    with monkeypatch.context() as m:
+                        m.setattr(si, "DIRECT_ARC_PAIRS", pairs)
+                        got.append(_both_forms(monkeypatch, v, mesh.triangles))
+                assert _same(got[0][0], got[1][0]) and _same(got[0][1], got[1][1])
+                n_bad += got[0][1] is not None and bool(got[0][1].any())
+    assert n_bad >= 5  # exercised on meshes with bad faces
+
+
 def test_lattice_form_declines_what_is_not_a_lattice(monkeypatch):
     """A lattice whose triangles are shuffled or whose rings leave their level goes to the general form."""
     import surfaces.intersect as si
