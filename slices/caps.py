@@ -440,7 +440,7 @@ def _triangulate_ccw(xy: np.ndarray) -> np.ndarray:
     rel = xy - xy.sum(axis=0) / n
     ang = np.arctan2(rel[:, 1], rel[:, 0])
     turn = (ang - _previous(ang) + np.pi) % (2 * np.pi) - np.pi
-    if np.all(turn > 0) and turn.sum() > np.pi:
+    if (turn > 0).all() and turn.sum() > np.pi:
         return _fan(n)
     return np.asarray(manifold3d.triangulate([xy]), dtype=np.int64).reshape(-1, 3)
 
@@ -505,7 +505,7 @@ def _cap_polygon(xy: np.ndarray, inset: bool = True) -> tuple[np.ndarray, np.nda
     # the fan from the mean: the outline's area (sum over count: numpy's mean, without its wrappers)
     mean = xy.sum(axis=0) / n
     d0, d1 = xy - mean, following - mean
-    total = 0.5 * float(np.sum(d0[:, 0] * d1[:, 1] - d0[:, 1] * d1[:, 0]))
+    total = 0.5 * float((d0[:, 0] * d1[:, 1] - d0[:, 1] * d1[:, 0]).sum())
     distance = CAP_INSET * _median(edge) if inset else 0.0
     smallest = 1e-9 * max(1.0, float(np.abs(xy).max()))
     mitre = _inset_directions(step, edge) if distance > smallest else None
@@ -520,7 +520,7 @@ def _cap_polygon(xy: np.ndarray, inset: bool = True) -> tuple[np.ndarray, np.nda
             pts, tri = np.vstack([xy, inner]), np.concatenate([_strip(n), tri + n])
         s = _signed_areas(pts, tri)
         # a valid inset: no triangle turned over and no overlap (the areas add up to the outline's)
-        if np.all(s > 0) and abs(0.5 * float(s.sum()) - total) <= 1e-9 * abs(total) + 1e-12:
+        if (s > 0).all() and abs(0.5 * float(s.sum()) - total) <= 1e-9 * abs(total) + 1e-12:
             return pts, tri
         distance /= 2
     tri = _triangulate_ccw(xy)
@@ -896,7 +896,7 @@ def weld_flat_caps(side: TriangleMesh, grid: CappedGrid, samples: int,
     zv = side.vertices[:, 2]
     tol = 1e-7 * max(1.0, float(side.vertices.max()), -float(side.vertices.min()))
     low, high = grid.end_planes
-    rim = np.flatnonzero((np.abs(zv - low) < tol) | (np.abs(zv - high) < tol))
+    rim = ((np.abs(zv - low) < tol) | (np.abs(zv - high) < tol)).nonzero()[0]
     caps = [_planar_cap_mesh(c, samples, s, inset) for c, s in grid.flat_caps]
     merged = merge_meshes([side] + caps)
     candidates = np.concatenate([rim, np.arange(side.n_vertices, merged.n_vertices)])
@@ -969,7 +969,7 @@ def _rim_weld_map(merged: TriangleMesh, side: TriangleMesh, caps: list, flat_cap
     if not in_rim[partner].all():  # the spatial weld joins candidates only
         return None
     d = verts[boundary] - verts[partner]
-    if not np.all(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2] <= (tol / 2) ** 2):
+    if not (d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2] <= (tol / 2) ** 2).all():
         return None
     apart = np.zeros(len(verts), dtype=bool)
     for idx in others + [partner]:

@@ -290,7 +290,7 @@ def points_apart(points: np.ndarray, distance: float) -> bool:
     proj.sort()
     # the rounding of the projection stays far below 1e-12 of the largest coordinate
     slack = 1e-12 * max(1.0, float(np.abs(points).max()))
-    return bool(np.all(np.diff(proj) > distance + slack))
+    return bool((proj[1:] - proj[:-1] > distance + slack).all())
 
 
 def weld_map(points: np.ndarray, tolerance: float, candidates=None) -> np.ndarray:
