@@ -846,18 +846,22 @@ def grid_integrals(grid: CappedGrid, order: int = 5) -> tuple[float, float]:
     low_h, high_h = grid.extrusions
     first, stop = side.start + (low_h > 0), side.stop - (high_h > 0)
     volume, area = side_integrals(ctrl[:, first:stop], order) if stop > first else (0.0, 0.0)
-    # the side's end curves (the extrusions' far ends), the caps' outlines; their areas are curve_area's
-    ends = np.stack([ctrl[:, side.start, :, 0], ctrl[:, side.stop - 1, :, 3]])
-    n_seg = ends.shape[1]
-    a_low, a_high = _curve_area(ends[0]), _curve_area(ends[1])
+    # the side's end curves (the extrusions' far ends), the caps' outlines, copied coordinate-major:
+    # x and y (2 ends, M, 4) each contiguous, for their areas (curve_area's) and their tangents
+    n_seg = ctrl.shape[0]
+    ends = np.empty((2, 2, n_seg, 4))
+    ends[:, 0] = ctrl[:, side.start, :, 0, :2].transpose(2, 0, 1)
+    ends[:, 1] = ctrl[:, side.stop - 1, :, 3, :2].transpose(2, 0, 1)
+    x, y = ends.reshape(2, 2 * n_seg, 4)
+    a_low, a_high = ((x @ _AREA_FORM) * y).reshape(2, -1).sum(axis=1).tolist()
     if side.start > 0:
-        volume -= float(ends[0, 0, 0, 2]) * a_low
+        volume -= float(ctrl[0, side.start, 0, 0, 2]) * a_low
     if side.stop < ctrl.shape[1]:
-        volume += float(ends[1, 0, 0, 2]) * a_high
+        volume += float(ctrl[0, side.stop - 1, 0, 3, 2]) * a_high
     if low_h or high_h:
         # the tangents of both curves at the Gauss nodes, one product a coordinate, (2 M, order) each
         tangent, node_weights = _gauss_tangents(int(order))
-        tx, ty = ends[..., 0].reshape(-1, 4) @ tangent, ends[..., 1].reshape(-1, 4) @ tangent
+        tx, ty = x @ tangent, y @ tangent
         length = np.sqrt(tx * tx + ty * ty) @ node_weights
         area += low_h * float(np.sum(length[:n_seg])) + high_h * float(np.sum(length[n_seg:]))
     area += sum(abs(a_low if out_z < 0 else a_high) for _, out_z in grid.flat_caps)
