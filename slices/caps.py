@@ -116,7 +116,7 @@ def _fan_apex(c: np.ndarray, p: np.ndarray) -> np.ndarray:
     sampled = c[:, :, :2].transpose(2, 0, 1) @ _APEX_MATRIX
     (qx, qy), (tx, ty) = (sampled[:, :, :APEX_SAMPLES].reshape(2, -1), sampled[:, :, APEX_SAMPLES:].reshape(2, -1))
     length = np.sqrt(tx * tx + ty * ty)
-    keep = np.flatnonzero(length > 1e-12 * max(1.0, float(length.max(initial=0.0))))
+    keep = (length > 1e-12 * max(1.0, float(length.max(initial=0.0)))).nonzero()[0]
     if len(keep) < len(length):  # tangents that vanish (cusps, repeated points) say nothing
         qx, qy, length, tx, ty = qx[keep], qy[keep], length[keep], tx[keep], ty[keep]
     tx, ty = tx / length, ty / length
@@ -125,7 +125,7 @@ def _fan_apex(c: np.ndarray, p: np.ndarray) -> np.ndarray:
     # cross(q - p, t) > 0, i.e. a . p < b with a = (t_y, -t_x), b = cross(q, t); the half-planes
     # a are built only when p is not inside them all
     b = orient * (qx * ty - qy * tx)
-    if np.all(orient * (ty * p[0] - tx * p[1]) < b):
+    if (orient * (ty * p[0] - tx * p[1]) < b).all():
         return p
     a = np.empty((len(keep), 2))
     a[:, 0], a[:, 1] = orient * ty, orient * -tx
@@ -246,7 +246,7 @@ def _fan_points(curve: np.ndarray, center: np.ndarray, toward_center: bool) -> n
     weighted value: the same rounding as the product itself), then the centre added.
     """
     rows = (curve - center).reshape(-1, 3) @ _FAN_MATRIX[bool(toward_center)]
-    rows += np.tile(center, 4)
+    rows.reshape(-1, 4, 3)[...] += center  # broadcast over the four b (np.tile's copy costs more)
     return rows.reshape(len(curve), 4, 4, 3)
 
 
@@ -374,7 +374,7 @@ def curve_area(curve) -> float:
 
 def _curve_area(c: np.ndarray) -> float:
     """:func:`curve_area` of a validated curve (M, 4, 3) (one built from checked ones)."""
-    return float(np.sum((c[:, :, 0] @ _AREA_FORM) * c[:, :, 1]))
+    return float(((c[:, :, 0] @ _AREA_FORM) * c[:, :, 1]).sum())
 
 
 #: Width of the flat band round a flat cap's inner ring, as a fraction of the median boundary edge.
@@ -785,11 +785,11 @@ def _close_grid(control: np.ndarray, bottom: np.ndarray, top: np.ndarray, low_ce
         top = control[:, stop - 1, :, 3]
     flat = []
     if low != "dome":
-        control[:, 0] = _fan_points(bottom, np.append(_fan_apex(bottom, low_center), bottom[0, 0, 2]), False)
+        control[:, 0] = _fan_points(bottom, np.concatenate((_fan_apex(bottom, low_center), bottom[0, 0, 2:])), False)
         if low != "none":
             flat.append((bottom, -1.0))
     if high != "dome":
-        control[:, stop] = _fan_points(top, np.append(_fan_apex(top, high_center), top[0, 0, 2]), True)
+        control[:, stop] = _fan_points(top, np.concatenate((_fan_apex(top, high_center), top[0, 0, 2:])), True)
         if high != "none":
             flat.append((top, 1.0))
     return CappedGrid(control, slice(first, stop), tuple(flat), (float(bottom[0, 0, 2]), float(top[0, 0, 2])),
