@@ -676,7 +676,7 @@ def tessellate(patches: BezierPatches, samples: int | tuple[int, int] = PATCH_SA
             edge[[0, -1], :] = True
         if last_v:
             edge[:, [0, -1]] = True
-        candidates = np.flatnonzero(edge.ravel() | collapsed)
+        candidates = (edge.ravel() | collapsed).nonzero()[0]
         # the lattice's triangles have three distinct corners where each closed direction has two
         # samples or more: when no candidates merge, weld would return the mesh as it is
         distinct = (n_u > 1 or not patches.closed_u) and (n_v > 1 or not patches.closed_v)
@@ -710,7 +710,7 @@ def _lattice_normals(patches: BezierPatches, du: np.ndarray, dv: np.ndarray, n_v
     # |du|^2 |dv|^2 <= 9 max|du_i|^2 max|dv_i|^2 (with a margin for rounding): where the normal is longer
     # than that allows, it has not collapsed
     bound = 9.0001 * max(float(du.max()), -float(du.min())) ** 2 * max(float(dv.max()), -float(dv.min())) ** 2
-    suspect = np.flatnonzero(length2 <= 1e-20 * max(bound, 1e-300))
+    suspect = (length2 <= 1e-20 * max(bound, 1e-300)).nonzero()[0]
     collapsed = np.zeros(len(du), dtype=bool)
     if len(suspect):
         (ax, ay, az), (bx, by, bz) = du[suspect].T, dv[suspect].T
@@ -725,7 +725,11 @@ def _lattice_normals(patches: BezierPatches, du: np.ndarray, dv: np.ndarray, n_v
         length2[collapsed] = 1.0
     # every other normal is longer than zero
     with np.errstate(invalid="ignore", divide="ignore"):
-        normal /= np.sqrt(length2)[:, None]
+        length = np.sqrt(length2, out=length2)
+        # a component at a time: the strided columns divide faster than numpy's broadcast over (N, 3)
+        nx /= length
+        ny /= length
+        nz /= length
     return normal, collapsed
 
 
