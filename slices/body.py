@@ -9,6 +9,7 @@ closed forms on the caps), the deviation at the control points and the triangle 
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -151,7 +152,10 @@ _SINGLE_ERROR = 2.0**-18
 
 def _samples(median: float) -> int:
     """Subdivisions for a median control polygon length (mm)."""
-    return int(np.clip(np.ceil(median / EDGE_MM), 1, MAX_SAMPLES))
+    x = median / EDGE_MM
+    if 0.0 < x < MAX_SAMPLES:  # the usual case in plain Python (numpy's clip of a scalar costs ~3 us)
+        return math.ceil(x)
+    return int(np.clip(np.ceil(x), 1, MAX_SAMPLES))
 
 
 def mesh_samples(control: np.ndarray, budget: int = MESH_BUDGET) -> tuple[int, int]:
