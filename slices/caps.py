@@ -950,7 +950,8 @@ def _rim_weld_map(merged: TriangleMesh, side: TriangleMesh, caps: list, flat_cap
     weld tolerance of its rim vertex and no two other candidates (rim, rim partners, the caps' other
     vertices) lie within three tolerances (then no other pair is close enough to merge), checked by
     :func:`surfaces.mesh.points_apart`. None when either check fails (a side that is not such a
-    lattice, points that nearly coincide): then the spatial weld decides.
+    lattice, points that nearly coincide): then the spatial weld decides. ``rim``: distinct indices of
+    the side's vertices in its end planes.
     """
     verts = merged.vertices
     tol = _weld_tolerance(verts)  # the spatial weld's own
@@ -975,10 +976,9 @@ def _rim_weld_map(merged: TriangleMesh, side: TriangleMesh, caps: list, flat_cap
     d = verts[boundary] - verts[partner]
     if not (d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2] <= (tol / 2) ** 2).all():
         return None
-    apart = np.zeros(len(verts), dtype=bool)
-    for idx in others + [partner]:
-        apart[idx] = True
-    if not points_apart(verts[apart], 3 * tol):
+    # the partners are rim vertices (checked above): the candidates are the rim (distinct indices, as
+    # weld_flat_caps finds them) and the caps' other vertices, each once
+    if not points_apart(verts[np.concatenate(others)], 3 * tol):
         return None
     rep[boundary] = partner
     return rep
