@@ -425,7 +425,7 @@ def build_body_once(body: Body, spacing: float, options: SurfaceOptions | None =
     z = body.z
     low, high = capmod.end_kinds(opts.caps, body.start, body.stop, n_contours=len(z))
     d = positive(spacing, "spacing")
-    if len(z) > 1 and np.any(np.abs(np.diff(z) - d) > SPACING_RTOL * d):
+    if len(z) > 1 and (np.abs(z[1:] - z[:-1] - d) > SPACING_RTOL * d).any():
         d = float(np.median(np.diff(z)))
     sc = slice_curves([c.points for c in body.contours], z, opts.n_rays, body_lattice_size(body, opts.lattice_factor),
                       start_angle=opts.start_angle, correspondence=opts.correspondence,
@@ -472,7 +472,7 @@ def build_body_once(body: Body, spacing: float, options: SurfaceOptions | None =
     # the largest distance as the root of the largest sum of squares (np.linalg.norm's sum, in its order)
     gap = node_eval(j, kk) - pts
     gap *= gap
-    dev = float(np.sqrt(np.max(gap[:, 0] + gap[:, 1] + gap[:, 2])))
+    dev = math.sqrt(float((gap[:, 0] + gap[:, 1] + gap[:, 2]).max()))
     tri_mesh = display = density = None
     if mesh:
         if opts.samples:

@@ -15,6 +15,7 @@ watertight, consistently oriented mesh. Vertex normals come from the patches
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from functools import lru_cache
 
@@ -376,7 +377,8 @@ def _weld_tolerance(verts: np.ndarray) -> float:
     # the extents from a coordinate-major copy: numpy reduces an (N, 3) array along its first axis, or
     # along one of its strided columns, several times slower
     by_coordinate = np.ascontiguousarray(verts.T)
-    diag = float(np.linalg.norm(by_coordinate.max(axis=1) - by_coordinate.min(axis=1)))
+    extent = by_coordinate.max(axis=1) - by_coordinate.min(axis=1)
+    diag = math.sqrt(float(extent.dot(extent)))  # np.linalg.norm's own steps, without its wrapper
     return 1e-9 * max(diag, 1e-300)
 
 
