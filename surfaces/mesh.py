@@ -319,10 +319,6 @@ def weld_map(points: np.ndarray, tolerance: float, candidates=None) -> np.ndarra
     >>> weld_map(np.array([[0.0, 0, 0], [1, 0, 0], [0, 0, 1e-12]]), 1e-9).tolist()
     [0, 1, 0]
     """
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-    from scipy.spatial import cKDTree
-
     n = len(points)
     if candidates is None:
         idx = np.arange(n)
@@ -332,6 +328,11 @@ def weld_map(points: np.ndarray, tolerance: float, candidates=None) -> np.ndarra
             idx = np.unique(idx)
     if points_apart(points[idx], tolerance):
         return np.arange(n, dtype=np.int64)
+    # scipy is looked up only past the cheap proof (most welds of seams end there)
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    from scipy.spatial import cKDTree
+
     pairs = cKDTree(points[idx]).query_pairs(tolerance, output_type="ndarray")
     if len(pairs) == 0:
         return np.arange(n, dtype=np.int64)
@@ -682,8 +683,13 @@ def tessellate(patches: BezierPatches, samples: int | tuple[int, int] = PATCH_SA
         # the lattice's triangles have three distinct corners where each closed direction has two
         # samples or more: when no candidates merge, weld would return the mesh as it is
         distinct = (n_u > 1 or not patches.closed_u) and (n_v > 1 or not patches.closed_v)
-        if not (distinct and np.array_equal(weld_map(verts, _weld_tolerance(verts), candidates),
-                                            np.arange(len(verts)))):
+        unchanged = False
+        if distinct:
+            # weld_map's own first proof (candidates sorted and distinct, as it takes them) before the map
+            tol = _weld_tolerance(verts)
+            unchanged = points_apart(verts[candidates], tol) or np.array_equal(weld_map(verts, tol, candidates),
+                                                                                np.arange(len(verts)))
+        if not unchanged:
             mesh = weld(mesh, candidates=candidates)
     return mesh
 
