@@ -427,21 +427,20 @@ def _strip(n: int) -> np.ndarray:
     return out
 
 
-def _triangulate_ccw(xy: np.ndarray) -> np.ndarray:
+def _triangulate_ccw(xy: np.ndarray, mean: np.ndarray) -> np.ndarray:
     """Triangles of a counter-clockwise simple polygon, counter-clockwise, shape (T, 3).
 
-    A fan from an extra vertex ``len(xy)`` at the vertex mean when the outline
-    is star-shaped about it (then the last returned row of points is needed:
-    see :func:`_cap_polygon`), else a constrained triangulation (manifold3d).
+    A fan from an extra vertex ``len(xy)`` at the vertex mean ``mean`` (``xy.sum(axis=0) / len(xy)``,
+    which the caller keeps for that vertex) when the outline is star-shaped about it (then the last
+    returned row of points is needed: see :func:`_cap_polygon`), else a constrained triangulation (manifold3d).
     """
     import manifold3d
 
-    n = len(xy)
-    rel = xy - xy.sum(axis=0) / n
+    rel = xy - mean
     ang = np.arctan2(rel[:, 1], rel[:, 0])
     turn = (ang - _previous(ang) + np.pi) % (2 * np.pi) - np.pi
     if (turn > 0).all() and turn.sum() > np.pi:
-        return _fan(n)
+        return _fan(len(xy))
     return np.asarray(manifold3d.triangulate([xy]), dtype=np.int64).reshape(-1, 3)
 
 
@@ -513,9 +512,10 @@ def _cap_polygon(xy: np.ndarray, inset: bool = True) -> tuple[np.ndarray, np.nda
         if distance <= smallest:
             break
         inner = _inset_ring(xy, distance, mitre)
-        tri = _triangulate_ccw(inner)
+        inner_mean = inner.sum(axis=0) / n
+        tri = _triangulate_ccw(inner, inner_mean)
         if tri.max(initial=0) >= n:  # the fan from the inner ring's mean
-            pts, tri = np.vstack([xy, inner, inner.sum(axis=0)[None] / n]), _banded_fan(n)
+            pts, tri = np.vstack([xy, inner, inner_mean[None]]), _banded_fan(n)
         else:
             pts, tri = np.vstack([xy, inner]), np.concatenate([_strip(n), tri + n])
         s = _signed_areas(pts, tri)
@@ -523,7 +523,7 @@ def _cap_polygon(xy: np.ndarray, inset: bool = True) -> tuple[np.ndarray, np.nda
         if (s > 0).all() and abs(0.5 * float(s.sum()) - total) <= 1e-9 * abs(total) + 1e-12:
             return pts, tri
         distance /= 2
-    tri = _triangulate_ccw(xy)
+    tri = _triangulate_ccw(xy, mean)
     return (np.vstack([xy, xy.mean(axis=0)[None]]) if tri.max(initial=0) >= n else xy), tri
 
 
