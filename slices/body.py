@@ -9,6 +9,7 @@ closed forms on the caps), the deviation at the control points and the triangle 
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -151,7 +152,10 @@ _SINGLE_ERROR = 2.0**-18
 
 def _samples(median: float) -> int:
     """Subdivisions for a median control polygon length (mm)."""
-    return int(np.clip(np.ceil(median / EDGE_MM), 1, MAX_SAMPLES))
+    x = median / EDGE_MM
+    if 0.0 < x < MAX_SAMPLES:  # the usual case in plain Python (numpy's clip of a scalar costs ~3 us)
+        return math.ceil(x)
+    return int(np.clip(np.ceil(x), 1, MAX_SAMPLES))
 
 
 def mesh_samples(control: np.ndarray, budget: int = MESH_BUDGET) -> tuple[int, int]:
@@ -211,32 +215,34 @@ def _polygon_lengths(control: np.ndarray, dtype: type) -> tuple[tuple[np.ndarray
     (float64 or float32) from the copied points on, and the largest absolute coordinate as copied (mm;
     NaN or inf when some is).
     """
-    # the points copied into three coordinate planes, so that the legs along u and along v are one long
-    # subtraction each (points 4 and 1 apart in a patch's 16); the few pairs that straddle two patches
-    # are computed and left out: numpy's loops over the short axes of (R, C, 4, 4, 3) cost more than
-    # that. In chunks of whole patch rows whose temporaries stay in the CPU caches, every chunk in the
-    # same memory (fresh arrays per chunk cost their allocations' page faults)
+    # the points copied as they lie (a cast of whole contiguous rows of patches, no transposing copy), so
+    # that the legs along u and along v are one long subtraction each (points 4 and 1 apart in a patch's
+    # 16, coordinates interleaved); the few pairs that straddle two patches are computed and left out:
+    # numpy's loops over the short axes of (R, C, 4, 4, 3) cost more than that. In chunks of whole patch
+    # rows whose temporaries stay in the CPU caches, every chunk in the same memory (fresh arrays per
+    # chunk cost their allocations' page faults)
     rows, cols = control.shape[:2]
     n = rows * cols
     polygon_u, polygon_v = np.empty((n, 4), dtype), np.empty((n, 4), dtype)
     chunk_rows = max(1, _SAMPLES_CHUNK // cols)
     size = min(rows, chunk_rows) * cols * 16
-    planes, diff = np.empty((2, 3, size), dtype)
+    flat, diff = np.empty((2, 3 * size), dtype)
     lengths = np.empty(size, dtype)
     reach = 0.0
     for r in range(0, rows, chunk_rows):
         block = control[r:r + chunk_rows]
         k = block.shape[0] * cols * 16
-        points, d = planes[:, :k], diff[:, :k]
-        points.reshape((3,) + block.shape[:-1])[...] = np.moveaxis(block, -1, 0)
+        points, d = flat[:3 * k], diff[:3 * k]
+        points.reshape(block.shape)[...] = block
         reach = float(np.max([reach, points.max(), -points.min()]))  # NaN stays NaN
         start, stop = r * cols, r * cols + k // 16
         for step, polygon in ((4, polygon_u[start:stop]), (1, polygon_v[start:stop])):
-            np.subtract(points[:, step:], points[:, :-step], out=d[:, :-step])
-            d[:, -step:] = 0.0
+            apart = 3 * step
+            np.subtract(points[apart:], points[:-apart], out=d[:-apart])
+            d[-apart:] = 0.0
             np.square(d, out=d)
-            length = np.add(d[0], d[1], out=lengths[:k])
-            length += d[2]
+            length = np.add(d[0::3], d[1::3], out=lengths[:k])
+            length += d[2::3]
             leg = np.sqrt(length, out=length).reshape(-1, 16)  # leg from point 4 i + j of each patch
             if step == 4:  # along u: rows i = 0..2 of legs, one polygon per j
                 np.add(leg[:, 0:4], leg[:, 4:8], out=polygon)
@@ -419,7 +425,7 @@ def build_body_once(body: Body, spacing: float, options: SurfaceOptions | None =
     z = body.z
     low, high = capmod.end_kinds(opts.caps, body.start, body.stop, n_contours=len(z))
     d = positive(spacing, "spacing")
-    if len(z) > 1 and np.any(np.abs(np.diff(z) - d) > SPACING_RTOL * d):
+    if len(z) > 1 and (np.abs(z[1:] - z[:-1] - d) > SPACING_RTOL * d).any():
         d = float(np.median(np.diff(z)))
     sc = slice_curves([c.points for c in body.contours], z, opts.n_rays, body_lattice_size(body, opts.lattice_factor),
                       start_angle=opts.start_angle, correspondence=opts.correspondence,
@@ -466,7 +472,7 @@ def build_body_once(body: Body, spacing: float, options: SurfaceOptions | None =
     # the largest distance as the root of the largest sum of squares (np.linalg.norm's sum, in its order)
     gap = node_eval(j, kk) - pts
     gap *= gap
-    dev = float(np.sqrt(np.max(gap[:, 0] + gap[:, 1] + gap[:, 2])))
+    dev = math.sqrt(float((gap[:, 0] + gap[:, 1] + gap[:, 2]).max()))
     tri_mesh = display = density = None
     if mesh:
         if opts.samples:

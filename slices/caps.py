@@ -116,7 +116,7 @@ def _fan_apex(c: np.ndarray, p: np.ndarray) -> np.ndarray:
     sampled = c[:, :, :2].transpose(2, 0, 1) @ _APEX_MATRIX
     (qx, qy), (tx, ty) = (sampled[:, :, :APEX_SAMPLES].reshape(2, -1), sampled[:, :, APEX_SAMPLES:].reshape(2, -1))
     length = np.sqrt(tx * tx + ty * ty)
-    keep = np.flatnonzero(length > 1e-12 * max(1.0, float(length.max(initial=0.0))))
+    keep = (length > 1e-12 * max(1.0, float(length.max(initial=0.0)))).nonzero()[0]
     if len(keep) < len(length):  # tangents that vanish (cusps, repeated points) say nothing
         qx, qy, length, tx, ty = qx[keep], qy[keep], length[keep], tx[keep], ty[keep]
     tx, ty = tx / length, ty / length
@@ -125,7 +125,7 @@ def _fan_apex(c: np.ndarray, p: np.ndarray) -> np.ndarray:
     # cross(q - p, t) > 0, i.e. a . p < b with a = (t_y, -t_x), b = cross(q, t); the half-planes
     # a are built only when p is not inside them all
     b = orient * (qx * ty - qy * tx)
-    if np.all(orient * (ty * p[0] - tx * p[1]) < b):
+    if (orient * (ty * p[0] - tx * p[1]) < b).all():
         return p
     a = np.empty((len(keep), 2))
     a[:, 0], a[:, 1] = orient * ty, orient * -tx
@@ -246,7 +246,7 @@ def _fan_points(curve: np.ndarray, center: np.ndarray, toward_center: bool) -> n
     weighted value: the same rounding as the product itself), then the centre added.
     """
     rows = (curve - center).reshape(-1, 3) @ _FAN_MATRIX[bool(toward_center)]
-    rows += np.tile(center, 4)
+    rows.reshape(-1, 4, 3)[...] += center  # broadcast over the four b (np.tile's copy costs more)
     return rows.reshape(len(curve), 4, 4, 3)
 
 
@@ -374,7 +374,7 @@ def curve_area(curve) -> float:
 
 def _curve_area(c: np.ndarray) -> float:
     """:func:`curve_area` of a validated curve (M, 4, 3) (one built from checked ones)."""
-    return float(np.sum((c[:, :, 0] @ _AREA_FORM) * c[:, :, 1]))
+    return float(((c[:, :, 0] @ _AREA_FORM) * c[:, :, 1]).sum())
 
 
 #: Width of the flat band round a flat cap's inner ring, as a fraction of the median boundary edge.
@@ -427,21 +427,20 @@ def _strip(n: int) -> np.ndarray:
     return out
 
 
-def _triangulate_ccw(xy: np.ndarray) -> np.ndarray:
+def _triangulate_ccw(xy: np.ndarray, mean: np.ndarray) -> np.ndarray:
     """Triangles of a counter-clockwise simple polygon, counter-clockwise, shape (T, 3).
 
-    A fan from an extra vertex ``len(xy)`` at the vertex mean when the outline
-    is star-shaped about it (then the last returned row of points is needed:
-    see :func:`_cap_polygon`), else a constrained triangulation (manifold3d).
+    A fan from an extra vertex ``len(xy)`` at the vertex mean ``mean`` (``xy.sum(axis=0) / len(xy)``,
+    which the caller keeps for that vertex) when the outline is star-shaped about it (then the last
+    returned row of points is needed: see :func:`_cap_polygon`), else a constrained triangulation (manifold3d).
     """
     import manifold3d
 
-    n = len(xy)
-    rel = xy - xy.sum(axis=0) / n
+    rel = xy - mean
     ang = np.arctan2(rel[:, 1], rel[:, 0])
     turn = (ang - _previous(ang) + np.pi) % (2 * np.pi) - np.pi
-    if np.all(turn > 0) and turn.sum() > np.pi:
-        return _fan(n)
+    if (turn > 0).all() and turn.sum() > np.pi:
+        return _fan(len(xy))
     return np.asarray(manifold3d.triangulate([xy]), dtype=np.int64).reshape(-1, 3)
 
 
@@ -505,7 +504,7 @@ def _cap_polygon(xy: np.ndarray, inset: bool = True) -> tuple[np.ndarray, np.nda
     # the fan from the mean: the outline's area (sum over count: numpy's mean, without its wrappers)
     mean = xy.sum(axis=0) / n
     d0, d1 = xy - mean, following - mean
-    total = 0.5 * float(np.sum(d0[:, 0] * d1[:, 1] - d0[:, 1] * d1[:, 0]))
+    total = 0.5 * float((d0[:, 0] * d1[:, 1] - d0[:, 1] * d1[:, 0]).sum())
     distance = CAP_INSET * _median(edge) if inset else 0.0
     smallest = 1e-9 * max(1.0, float(np.abs(xy).max()))
     mitre = _inset_directions(step, edge) if distance > smallest else None
@@ -513,17 +512,18 @@ def _cap_polygon(xy: np.ndarray, inset: bool = True) -> tuple[np.ndarray, np.nda
         if distance <= smallest:
             break
         inner = _inset_ring(xy, distance, mitre)
-        tri = _triangulate_ccw(inner)
+        inner_mean = inner.sum(axis=0) / n
+        tri = _triangulate_ccw(inner, inner_mean)
         if tri.max(initial=0) >= n:  # the fan from the inner ring's mean
-            pts, tri = np.vstack([xy, inner, inner.sum(axis=0)[None] / n]), _banded_fan(n)
+            pts, tri = np.vstack([xy, inner, inner_mean[None]]), _banded_fan(n)
         else:
             pts, tri = np.vstack([xy, inner]), np.concatenate([_strip(n), tri + n])
         s = _signed_areas(pts, tri)
         # a valid inset: no triangle turned over and no overlap (the areas add up to the outline's)
-        if np.all(s > 0) and abs(0.5 * float(s.sum()) - total) <= 1e-9 * abs(total) + 1e-12:
+        if (s > 0).all() and abs(0.5 * float(s.sum()) - total) <= 1e-9 * abs(total) + 1e-12:
             return pts, tri
         distance /= 2
-    tri = _triangulate_ccw(xy)
+    tri = _triangulate_ccw(xy, mean)
     return (np.vstack([xy, xy.mean(axis=0)[None]]) if tri.max(initial=0) >= n else xy), tri
 
 
@@ -785,11 +785,11 @@ def _close_grid(control: np.ndarray, bottom: np.ndarray, top: np.ndarray, low_ce
         top = control[:, stop - 1, :, 3]
     flat = []
     if low != "dome":
-        control[:, 0] = _fan_points(bottom, np.append(_fan_apex(bottom, low_center), bottom[0, 0, 2]), False)
+        control[:, 0] = _fan_points(bottom, np.concatenate((_fan_apex(bottom, low_center), bottom[0, 0, 2:])), False)
         if low != "none":
             flat.append((bottom, -1.0))
     if high != "dome":
-        control[:, stop] = _fan_points(top, np.append(_fan_apex(top, high_center), top[0, 0, 2]), True)
+        control[:, stop] = _fan_points(top, np.concatenate((_fan_apex(top, high_center), top[0, 0, 2:])), True)
         if high != "none":
             flat.append((top, 1.0))
     return CappedGrid(control, slice(first, stop), tuple(flat), (float(bottom[0, 0, 2]), float(top[0, 0, 2])),
@@ -846,18 +846,22 @@ def grid_integrals(grid: CappedGrid, order: int = 5) -> tuple[float, float]:
     low_h, high_h = grid.extrusions
     first, stop = side.start + (low_h > 0), side.stop - (high_h > 0)
     volume, area = side_integrals(ctrl[:, first:stop], order) if stop > first else (0.0, 0.0)
-    # the side's end curves (the extrusions' far ends), the caps' outlines; their areas are curve_area's
-    ends = np.stack([ctrl[:, side.start, :, 0], ctrl[:, side.stop - 1, :, 3]])
-    n_seg = ends.shape[1]
-    a_low, a_high = _curve_area(ends[0]), _curve_area(ends[1])
+    # the side's end curves (the extrusions' far ends), the caps' outlines, copied coordinate-major:
+    # x and y (2 ends, M, 4) each contiguous, for their areas (curve_area's) and their tangents
+    n_seg = ctrl.shape[0]
+    ends = np.empty((2, 2, n_seg, 4))
+    ends[:, 0] = ctrl[:, side.start, :, 0, :2].transpose(2, 0, 1)
+    ends[:, 1] = ctrl[:, side.stop - 1, :, 3, :2].transpose(2, 0, 1)
+    x, y = ends.reshape(2, 2 * n_seg, 4)
+    a_low, a_high = ((x @ _AREA_FORM) * y).reshape(2, -1).sum(axis=1).tolist()
     if side.start > 0:
-        volume -= float(ends[0, 0, 0, 2]) * a_low
+        volume -= float(ctrl[0, side.start, 0, 0, 2]) * a_low
     if side.stop < ctrl.shape[1]:
-        volume += float(ends[1, 0, 0, 2]) * a_high
+        volume += float(ctrl[0, side.stop - 1, 0, 3, 2]) * a_high
     if low_h or high_h:
         # the tangents of both curves at the Gauss nodes, one product a coordinate, (2 M, order) each
         tangent, node_weights = _gauss_tangents(int(order))
-        tx, ty = ends[..., 0].reshape(-1, 4) @ tangent, ends[..., 1].reshape(-1, 4) @ tangent
+        tx, ty = x @ tangent, y @ tangent
         length = np.sqrt(tx * tx + ty * ty) @ node_weights
         area += low_h * float(np.sum(length[:n_seg])) + high_h * float(np.sum(length[n_seg:]))
     area += sum(abs(a_low if out_z < 0 else a_high) for _, out_z in grid.flat_caps)
@@ -896,7 +900,7 @@ def weld_flat_caps(side: TriangleMesh, grid: CappedGrid, samples: int,
     zv = side.vertices[:, 2]
     tol = 1e-7 * max(1.0, float(side.vertices.max()), -float(side.vertices.min()))
     low, high = grid.end_planes
-    rim = np.flatnonzero((np.abs(zv - low) < tol) | (np.abs(zv - high) < tol))
+    rim = ((np.abs(zv - low) < tol) | (np.abs(zv - high) < tol)).nonzero()[0]
     caps = [_planar_cap_mesh(c, samples, s, inset) for c, s in grid.flat_caps]
     merged = merge_meshes([side] + caps)
     candidates = np.concatenate([rim, np.arange(side.n_vertices, merged.n_vertices)])
@@ -916,8 +920,12 @@ def _welded(merged: TriangleMesh, side: TriangleMesh, rep: np.ndarray) -> Triang
     cap_tri = rep[merged.triangles[t_side:]]
     keep = (cap_tri[:, 0] != cap_tri[:, 1]) & (cap_tri[:, 1] != cap_tri[:, 2]) & (cap_tri[:, 2] != cap_tri[:, 0])
     cap_tri = cap_tri[keep]
-    # every side vertex used: a count per vertex costs half of marking them in a mask
-    if merged.vertex_colors is not None or not np.bincount(side.triangles.ravel(), minlength=n_side).all():
+    # every side vertex used: a count per vertex costs half of marking them in a mask. The triangles'
+    # middle corners alone cover a lattice closed around (tessellate's side): counting them proves it at
+    # a third of the work; where they do not, every corner is counted
+    side_tri = side.triangles
+    if merged.vertex_colors is not None or not (np.bincount(side_tri[:, 1], minlength=n_side).all()
+                                                or np.bincount(side_tri.ravel(), minlength=n_side).all()):
         tri = rep[merged.triangles]
         keep = (tri[:, 0] != tri[:, 1]) & (tri[:, 1] != tri[:, 2]) & (tri[:, 2] != tri[:, 0])
         return compact(TriangleMesh._trusted(merged.vertices, tri[keep], merged.vertex_normals, merged.vertex_colors,
@@ -946,7 +954,8 @@ def _rim_weld_map(merged: TriangleMesh, side: TriangleMesh, caps: list, flat_cap
     weld tolerance of its rim vertex and no two other candidates (rim, rim partners, the caps' other
     vertices) lie within three tolerances (then no other pair is close enough to merge), checked by
     :func:`surfaces.mesh.points_apart`. None when either check fails (a side that is not such a
-    lattice, points that nearly coincide): then the spatial weld decides.
+    lattice, points that nearly coincide): then the spatial weld decides. ``rim``: distinct indices of
+    the side's vertices in its end planes.
     """
     verts = merged.vertices
     tol = _weld_tolerance(verts)  # the spatial weld's own
@@ -969,12 +978,11 @@ def _rim_weld_map(merged: TriangleMesh, side: TriangleMesh, caps: list, flat_cap
     if not in_rim[partner].all():  # the spatial weld joins candidates only
         return None
     d = verts[boundary] - verts[partner]
-    if not np.all(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2] <= (tol / 2) ** 2):
+    if not (d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2] <= (tol / 2) ** 2).all():
         return None
-    apart = np.zeros(len(verts), dtype=bool)
-    for idx in others + [partner]:
-        apart[idx] = True
-    if not points_apart(verts[apart], 3 * tol):
+    # the partners are rim vertices (checked above): the candidates are the rim (distinct indices, as
+    # weld_flat_caps finds them) and the caps' other vertices, each once
+    if not points_apart(verts[np.concatenate(others)], 3 * tol):
         return None
     rep[boundary] = partner
     return rep

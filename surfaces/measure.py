@@ -153,16 +153,21 @@ def side_integrals(control: np.ndarray, order: int = 5) -> tuple[float, float]:
     flux = area = 0.0
     # chunks of whole patch rows: a view of some columns is copied a chunk at a time
     rows = max(1, _POINT_CHUNK // (q * n_cols))
+    # every chunk in the same memory (fresh arrays per chunk cost their allocations' page faults)
+    size = min(rows, n_rows) * n_cols
+    copy_buffer, x_buffer, y_buffer = np.empty(48 * size), np.empty(2 * q * size), np.empty(2 * q * size)
+    nz_buffer, t_buffer = np.empty(q * size), np.empty(q * size)
     for r in range(0, n_rows, rows):
         part = control[r:r + rows]
         k = part.shape[0] * n_cols
         # coordinate-major (16, 3, k) in one copy: every component below is one contiguous (q, k) block
-        coords = np.ascontiguousarray(part.transpose(2, 3, 4, 0, 1)).reshape(16, 3, k)
-        ux, vx = (derivatives @ coords[:, 0]).reshape(2, q, k)
-        uy, vy = (derivatives @ coords[:, 1]).reshape(2, q, k)
+        coords = copy_buffer[:48 * k].reshape(16, 3, k)
+        coords.reshape(4, 4, 3, part.shape[0], n_cols)[...] = part.transpose(2, 3, 4, 0, 1)
+        ux, vx = np.matmul(derivatives, coords[:, 0], out=x_buffer[:2 * q * k].reshape(2 * q, k)).reshape(2, q, k)
+        uy, vy = np.matmul(derivatives, coords[:, 1], out=y_buffer[:2 * q * k].reshape(2 * q, k)).reshape(2, q, k)
         cz = coords[:, 2]
-        nz = ux * vy
-        t = uy * vx
+        nz = np.multiply(ux, vy, out=nz_buffer[:q * k].reshape(q, k))
+        t = np.multiply(uy, vx, out=t_buffer[:q * k].reshape(q, k))
         nz -= t
         if not (cz[4:].reshape(3, 4, k) != cz[:4]).any():
             # every row of control points at one height (a side between planar slices): S_u is

@@ -15,6 +15,7 @@ watertight, consistently oriented mesh. Vertex normals come from the patches
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from functools import lru_cache
 
@@ -290,7 +291,7 @@ def points_apart(points: np.ndarray, distance: float) -> bool:
     proj.sort()
     # the rounding of the projection stays far below 1e-12 of the largest coordinate
     slack = 1e-12 * max(1.0, float(np.abs(points).max()))
-    return bool(np.all(np.diff(proj) > distance + slack))
+    return bool((proj[1:] - proj[:-1] > distance + slack).all())
 
 
 def weld_map(points: np.ndarray, tolerance: float, candidates=None) -> np.ndarray:
@@ -318,10 +319,6 @@ def weld_map(points: np.ndarray, tolerance: float, candidates=None) -> np.ndarra
     >>> weld_map(np.array([[0.0, 0, 0], [1, 0, 0], [0, 0, 1e-12]]), 1e-9).tolist()
     [0, 1, 0]
     """
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-    from scipy.spatial import cKDTree
-
     n = len(points)
     if candidates is None:
         idx = np.arange(n)
@@ -331,6 +328,11 @@ def weld_map(points: np.ndarray, tolerance: float, candidates=None) -> np.ndarra
             idx = np.unique(idx)
     if points_apart(points[idx], tolerance):
         return np.arange(n, dtype=np.int64)
+    # scipy is looked up only past the cheap proof (most welds of seams end there)
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    from scipy.spatial import cKDTree
+
     pairs = cKDTree(points[idx]).query_pairs(tolerance, output_type="ndarray")
     if len(pairs) == 0:
         return np.arange(n, dtype=np.int64)
@@ -376,7 +378,8 @@ def _weld_tolerance(verts: np.ndarray) -> float:
     # the extents from a coordinate-major copy: numpy reduces an (N, 3) array along its first axis, or
     # along one of its strided columns, several times slower
     by_coordinate = np.ascontiguousarray(verts.T)
-    diag = float(np.linalg.norm(by_coordinate.max(axis=1) - by_coordinate.min(axis=1)))
+    extent = by_coordinate.max(axis=1) - by_coordinate.min(axis=1)
+    diag = math.sqrt(float(extent.dot(extent)))  # np.linalg.norm's own steps, without its wrapper
     return 1e-9 * max(diag, 1e-300)
 
 
@@ -676,12 +679,17 @@ def tessellate(patches: BezierPatches, samples: int | tuple[int, int] = PATCH_SA
             edge[[0, -1], :] = True
         if last_v:
             edge[:, [0, -1]] = True
-        candidates = np.flatnonzero(edge.ravel() | collapsed)
+        candidates = (edge.ravel() | collapsed).nonzero()[0]
         # the lattice's triangles have three distinct corners where each closed direction has two
         # samples or more: when no candidates merge, weld would return the mesh as it is
         distinct = (n_u > 1 or not patches.closed_u) and (n_v > 1 or not patches.closed_v)
-        if not (distinct and np.array_equal(weld_map(verts, _weld_tolerance(verts), candidates),
-                                            np.arange(len(verts)))):
+        unchanged = False
+        if distinct:
+            # weld_map's own first proof (candidates sorted and distinct, as it takes them) before the map
+            tol = _weld_tolerance(verts)
+            unchanged = points_apart(verts[candidates], tol) or np.array_equal(weld_map(verts, tol, candidates),
+                                                                                np.arange(len(verts)))
+        if not unchanged:
             mesh = weld(mesh, candidates=candidates)
     return mesh
 
@@ -710,7 +718,7 @@ def _lattice_normals(patches: BezierPatches, du: np.ndarray, dv: np.ndarray, n_v
     # |du|^2 |dv|^2 <= 9 max|du_i|^2 max|dv_i|^2 (with a margin for rounding): where the normal is longer
     # than that allows, it has not collapsed
     bound = 9.0001 * max(float(du.max()), -float(du.min())) ** 2 * max(float(dv.max()), -float(dv.min())) ** 2
-    suspect = np.flatnonzero(length2 <= 1e-20 * max(bound, 1e-300))
+    suspect = (length2 <= 1e-20 * max(bound, 1e-300)).nonzero()[0]
     collapsed = np.zeros(len(du), dtype=bool)
     if len(suspect):
         (ax, ay, az), (bx, by, bz) = du[suspect].T, dv[suspect].T
@@ -725,7 +733,11 @@ def _lattice_normals(patches: BezierPatches, du: np.ndarray, dv: np.ndarray, n_v
         length2[collapsed] = 1.0
     # every other normal is longer than zero
     with np.errstate(invalid="ignore", divide="ignore"):
-        normal /= np.sqrt(length2)[:, None]
+        length = np.sqrt(length2, out=length2)
+        # a component at a time: the strided columns divide faster than numpy's broadcast over (N, 3)
+        nx /= length
+        ny /= length
+        nz /= length
     return normal, collapsed
 
 

@@ -307,6 +307,32 @@ def test_welding_caps_by_index_is_the_spatial_weld(monkeypatch, inset):
     assert mesh.is_watertight() and mesh.is_oriented()
 
 
+@pytest.mark.parametrize("case", ["closed around", "open around", "unused vertex"])
+def test_welded_is_compact_of_the_remapped_mesh(case):
+    # a lattice closed around (its triangles' middle corners cover it), one open around (its first row
+    # only in first and last corners) and a side with a vertex no triangle uses: _welded gives what
+    # compact gives on the merged mesh with the cap's triangles renumbered
+    from surfaces.mesh import TriangleMesh, compact, merge_meshes
+
+    bottom = _polygon_curve(SQUARE, z=0.0)
+    grid = caps.close_side(None, bottom, bottom, (2.0, 2.0), (2.0, 2.0), 1.5, "half", "half")
+    side = tessellate(BezierPatches(grid.control[:, grid.side_columns], closed_u=case != "open around"), 2)
+    if case == "unused vertex":
+        side = TriangleMesh(np.vstack([side.vertices, [[9.0, 9.0, 9.0]]]), side.triangles,
+                            np.vstack([side.vertex_normals, [[0.0, 0.0, 1.0]]]))
+    cap = caps.planar_cap_mesh(bottom, 2, -1.0)
+    merged = merge_meshes([side, cap])
+    # the cap's boundary onto the side's first vertices, its other vertices kept
+    rep = np.arange(merged.n_vertices)
+    rep[side.n_vertices:side.n_vertices + 8] = np.arange(8)
+    out = caps._welded(merged, side, rep)
+    expected = compact(TriangleMesh(merged.vertices, rep[merged.triangles], merged.vertex_normals))
+    np.testing.assert_array_equal(out.vertices, expected.vertices)
+    np.testing.assert_array_equal(out.triangles, expected.triangles)
+    np.testing.assert_array_equal(out.vertex_normals, expected.vertex_normals)
+    assert out.n_vertices == merged.n_vertices - 8 - (case == "unused vertex")
+
+
 def test_welding_caps_by_index_falls_back_where_points_nearly_meet():
     # a rim vertex doubled (a zero-length lattice step): the index map is refused, the spatial weld decides
     corners = np.array([(0, 0), (4, 0), (4, 0), (4, 4), (0, 4)], float)
