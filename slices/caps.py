@@ -797,7 +797,6 @@ def _close_grid(control: np.ndarray, bottom: np.ndarray, top: np.ndarray, low_ce
 
 
 @lru_cache(maxsize=8)
-@lru_cache(maxsize=8)
 def _gauss_tangents(order: int) -> tuple[np.ndarray, np.ndarray]:
     """Weights (4, order) of a cubic Bezier segment's control values for its tangent at the ``order``
     Gauss nodes of [0, 1] (``3 (d0 (P1 - P0) + d1 (P2 - P1) + d2 (P3 - P2))``), and the nodes' weights,
@@ -808,6 +807,7 @@ def _gauss_tangents(order: int) -> tuple[np.ndarray, np.ndarray]:
     return tangent, weights
 
 
+@lru_cache(maxsize=8)
 def _gauss_bezier(order: int) -> tuple[tuple, np.ndarray]:
     """Bernstein weights (:func:`_bezier_weights`) at the ``order`` Gauss nodes of [0, 1], and the nodes' weights."""
     x, w = np.polynomial.legendre.leggauss(order)

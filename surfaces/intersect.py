@@ -398,8 +398,7 @@ def _checked(vertices, triangles, empty: bool = False) -> tuple[np.ndarray, np.n
         t = t.reshape(0, 3)
     if t.ndim != 2 or t.shape[1] != 3 or not np.issubdtype(t.dtype, np.integer):
         raise ValueError(f"triangles: expected an integer array of shape (T, 3), got {t.shape} {t.dtype}")
-    # one reduction for both bounds: a negative index read unsigned lies beyond any vertex count
-    if t.size and t.view(f"u{t.itemsize}").max() >= len(v):
+    if t.size and (t.min() < 0 or t.max() >= len(v)):
         raise ValueError(f"triangles: indices must lie in [0, {len(v)})")
     return v, t.astype(np.int64, copy=False)
 

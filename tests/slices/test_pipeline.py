@@ -157,6 +157,7 @@ def test_reading_is_timed_apart_from_the_surface(ellipsoid, monkeypatch):
 def test_the_stage_clocks_time_no_imports(ellipsoid):
     """In a fresh process the surface and union stages import nothing: their libraries are loaded before
     the clocks start (``surface_time_s`` of an ordinary organ is ~10 ms; SciPy's first import ~0.2 s)."""
+    import ast
     import subprocess
     import sys
     from pathlib import Path
@@ -180,5 +181,5 @@ def test_the_stage_clocks_time_no_imports(ellipsoid):
     )
     root = Path(__file__).resolve().parents[2]
     out = subprocess.run([sys.executable, "-c", script], cwd=root, capture_output=True, text=True, check=True)
-    seen = eval(out.stdout.strip().splitlines()[-1])
+    seen = ast.literal_eval(out.stdout.strip().splitlines()[-1])
     assert seen == {"surface": [], "union": []}

@@ -45,11 +45,21 @@ def test_the_controller_is_kept_until_a_compiled_module_is_imported(monkeypatch)
     assert threads._controller() is not fresh
 
 
-def test_prepare_takes_the_view_that_the_limit_then_uses():
+def test_prepare_takes_the_view_that_the_limit_then_uses(monkeypatch):
+    import threadpoolctl
+
+    monkeypatch.setattr(threads, "_CONTROLLER", [None, -1])
     threads.prepare()
-    kept = threads._controller()
+    kept = threads._CONTROLLER[0]
+    assert kept is not None
+
+    def no_new_view(*args, **kwargs):
+        raise AssertionError("the limit took a new view after prepare")
+
+    # the limit uses the view prepare took, without walking the shared objects again
+    monkeypatch.setattr(threadpoolctl, "ThreadpoolController", no_new_view)
     with threads.one_blas_thread():
-        assert threads._controller() is kept
+        assert threads._CONTROLLER[0] is kept
 
 
 def test_reconstruct_contours_builds_its_bodies_on_one_blas_thread(monkeypatch):
