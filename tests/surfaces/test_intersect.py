@@ -85,6 +85,9 @@ def test_bad_input():
         self_intersections(np.zeros((3, 3)), np.array([[0, 1, 5]]))
     with pytest.raises(ValueError, match="vertices"):
         self_intersections(np.zeros((3, 2)), np.array([[0, 1, 2]]))
+    # a negative index of a narrow integer type, beside more vertices than that type's unsigned range
+    with pytest.raises(ValueError, match="indices must lie"):
+        self_intersections(np.zeros((300, 3)), np.array([[0, 1, -1]], dtype=np.int8))
     assert self_intersections(np.zeros((0, 3)), np.zeros((0, 3), dtype=int)).n_faces == 0
 
 
