@@ -224,8 +224,12 @@ def test_binned_systematic_fields_agree_with_full_resolution(monkeypatch):
     binned = reconstruct(images, lights=L, pixel_size=0.05, uncertainty=tol).uncertainty
     monkeypatch.setattr(propagation, "_RESOLVE", 1000)  # a defect the blocks cannot resolve: pixels again
     again = reconstruct(images, lights=L, pixel_size=0.05, uncertainty=tol).uncertainty
-    # the same computation (BLAS reductions may differ in the last bits between runs)
-    assert _flat(again.defects) == pytest.approx(_flat(full.defects), rel=1e-9)
+    # the same computation. BLAS and numpy's SIMD reductions may differ in the last bits from
+    # run to run (by memory alignment, even on one thread), and the volume's outline term sums
+    # depths at the outline, small differences of the height and its background fit, which
+    # magnifies those bits to ~1e-8 relative. 1e-6 still tells the pixel path from the binned
+    # one, which differs by whole percent (below).
+    assert _flat(again.defects) == pytest.approx(_flat(full.defects), rel=1e-6)
     for fig in ("max_depth_mm", "volume_mm3"):
         for source in ("light_direction", "image_noise"):
             a = full.defects[0]["budget"][fig]["sources"][source]["contribution"]
