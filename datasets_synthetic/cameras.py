@@ -28,7 +28,7 @@ import numpy as np
 from datasets_synthetic.heightfields import AnalyticSurface, HeightField
 from photometric.normals import normals_from_slopes
 from surfaces.grid import image_shape, pixel_grid, xy_to_pixel
-from surfaces.validate import as_array, positive
+from surfaces.validate import as_array, InputError, positive
 
 CAMERA_MODELS = ("orthographic", "perspective")
 VIGNETTING_MODELS = ("cos4", "radial")
@@ -201,16 +201,16 @@ def make_camera(model: str, size, pixel_size_mm: float | None = None, focal_leng
     """
     if model == "orthographic":
         if focal_length_px is not None or camera_height_mm is not None:
-            raise ValueError("camera: focal_length_px and camera_height belong to a perspective camera")
+            raise InputError("camera: focal_length_px and camera_height belong to a perspective camera")
         return orthographic_camera(size, 0.05 if pixel_size_mm is None else pixel_size_mm)
     if model == "perspective":
         if focal_length_px is None or camera_height_mm is None:
-            raise ValueError("camera: a perspective camera needs focal_length_px and camera_height")
+            raise InputError("camera: a perspective camera needs focal_length_px and camera_height")
         if pixel_size_mm is not None:
-            raise ValueError("pixel_size: a perspective camera's scale is camera_height / focal_length_px; "
+            raise InputError("pixel_size: a perspective camera's scale is camera_height / focal_length_px; "
                              "give no pixel size")
         return perspective_camera(size, focal_length_px, camera_height_mm)
-    raise ValueError(f"camera: expected 'orthographic' or 'perspective', got {model!r}")
+    raise InputError(f"camera: expected 'orthographic' or 'perspective', got {model!r}")
 
 
 def project(camera: Camera, points) -> tuple[np.ndarray, np.ndarray]:
@@ -230,12 +230,12 @@ def project(camera: Camera, points) -> tuple[np.ndarray, np.ndarray]:
     """
     pts = as_array(points, "points")
     if pts.ndim < 1 or pts.shape[-1] != 3:
-        raise ValueError(f"points: expected shape (..., 3), got {pts.shape}")
+        raise InputError(f"points: expected shape (..., 3), got {pts.shape}")
     if camera.model == "orthographic":
         return xy_to_pixel(pts[..., 0], pts[..., 1], camera.shape, camera.pixel_size_mm)
     depth = camera.camera_height_mm - pts[..., 2]
     if np.any(depth <= 0):
-        raise ValueError(f"points: {int(np.sum(depth <= 0))} point(s) at or above the camera centre "
+        raise InputError(f"points: {int(np.sum(depth <= 0))} point(s) at or above the camera centre "
                          f"(z >= {camera.camera_height_mm} mm)")
     cx, cy = camera.principal_point_px
     f = camera.focal_length_px
@@ -344,7 +344,7 @@ def intersect(surface, camera: Camera, tol_mm: float = 1e-9) -> SurfaceHits:
     """
     surface = analytic_surface(surface)
     if not isinstance(camera, Camera):
-        raise ValueError(f"camera: expected a Camera, got {type(camera).__name__}")
+        raise InputError(f"camera: expected a Camera, got {type(camera).__name__}")
     tol = positive(tol_mm, "tol_mm")
     if camera.model == "orthographic":
         x, y = pixel_grid(camera.shape, camera.pixel_size_mm)
@@ -379,10 +379,10 @@ def analytic_surface(surface) -> AnalyticSurface:
     """
     if isinstance(surface, HeightField):
         if surface.surface is None:
-            raise ValueError("surface: this HeightField carries no analytic surface")
+            raise InputError("surface: this HeightField carries no analytic surface")
         surface = surface.surface
     if not isinstance(surface, AnalyticSurface):
-        raise ValueError(f"surface: expected an AnalyticSurface or HeightField, got {type(surface).__name__}")
+        raise InputError(f"surface: expected an AnalyticSurface or HeightField, got {type(surface).__name__}")
     return surface
 
 
@@ -396,10 +396,10 @@ def _depths(surface: AnalyticSurface, height: float, dx: np.ndarray, dy: np.ndar
     lo, hi = surface.relief_bounds
     k = 1.0 + sx * dx + sy * dy
     if np.any(k <= 0):
-        raise ValueError(f"camera: {int(np.sum(k <= 0))} ray(s) run parallel to or away from the scene's "
+        raise InputError(f"camera: {int(np.sum(k <= 0))} ray(s) run parallel to or away from the scene's "
                          f"tilted base plane (slopes {sx}, {sy}) and never meet it")
     if height <= hi:
-        raise ValueError(f"camera_height_mm: the camera ({height} mm) must be above the part, whose relief "
+        raise InputError(f"camera_height_mm: the camera ({height} mm) must be above the part, whose relief "
                          f"reaches z = {hi} mm")
     a = (height - hi) / k
     b = (height - lo) / k
@@ -440,7 +440,7 @@ def _depths(surface: AnalyticSurface, height: float, dx: np.ndarray, dy: np.ndar
         active = active[~done]
         if active.size == 0:
             return t
-    raise ValueError(f"camera: {active.size} ray(s) did not converge to a surface point in {MAX_ITERATIONS} "
+    raise InputError(f"camera: {active.size} ray(s) did not converge to a surface point in {MAX_ITERATIONS} "
                      "iterations")
 
 
@@ -475,7 +475,7 @@ def vignetting_map(camera: Camera, spec: dict | None) -> np.ndarray:
     if spec is None:
         return np.ones((h, w))
     if not isinstance(spec, dict) or spec.get("model") not in VIGNETTING_MODELS:
-        raise ValueError(f"vignetting: expected None or a dict with 'model' in {VIGNETTING_MODELS}, got {spec!r}")
+        raise InputError(f"vignetting: expected None or a dict with 'model' in {VIGNETTING_MODELS}, got {spec!r}")
     cx, cy = camera.principal_point_px if camera.model == "perspective" else ((w - 1) / 2.0, (h - 1) / 2.0)
     rows = np.arange(h, dtype=np.float64)[:, None]
     cols = np.arange(w, dtype=np.float64)[None, :]
@@ -483,18 +483,18 @@ def vignetting_map(camera: Camera, spec: dict | None) -> np.ndarray:
     if spec["model"] == "cos4":
         unknown = set(spec) - {"model"}
         if unknown:
-            raise ValueError(f"vignetting: unknown keys {sorted(unknown)} for the cos4 model")
+            raise InputError(f"vignetting: unknown keys {sorted(unknown)} for the cos4 model")
         if camera.model != "perspective":
-            raise ValueError("vignetting: cos4 needs a perspective camera (a telecentric lens has no off-axis "
+            raise InputError("vignetting: cos4 needs a perspective camera (a telecentric lens has no off-axis "
                              "angle); use the radial model")
         f2 = camera.focal_length_px**2
         return (f2 / (f2 + r2)) ** 2
     unknown = set(spec) - {"model", "coefficients"}
     if unknown:
-        raise ValueError(f"vignetting: unknown keys {sorted(unknown)} for the radial model")
+        raise InputError(f"vignetting: unknown keys {sorted(unknown)} for the radial model")
     k = as_array(spec.get("coefficients", []), "vignetting['coefficients']", ndim=1)
     rho2 = r2 / (((w - 1) / 2.0) ** 2 + ((h - 1) / 2.0) ** 2)
     v = 1.0 + sum(kk * rho2 ** (i + 1) for i, kk in enumerate(k))
     if np.any(v <= 0):
-        raise ValueError(f"vignetting: coefficients {k.tolist()} make the factor non-positive ({float(v.min()):.4g})")
+        raise InputError(f"vignetting: coefficients {k.tolist()} make the factor non-positive ({float(v.min()):.4g})")
     return np.broadcast_to(v, (h, w)).copy()

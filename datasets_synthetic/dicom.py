@@ -19,7 +19,7 @@ import numpy as np
 
 from datasets_synthetic.io import ensure_dir
 from surfaces.io import atomic_write_bytes
-from surfaces.validate import as_array, positive
+from surfaces.validate import as_array, InputError, positive
 
 CT_IMAGE_STORAGE = "1.2.840.10008.5.1.4.1.1.2"
 RT_STRUCTURE_SET_STORAGE = "1.2.840.10008.5.1.4.1.1.481.3"
@@ -143,11 +143,11 @@ def write_ct_series(
     margin = positive(margin_mm, "margin_mm", allow_zero=True)
     noise_hu = positive(noise_hu, "noise_hu", allow_zero=True)
     if int(supersample) != supersample or supersample < 1:
-        raise ValueError(f"supersample: expected a whole number >= 1, got {supersample!r}")
+        raise InputError(f"supersample: expected a whole number >= 1, got {supersample!r}")
     if int(extra_slices) != extra_slices or extra_slices < 0:
-        raise ValueError(f"extra_slices: expected a whole number >= 0, got {extra_slices!r}")
+        raise InputError(f"extra_slices: expected a whole number >= 0, got {extra_slices!r}")
     if not (-1024.0 <= hu_outside <= 64000.0 and -1024.0 <= hu_inside <= 64000.0):
-        raise ValueError("hu_inside, hu_outside: must lie in [-1024, 64000] to fit the stored range")
+        raise InputError("hu_inside, hu_outside: must lie in [-1024, 64000] to fit the stored range")
     planes = phantom.plane_positions(spacing, offset_mm)
     k = int(extra_slices)
     zs = np.concatenate([planes[0] - spacing * np.arange(k, 0, -1), planes,
@@ -268,7 +268,7 @@ def write_rtstruct(
     from pydicom.sequence import Sequence
 
     if not contours:
-        raise ValueError("contours: the list is empty")
+        raise InputError("contours: the list is empty")
     slice_z = np.array([s["z"] for s in series["slices"]])
     slice_uid = [s["sop_instance_uid"] for s in series["slices"]]
 
@@ -314,11 +314,11 @@ def write_rtstruct(
     for n, c in enumerate(contours):
         pts = as_array(c.get("points"), f"contours[{n}]['points']", shape=(None, 2))
         if len(pts) < 3:
-            raise ValueError(f"contours[{n}]: a closed contour needs at least 3 points, got {len(pts)}")
+            raise InputError(f"contours[{n}]: a closed contour needs at least 3 points, got {len(pts)}")
         z = float(c["z"])
         j = int(np.argmin(np.abs(slice_z - z)))
         if abs(slice_z[j] - z) > 1e-6:
-            raise ValueError(f"contours[{n}]: z = {z} mm matches no CT slice")
+            raise InputError(f"contours[{n}]: z = {z} mm matches no CT slice")
         item = Dataset()
         item.ContourImageSequence = Sequence([image_ref(slice_uid[j])])
         item.ContourGeometricType = "CLOSED_PLANAR"

@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from slices.io import Contour
+from surfaces.validate import InputError
 
 __all__ = ["FOLD_STACKS", "closing_c_stack", "fold_stack", "hook_stack"]
 
@@ -66,9 +67,9 @@ def hook_stack(radius: float = 10.0, neck: float = 0.3, length: float = 8.0, hei
     (5, [314, 334, 314])
     """
     if n_planes < 3:
-        raise ValueError(f"n_planes: need at least 3 planes for a one-plane hook, got {n_planes}")
+        raise InputError(f"n_planes: need at least 3 planes for a one-plane hook, got {n_planes}")
     if not 0 < neck < gap + neck < height < radius or length <= 2.0 + neck:
-        raise ValueError("hook_stack: need 0 < neck < neck + gap < height < radius and length > 2 + neck (mm)")
+        raise InputError("hook_stack: need 0 < neck < neck + gap < height < radius and length > 2 + neck (mm)")
     a = np.arcsin(neck / 2 / radius)
     t = np.linspace(a, 2 * np.pi - a, 90)[:-1]
     rim = radius * np.stack([np.cos(t), np.sin(t)], 1)
@@ -113,7 +114,7 @@ def closing_c_stack(radius: float = 12.0, cavity: float = 9.0, channel_deg: floa
     2.3
     """
     if not 0 < cavity < radius or n_open < 1 or n_closed < 1:
-        raise ValueError("closing_c_stack: need 0 < cavity < radius (mm) and at least one plane of each")
+        raise InputError("closing_c_stack: need 0 < cavity < radius (mm) and at least one plane of each")
     gap = np.radians(channel_deg)
     t = np.linspace(gap, 2 * np.pi - gap, 90)
     outer = radius * np.stack([np.cos(t), np.sin(t)], 1)
@@ -143,5 +144,5 @@ def fold_stack(name: str, **params) -> list[Contour]:
     list of Contour
     """
     if name not in FOLD_STACKS:
-        raise ValueError(f"name: unknown fold phantom {name!r}; choose from {sorted(FOLD_STACKS)}")
+        raise InputError(f"name: unknown fold phantom {name!r}; choose from {sorted(FOLD_STACKS)}")
     return FOLD_STACKS[name](**params)

@@ -28,7 +28,7 @@ import numpy as np
 
 from photometric.normals import normals_from_slopes
 from surfaces.grid import image_shape, pixel_axes, pixel_grid, xy_to_pixel
-from surfaces.validate import as_array, positive
+from surfaces.validate import as_array, InputError, positive
 
 CONVENTION = (
     "Image convention (DiLiGenT): x to the right (column index), y up (row 0 is the TOP row, "
@@ -389,7 +389,7 @@ def _groove_mm(kind, size, ps, depth_mm, width_mm, length_mm, cx, cy, axis_deg):
     width = positive(width_mm, "width_mm")
     length = positive(length_mm, "length_mm")
     if length < width:
-        raise ValueError(f"length_mm: must be at least width_mm ({width}), got {length}")
+        raise InputError(f"length_mm: must be at least width_mm ({width}), got {length}")
     half_w = width / 2.0
     if kind == "v_crack":
         section, end = depth * width / 2.0, np.pi * half_w**2 * depth / 3.0
@@ -474,7 +474,7 @@ def _dent_mm(size, ps, depth_mm, width_mm, cx, cy):
     width = positive(width_mm, "width_mm")
     a = width / 2.0
     if depth >= a:
-        raise ValueError(f"depth_mm: a spherical dent needs depth < width/2 ({a}), got {depth}")
+        raise InputError(f"depth_mm: a spherical dent needs depth < width/2 ({a}), got {depth}")
     radius = (a * a + depth * depth) / (2.0 * depth)
     volume = np.pi * depth**2 * (3.0 * radius - depth) / 3.0
     rec = _defect_record("spherical_dent", depth, width, width, np.pi * a * a, volume, cx, cy, 0.0, size, ps)
@@ -541,7 +541,7 @@ def plane(size=256, pixel_size: float = 0.05, z0: float = 0.0) -> HeightField:
     ps = positive(pixel_size, "pixel_size")
     z0 = float(z0)
     if not np.isfinite(z0):
-        raise ValueError(f"z0: must be finite, got {z0!r}")
+        raise InputError(f"z0: must be finite, got {z0!r}")
     return _sample(AnalyticSurface(plane=(z0, 0.0, 0.0)), (h, w), ps, [], "plane", {"z0_mm": z0})
 
 
@@ -569,7 +569,7 @@ def tilted_plane(
     ps = positive(pixel_size, "pixel_size")
     sx, sy = float(slope_x), float(slope_y)
     if not (np.isfinite(sx) and np.isfinite(sy)):
-        raise ValueError(f"slope_x, slope_y: must be finite, got {slope_x!r}, {slope_y!r}")
+        raise InputError(f"slope_x, slope_y: must be finite, got {slope_x!r}, {slope_y!r}")
     return _sample(AnalyticSurface(plane=(0.0, sx, sy)), (h, w), ps, [], "tilted",
                    {"slope_x": sx, "slope_y": sy})
 
@@ -604,7 +604,7 @@ def sphere_cap(
     radius = positive(radius_mm, "radius_mm") if radius_mm is not None else 0.45 * min(h_px, w_px) * ps
     cap = positive(height_mm, "height_mm") if height_mm is not None else 0.8 * radius
     if cap > radius:
-        raise ValueError(f"height_mm: must not exceed radius_mm ({radius}), got {cap}")
+        raise InputError(f"height_mm: must not exceed radius_mm ({radius}), got {cap}")
     rim = np.sqrt(2.0 * radius * cap - cap * cap)
     cx, cy = _center_mm(center_px, (h_px, w_px), ps)
     prm = {"radius_mm": radius, "height_mm": cap, "rim_radius_mm": float(rim), "center_mm": [cx, cy]}
@@ -647,7 +647,7 @@ def gaussian_bumps(
     if centers_px is None:
         k = int(n_bumps)
         if k < 1:
-            raise ValueError(f"n_bumps: must be at least 1, got {n_bumps}")
+            raise InputError(f"n_bumps: must be at least 1, got {n_bumps}")
         centers_px = np.column_stack([rng.uniform(0.15, 0.85, k) * (h - 1),
                                       rng.uniform(0.15, 0.85, k) * (w - 1)])
     centers = as_array(centers_px, "centers_px", shape=(None, 2))
@@ -657,7 +657,7 @@ def gaussian_bumps(
     sig = (as_array(sigmas_mm, "sigmas_mm", shape=(k,)) if sigmas_mm is not None
            else rng.uniform(0.04, 0.09, k) * side)
     if np.any(sig <= 0):
-        raise ValueError("sigmas_mm: every width must be positive")
+        raise InputError("sigmas_mm: every width must be positive")
     terms, bumps = [], []
     for (row, col), a, s in zip(centers, amps, sig):
         cx, cy = _center_mm((row, col), (h, w), ps)
@@ -734,7 +734,7 @@ def inspection_plate(
     """
     h, w = image_shape(size)
     if min(h, w) < 32:
-        raise ValueError(f"size: the inspection plate needs at least 32 pixels, got {size!r}")
+        raise InputError(f"size: the inspection plate needs at least 32 pixels, got {size!r}")
     ps = positive(pixel_size, "pixel_size")
     tilt = as_array(tilt, "tilt", shape=(2,))
     rng = np.random.default_rng(seed)
@@ -815,7 +815,7 @@ def inspection_part(
     h, w = image_shape(size)
     ps = positive(pixel_size, "pixel_size")
     if defect not in INSPECTION_DEFECTS:
-        raise ValueError(f"defect: expected one of {', '.join(INSPECTION_DEFECTS)}, got {defect!r}")
+        raise InputError(f"defect: expected one of {', '.join(INSPECTION_DEFECTS)}, got {defect!r}")
     spec = INSPECTION_DEFECTS[defect]
     depth = spec["depth_mm"] if depth_mm is None else depth_mm
     width = spec["width_mm"] if width_mm is None else width_mm
@@ -831,7 +831,7 @@ def inspection_part(
     x0, x1, y0, y1 = _footprint_box(term)
     xs, ys = pixel_axes((h, w), ps)
     if x0 < xs[0] or x1 > xs[-1] or y0 < ys[-1] or y1 > ys[0]:
-        raise ValueError(
+        raise InputError(
             f"size, pixel_size: the field x in [{xs[0]:.3f}, {xs[-1]:.3f}] mm, y in [{ys[-1]:.3f}, {ys[0]:.3f}] mm "
             f"does not contain the {defect} (x in [{x0:.3f}, {x1:.3f}], y in [{y0:.3f}, {y1:.3f}] mm); "
             "use a larger field (the nominal part is a 60 mm plate)")
@@ -884,4 +884,4 @@ def make_scene(name: str, size: int = 256, pixel_size: float = 0.05, seed: int =
         return inspection_plate((h, w), ps, seed=seed)
     if name.startswith("inspection_") and name[len("inspection_"):] in INSPECTION_DEFECTS:
         return inspection_part((h, w), ps, defect=name[len("inspection_"):])
-    raise ValueError(f"name: unknown scene {name!r}; expected one of {', '.join(SCENES)}")
+    raise InputError(f"name: unknown scene {name!r}; expected one of {', '.join(SCENES)}")

@@ -37,7 +37,7 @@ from datasets_synthetic.render import _albedo, _rgb_intensities, _write_folder, 
 from photometric.normals import angular_error_deg
 from surfaces.grid import image_shape, xy_to_pixel
 from surfaces.io import atomic_write_text, save_npy, write_png
-from surfaces.validate import as_array, positive
+from surfaces.validate import as_array, InputError, positive
 
 NEAR_SHADOW_MODES = ("attached", "cast")
 #: Default brightest clean value (full scale 1) when the exposure is chosen automatically.
@@ -159,17 +159,17 @@ def render_near_field(
     from tqdm import tqdm
 
     if not isinstance(lights, PointLights):
-        raise ValueError(f"lights: expected PointLights, got {type(lights).__name__}")
+        raise InputError(f"lights: expected PointLights, got {type(lights).__name__}")
     if shadows not in NEAR_SHADOW_MODES:
-        raise ValueError(f"shadows: expected one of {NEAR_SHADOW_MODES} for point lights, got {shadows!r}")
+        raise InputError(f"shadows: expected one of {NEAR_SHADOW_MODES} for point lights, got {shadows!r}")
     if bit_depth not in (None, 8, 16):
-        raise ValueError(f"bit_depth: expected None, 8 or 16, got {bit_depth!r}")
+        raise InputError(f"bit_depth: expected None, 8 or 16, got {bit_depth!r}")
     peak = positive(peak, "peak")
     if peak > 1:
-        raise ValueError(f"peak: must lie in (0, 1], got {peak}")
+        raise InputError(f"peak: must lie in (0, 1], got {peak}")
     flat_albedo = positive(flat_albedo, "flat_albedo")
     if flat_albedo > 1:
-        raise ValueError(f"flat_albedo: must lie in (0, 1], got {flat_albedo}")
+        raise InputError(f"flat_albedo: must lie in (0, 1], got {flat_albedo}")
     noise = positive(noise, "noise", allow_zero=True)
     shot_noise = positive(shot_noise, "shot_noise", allow_zero=True)
     scale = None if exposure is None else positive(exposure, "exposure")
@@ -201,7 +201,7 @@ def render_near_field(
         clean_flat[k] = _colour(np.asarray(flat_albedo), lights.intensities[k], shade, rgb)
     brightest = max(float(clean.max()), float(clean_flat.max()))
     if brightest <= 0:
-        raise ValueError("lights: no pixel of the part or the flat field is lit")
+        raise InputError("lights: no pixel of the part or the flat field is lit")
     auto = scale is None
     scale = peak / brightest if auto else scale
     images = np.empty(shape, np.float32)
@@ -234,12 +234,12 @@ def _albedo_at(albedo, camera: Camera, hits: SurfaceHits) -> np.ndarray:
     """The albedo at the seen points (a map is painted on the reference-plane grid)."""
     rho = np.asarray(1.0) if albedo is None else as_array(albedo, "albedo", ndim=(0, 2, 3))
     if np.any(rho < 0):
-        raise ValueError("albedo: must be non-negative")
+        raise InputError("albedo: must be non-negative")
     if rho.ndim == 0:
         return rho
     h, w = camera.shape
     if rho.shape not in ((h, w), (h, w, 3)):
-        raise ValueError(f"albedo: expected a scalar, ({h}, {w}) or ({h}, {w}, 3), got {rho.shape}")
+        raise InputError(f"albedo: expected a scalar, ({h}, {w}) or ({h}, {w}, 3), got {rho.shape}")
     if camera.model == "orthographic":
         return rho
     row, col = xy_to_pixel(hits.points[..., 0], hits.points[..., 1], camera.shape, camera.reference_pixel_mm)
@@ -333,11 +333,11 @@ def write_near_field_folder(out_dir: str | os.PathLike, rendered: NearFieldRende
         The content of ``scene.json``.
     """
     if not isinstance(rendered, NearFieldRender):
-        raise ValueError(f"rendered: expected a NearFieldRender, got {type(rendered).__name__}")
+        raise InputError(f"rendered: expected a NearFieldRender, got {type(rendered).__name__}")
     nominal = rendered.lights if nominal is None else nominal
     n = len(rendered.lights)
     if not isinstance(nominal, PointLights) or len(nominal) != n:
-        raise ValueError(f"nominal: expected PointLights with {n} lights")
+        raise InputError(f"nominal: expected PointLights with {n} lights")
     out = ensure_dir(out_dir)
     flat_names = [f"flat_{k + 1:03d}.png" for k in range(n)]
     for name, img in zip(flat_names, rendered.flats):

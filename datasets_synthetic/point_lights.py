@@ -22,7 +22,7 @@ import numpy as np
 
 from datasets_synthetic.render import _deviations
 from photometric.lights import deviate_lights, ring_lights
-from surfaces.validate import as_array, positive
+from surfaces.validate import as_array, InputError, positive
 
 
 @dataclass(frozen=True)
@@ -98,10 +98,10 @@ def point_lights(positions, axes=None, mu=0.0, intensities=None) -> PointLights:
     pos = as_array(positions, "positions", shape=(None, 3))
     n = len(pos)
     if n < 1:
-        raise ValueError("positions: needs at least one light")
+        raise InputError("positions: needs at least one light")
     low = np.flatnonzero(pos[:, 2] <= 0)
     if low.size:
-        raise ValueError(f"positions: light(s) {(low + 1).tolist()} at z = {pos[low, 2].tolist()} mm are not above "
+        raise InputError(f"positions: light(s) {(low + 1).tolist()} at z = {pos[low, 2].tolist()} mm are not above "
                          "the reference plane z = 0")
     if axes is None:
         ax = -pos / np.linalg.norm(pos, axis=1)[:, None]
@@ -109,17 +109,17 @@ def point_lights(positions, axes=None, mu=0.0, intensities=None) -> PointLights:
         ax = as_array(axes, "axes", shape=(n, 3))
         length = np.linalg.norm(ax, axis=1)
         if np.any(length < 1e-12):
-            raise ValueError(f"axes: zero-length LED axis for light(s) {(np.flatnonzero(length < 1e-12) + 1).tolist()}")
+            raise InputError(f"axes: zero-length LED axis for light(s) {(np.flatnonzero(length < 1e-12) + 1).tolist()}")
         ax = ax / length[:, None]
     m = as_array(mu, "mu", ndim=(0, 1))
     m = np.broadcast_to(m, (n,)).copy() if m.ndim == 0 or m.shape == (1,) else m
     if m.shape != (n,) or np.any(m < 0):
-        raise ValueError(f"mu: expected one exponent >= 0 or {n} of them, got {np.asarray(mu).tolist()}")
+        raise InputError(f"mu: expected one exponent >= 0 or {n} of them, got {np.asarray(mu).tolist()}")
     e = np.ones(n) if intensities is None else as_array(intensities, "intensities", ndim=(0, 1, 2))
     if e.ndim == 0:
         e = np.full(n, float(e))
     if e.shape not in ((n,), (n, 3)) or np.any(e <= 0):
-        raise ValueError(f"intensities: expected positive values, one or one RGB triple per light ({n}), "
+        raise InputError(f"intensities: expected positive values, one or one RGB triple per light ({n}), "
                          f"got shape {e.shape}")
     return PointLights(pos, ax, m, e)
 
@@ -157,7 +157,7 @@ def ring_point_lights(n: int, slant_deg: float, distance_mm: float, azimuth0_deg
     d = positive(distance_mm, "distance_mm")
     slant = float(slant_deg)
     if not 0.0 <= slant < 90.0:
-        raise ValueError(f"slant_deg: must lie in [0, 90) degrees (a light at 90 deg or more is not above the "
+        raise InputError(f"slant_deg: must lie in [0, 90) degrees (a light at 90 deg or more is not above the "
                          f"reference plane z = 0), got {slant_deg!r}")
     unit = ring_lights(n, slant, azimuth0_deg)
     if deviations_deg is not None:
@@ -233,7 +233,7 @@ def light_vectors(lights: PointLights, points) -> tuple[np.ndarray, np.ndarray]:
     """
     pts = as_array(points, "points")
     if pts.ndim < 1 or pts.shape[-1] != 3:
-        raise ValueError(f"points: expected shape (..., 3), got {pts.shape}")
+        raise InputError(f"points: expected shape (..., 3), got {pts.shape}")
     pairs = [_light_vector(lights, k, pts) for k in range(len(lights))]
     return np.stack([p[0] for p in pairs]), np.stack([p[1] for p in pairs])
 

@@ -23,7 +23,7 @@ from photometric.lights import deviate_lights, light_angles, ring_lights, valida
 from photometric.normals import angular_error_deg
 from surfaces.grid import image_shape, pixel_grid
 from surfaces.io import atomic_write_text, save_npy, write_json, write_png
-from surfaces.validate import as_array, positive
+from surfaces.validate import as_array, InputError, positive
 
 SHADOW_MODES = ("attached", "cast", "none")
 #: Marching step of the cast-shadow test, pixels.
@@ -80,7 +80,7 @@ def cast_shadow_mask(
     ps = positive(pixel_size, "pixel_size")
     step = positive(step, "step")
     if method not in ("auto", "march", "raycast"):
-        raise ValueError(f"method: expected 'auto', 'march' or 'raycast', got {method!r}")
+        raise InputError(f"method: expected 'auto', 'march' or 'raycast', got {method!r}")
     return _shadow(z, lz, ps, step, method)
 
 
@@ -189,7 +189,7 @@ def texture_albedo(size, low: float = 0.55, high: float = 0.9, scale_px: float =
 
     h, w = image_shape(size)
     if not (0.0 < low < high <= 1.0):
-        raise ValueError(f"low, high: need 0 < low < high <= 1, got {low}, {high}")
+        raise InputError(f"low, high: need 0 < low < high <= 1, got {low}, {high}")
     g = gaussian_filter(np.random.default_rng(seed).standard_normal((h, w)),
                         positive(scale_px, "scale_px"), mode="wrap")
     g = (g - g.min()) / max(float(np.ptp(g)), 1e-300)
@@ -284,26 +284,26 @@ class _Options:
 def _options(hf, n_lights, intensities, albedo, shadows, specular, noise, shot_noise, bit_depth) -> _Options:
     """The options of :func:`render` for ``n_lights`` lights, checked once."""
     if not isinstance(hf, HeightField):
-        raise ValueError(f"hf: expected a HeightField, got {type(hf).__name__}")
+        raise InputError(f"hf: expected a HeightField, got {type(hf).__name__}")
     if shadows not in SHADOW_MODES:
-        raise ValueError(f"shadows: expected one of {SHADOW_MODES}, got {shadows!r}")
+        raise InputError(f"shadows: expected one of {SHADOW_MODES}, got {shadows!r}")
     if bit_depth not in (None, 8, 16):
-        raise ValueError(f"bit_depth: expected None, 8 or 16, got {bit_depth!r}")
+        raise InputError(f"bit_depth: expected None, 8 or 16, got {bit_depth!r}")
     h, w = hf.shape
     e = np.ones(n_lights) if intensities is None else as_array(intensities, "intensities", ndim=(1, 2))
     if e.shape not in ((n_lights,), (n_lights, 3)) or np.any(e < 0):
-        raise ValueError(f"intensities: expected non-negative ({n_lights},) or ({n_lights}, 3), "
+        raise InputError(f"intensities: expected non-negative ({n_lights},) or ({n_lights}, 3), "
                          f"got shape {e.shape}")
     rho = np.asarray(1.0) if albedo is None else as_array(albedo, "albedo", ndim=(0, 2, 3))
     if rho.ndim and rho.shape not in ((h, w), (h, w, 3)):
-        raise ValueError(f"albedo: expected a scalar, ({h}, {w}) or ({h}, {w}, 3), got {rho.shape}")
+        raise InputError(f"albedo: expected a scalar, ({h}, {w}) or ({h}, {w}, 3), got {rho.shape}")
     if np.any(rho < 0):
-        raise ValueError("albedo: must be non-negative")
+        raise InputError("albedo: must be non-negative")
     spec = None
     if specular is not None:
         unknown = set(specular) - {"ks", "shininess", "view"}
         if unknown:
-            raise ValueError(f"specular: unknown keys {sorted(unknown)}")
+            raise InputError(f"specular: unknown keys {sorted(unknown)}")
         view = _direction(specular.get("view", (0.0, 0.0, 1.0)), "specular['view']")
         spec = (positive(specular.get("ks", 0.5), "specular['ks']", allow_zero=True),
                 positive(specular.get("shininess", 20.0), "specular['shininess']"), view)
@@ -421,12 +421,12 @@ def write_diligent_folder(
     imgs = as_array(images, "images", ndim=(3, 4), dtype=np.float64)
     n, h, w = imgs.shape[:3]
     if imgs.ndim == 4 and imgs.shape[3] != 3:
-        raise ValueError(f"images: colour images need 3 channels, got shape {imgs.shape}")
+        raise InputError(f"images: colour images need 3 channels, got shape {imgs.shape}")
     if imgs.min() < 0 or imgs.max() > 1:
-        raise ValueError(f"images: values must lie in [0, 1], got [{imgs.min()}, {imgs.max()}]")
+        raise InputError(f"images: values must lie in [0, 1], got [{imgs.min()}, {imgs.max()}]")
     lights = validate_lights(lights_nominal, "lights_nominal", min_lights=1)
     if len(lights) != n:
-        raise ValueError(f"lights_nominal: {len(lights)} rows for {n} images")
+        raise InputError(f"lights_nominal: {len(lights)} rows for {n} images")
     e = _rgb_intensities(intensities, n)
     m = as_array(mask, "mask", shape=(h, w), dtype=bool)
     ngt = as_array(normal_gt, "normal_gt", shape=(h, w, 3))
@@ -440,7 +440,7 @@ def _rgb_intensities(intensities, n: int) -> np.ndarray:
     if e.ndim == 1:
         e = np.repeat(e[:, None], 3, axis=1)
     if e.shape != (n, 3):
-        raise ValueError(f"intensities: expected ({n},) or ({n}, 3), got {e.shape}")
+        raise InputError(f"intensities: expected ({n},) or ({n}, 3), got {e.shape}")
     return e
 
 
@@ -601,10 +601,10 @@ def _deviations(deviate, n: int) -> np.ndarray:
     dev = np.zeros((n, 2)) if deviate is None else as_array(deviate, "deviate", ndim=(1, 2))
     if dev.ndim == 1:
         if dev.shape != (n,):
-            raise ValueError(f"deviate: expected {n} slant deviations (one per light), got {len(dev)}")
+            raise InputError(f"deviate: expected {n} slant deviations (one per light), got {len(dev)}")
         dev = np.column_stack([dev, np.zeros(n)])
     if dev.shape != (n, 2):
-        raise ValueError(f"deviate: expected shape ({n}, 2), got {dev.shape}")
+        raise InputError(f"deviate: expected shape ({n}, 2), got {dev.shape}")
     return dev
 
 
@@ -616,4 +616,4 @@ def _albedo(albedo, size, seed: int):
     if albedo is None or (not isinstance(albedo, str) and np.ndim(albedo) == 0):
         rho = 1.0 if albedo is None else positive(albedo, "albedo")
         return rho, {"kind": "constant", "value": rho}
-    raise ValueError(f"albedo: expected a number, 'texture' or None, got {albedo!r}")
+    raise InputError(f"albedo: expected a number, 'texture' or None, got {albedo!r}")

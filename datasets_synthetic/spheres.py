@@ -40,7 +40,7 @@ from datasets_synthetic.io import ensure_dir
 from datasets_synthetic.point_lights import PointLights, _light_vector, rig_lights
 from datasets_synthetic.render import sensor
 from surfaces.io import atomic_write_text, write_json, write_png
-from surfaces.validate import as_array, positive
+from surfaces.validate import as_array, InputError, positive
 
 #: Highlight term of the brightest highlight pixel of a render (full scale 1; the diffuse term adds to it).
 HIGHLIGHT = 0.9
@@ -92,14 +92,14 @@ def _check_sphere(camera: Camera, lights: PointLights, center_mm, radius_mm):
     c = as_array(center_mm, "center_mm", shape=(3,))
     r = positive(radius_mm, "radius_mm")
     if c[2] < r * (1.0 - 1e-9):
-        raise ValueError(f"center_mm: a sphere of radius {r} mm centred at z = {c[2]} mm cuts the reference plane "
+        raise InputError(f"center_mm: a sphere of radius {r} mm centred at z = {c[2]} mm cuts the reference plane "
                          "z = 0 (a sphere resting on it has z = radius)")
     if camera.model == "perspective" and camera.camera_height_mm <= c[2] + r:
-        raise ValueError(f"camera_height_mm: the camera ({camera.camera_height_mm} mm) must be above the sphere, "
+        raise InputError(f"camera_height_mm: the camera ({camera.camera_height_mm} mm) must be above the sphere, "
                          f"whose top is at z = {c[2] + r} mm")
     inside = np.flatnonzero(np.linalg.norm(lights.positions - c, axis=1) <= r)
     if inside.size:
-        raise ValueError(f"center_mm: LED(s) {(inside + 1).tolist()} lie inside the sphere")
+        raise InputError(f"center_mm: LED(s) {(inside + 1).tolist()} lie inside the sphere")
     return c, r
 
 
@@ -236,26 +236,26 @@ def render_mirror_sphere(
         RGB intensities or bad options.
     """
     if not isinstance(camera, Camera):
-        raise ValueError(f"camera: expected a Camera, got {type(camera).__name__}")
+        raise InputError(f"camera: expected a Camera, got {type(camera).__name__}")
     if not isinstance(lights, PointLights):
-        raise ValueError(f"lights: expected PointLights, got {type(lights).__name__}")
+        raise InputError(f"lights: expected PointLights, got {type(lights).__name__}")
     if lights.intensities.ndim != 1:
-        raise ValueError("lights: mirror-sphere images are grey; give one intensity per LED")
+        raise InputError("lights: mirror-sphere images are grey; give one intensity per LED")
     c, r = _check_sphere(camera, lights, center_mm, radius_mm)
     rho = positive(led_radius_mm, "led_radius_mm")
     s = int(supersample)
     f = int(highlight_samples)
     if s < 1 or f < 8 or s != supersample or f != highlight_samples:
-        raise ValueError(f"supersample, highlight_samples: expected integers >= 1 and >= 8, got {supersample!r}, "
+        raise InputError(f"supersample, highlight_samples: expected integers >= 1 and >= 8, got {supersample!r}, "
                          f"{highlight_samples!r}")
     sigma = positive(psf_sigma_px, "psf_sigma_px", allow_zero=True)
     level = positive(highlight, "highlight")
     if level > 1:
-        raise ValueError(f"highlight: must lie in (0, 1], got {level}")
+        raise InputError(f"highlight: must lie in (0, 1], got {level}")
     weak = positive(diffuse, "diffuse", allow_zero=True)
     back = positive(background, "background", allow_zero=True)
     if bit_depth not in (None, 8, 16):
-        raise ValueError(f"bit_depth: expected None, 8 or 16, got {bit_depth!r}")
+        raise InputError(f"bit_depth: expected None, 8 or 16, got {bit_depth!r}")
     noise = positive(noise, "noise", allow_zero=True)
     rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
     shader = _Shader(camera, lights, c, r, rho, weak, back)
@@ -271,7 +271,7 @@ def render_mirror_sphere(
     hr, hc = project(camera, exact)
     visible = (hr > -0.5) & (hr < h - 0.5) & (hc > -0.5) & (hc < w - 0.5)
     if not visible.any():
-        raise ValueError("center_mm: no LED highlight falls inside the image; move the sphere into the field")
+        raise InputError("center_mm: no LED highlight falls inside the image; move the sphere into the field")
     spots = np.stack([shader.spot(k, exact[k], (hr[k], hc[k]), f, sigma) if visible[k] else np.zeros((h, w))
                       for k in range(n)])
     radiance = level / spots.max()
@@ -331,7 +331,7 @@ class _Shader:
                 break
             half *= 2.0 if edge.any() else 0.5
         else:
-            raise ValueError(f"lights: the highlight of LED {k + 1} could not be enclosed; check the sphere and LED")
+            raise InputError(f"lights: the highlight of LED {k + 1} could not be enclosed; check the sphere and LED")
         lit = radiance > 0
         weights = radiance[lit] * (2.0 * half / samples) ** 2  # radiance times the ray's area, px^2
         return _splat(rr[lit], cc[lit], weights, (h, w), sigma)
@@ -430,7 +430,7 @@ def write_sphere_folder(out_dir: str | os.PathLike, rendered: SphereRender, scen
         The content of ``scene.json``.
     """
     if not isinstance(rendered, SphereRender):
-        raise ValueError(f"rendered: expected a SphereRender, got {type(rendered).__name__}")
+        raise InputError(f"rendered: expected a SphereRender, got {type(rendered).__name__}")
     out = ensure_dir(out_dir)
     names = [f"{k + 1:03d}.png" for k in range(len(rendered.images))]
     for name, img in zip(names, rendered.images):
@@ -515,7 +515,7 @@ def make_sphere_folders(
                                     intensities, deviate)
     c = as_array(centers, "centers", ndim=2)
     if c.shape[1] != 3 or len(c) < 1:
-        raise ValueError(f"centers: expected (M, 3) sphere centres in mm, got shape {c.shape}")
+        raise InputError(f"centers: expected (M, 3) sphere centres in mm, got shape {c.shape}")
     rng = np.random.default_rng(seed)
     renders = [render_mirror_sphere(cam, true, centre, radius, led_radius, supersample, highlight_samples,
                                     psf_sigma_px, background=background, vignetting=vignetting, noise=noise,

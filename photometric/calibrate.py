@@ -31,7 +31,7 @@ import cv2
 import numpy as np
 
 from photometric.camera import Camera, Orthographic, Perspective, camera_from_dict, pixel_offsets, pixel_rays
-from surfaces.validate import as_array, positive
+from surfaces.validate import as_array, InputError, positive
 
 __all__ = ["SphereImages", "read_sphere_set", "sphere_from_outline", "highlight_centroids", "reflected_rays",
            "nearest_point", "calibrate_positions", "calibrate_rig"]
@@ -105,14 +105,14 @@ def read_sphere_set(folder, camera: Camera | None = None) -> tuple[SphereImages,
         try:
             sphere = json.loads(sphere_file.read_text())
         except json.JSONDecodeError as exc:
-            raise ValueError(f"spheres: {sphere_file} is not valid JSON ({exc})") from None
+            raise InputError(f"spheres: {sphere_file} is not valid JSON ({exc})") from None
         if not isinstance(sphere, dict) or "radius_mm" not in sphere or "center_mm" not in sphere:
-            raise ValueError(f"spheres: {sphere_file} needs 'radius_mm' and 'center_mm'")
+            raise InputError(f"spheres: {sphere_file} needs 'radius_mm' and 'center_mm'")
         centre = as_array(sphere["center_mm"], f"center_mm ({sphere_file})", shape=(3,))
         radius = positive(sphere["radius_mm"], f"radius_mm ({sphere_file})")
         return SphereImages(images, centre, radius, str(d), "sphere.json"), camera
     if camera is None:
-        raise ValueError(f"camera: {d} has no sphere.json and no camera; give the camera options")
+        raise InputError(f"camera: {d} has no sphere.json and no camera; give the camera options")
     centre, radius = sphere_from_outline(images, camera)
     return SphereImages(images, centre, radius, str(d), "outline"), camera
 
@@ -132,7 +132,7 @@ def _project(camera: Camera, shape, centre: np.ndarray, radius: float) -> tuple[
     cx, cy = camera.centre(shape)
     depth = camera.camera_height_mm - centre[2]
     if depth <= radius:
-        raise ValueError(f"sphere: centre {centre.tolist()} mm with radius {radius} mm reaches the camera")
+        raise InputError(f"sphere: centre {centre.tolist()} mm with radius {radius} mm reaches the camera")
     f = camera.focal_length_px
     dist = float(np.linalg.norm([centre[0], centre[1], depth]))
     return cy - f * centre[1] / depth, cx + f * centre[0] / depth, f * radius / np.sqrt(dist**2 - radius**2)
@@ -171,7 +171,7 @@ def sphere_from_outline(images, camera: Camera, *, threshold: float | None = Non
     top = cv2.GaussianBlur(imgs.max(axis=0), (0, 0), 1.0)
     hi = float(top.max())
     if hi <= 0:
-        raise ValueError("images: all black; no sphere outline (give sphere.json)")
+        raise InputError("images: all black; no sphere outline (give sphere.json)")
     if threshold is None:
         scaled = np.clip(top / hi * 255.0, 0, 255).astype(np.uint8)
         level, _ = cv2.threshold(scaled, 0, 255, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
@@ -180,7 +180,7 @@ def sphere_from_outline(images, camera: Camera, *, threshold: float | None = Non
         thr = float(threshold)
     count, labels, stats, _ = cv2.connectedComponentsWithStats((top > thr).astype(np.uint8), connectivity=8)
     if count < 2:
-        raise ValueError("images: no sphere outline found above the background (give sphere.json)")
+        raise InputError("images: no sphere outline found above the background (give sphere.json)")
     region = labels == 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
     region = cv2.morphologyEx(region.astype(np.uint8), cv2.MORPH_CLOSE, np.ones((5, 5), np.uint8))
     kernel = np.ones((3, 3), np.uint8)
@@ -208,7 +208,7 @@ def _fit_outline(edge: np.ndarray, camera: Camera, shape) -> tuple:
     keep = (rows > 0) & (cols > 0) & (rows < shape[0] - 1) & (cols < shape[1] - 1)
     rows, cols = rows[keep], cols[keep]
     if rows.size < 20:
-        raise ValueError(f"images: sphere outline has only {rows.size} pixels (give sphere.json)")
+        raise InputError(f"images: sphere outline has only {rows.size} pixels (give sphere.json)")
     if isinstance(camera, Orthographic):
         # x^2 + y^2 = 2 a x + 2 b y + c
         u, v = pixel_offsets(camera, shape)
@@ -220,7 +220,7 @@ def _fit_outline(edge: np.ndarray, camera: Camera, shape) -> tuple:
     b, *_ = np.linalg.lstsq(d, np.ones(len(d)), rcond=None)
     norm = float(np.linalg.norm(b))
     if norm <= 1.0:
-        raise ValueError("images: the sphere outline does not fit a cone (give sphere.json)")
+        raise InputError("images: the sphere outline does not fit a cone (give sphere.json)")
     return b / norm, float(np.sqrt(1.0 - 1.0 / norm**2))
 
 
@@ -260,11 +260,11 @@ def highlight_centroids(images, camera: Camera, centre_mm, radius_mm: float, *,
     rr, cc = np.mgrid[0:h, 0:w]
     disc = (rr - r0) ** 2 + (cc - c0) ** 2 < (0.98 * rad) ** 2
     if disc.sum() < 9:
-        raise ValueError(f"sphere: its image disc (centre row {r0:.1f}, col {c0:.1f}, radius {rad:.1f} px) "
+        raise InputError(f"sphere: its image disc (centre row {r0:.1f}, col {c0:.1f}, radius {rad:.1f} px) "
                          "has fewer than 9 pixels inside the image")
     k = int(window_px)
     if k < 1:
-        raise ValueError(f"window_px: must be at least 1, got {window_px}")
+        raise InputError(f"window_px: must be at least 1, got {window_px}")
     rows, cols, sig = np.empty(len(imgs)), np.empty(len(imgs)), np.empty(len(imgs))
     for i, img in enumerate(imgs):
         smooth = cv2.blur(img, (3, 3))
@@ -278,14 +278,14 @@ def highlight_centroids(images, camera: Camera, centre_mm, radius_mm: float, *,
         weight = np.clip(win - bg - 2.0 * noise, 0.0, None)
         total = weight.sum()
         if total <= 0 or float(smooth[pr, pc]) <= bg:
-            raise ValueError(f"images: no highlight inside the sphere's disc in image {i}")
+            raise InputError(f"images: no highlight inside the sphere's disc in image {i}")
         yy, xx = np.mgrid[lo_r:hi_r, lo_c:hi_c]
         rows[i] = float((weight * yy).sum() / total)
         cols[i] = float((weight * xx).sum() / total)
         spread = np.sqrt(((weight > 0) * ((yy - rows[i]) ** 2 + (xx - cols[i]) ** 2)).sum() / 2.0)
         sig[i] = max(MIN_CENTROID_SIGMA_PX, noise * spread / total)
         if (rows[i] - r0) ** 2 + (cols[i] - c0) ** 2 >= (0.98 * rad) ** 2:
-            raise ValueError(f"images: the highlight of image {i} is at the rim of the sphere's disc")
+            raise InputError(f"images: the highlight of image {i} is at the rim of the sphere's disc")
     return rows, cols, sig
 
 
@@ -325,7 +325,7 @@ def reflected_rays(camera: Camera, shape, rows, cols, centre_mm, radius_mm: floa
     b = np.einsum("ki,ki->k", d, oc)
     disc = b * b - (np.einsum("ki,ki->k", oc, oc) - radius * radius)
     if np.any(disc < 0):
-        raise ValueError(f"highlights {np.flatnonzero(disc < 0).tolist()}: the camera ray misses the sphere "
+        raise InputError(f"highlights {np.flatnonzero(disc < 0).tolist()}: the camera ray misses the sphere "
                          "(wrong centre, radius or camera?)")
     # the first hit along the downward ray (orthographic origins lie on z = 0, where t < 0 is fine)
     t = -b - np.sqrt(disc)
@@ -360,12 +360,12 @@ def nearest_point(points, directions) -> tuple[np.ndarray, np.ndarray]:
     S = as_array(points, "points", ndim=2)
     r = as_array(directions, "directions", shape=S.shape)
     if S.shape[1] != 3 or S.shape[0] < 2:
-        raise ValueError(f"points: expected shape (K, 3) with K >= 2, got {S.shape}")
+        raise InputError(f"points: expected shape (K, 3) with K >= 2, got {S.shape}")
     proj = np.eye(3)[None] - r[:, :, None] * r[:, None, :]
     M = proj.sum(axis=0)
     s = np.linalg.svd(M, compute_uv=False)
     if s[-1] <= 1e-9 * s[0]:
-        raise ValueError("directions: the rays are parallel; they do not determine a point "
+        raise InputError("directions: the rays are parallel; they do not determine a point "
                          "(use spheres at different places or heights)")
     P = np.linalg.solve(M, np.einsum("kij,kj->i", proj, S))
     dist = np.linalg.norm(np.einsum("kij,kj->ki", proj, P[None] - S), axis=1)
@@ -416,20 +416,20 @@ def calibrate_positions(sets, camera: Camera, *, window_px: int = WINDOW_PX) -> 
     """
     sets = list(sets)
     if len(sets) < 2:
-        raise ValueError(f"spheres: need at least 2 calibration sets (spheres at different places or "
+        raise InputError(f"spheres: need at least 2 calibration sets (spheres at different places or "
                          f"heights), got {len(sets)}")
     if not isinstance(camera, (Orthographic, Perspective)):
-        raise ValueError(f"camera: expected Orthographic or Perspective, got {type(camera).__name__}")
+        raise InputError(f"camera: expected Orthographic or Perspective, got {type(camera).__name__}")
     n, shape = sets[0].images.shape[0], sets[0].images.shape[1:3]
     for s in sets[1:]:
         if s.images.shape[0] != n:
-            raise ValueError(f"spheres: {s.source or 'a set'} has {s.images.shape[0]} images, "
+            raise InputError(f"spheres: {s.source or 'a set'} has {s.images.shape[0]} images, "
                              f"{sets[0].source or 'the first'} has {n} (one per LED in each)")
         if s.images.shape[1:3] != shape:
-            raise ValueError(f"spheres: {s.source or 'a set'} images are {s.images.shape[1:3]}, "
+            raise InputError(f"spheres: {s.source or 'a set'} images are {s.images.shape[1:3]}, "
                              f"{sets[0].source or 'the first'} {shape}")
     if n < 3:
-        raise ValueError(f"spheres: need images of at least 3 LEDs, got {n}")
+        raise InputError(f"spheres: need images of at least 3 LEDs, got {n}")
     found = [highlight_centroids(s.images, camera, s.centre_mm, s.radius_mm, window_px=window_px) for s in sets]
     rows = np.stack([f[0] for f in found])
     cols = np.stack([f[1] for f in found])
@@ -494,7 +494,7 @@ def calibrate_rig(*, spheres=None, light_positions=None, camera: Camera | None =
     from photometric.stereo import _check_images
 
     if (spheres is None) == (light_positions is None):
-        raise ValueError("spheres: give either mirror-sphere folders (--spheres) or --light-positions")
+        raise InputError("spheres: give either mirror-sphere folders (--spheres) or --light-positions")
     flats = None
     if flat_field is not None:
         if isinstance(flat_field, (list, tuple)) and all(isinstance(f, (str, Path)) for f in flat_field):
@@ -510,7 +510,7 @@ def calibrate_rig(*, spheres=None, light_positions=None, camera: Camera | None =
                 found, camera = read_sphere_set(item, camera)
                 sets.append(found)
         if camera is None:
-            raise ValueError("camera: the sphere folders state no camera; give --camera with --pixel-size, or "
+            raise InputError("camera: the sphere folders state no camera; give --camera with --pixel-size, or "
                              "--focal-length-px and --camera-height")
         positions, info = calibrate_positions(sets, camera, window_px=window_px or WINDOW_PX)
         shape = sets[0].images.shape[1:3]
@@ -518,10 +518,10 @@ def calibrate_rig(*, spheres=None, light_positions=None, camera: Camera | None =
         positions = load_light_positions(light_positions) if isinstance(light_positions, (str, Path)) else \
             point_lights(light_positions).positions
         if flats is None:
-            raise ValueError("flat_field: with --light-positions the rig needs flat-field images (they give its "
+            raise InputError("flat_field: with --light-positions the rig needs flat-field images (they give its "
                              "gains and image size)")
         if camera is None:
-            raise ValueError("camera: give --camera with --pixel-size, or --focal-length-px and --camera-height")
+            raise InputError("camera: give --camera with --pixel-size, or --focal-length-px and --camera-height")
         info = {"method": "known LED positions"}
         shape = flats.shape[1:3]
     lights = point_lights(positions, mu=led_mu)
@@ -529,9 +529,9 @@ def calibrate_rig(*, spheres=None, light_positions=None, camera: Camera | None =
     gains, albedo, smoothing = None, None, 0.0
     if flats is not None:
         if flats.shape[0] != n:
-            raise ValueError(f"flat_field: {flats.shape[0]} flat-field image(s) for {n} lights (one per light)")
+            raise InputError(f"flat_field: {flats.shape[0]} flat-field image(s) for {n} lights (one per light)")
         if flats.shape[1:3] != tuple(shape):
-            raise ValueError(f"flat_field: flat-field images are {flats.shape[1]} x {flats.shape[2]} px, the "
+            raise InputError(f"flat_field: flat-field images are {flats.shape[1]} x {flats.shape[2]} px, the "
                              f"sphere images {shape[0]} x {shape[1]} px")
         albedo = 1.0 if flat_albedo is None else positive(flat_albedo, "flat_albedo")
         smoothing = FLAT_SMOOTHING_PX

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from surfaces.grid import image_shape
-from surfaces.validate import as_array, positive
+from surfaces.validate import as_array, InputError, positive
 
 __all__ = [
     "MODELS",
@@ -158,24 +158,24 @@ def make_camera(
     >>> make_camera("perspective", focal_length_px=2400)
     Traceback (most recent call last):
     ...
-    ValueError: camera: a perspective camera needs --focal-length-px and --camera-height (missing: camera-height)
+    surfaces.validate.InputError: camera: a perspective camera needs --focal-length-px and --camera-height (missing: camera-height)
     """
     if model not in MODELS:
-        raise ValueError(f"camera: expected one of {MODELS}, got {model!r}")
+        raise InputError(f"camera: expected one of {MODELS}, got {model!r}")
     if model == "orthographic":
         if focal_length_px is not None or camera_height_mm is not None or principal_point_px is not None:
-            raise ValueError("camera: --focal-length-px, --camera-height and a principal point need "
+            raise InputError("camera: --focal-length-px, --camera-height and a principal point need "
                              "--camera perspective")
         if pixel_size_mm is None:
-            raise ValueError("camera: an orthographic camera with point lights needs --pixel-size (mm)")
+            raise InputError("camera: an orthographic camera with point lights needs --pixel-size (mm)")
         return Orthographic(positive(pixel_size_mm, "pixel_size"))
     missing = [n for n, v in (("focal-length-px", focal_length_px), ("camera-height", camera_height_mm))
                if v is None]
     if missing:
-        raise ValueError("camera: a perspective camera needs --focal-length-px and --camera-height "
+        raise InputError("camera: a perspective camera needs --focal-length-px and --camera-height "
                          f"(missing: {', '.join(missing)})")
     if pixel_size_mm is not None:
-        raise ValueError("camera: --pixel-size is for the orthographic camera; a perspective camera "
+        raise InputError("camera: --pixel-size is for the orthographic camera; a perspective camera "
                          "takes --focal-length-px and --camera-height")
     pp = None
     if principal_point_px is not None:
@@ -201,7 +201,7 @@ def camera_from_dict(entry, name: str = "camera") -> Camera:
     Orthographic or Perspective
     """
     if not isinstance(entry, dict) or "model" not in entry:
-        raise ValueError(f"{name}: expected an object with a 'model' ({' or '.join(MODELS)})")
+        raise InputError(f"{name}: expected an object with a 'model' ({' or '.join(MODELS)})")
     try:
         return make_camera(
             entry["model"],
@@ -211,7 +211,7 @@ def camera_from_dict(entry, name: str = "camera") -> Camera:
             principal_point_px=entry.get("principal_point_px") if entry["model"] == "perspective" else None,
         )
     except ValueError as exc:
-        raise ValueError(f"{name}: {exc}") from None
+        raise InputError(f"{name}: {exc}") from None
 
 
 def pixel_offsets(camera: Camera, shape) -> tuple[np.ndarray, np.ndarray]:
@@ -288,7 +288,7 @@ def plane_points(camera: Camera, shape, z0: float = 0.0) -> np.ndarray:
     """
     h, w = image_shape(shape, "shape")
     if isinstance(camera, Perspective) and z0 >= camera.camera_height_mm:
-        raise ValueError(f"z0: the plane z = {z0} mm is not below the camera ({camera.camera_height_mm} mm)")
+        raise InputError(f"z0: the plane z = {z0} mm is not below the camera ({camera.camera_height_mm} mm)")
     z = np.full((h, w), float(z0))
     return np.concatenate([surface_xy(camera, z), z[..., None]], axis=2)
 
@@ -366,7 +366,7 @@ def gradient_field(camera: Camera, normals) -> tuple[np.ndarray, np.ndarray, flo
     """
     n = as_array(normals, "normals", dtype=np.float32, finite=False)
     if n.ndim != 3 or n.shape[2] != 3:
-        raise ValueError(f"normals: expected shape (H, W, 3), got {n.shape}")
+        raise InputError(f"normals: expected shape (H, W, 3), got {n.shape}")
     u, v = pixel_offsets(camera, n.shape[:2])
     return _gradient(camera, n[..., 0], n[..., 1], n[..., 2], u, v)
 
@@ -469,10 +469,10 @@ def depth_from_field(camera: Camera, field, *, valid=None, reference_height_mm: 
         use = np.isfinite(fld) if valid is None else np.isfinite(fld) & ok
         sample = fld[use]
     if sample.size == 0:
-        raise ValueError("field: no valid pixel to anchor the height")
+        raise InputError("field: no valid pixel to anchor the height")
     med = float(np.median(sample.astype(np.float64, copy=False)))
     if np.dtype(dtype) not in (np.float64, np.float32):
-        raise ValueError(f"dtype: expected float64 or float32, got {np.dtype(dtype)}")
+        raise InputError(f"dtype: expected float64 or float32, got {np.dtype(dtype)}")
     # z in float64 straight from a float32 field: no float64 copy of the field first
     if isinstance(camera, Orthographic):
         c = float(reference_height_mm) - med
@@ -483,7 +483,7 @@ def depth_from_field(camera: Camera, field, *, valid=None, reference_height_mm: 
         return np.add(fld, c, dtype=np.float64).astype(dtype, copy=False), c
     depth = camera.camera_height_mm - float(reference_height_mm)
     if depth <= 0:
-        raise ValueError(f"reference_height_mm: {reference_height_mm} mm is not below the camera")
+        raise InputError(f"reference_height_mm: {reference_height_mm} mm is not below the camera")
     # exp is monotone, so the median of w = exp(l + c) is exp(median(l) + c)
     c = float(np.log(depth)) - med
     w = np.exp(np.add(fld, c, dtype=np.float64))

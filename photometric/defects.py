@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 from scipy import ndimage
-from surfaces.validate import as_array, positive
+from surfaces.validate import as_array, InputError, positive
 
 _MAD_TO_SIGMA = 1.4826
 _MAX_FIT_POINTS = 250_000
@@ -140,10 +140,10 @@ def _fit(height, mask, method, degree, iterations, xy, full: bool = True):
     """
     z = _height(height)
     if method not in ("plane", "smooth"):
-        raise ValueError(f"method: expected 'plane' or 'smooth', got {method!r}")
+        raise InputError(f"method: expected 'plane' or 'smooth', got {method!r}")
     deg = 1 if method == "plane" else int(degree)
     if deg < 1:
-        raise ValueError(f"degree: must be at least 1, got {degree}")
+        raise InputError(f"degree: must be at least 1, got {degree}")
     ok = np.isfinite(z)
     if mask is not None:
         ok &= as_array(mask, "mask", shape=z.shape, dtype=bool)
@@ -152,12 +152,12 @@ def _fit(height, mask, method, degree, iterations, xy, full: bool = True):
         pts = as_array(xy, "xy", shape=z.shape + (2,), finite=False)
         ok &= np.isfinite(pts).all(axis=2)
         if not ok.any():
-            raise ValueError("height: no usable pixel for the background")
+            raise InputError("height: no usable pixel for the background")
         coords = _scaled_xy(pts, ok)
     flat = _spread_sample(ok, _MAX_FIT_POINTS)
     n_terms = (deg + 1) * (deg + 2) // 2
     if flat.size < 3 * n_terms:
-        raise ValueError(f"height: only {flat.size} usable pixels for a degree-{deg} background")
+        raise InputError(f"height: only {flat.size} usable pixels for a degree-{deg} background")
     rows, cols = np.divmod(flat, z.shape[1])
     A = _design(rows, cols, z.shape, deg, coords)
     values = z.ravel()[flat].astype(np.float64)  # a float32 height: the fit in float64 all the same
@@ -283,12 +283,12 @@ def measure_defects(
     z = _height(height)
     h = positive(pixel_size, "pixel_size")
     if polarity not in ("depression", "bump", "both"):
-        raise ValueError(f"polarity: expected 'depression', 'bump' or 'both', got {polarity!r}")
+        raise InputError(f"polarity: expected 'depression', 'bump' or 'both', got {polarity!r}")
     inspect = np.isfinite(z)
     if mask is not None:
         inspect &= as_array(mask, "mask", shape=z.shape, dtype=bool)
     if not inspect.any():
-        raise ValueError("height: no finite pixel to inspect")
+        raise InputError("height: no finite pixel to inspect")
     pts = foot = None
     if xy is not None:
         pts = as_array(xy, "xy", shape=z.shape + (2,), finite=False)
@@ -296,9 +296,9 @@ def measure_defects(
             as_array(area, "area", ndim=(0, 2), finite=False), z.shape)
         inspect &= np.isfinite(pts).all(axis=2) & np.isfinite(foot)
         if not inspect.any():
-            raise ValueError("xy: no finite point to inspect")
+            raise InputError("xy: no finite point to inspect")
     elif area is not None:
-        raise ValueError("area: per-pixel footprints need xy (the points they belong to)")
+        raise InputError("area: per-pixel footprints need xy (the points they belong to)")
     if background == "none":
         terms = []  # flat: the slopes' background is zero
         values = z[inspect].astype(np.float64, copy=False)
@@ -310,12 +310,12 @@ def measure_defects(
         bg, sigma, terms = _fit(z, inspect, background, degree, 6, pts, full=pts is not None)
         base = _Background(bg, terms or [], 0.0)
     else:
-        raise ValueError(f"background: expected 'plane', 'smooth' or 'none', got {background!r}")
+        raise InputError(f"background: expected 'plane', 'smooth' or 'none', got {background!r}")
 
     footprint = None
     if p is not None or q is not None:
         if p is None or q is None:
-            raise ValueError("p, q: give both slopes or neither")
+            raise InputError("p, q: give both slopes or neither")
         footprint = _slope_footprint(
             _slopes(p, "p", z.shape), _slopes(q, "q", z.shape),
             _background_slopes(base.image, terms), inspect, h, slope_threshold, pts,

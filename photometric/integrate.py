@@ -40,7 +40,7 @@ from scipy import ndimage
 from scipy.sparse.csgraph import connected_components
 from scipy.sparse.linalg import LinearOperator, cg, splu
 
-from surfaces.validate import as_array, positive
+from surfaces.validate import as_array, InputError, positive
 
 if TYPE_CHECKING:
     from surfaces.bezier import BezierPatches
@@ -53,13 +53,13 @@ def _validated(p, q, mask, pixel_size, dtype: DTypeLike = np.float64):
     pp = as_array(p, "p", ndim=2, dtype=dtype)
     qq = as_array(q, "q", shape=pp.shape, dtype=dtype)
     if min(pp.shape) < 2:
-        raise ValueError(f"p: the gradient field must be at least 2x2, got {pp.shape}")
+        raise InputError(f"p: the gradient field must be at least 2x2, got {pp.shape}")
     h = positive(pixel_size, "pixel_size")
     if mask is None:
         return pp, qq, np.ones(pp.shape, bool), h
     m = as_array(mask, "mask", shape=pp.shape, dtype=bool)
     if not m.any():
-        raise ValueError("mask: no pixel is selected")
+        raise InputError("mask: no pixel is selected")
     return pp, qq, m, h
 
 
@@ -386,7 +386,7 @@ def least_squares(
         precond = LinearOperator((n, n), matvec=mg.vcycle, dtype=np.float64)
         z, info = cg(A, rhs, rtol=rtol, atol=0.0, maxiter=maxiter, M=precond)
         if info > 0:
-            raise ValueError(f"p, q: least-squares integration did not converge in {maxiter} iterations")
+            raise InputError(f"p, q: least-squares integration did not converge in {maxiter} iterations")
     out = np.zeros(m.shape)
     out[rows, cols] = z
     return _zero_mean(out, m)
@@ -487,7 +487,7 @@ def robust_least_squares(
     h = positive(pixel_size, "pixel_size")
     eps = positive(eps, "eps")
     if int(iterations) < 0:
-        raise ValueError(f"iterations: must be at least 0, got {iterations}")
+        raise InputError(f"iterations: must be at least 0, got {iterations}")
     rows, cols = np.nonzero(m)
     index = np.full(m.shape, -1, np.int64)
     index[rows, cols] = np.arange(rows.size)
@@ -560,9 +560,9 @@ def integrate(
     [-0.075, -0.025, 0.025, 0.075]
     """
     if method not in METHODS:
-        raise ValueError(f"method: expected one of {METHODS}, got {method!r}")
+        raise InputError(f"method: expected one of {METHODS}, got {method!r}")
     if np.dtype(dtype) not in (np.float64, np.float32):
-        raise ValueError(f"dtype: expected float64 or float32, got {np.dtype(dtype)}")
+        raise InputError(f"dtype: expected float64 or float32, got {np.dtype(dtype)}")
     if np.dtype(dtype) == np.float32:
         if method == "dct":
             return dct_poisson(p, q, mask=mask, pixel_size=pixel_size, dtype=np.float32, result_dtype=np.float32)
@@ -621,14 +621,14 @@ def height_to_patches(
     h = positive(pixel_size, "pixel_size")
     step = int(step)
     if step < 1:
-        raise ValueError(f"step: must be a positive integer, got {step}")
+        raise InputError(f"step: must be a positive integer, got {step}")
     if min(z.shape) < 2:
-        raise ValueError(f"height: needs at least 2x2 pixels, got {z.shape}")
+        raise InputError(f"height: needs at least 2x2 pixels, got {z.shape}")
     good = np.isfinite(z)
     if not good.any():
-        raise ValueError("height: no finite value")
+        raise InputError("height: no finite value")
     if np.any(np.isinf(pp)) or np.any(np.isinf(qq)):
-        raise ValueError("p, q: contain infinite values")
+        raise InputError("p, q: contain infinite values")
     z = _fill_nearest(z, good)
     pp = np.nan_to_num(pp, nan=0.0)
     qq = np.nan_to_num(qq, nan=0.0)

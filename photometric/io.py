@@ -36,6 +36,7 @@ from photometric.lights import (
     point_lights,
     validate_lights,
 )
+from surfaces.validate import InputError
 
 IMAGE_SUFFIXES = (".png", ".tif", ".tiff", ".bmp", ".jpg", ".jpeg", ".npy", ".exr")
 
@@ -118,7 +119,7 @@ def _read_array(path, name: str) -> np.ndarray:
         return np.load(p, allow_pickle=False)
     arr = cv2.imread(str(p), cv2.IMREAD_UNCHANGED)
     if arr is None:
-        raise ValueError(f"{name}: OpenCV cannot read {p}")
+        raise InputError(f"{name}: OpenCV cannot read {p}")
     return arr
 
 
@@ -167,7 +168,7 @@ def _read_raw(p: Path) -> np.ndarray:
     if arr.ndim == 3 and arr.shape[2] == 1:
         arr = arr[..., 0]
     if arr.ndim not in (2, 3) or (arr.ndim == 3 and arr.shape[2] != 3):
-        raise ValueError(f"image: {p} has unsupported shape {arr.shape}")
+        raise InputError(f"image: {p} has unsupported shape {arr.shape}")
     return arr
 
 
@@ -183,7 +184,7 @@ def _scaled(arr: np.ndarray, p: Path, out: np.ndarray) -> np.ndarray:
     np.copyto(out, arr, casting="unsafe")
     # a float64 sum of float32 values cannot overflow: it is finite exactly when every value is
     if not np.isfinite(np.sum(out, dtype=np.float64)):
-        raise ValueError(f"image: {p} contains NaN or infinite values")
+        raise InputError(f"image: {p} contains NaN or infinite values")
     return out
 
 
@@ -200,7 +201,7 @@ def read_images(paths: Sequence) -> np.ndarray:
     numpy.ndarray, shape (N, H, W) or (N, H, W, 3), float32
     """
     if len(paths) == 0:
-        raise ValueError("images: no image files given")
+        raise InputError("images: no image files given")
     # each file is converted straight into its plane of the stack: the peak is the stack
     # plus one stored (e.g. uint16) image, not a float copy per image
     first = _read_raw(Path(paths[0]))
@@ -210,7 +211,7 @@ def read_images(paths: Sequence) -> np.ndarray:
     for k, path in enumerate(paths[1:], start=1):
         img = _read_raw(Path(path))
         if img.shape != out.shape[1:]:
-            raise ValueError(f"images: {path} has shape {img.shape}, {paths[0]} has {out.shape[1:]}")
+            raise InputError(f"images: {path} has shape {img.shape}, {paths[0]} has {out.shape[1:]}")
         _scaled(img, Path(path), out[k])
     return out
 
@@ -235,7 +236,7 @@ def read_mask(path, shape: tuple[int, int] | None = None) -> np.ndarray:
         arr = arr.max(axis=2)
     mask = np.asarray(arr) > 0
     if shape is not None and mask.shape != tuple(shape):
-        raise ValueError(f"mask: {p} has shape {mask.shape}, the images are {tuple(shape)}")
+        raise InputError(f"mask: {p} has shape {mask.shape}, the images are {tuple(shape)}")
     return mask
 
 
@@ -255,7 +256,7 @@ def _read_normal_gt(folder: Path, shape: tuple[int, int]) -> np.ndarray | None:
 
         gt = np.asarray(loadmat(folder / "Normal_gt.mat")["Normal_gt"], np.float32)
     if gt.shape != shape + (3,):
-        raise ValueError(f"normal_gt: shape {gt.shape} does not match the images {shape}")
+        raise InputError(f"normal_gt: shape {gt.shape} does not match the images {shape}")
     return gt
 
 
@@ -284,7 +285,7 @@ def read_folder(folder, select: str | Sequence[str] | None = None) -> Photometri
             raise FileNotFoundError(f"folder: {lights_file} is missing")
         lights = load_lights(lights_file)
         if lights.shape[0] != len(names):
-            raise ValueError(
+            raise InputError(
                 f"folder: {lights_file.name} has {lights.shape[0]} rows for {len(names)} images"
             )
     elif (d / "lights.npy").is_file():
@@ -295,7 +296,7 @@ def read_folder(folder, select: str | Sequence[str] | None = None) -> Photometri
         table = np.load(d / "lights.npy", allow_pickle=False)
         rows = [int(re.findall(r"\d+", n)[0]) for n in names]
         if table.ndim != 2 or max(rows) >= table.shape[0]:
-            raise ValueError(f"folder: lights.npy shape {table.shape} lacks rows {rows}")
+            raise InputError(f"folder: lights.npy shape {table.shape} lacks rows {rows}")
         lights = validate_lights(table[rows])
     else:
         raise FileNotFoundError(
@@ -308,7 +309,7 @@ def read_folder(folder, select: str | Sequence[str] | None = None) -> Photometri
     if select is not None:
         if isinstance(select, str):
             if select != "triad":
-                raise ValueError(f"select: expected 'triad' or a list of names, got {select!r}")
+                raise InputError(f"select: expected 'triad' or a list of names, got {select!r}")
             if not (d / "triad.txt").is_file():
                 raise FileNotFoundError(f"select: {d / 'triad.txt'} is missing")
             wanted = _read_names(d / "triad.txt")
@@ -316,7 +317,7 @@ def read_folder(folder, select: str | Sequence[str] | None = None) -> Photometri
             wanted = [str(s) for s in select]
         missing = [w for w in wanted if w not in names]
         if missing:
-            raise ValueError(f"select: {missing} are not among the folder's images")
+            raise InputError(f"select: {missing} are not among the folder's images")
         order = [names.index(w) for w in wanted]
         names, lights, intens = wanted, lights[order], intens[order]
         lights = validate_lights(lights, "lights (selected)")
@@ -354,7 +355,7 @@ def read_scene(folder) -> dict:
     try:
         scene = json.loads(path.read_text())
     except json.JSONDecodeError as exc:
-        raise ValueError(f"input: {path} is not valid JSON ({exc})") from None
+        raise InputError(f"input: {path} is not valid JSON ({exc})") from None
     return scene if isinstance(scene, dict) else {}
 
 
@@ -369,7 +370,7 @@ def _read_nearfield(d: Path, all_names: list[str], names: list[str], image_shape
     if pos_file.is_file():
         positions = load_light_positions(pos_file)
         if positions.shape[0] != len(all_names):
-            raise ValueError(f"folder: {pos_file.name} has {positions.shape[0]} rows for {len(all_names)} images")
+            raise InputError(f"folder: {pos_file.name} has {positions.shape[0]} rows for {len(all_names)} images")
         lights = scene.get("lights")
         axes = mu = None
         if isinstance(lights, dict) and lights.get("model") == "point":
@@ -379,7 +380,7 @@ def _read_nearfield(d: Path, all_names: list[str], names: list[str], image_shape
                 mu = np.broadcast_to(np.asarray(lights["mu"], float), (len(all_names),))
         for value, what in ((axes, "lights.axes"), (mu, "lights.mu")):
             if value is not None and len(value) != len(all_names):
-                raise ValueError(f"folder: scene.json {what} has {len(value)} entries for {len(all_names)} images")
+                raise InputError(f"folder: scene.json {what} has {len(value)} entries for {len(all_names)} images")
         out["point_lights"] = point_lights(positions[order], None if axes is None else axes[order],
                                            None if mu is None else mu[order], name=f"light_positions ({pos_file})")
     flat = scene.get("flat_field") if isinstance(scene.get("flat_field"), dict) else {}
@@ -389,11 +390,11 @@ def _read_nearfield(d: Path, all_names: list[str], names: list[str], image_shape
         flat_names = sorted(f.name for f in d.glob("flat_*.png"))
     if flat_names:
         if len(flat_names) != len(all_names):
-            raise ValueError(f"flat_field: {d} has {len(flat_names)} flat-field image(s) for {len(all_names)} "
+            raise InputError(f"flat_field: {d} has {len(flat_names)} flat-field image(s) for {len(all_names)} "
                              "images (one per light)")
         flats = read_images([d / flat_names[k] for k in order])
         if flats.shape != tuple(image_shape):
-            raise ValueError(f"flat_field: flat-field images of {d} are {flats.shape[1:]}, the images "
+            raise InputError(f"flat_field: flat-field images of {d} are {flats.shape[1:]}, the images "
                              f"{tuple(image_shape[1:])}")
         out["flat_images"] = flats
         if flat.get("albedo") is not None:

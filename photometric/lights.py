@@ -53,7 +53,7 @@ from pathlib import Path
 
 import numpy as np
 
-from surfaces.validate import as_array
+from surfaces.validate import as_array, InputError
 
 __all__ = [
     "CONVENTION",
@@ -130,21 +130,21 @@ def validate_lights(lights, name: str = "lights", *, min_lights: int = 3, batche
     >>> validate_lights([[0, 0, 1], [1, 0, 0], [1, 0, 0]])  # doctest: +ELLIPSIS
     Traceback (most recent call last):
     ...
-    ValueError: lights: light directions are coplanar (singular values [1.414214, 1.0, 0.0]); ...
+    surfaces.validate.InputError: lights: light directions are coplanar (singular values [1.414214, 1.0, 0.0]); ...
     """
     arr = as_array(lights, name)
     if batched:
         if arr.ndim < 2 or arr.shape[-1] != 3:
-            raise ValueError(f"{name}: expected shape (..., N, 3), got {arr.shape}")
+            raise InputError(f"{name}: expected shape (..., N, 3), got {arr.shape}")
     elif arr.ndim != 2 or arr.shape[1] != 3:
-        raise ValueError(f"{name}: expected shape (N, 3), got {arr.shape}")
+        raise InputError(f"{name}: expected shape (N, 3), got {arr.shape}")
     n = arr.shape[-2]
     if n < min_lights:
-        raise ValueError(f"{name}: needs at least {min_lights} light direction(s), got {n}")
+        raise InputError(f"{name}: needs at least {min_lights} light direction(s), got {n}")
     norms = np.linalg.norm(arr, axis=-1)
     if np.any(norms < 1e-12):
         bad = np.argwhere(norms < 1e-12).tolist()
-        raise ValueError(f"{name}: zero-length light direction(s) at {bad}")
+        raise InputError(f"{name}: zero-length light direction(s) at {bad}")
     off = np.abs(norms - 1.0) > UNIT_TOLERANCE
     if np.any(off):
         warnings.warn(
@@ -160,7 +160,7 @@ def validate_lights(lights, name: str = "lights", *, min_lights: int = 3, batche
         if np.any(flat):
             where = "" if not batched else f" in set(s) {np.argwhere(flat).tolist()[:5]}"
             worst = s[np.unravel_index(np.argmax(flat), flat.shape)] if batched else s
-            raise ValueError(
+            raise InputError(
                 f"{name}: light directions are coplanar{where} (singular values "
                 f"{np.round(worst, 6).tolist()}); the normal is not determined"
             )
@@ -214,7 +214,7 @@ def _angles(unit: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def _alias(value, alias, name: str, alias_name: str):
     """The value given under ``name`` or under its alias (exactly one of them)."""
     if (value is None) == (alias is None):
-        raise ValueError(f"{name}: give either {name} or its alias {alias_name} (exactly one)")
+        raise InputError(f"{name}: give either {name} or its alias {alias_name} (exactly one)")
     return value if value is not None else alias
 
 
@@ -247,11 +247,11 @@ def lights_from_angles(slant_deg, azimuth_deg=None, *, tilt_deg=None) -> np.ndar
     slant = as_array(slant_deg, "slant_deg")
     azimuth = as_array(azimuth_deg, "azimuth_deg")
     if np.any((slant < 0) | (slant > 90)):
-        raise ValueError(f"slant_deg: must lie in [0, 90] degrees, got {np.round(slant, 6).tolist()}")
+        raise InputError(f"slant_deg: must lie in [0, 90] degrees, got {np.round(slant, 6).tolist()}")
     try:
         np.broadcast_shapes(slant.shape, azimuth.shape)
     except ValueError:
-        raise ValueError(f"slant_deg, azimuth_deg: shapes {slant.shape} and {azimuth.shape} do not broadcast") from None
+        raise InputError(f"slant_deg, azimuth_deg: shapes {slant.shape} and {azimuth.shape} do not broadcast") from None
     return _vectors(np.radians(slant), np.radians(azimuth))
 
 
@@ -305,10 +305,10 @@ def ring_lights(n: int, slant_deg: float, azimuth0_deg: float = 90.0) -> np.ndar
     [[0.0, 0.7071, 0.7071], [-0.6124, -0.3536, 0.7071], [0.6124, -0.3536, 0.7071]]
     """
     if isinstance(n, bool) or int(n) != n or n < 1:
-        raise ValueError(f"n: expected a whole number of lights >= 1, got {n!r}")
+        raise InputError(f"n: expected a whole number of lights >= 1, got {n!r}")
     slant = float(slant_deg)
     if not 0.0 <= slant <= 90.0:
-        raise ValueError(f"slant_deg: must lie in [0, 90] degrees, got {slant_deg!r}")
+        raise InputError(f"slant_deg: must lie in [0, 90] degrees, got {slant_deg!r}")
     azimuth = float(azimuth0_deg) + 360.0 * np.arange(int(n)) / int(n)
     return _vectors(np.radians(slant), np.radians(azimuth))
 
@@ -379,7 +379,7 @@ def deviate_lights(lights, deviations_deg) -> np.ndarray:
     if d.ndim == 1 and d.shape == (n,):
         d = np.stack([d, np.zeros_like(d)], axis=-1)
     if d.ndim < 2 or d.shape[-2:] != (n, 2):
-        raise ValueError(f"deviations_deg: expected shape ({n},) or (..., {n}, 2), got {d.shape}")
+        raise InputError(f"deviations_deg: expected shape ({n},) or (..., {n}, 2), got {d.shape}")
     return _deviate(unit, d)
 
 
@@ -418,9 +418,9 @@ def rotate_lights(lights, angle_deg, direction_deg) -> np.ndarray:
     try:
         shape = np.broadcast_shapes(delta.shape, phi.shape)
     except ValueError:
-        raise ValueError(f"angle_deg, direction_deg: shapes {delta.shape} and {phi.shape} do not broadcast") from None
+        raise InputError(f"angle_deg, direction_deg: shapes {delta.shape} and {phi.shape} do not broadcast") from None
     if len(shape) and shape[-1] not in (1, unit.shape[0]):
-        raise ValueError(f"angle_deg/direction_deg: last axis must have {unit.shape[0]} entries, got {shape}")
+        raise InputError(f"angle_deg/direction_deg: last axis must have {unit.shape[0]} entries, got {shape}")
     return _rotate(unit, delta, phi)
 
 
@@ -447,7 +447,7 @@ def rotation_matrix(axis, angle_deg: float) -> np.ndarray:
     k = as_array(axis, "axis", shape=(3,))
     norm = np.linalg.norm(k)
     if norm == 0:
-        raise ValueError("axis: must be a non-zero vector")
+        raise InputError("axis: must be a non-zero vector")
     k = k / norm
     t = math.radians(float(angle_deg))
     K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
@@ -529,17 +529,17 @@ def point_lights(positions, axes=None, mu=None, name: str = "light_positions") -
     >>> point_lights([[100, 0, 100], [-50, 86.6, 0], [-50, -86.6, 100]])  # doctest: +ELLIPSIS
     Traceback (most recent call last):
     ...
-    ValueError: light_positions: light 1 at z = 0 mm is at or below the reference plane z = 0 ...
+    surfaces.validate.InputError: light_positions: light 1 at z = 0 mm is at or below the reference plane z = 0 ...
     """
     pos = as_array(positions, name)
     if pos.ndim != 2 or pos.shape[1] != 3:
-        raise ValueError(f"{name}: expected shape (N, 3) (x y z in mm per LED), got {pos.shape}")
+        raise InputError(f"{name}: expected shape (N, 3) (x y z in mm per LED), got {pos.shape}")
     if pos.shape[0] < 3:
-        raise ValueError(f"{name}: needs at least 3 lights, got {pos.shape[0]}")
+        raise InputError(f"{name}: needs at least 3 lights, got {pos.shape[0]}")
     low = np.flatnonzero(pos[:, 2] <= 0)
     if low.size:
         k = int(low[0])
-        raise ValueError(f"{name}: light {k} at z = {pos[k, 2]:g} mm is at or below the reference plane z = 0 "
+        raise InputError(f"{name}: light {k} at z = {pos[k, 2]:g} mm is at or below the reference plane z = 0 "
                          "(LEDs must be above the part)")
     validate_lights(pos / np.linalg.norm(pos, axis=1, keepdims=True), f"{name} (directions from the origin)")
     n = pos.shape[0]
@@ -549,19 +549,19 @@ def point_lights(positions, axes=None, mu=None, name: str = "light_positions") -
         ax = as_array(axes, "led_axes", shape=(n, 3))
         norm = np.linalg.norm(ax, axis=1)
         if np.any(norm < 1e-12):
-            raise ValueError(f"led_axes: zero-length axis for light(s) {np.flatnonzero(norm < 1e-12).tolist()}")
+            raise InputError(f"led_axes: zero-length axis for light(s) {np.flatnonzero(norm < 1e-12).tolist()}")
         ax = ax / norm[:, None]
         if np.any(ax[:, 2] >= 0):
-            raise ValueError(f"led_axes: axis of light(s) {np.flatnonzero(ax[:, 2] >= 0).tolist()} does not point "
+            raise InputError(f"led_axes: axis of light(s) {np.flatnonzero(ax[:, 2] >= 0).tolist()} does not point "
                              "down towards the part")
     known = mu is not None
     m = np.zeros(n) if mu is None else as_array(mu, "led_mu", ndim=(0, 1))
     if m.ndim == 0:
         m = np.full(n, float(m))
     if m.shape != (n,):
-        raise ValueError(f"led_mu: expected one value or {n} values, got shape {m.shape}")
+        raise InputError(f"led_mu: expected one value or {n} values, got shape {m.shape}")
     if np.any(m < 0):
-        raise ValueError(f"led_mu: lobe exponents must be >= 0, got {m.tolist()}")
+        raise InputError(f"led_mu: lobe exponents must be >= 0, got {m.tolist()}")
     return PointLights(pos, ax, m, known)
 
 
@@ -585,7 +585,7 @@ def load_light_positions(path) -> np.ndarray:
         if isinstance(data, dict):
             data = data.get("positions_mm")
             if data is None:
-                raise ValueError(f"light_positions: {p} needs a 'positions_mm' list")
+                raise InputError(f"light_positions: {p} needs a 'positions_mm' list")
     else:
         data = _read_table(p, "light_positions")
     return point_lights(data, name=f"light_positions ({p.name})").positions
@@ -645,15 +645,15 @@ def light_field(lights: PointLights, points, intensities=None) -> np.ndarray:
     [[0.0, 0.0, 1.0], [0.0, 0.0, 0.25]]
     """
     if not isinstance(lights, PointLights):
-        raise ValueError(f"lights: expected PointLights (photometric.lights.point_lights), got {type(lights).__name__}")
+        raise InputError(f"lights: expected PointLights (photometric.lights.point_lights), got {type(lights).__name__}")
     X = as_array(points, "points")
     if X.ndim < 1 or X.shape[-1] != 3:
-        raise ValueError(f"points: expected shape (..., 3), got {X.shape}")
+        raise InputError(f"points: expected shape (..., 3), got {X.shape}")
     n = len(lights)
     e = np.ones(n) if intensities is None else as_intensities(intensities, n).mean(axis=1)
     above = X[..., 2][None] < lights.positions[:, 2].reshape((n,) + (1,) * (X.ndim - 1))
     if not np.all(above):
-        raise ValueError("points: a point lies at or above the height of a light")
+        raise InputError("points: a point lies at or above the height of a light")
     strength = e * lights.d0**2
     out = np.empty((n,) + X.shape)
     for k in range(n):
@@ -674,14 +674,14 @@ def _read_table(path: Path, name: str) -> np.ndarray:
     try:
         return np.loadtxt(path, ndmin=2, delimiter="," if suffix == ".csv" else None)
     except ValueError as exc:
-        raise ValueError(f"{name}: {path} is not a table of numbers ({exc})") from None
+        raise InputError(f"{name}: {path} is not a table of numbers ({exc})") from None
 
 
 def _read_json(path: Path, name: str):
     try:
         return json.loads(path.read_text())
     except json.JSONDecodeError as exc:
-        raise ValueError(f"{name}: {path} is not valid JSON ({exc})") from None
+        raise InputError(f"{name}: {path} is not valid JSON ({exc})") from None
 
 
 def _existing(path, name: str) -> Path:
@@ -729,7 +729,7 @@ def load_lights(path) -> np.ndarray:
             elif "slant_deg" in data and ("azimuth_deg" in data or "tilt_deg" in data):
                 data = lights_from_angles(data["slant_deg"], data.get("azimuth_deg"), tilt_deg=data.get("tilt_deg"))
             else:
-                raise ValueError(f"lights: {p} needs a 'lights' list or 'slant_deg' and 'azimuth_deg' (or 'tilt_deg')")
+                raise InputError(f"lights: {p} needs a 'lights' list or 'slant_deg' and 'azimuth_deg' (or 'tilt_deg')")
         return validate_lights(data, name)
     table = _read_table(p, "lights")
     if table.ndim == 2 and table.shape[1] == 2:
@@ -765,9 +765,9 @@ def as_intensities(values, n: int, name: str = "intensities") -> np.ndarray:
     elif arr.ndim == 2 and arr.shape == (n, 1):
         arr = np.repeat(arr, 3, axis=1)
     elif arr.shape != (n, 3):
-        raise ValueError(f"{name}: expected a scalar, ({n},) or ({n}, 3) values, got shape {arr.shape}")
+        raise InputError(f"{name}: expected a scalar, ({n},) or ({n}, 3) values, got shape {arr.shape}")
     if np.any(arr <= 0):
-        raise ValueError(f"{name}: intensities must be positive, got minimum {arr.min()}")
+        raise InputError(f"{name}: intensities must be positive, got minimum {arr.min()}")
     return arr
 
 
@@ -793,7 +793,7 @@ def load_intensities(path, n: int) -> np.ndarray:
         if isinstance(data, dict):
             data = data.get("intensities")
             if data is None:
-                raise ValueError(f"intensities: {p} needs an 'intensities' list")
+                raise InputError(f"intensities: {p} needs an 'intensities' list")
         return as_intensities(data, n, f"intensities ({p.name})")
     table = _read_table(p, "intensities")
     if table.ndim == 2 and table.shape[0] == 1 and n != 1:
@@ -821,7 +821,7 @@ def sphere_from_mask(mask) -> tuple[float, float, float]:
     m = as_array(mask, "mask", ndim=2, dtype=bool)
     area = int(m.sum())
     if area < 20:
-        raise ValueError(f"mask: sphere silhouette has only {area} pixels")
+        raise InputError(f"mask: sphere silhouette has only {area} pixels")
     rows, cols = np.nonzero(m)
     return float(rows.mean()), float(cols.mean()), float(np.sqrt(area / np.pi))
 
@@ -859,12 +859,12 @@ def calibrate_mirror_sphere(
         imgs = imgs.mean(axis=3)
     m = as_array(mask, "mask", shape=imgs.shape[1:], dtype=bool)
     if not 0 < threshold < 1:
-        raise ValueError(f"threshold: must lie in (0, 1), got {threshold}")
+        raise InputError(f"threshold: must lie in (0, 1), got {threshold}")
     r0, c0, radius = sphere_from_mask(m)
     inside = np.where(m[None], imgs, 0.0)
     peak = inside.reshape(len(imgs), -1).max(axis=1)
     if np.any(peak <= 0):
-        raise ValueError(f"images: no highlight inside the sphere in image(s) {np.flatnonzero(peak <= 0).tolist()}")
+        raise InputError(f"images: no highlight inside the sphere in image(s) {np.flatnonzero(peak <= 0).tolist()}")
     weight = np.clip(inside - threshold * peak[:, None, None], 0.0, None)
     rows = np.arange(m.shape[0], dtype=np.float64)[None, :, None]
     cols = np.arange(m.shape[1], dtype=np.float64)[None, None, :]
@@ -875,7 +875,7 @@ def calibrate_mirror_sphere(
     ny = -(hr - r0) / radius
     rr = nx**2 + ny**2
     if np.any(rr >= 1.0):
-        raise ValueError(f"images: highlight outside the sphere circle in image(s) {np.flatnonzero(rr >= 1).tolist()}")
+        raise InputError(f"images: highlight outside the sphere circle in image(s) {np.flatnonzero(rr >= 1).tolist()}")
     n = np.stack([nx, ny, np.sqrt(1.0 - rr)], axis=1)
     v = np.array([0.0, 0.0, 1.0])
     lights = 2.0 * (n @ v)[:, None] * n - v

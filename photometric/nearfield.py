@@ -70,7 +70,7 @@ from photometric.camera import (
 )
 from photometric.lights import PointLights, _scaled_vectors, as_intensities, validate_lights
 from photometric.stereo import MAX_CONDITION, _check_images, _check_options, _grey_planes, _solve
-from surfaces.validate import as_array, positive
+from surfaces.validate import as_array, InputError, positive
 
 __all__ = [
     "DEFAULT_TOLERANCE_MM",
@@ -276,16 +276,16 @@ def nearfield_setup(lights: PointLights, camera, shape, gains=None, *,
     ((64, 64), [4], (16, 16))
     """
     if not isinstance(lights, PointLights):
-        raise ValueError(f"lights: expected PointLights (photometric.lights.point_lights), got {type(lights).__name__}")
+        raise InputError(f"lights: expected PointLights (photometric.lights.point_lights), got {type(lights).__name__}")
     camera = _check_camera(camera)
     if len(shape) != 2 or min(int(shape[0]), int(shape[1])) < 1:
-        raise ValueError(f"shape: expected (H, W) with H, W >= 1, got {shape}")
+        raise InputError(f"shape: expected (H, W) with H, W >= 1, got {shape}")
     shape = (int(shape[0]), int(shape[1]))
     g = None
     if gains is not None:
         g = as_array(gains, "gains", shape=(len(lights),) + shape, dtype=np.float32)
         if np.any(g < 0):
-            raise ValueError("gains: flat-field gains must be >= 0")
+            raise InputError("gains: flat-field gains must be >= 0")
     strength = _strengths(lights, camera, shape, g, None)
     r = _coarse_step(shape, int(coarse_pixels))
     coarse = {} if r == 1 else {r: [s if np.ndim(s) == 0 else _block_mean(s, r) for s in strength]}
@@ -300,21 +300,21 @@ def _coarse_step(shape, coarse_pixels: int) -> int:
 
 def _check_setup(setup, lights, camera, shape, gains) -> None:
     if not isinstance(setup, NearFieldSetup):
-        raise ValueError(f"setup: expected NearFieldSetup (nearfield_setup), got {type(setup).__name__}")
+        raise InputError(f"setup: expected NearFieldSetup (nearfield_setup), got {type(setup).__name__}")
     if gains is not None:
-        raise ValueError("setup: give the flat-field gains to nearfield_setup, not with setup")
+        raise InputError("setup: give the flat-field gains to nearfield_setup, not with setup")
     if (tuple(setup.shape) != tuple(shape) or setup.camera != camera or not isinstance(lights, PointLights)
             or len(lights) != len(setup.lights)
             or not np.array_equal(setup.lights.positions, lights.positions)
             or not np.array_equal(setup.lights.axes, lights.axes)
             or not np.array_equal(setup.lights.mu, lights.mu) or setup.lights.mu_known != lights.mu_known):
-        raise ValueError(f"setup: prepared for other lights, camera or image size ({setup.shape[0]} x "
+        raise InputError(f"setup: prepared for other lights, camera or image size ({setup.shape[0]} x "
                          f"{setup.shape[1]} px) than this solve's ({shape[0]} x {shape[1]} px)")
 
 
 def _check_camera(camera) -> Camera:
     if not isinstance(camera, (Orthographic, Perspective)):
-        raise ValueError("camera: expected photometric.camera.Orthographic or Perspective "
+        raise InputError("camera: expected photometric.camera.Orthographic or Perspective "
                          f"(photometric.camera.make_camera), got {type(camera).__name__}")
     return camera
 
@@ -423,41 +423,41 @@ def solve_nearfield(
     camera = _check_camera(camera)
     if isinstance(lights, PointLights):
         if len(lights) != n_img:
-            raise ValueError(f"lights: {len(lights)} LED positions for {n_img} images")
+            raise InputError(f"lights: {len(lights)} LED positions for {n_img} images")
     else:
         lights = validate_lights(lights)
         if lights.shape[0] != n_img:
-            raise ValueError(f"lights: {lights.shape[0]} directions for {n_img} images")
+            raise InputError(f"lights: {lights.shape[0]} directions for {n_img} images")
         if gains is not None:
-            raise ValueError("gains: a flat field needs point lights (LED positions)")
+            raise InputError("gains: a flat field needs point lights (LED positions)")
     intens = as_intensities(intensities, n_img)
     m = None if mask is None else as_array(mask, "mask", shape=(height, width), dtype=bool)
     if m is not None and not m.any():
-        raise ValueError("mask: no pixel is selected")
+        raise InputError("mask: no pixel is selected")
     g = None
     if setup is not None:
         _check_setup(setup, lights, camera, (height, width), gains)
     elif gains is not None:
         g = as_array(gains, "gains", shape=(n_img, height, width), dtype=np.float32)
         if np.any(g < 0):
-            raise ValueError("gains: flat-field gains must be >= 0")
+            raise InputError("gains: flat-field gains must be >= 0")
     _check_options(dark, saturation, highlight, 2)
     if integrator not in INTEGRATORS:
-        raise ValueError(f"integrator: expected one of {INTEGRATORS}, got {integrator!r}")
+        raise InputError(f"integrator: expected one of {INTEGRATORS}, got {integrator!r}")
     positive(tolerance_mm, "tolerance_mm")
     if int(max_iterations) < 1:
-        raise ValueError(f"max_iterations: must be at least 1, got {max_iterations}")
+        raise InputError(f"max_iterations: must be at least 1, got {max_iterations}")
     if int(coarse_pixels) < 1:
-        raise ValueError(f"coarse_pixels: must be at least 1, got {coarse_pixels}")
+        raise InputError(f"coarse_pixels: must be at least 1, got {coarse_pixels}")
     if int(correction_step) != correction_step or correction_step < 1:
-        raise ValueError(f"correction_step: must be an integer of at least 1, got {correction_step}")
+        raise InputError(f"correction_step: must be an integer of at least 1, got {correction_step}")
     ref = float(reference_height_mm)
     if not np.isfinite(ref):
-        raise ValueError(f"reference_height_mm: must be finite, got {reference_height_mm}")
+        raise InputError(f"reference_height_mm: must be finite, got {reference_height_mm}")
     if isinstance(camera, Perspective) and ref >= camera.camera_height_mm:
-        raise ValueError(f"reference_height_mm: {ref} mm is not below the camera ({camera.camera_height_mm} mm)")
+        raise InputError(f"reference_height_mm: {ref} mm is not below the camera ({camera.camera_height_mm} mm)")
     if isinstance(lights, PointLights) and np.any(lights.positions[:, 2] <= ref):
-        raise ValueError(f"reference_height_mm: {ref} mm is not below every light")
+        raise InputError(f"reference_height_mm: {ref} mm is not below every light")
     return _solve_nearfield(
         imgs, lights, camera, intens, m, g, outliers, dark, saturation, highlight, integrator, ref,
         float(tolerance_mm), int(max_iterations), int(coarse_pixels), threads, setup=setup,
@@ -578,7 +578,7 @@ def _directional(imgs, L, camera, intens, mask, outliers, dark, saturation, high
     u, v = pixel_offsets(camera, shape)
     level = _Level([], [], np.ones(shape, bool) if mask is None else mask, None, u, v, 1)
     if not res.valid.any():
-        raise ValueError("images: no pixel has a valid normal (check the lights, the mask and the images)")
+        raise InputError("images: no pixel has a valid normal (check the lights, the mask and the images)")
     planes = np.moveaxis(res.normals, -1, 0)
     z, (lu, lv), _ = _height(level, camera, planes, res.valid, integrator, ref,
                              max(1, int(np.sqrt(res.valid.size / 250_000))))
@@ -715,7 +715,7 @@ def _alternate(level, lights, camera, opts, integrator, ref, tol, max_iterations
         t0 = time.perf_counter()
         valid = sol["valid"]
         if not valid.any():
-            raise ValueError("images: no pixel has a valid normal (check the lights, the mask and the images)")
+            raise InputError("images: no pixel has a valid normal (check the lights, the mask and the images)")
         # a partial re-solve at full resolution changes the slopes of few pixels by little: its
         # correction is integrated on a decimated grid, unless it comes near the tolerance
         correct = last is not None and name == "full" and n_moved <= in_mask // 2 and correction_step > 1

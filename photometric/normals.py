@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from surfaces.validate import as_array
+from surfaces.validate import as_array, InputError
 
 __all__ = ["normals_from_slopes", "angular_error_deg"]
 
@@ -36,7 +36,7 @@ def normals_from_slopes(p, q) -> np.ndarray:
     p = as_array(p, "p")
     q = as_array(q, "q")
     if p.shape != q.shape:
-        raise ValueError(f"p, q: shapes differ ({p.shape} vs {q.shape})")
+        raise InputError(f"p, q: shapes differ ({p.shape} vs {q.shape})")
     n = np.stack([-p, -q, np.ones_like(p)], axis=-1)
     return n / np.sqrt(1.0 + p * p + q * q)[..., None]
 
@@ -69,11 +69,11 @@ def angular_error_deg(a, b) -> np.ndarray:
     u = as_array(a, "a", finite=False)
     v = as_array(b, "b", finite=False)
     if u.ndim < 1 or u.shape[-1] != 3 or v.ndim < 1 or v.shape[-1] != 3:
-        raise ValueError(f"a, b: expected shapes (..., 3), got {u.shape} and {v.shape}")
+        raise InputError(f"a, b: expected shapes (..., 3), got {u.shape} and {v.shape}")
     try:
         np.broadcast_shapes(u.shape, v.shape)
     except ValueError:
-        raise ValueError(f"a, b: shapes {u.shape} and {v.shape} do not broadcast") from None
+        raise InputError(f"a, b: shapes {u.shape} and {v.shape} do not broadcast") from None
     cross = np.linalg.norm(np.cross(u, v), axis=-1)
     dot = np.einsum("...i,...i->...", u, v)
     return np.degrees(np.arctan2(cross, dot))

@@ -66,7 +66,7 @@ from photometric.stereo import (
 from photometric.uncertainty import Tolerances, UncertaintyResult
 from surfaces.bezier import BezierPatches
 from surfaces.mesh import TriangleMesh
-from surfaces.validate import as_array, positive
+from surfaces.validate import as_array, InputError, positive
 
 __all__ = ["SURFACES", "TARGET_PATCHES", "LIGHT_MODELS", "PhotometricReconstruction", "reconstruct"]
 
@@ -180,14 +180,14 @@ def _load_input(source, lights, intensities, mask, select) -> tuple[PhotometricD
             try:
                 scene = json.loads((folder / "scene.json").read_text())
             except json.JSONDecodeError as exc:
-                raise ValueError(f"input: {folder / 'scene.json'} is not valid JSON ({exc})") from None
+                raise InputError(f"input: {folder / 'scene.json'} is not valid JSON ({exc})") from None
             if isinstance(scene, dict) and "pixel_size_mm" in scene:
                 extra["scene_pixel_size_mm"] = float(scene["pixel_size_mm"])
         replace = {}
         if lights is not None:
             replace["lights"] = _lights(lights)
             if replace["lights"].shape[0] != len(data.names):
-                raise ValueError(f"lights: {replace['lights'].shape[0]} directions for {len(data.names)} images")
+                raise InputError(f"lights: {replace['lights'].shape[0]} directions for {len(data.names)} images")
         if intensities is not None:
             replace["intensities"] = _intensities(intensities, len(data.names))
         if mask is not None:
@@ -200,7 +200,7 @@ def _load_input(source, lights, intensities, mask, select) -> tuple[PhotometricD
     if isinstance(source, (str, Path)):
         raise NotADirectoryError(f"input: {source} is not a folder (give --images and --lights for files)")
     if lights is None:
-        raise ValueError("lights: required when the input is a list of images or an array")
+        raise InputError("lights: required when the input is a list of images or an array")
     if isinstance(source, Sequence) and all(isinstance(s, (str, Path)) for s in source):
         images = read_images(list(source))
         names = tuple(Path(s).name for s in source)
@@ -211,7 +211,7 @@ def _load_input(source, lights, intensities, mask, select) -> tuple[PhotometricD
         kind = {"kind": "array"}
     L = _lights(lights)
     if L.shape[0] != images.shape[0]:
-        raise ValueError(f"lights: {L.shape[0]} directions for {images.shape[0]} images")
+        raise InputError(f"lights: {L.shape[0]} directions for {images.shape[0]} images")
     n = images.shape[0]
     shape = images.shape[1:3]
     m = np.ones(shape, bool) if mask is None else _mask(mask, shape)
@@ -257,7 +257,7 @@ def _light_positions(value, n: int, led_mu) -> PointLights:
     pos = load_light_positions(value) if isinstance(value, (str, Path)) else value
     lights = point_lights(pos, mu=led_mu)
     if len(lights) != n:
-        raise ValueError(f"light_positions: {len(lights)} LED positions for {n} images")
+        raise InputError(f"light_positions: {len(lights)} LED positions for {n} images")
     return lights
 
 
@@ -271,14 +271,14 @@ def _flat_images(flat_field, n: int, shape) -> np.ndarray:
         flat_field = [flat_field]
     if isinstance(flat_field, Sequence) and all(isinstance(f, (str, Path)) for f in flat_field):
         if len(flat_field) != n:
-            raise ValueError(f"flat_field: {len(flat_field)} flat-field image(s) for {n} lights (one per light)")
+            raise InputError(f"flat_field: {len(flat_field)} flat-field image(s) for {n} lights (one per light)")
         flats = read_images(list(flat_field))
     else:
         flats = _check_images(flat_field)
         if flats.shape[0] != n:
-            raise ValueError(f"flat_field: {flats.shape[0]} flat-field image(s) for {n} lights (one per light)")
+            raise InputError(f"flat_field: {flats.shape[0]} flat-field image(s) for {n} lights (one per light)")
     if flats.shape[1:3] != tuple(shape):
-        raise ValueError(f"flat_field: flat-field images are {flats.shape[1]} x {flats.shape[2]} px, the images "
+        raise InputError(f"flat_field: flat-field images are {flats.shape[1]} x {flats.shape[2]} px, the images "
                          f"{shape[0]} x {shape[1]} px")
     return flats
 
@@ -305,7 +305,7 @@ def _near_setup(data: PhotometricData, *, light_model, light_positions, led_mu, 
     else:
         lights = None
     if led_mu is not None and lights is None:
-        raise ValueError("led_mu: the LED lobe needs LED positions (--light-positions or --rig)")
+        raise InputError("led_mu: the LED lobe needs LED positions (--light-positions or --rig)")
 
     explicit = [v is not None for v in (camera, focal_length_px, camera_height_mm, principal_point_px)]
     cam_source = "option"
@@ -330,16 +330,16 @@ def _near_setup(data: PhotometricData, *, light_model, light_positions, led_mu, 
 
     if light_model == "directional" or lights is None:
         if light_model == "point":
-            raise ValueError("light_model: 'point' needs LED positions (--light-positions, --rig or the "
+            raise InputError("light_model: 'point' needs LED positions (--light-positions, --rig or the "
                              "folder's light_positions.txt)")
         if flat_field is not None and flat_field is not False:
-            raise ValueError("flat_field: flat-field gains need the point-light model (LED positions from "
+            raise InputError("flat_field: flat-field gains need the point-light model (LED positions from "
                              "--light-positions, --rig or the folder, and not --light-model directional)")
         if cam is None or isinstance(cam, Orthographic):
             return None
         return _Near("directional", data.lights, cam, cam_source, None, None, data.intensities, None)
     if cam is None:
-        raise ValueError("camera: point lights need the camera's scale in mm: --pixel-size (orthographic) or "
+        raise InputError("camera: point lights need the camera's scale in mm: --pixel-size (orthographic) or "
                          "--camera perspective --focal-length-px F --camera-height MM")
     gains, flat = None, None
     if flat_field is not None and flat_field is not False:
@@ -386,10 +386,10 @@ def _nearfield(data: PhotometricData, near: _Near, *, outliers, dark, saturation
     """The near-field (or perspective) solve; no convergence raises with the summary so far."""
     ref = float(reference_height_mm)
     if isinstance(near.camera, Perspective) and ref >= near.camera.camera_height_mm:
-        raise ValueError(f"reference_height_mm: {ref:g} mm is not below the camera "
+        raise InputError(f"reference_height_mm: {ref:g} mm is not below the camera "
                          f"({near.camera.camera_height_mm:g} mm)")
     if near.model == "point" and np.any(near.lights.positions[:, 2] <= ref):
-        raise ValueError(f"reference_height_mm: {ref:g} mm is not below every light")
+        raise InputError(f"reference_height_mm: {ref:g} mm is not below every light")
     try:
         return _solve_nearfield(
             data.images, near.lights, near.camera, near.intensities, data.mask, near.gains, outliers, dark,
@@ -600,29 +600,29 @@ def reconstruct(
     from photometric.normals import angular_error_deg
 
     if integrator not in METHODS:
-        raise ValueError(f"integrator: expected one of {METHODS}, got {integrator!r}")
+        raise InputError(f"integrator: expected one of {METHODS}, got {integrator!r}")
     if pixel_size is not None:
         positive(pixel_size, "pixel_size")
     if samples is not None and int(samples) < 1:
-        raise ValueError(f"samples: must be at least 1, got {samples}")
+        raise InputError(f"samples: must be at least 1, got {samples}")
     if step is not None and int(step) < 1:
-        raise ValueError(f"step: must be at least 1 pixel, got {step}")
+        raise InputError(f"step: must be at least 1 pixel, got {step}")
     if surface not in SURFACES:
-        raise ValueError(f"surface: expected one of {SURFACES}, got {surface!r}")
+        raise InputError(f"surface: expected one of {SURFACES}, got {surface!r}")
     if surface_tolerance is not None:
         positive(surface_tolerance, "surface_tolerance")
     _check_options(dark, saturation, highlight, 2)
     if light_model not in LIGHT_MODELS:
-        raise ValueError(f"light_model: expected one of {LIGHT_MODELS}, got {light_model!r}")
+        raise InputError(f"light_model: expected one of {LIGHT_MODELS}, got {light_model!r}")
     positive(tolerance_mm, "tolerance_mm")
     if int(max_iterations) < 1:
-        raise ValueError(f"max_iterations: must be at least 1, got {max_iterations}")
+        raise InputError(f"max_iterations: must be at least 1, got {max_iterations}")
     if not np.isfinite(float(reference_height_mm)):
-        raise ValueError(f"reference_height_mm: must be finite, got {reference_height_mm}")
+        raise InputError(f"reference_height_mm: must be finite, got {reference_height_mm}")
     if isinstance(uncertainty, dict):
         uncertainty = Tolerances(**uncertainty)
     elif uncertainty is not None and not isinstance(uncertainty, Tolerances):
-        raise ValueError(f"uncertainty: expected Tolerances, a dict or None, got {type(uncertainty).__name__}")
+        raise InputError(f"uncertainty: expected Tolerances, a dict or None, got {type(uncertainty).__name__}")
     say = progress or (lambda _stage: None)
     timings: dict[str, float] = {}
     t_all = time.perf_counter()
@@ -638,7 +638,7 @@ def reconstruct(
             lights, name = (rig if isinstance(rig, Rig) else read_rig(rig)).lights.directions, "rig"
         if lights is not None and isinstance(source, (Sequence, np.ndarray)) and not isinstance(source, str) \
                 and len(source) != len(lights):
-            raise ValueError(f"{name}: {len(lights)} LEDs for {len(source)} images")
+            raise InputError(f"{name}: {len(lights)} LEDs for {len(source)} images")
     data, input_info = _load_input(source, lights, intensities, mask, select)
     height_gt = input_info.pop("height_gt", None)
     xy_gt = input_info.pop("xy_gt", None)
@@ -667,14 +667,14 @@ def reconstruct(
     say("normals")
     t0 = time.perf_counter()
     if not data.mask.any():
-        raise ValueError("mask: no pixel is selected")
+        raise InputError("mask: no pixel is selected")
     notes = []
     # float input has no known full scale: only black pixels are screened there
     screen = screen_images(data.images, data.mask, SATURATED if data.full_scale else np.inf)
     if not screen.usable.all():
         bad = "; ".join(screen.problems(data.names))
         if screen.usable.sum() < 3:
-            raise ValueError(f"images: only {int(screen.usable.sum())} of {n_img} images are usable ({bad}); "
+            raise InputError(f"images: only {int(screen.usable.sum())} of {n_img} images are usable ({bad}); "
                              "photometric stereo needs 3")
         notes.append(f"images: {bad}: left out of the solve")
         if near is None:
@@ -838,7 +838,7 @@ def _uncertainty(tol: Tolerances, data: PhotometricData, near, res, height, defe
     point, draw, lights, intensities = None, None, data.lights, data.intensities
     if near is not None:
         if tol.method == "linear" and not (near.model == "point" and isinstance(near.camera, Orthographic)):
-            raise ValueError("uncertainty: the linear propagation covers distant lights and point lights with an "
+            raise InputError("uncertainty: the linear propagation covers distant lights and point lights with an "
                              "orthographic camera; use method 'montecarlo' (--uncertainty montecarlo) here")
         lights, intensities = near.lights, near.intensities
         if near.model == "point":
@@ -846,7 +846,7 @@ def _uncertainty(tol: Tolerances, data: PhotometricData, near, res, height, defe
                 near.lights, near.camera, near.gains, near.lights.mu_known or near.gains is None, res.xy,
                 np.ones(len(near.lights)) if near.gains is not None else near.intensities.mean(axis=1))
             if tol.light_tolerance_deg > 0:
-                raise ValueError("light_tolerance_deg: point lights (LED positions) take light_position_tolerance_mm")
+                raise InputError("light_tolerance_deg: point lights (LED positions) take light_position_tolerance_mm")
             u_pos = tol.light_position_tolerance_mm
 
             def draw(rng):

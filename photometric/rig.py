@@ -34,7 +34,7 @@ import numpy as np
 from photometric.camera import Camera, camera_from_dict, plane_points
 from photometric.lights import PointLights, as_intensities, point_lights
 from photometric.stereo import _check_images, _grey_planes
-from surfaces.validate import as_array, positive
+from surfaces.validate import as_array, InputError, positive
 
 __all__ = ["RIG_FORMAT", "RIG_VERSION", "GAINS_FILE", "FLAT_SMOOTHING_PX", "Rig", "flat_field_gains",
            "rig_to_dict", "read_rig", "check_rig"]
@@ -122,14 +122,14 @@ def flat_field_gains(flat_images, lights: PointLights, camera: Camera, albedo: f
     """
     imgs = _check_images(flat_images)
     if not isinstance(lights, PointLights):
-        raise ValueError("lights: a flat field needs point lights (photometric.lights.point_lights)")
+        raise InputError("lights: a flat field needs point lights (photometric.lights.point_lights)")
     n = imgs.shape[0]
     if n != len(lights):
-        raise ValueError(f"flat_field: {n} flat-field image(s) for {len(lights)} lights (one per light, same order)")
+        raise InputError(f"flat_field: {n} flat-field image(s) for {len(lights)} lights (one per light, same order)")
     a = positive(albedo, "flat_albedo")
     sigma = positive(smoothing_px, "flat_smoothing_px", allow_zero=True)
     if not np.all(np.isfinite(imgs)) or np.any(imgs < 0):
-        raise ValueError("flat_field: images must be finite and non-negative")
+        raise InputError("flat_field: images must be finite and non-negative")
     planes = _grey_planes(imgs, np.ones((n, 3)))
     X0 = plane_points(camera, imgs.shape[1:3])
     gains = np.empty((n,) + imgs.shape[1:3], np.float32)
@@ -201,18 +201,18 @@ def read_rig(path) -> Rig:
     try:
         doc = json.loads(p.read_text())
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise ValueError(f"rig: {p} is not valid JSON ({exc})") from None
+        raise InputError(f"rig: {p} is not valid JSON ({exc})") from None
     if not isinstance(doc, dict) or doc.get("format") != RIG_FORMAT:
         found = doc.get("format") if isinstance(doc, dict) else None
-        raise ValueError(f"rig: {p} is not a {RIG_FORMAT!r} file (its 'format' is {found!r})")
+        raise InputError(f"rig: {p} is not a {RIG_FORMAT!r} file (its 'format' is {found!r})")
     if doc.get("version") != RIG_VERSION:
-        raise ValueError(f"rig: {p} has version {doc.get('version')!r}; this workbench reads version {RIG_VERSION}")
+        raise InputError(f"rig: {p} has version {doc.get('version')!r}; this workbench reads version {RIG_VERSION}")
     for key in ("lights", "camera", "image_size"):
         if key not in doc:
-            raise ValueError(f"rig: {p} lacks {key!r}")
+            raise InputError(f"rig: {p} lacks {key!r}")
     lights_doc = doc["lights"]
     if not isinstance(lights_doc, dict) or "positions_mm" not in lights_doc:
-        raise ValueError(f"rig: {p} 'lights' needs 'positions_mm'")
+        raise InputError(f"rig: {p} 'lights' needs 'positions_mm'")
     lights = point_lights(lights_doc["positions_mm"], lights_doc.get("axes"), lights_doc.get("mu"),
                           name=f"rig lights.positions_mm ({p.name})")
     n = len(lights)
@@ -221,13 +221,13 @@ def read_rig(path) -> Rig:
     camera = camera_from_dict(doc["camera"], f"rig camera ({p.name})")
     size = as_array(doc["image_size"], "rig image_size", shape=(2,))
     if np.any(size < 1) or np.any(size % 1):
-        raise ValueError(f"rig image_size: expected [H, W] in whole pixels, got {doc['image_size']}")
+        raise InputError(f"rig image_size: expected [H, W] in whole pixels, got {doc['image_size']}")
     shape = (int(size[0]), int(size[1]))
     gains, albedo, smoothing = None, None, 0.0
     flat = doc.get("flat_field")
     if flat is not None:
         if not isinstance(flat, dict) or "gains" not in flat:
-            raise ValueError(f"rig: {p} 'flat_field' needs 'gains' (a file name) or null")
+            raise InputError(f"rig: {p} 'flat_field' needs 'gains' (a file name) or null")
         gfile = p.parent / str(flat["gains"])
         if not gfile.is_file():
             raise FileNotFoundError(f"rig flat_field.gains: file {gfile} does not exist")
@@ -235,9 +235,9 @@ def read_rig(path) -> Rig:
             with np.load(gfile, allow_pickle=False) as npz:
                 gains = np.asarray(npz["gains"], np.float32)
         except (OSError, ValueError, KeyError) as exc:
-            raise ValueError(f"rig flat_field.gains: {gfile} is not an .npz file with 'gains' ({exc})") from None
+            raise InputError(f"rig flat_field.gains: {gfile} is not an .npz file with 'gains' ({exc})") from None
         if gains.shape != (n,) + shape:
-            raise ValueError(f"rig flat_field.gains: shape {gains.shape}, expected {(n,) + shape} "
+            raise InputError(f"rig flat_field.gains: shape {gains.shape}, expected {(n,) + shape} "
                              "(lights x image_size)")
         albedo = positive(flat.get("albedo", 1.0) if flat.get("albedo") is not None else 1.0, "rig flat_field.albedo")
         smoothing = positive(flat.get("smoothing_px", 0.0) or 0.0, "rig flat_field.smoothing_px", allow_zero=True)
@@ -260,7 +260,7 @@ def check_rig(rig: Rig, n_images: int, shape) -> None:
         ``rig: ...`` saying what differs.
     """
     if len(rig.lights) != n_images:
-        raise ValueError(f"rig: {len(rig.lights)} lights for {n_images} images (one image per light, same order)")
+        raise InputError(f"rig: {len(rig.lights)} lights for {n_images} images (one image per light, same order)")
     if tuple(shape) != tuple(rig.image_size):
-        raise ValueError(f"rig: calibrated for {rig.image_size[0]} x {rig.image_size[1]} px images, "
+        raise InputError(f"rig: calibrated for {rig.image_size[0]} x {rig.image_size[1]} px images, "
                          f"the images are {shape[0]} x {shape[1]} px")

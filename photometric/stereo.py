@@ -17,7 +17,7 @@ import cv2
 import numpy as np
 
 from photometric.lights import as_intensities, validate_lights
-from surfaces.validate import as_array
+from surfaces.validate import as_array, InputError
 
 #: Light sub-matrices worse conditioned than this give no trustworthy normal; a light
 #: matrix above it is refused unless forced (8-bit noise of 0.4 % becomes ~40 % in ``rho n``).
@@ -213,7 +213,7 @@ def check_light_matrix(lights, force: bool = False) -> tuple[float, list[str]]:
     L = validate_lights(lights)
     back = np.flatnonzero(L[:, 2] < 0)
     if back.size:
-        raise ValueError(
+        raise InputError(
             f"lights: {back.size} light(s) with z < 0 (rows {back[:5].tolist()}, z = "
             f"{np.round(L[back[:5], 2], 4).tolist()}): they point away from the camera and light the surface "
             "from behind; z is towards the camera (flip the sign of z, or check the axes)")
@@ -222,7 +222,7 @@ def check_light_matrix(lights, force: bool = False) -> tuple[float, list[str]]:
     what = (f"lights: condition number {cond:,.0f} of the light matrix (nearly coplanar lights; errors in the "
             f"normals are up to {cond:,.0f}x the image noise)")
     if cond > MAX_CONDITION and not force:
-        raise ValueError(f"{what} is above {MAX_CONDITION:g}; spread the lights or use --force")
+        raise InputError(f"{what} is above {MAX_CONDITION:g}; spread the lights or use --force")
     if cond > WARN_CONDITION:
         return cond, [f"{what} is above {WARN_CONDITION:g}" + (" (forced)" if cond > MAX_CONDITION else "")]
     return cond, []
@@ -232,11 +232,11 @@ def _check_images(images) -> np.ndarray:
     """Images as float32 (N, H, W) or (N, H, W, 3); finiteness is checked after the solve."""
     arr = as_array(images, "images", ndim=(3, 4), dtype=np.float32, finite=False)
     if arr.ndim == 4 and arr.shape[3] not in (1, 3):
-        raise ValueError(f"images: expected 1 or 3 channels, got shape {arr.shape}")
+        raise InputError(f"images: expected 1 or 3 channels, got shape {arr.shape}")
     if arr.ndim == 4 and arr.shape[3] == 1:
         arr = arr[..., 0]
     if min(arr.shape[1:3]) < 1:
-        raise ValueError(f"images: empty image size {arr.shape[1:3]}")
+        raise InputError(f"images: empty image size {arr.shape[1:3]}")
     return np.ascontiguousarray(arr)
 
 
@@ -245,7 +245,7 @@ def _check_finite(rho: np.ndarray, imgs: np.ndarray) -> None:
     the work of summing the input; count the bad input values only when it fails."""
     if not np.isfinite(np.sum(rho, dtype=np.float32)):
         bad = int(imgs.size - np.count_nonzero(np.isfinite(imgs)))
-        raise ValueError(
+        raise InputError(
             f"images: contains {bad} NaN or infinite value(s)"
             if bad
             else "images: values too large (the albedo overflows float32)"
@@ -388,11 +388,11 @@ def solve(
     n_img, height, width = imgs.shape[:3]
     L = validate_lights(lights)
     if L.shape[0] != n_img:
-        raise ValueError(f"lights: {L.shape[0]} directions for {n_img} images")
+        raise InputError(f"lights: {L.shape[0]} directions for {n_img} images")
     intens = as_intensities(intensities, n_img)
     m = None if mask is None else as_array(mask, "mask", shape=(height, width), dtype=bool)
     if m is not None and not m.any():
-        raise ValueError("mask: no pixel is selected")
+        raise InputError("mask: no pixel is selected")
     _check_options(dark, saturation, highlight, iterations)
     if on_block is not None:
         return _solve_rows(imgs, L, intens, m, outliers, dark, saturation, highlight, int(iterations), on_block)
@@ -403,11 +403,11 @@ def _check_options(dark: float, saturation: float, highlight: float | None, iter
     """The thresholds of the outlier test: checked where they enter (solve, the pipeline)."""
     for value, name in ((dark, "dark"), (saturation, "saturation")):
         if not np.isfinite(value) or value <= 0:
-            raise ValueError(f"{name}: must be a positive number, got {value}")
+            raise InputError(f"{name}: must be a positive number, got {value}")
     if highlight is not None and (not np.isfinite(highlight) or highlight <= 0):
-        raise ValueError(f"highlight: must be a positive number or None, got {highlight}")
+        raise InputError(f"highlight: must be a positive number or None, got {highlight}")
     if int(iterations) < 1:
-        raise ValueError(f"iterations: must be at least 1, got {iterations}")
+        raise InputError(f"iterations: must be at least 1, got {iterations}")
 
 
 def _solve(

@@ -21,7 +21,7 @@ from slices.options import SurfaceOptions
 from slices.surface import _side_surface, blend_overshoot, lattice_size, ruled_surface, slice_curves
 from surfaces.bezier import BezierPatches
 from surfaces.mesh import TriangleMesh, tessellate
-from surfaces.validate import positive
+from surfaces.validate import InputError, positive
 
 #: Most vertices a body's mesh gets with ``samples=None`` (the density drops below
 #: :data:`EDGE_MM` edges to stay under it).
@@ -126,7 +126,7 @@ class BodySurface:
             closed form: build the body again).
         """
         if caps not in ("none", "flat", "half"):
-            raise ValueError(f"caps: must be 'none', 'flat' or 'half', got {caps!r}")
+            raise InputError(f"caps: must be 'none', 'flat' or 'half', got {caps!r}")
         if "dome" in self.caps_used:
             return None
         wanted = capmod.end_kinds(caps, self.body.start, self.body.stop, len(self.body.contours))

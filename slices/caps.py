@@ -37,7 +37,7 @@ from functools import lru_cache
 import numpy as np
 
 from surfaces.mesh import TriangleMesh, _weld_tolerance, compact, merge_meshes, points_apart, weld
-from surfaces.validate import as_array, positive
+from surfaces.validate import as_array, InputError, positive
 
 CAP_KINDS = ("none", "flat", "half", "dome")
 
@@ -575,7 +575,7 @@ def _planar_cap_mesh(c: np.ndarray, samples: int, outward_z: float, inset: bool 
         vertices = np.empty((len(pts), 3))
         vertices[index, :2] = pts
     if len(tri) == 0:
-        raise ValueError("cap: the end contour could not be triangulated")
+        raise InputError("cap: the end contour could not be triangulated")
     vertices[:, 2] = ring[0, 2]
     vertices[:n] = ring
     # every triangle is counter-clockwise seen from +z: one flip for a bottom cap
@@ -637,7 +637,7 @@ def end_kinds(caps: str, start: str, stop: str, n_contours: int = 2) -> tuple[st
     (('flat', 'dome'), ('half', 'flat'))
     """
     if caps not in CAP_KINDS:
-        raise ValueError(f"caps: must be one of {CAP_KINDS}, got {caps!r}")
+        raise InputError(f"caps: must be one of {CAP_KINDS}, got {caps!r}")
 
     def kind(why: str) -> str:
         return caps if why == "end" else ("flat" if why == "split" else "half")
@@ -754,7 +754,7 @@ def close_side(side, bottom, top, low_center, high_center, height: float, low: s
         side = as_array(side, "side", shape=(len(bottom), None, 4, 4, 3))
         n_mid = side.shape[1]
     if not n_mid and "half" not in (low, high):
-        raise ValueError("side: a single slice has no side surface; it needs a half cap at one end at least")
+        raise InputError("side: a single slice has no side surface; it needs a half cap at one end at least")
     # every column (fans, extrusions, side) written into the grid in place: the side is copied once
     control, mid = _grid_buffer(len(bottom), n_mid, low, high)
     if side is not None:

@@ -29,6 +29,7 @@ import numpy as np
 
 from slices.polygons import signed_area
 from slices.io import SPACING_RTOL, Contour
+from surfaces.validate import InputError
 
 #: Pixels along the longer side of the raster used for overlap tests.
 _RASTER = 256
@@ -441,7 +442,7 @@ def chain(contours: list[Contour], spacing: float | None, outlines: Outlines | N
     if (meets & gapped).any():
         p0 = z[lower[meets & gapped][0]]
         p1 = z[upper[meets & gapped][0]]
-        raise ValueError(
+        raise InputError(
             f"contours: unequal slice spacing, no plane between z={p0:.3f} and z={p1:.3f} mm "
             f"({spacing:.3f} mm elsewhere) although the structure continues across; use "
             "--resample to blend at the true slice positions"

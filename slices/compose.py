@@ -14,6 +14,7 @@ from slices.io import ContourStack
 from slices.options import ReadOptions
 from slices.structure import Reconstruction, reconstruct_roi
 from surfaces.mesh import TriangleMesh
+from surfaces.validate import InputError
 
 
 def roi_solid(stack: ContourStack, rec: Reconstruction) -> TriangleMesh:
@@ -37,7 +38,7 @@ def roi_solid(stack: ContourStack, rec: Reconstruction) -> TriangleMesh:
     """
     mesh, united = rec.solid_mesh()
     if len(rec.bodies) > 1 and not united:
-        raise ValueError(f"{stack.name}: its {len(rec.bodies)} bodies could not be united into one solid "
+        raise InputError(f"{stack.name}: its {len(rec.bodies)} bodies could not be united into one solid "
                          "for the composition")
     return mesh
 
@@ -90,10 +91,10 @@ def compose_rois(input_path, base_stack: ContourStack, base_rec: Reconstruction,
     t0 = time.perf_counter()
     minus, plus = list(minus or ()), list(plus or ())
     if not minus and not plus:
-        raise ValueError("composition: give at least one ROI to subtract (--minus) or add (--plus)")
+        raise InputError("composition: give at least one ROI to subtract (--minus) or add (--plus)")
     if base_stack.source != "rtstruct":
         # other inputs hold one structure: every "ROI" would be the base itself
-        raise ValueError(f"composition: {input_path} is a {base_stack.source} input; ROIs are composed "
+        raise InputError(f"composition: {input_path} is a {base_stack.source} input; ROIs are composed "
                          "within an RT structure set")
     base_mesh = roi_solid(base_stack, base_rec)
     entries = {"minus": [], "plus": []}

@@ -44,7 +44,7 @@ from typing import NamedTuple
 import numpy as np
 
 from slices.polygons import _next, interior_point
-from surfaces.validate import as_array, positive
+from surfaces.validate import as_array, InputError, positive
 
 
 @dataclass(frozen=True)
@@ -110,9 +110,9 @@ def parameterize(points, n_rays: int, start_angle: float = 0.0) -> ContourParame
     p = as_array(points, "points", shape=(None, 2))
     n1 = int(n_rays)
     if n1 < 3:
-        raise ValueError(f"n_rays: need at least 3 rays (seed 000, eq. 1), got {n_rays}")
+        raise InputError(f"n_rays: need at least 3 rays (seed 000, eq. 1), got {n_rays}")
     if len(p) < 3:
-        raise ValueError(f"points: needs at least 3 points, got {len(p)}")
+        raise InputError(f"points: needs at least 3 points, got {len(p)}")
     polars = _polars([p])
     return _parameterize_many(polars, n1, start_angle, _support_crossings(polars, n1, start_angle))[0]
 
@@ -219,7 +219,7 @@ def _parameterize_flat(polars: _Polars, n1: int, start_angle: float, crossings) 
     u[t_idx] = u_turn
     bad = (u[1:] <= u[:-1]) & (curve[1:] == curve[:-1])
     if bad.any() or (u[last] >= 1.0).any():
-        raise ValueError("points: could not give the contour monotone parameters (degenerate outline)")
+        raise InputError("points: could not give the contour monotone parameters (degenerate outline)")
     pts = pts_all.take(rot, axis=0)
     params = [ContourParameters(pts[lo:hi], u[lo:hi], cc, ss, turning[lo:hi])
               for (lo, hi), cc, ss in zip(bounds, polars.centers, support_xy)]
@@ -289,7 +289,7 @@ def _polars(ps: list, pts: np.ndarray | None = None) -> _Polars:
         ang[sl] = np.arctan2(rel_c[:, 1], rel_c[:, 0])
         dphi[sl] = (_next(ang[sl]) - ang[sl] + np.pi) % (2 * np.pi) - np.pi
         if abs(dphi[sl].sum() - 2 * np.pi) > 1e-6:
-            raise ValueError("points: contour does not wind once counter-clockwise around its interior")
+            raise InputError("points: contour does not wind once counter-clockwise around its interior")
     dx, dy = qx - x, qy - y
     edge_len = np.sqrt(dx * dx + dy * dy)
     # running sums over three periods, one row per contour so that each starts afresh
@@ -424,7 +424,7 @@ def _crossings(polars: _Polars, n1: int, start_angle: float) -> _Crossings:
             found = np.bincount(sorted_key[starts] // (n1 + 1), minlength=n_c)
             bad = int(np.flatnonzero(found != n1)[0])
             where = "points" if n_c == 1 else f"contours[{bad}]"
-            raise ValueError(f"{where}: found support points for {found[bad]} of {n1} rays")
+            raise InputError(f"{where}: found support points for {found[bad]} of {n1} rays")
         sizes = np.diff(np.r_[starts, len(order)])
     # per edge what its crossings share (x and y apart: 1-D gathers are cheap); the geometry is
     # computed only for the crossings that compete (a level crossed more than once) and the picks
@@ -504,7 +504,7 @@ def ray_supports(points, n_rays: int, start_angle: float = 0.0) -> tuple[np.ndar
     p = as_array(points, "points", shape=(None, 2))
     n1 = int(n_rays)
     if n1 < 3 or len(p) < 3:
-        raise ValueError(f"n_rays/points: need at least 3 rays and 3 points, got {n_rays} and {len(p)}")
+        raise InputError(f"n_rays/points: need at least 3 rays and 3 points, got {n_rays} and {len(p)}")
     frac, xy = _ray_supports(_polars([p]), n1, start_angle)
     return frac[0], xy[0]
 
@@ -558,7 +558,7 @@ def choose_start_angle(contours, n_rays: int, candidates: int = START_CANDIDATES
         return 0.0
     ps = [as_array(c, f"contours[{i}]", shape=(None, 2)) for i, c in enumerate(contours)]
     if n1 * r < 3 or min(len(p) for p in ps) < 3:
-        raise ValueError(f"n_rays/points: need at least 3 rays and 3 points, got {n1 * r} and "
+        raise InputError(f"n_rays/points: need at least 3 rays and 3 points, got {n1 * r} and "
                          f"{min(len(p) for p in ps)}")
     return _start_angle(_polars(ps), n1, r)
 
@@ -678,7 +678,7 @@ def balanced_lattice_values(u_list, arc_list, n_lattice: int) -> np.ndarray:
     """
     m = int(positive(n_lattice, "n_lattice"))
     if len(u_list) != len(arc_list) or not len(u_list):
-        raise ValueError("u_list, arc_list: need the same, non-zero number of slices")
+        raise InputError("u_list, arc_list: need the same, non-zero number of slices")
     us = [as_array(u, "u", ndim=1) for u in u_list]
     arcs = [as_array(a, "arc_list", shape=(len(u),)) for a, u in zip(arc_list, us)]
     return _balanced_values(np.concatenate(us), np.concatenate(arcs), np.array([len(u) for u in us]), m)
@@ -766,7 +766,7 @@ def quantize(u, n_lattice: int, values=None) -> np.ndarray:
     uu = as_array(u, "u", ndim=1)
     m = int(positive(n_lattice, "n_lattice"))
     if len(uu) > m:
-        raise ValueError(f"n_lattice: {m} lattice values cannot hold {len(uu)} distinct parameters")
+        raise InputError(f"n_lattice: {m} lattice values cannot hold {len(uu)} distinct parameters")
     lv = None if values is None else as_array(values, "values", shape=(m,))
     return _quantize_many([uu], m, lv)[0]
 

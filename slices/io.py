@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from slices.polygons import clean_contour, signed_area
-from surfaces.validate import as_array, positive
+from surfaces.validate import as_array, InputError, positive
 
 #: Relative tolerance on slice spacing (a fraction of the spacing).
 SPACING_RTOL = 0.01
@@ -191,7 +191,7 @@ def _read_dicom(path: Path):
     try:
         return pydicom.dcmread(str(path))
     except Exception as exc:  # pydicom raises several unrelated types
-        raise ValueError(f"{path}: not a readable DICOM file ({exc})") from None
+        raise InputError(f"{path}: not a readable DICOM file ({exc})") from None
 
 
 _CONTOUR_DATA = 0x30060050
@@ -236,7 +236,7 @@ def _damaged_rtstruct_is_bad_input(read):
             raise
         except (AttributeError, KeyError, IndexError, TypeError, OSError, EOFError, NotImplementedError,
                 struct.error) as exc:
-            raise ValueError(f"{path}: incomplete or damaged RT Structure Set ({exc})") from None
+            raise InputError(f"{path}: incomplete or damaged RT Structure Set ({exc})") from None
 
     return wrapper
 
@@ -255,11 +255,11 @@ def _open_rtstruct(path, counts: bool = True):
     path = _existing(path, "RT structure set file")
     ds = _read_dicom(path)
     if "StructureSetROISequence" not in ds:
-        raise ValueError(f"{path}: not an RT Structure Set (no StructureSetROISequence)")
+        raise InputError(f"{path}: not an RT Structure Set (no StructureSetROISequence)")
     try:
         table = _roi_table(ds) if counts else _roi_names(ds)
     except _INCOMPLETE as exc:
-        raise ValueError(f"{path}: the RT Structure Set is truncated or incomplete "
+        raise InputError(f"{path}: the RT Structure Set is truncated or incomplete "
                          f"({type(exc).__name__}: {exc})") from None
     return path, ds, table
 
@@ -330,7 +330,7 @@ def read_rtstruct(path, roi) -> ContourStack:
     """
     path, ds, rois = _open_rtstruct(path, counts=False)
     if roi is None:
-        raise ValueError(
+        raise InputError(
             f"{path}: choose an ROI with --roi; existing: " + ", ".join(r["name"] for r in rois)
         )
     key = str(roi).strip()
@@ -339,17 +339,17 @@ def read_rtstruct(path, roi) -> ContourStack:
         match = [r for r in rois if r["number"] == int(key)]
     if not match:
         names = ", ".join(f"{r['number']}: {r['name']}" for r in rois)
-        raise ValueError(f"{path}: no ROI named {roi!r}; existing ROIs are {names}")
+        raise InputError(f"{path}: no ROI named {roi!r}; existing ROIs are {names}")
     number, name = match[0]["number"], match[0]["name"]
     try:
         items, skipped = _roi_contours(ds, number, name)
     except _INCOMPLETE as exc:
         if isinstance(exc, ValueError) and str(exc).startswith("ROI "):
             raise
-        raise ValueError(f"{path}: the RT Structure Set is truncated or incomplete in ROI {name!r} "
+        raise InputError(f"{path}: the RT Structure Set is truncated or incomplete in ROI {name!r} "
                          f"({type(exc).__name__}: {exc})") from None
     if not items:
-        raise ValueError(f"{path}: ROI {name!r} has no CLOSED_PLANAR contours")
+        raise InputError(f"{path}: ROI {name!r} has no CLOSED_PLANAR contours")
     notes: list[str] = []
     stack = ContourStack(_contours_from_list(items, f"ROI {name!r}", notes), "rtstruct", name, notes)
     if skipped:
@@ -371,13 +371,13 @@ def _roi_contours(ds, number: int, name: str) -> tuple[list, int]:
                 continue
             data = _contour_array(c)
             if data.size % 3 or data.size < 9:
-                raise ValueError(
+                raise InputError(
                     f"ROI {name!r} contour {i}: needs at least 3 points, got {data.size // 3}"
                 )
             xyz = data.reshape(-1, 3)
             z = xyz[:, 2]
             if np.ptp(z) > 1e-3:
-                raise ValueError(
+                raise InputError(
                     f"ROI {name!r} contour {i}: not in an axial plane (z spans "
                     f"{z.min():.3f} to {z.max():.3f} mm); non-axial planes are not supported"
                 )
@@ -397,12 +397,12 @@ def _mask_from_values(values: np.ndarray, hu_min, hu_max, label: str) -> tuple[n
         lo = -np.inf if hu_min is None else float(hu_min)
         hi = np.inf if hu_max is None else float(hu_max)
         if lo > hi:
-            raise ValueError(f"--hu-min {lo} is above --hu-max {hi}")
+            raise InputError(f"--hu-min {lo} is above --hu-max {hi}")
         return (values >= lo) & (values <= hi), f"window [{lo:g}, {hi:g}]"
     uniq = np.unique(values[:: max(1, values.size // 1_000_000)])
     if len(uniq) <= 2 or values.dtype == bool:
         return values > 0, "non-zero voxels (mask input)"
-    raise ValueError(
+    raise InputError(
         f"{label}: values are not a binary mask ({len(uniq)}+ distinct values); "
         "give an intensity window with --hu-min/--hu-max"
     )
@@ -424,7 +424,7 @@ def largest_component(mask) -> np.ndarray:
     m = np.asarray(mask, dtype=bool)
     labels, n = ndimage.label(m, structure=np.ones((3, 3, 3)))
     if n == 0:
-        raise ValueError("mask: is empty (no voxel selected)")
+        raise InputError("mask: is empty (no voxel selected)")
     sizes = np.bincount(labels.ravel())
     sizes[0] = 0
     return labels == int(np.argmax(sizes))
@@ -469,7 +469,7 @@ def contours_from_mask(mask, z, spacing_yx, origin_yx=(0.0, 0.0), label: str = "
             pts = np.stack([origin_yx[1] + cols * dx, origin_yx[0] + rows * dy], axis=1)
             items.append((float(zz[k]), pts))
     if not items:
-        raise ValueError(f"{label}: no contour found")
+        raise InputError(f"{label}: no contour found")
     return _contours_from_list(items, label)
 
 
@@ -513,14 +513,14 @@ def check_spacing(z, label: str, allow_gaps: bool = False) -> float:
         return 0.0
     d = np.diff(zz)
     if np.any(d <= 0):
-        raise ValueError(f"{label}: two slices at the same position (z={zz[np.argmin(d)]:.3f} mm)")
+        raise InputError(f"{label}: two slices at the same position (z={zz[np.argmin(d)]:.3f} mm)")
     ref = float(np.min(d)) if allow_gaps else float(np.median(d))
     ratio = d / ref
     step = np.maximum(np.round(ratio), 1.0) if allow_gaps else np.ones_like(ratio)
     bad = np.flatnonzero(np.abs(ratio - step) > SPACING_RTOL)
     if len(bad):
         i = int(bad[0])
-        raise ValueError(
+        raise InputError(
             f"{label}: unequal slice spacing ({d[i]:.3f} mm between z={zz[i]:.3f} and "
             f"z={zz[i + 1]:.3f} mm, {ref:.3f} mm elsewhere); use --resample to resample "
             "images onto uniform slices, or to blend contours at their true positions"
@@ -562,18 +562,18 @@ def read_ct_series(folder, hu_min=None, hu_max=None, resample: bool = False) -> 
         if "ImagePositionPatient" in ds and "PixelData" in ds:
             slices.append(ds)
     if not slices:
-        raise ValueError(f"{folder}: no DICOM image slices found")
+        raise InputError(f"{folder}: no DICOM image slices found")
     iop = np.asarray(slices[0].ImageOrientationPatient, dtype=np.float64)
     row_dir, col_dir = iop[:3], iop[3:]
     normal = np.cross(row_dir, col_dir)
     if abs(abs(normal[2]) - 1.0) > 1e-3 or abs(row_dir[2]) > 1e-3 or abs(col_dir[2]) > 1e-3:
-        raise ValueError(
+        raise InputError(
             f"{folder}: slices are not axial (ImageOrientationPatient {iop.round(4).tolist()}); "
             "non-axial planes are not supported"
         )
     for ds in slices:
         if np.abs(np.asarray(ds.ImageOrientationPatient, float) - iop).max() > 1e-4:
-            raise ValueError(f"{folder}: slices have different ImageOrientationPatient")
+            raise InputError(f"{folder}: slices have different ImageOrientationPatient")
     pos = np.array([float(np.dot(normal, np.asarray(ds.ImagePositionPatient, float))) for ds in slices])
     order = np.argsort(pos)
     slices = [slices[i] for i in order]
@@ -621,26 +621,26 @@ def _read_image_stack(path: Path) -> np.ndarray:
     if path.is_dir():
         files = sorted(p for p in path.iterdir() if p.suffix.lower() == ".png")
         if not files:
-            raise ValueError(f"{path}: folder holds no PNG images")
+            raise InputError(f"{path}: folder holds no PNG images")
         images = [cv2.imread(str(f), cv2.IMREAD_UNCHANGED) for f in files]
         if any(im is None for im in images):
-            raise ValueError(f"{path}: an image could not be read")
+            raise InputError(f"{path}: an image could not be read")
         images = _first_channel(images)
         if len({im.shape for im in images}) != 1:
-            raise ValueError(f"{path}: images have different sizes")
+            raise InputError(f"{path}: images have different sizes")
         return np.stack(images)
     suffix = path.suffix.lower()
     if suffix == ".npy":
         arr = np.load(path, allow_pickle=False)
         if arr.ndim != 3:
-            raise ValueError(f"{path}: expected a 3-D (Z, Y, X) array, got shape {arr.shape}")
+            raise InputError(f"{path}: expected a 3-D (Z, Y, X) array, got shape {arr.shape}")
         return arr
     if suffix in (".tif", ".tiff"):
         ok, pages = cv2.imreadmulti(str(path), flags=cv2.IMREAD_UNCHANGED)
         if not ok or not pages:
-            raise ValueError(f"{path}: not a readable multi-page TIFF")
+            raise InputError(f"{path}: not a readable multi-page TIFF")
         return np.stack(_first_channel(pages))
-    raise ValueError(f"{path}: unknown stack format (use .npy, .tif or a folder of PNGs)")
+    raise InputError(f"{path}: unknown stack format (use .npy, .tif or a folder of PNGs)")
 
 
 def parse_spacing(text) -> tuple[float, float, float]:
@@ -659,7 +659,7 @@ def parse_spacing(text) -> tuple[float, float, float]:
     else:
         parts = list(text)
     if len(parts) != 3:
-        raise ValueError(f"--spacing: expected z,y,x in mm, got {text!r}")
+        raise InputError(f"--spacing: expected z,y,x in mm, got {text!r}")
     return tuple(positive(p, "--spacing") for p in parts)
 
 
@@ -681,7 +681,7 @@ def read_mask_stack(path, spacing, hu_min=None, hu_max=None) -> ContourStack:
     """
     path = _existing(path, "mask stack", "any")
     if spacing is None:
-        raise ValueError(f"{path}: a mask stack needs --spacing z,y,x (mm)")
+        raise InputError(f"{path}: a mask stack needs --spacing z,y,x (mm)")
     dz, dy, dx = parse_spacing(spacing)
     mask, note = _segment(_read_image_stack(path), hu_min, hu_max, str(path))
     z = dz * np.arange(mask.shape[0])
@@ -712,11 +712,11 @@ def _nifti_volume(path: Path):
         img = nibabel.load(str(path))
         data = np.asanyarray(img.dataobj)
     except Exception as exc:  # nibabel raises many kinds for damaged files
-        raise ValueError(f"{path}: not a readable NIfTI file ({type(exc).__name__}: {exc})") from None
+        raise InputError(f"{path}: not a readable NIfTI file ({type(exc).__name__}: {exc})") from None
     if data.ndim == 4 and data.shape[3] == 1:
         data = data[..., 0]
     if data.ndim != 3:
-        raise ValueError(f"{path}: a label or mask volume must be 3-D, got shape {data.shape}")
+        raise InputError(f"{path}: a label or mask volume must be 3-D, got shape {data.shape}")
     return data, np.asarray(img.affine, dtype=np.float64)
 
 
@@ -753,7 +753,7 @@ def _slice_axis(affine: np.ndarray, path) -> int:
     others = [a for a in range(3) if a != axis]
     scale = float(np.abs(columns).max())
     if np.any(np.abs(columns[2, others]) > 1e-6 * scale) or np.any(np.abs(columns[:2, axis]) > 1e-6 * scale):
-        raise ValueError(f"{path}: the volume's slices are not axial (affine {columns.round(6).tolist()}); "
+        raise InputError(f"{path}: the volume's slices are not axial (affine {columns.round(6).tolist()}); "
                          "resample it onto an axial grid first")
     return axis
 
@@ -791,14 +791,14 @@ def read_nifti(path, label=None) -> ContourStack:
         try:
             value = float(label)
         except (TypeError, ValueError):
-            raise ValueError(f"--label: must be a number (a voxel value), got {label!r}") from None
+            raise InputError(f"--label: must be a number (a voxel value), got {label!r}") from None
         mask, what = data == value, f"label {value:g}"
         if not mask.any():
             present = np.unique(data[data != 0])
-            raise ValueError(f"--label: no voxel of {path.name} has the value {value:g} "
+            raise InputError(f"--label: no voxel of {path.name} has the value {value:g} "
                              f"(labels present: {[float(v) for v in present[:20]]})")
     if not mask.any():
-        raise ValueError(f"{path}: the mask is empty (no non-zero voxel)")
+        raise InputError(f"{path}: the mask is empty (no non-zero voxel)")
     rows_axis, cols_axis = (a for a in range(3) if a != axis)
     stack = np.moveaxis(mask, (axis, rows_axis, cols_axis), (0, 1, 2))
     items = []
@@ -832,26 +832,26 @@ def read_contour_json(path) -> ContourStack:
     try:
         data = json.loads(path.read_text())
     except json.JSONDecodeError as exc:
-        raise ValueError(f"{path}: not valid JSON ({exc})") from None
+        raise InputError(f"{path}: not valid JSON ({exc})") from None
     if not isinstance(data, dict) or not isinstance(data.get("contours"), list):
-        raise ValueError(f"{path}: expected an object with a 'contours' list")
+        raise InputError(f"{path}: expected an object with a 'contours' list")
     units = data.get("units", "mm")
     if units != "mm":
-        raise ValueError(f"{path}: units must be 'mm', got {units!r}")
+        raise InputError(f"{path}: units must be 'mm', got {units!r}")
     items = []
     for i, c in enumerate(data["contours"]):
         if not isinstance(c, dict) or "z" not in c or "points" not in c:
-            raise ValueError(f"{path}: contour {i} needs 'z' and 'points'")
+            raise InputError(f"{path}: contour {i} needs 'z' and 'points'")
         pts = np.asarray(c["points"], dtype=np.float64)
         if pts.ndim != 2 or pts.shape[1] not in (2, 3) or len(pts) < 3:
-            raise ValueError(
+            raise InputError(
                 f"{path}: contour {i} at z={c['z']} needs at least 3 [x, y] points, got shape {pts.shape}"
             )
         if pts.shape[1] == 3 and np.ptp(pts[:, 2]) > 1e-3:
-            raise ValueError(f"{path}: contour {i} is not in an axial plane (its z values differ)")
+            raise InputError(f"{path}: contour {i} is not in an axial plane (its z values differ)")
         items.append((float(c["z"]), pts[:, :2]))
     if not items:
-        raise ValueError(f"{path}: holds no contours")
+        raise InputError(f"{path}: holds no contours")
     notes: list[str] = []
     return ContourStack(_contours_from_list(items, path.name, notes), "json", path.stem, notes)
 
@@ -893,4 +893,4 @@ def load(path, roi=None, hu_min=None, hu_max=None, spacing=None, resample: bool 
     ds = _read_dicom(path)
     if str(ds.get("Modality", "")) == "RTSTRUCT" or "StructureSetROISequence" in ds:
         return read_rtstruct(path, roi)
-    raise ValueError(f"{path}: a single DICOM file must be an RT Structure Set (Modality RTSTRUCT)")
+    raise InputError(f"{path}: a single DICOM file must be an RT Structure Set (Modality RTSTRUCT)")

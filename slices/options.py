@@ -14,18 +14,18 @@ from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
-from surfaces.validate import as_array, positive
+from surfaces.validate import as_array, InputError, positive
 
 
 def _choice(value, name: str, allowed: tuple[str, ...]) -> None:
     if value not in allowed:
-        raise ValueError(f"{name}: must be one of {allowed}, got {value!r}")
+        raise InputError(f"{name}: must be one of {allowed}, got {value!r}")
 
 
 def _whole(value, name: str, least: int, what: str) -> int:
     x = positive(value, name)
     if x != int(x) or x < least:
-        raise ValueError(f"{name}: need a whole number of at least {least} {what}, got {value!r}")
+        raise InputError(f"{name}: need a whole number of at least {least} {what}, got {value!r}")
     return int(x)
 
 
@@ -73,7 +73,7 @@ class SurfaceOptions:
     >>> SurfaceOptions(n_rays=2)
     Traceback (most recent call last):
     ...
-    ValueError: n_rays: need a whole number of at least 3 rays (seed 000, eq. 1), got 2
+    surfaces.validate.InputError: n_rays: need a whole number of at least 3 rays (seed 000, eq. 1), got 2
     """
 
     method: str = "blending"
@@ -99,14 +99,14 @@ class SurfaceOptions:
         n_rays = _whole(self.n_rays, "n_rays", 3, "rays (seed 000, eq. 1)")
         factor = positive(self.lattice_factor, "lattice_factor")
         if factor < 1:
-            raise ValueError(f"lattice_factor: must be at least 1, got {self.lattice_factor!r}")
+            raise InputError(f"lattice_factor: must be at least 1, got {self.lattice_factor!r}")
         if self.start_angle is not None:
             object.__setattr__(self, "start_angle", float(as_array(self.start_angle, "start_angle", shape=())))
         if self.samples is not None:
             object.__setattr__(self, "samples", _whole(self.samples, "samples", 1, "subdivision per patch side"))
         for flag in ("monotone", "unfold"):
             if not isinstance(getattr(self, flag), bool | np.bool_):
-                raise ValueError(f"{flag}: must be True or False, got {getattr(self, flag)!r}")
+                raise InputError(f"{flag}: must be True or False, got {getattr(self, flag)!r}")
             object.__setattr__(self, flag, bool(getattr(self, flag)))
         object.__setattr__(self, "n_rays", n_rays)
         object.__setattr__(self, "lattice_factor", factor)
@@ -163,7 +163,7 @@ def surface_options(options: SurfaceOptions | None = None, **keywords) -> Surfac
     """
     unknown = set(keywords) - _names(SurfaceOptions)
     if unknown:
-        raise ValueError(f"options: unknown {sorted(unknown)}")
+        raise InputError(f"options: unknown {sorted(unknown)}")
     base = SurfaceOptions() if options is None else options
     return replace(base, **keywords) if keywords else base
 
@@ -199,7 +199,7 @@ def split_options(keywords: dict, reading: ReadOptions | None = None,
     read_names = _names(ReadOptions)
     unknown = set(keywords) - read_names - _names(SurfaceOptions)
     if unknown:
-        raise ValueError(f"options: unknown {sorted(unknown)}")
+        raise InputError(f"options: unknown {sorted(unknown)}")
     read_kw = {k: v for k, v in keywords.items() if k in read_names}
     base = ReadOptions() if reading is None else reading
     surf = surface_options(options, **{k: v for k, v in keywords.items() if k not in read_names})

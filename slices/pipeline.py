@@ -23,6 +23,7 @@ from slices.summary import summarize
 from surfaces.bezier import BezierPatches
 from surfaces.mesh import TriangleMesh
 from surfaces.threads import prepare as prepare_threads
+from surfaces.validate import InputError
 
 #: Above this many triangles ``union="auto"`` concatenates the bodies instead of uniting them
 #: (a memory guard: the meshes of :data:`slices.body.MESH_BUDGET` vertices stay far below it,
@@ -146,9 +147,9 @@ def reconstruct(input_path, *, roi=None, union="auto", minus=(), plus=(), repair
     t0 = time.perf_counter()
     read, opts = split_options(keywords, reading, options)
     if union not in UNION_MODES:
-        raise ValueError(f"union: must be 'auto', 'yes' or 'no', got {union!r}")
+        raise InputError(f"union: must be 'auto', 'yes' or 'no', got {union!r}")
     if opts.caps == "none" and (minus or plus):
-        raise ValueError("caps: set operations need closed solids; use --caps flat, half or dome, not none")
+        raise InputError("caps: set operations need closed solids; use --caps flat, half or dome, not none")
     stack, layout = read_roi(input_path, roi, reading=read)
     # the surface's clock starts with the contours in memory, as a rasteriser's would
     t_read = time.perf_counter()

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from surfaces.validate import as_array
+from surfaces.validate import as_array, InputError
 
 
 def signed_area(points) -> float:
@@ -130,7 +130,7 @@ def _candidate_pairs(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarr
     g_size = np.repeat(size, size)
     total = int(g_size.sum())
     if total > 50_000_000:
-        raise ValueError("points: contour too degenerate for the self-intersection test")
+        raise InputError("points: contour too degenerate for the self-intersection test")
     first = np.repeat(np.arange(len(key)), g_size)
     partner = np.repeat(g_start, g_size) + (np.arange(total) - np.repeat(np.cumsum(g_size) - g_size, g_size))
     i, j = edge[first], edge[partner]
@@ -187,32 +187,32 @@ def clean_contour(points, name: str = "contour") -> np.ndarray:
     >>> clean_contour([[0, 0], [1, 1], [2, 2]], name="ROI 'Heart' contour 3")
     Traceback (most recent call last):
     ...
-    ValueError: ROI 'Heart' contour 3: has zero area (all points on one line)
+    surfaces.validate.InputError: ROI 'Heart' contour 3: has zero area (all points on one line)
     """
     p = as_array(points, name, ndim=2)
     if p.shape[1] != 2:
-        raise ValueError(f"{name}: expected (n, 2) x/y points, got shape {p.shape}")
+        raise InputError(f"{name}: expected (n, 2) x/y points, got shape {p.shape}")
     if len(p) >= 2:
         keep = np.any(p != np.roll(p, 1, axis=0), axis=1)
         p = p[keep] if np.any(keep) else p[:1]
     if len(p) < 3:
-        raise ValueError(f"{name}: needs at least 3 distinct points, got {len(p)}")
+        raise InputError(f"{name}: needs at least 3 distinct points, got {len(p)}")
     extent = float(np.ptp(p, axis=0).max())
     far = float(np.abs(p).max())
     if far > MAX_COORDINATE_MM:
-        raise ValueError(f"{name}: coordinates reach {far:.3g} mm, beyond +-{MAX_COORDINATE_MM:g} mm; these "
+        raise InputError(f"{name}: coordinates reach {far:.3g} mm, beyond +-{MAX_COORDINATE_MM:g} mm; these "
                          "are not patient coordinates in mm (check the units and the origin)")
     if 0 < extent < MIN_EXTENT_MM:
-        raise ValueError(f"{name}: spans only {extent:.3g} mm, less than {MIN_EXTENT_MM:g} mm; contours are "
+        raise InputError(f"{name}: spans only {extent:.3g} mm, less than {MIN_EXTENT_MM:g} mm; contours are "
                          "read in mm (check the units)")
     area = signed_area(p)
     d, e = p[1:] - p[0], p[-1] - p[0]
     if extent == 0 or np.all(np.abs(d[:, 0] * e[1] - d[:, 1] * e[0]) <= 1e-12 * extent**2):
-        raise ValueError(f"{name}: has zero area (all points on one line)")
+        raise InputError(f"{name}: has zero area (all points on one line)")
     bad = self_intersections(p)
     if len(bad):
         i, j = bad[0]
-        raise ValueError(
+        raise InputError(
             f"{name}: is self-intersecting ({len(bad)} crossing edge pair(s), "
             f"e.g. edges {i} and {j} near ({p[i, 0]:.2f}, {p[i, 1]:.2f}) mm)"
         )

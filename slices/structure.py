@@ -19,7 +19,7 @@ from slices.io import SPACING_RTOL, Contour, ContourStack, check_spacing, load, 
 from slices.options import ReadOptions, SurfaceOptions, surface_options
 from surfaces.mesh import TriangleMesh, merge_meshes, weld
 from surfaces.threads import one_blas_thread
-from surfaces.validate import positive
+from surfaces.validate import InputError, positive
 
 
 #: Outward contour offset (mm) of the volume sensitivity (issue 17: what a planning physicist compares).
@@ -182,7 +182,7 @@ def reconstruct_contours(contours: list[Contour], *, spacing: float | None = Non
     """
     opts = surface_options(options, **keywords)
     if not contours:
-        raise ValueError("contours: no contours given")
+        raise InputError("contours: no contours given")
     # the contours' areas, perimeters, boxes, planes and holes once, for the chains and both slab figures
     outlines = Outlines.of(contours)
     planes = outlines.planes
@@ -193,10 +193,10 @@ def reconstruct_contours(contours: list[Contour], *, spacing: float | None = Non
     if spacing is not None and not irregular:
         s = positive(spacing, "spacing")
         if d and abs(s - d) > SPACING_RTOL * d:
-            raise ValueError(f"spacing: {s} mm given but the planes are {d} mm apart")
+            raise InputError(f"spacing: {s} mm given but the planes are {d} mm apart")
         d = s
     if d == 0:
-        raise ValueError("contours: a single plane has no slice spacing; give spacing (--spacing z,y,x "
+        raise InputError("contours: a single plane has no slice spacing; give spacing (--spacing z,y,x "
                          "on the command line)")
     bodies = chain(contours, None if irregular else d, outlines)
     built = []

@@ -36,7 +36,7 @@ from slices.control_points import (
 from slices.options import SurfaceOptions
 from surfaces import blending, coons
 from surfaces.bezier import BezierPatches
-from surfaces.validate import as_array, positive
+from surfaces.validate import as_array, InputError, positive
 
 #: Common ``u`` lattices of :func:`slice_curves`.
 LATTICE_MODES = ("balanced", "uniform", "adaptive", "union")
@@ -95,7 +95,7 @@ def lattice_size(max_points: int, lattice_factor: float = SurfaceOptions.lattice
     """
     f = positive(lattice_factor, "lattice_factor")
     if f < 1:
-        raise ValueError(f"lattice_factor: must be at least 1, got {lattice_factor}")
+        raise InputError(f"lattice_factor: must be at least 1, got {lattice_factor}")
     return max(4, int(max_points), int(np.ceil(f * max_points)))
 
 
@@ -106,7 +106,7 @@ def _geometry_parameters(points: np.ndarray, start: np.ndarray, sizes: np.ndarra
     ``sizes[c]`` columns from ``start[c]``; each gets parameters in ``[0, 1)``.
     """
     if kind not in ("centripetal", "chord"):
-        raise ValueError(f"geometry: must be 'chord' or 'centripetal', got {kind!r}")
+        raise InputError(f"geometry: must be 'chord' or 'centripetal', got {kind!r}")
     n_c = len(sizes)
     n = points.shape[1]
     curve = np.arange(n_c).repeat(sizes)
@@ -247,9 +247,9 @@ def slice_curves(contours, z, n_rays: int, n_lattice: int | None = None,
     """
     zz = as_array(z, "z", shape=(len(contours),))
     if correspondence not in CORRESPONDENCES:
-        raise ValueError(f"correspondence: must be one of {CORRESPONDENCES}, got {correspondence!r}")
+        raise InputError(f"correspondence: must be one of {CORRESPONDENCES}, got {correspondence!r}")
     if lattice_mode not in LATTICE_MODES:
-        raise ValueError(f"lattice_mode: must be one of {LATTICE_MODES}, got {lattice_mode!r}")
+        raise InputError(f"lattice_mode: must be one of {LATTICE_MODES}, got {lattice_mode!r}")
     # finite values checked once over all contours (below), the contour named only on failure; the
     # shapes checked in one pass, as_array naming the contour only where one is wrong
     try:
@@ -260,10 +260,10 @@ def slice_curves(contours, z, n_rays: int, n_lattice: int | None = None,
         ps = [as_array(c, f"contours[{i}]", shape=(None, 2), finite=False) for i, c in enumerate(contours)]
     n1 = int(n_rays)
     if n1 < 3:
-        raise ValueError(f"n_rays: need at least 3 rays (seed 000, eq. 1), got {n_rays}")
+        raise InputError(f"n_rays: need at least 3 rays (seed 000, eq. 1), got {n_rays}")
     if ps and min(map(len, ps)) < 3:
         i = next(i for i, p in enumerate(ps) if len(p) < 3)
-        raise ValueError(f"contours[{i}]: needs at least 3 points, got {len(ps[i])}")
+        raise InputError(f"contours[{i}]: needs at least 3 points, got {len(ps[i])}")
     joined = np.concatenate(ps)
     if not np.isfinite(joined).all():
         for i, c in enumerate(ps):
@@ -301,7 +301,7 @@ def slice_curves(contours, z, n_rays: int, n_lattice: int | None = None,
     m = len(values)
     longest = int(ns.max())
     if longest > m:
-        raise ValueError(f"n_lattice: {m} lattice values cannot hold {longest} distinct parameters")
+        raise InputError(f"n_lattice: {m} lattice values cannot hold {longest} distinct parameters")
     q = _quantize_flat(u_flat, start, ns, m, values)
     nodes = [q[lo:hi] for lo, hi in bounds]
     curve = np.arange(n_c).repeat(ns)
@@ -432,7 +432,7 @@ def ruled_surface(curves) -> tuple[BezierPatches, NodeEval]:
     """
     c = as_array(curves, "curves", shape=(None, None, 4, 3))
     if len(c) < 2:
-        raise ValueError(f"curves: need at least 2 slices for a side surface, got {len(c)}")
+        raise InputError(f"curves: need at least 2 slices for a side surface, got {len(c)}")
     w = np.arange(4) / 3.0
     pieces = c[:-1, None] + w[None, :, None, None, None] * (c[1:] - c[:-1])[:, None]  # (K-1, 4, M, 4, 3)
     patches = BezierPatches(np.ascontiguousarray(pieces.transpose(2, 0, 3, 1, 4)), closed_u=True)
@@ -506,14 +506,14 @@ def _side_surface(curves, method: str, v, monotone: bool,
     """
     c = as_array(curves, "curves", shape=(None, None, 4, 3))
     if method not in METHODS:
-        raise ValueError(f"method: must be one of {tuple(METHODS)}, got {method!r}")
+        raise InputError(f"method: must be one of {tuple(METHODS)}, got {method!r}")
     if len(c) < 2:
-        raise ValueError(f"curves: need at least 2 slices for a side surface, got {len(c)}")
+        raise InputError(f"curves: need at least 2 slices for a side surface, got {len(c)}")
     vv = np.arange(len(c), dtype=np.float64) if v is None else as_array(v, "v", shape=(len(c),))
     if (vv[1:] <= vv[:-1]).any():
-        raise ValueError("v: slice positions must increase strictly")
+        raise InputError("v: slice positions must increase strictly")
     if out is not None:
         if method != "blending":
-            raise ValueError(f"out: only the blending method writes into a given array, not {method!r}")
+            raise InputError(f"out: only the blending method writes into a given array, not {method!r}")
         return _side_blending(c, vv, monotone=bool(monotone), out=out)
     return METHODS[method](c, vv, monotone=bool(monotone))

@@ -112,6 +112,7 @@ _NAMES = {
     "apply_colormap": "colormap",
     "to_open3d": "convert",
     "deviation": "distance",
+    "InputError": "validate",
 }
 __all__ = sorted({*_MODULES, *_NAMES})
 

@@ -25,7 +25,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from surfaces.validate import as_array
+from surfaces.validate import as_array, InputError
 from surfaces.vectors import cross, dot
 
 #: Points per chunk in :meth:`BezierPatches.derivatives`; keeps the gathered
@@ -73,7 +73,7 @@ def bernstein(t, order: int = 0) -> np.ndarray:
         return np.stack([-3.0 * s * s, 3.0 * s * (s - 2.0 * t), 3.0 * t * (2.0 * s - t), 3.0 * t * t], axis=-1)
     if order == 2:
         return np.stack([6.0 * s, 6.0 * (3.0 * t - 2.0), 6.0 * (1.0 - 3.0 * t), 6.0 * t], axis=-1)
-    raise ValueError(f"order: must be 0, 1 or 2, got {order!r}")
+    raise InputError(f"order: must be 0, 1 or 2, got {order!r}")
 
 
 def control_matrix(control) -> np.ndarray:
@@ -143,13 +143,13 @@ class BezierPatches:
     def __post_init__(self) -> None:
         ctrl = as_array(self.control, "control", shape=(None, None, 4, 4, 3), finite=False)
         if ctrl.shape[0] < 1 or ctrl.shape[1] < 1:
-            raise ValueError(f"control: needs at least one patch, got shape {ctrl.shape}")
+            raise InputError(f"control: needs at least one patch, got shape {ctrl.shape}")
         ctrl = np.ascontiguousarray(ctrl)
         # NaN and infinities reach the extremes: two reductions check finiteness and give the scale
         high, low = float(ctrl.max()), float(ctrl.min())
         if not (np.isfinite(high) and np.isfinite(low)):
             bad = int(ctrl.size - np.count_nonzero(np.isfinite(ctrl)))
-            raise ValueError(f"control: contains {bad} NaN or infinite value(s)")
+            raise InputError(f"control: contains {bad} NaN or infinite value(s)")
         ctrl.setflags(write=False)
         object.__setattr__(self, "control", ctrl)
         scale = max(high, -low, 1.0)
@@ -157,13 +157,13 @@ class BezierPatches:
         if self.closed_u:
             gap = float(np.max(np.abs(ctrl[-1, :, 3, :] - ctrl[0, :, 0, :])))
             if gap > tol:
-                raise ValueError(
+                raise InputError(
                     f"closed_u: the last patch row does not join the first (gap {gap:.3g})"
                 )
         if self.closed_v:
             gap = float(np.max(np.abs(ctrl[:, -1, :, 3] - ctrl[:, 0, :, 0])))
             if gap > tol:
-                raise ValueError(
+                raise InputError(
                     f"closed_v: the last patch column does not join the first (gap {gap:.3g})"
                 )
 
@@ -214,14 +214,14 @@ class BezierPatches:
         pi = np.broadcast_to(pi, (n,)) if pi.ndim == 0 else pi
         pj = np.broadcast_to(pj, (n,)) if pj.ndim == 0 else pj
         if not (pi.shape == pj.shape == v.shape == (n,)):
-            raise ValueError(
+            raise InputError(
                 f"pi, pj, u, v: need equal lengths, got {pi.shape}, {pj.shape}, {u.shape}, {v.shape}"
             )
         if not (np.issubdtype(pi.dtype, np.integer) and np.issubdtype(pj.dtype, np.integer)):
-            raise ValueError("pi, pj: patch indices must be integers")
+            raise InputError("pi, pj: patch indices must be integers")
         rows, cols = self.shape
         if n and (pi.min() < 0 or pi.max() >= rows or pj.min() < 0 or pj.max() >= cols):
-            raise ValueError(f"pi, pj: patch index outside the {rows}x{cols} patch grid")
+            raise InputError(f"pi, pj: patch index outside the {rows}x{cols} patch grid")
         return pi.astype(np.intp), pj.astype(np.intp), u, v
 
     def derivatives(self, pi, pj, u, v, order: int = 1) -> SurfaceDerivatives:
@@ -244,7 +244,7 @@ class BezierPatches:
             derivative fields hold empty arrays.
         """
         if order not in (0, 1, 2):
-            raise ValueError(f"order: must be 0, 1 or 2, got {order!r}")
+            raise InputError(f"order: must be 0, 1 or 2, got {order!r}")
         pi, pj, u, v = self._check_params(pi, pj, u, v)
         n = u.shape[0]
         flat = self.control.reshape(-1, 16, 3)
@@ -352,9 +352,9 @@ class BezierPatches:
             Shape (R, C, n_u, n_v, 3) each.
         """
         if int(n_u) < 2 or int(n_v) < 2:
-            raise ValueError(f"n_u, n_v: need at least 2 samples per patch, got {n_u}, {n_v}")
+            raise InputError(f"n_u, n_v: need at least 2 samples per patch, got {n_u}, {n_v}")
         if order not in (0, 1):
-            raise ValueError(f"order: must be 0 or 1, got {order!r}")
+            raise InputError(f"order: must be 0 or 1, got {order!r}")
         tu = np.linspace(0.0, 1.0, int(n_u))
         tv = np.linspace(0.0, 1.0, int(n_v))
         bu0, bv0 = bernstein(tu), bernstein(tv)
@@ -393,7 +393,7 @@ class BezierPatches:
             if closed:
                 x = np.mod(x, n)
             elif x.size and (x.min() < -1e-12 or x.max() > n + 1e-12):
-                raise ValueError(f"{name}: global parameters must lie in [0, {n}]")
+                raise InputError(f"{name}: global parameters must lie in [0, {n}]")
             idx = np.clip(np.floor(x).astype(np.intp), 0, n - 1)
             out += [idx, np.clip(x - idx, 0.0, 1.0)]
         return out[0], out[2], out[1], out[3]

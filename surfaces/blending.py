@@ -37,7 +37,7 @@ import numpy as np
 
 from surfaces.bezier import _JOIN_RTOL, BezierPatches, bernstein
 from surfaces.knots import chord_lengths
-from surfaces.validate import as_array
+from surfaces.validate import as_array, InputError
 
 
 def _chord_parameters(points: np.ndarray, closed: bool, coincide: str) -> np.ndarray:
@@ -49,7 +49,7 @@ def _chord_parameters(points: np.ndarray, closed: bool, coincide: str) -> np.nda
     seg = chord_lengths(points, 0, closed)
     seg = seg.reshape(len(seg), -1).mean(axis=1)
     if np.any(seg <= 0):
-        raise ValueError(f"points: {coincide} (zero chord length)")
+        raise InputError(f"points: {coincide} (zero chord length)")
     t = np.concatenate([[0.0], seg.cumsum()])
     return t[:-1] / t[-1] if closed else t
 
@@ -61,9 +61,9 @@ def _parameters(points: np.ndarray, params, closed: bool) -> np.ndarray:
         return _chord_parameters(points, closed, "consecutive points coincide")
     t = as_array(params, "params", shape=(n,))
     if np.any(np.diff(t) <= 0):
-        raise ValueError("params: must increase strictly")
+        raise InputError("params: must increase strictly")
     if closed and not t[-1] - t[0] < 1.0:
-        raise ValueError("params: a closed curve needs parameters spanning less than one period")
+        raise InputError("params: a closed curve needs parameters spanning less than one period")
     return t
 
 
@@ -90,7 +90,7 @@ def overhauser_tangents(points, params=None, closed: bool = False) -> np.ndarray
     pts = as_array(points, "points", ndim=2)
     n = len(pts)
     if n < (3 if closed else 2):
-        raise ValueError(f"points: need at least {3 if closed else 2} points, got {n}")
+        raise InputError(f"points: need at least {3 if closed else 2} points, got {n}")
     t = _parameters(pts, params, closed)
     if closed:
         prev_p, next_p = np.roll(pts, 1, axis=0), np.roll(pts, -1, axis=0)
@@ -171,7 +171,7 @@ def overhauser_curve(points, params=None, closed: bool = False) -> tuple[np.ndar
     t = _parameters(pts, params, closed)
     if closed:
         if len(pts) < 3:
-            raise ValueError(f"points: need at least 3 points, got {len(pts)}")
+            raise InputError(f"points: need at least 3 points, got {len(pts)}")
         return _overhauser_closed(pts, t, np.zeros(1, np.int64), np.array([len(pts)]))
     tan = overhauser_tangents(pts, t, closed)
     h = np.diff(t)[:, None]
@@ -226,15 +226,15 @@ def _closed_parameters(pts: np.ndarray, params, sizes) -> tuple[np.ndarray, np.n
     t = as_array(params, "params", shape=(len(pts),))
     ns = np.asarray(sizes)
     if ns.ndim != 1 or not len(ns) or ns.dtype.kind not in "iu" or ns.min() < 3 or int(ns.sum()) != len(pts):
-        raise ValueError(f"sizes: need integer counts of at least 3 points summing to {len(pts)}, got {sizes!r}")
+        raise InputError(f"sizes: need integer counts of at least 3 points summing to {len(pts)}, got {sizes!r}")
     ns = ns.astype(np.int64)
     start = ns.cumsum() - ns
     inner = np.ones(len(pts), dtype=bool)
     inner[start] = False
     if (t[1:] <= t[:-1])[inner[1:]].any():
-        raise ValueError("params: must increase strictly along every curve")
+        raise InputError("params: must increase strictly along every curve")
     if not (t[start + ns - 1] - t[start] < 1.0).all():
-        raise ValueError("params: a closed curve needs parameters spanning less than one period")
+        raise InputError("params: a closed curve needs parameters spanning less than one period")
     return t, start, ns
 
 
@@ -302,10 +302,10 @@ def evaluate_curve(control, knots, u, derivative: int = 0) -> np.ndarray:
     k = as_array(knots, "knots", shape=(len(ctrl) + 1,))
     uu = as_array(u, "u", ndim=1)
     if derivative not in (0, 1):
-        raise ValueError(f"derivative: must be 0 or 1, got {derivative!r}")
+        raise InputError(f"derivative: must be 0 or 1, got {derivative!r}")
     tol = 1e-12 * max(1.0, float(k[-1] - k[0]))
     if len(uu) and (uu.min() < k[0] - tol or uu.max() > k[-1] + tol):
-        raise ValueError(f"u: outside the curve's parameter range [{k[0]}, {k[-1]}]")
+        raise InputError(f"u: outside the curve's parameter range [{k[0]}, {k[-1]}]")
     seg = np.clip(np.searchsorted(k, uu, side="right") - 1, 0, len(ctrl) - 1)
     h = k[seg + 1] - k[seg]
     s = np.clip((uu - k[seg]) / h, 0.0, 1.0)
@@ -380,20 +380,20 @@ def restrict_curves(control, knots, sizes, breakpoints) -> np.ndarray:
     ctrl = as_array(control, "control", ndim=3)
     ns = np.asarray(sizes)
     if ns.ndim != 1 or not len(ns) or ns.dtype.kind not in "iu" or ns.min() < 1 or int(ns.sum()) != len(ctrl):
-        raise ValueError(f"sizes: need integer counts of at least 1 segment summing to {len(ctrl)}, got {sizes!r}")
+        raise InputError(f"sizes: need integer counts of at least 1 segment summing to {len(ctrl)}, got {sizes!r}")
     ns = ns.astype(np.int64)
     n_c = len(ns)
     k = as_array(knots, "knots", shape=(len(ctrl) + n_c,))
     b = as_array(breakpoints, "breakpoints", shape=(n_c, None))
     if b.shape[1] < 2:
-        raise ValueError(f"breakpoints: need at least 2 per curve, got {b.shape[1]}")
+        raise InputError(f"breakpoints: need at least 2 per curve, got {b.shape[1]}")
     if np.any(np.diff(b, axis=1) <= 0):
-        raise ValueError("breakpoints: must increase strictly")
+        raise InputError("breakpoints: must increase strictly")
     kstart = (ns + 1).cumsum() - (ns + 1)
     curve = np.arange(n_c).repeat(ns + 1)
     lo, hi = k[kstart], k[kstart + ns]
     if np.any(np.diff(k)[(curve[1:] == curve[:-1])] <= 0):
-        raise ValueError("knots: must increase strictly along every curve")
+        raise InputError("knots: must increase strictly along every curve")
     # shift every curve's knots and breakpoints by its own offset so that the curves never interleave
     step = 2.0 * float(np.max(hi - lo)) + 1.0
     shift = np.arange(n_c) * step - lo
@@ -402,7 +402,7 @@ def restrict_curves(control, knots, sizes, breakpoints) -> np.ndarray:
     scale = np.maximum(1.0, hi - lo)[curve]
     pos = np.clip(np.searchsorted(keyed_b.ravel(), key), 0, b.size - 1)
     if np.max(np.abs(b.ravel()[pos] - k) / scale) > 1e-12:
-        raise ValueError("breakpoints: must contain every knot of the curve")
+        raise InputError("breakpoints: must contain every knot of the curve")
     # evaluate each interval's ends inside the segment that contains the interval's midpoint
     mid = (0.5 * (keyed_b[:, :-1] + keyed_b[:, 1:])).ravel()
     g = np.searchsorted(key, mid, side="right") - 1
@@ -444,7 +444,7 @@ def restrict_segments(control, start, end, lo, hi) -> np.ndarray:
     b0 = as_array(lo, "lo", shape=(len(c),))
     b1 = as_array(hi, "hi", shape=(len(c),))
     if np.any(k1 <= k0) or np.any(b1 <= b0):
-        raise ValueError("start/end, lo/hi: every range must increase strictly")
+        raise InputError("start/end, lo/hi: every range must increase strictly")
     return _restrict_segments(c, k0, k1, b0, b1, np.empty_like(c))
 
 
@@ -553,11 +553,11 @@ def blend_weights(n_curves: int, params=None) -> np.ndarray:
     """
     n = int(n_curves)
     if n < 2:
-        raise ValueError(f"n_curves: need at least 2 curves, got {n_curves}")
+        raise InputError(f"n_curves: need at least 2 curves, got {n_curves}")
     if params is not None:
         v = as_array(params, "params", shape=(n,))
         if np.any(np.diff(v) <= 0):
-            raise ValueError("params: must increase strictly")
+            raise InputError("params: must increase strictly")
     return _blend_weights(n, None if params is None else v)
 
 
@@ -626,7 +626,7 @@ def blend_curves(curves, closed_u: bool = True, params=None, monotone: bool = Fa
     """
     c = as_array(curves, "curves", shape=(None, None, 4, 3))
     if len(c) < 2:
-        raise ValueError(f"curves: need at least 2 curves, got {len(c)}")
+        raise InputError(f"curves: need at least 2 curves, got {len(c)}")
     return _blend(c, closed_u, params, monotone)[0]
 
 
@@ -652,7 +652,7 @@ def monotone_blend(curves, closed_u: bool = True, params=None) -> tuple[BezierPa
     """
     c = as_array(curves, "curves", shape=(None, None, 4, 3))
     if len(c) < 2:
-        raise ValueError(f"curves: need at least 2 curves, got {len(c)}")
+        raise InputError(f"curves: need at least 2 curves, got {len(c)}")
     return _blend(c, closed_u, params, True)
 
 
@@ -699,7 +699,7 @@ def _blend(c: np.ndarray, closed_u: bool, params, monotone: bool,
         ends = control[::max(m - 1, 1)]
         gap = float(np.abs(control[-1, :, 3] - control[0, :, 0]).max())
         if gap > _JOIN_RTOL * max(float(ends.max()), -float(ends.min()), 1.0):
-            raise ValueError(f"closed_u: the last patch row does not join the first (gap {gap:.3g})")
+            raise InputError(f"closed_u: the last patch row does not join the first (gap {gap:.3g})")
     return BezierPatches._trusted(control, closed_u=closed_u), limited
 
 
@@ -836,7 +836,7 @@ def from_grid(points, u_params=None, closed_u: bool = False, closed_v: bool = Fa
     pts = as_array(points, "points", shape=(None, None, 3))
     rows, cols = pts.shape[:2]
     if rows < (3 if closed_u else 2) or cols < (3 if closed_v else 2):
-        raise ValueError(f"points: grid of {rows}x{cols} is too small")
+        raise InputError(f"points: grid of {rows}x{cols} is too small")
     if u_params is None:
         u_params = _chord_parameters(pts, closed_u, "coincident grid rows")
     # curves along u for every column at once: treat the column index as extra coordinates

@@ -44,6 +44,7 @@ import numpy as np
 from surfaces.mesh import TriangleMesh, as_mesh, compact, signed_volume
 from surfaces.repair import check_solid, inward_problem, repair_mesh
 from surfaces.topology import chain_edges, edge_table, shells
+from surfaces.validate import InputError
 
 __all__ = ["OPS", "BooleanResult", "boolean", "union", "intersection", "difference", "compose"]
 
@@ -62,7 +63,7 @@ def _to_manifold(mesh: TriangleMesh, centre: np.ndarray, name: str, hint: str):
 
     vertices, triangles = mesh.vertices, mesh.triangles
     if len(triangles) == 0:
-        raise ValueError(f"{name}: has no triangles")
+        raise InputError(f"{name}: has no triangles")
     # an explicit original id tags every triangle of the results with its source (cheaper
     # than Manifold.as_original(), which rebuilds the faces)
     original_id = int(manifold3d.Manifold.reserve_ids(1))
@@ -76,10 +77,10 @@ def _to_manifold(mesh: TriangleMesh, centre: np.ndarray, name: str, hint: str):
     status = solid.status()
     if status != manifold3d.Error.NoError:
         problems = check_solid(mesh, name)["problems"] or [f"{name}: manifold3d rejected the mesh ({status.name})"]
-        raise ValueError("; ".join(problems) + hint)
+        raise InputError("; ".join(problems) + hint)
     volume = mesh.signed_volume()
     if not volume > 0:
-        raise ValueError(inward_problem(name, volume) + hint)
+        raise InputError(inward_problem(name, volume) + hint)
     return solid, original_id, volume
 
 
@@ -258,9 +259,9 @@ def boolean(a, b, op: str = "union", *, repair: bool = False, names: Sequence[st
     0
     """
     if op not in OPS:
-        raise ValueError(f"op: must be one of {', '.join(OPS)}, got {op!r}")
+        raise InputError(f"op: must be one of {', '.join(OPS)}, got {op!r}")
     if len(names) != 2:
-        raise ValueError(f"names: expected two names, got {len(names)}")
+        raise InputError(f"names: expected two names, got {len(names)}")
     name_a, name_b = str(names[0]), str(names[1])
     mesh_a, rep_a = _prepare(a, name_a, repair)
     mesh_b, rep_b = _prepare(b, name_b, repair)
@@ -395,7 +396,7 @@ def compose(
     minus_names = [str(n) for n in names.get("minus", [f"minus[{i}]" for i in range(len(minus))])]
     plus_names = [str(n) for n in names.get("plus", [f"plus[{i}]" for i in range(len(plus))])]
     if len(minus_names) != len(minus) or len(plus_names) != len(plus):
-        raise ValueError("names: needs one name per minus and plus mesh")
+        raise InputError("names: needs one name per minus and plus mesh")
     prepared = [_prepare(m, n, repair) for m, n in zip([base, *plus, *minus], [base_name, *plus_names, *minus_names])]
     all_v = np.vstack([p[0].vertices for p in prepared])
     centre = 0.5 * (all_v.min(axis=0) + all_v.max(axis=0))

@@ -62,7 +62,7 @@ from surfaces.knots import (
     span_parameters,
     to_knot_domain,
 )
-from surfaces.validate import as_array, drop_closing_repeat
+from surfaces.validate import as_array, drop_closing_repeat, InputError
 
 if TYPE_CHECKING:
     from surfaces.bezier import BezierPatches
@@ -96,7 +96,7 @@ class _Collocation:
             try:
                 self.lu = scipy.sparse.linalg.splu(mat)
             except RuntimeError as exc:  # singular: Schoenberg-Whitney violated
-                raise ValueError(f"points: the interpolation system is singular ({exc})") from None
+                raise InputError(f"points: the interpolation system is singular ({exc})") from None
         else:
             self.band = np.zeros((2 * degree + 1, n))
             np.add.at(self.band, (degree + dm.row - dm.col, dm.col), dm.data)
@@ -110,7 +110,7 @@ class _Collocation:
             try:
                 out = scipy.linalg.solve_banded((self.degree, self.degree), self.band, flat)
             except np.linalg.LinAlgError as exc:
-                raise ValueError(f"points: the interpolation system is singular ({exc})") from None
+                raise InputError(f"points: the interpolation system is singular ({exc})") from None
         return out.reshape(rhs.shape)
 
 
@@ -126,7 +126,7 @@ def _domain_u(u, name: str, closed: bool, knots: np.ndarray, degree: int) -> np.
     if closed:
         return to_knot_domain(arr, knots, degree)
     if arr.size and (arr.min() < -1e-12 or arr.max() > 1 + 1e-12):
-        raise ValueError(f"{name}: parameters of an open direction must lie in [0, 1]")
+        raise InputError(f"{name}: parameters of an open direction must lie in [0, 1]")
     return np.clip(arr, 0.0, 1.0)
 
 
@@ -180,7 +180,7 @@ class BSplineCurve:
     def derivative(self, u, order: int = 1) -> np.ndarray:
         """Derivative of the given order (1 .. p) with respect to u at ``u`` -> ``(M, d)``."""
         if not 0 <= int(order) <= self.degree:
-            raise ValueError(f"order: expected 0 to {self.degree}, got {order}")
+            raise InputError(f"order: expected 0 to {self.degree}, got {order}")
         x = _domain_u(u, "u", self.closed, self.knots, self.degree)
         return self._spline()(x, nu=int(order))
 
@@ -252,7 +252,7 @@ def interpolate_curve(
     if closed:
         q = drop_closing_repeat(q, 0)
     if q.shape[0] < p + 1:
-        raise ValueError(f"points: degree {p} needs at least {p + 1} points, got {q.shape[0]}")
+        raise InputError(f"points: degree {p} needs at least {p + 1} points, got {q.shape[0]}")
     u = data_parameters(q[None], method, closed, params, "params", "points")
     knots = interpolation_knots(u, p, closed)
     control = _Collocation(u, knots, p, closed).solve(q)
@@ -302,7 +302,7 @@ class BSplineSurface:
         x = _domain_u(u, "u", self.closed_u, self.knots_u, self.degree_u)
         y = _domain_u(v, "v", self.closed_v, self.knots_v, self.degree_v)
         if x.shape != y.shape:
-            raise ValueError(f"u, v: expected equal shapes, got {x.shape} and {y.shape}")
+            raise InputError(f"u, v: expected equal shapes, got {x.shape} and {y.shape}")
         return np.stack([x, y], axis=1)
 
     def evaluate(self, u, v) -> np.ndarray:
@@ -327,7 +327,7 @@ class BSplineSurface:
         (tensor-product de Boor, vectorised over all points).
         """
         if not (0 <= nu <= self.degree_u and 0 <= nv <= self.degree_v):
-            raise ValueError(f"nu, nv: expected 0..{self.degree_u} and 0..{self.degree_v}")
+            raise InputError(f"nu, nv: expected 0..{self.degree_u} and 0..{self.degree_v}")
         xi = self._domain(u, v)
         spline = NdBSpline(
             (self.knots_u, self.knots_v), self.full_control, (self.degree_u, self.degree_v)
@@ -449,7 +449,7 @@ def interpolate_surface(
         q = drop_closing_repeat(q, 1)
     r, c = q.shape[:2]
     if r < pu + 1 or c < pv + 1:
-        raise ValueError(
+        raise InputError(
             f"points: degrees ({pu}, {pv}) need at least {pu + 1} x {pv + 1} grid points, "
             f"got {r} x {c}"
         )

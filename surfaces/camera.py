@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from surfaces.validate import as_array, positive
+from surfaces.validate import as_array, InputError, positive
 
 __all__ = ["STANDARD_VIEWS", "Camera", "fit_camera"]
 
@@ -59,13 +59,13 @@ class Camera:
         for name in ("eye", "target", "up"):
             object.__setattr__(self, name, as_array(getattr(self, name), name, shape=(3,)))
         if np.linalg.norm(self.target - self.eye) == 0:
-            raise ValueError("camera: eye and target coincide")
+            raise InputError("camera: eye and target coincide")
         if self.fov_deg is not None and not 0.0 < float(self.fov_deg) < 180.0:
-            raise ValueError(f"fov_deg: must lie in (0, 180) degrees, got {self.fov_deg}")
+            raise InputError(f"fov_deg: must lie in (0, 180) degrees, got {self.fov_deg}")
         positive(self.ortho_height, "ortho_height")
         forward = self.target - self.eye
         if np.linalg.norm(np.cross(forward, self.up)) <= 1e-12 * np.linalg.norm(forward):
-            raise ValueError("camera: up is parallel to the viewing direction")
+            raise InputError("camera: up is parallel to the viewing direction")
 
     @property
     def perspective(self) -> bool:
@@ -208,7 +208,7 @@ def fit_camera(
     positive(margin, "margin")
     if isinstance(view, str):
         if view not in STANDARD_VIEWS:
-            raise ValueError(f"view: unknown view {view!r}; choose from {', '.join(STANDARD_VIEWS)}")
+            raise InputError(f"view: unknown view {view!r}; choose from {', '.join(STANDARD_VIEWS)}")
         direction, default_up = STANDARD_VIEWS[view]
     else:
         direction = as_array(view, "view", shape=(3,))
@@ -217,7 +217,7 @@ def fit_camera(
             default_up = (0.0, 1.0, 0.0)
     d = np.asarray(direction, float)
     if np.linalg.norm(d) == 0:
-        raise ValueError("view: direction is the zero vector")
+        raise InputError("view: direction is the zero vector")
     d /= np.linalg.norm(d)
     up_vec = as_array(default_up if up is None else up, "up", shape=(3,))
     centre = box.mean(axis=0)

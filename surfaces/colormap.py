@@ -6,7 +6,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from surfaces.validate import as_array, positive
+from surfaces.validate import as_array, InputError, positive
 
 __all__ = ["apply_colormap", "scalar_range", "colorbar_image"]
 
@@ -41,7 +41,7 @@ def apply_colormap(
     try:
         colormap = matplotlib.colormaps[cmap]
     except KeyError:
-        raise ValueError(f"cmap: unknown matplotlib colour map {cmap!r}") from None
+        raise InputError(f"cmap: unknown matplotlib colour map {cmap!r}") from None
     lo, hi = scalar_range(vals, vmin, vmax)
     finite = np.isfinite(vals)
     t = np.clip((np.where(finite, vals, lo) - lo) / (hi - lo), 0.0, 1.0)
@@ -167,7 +167,7 @@ def vertex_values(n_vertices: int, colors=None, scalars=None) -> tuple[np.ndarra
     [0.0, 1.0]
     """
     if colors is not None and scalars is not None:
-        raise ValueError("colors, scalars: give per-vertex colours or scalars, not both")
+        raise InputError("colors, scalars: give per-vertex colours or scalars, not both")
     if colors is not None:
         colors = as_array(colors, "colors", shape=(n_vertices, 3))
     if scalars is not None:

@@ -16,7 +16,7 @@ import numpy as np
 from surfaces.bezier import control_net_segments
 from surfaces.colormap import apply_colormap, vertex_values
 from surfaces.mesh import PATCH_SAMPLES, as_mesh, vertex_normals
-from surfaces.validate import as_array
+from surfaces.validate import as_array, InputError
 
 __all__ = ["to_open3d", "control_net_lineset"]
 
@@ -85,7 +85,7 @@ def to_open3d(
     verts, tris = source.vertices, source.triangles
     colors, scalars = vertex_values(len(verts), colors, scalars)
     if colors is not None and (colors.min() < 0 or colors.max() > 1):
-        raise ValueError("colors: RGB values must lie in [0, 1]")
+        raise InputError("colors: RGB values must lie in [0, 1]")
     if scalars is not None:
         colors = apply_colormap(scalars, cmap, vmin, vmax).astype(np.float64)
     mesh = o3d.geometry.TriangleMesh(

@@ -30,7 +30,7 @@ import numpy as np
 
 from surfaces.bezier import BezierPatches
 from surfaces.knots import chord_lengths
-from surfaces.validate import as_array, drop_closing_repeat
+from surfaces.validate import as_array, drop_closing_repeat, InputError
 
 #: Hermite basis in power form, rows act on [P0, P1, P0', P1'] (seed 001).
 N_C = np.array([[2.0, -2.0, 1.0, 1.0], [-3.0, 3.0, -2.0, -1.0], [0.0, 0.0, 1.0, 0.0], [1.0, 0.0, 0.0, 0.0]])
@@ -55,7 +55,7 @@ def coons_to_bezier(geometry) -> np.ndarray:
     """
     geom = as_array(geometry, "geometry")
     if geom.ndim < 3 or geom.shape[-3:] != (4, 4, 3):
-        raise ValueError(f"geometry: expected shape (..., 4, 4, 3), got {geom.shape}")
+        raise InputError(f"geometry: expected shape (..., 4, 4, 3), got {geom.shape}")
     return np.einsum("ab,...bcx,dc->...adx", K, geom, K)
 
 
@@ -165,7 +165,7 @@ def from_grid(
     """
     pts = as_array(points, "points")
     if pts.ndim != 3 or pts.shape[-1] != 3:
-        raise ValueError(f"points: expected shape (R, C, 3), got {pts.shape}")
+        raise InputError(f"points: expected shape (R, C, 3), got {pts.shape}")
     full_rows, full_cols = pts.shape[:2]
     if closed_u:
         pts = drop_closing_repeat(pts, 0)
@@ -173,9 +173,9 @@ def from_grid(
         pts = drop_closing_repeat(pts, 1)
     rows, cols = pts.shape[:2]
     if rows < 2 or cols < 2:
-        raise ValueError(f"points: need at least 2x2 grid points, got {rows}x{cols}")
+        raise InputError(f"points: need at least 2x2 grid points, got {rows}x{cols}")
     if isinstance(twist, str) and twist not in ("zero", "fd"):
-        raise ValueError(f"twist: must be 'zero', 'fd' or an (R, C, 3) array, got {twist!r}")
+        raise InputError(f"twist: must be 'zero', 'fd' or an (R, C, 3) array, got {twist!r}")
     given = {}
     for name, value in (("pu", pu), ("pv", pv), ("twist", None if isinstance(twist, str) else twist)):
         if value is not None:

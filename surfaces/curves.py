@@ -18,7 +18,7 @@ from typing import Protocol
 import numpy as np
 
 from surfaces.bspline import BSplineCurve, interpolate_curve
-from surfaces.validate import as_array, positive
+from surfaces.validate import as_array, InputError, positive
 from surfaces.vectors import perpendicular
 
 __all__ = [
@@ -84,7 +84,7 @@ class ParametricCurve:
             return (hi - lo) / (2 * h)
         if order == 2:
             return (hi - 2 * self.evaluate(x) + lo) / (h * h)
-        raise ValueError(f"order: finite differences give orders 1 and 2, got {order}")
+        raise InputError(f"order: finite differences give orders 1 and 2, got {order}")
 
 
 def parameters(t, name: str = "t") -> np.ndarray:
@@ -133,7 +133,7 @@ def as_3d(points: np.ndarray, name: str = "points") -> np.ndarray:
         return points
     if points.shape[1] == 2:
         return np.column_stack([points, np.zeros(points.shape[0])])
-    raise ValueError(f"{name}: expected 2D or 3D points, got dimension {points.shape[1]}")
+    raise InputError(f"{name}: expected 2D or 3D points, got dimension {points.shape[1]}")
 
 
 def line(start, end) -> ParametricCurve:
@@ -184,7 +184,7 @@ def circle(radius: float, center=(0.0, 0.0), normal=(0.0, 0.0, 1.0)) -> Parametr
     elif c.size == 3:
         e1, e2 = _plane_axes(as_array(normal, "normal", shape=(3,)))
     else:
-        raise ValueError(f"center: expected 2 or 3 coordinates, got {c.size}")
+        raise InputError(f"center: expected 2 or 3 coordinates, got {c.size}")
     w = 2 * np.pi
 
     def point(t, k=0):
@@ -305,13 +305,13 @@ def as_curve(obj) -> Curve:
         return obj
     if callable(obj):
         return ParametricCurve(obj, (), bool(getattr(obj, "closed", False)), "callable")
-    raise ValueError(f"curve: expected a BSplineCurve, ParametricCurve or callable, got {obj!r}")
+    raise InputError(f"curve: expected a BSplineCurve, ParametricCurve or callable, got {obj!r}")
 
 
 def _plane_axes(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     length = float(np.linalg.norm(normal))
     if length == 0.0:
-        raise ValueError("normal: must not be the zero vector")
+        raise InputError("normal: must not be the zero vector")
     n = normal / length
     e1 = perpendicular(n[None])[0]
     return e1, np.cross(n, e1)
@@ -356,10 +356,10 @@ def load_curve(source) -> Curve:
         try:
             spec = json.loads(path.read_text())
         except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-            raise ValueError(f"{path}: not valid JSON ({exc})") from None
+            raise InputError(f"{path}: not valid JSON ({exc})") from None
         where = str(path)
     if not isinstance(spec, dict):
-        raise ValueError(f"{where}: expected a JSON object")
+        raise InputError(f"{where}: expected a JSON object")
     kind = spec.get("type", "bspline")
     try:
         if kind == "bspline":
@@ -378,24 +378,24 @@ def load_curve(source) -> Curve:
             center = spec.get("center", (0, 0, 0))
             return helix(spec["radius"], spec["pitch"], spec["turns"], center)
     except KeyError as exc:
-        raise ValueError(f"{where}: a {kind!r} curve needs the field {exc.args[0]!r}") from None
+        raise InputError(f"{where}: a {kind!r} curve needs the field {exc.args[0]!r}") from None
     except ValueError as exc:
-        raise ValueError(f"{where}: {exc}") from None
-    raise ValueError(f"{where}: unknown curve type {kind!r}; use bspline, line, circle or helix")
+        raise InputError(f"{where}: {exc}") from None
+    raise InputError(f"{where}: unknown curve type {kind!r}; use bspline, line, circle or helix")
 
 
 def _given_bspline(spec: dict, degree: int, closed: bool) -> BSplineCurve:
     if "control" not in spec or "knots" not in spec:
-        raise ValueError("a bspline curve needs 'points', or 'control' and 'knots'")
+        raise InputError("a bspline curve needs 'points', or 'control' and 'knots'")
     control = as_array(spec["control"], "control", ndim=2)
     knots = as_array(spec["knots"], "knots", ndim=1)
     want = control.shape[0] + (2 * degree + 1 if closed else degree + 1)
     if knots.size != want:
-        raise ValueError(
+        raise InputError(
             f"knots: expected {want} knots for {control.shape[0]} control points, got {knots.size}"
         )
     if np.any(np.diff(knots) < 0):
-        raise ValueError("knots: must be non-decreasing")
+        raise InputError("knots: must be non-decreasing")
     if not (knots[degree] == 0.0 and knots[-degree - 1] == 1.0):
-        raise ValueError("knots: the domain [t_p, t_{n+1}] must be [0, 1]")
+        raise InputError("knots: the domain [t_p, t_{n+1}] must be [0, 1]")
     return BSplineCurve(degree, knots, control, np.empty(0), closed)

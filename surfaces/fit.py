@@ -85,7 +85,7 @@ from scipy.sparse.linalg import splu
 
 from surfaces.mixed import MixedPatches
 from surfaces.threads import one_blas_thread
-from surfaces.validate import as_array, positive
+from surfaces.validate import as_array, InputError, positive
 
 __all__ = [
     "NOISE_TOLERANCE",
@@ -653,7 +653,7 @@ def _step(step, shape) -> int:
     if step is None:
         return default_step(shape)
     if isinstance(step, bool) or not isinstance(step, (int, np.integer)) or int(step) < 1:
-        raise ValueError(f"step: expected a positive whole number of pixels, got {step!r}")
+        raise InputError(f"step: expected a positive whole number of pixels, got {step!r}")
     return 1 << (int(step).bit_length() - 1)
 
 
@@ -849,7 +849,7 @@ def fit_height(
     z = as_array(height, "height", ndim=2, finite=False, dtype=dt)
     H, W = z.shape
     if min(H, W) < 2:
-        raise ValueError(f"height: needs at least 2 x 2 pixels, got {z.shape}")
+        raise InputError(f"height: needs at least 2 x 2 pixels, got {z.shape}")
     pp = as_array(p, "p", shape=z.shape, finite=False, dtype=dt)
     qq = as_array(q, "q", shape=z.shape, finite=False, dtype=dt)
     h = positive(pixel_size, "pixel_size")
@@ -857,12 +857,12 @@ def fit_height(
     angle = None if slope_angle is None else positive(slope_angle, "slope_angle")
     m = np.ones(z.shape, bool) if mask is None else as_array(mask, "mask", shape=z.shape, dtype=bool)
     if not m.any():
-        raise ValueError("mask: no pixel is selected")
+        raise InputError("mask: no pixel is selected")
     for name, arr in (("height", z), ("p", pp), ("q", qq)):
         bad = m & ~np.isfinite(arr)
         if bad.any():
             r, c = np.argwhere(bad)[0]
-            raise ValueError(
+            raise InputError(
                 f"{name}: {int(bad.sum())} non-finite value(s) inside the mask (first at row {r}, column {c}); "
                 "leave such pixels out of the mask"
             )
@@ -870,7 +870,7 @@ def fit_height(
     if xy is not None:
         xyv = as_array(xy, "xy", shape=(H, W, 2), finite=False)
         if (m & ~np.isfinite(xyv).all(axis=2)).any():
-            raise ValueError("xy: non-finite values inside the mask")
+            raise InputError("xy: non-finite values inside the mask")
     k0 = _step(step, z.shape)
     if tolerance is None:
         lo, hi = percentiles(z[m], (0.5, 99.5))
@@ -884,7 +884,7 @@ def fit_height(
         tol = positive(tolerance, "tolerance")
     region = m & ~find_discontinuities(z, pp, qq, m, h, jump, xyv)
     if not region.any():
-        raise ValueError("height: every pixel of the mask lies on a depth discontinuity")
+        raise InputError("height: every pixel of the mask lies on a depth discontinuity")
     with one_blas_thread():
         return _fit(z, pp, qq, region, h, tol, k0, xyv, lam, angle, bool(keep_pixels))
 

@@ -11,7 +11,7 @@ import numpy as np
 from scipy import ndimage
 
 from surfaces.fit import BLOCK_PIXELS, SurfaceFit
-from surfaces.validate import positive
+from surfaces.validate import InputError, positive
 
 
 def _marching_table() -> dict:
@@ -113,11 +113,11 @@ def fit_mesh(fit: SurfaceFit, spacing: float = 1.0, smoothing: float = 0.7):
     from surfaces.vectors import cross, unit
 
     if not isinstance(fit, SurfaceFit):
-        raise ValueError(f"fit: expected a SurfaceFit, got {type(fit).__name__}")
+        raise InputError(f"fit: expected a SurfaceFit, got {type(fit).__name__}")
     step = positive(spacing, "spacing")
     sigma = float(smoothing)
     if not np.isfinite(sigma) or sigma < 0:
-        raise ValueError(f"smoothing: must be a finite number >= 0, got {smoothing!r}")
+        raise InputError(f"smoothing: must be a finite number >= 0, got {smoothing!r}")
     H, W = fit.shape
     # lattice nodes one spacing beyond the pixel centres on every side, so the outline
     # reaches the image edges

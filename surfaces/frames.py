@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from surfaces.curves import Curve, as_3d, as_curve, parameters
-from surfaces.validate import as_array
+from surfaces.validate import as_array, InputError
 from surfaces.vectors import perpendicular, unit
 
 __all__ = ["FRAMES", "RMF_SAMPLES", "frames", "rotation_minimizing_frames"]
@@ -31,7 +31,7 @@ def _tangents(directrix: Curve, v: np.ndarray) -> np.ndarray:
     speed = np.linalg.norm(d1, axis=1)
     bad = np.flatnonzero(speed <= 1e-12 * max(1.0, float(speed.max(initial=0.0))))
     if bad.size:
-        raise ValueError(f"directrix: zero speed (no tangent) at v = {v[bad[0]]:.6g}")
+        raise InputError(f"directrix: zero speed (no tangent) at v = {v[bad[0]]:.6g}")
     return d1 / speed[:, None]
 
 
@@ -42,7 +42,7 @@ def _frenet_normals(directrix: Curve, v: np.ndarray, t: np.ndarray) -> np.ndarra
     size = np.linalg.norm(n, axis=1)
     bad = np.flatnonzero(size <= 1e-9 * np.linalg.norm(d1, axis=1) ** 2)
     if bad.size:
-        raise ValueError(
+        raise InputError(
             f"frame: the Frenet frame is undefined where the directrix has zero curvature "
             f"(v = {v[bad[0]]:.6g}); use frame='rmf' or 'fixed'"
         )
@@ -54,7 +54,7 @@ def _initial_normal(directrix: Curve, t0: np.ndarray, up) -> np.ndarray:
         u = as_array(up, "up", shape=(3,))
         n = u - np.dot(u, t0) * t0
         if np.linalg.norm(n) <= 1e-9 * max(np.linalg.norm(u), 1e-300):
-            raise ValueError("up: must not be parallel to the directrix tangent at v = 0")
+            raise InputError("up: must not be parallel to the directrix tangent at v = 0")
         return n / np.linalg.norm(n)
     try:
         return _frenet_normals(directrix, np.zeros(1), t0[None])[0]
@@ -151,7 +151,7 @@ def frames(
         Each ``(M, 3)`` float64, orthonormal, ``B = T x N``.
     """
     if kind not in FRAMES:
-        raise ValueError(f"frame: expected one of {', '.join(FRAMES)}, got {kind!r}")
+        raise InputError(f"frame: expected one of {', '.join(FRAMES)}, got {kind!r}")
     vv = parameters(v)
     if directrix is None:
         ones = np.ones((vv.size, 1))

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from surfaces.validate import as_array, positive
+from surfaces.validate import as_array, InputError, positive
 
 __all__ = ["GRID_CONVENTION", "image_shape", "pixel_grid", "pixel_axes", "xy_to_pixel"]
 
@@ -47,18 +47,18 @@ def image_shape(size, name: str = "size") -> tuple[int, int]:
     """
     dims = np.atleast_1d(np.asarray(size))
     if dims.ndim != 1 or len(dims) not in (1, 2):
-        raise ValueError(f"{name}: expected an int or (H, W), got {size!r}")
+        raise InputError(f"{name}: expected an int or (H, W), got {size!r}")
     if len(dims) == 1:
         dims = np.repeat(dims, 2)
     try:
         values = dims.astype(float)
     except (TypeError, ValueError):
-        raise ValueError(f"{name}: expected whole numbers of pixels, got {size!r}") from None
+        raise InputError(f"{name}: expected whole numbers of pixels, got {size!r}") from None
     if not np.all(np.isfinite(values)) or np.any(values % 1 != 0):
-        raise ValueError(f"{name}: expected whole numbers of pixels, got {size!r}")
+        raise InputError(f"{name}: expected whole numbers of pixels, got {size!r}")
     h, w = int(values[0]), int(values[1])
     if h < 2 or w < 2:
-        raise ValueError(f"{name}: need at least 2 x 2 pixels, got {size!r}")
+        raise InputError(f"{name}: need at least 2 x 2 pixels, got {size!r}")
     return h, w
 
 

@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from surfaces.mesh import _KEPT_LATTICE, _grid_triangles, _kept_triangles
-from surfaces.validate import as_array
+from surfaces.validate import as_array, InputError
 
 __all__ = ["SelfIntersections", "candidate_pairs", "fold_suspects", "folded_faces", "is_fold_free",
            "layered_radial_graph", "self_intersections"]
@@ -397,9 +397,9 @@ def _checked(vertices, triangles, empty: bool = False) -> tuple[np.ndarray, np.n
     if empty and t.size == 0:
         t = t.reshape(0, 3)
     if t.ndim != 2 or t.shape[1] != 3 or not np.issubdtype(t.dtype, np.integer):
-        raise ValueError(f"triangles: expected an integer array of shape (T, 3), got {t.shape} {t.dtype}")
+        raise InputError(f"triangles: expected an integer array of shape (T, 3), got {t.shape} {t.dtype}")
     if t.size and (t.min() < 0 or t.max() >= len(v)):
-        raise ValueError(f"triangles: indices must lie in [0, {len(v)})")
+        raise InputError(f"triangles: indices must lie in [0, {len(v)})")
     return v, t.astype(np.int64, copy=False)
 
 

@@ -21,6 +21,7 @@ import numpy as np
 from surfaces.bezier import BezierPatches
 from surfaces.mesh import PATCH_SAMPLES, TriangleMesh, as_mesh, weld
 from surfaces.vectors import cross, unit
+from surfaces.validate import InputError
 
 MESH_FORMATS = (".ply", ".obj", ".stl")
 
@@ -171,14 +172,14 @@ def png_bytes(image) -> bytes:
 
     img = np.asarray(image)
     if img.dtype not in (np.uint8, np.uint16):
-        raise ValueError(f"image: expected uint8 or uint16 pixels, got {img.dtype}")
+        raise InputError(f"image: expected uint8 or uint16 pixels, got {img.dtype}")
     if img.ndim == 3 and img.shape[2] == 3:
         img = img[..., ::-1]
     elif img.ndim != 2:
-        raise ValueError(f"image: expected shape (H, W) or (H, W, 3), got {img.shape}")
+        raise InputError(f"image: expected shape (H, W) or (H, W, 3), got {img.shape}")
     ok, data = cv2.imencode(".png", np.ascontiguousarray(img))
     if not ok:
-        raise ValueError(f"image: PNG encoding failed for shape {img.shape}")
+        raise InputError(f"image: PNG encoding failed for shape {img.shape}")
     return data.tobytes()
 
 
@@ -249,7 +250,7 @@ class NpyRowWriter:
         """
         ordered = isinstance(rows, slice) and (rows.start or 0) == self.rows_written and rows.step in (None, 1)
         if not ordered:
-            raise ValueError(f"{self._name}: rows must be written in order; expected a slice from row "
+            raise InputError(f"{self._name}: rows must be written in order; expected a slice from row "
                              f"{self.rows_written}, got {rows!r}")
         self.write(block)
 
@@ -263,7 +264,7 @@ class NpyRowWriter:
         """
         arr = np.ascontiguousarray(block, dtype=self.dtype)
         if arr.shape[1:] != self.shape[1:] or self.rows_written + arr.shape[0] > self.shape[0]:
-            raise ValueError(f"{self._name}: block of shape {arr.shape} does not continue an array of shape "
+            raise InputError(f"{self._name}: block of shape {arr.shape} does not continue an array of shape "
                              f"{self.shape} at row {self.rows_written}")
         arr.tofile(self._fh)
         self.rows_written += arr.shape[0]
@@ -316,7 +317,7 @@ def npy_row_writer(path, shape, dtype):
             writer = NpyRowWriter(fh, shape, dtype, str(path))
             yield writer
         if writer.rows_written != shape[0]:
-            raise ValueError(f"{path}: {writer.rows_written} of {shape[0]} rows written")
+            raise InputError(f"{path}: {writer.rows_written} of {shape[0]} rows written")
 
 
 def _needs_v2(header: dict) -> bool:
@@ -347,13 +348,13 @@ def read_npy_rows(path, start: int, stop: int) -> np.ndarray:
     with open(path, "rb") as fh:
         version = np.lib.format.read_magic(fh)
         if version not in ((1, 0), (2, 0)):
-            raise ValueError(f"{path}: .npy format version {version} is not supported here")
+            raise InputError(f"{path}: .npy format version {version} is not supported here")
         read = np.lib.format.read_array_header_1_0 if version == (1, 0) else np.lib.format.read_array_header_2_0
         shape, fortran, dtype = read(fh)
         if fortran or dtype.hasobject or len(shape) == 0:
-            raise ValueError(f"{path}: expected a C-order numeric array of at least one axis")
+            raise InputError(f"{path}: expected a C-order numeric array of at least one axis")
         if not 0 <= start <= stop <= shape[0]:
-            raise ValueError(f"rows: {start}:{stop} is outside the {shape[0]} rows of {path}")
+            raise InputError(f"rows: {start}:{stop} is outside the {shape[0]} rows of {path}")
         row = int(np.prod(shape[1:], dtype=np.int64))
         fh.seek(start * row * dtype.itemsize, os.SEEK_CUR)
         out = np.fromfile(fh, dtype=dtype, count=(stop - start) * row)
@@ -458,7 +459,7 @@ def write_mesh(mesh, path, samples: int = PATCH_SAMPLES) -> Path:
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix not in MESH_FORMATS:
-        raise ValueError(f"path: unsupported mesh format {path.suffix!r}; use one of {', '.join(MESH_FORMATS)}")
+        raise InputError(f"path: unsupported mesh format {path.suffix!r}; use one of {', '.join(MESH_FORMATS)}")
     mesh = as_mesh(mesh, "mesh", samples)
     with atomic_path(path) as tmp:
         if suffix == ".obj":
@@ -499,7 +500,7 @@ def read_mesh(path) -> TriangleMesh:
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such mesh file")
     if path.suffix.lower() not in MESH_FORMATS:
-        raise ValueError(f"{path}: unsupported mesh format; use one of {', '.join(MESH_FORMATS)}")
+        raise InputError(f"{path}: unsupported mesh format; use one of {', '.join(MESH_FORMATS)}")
     import open3d as o3d
 
     # open3d and its RPly reader print their own complaints about a bad file straight to the
@@ -510,7 +511,7 @@ def read_mesh(path) -> TriangleMesh:
     tri = np.asarray(m.triangles, dtype=np.int64)
     if len(verts) == 0 or len(tri) == 0:
         reason = next((line.strip() for line in said if line.strip()), "")
-        raise ValueError(f"{path}: no triangles could be read" + (f" ({reason})" if reason else ""))
+        raise InputError(f"{path}: no triangles could be read" + (f" ({reason})" if reason else ""))
     normals = np.asarray(m.vertex_normals, dtype=np.float64) if m.has_vertex_normals() else None
     colors = np.asarray(m.vertex_colors, dtype=np.float64) if m.has_vertex_colors() else None
     mesh = TriangleMesh(verts, tri, normals, colors)
@@ -583,22 +584,22 @@ def load_patches(path) -> BezierPatches:
     try:
         data = np.load(path, allow_pickle=False)
     except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
-        raise ValueError(f"{path}: not a readable patch file ({exc})") from None
+        raise InputError(f"{path}: not a readable patch file ({exc})") from None
     if not isinstance(data, np.lib.npyio.NpzFile):
-        raise ValueError(f"{path}: not a patch file (an .npz archive with a 'control' array)")
+        raise InputError(f"{path}: not a patch file (an .npz archive with a 'control' array)")
     with data:
         if "control" not in data:
-            raise ValueError(f"{path}: no 'control' array (not a patch file)")
+            raise InputError(f"{path}: no 'control' array (not a patch file)")
         try:
             flags = [data[name] if name in data else np.array(False) for name in ("closed_u", "closed_v")]
             control = data["control"]
             cells = data["cells"] if "cells" in data else None
         except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
-            raise ValueError(f"{path}: not a readable patch file ({exc})") from None
+            raise InputError(f"{path}: not a readable patch file ({exc})") from None
     if cells is not None:
         from surfaces.mixed import MixedPatches
 
         return MixedPatches(control, cells=cells)
     if any(flag.size != 1 for flag in flags):
-        raise ValueError(f"{path}: closed_u and closed_v must be single flags")
+        raise InputError(f"{path}: closed_u and closed_v must be single flags")
     return BezierPatches(control, bool(flags[0]), bool(flags[1]))

@@ -43,7 +43,7 @@ import numpy as np
 from surfaces.bspline import BSplineCurve, interpolate_surface
 from surfaces.curves import as_3d, as_curve, circle, helix, line, parameters, thread_profile
 from surfaces.frames import FRAMES, frames
-from surfaces.validate import as_array, positive
+from surfaces.validate import as_array, InputError, positive
 
 if TYPE_CHECKING:
     from surfaces.bezier import BezierPatches
@@ -78,7 +78,7 @@ def _law(value, name: str, default: float) -> Callable[[np.ndarray], np.ndarray]
             return lambda v: a * v
         return lambda v: np.full_like(v, a)
     if arr.shape != (2,):
-        raise ValueError(f"{name}: expected a number, (start, end) or a callable, got {value!r}")
+        raise InputError(f"{name}: expected a number, (start, end) or a callable, got {value!r}")
     a, b = float(arr[0]), float(arr[1])
     return lambda v: a + (b - a) * v
 
@@ -120,9 +120,9 @@ class KinematicSurface:
         if self.directrix is not None:
             object.__setattr__(self, "directrix", as_curve(self.directrix))
         if self.frame not in FRAMES:
-            raise ValueError(f"frame: expected one of {', '.join(FRAMES)}, got {self.frame!r}")
+            raise InputError(f"frame: expected one of {', '.join(FRAMES)}, got {self.frame!r}")
         if self.plane not in PLANES:
-            raise ValueError(f"plane: expected one of {', '.join(PLANES)}, got {self.plane!r}")
+            raise InputError(f"plane: expected one of {', '.join(PLANES)}, got {self.plane!r}")
         if self.closed_v is None:
             object.__setattr__(self, "closed_v", self._motion_closes())
 
@@ -147,7 +147,7 @@ class KinematicSurface:
         if g.shape[1] == 3:
             return g
         if g.shape[1] != 2:
-            raise ValueError(f"generatrix: expected 2D or 3D points, got dimension {g.shape[1]}")
+            raise InputError(f"generatrix: expected 2D or 3D points, got dimension {g.shape[1]}")
         zero = np.zeros(g.shape[0])
         if self.plane == "normal":
             return np.column_stack([g[:, 0], g[:, 1], zero])
@@ -182,7 +182,7 @@ class KinematicSurface:
         """Exact surface points ``X(u, v)`` for ``u, v`` ``(M,)`` in ``[0, 1]`` -> ``(M, 3)``."""
         uu, vv = parameters(u), parameters(v)
         if uu.shape != vv.shape:
-            raise ValueError(f"u, v: expected equal shapes, got {uu.shape} and {vv.shape}")
+            raise InputError(f"u, v: expected equal shapes, got {uu.shape} and {vv.shape}")
         origin, rot, s = self.motion(vv)
         return origin + s[:, None] * np.einsum("mij,mj->mi", rot, self._local(uu))
 
@@ -197,7 +197,7 @@ class KinematicSurface:
         """Uniform sample parameters: ``[0, 1)`` when closed, ``[0, 1]`` when open."""
         nu, nv = int(n_u), int(n_v)
         if nu < 4 or nv < 4:
-            raise ValueError(f"samples: need at least 4 x 4 samples, got {nu} x {nv}")
+            raise InputError(f"samples: need at least 4 x 4 samples, got {nu} x {nv}")
         u = np.arange(nu) / nu if self.closed_u else np.linspace(0.0, 1.0, nu)
         v = np.arange(nv) / nv if self.closed_v else np.linspace(0.0, 1.0, nv)
         return u, v
@@ -240,7 +240,7 @@ class KinematicSurface:
                 continue
             curve = getattr(self, name)
             if not isinstance(curve, BSplineCurve):
-                raise ValueError(f"{name}_control: the {name} is not a B-spline curve")
+                raise InputError(f"{name}_control: the {name} is not a B-spline curve")
             changes[name] = curve.with_control(new)
         return replace(self, closed_v=None, **changes) if changes else self
 
@@ -376,7 +376,7 @@ def helicoid(inner: float, outer: float, pitch: float, turns: float) -> Kinemati
         Evaluate exactly with ``evaluate``; ``to_bezier(n_u, n_v)`` gives the shared model.
     """
     if not outer > inner >= 0:
-        raise ValueError(f"inner, outer: need 0 <= inner < outer, got {inner}, {outer}")
+        raise InputError(f"inner, outer: need 0 <= inner < outer, got {inner}, {outer}")
     return helical_sweep(line([inner, 0.0], [outer, 0.0]), pitch, turns)
 
 
@@ -408,10 +408,10 @@ def coil_spring(radius: float, pitch: float, turns: float, wire_radius: float) -
     a = positive(wire_radius, "wire_radius")
     r = positive(radius, "radius")
     if 2 * a >= abs(float(pitch)):
-        raise ValueError(f"wire_radius: neighbouring turns overlap (2 * {a} >= pitch {pitch})")
+        raise InputError(f"wire_radius: neighbouring turns overlap (2 * {a} >= pitch {pitch})")
     # the helix's radius of curvature (r^2 + c^2) / r is at least r: a < r suffices
     if a >= r:
-        raise ValueError(f"wire_radius: must be smaller than the coil radius {r}")
+        raise InputError(f"wire_radius: must be smaller than the coil radius {r}")
     return pipe(helix(r, pitch, turns), a)
 
 
@@ -443,7 +443,7 @@ def screw_thread(major_radius: float, pitch: float, turns: float, depth: float,
     """
     big, h = positive(major_radius, "major_radius"), positive(depth, "depth")
     if h >= big:
-        raise ValueError(f"depth: must be smaller than the major radius {big}, got {h}")
+        raise InputError(f"depth: must be smaller than the major radius {big}, got {h}")
     return helical_sweep(thread_profile(big - h, h, pitch, closed=closed), pitch, turns)
 
 
@@ -503,11 +503,11 @@ def cap_ends(mesh: TriangleMesh) -> tuple[TriangleMesh, float]:
     reverse = edge_keys(edges[:, ::-1], n, directed=True)
     boundary = edges[~np.isin(reverse, keys)]
     if len(boundary) == 0:
-        raise ValueError("mesh: has no open ends to cap")
+        raise InputError("mesh: has no open ends to cap")
     starts = np.bincount(boundary[:, 0], minlength=n)
     ends = np.bincount(boundary[:, 1], minlength=n)
     if starts.max() > 1 or np.any(starts != ends):
-        raise ValueError("mesh: its open ends are not simple closed loops (a tube's ends); cannot cap them")
+        raise InputError("mesh: its open ends are not simple closed loops (a tube's ends); cannot cap them")
     graph = coo_matrix((np.ones(len(boundary)), (boundary[:, 0], boundary[:, 1])), shape=(n, n))
     _, label = connected_components(graph, directed=False)
     loops, loop_of_edge = np.unique(label[boundary[:, 0]], return_inverse=True)

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from surfaces.validate import as_array
+from surfaces.validate import as_array, InputError
 
 __all__ = [
     "METHODS",
@@ -57,9 +57,9 @@ def check_degree(degree, name: str = "degree") -> int:
     3
     """
     if isinstance(degree, bool) or not isinstance(degree, (int, np.integer)):
-        raise ValueError(f"{name}: expected an integer from 2 to 5, got {degree!r}")
+        raise InputError(f"{name}: expected an integer from 2 to 5, got {degree!r}")
     if not 2 <= int(degree) <= 5:
-        raise ValueError(f"{name}: expected an integer from 2 to 5, got {degree}")
+        raise InputError(f"{name}: expected an integer from 2 to 5, got {degree}")
     return int(degree)
 
 
@@ -141,7 +141,7 @@ def data_parameters(
     [0.0, 0.3333333333333333, 1.0]
     """
     if method not in METHODS:
-        raise ValueError(f"method: expected one of {', '.join(METHODS)}, got {method!r}")
+        raise InputError(f"method: expected one of {', '.join(METHODS)}, got {method!r}")
     n = lines.shape[1]
     if params is not None:
         u = _explicit_parameters(params, n, closed, name)
@@ -152,7 +152,7 @@ def data_parameters(
     if bad.size:
         k = int(bad[0])
         nxt = (k + 1) % u.size
-        raise ValueError(
+        raise InputError(
             f"points: {what} {k} and {nxt} coincide (zero parameter step); "
             "remove repeated points or pass distinct data"
         )
@@ -172,7 +172,7 @@ def _averaged_parameters(lines: np.ndarray, method: str, closed: bool) -> np.nda
     # a line of zero length (a pole) carries no parameter information: leave it out
     keep = total > _ZERO_STEP * scale
     if not np.any(keep):
-        raise ValueError("points: every line has zero length (all points coincide)")
+        raise InputError("points: every line has zero length (all points coincide)")
     cum = np.cumsum(steps[keep], axis=1) / total[keep, None]
     params = np.concatenate([[0.0], cum.mean(axis=0)])
     params = params[:n]
@@ -185,11 +185,11 @@ def _explicit_parameters(params, n: int, closed: bool, name: str) -> np.ndarray:
     u = as_array(params, name, shape=(n,))
     if closed:
         if u[0] != 0.0 or u[-1] >= 1.0:
-            raise ValueError(f"{name}: closed parameters must start at 0 and stay below 1")
+            raise InputError(f"{name}: closed parameters must start at 0 and stay below 1")
     elif u[0] != 0.0 or u[-1] != 1.0:
-        raise ValueError(f"{name}: open parameters must run from 0 to 1")
+        raise InputError(f"{name}: open parameters must run from 0 to 1")
     if np.any(np.diff(u) <= 0):
-        raise ValueError(f"{name}: must be strictly increasing")
+        raise InputError(f"{name}: must be strictly increasing")
     return u
 
 
@@ -366,7 +366,7 @@ def cubic_pieces(knots: np.ndarray, degree: int, control: np.ndarray) -> np.ndar
         For degrees 4 and 5, which no cubic represents.
     """
     if degree not in (2, 3):
-        raise ValueError(
+        raise InputError(
             f"degree: conversion to bicubic Bezier patches is exact only for degree 2 "
             f"(elevated) or 3, got degree {degree}; interpolate with degree=3"
         )

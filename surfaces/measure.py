@@ -25,6 +25,7 @@ import numpy as np
 
 from surfaces.bezier import BezierPatches, bernstein
 from surfaces.vectors import cross
+from surfaces.validate import InputError
 
 #: Quadrature points (patches times nodes) evaluated per chunk: the temporaries of a chunk (~200 kB
 #: each) stay in the CPU caches, in few enough chunks that the per-operation costs stay small (measured
@@ -35,7 +36,7 @@ _POINT_CHUNK = 25600
 def _gauss(order: int) -> tuple[np.ndarray, np.ndarray]:
     order = int(order)
     if order < 1:
-        raise ValueError(f"order: need at least 1 quadrature point, got {order}")
+        raise InputError(f"order: need at least 1 quadrature point, got {order}")
     return _gauss_cached(order)
 
 
@@ -79,7 +80,7 @@ def _derivative_basis(order: int) -> np.ndarray:
 def _per_patch(patches: BezierPatches, order: int, integrands) -> list[np.ndarray]:
     """Integrate each ``integrand(points, normal)`` over every patch; one array (P,) per integrand."""
     if not isinstance(patches, BezierPatches):
-        raise ValueError(f"patches: expected BezierPatches, got {type(patches).__name__}")
+        raise InputError(f"patches: expected BezierPatches, got {type(patches).__name__}")
     return _quadrature(patches.control, int(order), integrands)
 
 
@@ -376,7 +377,7 @@ def cap_flux(patches: BezierPatches) -> float:
         volume contribution).
     """
     if not patches.closed_u or patches.closed_v:
-        raise ValueError("patches: caps close a surface that is closed in u and open in v")
+        raise InputError("patches: caps close a surface that is closed in u and open in v")
     start = patches.control[:, 0, :, 0]  # (R, 4, 3): v = 0 boundary, u increasing
     end = patches.control[:, -1, :, 3]
     c0, c1 = start.reshape(-1, 3).mean(0), end.reshape(-1, 3).mean(0)

@@ -23,7 +23,7 @@ import numpy as np
 
 from surfaces.bezier import BezierPatches, bernstein
 from surfaces.topology import directed_edges, edge_keys
-from surfaces.validate import as_array
+from surfaces.validate import as_array, InputError
 from surfaces.vectors import cross, unit
 
 __all__ = [
@@ -91,7 +91,7 @@ def signed_volume(vertices, triangles, per_triangle: bool = False):
     v = as_array(vertices, "vertices", shape=(None, 3))
     t = as_array(triangles, "triangles", shape=(None, 3), dtype=np.int64)
     if len(t) and (t.min() < 0 or t.max() >= len(v)):
-        raise ValueError(f"triangles: vertex indices must lie in [0, {len(v) - 1}]")
+        raise InputError(f"triangles: vertex indices must lie in [0, {len(v) - 1}]")
     terms = _volume_terms(v, t) if len(t) else np.zeros(0)
     return terms if per_triangle else float(terms.sum())
 
@@ -156,9 +156,9 @@ class TriangleMesh:
         if tri.size == 0:
             tri = tri.reshape(0, 3)
         if tri.ndim != 2 or tri.shape[1] != 3 or not np.issubdtype(tri.dtype, np.integer):
-            raise ValueError(f"triangles: expected an integer array of shape (T, 3), got {tri.shape} {tri.dtype}")
+            raise InputError(f"triangles: expected an integer array of shape (T, 3), got {tri.shape} {tri.dtype}")
         if tri.size and (tri.min() < 0 or tri.max() >= len(self.vertices)):
-            raise ValueError(f"triangles: indices must lie in [0, {len(self.vertices)})")
+            raise InputError(f"triangles: indices must lie in [0, {len(self.vertices)})")
         self.triangles = tri.astype(np.int64, copy=False)
         for name in ("vertex_normals", "vertex_colors"):
             value = getattr(self, name)
@@ -463,14 +463,14 @@ def as_mesh(geometry, name: str = "geometry", samples: int = PATCH_SAMPLES) -> T
     elif isinstance(geometry, tuple) and len(geometry) == 2:
         parts = (np.asarray(geometry[0]), np.asarray(geometry[1]))
     else:
-        raise ValueError(
+        raise InputError(
             f"{name}: expected a TriangleMesh, BezierPatches, open3d TriangleMesh or a "
             f"(vertices, triangles) tuple, got {type(geometry).__name__}"
         )
     try:
         return TriangleMesh(*parts)
     except ValueError as exc:
-        raise ValueError(f"{name}.{exc}") from None
+        raise InputError(f"{name}.{exc}") from None
 
 
 #: samples (times 3 coordinates) evaluated at once by :func:`tessellate`: 2^20, ~25 MB per
@@ -594,10 +594,10 @@ def _samples_pair(samples) -> tuple[int, int]:
     """``samples`` (an int, or a pair along ``u`` and ``v``) as two ints of at least 1."""
     pair = (samples, samples) if np.ndim(samples) == 0 else tuple(samples)
     if len(pair) != 2:
-        raise ValueError(f"samples: expected an int or a pair (along u, along v), got {samples!r}")
+        raise InputError(f"samples: expected an int or a pair (along u, along v), got {samples!r}")
     nu, nv = int(pair[0]), int(pair[1])
     if nu < 1 or nv < 1:
-        raise ValueError(f"samples: need at least 1 subdivision per patch side, got {samples}")
+        raise InputError(f"samples: need at least 1 subdivision per patch side, got {samples}")
     return nu, nv
 
 
@@ -645,13 +645,13 @@ def tessellate(patches: BezierPatches, samples: int | tuple[int, int] = PATCH_SA
     [0.0, 0.0, 1.0]
     """
     if not isinstance(patches, BezierPatches):
-        raise ValueError(f"patches: expected BezierPatches, got {type(patches).__name__}")
+        raise InputError(f"patches: expected BezierPatches, got {type(patches).__name__}")
     nu, nv = _samples_pair(samples)
     from surfaces.mixed import MixedPatches
 
     if isinstance(patches, MixedPatches):
         if nu != nv:
-            raise ValueError(f"samples: patches of mixed sizes take one count, got {samples}")
+            raise InputError(f"samples: patches of mixed sizes take one count, got {samples}")
         return _tessellate_mixed(patches, nu)
     rows, cols = patches.shape
     last_u, last_v = not patches.closed_u, not patches.closed_v
@@ -833,7 +833,7 @@ def merge_meshes(meshes, weld_vertices: bool = False) -> TriangleMesh:
     """
     meshes = list(meshes)
     if not meshes:
-        raise ValueError("meshes: need at least one mesh")
+        raise InputError("meshes: need at least one mesh")
     verts = np.concatenate([m.vertices for m in meshes])
     # each mesh's triangles offset straight into the result (no copy of each first)
     tri = np.empty((sum(m.n_triangles for m in meshes), 3), dtype=np.int64)

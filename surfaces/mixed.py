@@ -28,7 +28,7 @@ from functools import cached_property
 import numpy as np
 
 from surfaces.bezier import BezierPatches
-from surfaces.validate import as_array
+from surfaces.validate import as_array, InputError
 
 __all__ = ["MixedPatches"]
 
@@ -74,18 +74,18 @@ class MixedPatches(BezierPatches):
     def __post_init__(self) -> None:
         super().__post_init__()
         if self.closed_u or self.closed_v:
-            raise ValueError("closed_u, closed_v: patches of mixed sizes form an open sheet")
+            raise InputError("closed_u, closed_v: patches of mixed sizes form an open sheet")
         if self.control.shape[1] != 1:
-            raise ValueError(f"control: expected shape (n, 1, 4, 4, 3), got {self.control.shape}")
+            raise InputError(f"control: expected shape (n, 1, 4, 4, 3), got {self.control.shape}")
         if self.cells is None:
-            raise ValueError("cells: required, (n, 3) lattice squares (row, col, size)")
+            raise InputError("cells: required, (n, 3) lattice squares (row, col, size)")
         cells = np.asarray(self.cells)
         if cells.shape != (self.control.shape[0], 3) or not np.issubdtype(cells.dtype, np.integer):
-            raise ValueError(
+            raise InputError(
                 f"cells: expected integers of shape ({self.control.shape[0]}, 3), got {cells.shape} {cells.dtype}"
             )
         if cells.size and (cells[:, :2].min() < 0 or cells[:, 2].min() < 1):
-            raise ValueError("cells: corners must be >= 0 and sizes >= 1")
+            raise InputError("cells: corners must be >= 0 and sizes >= 1")
         cells = np.ascontiguousarray(cells, dtype=np.int64)
         cells.setflags(write=False)
         object.__setattr__(self, "cells", cells)
@@ -185,7 +185,7 @@ class MixedPatches(BezierPatches):
         patch, u, v = self.locate_lattice(s, t)
         if (patch < 0).any():
             i = int(np.flatnonzero(patch < 0)[0])
-            raise ValueError(f"s, t: no patch covers lattice point ({np.ravel(s)[i]}, {np.ravel(t)[i]})")
+            raise InputError(f"s, t: no patch covers lattice point ({np.ravel(s)[i]}, {np.ravel(t)[i]})")
         return patch, np.zeros_like(patch), u, v
 
     def transformed(self, matrix=None, offset=None) -> MixedPatches:

@@ -26,7 +26,7 @@ from surfaces.bezier import BezierPatches, control_net_segments
 from surfaces.camera import Camera, fit_camera
 from surfaces.colormap import apply_colormap, colorbar_image, scalar_range, vertex_values
 from surfaces.mesh import PATCH_SAMPLES, as_mesh, vertex_normals
-from surfaces.validate import as_array, positive
+from surfaces.validate import as_array, InputError, positive
 from surfaces.vectors import unit
 
 __all__ = ["DEFAULT_LIGHT", "DEFAULT_COLOR", "RenderResult", "parse_size", "render_view", "render"]
@@ -189,17 +189,17 @@ def parse_size(size) -> tuple[int, int]:
     if isinstance(size, str):
         parts = size.lower().split("x")
         if len(parts) != 2 or not all(p.strip().isdigit() for p in parts):
-            raise ValueError(f"size: expected WIDTHxHEIGHT such as 1024x768, got {size!r}")
+            raise InputError(f"size: expected WIDTHxHEIGHT such as 1024x768, got {size!r}")
         size = (int(parts[0]), int(parts[1]))
     if len(size) != 2 or min(int(size[0]), int(size[1])) < 8:
-        raise ValueError(f"size: expected (width, height) of at least 8 pixels each, got {size!r}")
+        raise InputError(f"size: expected (width, height) of at least 8 pixels each, got {size!r}")
     return int(size[0]), int(size[1])
 
 
 def _prepare_scene(geometry, colors, scalars, samples, vmin, vmax):
     mesh = as_mesh(geometry, "geometry", samples)
     if mesh.n_triangles == 0:
-        raise ValueError("geometry: has no triangles")
+        raise InputError("geometry: has no triangles")
     colors, scalars = vertex_values(mesh.n_vertices, colors, scalars)
     if colors is None:
         colors = mesh.vertex_colors
@@ -275,7 +275,7 @@ def _shading_options(
 ) -> dict:
     light_vec = as_array(light, "light", shape=(3,))
     if np.linalg.norm(light_vec) == 0:
-        raise ValueError("light: the zero vector has no direction")
+        raise InputError("light: the zero vector has no direction")
     for name, value in (("ambient", ambient), ("diffuse", diffuse), ("specular", specular)):
         positive(value, name, allow_zero=True)
     positive(shininess, "shininess")
@@ -415,13 +415,13 @@ def render(
 
     width, height = parse_size(size)
     if projection not in ("orthographic", "perspective"):
-        raise ValueError(f"projection: expected 'orthographic' or 'perspective', got {projection!r}")
+        raise InputError(f"projection: expected 'orthographic' or 'perspective', got {projection!r}")
     ss = int(positive(antialias, "antialias"))
     if isinstance(views, (str, Camera)):
         views = [views]
     views = list(views)
     if not views:
-        raise ValueError("views: give at least one view")
+        raise InputError("views: give at least one view")
     opts = _shading_options(**options)
     scene, patches, vrange = _prepare_scene(
         geometry, opts.pop("colors"), opts.pop("scalars"), opts.pop("samples"), opts.pop("vmin"), opts.pop("vmax")
@@ -431,7 +431,7 @@ def render(
         segments = as_array(net, "net", shape=(None, 2, 3))
     elif net:
         if patches is None:
-            raise ValueError("net: a control net needs BezierPatches as geometry (or segments)")
+            raise InputError("net: a control net needs BezierPatches as geometry (or segments)")
         segments = control_net_segments(patches)
     bar_w = 0
     if colorbar and scene.scalars is not None:
@@ -441,7 +441,7 @@ def render(
     n_rows = int(np.ceil(len(views) / n_cols))
     tile_w, tile_h = area_w // n_cols, height // n_rows
     if min(tile_w, tile_h) < 8:
-        raise ValueError(f"size: {width}x{height} is too small for {len(views)} views")
+        raise InputError(f"size: {width}x{height} is too small for {len(views)} views")
     bounds = scene.bounds
     # framing the vertices (a strided subset of at most ~20k) is tighter than the box corners
     frame = scene.vertices[:: max(1, len(scene.vertices) // 20000)]

@@ -15,7 +15,7 @@ import numpy as np
 
 from surfaces.mesh import TriangleMesh, as_mesh, compact, signed_volume, weld_map
 from surfaces.topology import EdgeTable, edge_keys, edge_table, shells
-from surfaces.validate import positive
+from surfaces.validate import InputError, positive
 
 __all__ = ["check_solid", "require_solid", "repair_mesh"]
 
@@ -142,7 +142,7 @@ def require_solid(mesh, name: str = "mesh", hint: str = "") -> dict:
     """
     info = check_solid(mesh, name)
     if not info["solid"]:
-        raise ValueError("; ".join(info["problems"]) + hint)
+        raise InputError("; ".join(info["problems"]) + hint)
     return info
 
 
@@ -314,10 +314,10 @@ def repair_mesh(
     source = as_mesh(mesh, name)
     vertices, triangles = source.vertices, source.triangles
     if len(triangles) == 0:
-        raise ValueError(f"{name}: has no triangles, nothing to repair")
+        raise InputError(f"{name}: has no triangles, nothing to repair")
     max_hole_edges = int(max_hole_edges)
     if max_hole_edges < 0:
-        raise ValueError(f"max_hole_edges: must be >= 0, got {max_hole_edges}")
+        raise InputError(f"max_hole_edges: must be >= 0, got {max_hole_edges}")
     used = vertices[np.unique(triangles)]
     diagonal = float(np.linalg.norm(used.max(axis=0) - used.min(axis=0)))
     tol = 1e-9 * diagonal if weld_tolerance is None else positive(weld_tolerance, "weld_tolerance", allow_zero=True)
@@ -340,7 +340,7 @@ def repair_mesh(
     report["removed_duplicate_triangles"] = int(len(tris) - len(keep))
     tris = tris[np.sort(keep)]
     if len(tris) == 0:
-        raise ValueError(f"{name}: no triangles left after removing degenerate and duplicate ones")
+        raise InputError(f"{name}: no triangles left after removing degenerate and duplicate ones")
 
     tris, report["flipped_triangles"] = _orient_consistently(tris, len(vertices))
     vertices, tris, filled, fill_tris, unfilled = _fill_holes(vertices, tris, max_hole_edges)

@@ -10,6 +10,7 @@ import numpy as np
 
 from surfaces.mesh import TriangleMesh, as_mesh, compact
 from surfaces.repair import check_solid, require_solid
+from surfaces.validate import InputError
 
 __all__ = ["FILTERS", "loop_smooth"]
 
@@ -58,9 +59,9 @@ def loop_smooth(
     """
     iterations, filter_iterations = int(iterations), int(filter_iterations)
     if iterations < 0 or filter_iterations < 0:
-        raise ValueError(f"iterations, filter_iterations: must be >= 0, got {iterations}, {filter_iterations}")
+        raise InputError(f"iterations, filter_iterations: must be >= 0, got {iterations}, {filter_iterations}")
     if filter not in FILTERS:
-        raise ValueError(f"filter: must be one of {', '.join(FILTERS)}, got {filter!r}")
+        raise InputError(f"filter: must be one of {', '.join(FILTERS)}, got {filter!r}")
     solid = as_mesh(mesh, "mesh")
     require_solid(solid, "mesh")
     import open3d as o3d

@@ -13,7 +13,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from surfaces.validate import as_array
+from surfaces.validate import as_array, InputError
 
 __all__ = ["EdgeTable", "directed_edges", "edge_keys", "edge_table", "shells", "chain_edges"]
 
@@ -188,7 +188,7 @@ def chain_edges(src: np.ndarray, dst: np.ndarray) -> tuple[list[np.ndarray], lis
     src = as_array(src, "src", ndim=1, dtype=np.int64)
     dst = as_array(dst, "dst", ndim=1, dtype=np.int64)
     if src.shape != dst.shape:
-        raise ValueError(f"src, dst: lengths differ ({len(src)} and {len(dst)})")
+        raise InputError(f"src, dst: lengths differ ({len(src)} and {len(dst)})")
     n = len(src)
     if n == 0:
         return [], []

@@ -11,6 +11,27 @@ from collections.abc import Sequence
 
 import numpy as np
 
+__all__ = ["InputError", "as_array"]
+
+
+class InputError(ValueError):
+    """Bad input: an argument, option, file or record the user gave is wrong.
+
+    Raised at the edges (readers, option and spec checks, argument validation)
+    with a message that names the input and says what is wrong. The command line
+    turns it into one line on stderr and exit code 2; any other exception is a
+    defect and keeps its traceback. It is a ``ValueError``, so callers that catch
+    ``ValueError`` still catch it.
+
+    Examples
+    --------
+    >>> try:
+    ...     as_array([1.0, float("nan")], "heights")
+    ... except InputError as err:
+    ...     print(type(err).__name__, isinstance(err, ValueError))
+    InputError True
+    """
+
 
 def as_array(
     value,
@@ -55,22 +76,22 @@ def as_array(
     try:
         arr = np.asarray(value, dtype=dtype) if dtype is not None else np.asarray(value)
     except (TypeError, ValueError) as exc:
-        raise ValueError(f"{name}: cannot be read as a numeric array ({exc})") from None
+        raise InputError(f"{name}: cannot be read as a numeric array ({exc})") from None
     if shape is not None:
         if arr.ndim != len(shape) or any(s is not None and s != a for s, a in zip(shape, arr.shape)):
             want = "(" + ", ".join("N" if s is None else str(s) for s in shape) + ")"
-            raise ValueError(f"{name}: expected shape {want}, got {arr.shape}")
+            raise InputError(f"{name}: expected shape {want}, got {arr.shape}")
     elif ndim is not None:
         allowed = (ndim,) if isinstance(ndim, int) else tuple(ndim)
         if arr.ndim not in allowed:
-            raise ValueError(f"{name}: expected {' or '.join(map(str, allowed))} dimensions, got shape {arr.shape}")
+            raise InputError(f"{name}: expected {' or '.join(map(str, allowed))} dimensions, got shape {arr.shape}")
     if min_size is not None and arr.size < min_size:
-        raise ValueError(f"{name}: needs at least {min_size} values, got {arr.size}")
+        raise InputError(f"{name}: needs at least {min_size} values, got {arr.size}")
     # method calls and the dtype's kind: numpy's wrappers cost more than the test on the small
     # arrays that most calls see
     if finite and arr.dtype.kind in "fc" and not np.isfinite(arr).all():
         bad = int(np.size(arr) - np.count_nonzero(np.isfinite(arr)))
-        raise ValueError(f"{name}: contains {bad} NaN or infinite value(s)")
+        raise InputError(f"{name}: contains {bad} NaN or infinite value(s)")
     return arr
 
 
@@ -99,10 +120,10 @@ def positive(value: float, name: str, *, allow_zero: bool = False) -> float:
     try:
         x = float(value)
     except (TypeError, ValueError):
-        raise ValueError(f"{name}: expected a number, got {value!r}") from None
+        raise InputError(f"{name}: expected a number, got {value!r}") from None
     if not np.isfinite(x) or x < 0 or (x == 0 and not allow_zero):
         kind = "non-negative" if allow_zero else "positive"
-        raise ValueError(f"{name}: must be a finite {kind} number, got {value!r}")
+        raise InputError(f"{name}: must be a finite {kind} number, got {value!r}")
     return x
 
 

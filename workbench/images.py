@@ -16,7 +16,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from surfaces.validate import as_array, positive
+from surfaces.validate import as_array, InputError, positive
 
 
 def _mask(mask, shape: tuple[int, int]) -> np.ndarray:
@@ -24,7 +24,7 @@ def _mask(mask, shape: tuple[int, int]) -> np.ndarray:
         return np.ones(shape, bool)
     m = np.asarray(mask)
     if m.shape != shape:
-        raise ValueError(f"mask: expected shape {shape}, got {m.shape}")
+        raise InputError(f"mask: expected shape {shape}, got {m.shape}")
     return m.astype(bool)
 
 
@@ -74,7 +74,7 @@ def to_uint8(image: np.ndarray, vmax: float | None = None, percentile: float = 9
     """
     img = as_array(image, "image", ndim=(2, 3), finite=False)
     if img.ndim == 3 and img.shape[2] != 3:
-        raise ValueError(f"image: expected (H, W) or (H, W, 3), got {img.shape}")
+        raise InputError(f"image: expected (H, W) or (H, W, 3), got {img.shape}")
     if vmax is not None:
         top = float(vmax)
     else:
@@ -261,7 +261,7 @@ def enlarge(image: np.ndarray, min_height: int = 256) -> np.ndarray:
     """
     img = np.asarray(image)
     if img.ndim not in (2, 3) or img.shape[0] == 0:
-        raise ValueError(f"image: expected (H, W) or (H, W, 3), got {img.shape}")
+        raise InputError(f"image: expected (H, W) or (H, W, 3), got {img.shape}")
     k = max(1, int(np.ceil(int(min_height) / img.shape[0])))
     return img if k == 1 else np.repeat(np.repeat(img, k, axis=0), k, axis=1)
 
@@ -286,7 +286,7 @@ def label_image(image: np.ndarray, text: str, scale: float = 0.5) -> np.ndarray:
 
     img = np.array(image, dtype=np.uint8, order="C", copy=True)
     if img.ndim != 3 or img.shape[2] != 3:
-        raise ValueError(f"image: expected (H, W, 3) uint8, got {img.shape}")
+        raise InputError(f"image: expected (H, W, 3) uint8, got {img.shape}")
     (tw, th), base = cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, scale, 1)
     img[: th + base + 6, : tw + 8] = (255 + img[: th + base + 6, : tw + 8].astype(int)) // 2
     cv2.putText(img, text, (4, th + 3), cv2.FONT_HERSHEY_SIMPLEX, scale, (20, 20, 20), 1, cv2.LINE_AA)
@@ -320,14 +320,14 @@ def montage(
     (rows * (H + pad) - pad, cols * (W + pad) - pad, 3) uint8
     """
     if len(images) == 0:
-        raise ValueError("images: give at least one picture")
+        raise InputError("images: give at least one picture")
     if labels is not None and len(labels) != len(images):
-        raise ValueError(f"labels: expected {len(images)} captions, got {len(labels)}")
+        raise InputError(f"labels: expected {len(images)} captions, got {len(labels)}")
     pics = []
     for k, im in enumerate(images):
         a = np.asarray(im)
         if a.dtype != np.uint8 or a.ndim not in (2, 3):
-            raise ValueError(f"images[{k}]: expected a uint8 (H, W[, 3]) picture, got {a.dtype} {a.shape}")
+            raise InputError(f"images[{k}]: expected a uint8 (H, W[, 3]) picture, got {a.dtype} {a.shape}")
         pics.append(np.repeat(a[..., None], 3, axis=2) if a.ndim == 2 else a)
     n = len(pics)
     cols = int(cols) if cols else int(np.ceil(np.sqrt(n)))

@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from surfaces.validate import InputError
 
 CSS = """
 body { font-family: system-ui, -apple-system, 'Segoe UI', sans-serif; margin: 2em auto;
@@ -120,15 +121,15 @@ class Report:
         from surfaces.io import write_png
 
         if not re.fullmatch(r"[A-Za-z0-9_\-]+", name):
-            raise ValueError(f"name: use letters, digits, '-' and '_' only, got {name!r}")
+            raise InputError(f"name: use letters, digits, '-' and '_' only, got {name!r}")
         if any(rec.file == f"figures/{name}.png" for rec in self.figures):
-            raise ValueError(f"name: figure {name!r} already exists in this report")
+            raise InputError(f"name: figure {name!r} already exists in this report")
         if not command.strip():
-            raise ValueError(f"command: figure {name!r} needs the command that reproduces it")
+            raise InputError(f"command: figure {name!r} needs the command that reproduces it")
         path = write_png(self.out_dir / "figures" / f"{name}.png", np.asarray(image))
         data = path.read_bytes()
         if cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED) is None:
-            raise ValueError(f"image: figure {name!r} did not encode as PNG")
+            raise InputError(f"image: figure {name!r} did not encode as PNG")
         number = len(self.figures) + 1
         rel = f"figures/{name}.png"
         self.figures.append(FigureRecord(number, rel, caption, command, self._section))
@@ -158,11 +159,11 @@ class Report:
             Significant digits of floats.
         """
         if not headers:
-            raise ValueError("headers: a table needs at least one column")
+            raise InputError("headers: a table needs at least one column")
         cells_html = []
         for r, row in enumerate(rows):
             if len(row) != len(headers):
-                raise ValueError(f"rows[{r}]: expected {len(headers)} cells, got {len(row)}")
+                raise InputError(f"rows[{r}]: expected {len(headers)} cells, got {len(row)}")
             tds = []
             for c, cell in enumerate(row):
                 text, numeric = _format_cell(cell, digits, f"rows[{r}][{c}] ({headers[c]})")
@@ -209,14 +210,14 @@ class Report:
 def _format_cell(cell, digits: int, where: str) -> tuple[str, bool]:
     """HTML text of a table cell and whether it is numeric; ValueError for a missing value."""
     if cell is None:
-        raise ValueError(f"{where}: empty cell (None); say why the value is missing instead")
+        raise InputError(f"{where}: empty cell (None); say why the value is missing instead")
     if isinstance(cell, (bool, np.bool_)):
         return ("yes" if cell else "no"), False
     if isinstance(cell, (int, np.integer)):
         return str(int(cell)), True
     if isinstance(cell, (float, np.floating)):
         if not math.isfinite(float(cell)):
-            raise ValueError(f"{where}: non-finite number {cell!r}")
+            raise InputError(f"{where}: non-finite number {cell!r}")
         x = float(cell)
         if x == 0 or not 1e-3 <= abs(x) < 1e12:
             return f"{x:.{digits}g}", True
@@ -226,7 +227,7 @@ def _format_cell(cell, digits: int, where: str) -> tuple[str, bool]:
         return (text.rstrip("0").rstrip(".") if "." in text else text), True
     text = str(cell)
     if not text.strip():
-        raise ValueError(f"{where}: empty cell; say why the value is missing instead")
+        raise InputError(f"{where}: empty cell; say why the value is missing instead")
     if text.startswith("`") and text.endswith("`") and len(text) > 2:
         return f"<code>{html.escape(text[1:-1])}</code>", False
     return html.escape(text), False

@@ -14,7 +14,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from surfaces.validate import as_array, positive
+from surfaces.validate import as_array, InputError, positive
 
 #: A closed plane curve: ``t`` of shape (K,) in [0, 1] -> (K, 2) points in mm.
 Curve = Callable[[np.ndarray], np.ndarray]
@@ -219,7 +219,7 @@ class Phantom(ABC):
         (n, 3) float64 array, mm.
         """
         if int(n) != n or n < 1:
-            raise ValueError(f"n: expected a whole number >= 1, got {n!r}")
+            raise InputError(f"n: expected a whole number >= 1, got {n!r}")
         rng = np.random.default_rng(seed)
         pieces = self._pieces()
         areas = np.array([a for a, _ in pieces])
@@ -247,7 +247,7 @@ class Phantom(ABC):
         z = z[~self._sliver(z)]
         if len(z) == 0:
             lo, hi = self.z_range
-            raise ValueError(f"spacing_mm: {h} mm leaves no slice plane inside z {lo}..{hi} mm")
+            raise InputError(f"spacing_mm: {h} mm leaves no slice plane inside z {lo}..{hi} mm")
         return z
 
     def _plane_grid(self, h: float, offset_mm: float) -> np.ndarray:
@@ -314,7 +314,7 @@ class Phantom(ABC):
             ``{"z": float, "points": (K, 2) float64}`` counter-clockwise, sorted by z.
         """
         if int(n_points) != n_points or n_points < 8:
-            raise ValueError(f"n_points: expected a whole number >= 8, got {n_points!r}")
+            raise InputError(f"n_points: expected a whole number >= 8, got {n_points!r}")
         noise = positive(noise_mm, "noise_mm", allow_zero=True)
         rng = np.random.default_rng(seed)
         # a separate stream for the noise: the same seed gives the same points with or without it

@@ -7,6 +7,7 @@ from datasets_synthetic.phantoms.cylinder import TiltedCylinder
 from datasets_synthetic.phantoms.lobes import Lobes
 from datasets_synthetic.phantoms.ring import Ring
 from datasets_synthetic.phantoms.scaled import Ellipsoid, Kidney
+from surfaces.validate import InputError
 
 _CLASSES = {"ellipsoid": Ellipsoid, "kidney": Kidney, "ring": Ring, "lobes": Lobes,
             "tilted_cylinder": TiltedCylinder}
@@ -56,14 +57,14 @@ def make_phantom(shape: str, **params) -> Phantom:
     >>> make_phantom("cube")
     Traceback (most recent call last):
     ...
-    ValueError: shape: unknown phantom 'cube'; expected one of ellipsoid, kidney, ring, lobes, tilted_cylinder
+    surfaces.validate.InputError: shape: unknown phantom 'cube'; expected one of ellipsoid, kidney, ring, lobes, tilted_cylinder
     """
     if shape in PRESETS:
         shape, base = PRESETS[shape]
         params = {**base, **params}
     if shape not in _CLASSES:
-        raise ValueError(f"shape: unknown phantom {shape!r}; expected one of {', '.join(SHAPES)}")
+        raise InputError(f"shape: unknown phantom {shape!r}; expected one of {', '.join(SHAPES)}")
     try:
         return _CLASSES[shape](**params)
     except TypeError as exc:
-        raise ValueError(f"params: {exc}") from None
+        raise InputError(f"params: {exc}") from None

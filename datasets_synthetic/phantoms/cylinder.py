@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from datasets_synthetic.phantoms.base import DistancePhantom
-from surfaces.validate import positive
+from surfaces.validate import InputError, positive
 
 
 class TiltedCylinder(DistancePhantom):
@@ -42,7 +42,7 @@ class TiltedCylinder(DistancePhantom):
         self.L = positive(length_mm, "length_mm")
         tilt = positive(tilt_deg, "tilt_deg")
         if tilt > 80.0:
-            raise ValueError(f"tilt_deg: must lie in (0, 80], got {tilt_deg}")
+            raise InputError(f"tilt_deg: must lie in (0, 80], got {tilt_deg}")
         self.tilt = np.deg2rad(tilt)
         st, ct = np.sin(self.tilt), np.cos(self.tilt)
         self.axis = np.array([st, 0.0, ct])

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from datasets_synthetic.phantoms.base import DistancePhantom, ellipse_curve, rejection_sample, uniform_sphere
-from surfaces.validate import as_array
+from surfaces.validate import as_array, InputError
 
 
 class Lobes(DistancePhantom):
@@ -38,12 +38,12 @@ class Lobes(DistancePhantom):
         super().__init__(center)
         self.radii = as_array(radii_mm, "radii_mm", shape=(2,))
         if np.any(self.radii <= 0):
-            raise ValueError("radii_mm: must be positive")
+            raise InputError("radii_mm: must be positive")
         self.centers = as_array(centers_mm, "centers_mm", shape=(2, 3)) + self.center
         d = float(np.linalg.norm(self.centers[1] - self.centers[0]))
         r1, r2 = self.radii
         if not (abs(r1 - r2) < d < r1 + r2):
-            raise ValueError(f"centers_mm: sphere distance {d} must lie between |r1 - r2| and r1 + r2")
+            raise InputError(f"centers_mm: sphere distance {d} must lie between |r1 - r2| and r1 + r2")
         self.d = d
         # plane of the intersection circle: distance a from centre 1 along the centre line
         a = (d * d + r1 * r1 - r2 * r2) / (2.0 * d)

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from datasets_synthetic.phantoms.base import DistancePhantom, clamped_unit, ellipse_curve, rejection_sample
-from surfaces.validate import positive
+from surfaces.validate import InputError, positive
 
 
 class Ring(DistancePhantom):
@@ -32,7 +32,7 @@ class Ring(DistancePhantom):
         self.R = positive(major_mm, "major_mm")
         self.r = positive(minor_mm, "minor_mm")
         if self.r >= self.R:
-            raise ValueError(f"minor_mm: must be below major_mm ({self.R}), got {self.r}")
+            raise InputError(f"minor_mm: must be below major_mm ({self.R}), got {self.r}")
 
     def _params(self):
         return {"major_mm": self.R, "minor_mm": self.r}

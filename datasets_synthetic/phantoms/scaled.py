@@ -25,7 +25,7 @@ from datasets_synthetic.phantoms.base import (
     rejection_sample,
     uniform_sphere,
 )
-from surfaces.validate import as_array, positive
+from surfaces.validate import as_array, InputError, positive
 
 
 class ScaledSection(Phantom):
@@ -167,9 +167,9 @@ class Kidney(ScaledSection):
         self.B = positive(thickness_mm, "thickness_mm")
         self.Rb = positive(bend_radius_mm, "bend_radius_mm")
         if self.Rb <= self.B:
-            raise ValueError(f"bend_radius_mm: must exceed thickness_mm ({self.B}), got {self.Rb}")
+            raise InputError(f"bend_radius_mm: must exceed thickness_mm ({self.B}), got {self.Rb}")
         if self.A / self.Rb >= 0.95 * np.pi:
-            raise ValueError("arc_mm / bend_radius_mm: the bean would close on itself (need < 0.95 pi)")
+            raise InputError("arc_mm / bend_radius_mm: the bean would close on itself (need < 0.95 pi)")
         dense = self._bent(np.arange(20000) / 20000)[0]
         x, y = dense[:, 0], dense[:, 1]
         cross = x * np.roll(y, -1) - np.roll(x, -1) * y

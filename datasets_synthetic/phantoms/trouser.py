@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from surfaces.validate import positive
+from surfaces.validate import InputError, positive
 
 
 def _lens_antiderivative(u: np.ndarray) -> np.ndarray:
@@ -49,7 +49,7 @@ def trouser_volume(z0: float, z1: float, r: float = 6.0, z_branch: float = 10.0,
     """
     r, k = positive(r, "r"), positive(slope, "slope")
     if not z1 > z0:
-        raise ValueError(f"z1: must be above z0, got {z0} and {z1}")
+        raise InputError(f"z1: must be above z0, got {z0} and {z1}")
     # the lens between the discs: the whole disc below z_branch, then the closed form in u = s / r
     trunk = np.pi * r**2 * max(0.0, min(z1, z_branch) - z0)
     u0, u1 = (max(0.0, k * (z - z_branch)) / r for z in (z0, z1))

@@ -9,7 +9,7 @@ from datasets_synthetic.io import ensure_dir
 from datasets_synthetic.phantoms.base import Phantom
 from datasets_synthetic.phantoms.scaled import Kidney
 from surfaces.io import save_npy, write_json
-from surfaces.validate import positive
+from surfaces.validate import InputError, positive
 
 
 def write_phantom(
@@ -66,9 +66,9 @@ def write_phantom(
         ``format`` and ``files``.
     """
     if not isinstance(phantom, Phantom):
-        raise ValueError(f"phantom: expected a Phantom, got {type(phantom).__name__}")
+        raise InputError(f"phantom: expected a Phantom, got {type(phantom).__name__}")
     if fmt not in ("json", "dicom", "rtstruct"):
-        raise ValueError(f"fmt: expected 'json', 'dicom' or 'rtstruct', got {fmt!r}")
+        raise InputError(f"fmt: expected 'json', 'dicom' or 'rtstruct', got {fmt!r}")
     spacing = positive(spacing, "spacing")
     pixel = positive(pixel, "pixel")
     out = ensure_dir(out_dir)

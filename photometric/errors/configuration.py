@@ -14,7 +14,7 @@ import numpy as np
 from photometric.errors.model import _nominal
 from photometric.lights import _vectors
 from photometric.normals import normals_from_slopes
-from surfaces.validate import as_array, positive
+from surfaces.validate import as_array, InputError, positive
 
 __all__ = ["OPTIMAL_SLANT_DEG", "ring_conditioning", "noise_propagation"]
 
@@ -49,9 +49,9 @@ def ring_conditioning(slants_deg, n: int = 3) -> dict[str, np.ndarray]:
     """
     s = as_array(slants_deg, "slants_deg", ndim=1, min_size=1)
     if np.any((s <= 0) | (s >= 90)):
-        raise ValueError("slants_deg: slants must lie strictly between 0 and 90 degrees")
+        raise InputError("slants_deg: slants must lie strictly between 0 and 90 degrees")
     if int(n) < 3:
-        raise ValueError(f"n: need at least 3 lights, got {n}")
+        raise InputError(f"n: need at least 3 lights, got {n}")
     az = 90.0 + 360.0 * np.arange(int(n)) / int(n)
     L = _vectors(np.radians(s)[:, None], np.radians(az)[None, :])  # (G, n, 3)
     sv = np.linalg.svd(L, compute_uv=False)

@@ -14,7 +14,7 @@ import numpy as np
 
 from photometric.errors.model import _apply, _exact, _first_order, _lit, _nominal, _pq
 from photometric.lights import _deviate
-from surfaces.validate import as_array, positive
+from surfaces.validate import as_array, InputError, positive
 
 __all__ = ["ErrorMap", "error_map", "error_curves"]
 
@@ -72,9 +72,9 @@ def _axis(spec, n_lights: int, name: str) -> tuple[int, str]:
     try:
         k, kind = int(spec[0]), str(spec[1])
     except (TypeError, ValueError, IndexError):
-        raise ValueError(f"{name}: expected (light index, 'slant' | 'azimuth'), got {spec!r}") from None
+        raise InputError(f"{name}: expected (light index, 'slant' | 'azimuth'), got {spec!r}") from None
     if not 0 <= k < n_lights or kind not in ("slant", "azimuth"):
-        raise ValueError(f"{name}: expected light index in [0, {n_lights}) and 'slant' or 'azimuth', got {spec!r}")
+        raise InputError(f"{name}: expected light index in [0, {n_lights}) and 'slant' or 'azimuth', got {spec!r}")
     return k, kind
 
 
@@ -116,17 +116,17 @@ def error_map(
     a1 = _axis(axis1, L.shape[0], "axis1")
     a2 = _axis(axis2, L.shape[0], "axis2")
     if a1 == a2:
-        raise ValueError(f"axis1, axis2: must differ, both are {a1}")
+        raise InputError(f"axis1, axis2: must differ, both are {a1}")
     dmax = positive(deviation_max, "deviation_max")
     if int(n) < 2:
-        raise ValueError(f"n: need at least 2 grid points, got {n}")
+        raise InputError(f"n: need at least 2 grid points, got {n}")
     p, q = _pq(p, q)
     pf, qf = p.ravel(), q.ravel()
     if lit_only:
         keep = _lit(L, pf, qf)
         pf, qf = pf[keep], qf[keep]
     if pf.size == 0:
-        raise ValueError("p, q: no normals to evaluate (all shadowed?)")
+        raise InputError("p, q: no normals to evaluate (all shadowed?)")
     v = np.linspace(-dmax, dmax, int(n))
     d2, d1 = np.meshgrid(v, v, indexing="ij")
     dev = np.zeros((int(n), int(n), L.shape[0], 2))

@@ -32,7 +32,7 @@ import numpy as np
 
 from photometric.lights import _basis, validate_lights
 from photometric.normals import angular_error_deg, normals_from_slopes
-from surfaces.validate import as_array, positive
+from surfaces.validate import as_array, InputError, positive
 
 __all__ = [
     "DerivativeError",
@@ -59,7 +59,7 @@ def _true(lights_true, n: int) -> np.ndarray:
     """True lights (..., N, 3) matching ``n`` nominal ones."""
     Lt = validate_lights(lights_true, "lights_true", min_lights=1, batched=True)
     if Lt.shape[-2] != n:
-        raise ValueError(f"lights_true: expected {n} lights, got shape {Lt.shape}")
+        raise InputError(f"lights_true: expected {n} lights, got shape {Lt.shape}")
     return Lt
 
 
@@ -67,14 +67,14 @@ def _pq(p, q) -> tuple[np.ndarray, np.ndarray]:
     p = as_array(p, "p")
     q = as_array(q, "q")
     if p.shape != q.shape:
-        raise ValueError(f"p, q: shapes differ ({p.shape} vs {q.shape})")
+        raise InputError(f"p, q: shapes differ ({p.shape} vs {q.shape})")
     return p, q
 
 
 def _deviations(deviations_deg, n: int) -> np.ndarray:
     d = as_array(deviations_deg, "deviations_deg")
     if d.ndim < 2 or d.shape[-2:] != (n, 2):
-        raise ValueError(f"deviations_deg: expected shape (..., {n}, 2), got {d.shape}")
+        raise InputError(f"deviations_deg: expected shape (..., {n}, 2), got {d.shape}")
     return d
 
 
@@ -101,7 +101,7 @@ def derivative_square(derivative_range: float, n: int = 41) -> tuple[np.ndarray,
     """
     D = positive(derivative_range, "derivative_range", allow_zero=True)
     if int(n) < 2:
-        raise ValueError(f"n: need at least 2 grid points, got {n}")
+        raise InputError(f"n: need at least 2 grid points, got {n}")
     v = np.linspace(-D, D, int(n))
     p, q = np.meshgrid(v, v)
     return p, q
@@ -121,7 +121,7 @@ def _square(L, derivative_range, n_grid, lit_only):
         keep = _lit(L, p, q)
         p, q = p[keep], q[keep]
     if p.size == 0:
-        raise ValueError("derivative_range: no lit normals in the derivative square")
+        raise InputError("derivative_range: no lit normals in the derivative square")
     return p, q
 
 

@@ -15,7 +15,7 @@ import numpy as np
 from photometric.errors.maps import _chunked_stats
 from photometric.errors.model import _angle_rms, _apply, _covariance, _nominal, _pq, _square
 from photometric.lights import _rotate
-from surfaces.validate import as_array, positive
+from surfaces.validate import as_array, InputError, positive
 
 __all__ = ["MonteCarloResult", "random_deviations", "monte_carlo", "exceedance_probability"]
 
@@ -82,7 +82,7 @@ def random_deviations(n_lights: int, sigma_deg: float, n_samples: int, seed=0) -
     """
     sigma = positive(sigma_deg, "sigma_deg", allow_zero=True)
     if int(n_samples) < 2:
-        raise ValueError(f"n_samples: need at least 2 samples, got {n_samples}")
+        raise InputError(f"n_samples: need at least 2 samples, got {n_samples}")
     rng = np.random.default_rng(seed)
     a, b = rng.normal(0.0, sigma / np.sqrt(2.0), (2, int(n_samples), int(n_lights)))
     return np.hypot(a, b), np.degrees(np.arctan2(b, a))
@@ -175,7 +175,7 @@ def exceedance_probability(
     L = _nominal(lights)
     sig = as_array(sigmas_deg, "sigmas_deg", ndim=1, min_size=1)
     if np.any(sig < 0):
-        raise ValueError("sigmas_deg: must be non-negative")
+        raise InputError("sigmas_deg: must be non-negative")
     eps = positive(tolerance, "tolerance")
     p, q = _square(L, derivative_range, n_grid, False)
     base, direction = random_deviations(L.shape[0], 1.0, n_samples, seed)

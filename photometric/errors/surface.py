@@ -6,7 +6,7 @@ import numpy as np
 
 from photometric.errors.model import _exact, _nominal, _true
 from photometric.integrate import integrate
-from surfaces.validate import as_array, positive
+from surfaces.validate import as_array, InputError, positive
 
 __all__ = ["surface_derivatives", "height_error"]
 
@@ -38,7 +38,7 @@ def surface_derivatives(height, pixel_size: float = 1.0) -> tuple[np.ndarray, np
     """
     h = as_array(height, "height", ndim=2)
     if min(h.shape) < 2:
-        raise ValueError(f"height: needs at least 2 x 2 pixels, got {h.shape}")
+        raise InputError(f"height: needs at least 2 x 2 pixels, got {h.shape}")
     ps = positive(pixel_size, "pixel_size")
     p = np.gradient(h, ps, axis=1)
     q = -np.gradient(h, ps, axis=0)
@@ -76,11 +76,11 @@ def height_error(lights_nominal, lights_true, height, pixel_size: float = 1.0, m
     L = _nominal(lights_nominal, "lights_nominal")
     Lt = _true(lights_true, L.shape[0])
     if Lt.ndim != 2:
-        raise ValueError(f"lights_true: expected shape (N, 3), got {Lt.shape}")
+        raise InputError(f"lights_true: expected shape (N, 3), got {Lt.shape}")
     p, q = surface_derivatives(height, pixel_size)
     m = np.ones(p.shape, bool) if mask is None else as_array(mask, "mask", shape=p.shape, dtype=bool)
     if not m.any():
-        raise ValueError("mask: selects no pixels")
+        raise InputError("mask: selects no pixels")
     ex = _exact(L, Lt, p, q)
     h_true = integrate(p, q, method="dct", pixel_size=pixel_size)
     h_est = integrate(ex.p_est, ex.q_est, method="dct", pixel_size=pixel_size)

@@ -20,7 +20,7 @@ from scipy import optimize
 from photometric.errors.maps import _chunked_stats
 from photometric.errors.model import _gc, _nominal, _square
 from photometric.lights import _basis, _deviate, _rotate
-from surfaces.validate import positive
+from surfaces.validate import InputError, positive
 
 __all__ = ["MODES", "Tolerance", "worst_case_error", "max_deviation", "max_derivative_range", "recommendation_table"]
 
@@ -30,7 +30,7 @@ MODES = ("any", "slant", "azimuth")
 
 def _mode(mode: str) -> str:
     if mode not in MODES:
-        raise ValueError(f"mode: expected one of {MODES}, got {mode!r}")
+        raise InputError(f"mode: expected one of {MODES}, got {mode!r}")
     return mode
 
 
@@ -38,9 +38,9 @@ def _moved(which, n_lights: int) -> tuple[int, ...]:
     try:
         idx = tuple(sorted({int(i) for i in np.atleast_1d(which)}))
     except (TypeError, ValueError):
-        raise ValueError(f"lights_moved: expected light indices, got {which!r}") from None
+        raise InputError(f"lights_moved: expected light indices, got {which!r}") from None
     if not idx or idx[0] < 0 or idx[-1] >= n_lights:
-        raise ValueError(f"lights_moved: indices must lie in [0, {n_lights}), got {which!r}")
+        raise InputError(f"lights_moved: indices must lie in [0, {n_lights}), got {which!r}")
     return idx
 
 

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from surfaces.validate import positive
+from surfaces.validate import InputError, positive
 
 #: ``method`` choices.
 METHODS = ("linear", "montecarlo")
@@ -73,11 +73,11 @@ class Tolerances:
                      "pixel_size_tolerance"):
             value = getattr(self, name)
             if not np.isfinite(value) or value < 0:
-                raise ValueError(f"{name}: must be a non-negative number (a standard uncertainty), got {value}")
+                raise InputError(f"{name}: must be a non-negative number (a standard uncertainty), got {value}")
         if self.method not in METHODS:
-            raise ValueError(f"method: expected one of {METHODS}, got {self.method!r}")
+            raise InputError(f"method: expected one of {METHODS}, got {self.method!r}")
         if int(self.mc_samples) < 2:
-            raise ValueError(f"mc_samples: need at least 2 Monte Carlo samples, got {self.mc_samples}")
+            raise InputError(f"mc_samples: need at least 2 Monte Carlo samples, got {self.mc_samples}")
 
     def to_dict(self) -> dict:
         """The tolerances as a JSON-ready dict."""

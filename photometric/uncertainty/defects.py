@@ -14,6 +14,7 @@ from scipy import ndimage, special
 from photometric.defects import _stadium_length
 from photometric.uncertainty.budget import _H_POWER
 from photometric.uncertainty.heights import _linear_variance, _mode_variance, _point_variance
+from surfaces.validate import InputError
 
 _QUANTISATION_OFFSETS = 96
 
@@ -295,7 +296,7 @@ def _coverage_half_width(errors, others: float, level: float = 0.95) -> float:
     """
     e = np.asarray(errors, float).ravel()
     if e.size == 0:
-        raise ValueError("errors: need at least one error sample")
+        raise InputError("errors: need at least one error sample")
     if others <= 0.0:
         return float(np.quantile(np.abs(e), level, method="inverted_cdf"))
     s = float(others)

@@ -42,7 +42,7 @@ from photometric.uncertainty.slopes import (
     estimate_noise_sigma,
 )
 from surfaces.threads import one_blas_thread
-from surfaces.validate import as_array, positive
+from surfaces.validate import as_array, InputError, positive
 
 #: Largest image on which the systematic fields are integrated pixel by pixel; larger
 #: images integrate them on blocks of r x r pixels (the fields are smooth at that scale).
@@ -151,7 +151,7 @@ def propagate(
     t0 = time.perf_counter()
     h = positive(pixel_size, "pixel_size")
     if not pixel_size_given:
-        raise ValueError("pixel_size: uncertainties are stated in mm and need the pixel size (--pixel-size or the "
+        raise InputError("pixel_size: uncertainties are stated in mm and need the pixel size (--pixel-size or the "
                          "folder's scene.json); without it the heights are in pixel units")
     L = as_array(lights, "lights", ndim=2)
     n = L.shape[0]
@@ -173,12 +173,12 @@ def propagate(
     point_fields = []
     if point is None:
         if tol.light_position_tolerance_mm > 0:
-            raise ValueError("light_position_tolerance_mm: applies to point lights (LED positions); distant lights "
+            raise InputError("light_position_tolerance_mm: applies to point lights (LED positions); distant lights "
                              "are directions (use light_tolerance_deg)")
         p_u, q_u, mean_vp, mean_vq = _slope_maps(L, E, albedo, pp, qq, ok, sigma, tol, channels)
     else:
         if tol.light_tolerance_deg > 0:
-            raise ValueError("light_tolerance_deg: point lights (LED positions) take light_position_tolerance_mm")
+            raise InputError("light_tolerance_deg: point lights (LED positions) take light_position_tolerance_mm")
         point_fields, p_u, q_u, mean_vp, mean_vq = _point_fields(point, albedo, pp, qq, ok, z, sigma, tol,
                                                                  channels)
 
@@ -247,7 +247,7 @@ def propagate(
     mc = None
     if tol.method == "montecarlo":
         if resolve is None or images is None:
-            raise ValueError("method: 'montecarlo' needs the images and the solver (use the pipeline)")
+            raise InputError("method: 'montecarlo' needs the images and the solver (use the pipeline)")
         mc = _monte_carlo(images, L, E, sigma, tol, resolve, defects, shape, h, rng, draw)
         p_u, q_u, height_u = mc["p_u"], mc["q_u"], mc["height_u"]
 

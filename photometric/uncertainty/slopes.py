@@ -11,7 +11,7 @@ import numpy as np
 
 from photometric.uncertainty.budget import Tolerances
 from photometric.uncertainty.heights import _bin
-from surfaces.validate import as_array
+from surfaces.validate import as_array, InputError
 
 #: Pixels per row block of the per-pixel maps (fits the CPU cache with its temporaries).
 _BLOCK_PIXELS = 1 << 15
@@ -42,11 +42,11 @@ def estimate_noise_sigma(residual, valid, n_lights: int, intensities=None) -> fl
     """
     n = int(n_lights)
     if n < 4:
-        raise ValueError(f"n_lights: the noise can be estimated from the residuals with 4 or more lights, got {n}")
+        raise InputError(f"n_lights: the noise can be estimated from the residuals with 4 or more lights, got {n}")
     r = as_array(residual, "residual", ndim=2)
     v = as_array(valid, "valid", shape=r.shape, dtype=bool)
     if not v.any():
-        raise ValueError("valid: no pixel to estimate the noise from")
+        raise InputError("valid: no pixel to estimate the noise from")
     e = 1.0 if intensities is None else float(np.sqrt(np.mean(np.asarray(intensities, float) ** 2)))
     return float(np.sqrt(n / (n - 3) * np.mean(r[v].astype(np.float64) ** 2)) * e)
 

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from surfaces.validate import positive
+from surfaces.validate import InputError, positive
 from workbench.batch.jobs import Job
 from workbench.batch.results import (
     FAILED_DIR,
@@ -95,14 +95,14 @@ def plan(jobs: Sequence[Job], out: str | os.PathLike, retry_failed: bool = False
     ids = [job.id for job in jobs]
     if len(set(ids)) != len(ids):
         dup = sorted({i for i in ids if ids.count(i) > 1})
-        raise ValueError(f"jobs: duplicate id(s) {', '.join(dup[:5])}")
+        raise InputError(f"jobs: duplicate id(s) {', '.join(dup[:5])}")
     to_run, complete, failed_before, pending = [], [], [], []
     for job in jobs:
         folder = out / job.id
         if is_complete(folder):
             done_kind = marker_kind(folder)
             if done_kind != job.kind:
-                raise ValueError(f"job {job.id}: {folder} holds a finished {done_kind} job, not {job.kind}")
+                raise InputError(f"job {job.id}: {folder} holds a finished {done_kind} job, not {job.kind}")
             complete.append(job)
         elif (out / FAILED_DIR / f"{job.id}.json").is_file():
             (to_run if retry_failed else failed_before).append(job)
@@ -169,11 +169,11 @@ def connect(scheduler: str = "local", workers: int | None = None, threads_per_wo
             cluster.close()
         return
     if not re.match(r"^(tcp|tls)://[^\s:/]+:\d+$", scheduler):
-        raise ValueError(f"scheduler: expected 'local' or tcp://HOST:PORT, got {scheduler!r}")
+        raise InputError(f"scheduler: expected 'local' or tcp://HOST:PORT, got {scheduler!r}")
     try:
         client = Client(scheduler, timeout="20s")
     except (OSError, TimeoutError) as exc:
-        raise ValueError(f"scheduler {scheduler}: cannot connect ({one_line_error(exc)})") from None
+        raise InputError(f"scheduler {scheduler}: cannot connect ({one_line_error(exc)})") from None
     try:
         yield client
     finally:
@@ -261,7 +261,7 @@ def run_batch(
     runners = dict(runners or RUNNERS)
     missing = sorted({job.kind for job in jobs} - set(runners))
     if missing:
-        raise ValueError(f"runners: no runner for kind(s) {', '.join(missing)}")
+        raise InputError(f"runners: no runner for kind(s) {', '.join(missing)}")
     with _lock(out):
         _remove_stale_tmp(out)
         steps = plan(jobs, out, retry_failed)

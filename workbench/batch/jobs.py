@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from typing import Any
+from surfaces.validate import InputError
 
 #: the job kinds, one per library pipeline
 KINDS: tuple[str, ...] = ("photometric", "slices")
@@ -72,8 +73,8 @@ def check_kind(kind: str) -> str:
     >>> check_kind("ct")
     Traceback (most recent call last):
     ...
-    ValueError: kind: expected one of photometric, slices, got 'ct'
+    surfaces.validate.InputError: kind: expected one of photometric, slices, got 'ct'
     """
     if kind not in KINDS:
-        raise ValueError(f"kind: expected one of {', '.join(KINDS)}, got {kind!r}")
+        raise InputError(f"kind: expected one of {', '.join(KINDS)}, got {kind!r}")
     return kind

@@ -21,6 +21,7 @@ from typing import Any
 from workbench.batch.jobs import Job, check_kind
 from workbench.batch.results import COMPLETE_MARKER, FAILED_DIR, RESULTS_NAME
 from workbench.batch.runners import pipeline
+from surfaces.validate import InputError
 
 # manifest columns holding file paths (resolved against the manifest's folder)
 _PATH_OPTIONS: dict[str, tuple[str, ...]] = {
@@ -114,7 +115,7 @@ def read_manifest(path: str | os.PathLike, kind: str, defaults: Mapping[str, Any
     )
     rows = _json_rows(text, path) if jsonl else _csv_rows(text, path)
     if not rows:
-        raise ValueError(f"manifest {path}: no job rows")
+        raise InputError(f"manifest {path}: no job rows")
     jobs = [
         job
         for line, row in rows
@@ -173,7 +174,7 @@ def discover_jobs(root: str | os.PathLike, kind: str, defaults: Mapping[str, Any
         inputs = sorted(structure_sets + contour_files)
         what = "RTSTRUCT .dcm file or contours.json"
     if not inputs:
-        raise ValueError(f"job folder {root}: no {what} found below it")
+        raise InputError(f"job folder {root}: no {what} found below it")
     options = dict(defaults or {})
     wanted = _as_list(options.pop("roi"), f"job folder {root}", "roi") if "roi" in options else None
     _check_options(kind, options, f"job folder {root}")
@@ -278,14 +279,14 @@ def _csv_rows(text: str, path: Path) -> list[tuple[int, dict[str, Any]]]:
     lines = [ln for ln in text.splitlines() if not ln.lstrip().startswith("#")]
     reader = csv.DictReader(io.StringIO("\n".join(lines)))
     if not reader.fieldnames:
-        raise ValueError(f"manifest {path}: no header row")
+        raise InputError(f"manifest {path}: no header row")
     header = [(name or "").strip() for name in reader.fieldnames]
     if any(not name for name in header) or len(set(header)) != len(header):
-        raise ValueError(f"manifest {path}: header has empty or repeated column names: {header}")
+        raise InputError(f"manifest {path}: header has empty or repeated column names: {header}")
     rows = []
     for raw in reader:
         if None in raw:
-            raise ValueError(f"manifest {path} line {reader.line_num}: more cells than header columns")
+            raise InputError(f"manifest {path} line {reader.line_num}: more cells than header columns")
         row = {
             name: coerce_value(value.strip())
             for name, value in zip(header, raw.values())
@@ -304,9 +305,9 @@ def _json_rows(text: str, path: Path) -> list[tuple[int, dict[str, Any]]]:
         try:
             row = json.loads(line)
         except json.JSONDecodeError as exc:
-            raise ValueError(f"manifest {path} line {line_no}: not a JSON object ({exc.msg})") from None
+            raise InputError(f"manifest {path} line {line_no}: not a JSON object ({exc.msg})") from None
         if not isinstance(row, dict):
-            raise ValueError(  # noqa: TRY004 - bad manifest content is a ValueError for the CLI
+            raise InputError(  # noqa: TRY004 - bad manifest content is a ValueError for the CLI
                 f"manifest {path} line {line_no}: expected a JSON object, got {type(row).__name__}"
             )
         rows.append((line_no, {str(k).strip(): v for k, v in row.items() if v is not None}))
@@ -344,18 +345,18 @@ def coerce_value(value: str) -> Any:
 def _as_list(value: Any, where: str, name: str) -> list[str]:
     items = value.split(";") if isinstance(value, str) else value
     if not isinstance(items, (list, tuple)):
-        raise ValueError(  # noqa: TRY004 - bad manifest content is a ValueError for the CLI
+        raise InputError(  # noqa: TRY004 - bad manifest content is a ValueError for the CLI
             f"{where}: {name} must be a list or ';'-separated text, got {value!r}"
         )
     items = [str(v).strip() for v in items if str(v).strip()]
     if not items:
-        raise ValueError(f"{where}: {name} is empty")
+        raise InputError(f"{where}: {name} is empty")
     return items
 
 
 def _resolve(value: Any, base: Path, where: str, name: str) -> str:
     if not isinstance(value, str) or not value.strip():
-        raise ValueError(f"{where}: {name} must be a path, got {value!r}")
+        raise InputError(f"{where}: {name} must be a path, got {value!r}")
     p = Path(value.strip()).expanduser()
     return str(p if p.is_absolute() else (base / p).resolve())
 
@@ -364,16 +365,16 @@ def _jobs_from_row(row: dict[str, Any], kind: str, base: Path, where: str) -> li
     row = dict(row)
     row_kind = row.pop("kind", kind)
     if row_kind != kind:
-        raise ValueError(f"{where}: kind {row_kind!r} in a {kind} batch")
+        raise InputError(f"{where}: kind {row_kind!r} in a {kind} batch")
     given_id = row.pop("id", None)
     rois: list[str | None] = [None]
     if kind == "photometric":
         folder, images = row.pop("input", None), row.pop("images", None)
         if (folder is None) == (images is None):
-            raise ValueError(f"{where}: give either 'input' (a folder) or 'images' (+ 'lights'), not both or neither")
+            raise InputError(f"{where}: give either 'input' (a folder) or 'images' (+ 'lights'), not both or neither")
         if images is not None:
             if "lights" not in row:
-                raise ValueError(f"{where}: 'images' needs a 'lights' file")
+                raise InputError(f"{where}: 'images' needs a 'lights' file")
             source: str | tuple[str, ...] = tuple(
                 _resolve(v, base, where, "images") for v in _as_list(images, where, "images")
             )
@@ -383,7 +384,7 @@ def _jobs_from_row(row: dict[str, Any], kind: str, base: Path, where: str) -> li
             id_path = Path(source)
     else:
         if "input" not in row:
-            raise ValueError(f"{where}: missing 'input' (structure set, contours.json or CT folder)")
+            raise InputError(f"{where}: missing 'input' (structure set, contours.json or CT folder)")
         source = _resolve(row.pop("input"), base, where, "input")
         id_path = Path(source)
         if "roi" in row:
@@ -398,7 +399,7 @@ def _jobs_from_row(row: dict[str, Any], kind: str, base: Path, where: str) -> li
     }
     _check_options(kind, options, where)
     if given_id is not None and not (_ID_PATTERN.match(str(given_id)) and str(given_id) not in _RESERVED_IDS):
-        raise ValueError(
+        raise InputError(
             f"{where}: id {given_id!r} is not a safe folder name (letters, digits, . _ + -; "
             f"not {', '.join(sorted(_RESERVED_IDS))})"
         )
@@ -420,7 +421,7 @@ def _check_options(kind: str, options: Mapping[str, Any], where: str) -> None:
     names = list(params)[2:]  # the input and the output folder come first
     unknown = sorted(set(options) - set(names))
     if unknown:
-        raise ValueError(
+        raise InputError(
             f"{where}: unknown option(s) {', '.join(unknown)}; the {kind} pipeline takes {', '.join(names)}"
         )
 

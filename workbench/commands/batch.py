@@ -15,6 +15,7 @@ from pathlib import Path
 
 from workbench import batch
 from workbench.commands.common import add_command
+from surfaces.validate import InputError
 
 _DESCRIPTIONS = {
     "photometric": (
@@ -107,7 +108,7 @@ def _options(items: list[str]) -> dict:
     for item in items:
         key, sep, value = item.partition("=")
         if not sep or not key.strip():
-            raise ValueError(f"--option: expected KEY=VALUE, got {item!r}")
+            raise InputError(f"--option: expected KEY=VALUE, got {item!r}")
         options[key.strip()] = batch.coerce_value(value.strip())
     return options
 

@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from workbench.commands.common import add_command, mesh_out, read_model, write_summary
+from surfaces.validate import InputError
 
 #: what the summary's numbers are measured in (mesh files carry no unit)
 UNITS = {"length": "as the input files (workbench writes mm)", "area": "length^2", "volume": "length^3"}
@@ -97,7 +98,7 @@ def run(args: argparse.Namespace) -> int:
 
     mesh_out(args.out)
     if args.smooth < 0 or args.filter_iterations < 0:
-        raise ValueError("--smooth, --filter-iterations: must be >= 0")
+        raise InputError("--smooth, --filter-iterations: must be >= 0")
     a = read_model(args.a)
     b = read_model(args.b)
     result = boolean(a, b, args.op, repair=args.repair, names=(str(args.a), str(args.b)))

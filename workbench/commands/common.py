@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from surfaces.io import MESH_FORMATS, load_patches, read_mesh, write_json
+from surfaces.validate import InputError
 
 #: file suffix of a patch model (:func:`surfaces.io.save_patches`); every other model file is a mesh
 PATCH_SUFFIX = ".npz"
@@ -119,7 +120,7 @@ def load_npy(path: str | os.PathLike, name: str) -> np.ndarray:
     try:
         return np.load(p, allow_pickle=False)
     except (OSError, ValueError) as exc:
-        raise ValueError(f"{name}: {p} is not a readable .npy file ({exc})") from None
+        raise InputError(f"{name}: {p} is not a readable .npy file ({exc})") from None
 
 
 def npy_shape(path: str | os.PathLike, name: str) -> tuple[int, ...]:
@@ -149,9 +150,9 @@ def npy_shape(path: str | os.PathLike, name: str) -> tuple[int, ...]:
     try:
         array = np.load(p, mmap_mode="r", allow_pickle=False)
     except (OSError, ValueError) as exc:
-        raise ValueError(f"{name}: {p} is not a readable .npy file ({exc})") from None
+        raise InputError(f"{name}: {p} is not a readable .npy file ({exc})") from None
     if not isinstance(array, np.ndarray) or not np.issubdtype(array.dtype, np.number):
-        raise ValueError(f"{name}: {p} does not hold an array of numbers")
+        raise InputError(f"{name}: {p} does not hold an array of numbers")
     return tuple(array.shape)
 
 
@@ -194,7 +195,7 @@ def parse_size(text: str, name: str) -> int:
     >>> parse_size("lots", "--max-memory")
     Traceback (most recent call last):
     ...
-    ValueError: --max-memory: expected a size such as 8G or 512M, got 'lots'
+    surfaces.validate.InputError: --max-memory: expected a size such as 8G or 512M, got 'lots'
     """
     clean = text.strip().upper().removesuffix("B").replace("I", "")
     unit = clean[-1:] if clean[-1:] in _UNITS and clean[-1:] else ""
@@ -203,7 +204,7 @@ def parse_size(text: str, name: str) -> int:
     except ValueError:
         value = float("nan")
     if not np.isfinite(value) or value <= 0:
-        raise ValueError(f"{name}: expected a size such as 8G or 512M, got {text!r}")
+        raise InputError(f"{name}: expected a size such as 8G or 512M, got {text!r}")
     return int(value)
 
 
@@ -250,12 +251,12 @@ def mesh_out(path: str | os.PathLike, name: str = "--out") -> Path:
     >>> mesh_out("surface.vtk")
     Traceback (most recent call last):
     ...
-    ValueError: --out: unsupported mesh format '.vtk'; use .ply, .obj or .stl
+    surfaces.validate.InputError: --out: unsupported mesh format '.vtk'; use .ply, .obj or .stl
     """
     out = Path(path)
     if out.suffix.lower() not in MESH_FORMATS:
         formats = ", ".join(MESH_FORMATS[:-1]) + f" or {MESH_FORMATS[-1]}"
-        raise ValueError(f"{name}: unsupported mesh format {out.suffix!r}; use {formats}")
+        raise InputError(f"{name}: unsupported mesh format {out.suffix!r}; use {formats}")
     if not out.parent.is_dir():
         raise FileNotFoundError(f"{name}: folder {out.parent} does not exist")
     return out
@@ -287,14 +288,14 @@ def parse_vector(text: str, name: str) -> np.ndarray:
     >>> parse_vector("1,2", "--up")
     Traceback (most recent call last):
     ...
-    ValueError: --up: expected three finite numbers 'x,y,z', got '1,2'
+    surfaces.validate.InputError: --up: expected three finite numbers 'x,y,z', got '1,2'
     """
     try:
         values = [float(v) for v in text.split(",")]
     except ValueError:
-        raise ValueError(f"{name}: expected three numbers 'x,y,z', got {text!r}") from None
+        raise InputError(f"{name}: expected three numbers 'x,y,z', got {text!r}") from None
     if len(values) != 3 or not np.all(np.isfinite(values)):
-        raise ValueError(f"{name}: expected three finite numbers 'x,y,z', got {text!r}")
+        raise InputError(f"{name}: expected three finite numbers 'x,y,z', got {text!r}")
     return np.asarray(values)
 
 

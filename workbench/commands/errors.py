@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from workbench.commands.common import add_command, load_npy
+from surfaces.validate import InputError
 
 
 def register(subparsers) -> None:
@@ -68,7 +69,7 @@ def _read_surface(path: str) -> np.ndarray:
     """The ``--surface`` height field: a 2-D ``.npy`` array of at least 2 x 2 pixels."""
     h = load_npy(path, "--surface")
     if h.ndim != 2 or min(h.shape) < 2:
-        raise ValueError(f"--surface: expected a 2-D height field, got shape {h.shape}")
+        raise InputError(f"--surface: expected a 2-D height field, got shape {h.shape}")
     return np.asarray(h, dtype=float)
 
 
@@ -93,9 +94,9 @@ def run(args: argparse.Namespace) -> int:
 
     lights = load_lights(args.lights)
     if args.samples < 100:
-        raise ValueError(f"--samples: need at least 100 samples, got {args.samples}")
+        raise InputError(f"--samples: need at least 100 samples, got {args.samples}")
     if args.crack_size < 32:
-        raise ValueError(f"--crack-size: need at least 32 pixels, got {args.crack_size}")
+        raise InputError(f"--crack-size: need at least 32 pixels, got {args.crack_size}")
     surface = _read_surface(args.surface) if args.surface else None
     stages = 6 + (surface is not None) + (not args.no_crack)  # the steps analyse() reports
     with tqdm(total=stages, desc="errors", unit="stage", leave=False) as bar:

@@ -14,6 +14,7 @@ import shlex
 import sys
 
 from workbench.commands.common import add_command
+from surfaces.validate import InputError
 
 _RUN_EPILOG = (
     "Per part OUT/<part>/result.json (verdict pass|fail|uncertain, every imperfection with value and U, the rule "
@@ -115,13 +116,13 @@ def _options(args: argparse.Namespace) -> dict:
     for item in args.option:
         key, sep, value = item.partition("=")
         if not sep or not key.strip():
-            raise ValueError(f"--option: expected KEY=VALUE, got {item!r}")
+            raise InputError(f"--option: expected KEY=VALUE, got {item!r}")
         options[key.strip()] = coerce_value(value.strip())
     tolerances = {k: getattr(args, k) for k in _TOLERANCES if getattr(args, k) is not None}
     wanted = args.uncertainty is not None or tolerances or load_spec(args.spec).decision_rule == "guard_band"
     if wanted:
         if "uncertainty" in options:
-            raise ValueError("--option uncertainty: give the uncertainty options instead (--uncertainty, "
+            raise InputError("--option uncertainty: give the uncertainty options instead (--uncertainty, "
                              "--noise-sigma, ...)")
         options["uncertainty"] = {**tolerances, "method": args.uncertainty or "linear"}
     return options

@@ -17,6 +17,7 @@ import time
 from pathlib import Path
 
 from workbench.commands.common import add_command, mesh_out, write_summary
+from surfaces.validate import InputError
 
 
 def register(sub) -> None:
@@ -94,7 +95,7 @@ def _sweep(args: argparse.Namespace) -> int:
     scale = None
     if args.scale:
         if len(args.scale) > 2:
-            raise ValueError(f"--scale: give one value or START END, got {len(args.scale)} values")
+            raise InputError(f"--scale: give one value or START END, got {len(args.scale)} values")
         scale = args.scale[0] if len(args.scale) == 1 else tuple(args.scale)
     surface = kinematic.sweep(
         generatrix, directrix, frame=args.frame, scale=scale, twist=math.radians(args.twist),
@@ -153,7 +154,7 @@ def _finish(surface, args: argparse.Namespace, out: Path, info: dict, samples_v:
     from surfaces.kinematic import cap_ends
 
     if args.caps and (not surface.closed_u or surface.closed_v):
-        raise ValueError("--caps: flat caps close a tube with a closed cross-section and two open ends; "
+        raise InputError("--caps: flat caps close a tube with a closed cross-section and two open ends; "
                          + ("this cross-section (generatrix) is open" if not surface.closed_u
                             else "this surface closes on itself"))
     t0 = time.perf_counter()

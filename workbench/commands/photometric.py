@@ -4,6 +4,7 @@ measured surface, and the calibration of a near-field rig (LEDs, camera, flat fi
 from __future__ import annotations
 
 import argparse
+from surfaces.validate import InputError
 
 
 def _numbers(text: str, name: str) -> float | list[float]:
@@ -11,7 +12,7 @@ def _numbers(text: str, name: str) -> float | list[float]:
     try:
         values = [float(v) for v in text.split(",")]
     except ValueError:
-        raise ValueError(f"{name}: expected a number or comma-separated numbers, got {text!r}") from None
+        raise InputError(f"{name}: expected a number or comma-separated numbers, got {text!r}") from None
     return values[0] if len(values) == 1 else values
 
 
@@ -45,7 +46,7 @@ def _camera_options(args: argparse.Namespace) -> dict:
     if args.principal_point is not None:
         pp = _numbers(args.principal_point, "--principal-point")
         if not isinstance(pp, list) or len(pp) != 2:
-            raise ValueError(f"--principal-point: expected 'CX,CY', got {args.principal_point!r}")
+            raise InputError(f"--principal-point: expected 'CX,CY', got {args.principal_point!r}")
     return {"camera": args.camera, "focal_length_px": args.focal_length_px,
             "camera_height_mm": args.camera_height, "principal_point_px": pp}
 
@@ -108,9 +109,9 @@ def _uncertainty_options(args: argparse.Namespace):
              "intensity_tolerance": "--intensity-tolerance", "pixel_size_tolerance": "--pixel-size-tolerance"}
     for key, flag in names.items():
         if given[key] is not None and not given[key] >= 0:
-            raise ValueError(f"{flag}: must be a non-negative standard uncertainty, got {given[key]}")
+            raise InputError(f"{flag}: must be a non-negative standard uncertainty, got {given[key]}")
     if args.mc_samples is not None and args.mc_samples < 2:
-        raise ValueError(f"--mc-samples: need at least 2 Monte Carlo samples, got {args.mc_samples}")
+        raise InputError(f"--mc-samples: need at least 2 Monte Carlo samples, got {args.mc_samples}")
     return Tolerances(**{k: v for k, v in given.items() if v is not None})
 
 
@@ -301,13 +302,13 @@ def _reconstruct(args: argparse.Namespace) -> int:
     from workbench.runs.photometric import reconstruct_to_folder
 
     if (args.folder is None) == (args.images is None):
-        raise ValueError("input: give either a folder DIR or --images (with --lights), not both")
+        raise InputError("input: give either a folder DIR or --images (with --lights), not both")
     if args.images is not None and args.lights is None and args.light_positions is None and args.rig is None:
-        raise ValueError("--lights: required with --images (or --light-positions, or --rig)")
+        raise InputError("--lights: required with --images (or --light-positions, or --rig)")
     if args.no_flat_field and args.flat_field is not None:
-        raise ValueError("--no-flat-field: cannot be combined with --flat-field")
+        raise InputError("--no-flat-field: cannot be combined with --flat-field")
     if args.images is not None and (args.triad or args.select):
-        raise ValueError("--triad/--select: only apply to a folder input")
+        raise InputError("--triad/--select: only apply to a folder input")
     select = "triad" if args.triad else args.select
     tolerances = _uncertainty_options(args)
     stages = ["read", "normals", "height", "surface", "defects", *(["uncertainty"] if tolerances else []), "write"]

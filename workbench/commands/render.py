@@ -8,6 +8,7 @@ import time
 import numpy as np
 
 from workbench.commands.common import add_command, parse_vector, read_model, write_summary
+from surfaces.validate import InputError
 
 
 def picture(args: argparse.Namespace, geometry, *, colors=None) -> tuple[np.ndarray, dict]:
@@ -31,7 +32,7 @@ def picture(args: argparse.Namespace, geometry, *, colors=None) -> tuple[np.ndar
         scalars, label = verts[:, 2], "height z"
     elif args.colour == "deviation":
         if not args.reference:
-            raise ValueError("--colour deviation: give the reference surface with --reference FILE")
+            raise InputError("--colour deviation: give the reference surface with --reference FILE")
         scalars = deviation(verts, read_model(args.reference))
         label = "deviation"
         summary.update(
@@ -50,7 +51,7 @@ def picture(args: argparse.Namespace, geometry, *, colors=None) -> tuple[np.ndar
         lo = hi = None
     if args.eye or args.target:
         if not (args.eye and args.target):
-            raise ValueError("--eye/--target: give both for an explicit camera")
+            raise InputError("--eye/--target: give both for an explicit camera")
         cams = [
             Camera(
                 parse_vector(args.eye, "--eye"),

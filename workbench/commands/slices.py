@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from workbench.commands.common import add_command, write_summary
+from surfaces.validate import InputError
 
 
 def register(sub) -> None:
@@ -151,9 +152,9 @@ def _roi_or_label(args: argparse.Namespace):
     if args.label is None:
         return args.roi
     if not is_nifti(args.input):
-        raise ValueError(f"--label: only for NIfTI input (.nii, .nii.gz), not {args.input!r}; use --roi")
+        raise InputError(f"--label: only for NIfTI input (.nii, .nii.gz), not {args.input!r}; use --roi")
     if args.roi is not None:
-        raise ValueError("--label and --roi: give one (--label for NIfTI volumes)")
+        raise InputError("--label and --roi: give one (--label for NIfTI volumes)")
     return args.label
 
 

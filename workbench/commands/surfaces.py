@@ -26,6 +26,7 @@ from workbench.commands.common import (
     read_model,
     write_summary,
 )
+from surfaces.validate import InputError
 
 #: peak memory of ``surfaces coons`` per mesh vertex and per patch, bytes (measured on 64^2 to 512^2
 #: grids at 8 samples: tessellation, the mesh checks and the summary dominate)
@@ -162,20 +163,20 @@ def _check_coons_inputs(args: argparse.Namespace) -> dict:
     """Shapes, samples, the output name and the memory estimate, before anything is loaded."""
     shape = npy_shape(args.grid, "grid")
     if len(shape) != 3 or shape[-1] != 3:
-        raise ValueError(f"grid: expected shape (R, C, 3), got {shape}")
+        raise InputError(f"grid: expected shape (R, C, 3), got {shape}")
     given = [(args.pu, "--pu"), (args.pv, "--pv")]
     if args.twist not in ("zero", "fd"):
         given.append((args.twist, "--twist"))
     for path, name in given:
         if path and npy_shape(path, name) != shape:
-            raise ValueError(f"{name}: expected the grid's shape {shape}, got {npy_shape(path, name)}")
+            raise InputError(f"{name}: expected the grid's shape {shape}, got {npy_shape(path, name)}")
     if args.samples < 1:
-        raise ValueError(f"--samples: need at least 1 subdivision per patch side, got {args.samples}")
+        raise InputError(f"--samples: need at least 1 subdivision per patch side, got {args.samples}")
     out = mesh_out(args.out)
     needs = coons_needs(shape, args.samples, args.closed_u, args.closed_v, out.suffix)
     limit = parse_size(args.max_memory, "--max-memory") if args.max_memory else machine_memory() // 2
     if limit and needs["memory_bytes"] > limit:
-        raise ValueError(
+        raise InputError(
             f"grid: {shape[0]} x {shape[1]} points at --samples {args.samples} need about "
             f"{format_size(needs['memory_bytes'])} of memory ({needs['triangles']:,} triangles), more than "
             f"--max-memory {format_size(limit)}; lower --samples, split the grid or raise --max-memory")

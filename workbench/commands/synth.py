@@ -13,6 +13,7 @@ import argparse
 import numpy as np
 
 from workbench.commands.common import add_command, parse_vector
+from surfaces.validate import InputError
 
 
 def register(sub) -> None:
@@ -188,9 +189,9 @@ def _floats(text: str | None, option: str, n: int | None = None) -> np.ndarray |
     try:
         values = np.array([float(v) for v in str(text).split(",") if v.strip()])
     except ValueError:
-        raise ValueError(f"{option}: expected comma-separated numbers, got {text!r}") from None
+        raise InputError(f"{option}: expected comma-separated numbers, got {text!r}") from None
     if values.size == 0 or (n is not None and values.size not in (1, n)):
-        raise ValueError(f"{option}: expected one value or {n} (one per light), got {text!r}")
+        raise InputError(f"{option}: expected one value or {n} (one per light), got {text!r}")
     return values
 
 
@@ -202,7 +203,7 @@ def _vignetting(text: str | None) -> dict | None:
         return {"model": "cos4"}
     if text.startswith("radial:"):
         return {"model": "radial", "coefficients": _floats(text[len("radial:"):], "--vignetting").tolist()}
-    raise ValueError(f"--vignetting: expected cos4 or radial:K1[,K2...], got {text!r}")
+    raise InputError(f"--vignetting: expected cos4 or radial:K1[,K2...], got {text!r}")
 
 
 def _camera_settings(args: argparse.Namespace) -> dict:
@@ -211,42 +212,42 @@ def _camera_settings(args: argparse.Namespace) -> dict:
     pixel_size, focal, height = args.pixel_size, args.focal_length_px, args.camera_height
     if args.camera == "orthographic":
         if focal is not None or height is not None:
-            raise ValueError("--focal-length-px, --camera-height: only for --camera perspective")
+            raise InputError("--focal-length-px, --camera-height: only for --camera perspective")
         if args.field is not None:
             if pixel_size is not None:
-                raise ValueError("--field, --pixel-size: give one of them")
+                raise InputError("--field, --pixel-size: give one of them")
             pixel_size = _positive(args.field, "--field") / w
         return {"pixel_size": 0.05 if pixel_size is None else _positive(pixel_size, "--pixel-size"),
                 "focal_length_px": None, "camera_height": None}
     if pixel_size is not None:
-        raise ValueError("--pixel-size: a perspective camera's scale is --camera-height / --focal-length-px")
+        raise InputError("--pixel-size: a perspective camera's scale is --camera-height / --focal-length-px")
     if height is None:
-        raise ValueError("--camera-height: a perspective camera needs its height above the reference plane (mm)")
+        raise InputError("--camera-height: a perspective camera needs its height above the reference plane (mm)")
     _positive(height, "--camera-height")
     if args.field is not None:
         if focal is not None:
-            raise ValueError("--field, --focal-length-px: give one of them")
+            raise InputError("--field, --focal-length-px: give one of them")
         focal = w * height / _positive(args.field, "--field")
     if focal is None:
-        raise ValueError("--focal-length-px: a perspective camera needs a focal length (or --field)")
+        raise InputError("--focal-length-px: a perspective camera needs a focal length (or --field)")
     return {"pixel_size": None, "focal_length_px": _positive(focal, "--focal-length-px"), "camera_height": height}
 
 
 def _positive(value: float, option: str) -> float:
     if not value > 0:
-        raise ValueError(f"{option}: must be positive, got {value}")
+        raise InputError(f"{option}: must be positive, got {value}")
     return float(value)
 
 
 def _check_ring(args: argparse.Namespace) -> None:
     """One-line errors for LEDs that would not be above the reference plane."""
     if args.light_distance <= 0:
-        raise ValueError(f"--light-distance: must be positive (mm from the origin), got {args.light_distance}")
+        raise InputError(f"--light-distance: must be positive (mm from the origin), got {args.light_distance}")
     if not 0.0 <= args.slant < 90.0:
-        raise ValueError(f"--slant: an LED at slant {args.slant} deg is not above the reference plane z = 0; "
+        raise InputError(f"--slant: an LED at slant {args.slant} deg is not above the reference plane z = 0; "
                          "expected [0, 90)")
     if args.lights < 1:
-        raise ValueError(f"--lights: expected at least 1, got {args.lights}")
+        raise InputError(f"--lights: expected at least 1, got {args.lights}")
 
 
 def _parse_deviate(text: str | None, n: int) -> np.ndarray:
@@ -254,16 +255,16 @@ def _parse_deviate(text: str | None, n: int) -> np.ndarray:
         return np.zeros((n, 2))
     items = [s.strip() for s in text.split(",") if s.strip()]
     if len(items) != n:
-        raise ValueError(f"--deviate: expected {n} values (one per light), got {len(items)} in {text!r}")
+        raise InputError(f"--deviate: expected {n} values (one per light), got {len(items)} in {text!r}")
     rows = []
     for item in items:
         parts = item.split(":")
         if len(parts) > 2:
-            raise ValueError(f"--deviate: {item!r} is neither SLANT nor SLANT:AZIMUTH")
+            raise InputError(f"--deviate: {item!r} is neither SLANT nor SLANT:AZIMUTH")
         try:
             vals = [float(v) for v in parts]
         except ValueError:
-            raise ValueError(f"--deviate: {item!r} is not a number") from None
+            raise InputError(f"--deviate: {item!r} is not a number") from None
         rows.append(vals + [0.0] * (2 - len(vals)))
     return np.array(rows)
 
@@ -274,7 +275,7 @@ def _parse_specular(text: str | None) -> dict | None:
     try:
         ks, shininess = (float(v) for v in text.split(","))
     except ValueError:
-        raise ValueError(f"--specular: expected KS,SHININESS, got {text!r}") from None
+        raise InputError(f"--specular: expected KS,SHININESS, got {text!r}") from None
     return {"ks": ks, "shininess": shininess}
 
 
@@ -286,21 +287,21 @@ def _triad(args: argparse.Namespace) -> int:
     from datasets_synthetic.render import make_triad_folder
 
     if args.lights < 1:
-        raise ValueError(f"--lights: expected at least 1, got {args.lights}")
+        raise InputError(f"--lights: expected at least 1, got {args.lights}")
     albedo = args.albedo
     if albedo != "texture":
         try:
             albedo = float(albedo)
         except ValueError:
-            raise ValueError(f"--albedo: expected 'texture' or a number, got {args.albedo!r}") from None
+            raise InputError(f"--albedo: expected 'texture' or a number, got {args.albedo!r}") from None
     if args.light_distance is not None:
         return _near_triad(args, albedo)
     given = [name for name in NEAR_ONLY if getattr(args, name) is not None]
     if given or args.camera != "orthographic":
         names = ", ".join("--" + n.replace("_", "-") for n in given) or "--camera perspective"
-        raise ValueError(f"{names}: near-field options; give --light-distance MM too")
+        raise InputError(f"{names}: near-field options; give --light-distance MM too")
     if not isinstance(args.size, int):
-        raise ValueError(f"--size: HxW images need --light-distance (far-field sets are square), got {args.size}")
+        raise InputError(f"--size: HxW images need --light-distance (far-field sets are square), got {args.size}")
     args.pixel_size = 0.05 if args.pixel_size is None else args.pixel_size
     scene = make_triad_folder(
         args.out, scene=args.scene, size=args.size, lights=args.lights, slant=args.slant,
@@ -325,7 +326,7 @@ def _near_triad(args: argparse.Namespace, albedo) -> int:
 
     _check_ring(args)
     if args.specular is not None:
-        raise ValueError("--specular: the near-field renderer is Lambertian; drop --specular or --light-distance")
+        raise InputError("--specular: the near-field renderer is Lambertian; drop --specular or --light-distance")
     cam = _camera_settings(args)
     mu = _floats(args.led_mu, "--led-mu", args.lights)
     intensities = _floats(args.intensities, "--intensities", args.lights)

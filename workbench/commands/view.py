@@ -19,6 +19,7 @@ import numpy as np
 
 from workbench.commands.common import add_command, read_model, write_summary
 from workbench.commands.render import add_picture_options, picture
+from surfaces.validate import InputError
 
 PALETTE = np.array([[0.72, 0.76, 0.82], [0.90, 0.60, 0.35], [0.45, 0.70, 0.45],
                     [0.80, 0.45, 0.55], [0.55, 0.55, 0.85]])
@@ -111,7 +112,7 @@ def run(args: argparse.Namespace) -> int:
             img, summary = picture(args, models[0])
         else:
             if args.net or args.colour != "none":
-                raise ValueError("--net/--colour: render one file at a time to use them")
+                raise InputError("--net/--colour: render one file at a time to use them")
             mesh, colors = _merged(models, args.samples)
             img, summary = picture(args, mesh, colors=colors)
         out = write_png(args.png, img)

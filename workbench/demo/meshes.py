@@ -11,7 +11,7 @@ import numpy as np
 from photometric.integrate import height_to_patches
 from surfaces.bezier import BezierPatches
 from surfaces.mesh import TriangleMesh, tessellate
-from surfaces.validate import as_array, positive
+from surfaces.validate import as_array, InputError, positive
 
 
 def heightfield_mesh(height, pixel_size: float, exaggeration: float = 1.0) -> TriangleMesh:
@@ -50,7 +50,7 @@ def heightfield_mesh(height, pixel_size: float, exaggeration: float = 1.0) -> Tr
     h = positive(pixel_size, "pixel_size")
     scale = positive(exaggeration, "exaggeration")
     if min(z.shape) < 2:
-        raise ValueError(f"height: needs at least 2 x 2 pixels, got {z.shape}")
+        raise InputError(f"height: needs at least 2 x 2 pixels, got {z.shape}")
     dz_drow, dz_dcol = np.gradient(z, h)
     patches = height_to_patches(z, dz_dcol, -dz_drow, pixel_size=h, step=1)
     shown = BezierPatches(patches.control * np.array([1.0, 1.0, scale]))
@@ -84,7 +84,7 @@ def contour_segments(path: str | os.PathLike) -> np.ndarray:
     """
     contours = json.loads(Path(path).read_text())["contours"]
     if not contours:
-        raise ValueError(f"path: {path} holds no contours")
+        raise InputError(f"path: {path} holds no contours")
     segs = []
     for c in contours:
         pts = np.asarray(c["points"], float)

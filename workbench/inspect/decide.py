@@ -32,6 +32,7 @@ import numpy as np
 
 from surfaces.grid import pixel_axes
 from workbench.inspect.spec import IMPERFECTION_LIMITS, Spec
+from surfaces.validate import InputError
 
 __all__ = ["VERDICTS", "Decision", "decide_value", "center_mm", "outline_mm", "inside_polygon", "outline_gap",
            "judge"]
@@ -80,12 +81,12 @@ def decide_value(value: float, U: float | None, limit: float, rule: str, lower: 
     if rule == "simple":
         return "pass" if v <= lim else "fail"
     if rule != "guard_band":
-        raise ValueError(f"decision_rule: expected 'simple' or 'guard_band', got {rule!r}")
+        raise InputError(f"decision_rule: expected 'simple' or 'guard_band', got {rule!r}")
     if U is None:
-        raise ValueError("guard_band: the measured value has no expanded uncertainty U")
+        raise InputError("guard_band: the measured value has no expanded uncertainty U")
     u = float(U)
     if not np.isfinite(u) or u < 0:
-        raise ValueError(f"guard_band: U must be a finite non-negative number, got {U!r}")
+        raise InputError(f"guard_band: U must be a finite non-negative number, got {U!r}")
     if v - u > lim:
         return "fail"
     if v + u < lim or (u == 0.0 and v <= lim):
@@ -251,7 +252,7 @@ def _u(defect: dict, quantity: str) -> float | None:
 
 def _check(quantity, value, U, limit, rule, lower=False, where="") -> dict:
     if rule == "guard_band" and U is None:
-        raise ValueError(f"guard_band: {where}{quantity} has no expanded uncertainty U (measure with "
+        raise InputError(f"guard_band: {where}{quantity} has no expanded uncertainty U (measure with "
                          "uncertainty, or use decision_rule 'simple')")
     return {"quantity": quantity, "value": value, "U": U, "limit": limit, "limit_kind": "min" if lower else "max",
             "rule": rule, "verdict": decide_value(value, U, limit, rule, lower)}

@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from surfaces.io import atomic_write_text, write_json, write_png
+from surfaces.validate import InputError
 
 __all__ = ["LotPart", "lot_plan", "render_lot"]
 
@@ -68,7 +69,7 @@ def lot_plan(n_parts: int = 40, limit_mm: float = 0.10, seed: int = 0) -> list[L
         and 25 % at 1.5-2.2 x (clearly over); defect kinds cycle scratch, crack, dent.
     """
     if int(n_parts) < 4:
-        raise ValueError(f"n_parts: a lot needs at least 4 parts, got {n_parts}")
+        raise InputError(f"n_parts: a lot needs at least 4 parts, got {n_parts}")
     rng = np.random.default_rng(seed)
     n = int(n_parts)
     n_clean, n_under, n_border = round(0.3 * n), round(0.25 * n), round(0.2 * n)

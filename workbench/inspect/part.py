@@ -43,6 +43,7 @@ from surfaces.io import write_json, write_png
 from workbench.inspect.decide import judge
 from workbench.inspect.overlay import overlay_image
 from workbench.inspect.spec import Spec, load_spec
+from surfaces.validate import InputError
 
 __all__ = ["IMAGE_SUFFIXES", "RESULT_FORMAT", "RESERVED_OPTIONS", "DIRECT_OPTIONS", "check_options", "part_images",
            "load_rig", "inspect_part"]
@@ -85,9 +86,9 @@ def check_options(options: dict) -> dict:
     known = set(_inspect.signature(reconstruct).parameters) - set(RESERVED_OPTIONS)
     for key in options:
         if key in RESERVED_OPTIONS:
-            raise ValueError(f"--option {key}: set by the inspection itself (the rig and the part folder)")
+            raise InputError(f"--option {key}: set by the inspection itself (the rig and the part folder)")
         if key not in known:
-            raise ValueError(f"--option {key}: not an option of photometric reconstruct (known: "
+            raise InputError(f"--option {key}: not an option of photometric reconstruct (known: "
                              f"{', '.join(sorted(known))})")
     return options
 
@@ -131,7 +132,7 @@ def part_images(folder, n_lights: int) -> list[Path]:
                        and p.name not in _NOT_IMAGES and not p.name.startswith("flat_"))
     if len(paths) != n_lights:
         what = "missing" if len(paths) < n_lights else "extra"
-        raise ValueError(f"part {root.name}: {len(paths)} image(s) for {n_lights} lights of the rig "
+        raise InputError(f"part {root.name}: {len(paths)} image(s) for {n_lights} lights of the rig "
                          f"({abs(len(paths) - n_lights)} {what}; one image per light, in light order)")
     return paths
 
@@ -225,7 +226,7 @@ def _measure_direct(paths: list, mask_path, rig: Rig, options: dict, threads: in
     check_rig(rig, n_img, shape)
     mask = np.ones(shape, bool) if mask_path is None else read_mask(mask_path, shape)
     if not mask.any():
-        raise ValueError("mask: no pixel is selected")
+        raise InputError("mask: no pixel is selected")
     timings["read"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     names = [Path(p).name for p in paths]
@@ -234,7 +235,7 @@ def _measure_direct(paths: list, mask_path, rig: Rig, options: dict, threads: in
     if not screen.usable.all():
         bad = "; ".join(screen.problems(names))
         if screen.usable.sum() < 3:
-            raise ValueError(f"images: only {int(screen.usable.sum())} of {n_img} images are usable ({bad}); "
+            raise InputError(f"images: only {int(screen.usable.sum())} of {n_img} images are usable ({bad}); "
                              "photometric stereo needs 3")
         notes.append(f"images: {bad}: left out of the solve")
     notes += check_light_matrix(rig.lights.directions, opts["force"])[1]

@@ -29,6 +29,7 @@ from surfaces.io import write_json
 from workbench.batch import FAILED_DIR, RESULTS_NAME, BatchReport, Job, job_id, run_batch
 from workbench.inspect.part import IMAGE_SUFFIXES, check_options, load_rig
 from workbench.inspect.spec import load_spec
+from surfaces.validate import InputError
 
 __all__ = ["KIND", "RUN_FILE", "InspectionRun", "load_parts", "make_jobs", "run_inspect_job", "run_inspection"]
 
@@ -52,9 +53,9 @@ def _manifest_rows(path: Path) -> list[dict]:
                 try:
                     row = json.loads(line)
                 except json.JSONDecodeError as exc:
-                    raise ValueError(f"manifest {path} line {k}: not JSON ({exc})") from None
+                    raise InputError(f"manifest {path} line {k}: not JSON ({exc})") from None
                 if not isinstance(row, dict):
-                    raise ValueError(f"manifest {path} line {k}: expected an object with 'input'")
+                    raise InputError(f"manifest {path} line {k}: expected an object with 'input'")
                 rows.append(row)
         return rows
     lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
@@ -93,26 +94,26 @@ def load_parts(source) -> list[tuple[str, Path]]:
             if _holds_images(folder):
                 parts.append((job_id(folder, src), folder.resolve()))
         if not parts:
-            raise ValueError(f"PARTS: {src} holds no part folder (a sub-folder with one image per light)")
+            raise InputError(f"PARTS: {src} holds no part folder (a sub-folder with one image per light)")
     else:
         for k, row in enumerate(_manifest_rows(src), start=1):
             unknown = sorted(set(row) - {"input", "id"})
             if unknown:
-                raise ValueError(f"manifest {src} row {k}: unknown column(s) {', '.join(unknown)} (known: input, id)")
+                raise InputError(f"manifest {src} row {k}: unknown column(s) {', '.join(unknown)} (known: input, id)")
             if not row.get("input"):
-                raise ValueError(f"manifest {src} row {k}: needs 'input' (a part folder)")
+                raise InputError(f"manifest {src} row {k}: needs 'input' (a part folder)")
             folder = (src.parent / str(row["input"])).resolve()
             pid = str(row["id"]) if row.get("id") else job_id(folder, src.parent)
             parts.append((pid, folder))
         if not parts:
-            raise ValueError(f"manifest {src}: no part")
+            raise InputError(f"manifest {src}: no part")
     ids = [pid for pid, _ in parts]
     dup = sorted({i for i in ids if ids.count(i) > 1})
     if dup:
-        raise ValueError(f"PARTS: repeated part id(s) {', '.join(dup[:5])}")
+        raise InputError(f"PARTS: repeated part id(s) {', '.join(dup[:5])}")
     bad = sorted(set(ids) & _RESERVED)
     if bad:
-        raise ValueError(f"PARTS: part id {bad[0]!r} is a name the run's output folder uses")
+        raise InputError(f"PARTS: part id {bad[0]!r} is a name the run's output folder uses")
     return parts
 
 

@@ -26,6 +26,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from surfaces.validate import InputError
 
 __all__ = ["DECISION_RULES", "IMPERFECTION_LIMITS", "PART_LIMITS", "SPEC_KEYS", "Spec", "load_spec", "parse_spec"]
 
@@ -87,11 +88,11 @@ class Spec:
 def _limit(doc: dict, key: str, where: str) -> float:
     value = doc[key]
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise ValueError(f"{where} {key}: expected a finite number, got {value!r}")
+        raise InputError(f"{where} {key}: expected a finite number, got {value!r}")
     if value < 0:
-        raise ValueError(f"{where} {key}: must not be negative, got {value!r}")
+        raise InputError(f"{where} {key}: must not be negative, got {value!r}")
     if key == "max_count" and value != int(value):
-        raise ValueError(f"{where} {key}: expected a whole number of imperfections, got {value!r}")
+        raise InputError(f"{where} {key}: expected a whole number of imperfections, got {value!r}")
     return int(value) if key == "max_count" else float(value)
 
 
@@ -110,25 +111,25 @@ def _polygon(value, name: str) -> np.ndarray:
     try:
         pts = np.asarray(value, dtype=float)
     except (TypeError, ValueError):
-        raise ValueError(f"{name}: expected a list of [x, y] vertices in mm, got {value!r}") from None
+        raise InputError(f"{name}: expected a list of [x, y] vertices in mm, got {value!r}") from None
     if pts.ndim != 2 or pts.shape[1] != 2:
-        raise ValueError(f"{name}: expected a list of [x, y] vertices in mm, got shape {pts.shape}")
+        raise InputError(f"{name}: expected a list of [x, y] vertices in mm, got shape {pts.shape}")
     if len(pts) >= 2 and np.array_equal(pts[0], pts[-1]):
         pts = pts[:-1]  # a closing repeat of the first vertex
     if len(pts) < 3:
-        raise ValueError(f"{name}: a polygon needs at least 3 vertices, got {len(pts)}")
+        raise InputError(f"{name}: a polygon needs at least 3 vertices, got {len(pts)}")
     if not np.isfinite(pts).all():
-        raise ValueError(f"{name}: vertices must be finite numbers")
+        raise InputError(f"{name}: vertices must be finite numbers")
     nxt = np.roll(pts, -1, axis=0)
     area = 0.5 * float(np.sum(pts[:, 0] * nxt[:, 1] - nxt[:, 0] * pts[:, 1]))
     if abs(area) <= 1e-12 * max(1.0, float(np.ptp(pts)) ** 2):
-        raise ValueError(f"{name}: the polygon has no area (collinear or repeated vertices)")
+        raise InputError(f"{name}: the polygon has no area (collinear or repeated vertices)")
     n = len(pts)
     i, j = np.triu_indices(n, k=2)
     keep = ~((i == 0) & (j == n - 1))  # the first and last edges share a vertex
     i, j = i[keep], j[keep]
     if _segments_cross(pts[i], nxt[i], pts[j], nxt[j]).any():
-        raise ValueError(f"{name}: the polygon crosses itself")
+        raise InputError(f"{name}: the polygon crosses itself")
     return pts
 
 
@@ -159,29 +160,29 @@ def parse_spec(doc, source: str = "spec") -> Spec:
     >>> parse_spec({"max_depth": 0.1})
     Traceback (most recent call last):
     ...
-    ValueError: spec: unknown key 'max_depth' (known: max_depth_mm, max_length_mm, max_width_mm, \
+    surfaces.validate.InputError: spec: unknown key 'max_depth' (known: max_depth_mm, max_length_mm, max_width_mm, \
 max_area_mm2, max_count, max_total_area_mm2, min_distance_mm, roi_mm, exclusion_zones_mm, decision_rule, name)
     """
     if not isinstance(doc, dict):
-        raise ValueError(f"{source}: expected a JSON object of limits, got {type(doc).__name__}")
+        raise InputError(f"{source}: expected a JSON object of limits, got {type(doc).__name__}")
     unknown = [k for k in doc if k not in SPEC_KEYS]
     if unknown:
-        raise ValueError(f"{source}: unknown key {unknown[0]!r} (known: {', '.join(SPEC_KEYS)})")
+        raise InputError(f"{source}: unknown key {unknown[0]!r} (known: {', '.join(SPEC_KEYS)})")
     limits = {k: _limit(doc, k, source) for k in (*IMPERFECTION_LIMITS, *PART_LIMITS) if k in doc}
     if not limits:
-        raise ValueError(f"{source}: no limit given (give at least one of "
+        raise InputError(f"{source}: no limit given (give at least one of "
                          f"{', '.join((*IMPERFECTION_LIMITS, *PART_LIMITS))})")
     rule = doc.get("decision_rule", "simple")
     if rule not in DECISION_RULES:
-        raise ValueError(f"{source} decision_rule: expected one of {', '.join(DECISION_RULES)}, got {rule!r}")
+        raise InputError(f"{source} decision_rule: expected one of {', '.join(DECISION_RULES)}, got {rule!r}")
     roi = _polygon(doc["roi_mm"], f"{source} roi_mm") if doc.get("roi_mm") is not None else None
     zones = doc.get("exclusion_zones_mm") or []
     if not isinstance(zones, list):
-        raise ValueError(f"{source} exclusion_zones_mm: expected a list of polygons, got {zones!r}")
+        raise InputError(f"{source} exclusion_zones_mm: expected a list of polygons, got {zones!r}")
     exclusions = tuple(_polygon(z, f"{source} exclusion_zones_mm[{k}]") for k, z in enumerate(zones))
     name = doc.get("name", "")
     if not isinstance(name, str):
-        raise ValueError(f"{source} name: expected text, got {name!r}")
+        raise InputError(f"{source} name: expected text, got {name!r}")
     return Spec(limits, roi, exclusions, rule, name)
 
 
@@ -209,5 +210,5 @@ def load_spec(path) -> Spec:
     try:
         doc = json.loads(p.read_text())
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise ValueError(f"spec {p}: not valid JSON ({exc})") from None
+        raise InputError(f"spec {p}: not valid JSON ({exc})") from None
     return parse_spec(doc, f"spec {p.name}")

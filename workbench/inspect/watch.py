@@ -20,6 +20,7 @@ from workbench.batch import connect, plan
 from workbench.inspect.part import IMAGE_SUFFIXES, check_options, load_rig
 from workbench.inspect.run import InspectionRun, load_parts, make_jobs, run_inspection
 from workbench.inspect.spec import load_spec
+from surfaces.validate import InputError
 
 __all__ = ["folder_signature", "ready_parts", "watch"]
 
@@ -121,7 +122,7 @@ def watch(inbox, rig, spec, out, *, keep_arrays: bool = False, options: dict | N
     if not src.is_dir():
         raise NotADirectoryError(f"INBOX: {src} is not a folder")
     if interval <= 0 or settle < 0 or (timeout is not None and timeout < 0):
-        raise ValueError("--interval must be positive, --settle and --timeout not negative")
+        raise InputError("--interval must be positive, --settle and --timeout not negative")
     load_spec(spec)
     n_lights = len(load_rig(rig).lights)
     opts = check_options(dict(options or {}))

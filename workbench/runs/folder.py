@@ -34,6 +34,7 @@ from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from datetime import UTC, datetime
 from pathlib import Path
+from surfaces.validate import InputError
 
 __all__ = ["COMPLETE_MARKER", "FolderBusy", "check_out_folder", "hold_lock", "is_complete", "result_folder"]
 
@@ -77,7 +78,7 @@ def check_out_folder(out: str | os.PathLike, name: str = "out_dir", owned: Itera
     if out.is_dir() and owned is not None and not (out / COMPLETE_MARKER).exists():
         foreign = sorted(p.name for p in out.iterdir() if p.name not in set(owned) | {COMPLETE_MARKER})
         if foreign:
-            raise ValueError(
+            raise InputError(
                 f"{name}: {out} holds files that are not a result of this command ({', '.join(foreign[:3])}"
                 f"{', ...' if len(foreign) > 3 else ''}); give a new or empty folder")
     return out

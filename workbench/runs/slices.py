@@ -22,7 +22,7 @@ import numpy as np
 
 from slices.pipeline import SlicesReconstruction, reconstruct
 from surfaces.io import atomic_path, jsonable, write_json, write_mesh, write_png
-from surfaces.validate import positive
+from surfaces.validate import InputError, positive
 from workbench.runs.folder import result_folder
 
 #: The options :func:`reconstruct_to_folder` accepts (command-line and manifest names).
@@ -61,9 +61,9 @@ def start_angle(value) -> float | None:
     try:
         deg = float(value)
     except (TypeError, ValueError):
-        raise ValueError(f"ray_start: must be an angle in degrees or 'auto', got {value!r}") from None
+        raise InputError(f"ray_start: must be an angle in degrees or 'auto', got {value!r}") from None
     if not np.isfinite(deg):
-        raise ValueError(f"ray_start: must be finite, got {value!r}")
+        raise InputError(f"ray_start: must be finite, got {value!r}")
     return float(np.radians(deg))
 
 
@@ -138,13 +138,13 @@ def export_mask(result: SlicesReconstruction, path, spacing=None) -> dict:
 
     path = Path(path)
     if not (path.name.endswith(".nii") or path.name.endswith(".nii.gz")):
-        raise ValueError(f"--export-mask: must end in .nii or .nii.gz, got {str(path)!r}")
+        raise InputError(f"--export-mask: must end in .nii or .nii.gz, got {str(path)!r}")
     if spacing is None:
         sp = (1.0, 1.0, float(result.reconstruction.spacing))
     else:
         parts = str(spacing).split(",") if isinstance(spacing, str) else list(spacing)
         if len(parts) != 3:
-            raise ValueError(f"--mask-spacing: expected x,y,z in mm, got {spacing!r}")
+            raise InputError(f"--mask-spacing: expected x,y,z in mm, got {spacing!r}")
         sp = tuple(positive(v, "--mask-spacing") for v in parts)
     mask, affine = occupancy(result.mesh, sp, margin=max(sp))
     with atomic_path(path, suffix=".nii.gz" if path.name.endswith(".gz") else ".nii") as tmp:
@@ -270,11 +270,11 @@ def reconstruct_to_folder(input_path, out_dir, *, roi=None, progress=None, atomi
     """
     unknown = set(options) - OPTIONS
     if unknown:
-        raise ValueError(f"options: unknown {sorted(unknown)}")
+        raise InputError(f"options: unknown {sorted(unknown)}")
     render = bool(options.pop("render", True))
     mask_path, mask_spacing = options.pop("export_mask", None), options.pop("mask_spacing", None)
     if mask_path is not None and not (str(mask_path).endswith(".nii") or str(mask_path).endswith(".nii.gz")):
-        raise ValueError(f"--export-mask: must end in .nii or .nii.gz, got {str(mask_path)!r}")
+        raise InputError(f"--export-mask: must end in .nii or .nii.gz, got {str(mask_path)!r}")
 
     def run():
         result = reconstruct(input_path, roi=roi, progress=progress, **library_options(options))

@@ -17,7 +17,7 @@ from photometric.errors import exact_error, first_order_error, lit_normals
 from photometric.integrate import integrate
 from photometric.lights import deviate_lights, validate_lights
 from photometric.stereo import solve
-from surfaces.validate import as_array, positive
+from surfaces.validate import as_array, InputError, positive
 
 __all__ = ["crack_study", "plane_depth"]
 
@@ -49,7 +49,7 @@ def plane_depth(height, defect_mask) -> float:
     m = as_array(defect_mask, "defect_mask", shape=h.shape, dtype=bool)
     sound = ~m
     if not m.any() or sound.sum() < 3:
-        raise ValueError("defect_mask: needs a defect pixel and at least 3 sound pixels")
+        raise InputError("defect_mask: needs a defect pixel and at least 3 sound pixels")
     rows, cols = np.indices(h.shape)
     A = np.stack([cols[sound], rows[sound], np.ones(int(sound.sum()))], axis=1).astype(float)
     coef, *_ = np.linalg.lstsq(A, h[sound], rcond=None)
@@ -109,12 +109,12 @@ def crack_study(
     L = validate_lights(lights)
     dev = as_array(deviations_deg, "deviations_deg")
     if dev.ndim != 3 or dev.shape[1:] != (L.shape[0], 2):
-        raise ValueError(f"deviations_deg: expected shape (M, {L.shape[0]}, 2), got {dev.shape}")
+        raise InputError(f"deviations_deg: expected shape (M, {L.shape[0]}, 2), got {dev.shape}")
     ps = positive(pixel_size, "pixel_size")
     hf = make_scene(scene, int(size), ps, int(seed))
     mask = np.asarray(hf.defect_mask, bool)
     if not hf.defects or not mask.any():
-        raise ValueError(f"scene: {scene!r} has no defect to measure")
+        raise InputError(f"scene: {scene!r} has no defect to measure")
     true_lights = deviate_lights(L, dev)
     lit = lit_normals(L, hf.p, hf.q)
     for Lt in true_lights:

@@ -15,7 +15,7 @@ import numpy as np
 
 from photometric import errors as E
 from photometric.lights import condition_number, deviate_lights, light_angles, validate_lights
-from surfaces.validate import as_array, positive
+from surfaces.validate import as_array, InputError, positive
 from workbench.studies.crack import crack_study
 
 __all__ = ["MAP_AXES", "RECOMMEND_TOLERANCES", "RECOMMEND_RANGES", "RANGE_DEVIATIONS", "analyse"]
@@ -103,7 +103,7 @@ def analyse(
     ps = positive(pixel_size, "pixel_size")
     sigma = positive(sigma_deg, "sigma_deg")
     if int(grid) < 5:
-        raise ValueError(f"grid: need at least 5 points, got {grid}")
+        raise InputError(f"grid: need at least 5 points, got {grid}")
     grid = int(grid)
     step = progress or (lambda _label: None)
     N = L.shape[0]

@@ -7,6 +7,7 @@ from pathlib import Path
 from surfaces.io import atomic_write_text, write_json
 from workbench.studies.errors_markdown import markdown
 from workbench.studies.errors_plots import write_plots
+from surfaces.validate import InputError
 
 __all__ = ["write_report"]
 
@@ -28,7 +29,7 @@ def write_report(report: dict, out_dir) -> dict:
         holds every number of ``report`` (not its ``"_arrays"``) and the ``plots`` list.
     """
     if "_arrays" not in report or "inputs" not in report:
-        raise ValueError("report: expected the dict returned by workbench.studies.errors_analysis.analyse")
+        raise InputError("report: expected the dict returned by workbench.studies.errors_analysis.analyse")
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise NotADirectoryError(f"out_dir: {out} is not a folder")

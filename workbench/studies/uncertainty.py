@@ -22,7 +22,7 @@ import numpy as np
 
 from photometric.uncertainty import COVERAGE_FACTOR, FIGURES, SOURCES, Tolerances, format_value
 from surfaces.io import atomic_write_bytes
-from surfaces.validate import positive
+from surfaces.validate import InputError, positive
 
 __all__ = ["FIGURE_LABELS", "TARGET_COVERAGE", "uncertainty_budget", "draw_budget", "coverage_interval",
            "coverage_study"]
@@ -140,7 +140,7 @@ def uncertainty_budget(result_dir, out=None, *, defect: int = 0) -> dict:
     chart = None
     if out is not None:
         if defect not in budgets:
-            raise ValueError(f"defect: no defect with id {defect} (ids {sorted(budgets)})")
+            raise InputError(f"defect: no defect with id {defect} (ids {sorted(budgets)})")
         import matplotlib.pyplot as plt
 
         kind = next(r["kind"] for r in rows if r["id"] == defect)
@@ -235,11 +235,11 @@ def coverage_interval(hits: int, n: int, confidence: float = 0.95) -> tuple[floa
 
     n = int(n)
     if n < 1:
-        raise ValueError(f"n: need at least 1 trial, got {n}")
+        raise InputError(f"n: need at least 1 trial, got {n}")
     if not 0 <= hits <= n:
-        raise ValueError(f"hits: must lie in [0, n = {n}], got {hits}")
+        raise InputError(f"hits: must lie in [0, n = {n}], got {hits}")
     if not 0.0 < confidence < 1.0:
-        raise ValueError(f"confidence: must lie in (0, 1), got {confidence}")
+        raise InputError(f"confidence: must lie in (0, 1), got {confidence}")
     ci = binomtest(int(hits), n).proportion_ci(confidence_level=confidence, method="wilson")
     return float(ci.low), float(ci.high)
 
@@ -317,9 +317,9 @@ def coverage_study(
     """
     n = int(n_trials)
     if n < 1:
-        raise ValueError(f"n_trials: need at least 1 trial, got {n_trials}")
+        raise InputError(f"n_trials: need at least 1 trial, got {n_trials}")
     if rig not in ("far", "near"):
-        raise ValueError(f"rig: expected 'far' or 'near', got {rig!r}")
+        raise InputError(f"rig: expected 'far' or 'near', got {rig!r}")
     for value, name in ((light_tolerance_deg, "light_tolerance_deg"), (noise, "noise"),
                         (light_position_tolerance_mm, "light_position_tolerance_mm")):
         positive(value, name, allow_zero=True)
