@@ -36,8 +36,67 @@ from photometric.lights import PointLights, as_intensities, point_lights
 from photometric.stereo import _check_images, _grey_planes
 from surfaces.validate import as_array, InputError, positive
 
-__all__ = ["RIG_FORMAT", "RIG_VERSION", "GAINS_FILE", "FLAT_SMOOTHING_PX", "Rig", "flat_field_gains",
-           "rig_to_dict", "read_rig", "check_rig"]
+__all__ = ["RIG_FORMAT", "RIG_VERSION", "GAINS_FILE", "FLAT_SMOOTHING_PX", "RIG_KEYS", "Rig", "flat_field_gains",
+           "rig_to_dict", "read_rig", "check_rig", "loads_unique"]
+
+#: the keys rig.json may hold: top level, ``lights``, ``flat_field`` and ``camera``
+RIG_KEYS = {
+    "": ("format", "version", "lights", "camera", "image_size", "flat_field", "calibration"),
+    "lights": ("positions_mm", "axes", "mu", "intensities"),
+    "flat_field": ("gains", "albedo", "smoothing_px"),
+    "camera": ("model", "pixel_size_mm", "focal_length_px", "camera_height_mm", "principal_point_px"),
+}
+
+
+def loads_unique(text: str, where: str):
+    """Parse JSON text, refusing an object that repeats a key (``json`` would keep the last silently).
+
+    Parameters
+    ----------
+    text : str
+        JSON text.
+    where : str
+        What it is, for messages (e.g. ``"rig rig.json"``).
+
+    Returns
+    -------
+    object
+        The parsed document.
+
+    Raises
+    ------
+    InputError
+        Not valid JSON, or a repeated key (named).
+
+    Examples
+    --------
+    >>> loads_unique('{"a": 1, "b": {"c": 2}}', "doc")
+    {'a': 1, 'b': {'c': 2}}
+    >>> loads_unique('{"a": 1, "a": 2}', "spec s.json")
+    Traceback (most recent call last):
+    ...
+    surfaces.validate.InputError: spec s.json: key 'a' is given twice (JSON keeps only the last; remove one)
+    """
+
+    def unique(pairs):
+        seen = set()
+        for key, _ in pairs:
+            if key in seen:
+                raise InputError(f"{where}: key {key!r} is given twice (JSON keeps only the last; remove one)")
+            seen.add(key)
+        return dict(pairs)
+
+    try:
+        return json.loads(text, object_pairs_hook=unique)
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise InputError(f"{where}: not valid JSON ({exc})") from None
+
+
+def _refuse_unknown(doc: dict, section: str, where: str) -> None:
+    unknown = [k for k in doc if k not in RIG_KEYS[section]]
+    if unknown:
+        name = f"{section} " if section else ""
+        raise InputError(f"{where}: unknown {name}key {unknown[0]!r} (known: {', '.join(RIG_KEYS[section])})")
 
 RIG_FORMAT = "workbench-rig"
 RIG_VERSION = 1
@@ -199,9 +258,10 @@ def read_rig(path) -> Rig:
     if not p.is_file():
         raise FileNotFoundError(f"rig: file {p} does not exist")
     try:
-        doc = json.loads(p.read_text())
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        text = p.read_text()
+    except UnicodeDecodeError as exc:
         raise InputError(f"rig: {p} is not valid JSON ({exc})") from None
+    doc = loads_unique(text, f"rig: {p}")
     if not isinstance(doc, dict) or doc.get("format") != RIG_FORMAT:
         found = doc.get("format") if isinstance(doc, dict) else None
         raise InputError(f"rig: {p} is not a {RIG_FORMAT!r} file (its 'format' is {found!r})")
@@ -210,14 +270,18 @@ def read_rig(path) -> Rig:
     for key in ("lights", "camera", "image_size"):
         if key not in doc:
             raise InputError(f"rig: {p} lacks {key!r}")
+    _refuse_unknown(doc, "", f"rig: {p}")
     lights_doc = doc["lights"]
     if not isinstance(lights_doc, dict) or "positions_mm" not in lights_doc:
         raise InputError(f"rig: {p} 'lights' needs 'positions_mm'")
+    _refuse_unknown(lights_doc, "lights", f"rig: {p}")
     lights = point_lights(lights_doc["positions_mm"], lights_doc.get("axes"), lights_doc.get("mu"),
                           name=f"rig lights.positions_mm ({p.name})")
     n = len(lights)
     intens = lights_doc.get("intensities")
     intens = None if intens is None else as_intensities(intens, n, "rig lights.intensities")
+    if isinstance(doc["camera"], dict):
+        _refuse_unknown(doc["camera"], "camera", f"rig: {p}")
     camera = camera_from_dict(doc["camera"], f"rig camera ({p.name})")
     size = as_array(doc["image_size"], "rig image_size", shape=(2,))
     if np.any(size < 1) or np.any(size % 1):
@@ -228,6 +292,7 @@ def read_rig(path) -> Rig:
     if flat is not None:
         if not isinstance(flat, dict) or "gains" not in flat:
             raise InputError(f"rig: {p} 'flat_field' needs 'gains' (a file name) or null")
+        _refuse_unknown(flat, "flat_field", f"rig: {p}")
         gfile = p.parent / str(flat["gains"])
         if not gfile.is_file():
             raise FileNotFoundError(f"rig flat_field.gains: file {gfile} does not exist")

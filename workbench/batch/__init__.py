@@ -36,17 +36,19 @@ input paths and ``OUT`` under the same names (a shared filesystem).
 """
 
 
-from workbench.batch.driver import LOCK_NAME, Plan, connect, dashboard_link, plan, run_batch
-from workbench.batch.jobs import KINDS, Job
+from workbench.batch.driver import LOCK_NAME, Plan, connect, dashboard_link, heal, plan, prepare_out, run_batch
+from workbench.batch.jobs import ID_PATTERN, KINDS, Job, check_job_id, job_folder
 from workbench.batch.manifest import coerce_value, discover_jobs, job_id, load_jobs, read_manifest
 from workbench.batch.results import (
     COMPLETE_MARKER,
     FAILED_DIR,
     FIGURES,
+    NOT_MEASURED,
     RESULT_COLUMNS,
     RESULTS_NAME,
     TMP_PREFIX,
     BatchReport,
+    failed_figures,
     is_complete,
     key_figures,
     one_line_error,
@@ -59,7 +61,9 @@ __all__ = [
     "COMPLETE_MARKER",
     "FAILED_DIR",
     "FIGURES",
+    "ID_PATTERN",
     "KINDS",
+    "NOT_MEASURED",
     "LOCK_NAME",
     "RESULTS_NAME",
     "RESULT_COLUMNS",
@@ -72,13 +76,18 @@ __all__ = [
     "connect",
     "dashboard_link",
     "discover_jobs",
+    "check_job_id",
     "execute_job",
+    "failed_figures",
+    "heal",
     "is_complete",
+    "job_folder",
     "job_id",
     "key_figures",
     "load_jobs",
     "one_line_error",
     "plan",
+    "prepare_out",
     "read_manifest",
     "read_results",
     "run_batch",

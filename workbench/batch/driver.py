@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from surfaces.validate import InputError, positive
-from workbench.batch.jobs import Job
+from workbench.batch.jobs import Job, check_job_id, job_folder
 from workbench.batch.results import (
     FAILED_DIR,
     RESULT_COLUMNS,
@@ -33,7 +33,9 @@ from workbench.batch.results import (
     healed_results,
     is_complete,
     marker_kind,
+    failed_figures,
     one_line_error,
+    read_results,
     record_outcome,
     result_row,
     write_results,
@@ -69,7 +71,8 @@ class Plan:
     retried: tuple[Job, ...] = ()
 
 
-def plan(jobs: Sequence[Job], out: str | os.PathLike, retry_failed: bool = False) -> Plan:
+def plan(jobs: Sequence[Job], out: str | os.PathLike, retry_failed: bool = False,
+         retry: Callable[[Job], bool] | None = None) -> Plan:
     """Split jobs by the state of ``OUT``: to run, complete, failed before, pending.
 
     Parameters
@@ -80,6 +83,9 @@ def plan(jobs: Sequence[Job], out: str | os.PathLike, retry_failed: bool = False
         Batch output folder (may not exist yet).
     retry_failed : bool, optional
         Run only the jobs with a failure record in ``OUT/failed``.
+    retry : callable, optional
+        A plain run (not ``retry_failed``) also runs again the failed jobs for which
+        ``retry(job)`` is true (``workbench inspect``: those whose inputs changed).
 
     Returns
     -------
@@ -87,29 +93,32 @@ def plan(jobs: Sequence[Job], out: str | os.PathLike, retry_failed: bool = False
 
     Raises
     ------
-    ValueError
-        On duplicate ids, or when a complete folder under an id belongs to a job
-        of another kind.
+    InputError
+        On an unsafe id (:func:`workbench.batch.jobs.check_job_id`), duplicate ids, a job folder
+        that is a symbolic link, or when a complete folder under an id belongs to a job of
+        another kind.
     """
     out = Path(out)
-    ids = [job.id for job in jobs]
+    ids = [check_job_id(job.id, f"job {job.id!r}", (FAILED_DIR, RESULTS_NAME)) for job in jobs]
     if len(set(ids)) != len(ids):
         dup = sorted({i for i in ids if ids.count(i) > 1})
         raise InputError(f"jobs: duplicate id(s) {', '.join(dup[:5])}")
-    to_run, complete, failed_before, pending = [], [], [], []
+    to_run, complete, failed_before, pending, retried = [], [], [], [], []
     for job in jobs:
-        folder = out / job.id
+        folder = job_folder(out, job.id)
         if is_complete(folder):
             done_kind = marker_kind(folder)
             if done_kind != job.kind:
                 raise InputError(f"job {job.id}: {folder} holds a finished {done_kind} job, not {job.kind}")
             complete.append(job)
         elif (out / FAILED_DIR / f"{job.id}.json").is_file():
-            (to_run if retry_failed else failed_before).append(job)
+            again = retry_failed or (retry is not None and retry(job))
+            (to_run if again else failed_before).append(job)
+            if again:
+                retried.append(job)
         else:
             (pending if retry_failed else to_run).append(job)
-    retried = tuple(job for job in to_run if retry_failed)
-    return Plan(tuple(to_run), tuple(complete), tuple(failed_before), tuple(pending), retried)
+    return Plan(tuple(to_run), tuple(complete), tuple(failed_before), tuple(pending), tuple(retried))
 
 
 @contextmanager
@@ -216,6 +225,7 @@ def run_batch(
     retry_failed: bool = False,
     runners: Mapping[str, Callable[[Job, Path], dict]] | None = None,
     progress: Callable[[dict[str, Any]], None] | None = None,
+    retry: Callable[[Job], bool] | None = None,
 ) -> BatchReport:
     """Run jobs on Dask, one task per job, and record their results in ``OUT``.
 
@@ -246,6 +256,8 @@ def run_batch(
         :data:`RUNNERS`. Runners must be importable on the workers.
     progress : callable, optional
         Called with each finished job's row (in the driver, as it finishes).
+    retry : callable, optional
+        :func:`plan`'s ``retry``: failed jobs a plain run runs again.
 
     Returns
     -------
@@ -256,15 +268,14 @@ def run_batch(
     ValueError
         On duplicate ids, a kind without runner, another run holding ``OUT``.
     """
-    out = Path(out).resolve()
-    out.mkdir(parents=True, exist_ok=True)
+    out = prepare_out(out)
     runners = dict(runners or RUNNERS)
     missing = sorted({job.kind for job in jobs} - set(runners))
     if missing:
         raise InputError(f"runners: no runner for kind(s) {', '.join(missing)}")
     with _lock(out):
         _remove_stale_tmp(out)
-        steps = plan(jobs, out, retry_failed)
+        steps = plan(jobs, out, retry_failed, retry)
         skipped = len(jobs) - len(steps.to_run)
         previous = healed_results(out, steps.complete, steps.failed_before, rewrite=bool(steps.to_run))
         finished: list[dict[str, Any]] = []
@@ -329,7 +340,7 @@ def _submit_and_gather(
                 try:
                     row = fut.result()
                 except Exception as exc:  # noqa: BLE001 - a lost task is a failed job, not a failed batch
-                    row = result_row(job, "failed", f"task: {one_line_error(exc)}", 0.0, {})
+                    row = result_row(job, "failed", f"task: {one_line_error(exc)}", 0.0, failed_figures(job))
                     row["traceback"] = "".join(traceback.format_exception(exc))
                 record_outcome(out, job, row)
                 writer.writerow(row)
@@ -349,10 +360,76 @@ def _submit_and_gather(
     return time.perf_counter() - start
 
 
+def prepare_out(out: str | os.PathLike) -> Path:
+    """Create the batch output folder and check that its bookkeeping stays inside it.
+
+    Parameters
+    ----------
+    out : path
+        Batch output folder (created with its parents when missing).
+
+    Returns
+    -------
+    Path
+        The folder, absolute.
+
+    Raises
+    ------
+    InputError
+        ``out`` is an existing file, cannot be created (read-only, no permission), or its
+        ``results.csv`` or ``failed`` is a symbolic link (nothing is written through a link).
+    """
+    out = Path(out).resolve()
+    if out.exists() and not out.is_dir():
+        raise InputError(f"--out: {out} exists and is not a folder")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"--out: cannot create {out} ({exc.strerror or one_line_error(exc)})") from None
+    if not os.access(out, os.W_OK | os.X_OK):
+        raise InputError(f"--out: {out} is not writable")
+    for name in (RESULTS_NAME, FAILED_DIR):
+        if (out / name).is_symlink():
+            raise InputError(f"--out: {out / name} is a symbolic link; the batch writes only inside {out} "
+                             "(remove the link)")
+    return out
+
+
+def heal(jobs: Sequence[Job], out: str | os.PathLike) -> int:
+    """Give every finished job without a results.csv row its row, without running anything.
+
+    A job folder completed by a task whose driver was killed (its scheduler ran the task
+    to its end) has no row; :func:`run_batch` heals such rows when it runs, and this does
+    the same when there is nothing to run (a restarted ``workbench inspect watch``).
+
+    Parameters
+    ----------
+    jobs : sequence of Job
+        Jobs with unique, safe ids.
+    out : path
+        Batch output folder; nothing happens when it does not exist.
+
+    Returns
+    -------
+    int
+        Rows added or replaced.
+    """
+    out = Path(out).resolve()
+    if not out.is_dir():
+        return 0
+    with _lock(out):
+        steps = plan(jobs, out)
+        before = read_results(out / RESULTS_NAME)
+        after = healed_results(out, steps.complete, steps.failed_before, rewrite=False)
+    return sum(before.get(k) != row for k, row in after.items())
+
+
 def _remove_stale_tmp(out: Path) -> None:
-    """Remove temporary job folders left by a run that died (we hold the lock)."""
+    """Remove temporary job folders left by a run that died (we hold the lock); a link is unlinked, never followed."""
     for tmp in out.glob(f"{TMP_PREFIX}*"):
-        if tmp.is_dir():
+        if tmp.is_symlink():
+            tmp.unlink(missing_ok=True)
+        elif tmp.is_dir():
             shutil.rmtree(tmp, ignore_errors=True)
 
 

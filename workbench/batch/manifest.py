@@ -18,7 +18,7 @@ from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from workbench.batch.jobs import Job, check_kind
+from workbench.batch.jobs import Job, check_job_id, check_kind
 from workbench.batch.results import COMPLETE_MARKER, FAILED_DIR, RESULTS_NAME
 from workbench.batch.runners import pipeline
 from surfaces.validate import InputError
@@ -28,7 +28,6 @@ _PATH_OPTIONS: dict[str, tuple[str, ...]] = {
     "photometric": ("lights", "intensities", "mask"),
     "slices": (),
 }
-_ID_PATTERN = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._+-]{0,127}$")
 _RESERVED_IDS = frozenset({FAILED_DIR, RESULTS_NAME})
 
 
@@ -398,11 +397,8 @@ def _jobs_from_row(row: dict[str, Any], kind: str, base: Path, where: str) -> li
         for name, value in row.items()
     }
     _check_options(kind, options, where)
-    if given_id is not None and not (_ID_PATTERN.match(str(given_id)) and str(given_id) not in _RESERVED_IDS):
-        raise InputError(
-            f"{where}: id {given_id!r} is not a safe folder name (letters, digits, . _ + -; "
-            f"not {', '.join(sorted(_RESERVED_IDS))})"
-        )
+    if given_id is not None:
+        check_job_id(given_id, where, _RESERVED_IDS)
     jobs = []
     for roi in rois:
         if given_id is None:

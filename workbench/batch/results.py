@@ -29,10 +29,12 @@ FIGURES: dict[str, tuple[str, ...]] = {
     "slices": ("volume_mm3", "volume_ml", "area_mm2", "n_bodies", "n_patches"),
     # parts of ``workbench inspect run`` (workbench.inspect): photometric jobs with a verdict
     "inspect": ("verdict", "n_imperfections", "n_fail", "n_uncertain", "max_depth_mm", "max_depth_U_mm",
-                "total_area_mm2", "invalid_fraction"),
+                "total_area_mm2", "invalid_fraction", "spec_sha256"),
 }
 #: figures whose value is text (every other figure is a number)
-TEXT_FIGURES: tuple[str, ...] = ("verdict",)
+TEXT_FIGURES: tuple[str, ...] = ("verdict", "spec_sha256")
+#: the verdict of an inspected part that could not be measured (its row's status is ``failed``)
+NOT_MEASURED = "not_measured"
 RESULT_COLUMNS: tuple[str, ...] = tuple(dict.fromkeys((
     "id",
     "kind",
@@ -165,6 +167,34 @@ def one_line_error(exc: BaseException, limit: int = 300) -> str:
     message = str(exc).strip().splitlines()
     text = f"{type(exc).__name__}: {message[0]}" if message else type(exc).__name__
     return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def failed_figures(job: Job) -> dict[str, Any]:
+    """The figures a failed job's row still carries: an inspected part's verdict is ``not_measured``.
+
+    Parameters
+    ----------
+    job : Job
+
+    Returns
+    -------
+    dict
+        ``{"verdict": "not_measured", "spec_sha256": ...}`` for a part of ``workbench inspect``
+        (the spec's hash from its options, when given), else empty.
+
+    Examples
+    --------
+    >>> failed_figures(Job("p1", "inspect", "/lot/p1", {"spec_sha256": "ab12"}))
+    {'verdict': 'not_measured', 'spec_sha256': 'ab12'}
+    >>> failed_figures(Job("k1", "slices", "/d/k1.json"))
+    {}
+    """
+    if job.kind != "inspect":
+        return {}
+    figures: dict[str, Any] = {"verdict": NOT_MEASURED}
+    if job.options.get("spec_sha256"):
+        figures["spec_sha256"] = str(job.options["spec_sha256"])
+    return figures
 
 
 def result_row(job: Job, status: str, error: str, time_s: float, figures: Mapping[str, Any]) -> dict[str, Any]:
@@ -328,7 +358,8 @@ def healed_results(
     kept = {k: r for k, r in rows.items() if r["status"] in ("ok", "failed") and r["kind"] in FIGURES}
     changed = len(kept) != len(rows)
     for job in complete:
-        if job.id not in kept:
+        # a finished folder wins over a failed row (a twin task of a killed driver failed beside it)
+        if job.id not in kept or kept[job.id]["status"] != "ok":
             try:
                 marker = json.loads((out / job.id / COMPLETE_MARKER).read_text())["row"]
             except (ValueError, KeyError, OSError):
@@ -342,7 +373,7 @@ def healed_results(
             except (ValueError, OSError):
                 continue
             kept[job.id] = result_row(
-                job, "failed", str(record.get("error", "")), float(record.get("time_s", 0.0)), {}
+                job, "failed", str(record.get("error", "")), float(record.get("time_s", 0.0)), failed_figures(job)
             )
             changed = True
     if changed or rewrite or not results.is_file():

@@ -21,8 +21,18 @@ from pathlib import Path
 from typing import Any
 
 from surfaces.io import write_json
-from workbench.batch.jobs import Job, check_kind
-from workbench.batch.results import COMPLETE_MARKER, TMP_PREFIX, key_figures, now_utc, one_line_error, result_row
+from workbench.batch.jobs import Job, check_kind, job_folder
+from surfaces.validate import InputError
+from workbench.batch.results import (
+    COMPLETE_MARKER,
+    TMP_PREFIX,
+    failed_figures,
+    is_complete,
+    key_figures,
+    now_utc,
+    one_line_error,
+    result_row,
+)
 
 
 def pipeline(kind: str) -> Callable[..., dict]:
@@ -128,8 +138,14 @@ def execute_job(job: Job, out: str | os.PathLike, runner: Callable[[Job, Path], 
     """
     out = Path(out)
     runner = runner or RUNNERS[job.kind]
-    tmp = out / f"{TMP_PREFIX}{job.id}-{uuid.uuid4().hex[:12]}"
     start = time.perf_counter()
+    try:  # the id is checked before any path is built from it: nothing is created or removed outside OUT
+        final = job_folder(out, job.id)
+    except InputError as exc:
+        row = result_row(job, "failed", one_line_error(exc), 0.0, failed_figures(job))
+        row["traceback"] = ""
+        return row
+    tmp = out / f"{TMP_PREFIX}{job.id}-{uuid.uuid4().hex[:12]}"
     try:
         tmp.mkdir(parents=True)
         summary = runner(job, tmp)
@@ -146,13 +162,22 @@ def execute_job(job: Job, out: str | os.PathLike, runner: Callable[[Job, Path], 
             "finished_utc": now_utc(),
         }
         write_json(tmp / COMPLETE_MARKER, marker)
-        final = out / job.id
-        if final.exists():  # an incomplete leftover under this id: replace it
-            shutil.rmtree(final)
-        os.replace(tmp, final)
+        if is_complete(final):
+            # another task finished this job meanwhile (a watch killed and restarted while its scheduler
+            # kept running the first task): keep that result, drop this copy
+            shutil.rmtree(tmp, ignore_errors=True)
+        else:
+            if final.exists():  # an incomplete leftover under this id: replace it
+                shutil.rmtree(final)
+            try:
+                os.replace(tmp, final)
+            except OSError:
+                if not is_complete(final):  # not a twin task that won the race
+                    raise
+                shutil.rmtree(tmp, ignore_errors=True)
     except Exception as exc:  # noqa: BLE001 - any job error is recorded, and the batch goes on
         shutil.rmtree(tmp, ignore_errors=True)
-        row = result_row(job, "failed", one_line_error(exc), time.perf_counter() - start, {})
+        row = result_row(job, "failed", one_line_error(exc), time.perf_counter() - start, failed_figures(job))
         row["traceback"] = traceback.format_exc()
         return row
     row["traceback"] = ""

@@ -17,6 +17,7 @@ manifest) and an optional ``id``.
 from __future__ import annotations
 
 import csv
+import hashlib
 import io
 import json
 import os
@@ -26,12 +27,13 @@ from pathlib import Path
 from typing import Any
 
 from surfaces.io import write_json
-from workbench.batch import FAILED_DIR, RESULTS_NAME, BatchReport, Job, job_id, run_batch
-from workbench.inspect.part import IMAGE_SUFFIXES, check_options, load_rig
-from workbench.inspect.spec import load_spec
 from surfaces.validate import InputError
+from workbench.batch import FAILED_DIR, NOT_MEASURED, RESULTS_NAME, BatchReport, Job, check_job_id, job_id, prepare_out, run_batch
+from workbench.inspect.part import IMAGE_SUFFIXES, check_options, load_rig
+from workbench.inspect.spec import Spec, check_spec_field, load_spec, parse_spec
 
-__all__ = ["KIND", "RUN_FILE", "InspectionRun", "load_parts", "make_jobs", "run_inspect_job", "run_inspection"]
+__all__ = ["KIND", "RUN_FILE", "InspectionRun", "input_signature", "load_parts", "make_jobs", "retry_changed",
+           "run_inspect_job", "run_inspection", "scan_parts"]
 
 #: the batch job kind of one part
 KIND = "inspect"
@@ -42,6 +44,81 @@ _RESERVED = {FAILED_DIR, RESULTS_NAME, "figures", "report.html", RUN_FILE}
 
 def _holds_images(folder: Path) -> bool:
     return any(p.suffix.lower() in IMAGE_SUFFIXES for p in folder.iterdir() if p.is_file())
+
+
+def input_signature(folder) -> str:
+    """A part's inputs in one word: sha256 of its image files' names, sizes and modification times.
+
+    ``filenames.txt`` counts too. A failed part whose signature changed since it failed (an
+    image re-captured, a missing one arrived) is measured again (:func:`retry_changed`).
+
+    Parameters
+    ----------
+    folder : str or Path
+        A part folder.
+
+    Returns
+    -------
+    str
+        64 hex digits; that of an empty signature when the folder cannot be listed.
+    """
+    entries = []
+    try:
+        for p in sorted(Path(folder).iterdir()):
+            if p.is_file() and (p.suffix.lower() in IMAGE_SUFFIXES or p.name == "filenames.txt"):
+                st = p.stat()
+                entries.append([p.name, st.st_size, st.st_mtime_ns])
+    except OSError:
+        entries = []
+    return hashlib.sha256(json.dumps(entries).encode()).hexdigest()
+
+
+def scan_parts(inbox) -> tuple[list[tuple[str, Path]], list[tuple[str, str]]]:
+    """The part folders of an inbox, and the folders that cannot be parts with the reason.
+
+    Like :func:`load_parts` on a folder, but one bad folder never stops the others: a folder
+    that cannot be listed, whose id is a name the output folder uses (``failed``, ...), or
+    whose id collides with another's (``a b`` and ``a_b`` both give ``a_b``) is left out and
+    reported.
+
+    Parameters
+    ----------
+    inbox : str or Path
+
+    Returns
+    -------
+    parts : list of (str, Path)
+        Good parts, sorted by folder name.
+    skipped : list of (str, str)
+        ``(folder name, reason)`` of every folder left out.
+    """
+    src = Path(inbox)
+    found: dict[str, list[Path]] = {}
+    skipped: list[tuple[str, str]] = []
+    try:
+        folders = sorted(p for p in src.iterdir() if p.is_dir() and not p.name.startswith("."))
+    except OSError as exc:
+        return [], [(src.name, f"cannot list the inbox ({exc.strerror or exc})")]
+    for folder in folders:
+        try:
+            if not _holds_images(folder):
+                continue
+        except OSError as exc:
+            skipped.append((folder.name, f"cannot be read ({exc.strerror or exc})"))
+            continue
+        pid = job_id(folder, src)
+        if pid in _RESERVED:
+            skipped.append((folder.name, f"its id {pid!r} is a name the output folder uses; rename the folder"))
+            continue
+        found.setdefault(pid, []).append(folder)
+    parts = []
+    for pid, folders_of in found.items():
+        if len(folders_of) > 1:
+            names = " and ".join(repr(f.name) for f in folders_of)
+            skipped += [(f.name, f"its id {pid!r} is also that of {names}; rename one") for f in folders_of]
+        else:
+            parts.append((pid, folders_of[0].resolve()))
+    return sorted(parts, key=lambda item: item[1].name), skipped
 
 
 def _manifest_rows(path: Path) -> list[dict]:
@@ -81,9 +158,10 @@ def load_parts(source) -> list[tuple[str, Path]]:
     ------
     FileNotFoundError
         ``source`` does not exist.
-    ValueError
-        No part found, a manifest row without ``input`` or with unknown columns, or
-        repeated ids.
+    InputError
+        No part found, a manifest row without ``input`` or with unknown columns, an unsafe
+        ``id`` (:func:`workbench.batch.check_job_id`: ``..``, ``.``, absolute, with a separator),
+        or repeated ids.
     """
     src = Path(source)
     if not src.exists():
@@ -103,7 +181,8 @@ def load_parts(source) -> list[tuple[str, Path]]:
             if not row.get("input"):
                 raise InputError(f"manifest {src} row {k}: needs 'input' (a part folder)")
             folder = (src.parent / str(row["input"])).resolve()
-            pid = str(row["id"]) if row.get("id") else job_id(folder, src.parent)
+            pid = (check_job_id(row["id"], f"manifest {src} row {k}", _RESERVED) if row.get("id")
+                   else job_id(folder, src.parent))
             parts.append((pid, folder))
         if not parts:
             raise InputError(f"manifest {src}: no part")
@@ -117,15 +196,25 @@ def load_parts(source) -> list[tuple[str, Path]]:
     return parts
 
 
+def _frozen(spec) -> Spec:
+    return spec if isinstance(spec, Spec) else load_spec(spec)
+
+
 def make_jobs(parts, rig, spec, *, keep_arrays: bool = False, options: dict | None = None) -> list[Job]:
     """One batch job per part (kind :data:`KIND`); paths absolute, so any worker reads them.
+
+    The spec is frozen into every job: its content (``spec``) and its hash (``spec_sha256``,
+    :attr:`workbench.inspect.spec.Spec.sha256`), so editing spec.json during a run changes
+    no part of it. Each job also carries its part's :func:`input_signature`.
 
     Parameters
     ----------
     parts : list of (str, Path)
         :func:`load_parts`.
-    rig, spec : str or Path
-        ``rig.json`` and ``spec.json``.
+    rig : str or Path
+        ``rig.json``.
+    spec : str, Path or Spec
+        ``spec.json`` (read once here) or a spec read before.
     keep_arrays : bool, optional
     options : dict, optional
         Reconstruction options (:func:`workbench.inspect.part.check_options`).
@@ -134,9 +223,39 @@ def make_jobs(parts, rig, spec, *, keep_arrays: bool = False, options: dict | No
     -------
     list of Job
     """
-    common = {"rig": str(Path(rig).resolve()), "spec": str(Path(spec).resolve()), "keep_arrays": bool(keep_arrays),
-              **(options or {})}
-    return [Job(pid, KIND, str(folder), dict(common)) for pid, folder in parts]
+    frozen = _frozen(spec)
+    common = {"rig": str(Path(rig).resolve()), "spec": frozen.to_dict(), "spec_sha256": frozen.sha256,
+              "keep_arrays": bool(keep_arrays), **(options or {})}
+    return [Job(pid, KIND, str(folder), {**common, "input_signature": input_signature(folder)})
+            for pid, folder in parts]
+
+
+def retry_changed(out) -> Callable[[Job], bool]:
+    """The retry rule of inspection runs: a failed part is measured again when its inputs changed.
+
+    Parameters
+    ----------
+    out : str or Path
+        The run's output folder (its ``failed/<id>.json`` records hold the signature of the
+        inputs that failed).
+
+    Returns
+    -------
+    callable
+        ``retry(job) -> bool``: True when the job's ``input_signature`` differs from the
+        recorded one (a record without one counts as changed only when it is unreadable).
+    """
+    base = Path(out)
+
+    def retry(job: Job) -> bool:
+        try:
+            record = json.loads((base / FAILED_DIR / f"{job.id}.json").read_text())
+            before = (record.get("options") or {}).get("input_signature")
+        except (OSError, ValueError, AttributeError):
+            return True
+        return before is not None and before != job.options.get("input_signature")
+
+    return retry
 
 
 def run_inspect_job(job: Job, out_dir: Path) -> dict:
@@ -167,13 +286,17 @@ def run_inspect_job(job: Job, out_dir: Path) -> dict:
 
     opts = dict(job.options)
     rig, spec = opts.pop("rig"), opts.pop("spec")
+    spec = parse_spec(spec, "spec") if isinstance(spec, dict) else spec  # frozen by make_jobs
+    sha = opts.pop("spec_sha256", None)
+    opts.pop("input_signature", None)
     before = cv2.getNumThreads()
     cv2.setNumThreads(1)
     try:
         with threadpool_limits(limits=1):
-            return inspect_part(job.input, out_dir, rig, spec, part_id=job.id, threads=1, **opts)
+            summary = inspect_part(job.input, out_dir, rig, spec, part_id=job.id, threads=1, **opts)
     finally:
         cv2.setNumThreads(before)
+    return summary if sha is None else {**summary, "spec_sha256": sha}
 
 
 @dataclass(frozen=True)
@@ -211,6 +334,7 @@ def run_inspection(
     workers: int | None = None,
     progress: Callable[[dict], None] | None = None,
     command: str = "workbench inspect run",
+    retry_failed: bool = False,
 ) -> InspectionRun:
     """Inspect many parts: check the spec, rig and options first, then run the parts on Dask.
 
@@ -218,8 +342,12 @@ def run_inspection(
     ----------
     parts : str, Path or list of (str, Path)
         ``PARTS`` (:func:`load_parts`) or its parts.
-    rig, spec : str or Path
-        ``rig.json`` and ``spec.json`` (checked before anything is written).
+    rig : str or Path
+        ``rig.json`` (checked before anything is written).
+    spec : str, Path or Spec
+        ``spec.json``: read once, checked against the rig's field of view
+        (:func:`workbench.inspect.spec.check_spec_field`) before anything is written, and
+        frozen for the whole run (its hash goes into every row and result.json).
     out : str or Path
         Output folder.
     keep_arrays : bool, optional
@@ -234,20 +362,25 @@ def run_inspection(
         Called with each finished part's results.csv row.
     command : str, optional
         The command line, for the report.
+    retry_failed : bool, optional
+        Measure again every part that failed before (else only those whose inputs changed,
+        :func:`retry_changed`).
 
     Returns
     -------
     InspectionRun
     """
-    spec_path = Path(spec)
-    load_spec(spec_path)
-    load_rig(rig)
+    frozen = _frozen(spec)
+    rig_obj = load_rig(rig)
+    check_spec_field(frozen, rig_obj.image_size, rig_obj.camera.nominal_pixel_mm())
     opts = check_options(dict(options or {}))
     found = load_parts(parts) if isinstance(parts, (str, os.PathLike)) else list(parts)
-    jobs = make_jobs(found, rig, spec_path, keep_arrays=keep_arrays, options=opts)
+    jobs = make_jobs(found, rig, frozen, keep_arrays=keep_arrays, options=opts)
+    out = prepare_out(out)
     report = run_batch(jobs, out, client, scheduler=scheduler, workers=workers, runners={KIND: run_inspect_job},
-                       progress=progress)
-    verdicts = {v: sum(row.get("verdict") == v for row in report.rows) for v in ("pass", "fail", "uncertain")}
+                       progress=progress, retry=(lambda job: True) if retry_failed else retry_changed(out))
+    verdicts = {v: sum(row.get("verdict") == v for row in report.rows)
+                for v in ("pass", "fail", "uncertain", NOT_MEASURED)}
     rate = report.ran / report.wall_s if report.wall_s > 0 else 0.0
     from workbench.inspect.report import write_inspection_report
 
@@ -256,7 +389,8 @@ def run_inspection(
         "n_parts": report.n_jobs, "ran": report.ran, "ok": report.ok, "failed": report.failed,
         "skipped": report.skipped, "verdicts": verdicts, "wall_s": round(report.wall_s, 3),
         "parts_per_second": round(rate, 4), "results": RESULTS_NAME, "report": page.name,
-        "rig": str(Path(rig).resolve()), "spec": str(spec_path.resolve()), "keep_arrays": bool(keep_arrays),
+        "rig": str(Path(rig).resolve()), "spec": str(Path(spec).resolve()) if not isinstance(spec, Spec) else None,
+        "spec_sha256": frozen.sha256, "keep_arrays": bool(keep_arrays),
         "options": opts, "scheduler": scheduler if client is None else "client",
     })
     return InspectionRun(report, verdicts, rate, page)

@@ -20,15 +20,20 @@ it, or inside an exclusion zone, are listed but do not decide. ``decision_rule``
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+
+from photometric.rig import loads_unique
+from surfaces.grid import pixel_axes
 from surfaces.validate import InputError
 
-__all__ = ["DECISION_RULES", "IMPERFECTION_LIMITS", "PART_LIMITS", "SPEC_KEYS", "Spec", "load_spec", "parse_spec"]
+__all__ = ["DECISION_RULES", "IMPERFECTION_LIMITS", "PART_LIMITS", "SPEC_KEYS", "Spec", "check_spec_field",
+           "load_spec", "parse_spec"]
 
 #: decision rules a spec may name
 DECISION_RULES = ("simple", "guard_band")
@@ -84,6 +89,16 @@ class Spec:
             out["name"] = self.name
         return out
 
+    @property
+    def sha256(self) -> str:
+        """sha256 (64 hex digits) of the canonical JSON of :meth:`to_dict` (keys sorted, no spaces).
+
+        What ``result.json`` and ``results.csv`` record as ``spec_sha256``: the spec a part was
+        decided against, checkable from the ``spec`` entry of its result.json.
+        """
+        text = json.dumps(self.to_dict(), sort_keys=True, separators=(",", ":"), ensure_ascii=False)
+        return hashlib.sha256(text.encode("utf-8")).hexdigest()
+
 
 def _limit(doc: dict, key: str, where: str) -> float:
     value = doc[key]
@@ -121,15 +136,17 @@ def _polygon(value, name: str) -> np.ndarray:
     if not np.isfinite(pts).all():
         raise InputError(f"{name}: vertices must be finite numbers")
     nxt = np.roll(pts, -1, axis=0)
-    area = 0.5 * float(np.sum(pts[:, 0] * nxt[:, 1] - nxt[:, 0] * pts[:, 1]))
-    if abs(area) <= 1e-12 * max(1.0, float(np.ptp(pts)) ** 2):
-        raise InputError(f"{name}: the polygon has no area (collinear or repeated vertices)")
     n = len(pts)
     i, j = np.triu_indices(n, k=2)
     keep = ~((i == 0) & (j == n - 1))  # the first and last edges share a vertex
     i, j = i[keep], j[keep]
+    # crossing first: a bow-tie's two lobes cancel in the signed area, and "no area" would hide why
     if _segments_cross(pts[i], nxt[i], pts[j], nxt[j]).any():
-        raise InputError(f"{name}: the polygon crosses itself")
+        raise InputError(f"{name}: the polygon is self-intersecting (its edges cross; give the vertices in order "
+                         "around the outline)")
+    area = 0.5 * float(np.sum(pts[:, 0] * nxt[:, 1] - nxt[:, 0] * pts[:, 1]))
+    if abs(area) <= 1e-12 * max(1.0, float(np.ptp(pts)) ** 2):
+        raise InputError(f"{name}: the polygon has no area (collinear or repeated vertices)")
     return pts
 
 
@@ -208,7 +225,76 @@ def load_spec(path) -> Spec:
     if not p.is_file():
         raise FileNotFoundError(f"--spec: file {p} does not exist")
     try:
-        doc = json.loads(p.read_text())
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        text = p.read_text()
+    except UnicodeDecodeError as exc:
         raise InputError(f"spec {p}: not valid JSON ({exc})") from None
-    return parse_spec(doc, f"spec {p.name}")
+    return parse_spec(loads_unique(text, f"spec {p}"), f"spec {p.name}")
+
+
+def _raster(polygon: np.ndarray, x0: float, y0: float, pixel: float, shape) -> np.ndarray:
+    """Pixels of an (H, W) grid whose centres a polygon (mm) covers (OpenCV scan conversion, 1/256 px)."""
+    import cv2
+
+    cols = (polygon[:, 0] - x0) / pixel
+    rows = (y0 - polygon[:, 1]) / pixel
+    pts = np.clip(np.round(np.stack([cols, rows], axis=1) * 256.0), -2**30, 2**30).astype(np.int32)
+    mask = np.zeros(shape, np.uint8)
+    cv2.fillPoly(mask, [pts], 1, lineType=cv2.LINE_8, shift=8)
+    return mask.astype(bool)
+
+
+def check_spec_field(spec: Spec, image_size, pixel_size_mm: float) -> None:
+    """Check the spec's regions against the camera's field of view before any part is measured.
+
+    Parameters
+    ----------
+    spec : Spec
+    image_size : (H, W)
+        The rig's image size, pixels.
+    pixel_size_mm : float
+        Pixel size on the reference plane, mm (the rig camera's nominal pixel).
+
+    Raises
+    ------
+    InputError
+        ``roi_mm`` or an exclusion zone lies wholly outside the field of view (every part would
+        pass, nothing of it being inspected), or the exclusion zones cover the whole inspected
+        region. The message gives the field of view in mm (x right, y up, pixel centres on
+        :data:`surfaces.grid.GRID_CONVENTION`).
+
+    Examples
+    --------
+    >>> check_spec_field(parse_spec({"max_count": 0, "roi_mm": [[-1, -1], [1, -1], [1, 1]]}), (100, 100), 0.1)
+    >>> check_spec_field(parse_spec({"max_count": 0, "roi_mm": [[50, 50], [60, 50], [60, 60]]}), (100, 100), 0.1)
+    Traceback (most recent call last):
+    ...
+    surfaces.validate.InputError: spec roi_mm: lies wholly outside the field of view (x -4.95..4.95 mm, \
+y -4.95..4.95 mm); nothing of a part would be inspected
+    """
+    if spec.roi is None and not spec.exclusions:
+        return
+    shape = (int(image_size[0]), int(image_size[1]))
+    # a coarser grid over the same field for large images: the check needs coverage, not detail
+    step = max(1, -(-max(shape) // 2048))
+    xs, ys = pixel_axes(shape, pixel_size_mm)
+    grid = (-(-shape[0] // step), -(-shape[1] // step))
+    field = (f"x {xs[0]:.4g}..{xs[-1]:.4g} mm, y {ys[-1]:.4g}..{ys[0]:.4g} mm")
+
+    def cover(poly):
+        return _raster(poly, float(xs[0]), float(ys[0]), float(pixel_size_mm) * step, grid)
+
+    inspected = np.ones(grid, bool)
+    if spec.roi is not None:
+        inspected = cover(spec.roi)
+        if not inspected.any():
+            raise InputError(f"spec roi_mm: lies wholly outside the field of view ({field}); nothing of a part "
+                             "would be inspected")
+    for k, zone in enumerate(spec.exclusions):
+        covered = cover(zone)
+        if not covered.any():
+            raise InputError(f"spec exclusion_zones_mm[{k}]: lies wholly outside the field of view ({field})")
+        inspected &= ~covered
+    if not inspected.any():
+        raise InputError(f"spec exclusion_zones_mm: the exclusion zones cover the whole inspected region "
+                         f"({'roi_mm' if spec.roi is not None else 'the field of view'}, {field}); no part could "
+                         "fail")

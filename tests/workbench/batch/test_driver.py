@@ -19,18 +19,18 @@ def _finish(out: Path, job_id: str, kind: str) -> None:
 
 
 def test_plan_splits_jobs_by_the_state_of_out(tmp_path):
-    jobs = [Job(name, "slices", f"/d/{name}") for name in ("done", "failed", "new")]
+    jobs = [Job(name, "slices", f"/d/{name}") for name in ("done", "broken", "new")]
     _finish(tmp_path, "done", "slices")
     (tmp_path / FAILED_DIR).mkdir()
-    (tmp_path / FAILED_DIR / "failed.json").write_text("{}")
+    (tmp_path / FAILED_DIR / "broken.json").write_text("{}")
     steps = plan(jobs, tmp_path)
     assert [[j.id for j in part] for part in (steps.to_run, steps.complete, steps.failed_before, steps.pending)] == [
-        ["new"], ["done"], ["failed"], []]
+        ["new"], ["done"], ["broken"], []]
     retry = plan(jobs, tmp_path, retry_failed=True)
     assert [[j.id for j in part] for part in (retry.to_run, retry.complete, retry.failed_before, retry.pending)] == [
-        ["failed"], ["done"], [], ["new"]]
+        ["broken"], ["done"], [], ["new"]]
     # the jobs that failed before are still counted as such when they are retried
-    assert [j.id for j in retry.retried] == ["failed"] and steps.retried == ()
+    assert [j.id for j in retry.retried] == ["broken"] and steps.retried == ()
     assert plan(jobs, tmp_path / "not yet").to_run == tuple(jobs)
 
 

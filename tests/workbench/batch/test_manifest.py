@@ -9,7 +9,8 @@ from pathlib import Path
 import pytest
 
 from workbench.batch import Job, coerce_value, discover_jobs, job_id, load_jobs, read_manifest
-from workbench.batch.manifest import _ID_PATTERN, _unique_ids
+from workbench.batch.jobs import ID_PATTERN as _ID_PATTERN
+from workbench.batch.manifest import _unique_ids
 from workbench.batch.results import COMPLETE_MARKER
 
 # --------------------------------------------------------------------------- manifests

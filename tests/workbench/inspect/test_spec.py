@@ -43,7 +43,7 @@ def test_default_rule_is_simple_and_zero_limits_are_allowed():
     ({"decision_rule": "simple"}, "no limit given"),
     ({"max_depth_mm": 0.1, "roi_mm": [[0, 0], [1, 1]]}, "roi_mm: a polygon needs at least 3 vertices"),
     ({"max_depth_mm": 0.1, "roi_mm": [[0, 0], [1, 1], [2, 2]]}, "roi_mm: the polygon has no area"),
-    ({"max_depth_mm": 0.1, "roi_mm": [[0, 0], [2, 2], [2, 0], [0, 1]]}, "roi_mm: the polygon crosses itself"),
+    ({"max_depth_mm": 0.1, "roi_mm": [[0, 0], [2, 2], [2, 0], [0, 1]]}, "roi_mm: the polygon is self-intersecting"),
     ({"max_depth_mm": 0.1, "roi_mm": [[0, 0], [1, "a"], [1, 1]]}, "roi_mm: expected a list of [x, y]"),
     ({"max_depth_mm": 0.1, "roi_mm": [0, 1, 2]}, "roi_mm: expected a list of [x, y]"),
     ({"max_depth_mm": 0.1, "roi_mm": [[0, 0], [1, np.inf], [1, 1]]}, "roi_mm: vertices must be finite"),
