@@ -302,6 +302,18 @@ def _measure_pipeline(paths: list, mask_path, rig: Rig, options: dict, keep_arra
     return _Measured(res.albedo, res.mask, res.valid, defects, float(s["pixel_size_mm"]), summary, res)
 
 
+def _frames(paths: list, mask_path, rig: Rig):
+    """Check the part's frames (:func:`photometric.frames.read_frames`); raise naming every bad one."""
+    from photometric.frames import read_frames
+    from photometric.io import read_mask
+
+    mask = None if mask_path is None else read_mask(mask_path)
+    frames = read_frames(paths, expected_shape=rig.image_size, mask=mask)
+    if not frames.ok:
+        raise InputError(f"part {Path(paths[0]).parent.name} not measured: {'; '.join(frames.reasons)}")
+    return frames
+
+
 def _summary_figures(decision) -> dict:
     """The part's key figures (the results.csv row of :data:`workbench.batch.FIGURES` ``inspect``)."""
     counted = [r for r in decision.imperfections if r["region"] == "inspected"]
@@ -366,6 +378,7 @@ def inspect_part(folder, out_dir, rig, spec, *, keep_arrays: bool = False, part_
     paths = part_images(root, len(rig_obj.lights))
     mask = root / "mask.png"
     mask = mask if mask.is_file() else None
+    frames = _frames(paths, mask, rig_obj)  # a dark, saturated, wrong-size or mixed-depth frame: not measured
     t0 = time.perf_counter()
     if keep_arrays or set(options) - set(DIRECT_OPTIONS):
         m = _measure_pipeline(paths, mask, rig_obj, options, keep_arrays)
@@ -410,6 +423,8 @@ def inspect_part(folder, out_dir, rig, spec, *, keep_arrays: bool = False, part_
         "part_checks": decision.part_checks,
         **{k: v for k, v in figures.items() if k != "verdict"},
         "spec": spec_obj.to_dict(),
+        "spec_sha256": spec_obj.sha256,
+        "frames": frames.to_dict()["frames"],
         "measurement": {
             "pixel_size_mm": pixel,
             "light_model": s.get("light_model"),

@@ -28,7 +28,17 @@ from typing import Any
 
 from surfaces.io import write_json
 from surfaces.validate import InputError
-from workbench.batch import FAILED_DIR, NOT_MEASURED, RESULTS_NAME, BatchReport, Job, check_job_id, job_id, prepare_out, run_batch
+from workbench.batch import (
+    FAILED_DIR,
+    NOT_MEASURED,
+    RESULTS_NAME,
+    BatchReport,
+    Job,
+    check_job_id,
+    job_id,
+    prepare_out,
+    run_batch,
+)
 from workbench.inspect.part import IMAGE_SUFFIXES, check_options, load_rig
 from workbench.inspect.spec import Spec, check_spec_field, load_spec, parse_spec
 

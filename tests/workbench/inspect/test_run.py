@@ -45,7 +45,9 @@ def test_load_parts_from_a_folder_and_manifests(small_lot, tmp_path):
     ("input,colour\nx,red\n", "unknown column(s) colour"),
     ("id\nA\n", "needs 'input'"),
     ("id,input\nA,p1\nA,p2\n", "repeated part id(s) A"),
-    ("id,input\nresults.csv,p1\n", "a name the run's output folder uses"),
+    ("id,input\nresults.csv,p1\n", "id 'results.csv' is not a safe folder name"),
+    ("id,input\n..,p1\n", "id '..' is not a safe folder name"),
+    ("id,input\n/tmp/x,p1\n", "id '/tmp/x' is not a safe folder name"),
     ("input\n", "no part"),
 ])
 def test_manifest_errors(tmp_path, text, message):
@@ -82,7 +84,8 @@ def test_run_records_a_bad_part_and_resumes(small_lot, tmp_path, client):
     assert not (out / "zz_missing_image").exists() and (out / "failed" / "zz_missing_image.json").is_file()
     for pid in ("clean", "scratch_over", "dent_under", "crack_limit"):
         assert {"result.json", "overlay.png", "_COMPLETE"} <= {p.name for p in (out / pid).iterdir()}
-    assert run.verdicts["fail"] >= 1 and sum(run.verdicts.values()) == 4 and run.parts_per_second > 0
+    assert run.verdicts["fail"] >= 1 and run.parts_per_second > 0
+    assert sum(run.verdicts[v] for v in ("pass", "fail", "uncertain")) == 4 and run.verdicts["not_measured"] == 1
     figures = json.loads((out / "inspect_run.json").read_text())
     assert (figures["ran"], figures["failed"], figures["verdicts"]) == (5, 1, run.verdicts)
     page = (out / "report.html").read_text()
@@ -150,7 +153,8 @@ def test_inspect_figures_in_the_batch_rows():
     from workbench.batch import FIGURES, RESULT_COLUMNS, key_figures
 
     summary = {"verdict": "uncertain", "n_imperfections": 2, "n_fail": 0, "n_uncertain": 1, "max_depth_mm": 0.1,
-               "max_depth_U_mm": 0.01, "total_area_mm2": 3.5, "invalid_fraction": 0.0, "timings_s": {"total": 1.0}}
+               "max_depth_U_mm": 0.01, "total_area_mm2": 3.5, "invalid_fraction": 0.0, "spec_sha256": "ab" * 32,
+               "timings_s": {"total": 1.0}}
     assert key_figures("inspect", summary) == {k: summary[k] for k in FIGURES["inspect"]}
     assert set(FIGURES["inspect"]) <= set(RESULT_COLUMNS) and len(set(RESULT_COLUMNS)) == len(RESULT_COLUMNS)
     assert RESULT_COLUMNS[:5] == ("id", "kind", "status", "error", "time_s") and RESULT_COLUMNS[-1] == "input"
