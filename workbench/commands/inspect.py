@@ -10,6 +10,7 @@ in ``OUT/inspect_run.json``, ``OUT/results.csv`` and each part's ``result.json``
 from __future__ import annotations
 
 import argparse
+import math
 import shlex
 import sys
 
@@ -19,8 +20,12 @@ from surfaces.validate import InputError
 _RUN_EPILOG = (
     "Per part OUT/<part>/result.json (verdict pass|fail|uncertain, every imperfection with value and U, the rule "
     "that decided) and overlay.png; OUT/results.csv gets one row per part as it finishes, OUT/report.html and "
-    "OUT/inspect_run.json are written at the end. A rerun skips finished parts and parts that failed before; a "
-    "part that cannot be measured is recorded (OUT/failed/<part>.json) and the run goes on (exit code 1). "
+    "OUT/inspect_run.json are written at the end. A rerun skips finished parts and parts that failed before (a "
+    "failed part whose images changed is measured again; --retry-failed measures every failed part again); a "
+    "part that cannot be measured (a dark, saturated, wrong-size or mixed-bit-depth frame, ...) is recorded "
+    "(OUT/failed/<part>.json, verdict not_measured) and the run goes on (exit code 1). The spec is read once "
+    "per run; its sha256 is in every result.json and row (spec_sha256). Part ids: letters, digits, . _ + - "
+    "(a letter or digit first); nothing is written outside OUT. "
     "spec.json keys: max_depth_mm, max_length_mm, max_width_mm, max_area_mm2, max_count, max_total_area_mm2, "
     "min_distance_mm, roi_mm, exclusion_zones_mm, decision_rule (simple | guard_band), name."
 )
@@ -63,6 +68,9 @@ def register(sub) -> None:
     )
     r.add_argument("parts", metavar="PARTS", help="folder of part folders, or a manifest")
     _add_common(r)
+    r.add_argument("--retry-failed", action="store_true",
+                   help="measure again the parts that failed before (a failed part whose images changed since is "
+                   "measured again anyway)")
 
     w = add_command(
         sub, "watch", _watch,
@@ -79,6 +87,9 @@ def register(sub) -> None:
                    help="a part's images must be unchanged this long before it counts (default 2 s)")
     w.add_argument("--timeout", type=float, default=None, metavar="S",
                    help="stop after this many seconds (default: run until interrupted)")
+    w.add_argument("--retry-failed", action="store_true",
+                   help="measure again, once, the parts that failed before this watch (a failed part whose images "
+                   "change is measured again anyway)")
 
 
 def _add_common(p: argparse.ArgumentParser) -> None:
@@ -119,6 +130,13 @@ def _options(args: argparse.Namespace) -> dict:
             raise InputError(f"--option: expected KEY=VALUE, got {item!r}")
         options[key.strip()] = coerce_value(value.strip())
     tolerances = {k: getattr(args, k) for k in _TOLERANCES if getattr(args, k) is not None}
+    for key, value in tolerances.items():
+        flag = "--" + key.replace("_", "-")
+        if key == "mc_samples":
+            if value < 2:
+                raise InputError(f"{flag}: need at least 2 Monte Carlo samples, got {value}")
+        elif not math.isfinite(value) or value < 0:
+            raise InputError(f"{flag}: must be a finite non-negative standard uncertainty, got {value}")
     wanted = args.uncertainty is not None or tolerances or load_spec(args.spec).decision_rule == "guard_band"
     if wanted:
         if "uncertainty" in options:
@@ -164,27 +182,40 @@ def _run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from workbench.batch import plan
-    from workbench.inspect.part import check_options, load_rig
-    from workbench.inspect.run import load_parts, make_jobs, run_inspection
+    from workbench.inspect.part import load_rig
+    from workbench.inspect.run import check_run_options, load_parts, make_jobs, retry_rule, run_inspection
+    from workbench.inspect.spec import check_spec_field, load_spec
 
-    options = check_options(_options(args))
-    load_rig(args.rig)
+    # every input and option is checked before any part runs or anything is written
+    rig = load_rig(args.rig)
+    spec = load_spec(args.spec)
+    check_spec_field(spec, rig.image_size, rig.camera.nominal_pixel_mm())
+    options = check_run_options(_options(args), rig)
     parts = load_parts(args.parts)
-    steps = plan(make_jobs(parts, args.rig, args.spec), Path(args.out).resolve())
-    print(f"{len(parts)} part(s): {len(steps.to_run)} to inspect, {len(steps.complete)} finished before "
-          f"(skipped), {len(steps.failed_before)} failed before (skipped)")
+    out = Path(args.out).resolve()
+    if out.exists() and not out.is_dir():
+        raise InputError(f"--out: {out} exists and is not a folder")
+    steps = plan(make_jobs(parts, args.rig, spec), out, retry=retry_rule(args.retry_failed, out))
+    again = f" ({len(steps.retried)} of them failed before: measured again)" if steps.retried else ""
+    print(f"{len(parts)} part(s): {len(steps.to_run)} to inspect{again}, {len(steps.complete)} finished before "
+          f"(skipped), {len(steps.failed_before)} failed before (skipped"
+          + ("; --retry-failed measures them again)" if steps.failed_before else ")"))
     bar, progress = _progress_bar(len(steps.to_run))
     with bar:
         run = run_inspection(parts, args.rig, args.spec, args.out, keep_arrays=args.keep_arrays, options=options,
                              scheduler=args.scheduler, workers=args.workers, progress=progress,
-                             command="workbench " + " ".join(shlex.quote(a) for a in sys.argv[1:]))
+                             command="workbench " + " ".join(shlex.quote(a) for a in sys.argv[1:]),
+                             retry_failed=args.retry_failed)
     _print_run(run, args.out)
     return 1 if run.batch.failed else 0
 
 
 def _watch(args: argparse.Namespace) -> int:
-    from workbench.inspect.watch import watch
+    from workbench.inspect.watch import check_seconds, watch
 
+    check_seconds(args.interval, "--interval", positive=True)
+    check_seconds(args.settle, "--settle")
+    check_seconds(args.timeout, "--timeout", optional=True)
     options = _options(args)
     print(f"watching {args.inbox} every {args.interval:g} s (a part counts after {args.settle:g} s unchanged)"
           + (f" for {args.timeout:g} s" if args.timeout is not None else "; Ctrl-C to stop"))
@@ -192,9 +223,14 @@ def _watch(args: argparse.Namespace) -> int:
     def each(run) -> None:
         _print_run(run, args.out)
 
+    def skipped(name: str, reason: str) -> None:
+        print(f"workbench: warning: INBOX folder {name!r} skipped: {reason}", file=sys.stderr)
+
     total = watch(args.inbox, args.rig, args.spec, args.out, keep_arrays=args.keep_arrays, options=options,
                   scheduler=args.scheduler, workers=args.workers, interval=args.interval, settle=args.settle,
-                  timeout=args.timeout, on_run=each,
+                  timeout=args.timeout, on_run=each, retry_failed=args.retry_failed, on_skip=skipped,
                   command="workbench " + " ".join(shlex.quote(a) for a in sys.argv[1:]))
-    print(f"watch ended: {total['ran']} part(s) inspected, {total['failed']} could not be measured")
-    return 1 if total["failed"] else 0
+    healed = f"; {total['healed']} result row(s) restored" if total["healed"] else ""
+    print(f"watch ended: {total['ran']} part(s) inspected, {total['failed']} could not be measured, "
+          f"{len(total['skipped_folders'])} folder(s) skipped{healed}")
+    return 1 if total["failed"] or total["skipped_folders"] else 0

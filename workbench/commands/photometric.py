@@ -307,6 +307,9 @@ def _reconstruct(args: argparse.Namespace) -> int:
         raise InputError("--lights: required with --images (or --light-positions, or --rig)")
     if args.no_flat_field and args.flat_field is not None:
         raise InputError("--no-flat-field: cannot be combined with --flat-field")
+    if args.rig is not None and (args.light_positions is not None or args.lights is not None):
+        given = "--light-positions" if args.light_positions is not None else "--lights"
+        raise InputError(f"--rig: the rig gives the LED positions; drop {given} (or --rig)")
     if args.images is not None and (args.triad or args.select):
         raise InputError("--triad/--select: only apply to a folder input")
     select = "triad" if args.triad else args.select

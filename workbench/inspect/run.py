@@ -20,6 +20,7 @@ import csv
 import hashlib
 import io
 import json
+import math
 import os
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -42,8 +43,8 @@ from workbench.batch import (
 from workbench.inspect.part import IMAGE_SUFFIXES, check_options, load_rig
 from workbench.inspect.spec import Spec, check_spec_field, load_spec, parse_spec
 
-__all__ = ["KIND", "RUN_FILE", "InspectionRun", "input_signature", "load_parts", "make_jobs", "retry_changed",
-           "run_inspect_job", "run_inspection", "scan_parts"]
+__all__ = ["KIND", "MC_PIXEL_SAMPLES_LIMIT", "RUN_FILE", "InspectionRun", "check_run_options", "input_signature",
+           "load_parts", "make_jobs", "retry_changed", "retry_rule", "run_inspect_job", "run_inspection", "scan_parts"]
 
 #: the batch job kind of one part
 KIND = "inspect"
@@ -210,6 +211,57 @@ def _frozen(spec) -> Spec:
     return spec if isinstance(spec, Spec) else load_spec(spec)
 
 
+#: Monte Carlo work a part may ask for: samples x image pixels (1e10 is 200 samples of a 50 MP image,
+#: or about an hour of solves per part on one core); above it a run is refused before any part
+MC_PIXEL_SAMPLES_LIMIT = 1e10
+
+
+def check_run_options(options: dict | None, rig) -> dict:
+    """Check a run's reconstruction options before any part: names, numbers, uncertainty, work size.
+
+    Parameters
+    ----------
+    options : dict or None
+        ``--option`` items and ``uncertainty`` (a dict of
+        :class:`photometric.uncertainty.Tolerances` fields).
+    rig : str, Path or photometric.rig.Rig
+        The rig (its image size sizes the Monte Carlo work).
+
+    Returns
+    -------
+    dict
+        The options, unchanged.
+
+    Raises
+    ------
+    InputError
+        An unknown or reserved option (:func:`workbench.inspect.part.check_options`), a number
+        that is NaN or infinite, a bad tolerance, or Monte Carlo work (``mc_samples`` x image
+        pixels) above :data:`MC_PIXEL_SAMPLES_LIMIT` (the message names the size).
+    """
+    from photometric.uncertainty import Tolerances
+
+    opts = check_options(dict(options or {}))
+    for key, value in opts.items():
+        if isinstance(value, float) and not math.isfinite(value):
+            raise InputError(f"--option {key}: expected a finite number, got {value}")
+    unc = opts.get("uncertainty")
+    if unc is None:
+        return opts
+    for key, value in (unc.items() if isinstance(unc, dict) else ()):
+        if isinstance(value, float) and not math.isfinite(value):
+            raise InputError(f"--{key.replace('_', '-')}: expected a finite number, got {value}")
+    tol = unc if isinstance(unc, Tolerances) else Tolerances(**unc)
+    if tol.method == "montecarlo":
+        h, w = load_rig(rig).image_size
+        work = float(tol.mc_samples) * h * w
+        if work > MC_PIXEL_SAMPLES_LIMIT:
+            raise InputError(f"--mc-samples {tol.mc_samples}: {tol.mc_samples} samples x {h} x {w} px = {work:.3g} "
+                             f"pixel solves per part, above the limit of {MC_PIXEL_SAMPLES_LIMIT:.0e}; give at most "
+                             f"{int(MC_PIXEL_SAMPLES_LIMIT // (h * w))} samples")
+    return opts
+
+
 def make_jobs(parts, rig, spec, *, keep_arrays: bool = False, options: dict | None = None) -> list[Job]:
     """One batch job per part (kind :data:`KIND`); paths absolute, so any worker reads them.
 
@@ -309,6 +361,26 @@ def run_inspect_job(job: Job, out_dir: Path) -> dict:
     return summary if sha is None else {**summary, "spec_sha256": sha}
 
 
+def retry_rule(retry_failed, out) -> Callable[[Job], bool]:
+    """Which failed parts a run measures again.
+
+    Parameters
+    ----------
+    retry_failed : bool or callable
+        True: every one (``--retry-failed``); False: those whose inputs changed
+        (:func:`retry_changed`); a callable ``retry(job) -> bool`` is returned as it is.
+    out : str or Path
+        The run's output folder.
+
+    Returns
+    -------
+    callable
+    """
+    if callable(retry_failed):
+        return retry_failed
+    return (lambda job: True) if retry_failed else retry_changed(out)
+
+
 @dataclass(frozen=True)
 class InspectionRun:
     """Figures of one inspection run (also in ``OUT/inspect_run.json``).
@@ -344,7 +416,7 @@ def run_inspection(
     workers: int | None = None,
     progress: Callable[[dict], None] | None = None,
     command: str = "workbench inspect run",
-    retry_failed: bool = False,
+    retry_failed: bool | Callable[[Job], bool] = False,
 ) -> InspectionRun:
     """Inspect many parts: check the spec, rig and options first, then run the parts on Dask.
 
@@ -372,9 +444,9 @@ def run_inspection(
         Called with each finished part's results.csv row.
     command : str, optional
         The command line, for the report.
-    retry_failed : bool, optional
-        Measure again every part that failed before (else only those whose inputs changed,
-        :func:`retry_changed`).
+    retry_failed : bool or callable, optional
+        True: measure again every part that failed before; a callable ``retry(job) -> bool``
+        picks them; False (default): only those whose inputs changed (:func:`retry_changed`).
 
     Returns
     -------
@@ -383,12 +455,12 @@ def run_inspection(
     frozen = _frozen(spec)
     rig_obj = load_rig(rig)
     check_spec_field(frozen, rig_obj.image_size, rig_obj.camera.nominal_pixel_mm())
-    opts = check_options(dict(options or {}))
+    opts = check_run_options(options, rig_obj)
     found = load_parts(parts) if isinstance(parts, (str, os.PathLike)) else list(parts)
     jobs = make_jobs(found, rig, frozen, keep_arrays=keep_arrays, options=opts)
     out = prepare_out(out)
     report = run_batch(jobs, out, client, scheduler=scheduler, workers=workers, runners={KIND: run_inspect_job},
-                       progress=progress, retry=(lambda job: True) if retry_failed else retry_changed(out))
+                       progress=progress, retry=retry_rule(retry_failed, out))
     verdicts = {v: sum(row.get("verdict") == v for row in report.rows)
                 for v in ("pass", "fail", "uncertain", NOT_MEASURED)}
     rate = report.ran / report.wall_s if report.wall_s > 0 else 0.0
