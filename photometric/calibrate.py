@@ -40,6 +40,10 @@ __all__ = ["SphereImages", "read_sphere_set", "sphere_from_outline", "highlight_
 WINDOW_PX = 4
 #: Smallest centroid uncertainty assumed (pixels): sampling of a highlight a few pixels wide.
 MIN_CENTROID_SIGMA_PX = 0.02
+#: Rays whose rms residual exceeds this many times the one the highlight noise explains do not meet:
+#: a sphere's radius or centre is wrong. Rendered sets with the right geometry give 1.2-1.5 times;
+#: a radius 20 % off 8-17 times, a floating sphere taken to rest on the plane 50 times.
+RESIDUAL_FACTOR = 5.0
 
 
 @dataclass(frozen=True)
@@ -437,6 +441,7 @@ def calibrate_positions(sets, camera: Camera, *, window_px: int = WINDOW_PX) -> 
     P, dist = _positions(sets, camera, shape, rows, cols)
     # linear propagation of every centroid's noise (central differences of the whole construction)
     var = np.zeros((n, 3))
+    var_dist = np.zeros_like(dist)  # the residuals' spread from the same noise: what a right geometry leaves
     eps = 0.05
     for i in range(len(sets)):
         for which in (rows, cols):
@@ -445,15 +450,26 @@ def calibrate_positions(sets, camera: Camera, *, window_px: int = WINDOW_PX) -> 
             minus[i] -= eps
             args_p = (plus, cols) if which is rows else (rows, plus)
             args_m = (minus, cols) if which is rows else (rows, minus)
-            dP = (_positions(sets, camera, shape, *args_p)[0] - _positions(sets, camera, shape, *args_m)[0]) / (2 * eps)
-            var += (dP * sigma[i][:, None]) ** 2
+            (P_p, d_p), (P_m, d_m) = _positions(sets, camera, shape, *args_p), _positions(sets, camera, shape, *args_m)
+            var += ((P_p - P_m) / (2 * eps) * sigma[i][:, None]) ** 2
+            var_dist += ((d_p - d_m) / (2 * eps) * sigma[i][:, None]) ** 2
+    rms, expected = float(np.sqrt(np.mean(dist**2))), float(np.sqrt(np.mean(var_dist)))
+    if rms > RESIDUAL_FACTOR * expected:
+        floating = [s.source for s in sets if s.centre_from == "outline"]
+        raise InputError(
+            f"spheres: the LEDs' reflected rays do not meet: rms residual {rms:.3g} mm, about {expected:.2g} mm "
+            f"expected from the highlight noise; a sphere's radius or centre is wrong (check radius_mm and "
+            f"center_mm in sphere.json"
+            + (f"; {', '.join(floating)} without sphere.json is taken to rest on the reference plane: a sphere "
+               "above it needs sphere.json" if floating else "") + ")")
     info = {
         "method": "mirror spheres: highlight centroid, reflected ray 2(n.v)n - v, least-squares nearest point",
         "sets": [{"source": s.source, "centre_mm": s.centre_mm.tolist(), "radius_mm": s.radius_mm,
                   "centre_from": s.centre_from} for s in sets],
         "highlights_px": np.stack([rows, cols], axis=2).tolist(),
         "residuals_mm": dist.tolist(),
-        "rms_residual_mm": float(np.sqrt(np.mean(dist**2))),
+        "rms_residual_mm": rms,
+        "expected_residual_mm": expected,
         "uncertainty_mm": np.sqrt(var).tolist(),
         "centroid_sigma_px": sigma.tolist(),
     }

@@ -89,7 +89,7 @@ def loads_unique(text: str, where: str):
     try:
         return json.loads(text, object_pairs_hook=unique)
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise InputError(f"{where}: not valid JSON ({exc})") from None
+        raise InputError(f"{where} is not valid JSON ({exc})") from None
 
 
 def _refuse_unknown(doc: dict, section: str, where: str) -> None:
