@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import json
 import re
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -207,12 +208,19 @@ def read_images(paths: Sequence) -> np.ndarray:
     first = _read_raw(Path(paths[0]))
     out = np.empty((len(paths),) + first.shape, np.float32)
     _scaled(first, Path(paths[0]), out[0])
+    dtypes = {first.dtype.str: [Path(paths[0]).name]}
     del first
     for k, path in enumerate(paths[1:], start=1):
         img = _read_raw(Path(path))
         if img.shape != out.shape[1:]:
             raise InputError(f"images: {path} has shape {img.shape}, {paths[0]} has {out.shape[1:]}")
+        dtypes.setdefault(img.dtype.str, []).append(Path(path).name)
         _scaled(img, Path(path), out[k])
+    if len(dtypes) > 1:  # 8-bit and 16-bit frames: not one camera setting (each is scaled by its own full scale)
+        groups = "; ".join(f"{np.dtype(t).name} {', '.join(names[:3])}{' ...' if len(names) > 3 else ''}"
+                           for t, names in dtypes.items())
+        warnings.warn(f"images: mixed bit depths ({groups}); each is scaled to its own full scale", UserWarning,
+                      stacklevel=2)
     return out
 
 
