@@ -165,7 +165,8 @@ def watch(inbox, rig, spec, out, *, keep_arrays: bool = False, options: dict | N
     settle : float
         Seconds a part's images must stay unchanged before it counts (finite, >= 0).
     timeout : float, optional
-        Stop after this many seconds (finite, >= 0; at least one poll happens).
+        Stop after this many seconds of watching (finite, >= 0; counted once the cluster is up; at
+        least one poll happens).
     on_run : callable, optional
         Called with the :class:`~workbench.inspect.run.InspectionRun` of each poll that ran parts.
     progress : callable, optional
@@ -213,6 +214,7 @@ def watch(inbox, rig, spec, out, *, keep_arrays: bool = False, options: dict | N
             totals["healed"] += heal(make_jobs(parts, rig, frozen), out)
 
     def loop(cl) -> None:
+        start = time.monotonic()  # the cluster is up: the timeout counts the watching
         while True:
             totals["polls"] += 1
             problems: dict = {}
@@ -236,7 +238,6 @@ def watch(inbox, rig, spec, out, *, keep_arrays: bool = False, options: dict | N
             time.sleep(interval)
 
     heal_all()  # parts a killed watch's scheduler finished have their folder, not their row
-    start = time.monotonic()
     if client is not None:
         loop(client)
     else:
