@@ -89,17 +89,30 @@ def watch_argv(inbox: Path, rig: Path, spec: Path, out: Path, where: list[str], 
     return argv + (["--timeout", f"{timeout:g}"] if timeout is not None else [])
 
 
-def killed_watch(inbox: Path, rig: Path, spec: Path, out: Path, where: list[str], kills: int, rng: random.Random,
-                 kill_local_tree: bool, window: tuple[float, float]) -> dict:
-    """Start and SIGKILL the watch ``kills`` times at random moments, then run it to the end."""
+def complete(out: Path) -> int:
+    """Part folders with their ``_COMPLETE`` marker."""
+    return sum(1 for _ in out.glob("*/_COMPLETE")) if out.is_dir() else 0
+
+
+def killed_watch(inbox: Path, rig: Path, spec: Path, out: Path, where: list[str], kills: int, n: int,
+                 rng: random.Random, kill_local_tree: bool) -> dict:
+    """Start and SIGKILL the watch ``kills`` times mid-run, then run it to the end.
+
+    Each kill comes at a random moment of the run: once a random number of further parts (at least
+    one, leaving at least one) has a complete folder, plus a random 0-0.5 s.
+    """
     t0 = time.perf_counter()
     moments = []
     for _ in range(kills):
         proc = subprocess.Popen(watch_argv(inbox, rig, spec, out, where, None), env=ENV, stdout=subprocess.DEVNULL,
                                 stderr=subprocess.DEVNULL)
-        wait = rng.uniform(*window)
-        time.sleep(wait)
-        moments.append((round(wait, 2), len(rows_of(out))))
+        done = complete(out)
+        target = rng.randint(min(done + 1, n - 1), n - 1) if done < n - 1 else n
+        started = time.perf_counter()
+        while complete(out) < target and time.perf_counter() - started < 300 and proc.poll() is None:
+            time.sleep(0.02)
+        time.sleep(rng.uniform(0.0, 0.5))
+        moments.append((round(time.perf_counter() - started, 2), complete(out), len(rows_of(out))))
         if kill_local_tree:
             kill_tree(proc)
         else:
@@ -141,7 +154,8 @@ def summary_row(name: str, result: dict, n: int, out: Path, baseline_s: float) -
     complete = sum((out / pid / "_COMPLETE").is_file() for pid in ids)
     not_ok = sum(r["status"] != "ok" for r in rows)
     return [name, n, len(rows), len(ids), complete, not_ok, f"{result['wall_s']:.1f}",
-            f"{result['wall_s'] / baseline_s:.2f}", " ".join(f"{w:g}s/{k}" for w, k in result["moments"])]
+            f"{result['wall_s'] / baseline_s:.2f}", "; ".join(f"{w:g} s: {c} done, {k} rows" for w, c, k in
+                                                             result["moments"])]
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -167,14 +181,14 @@ def main(argv: list[str] | None = None) -> int:
         table_rows = [["inspect run, no kill (baseline)", args.parts, len(base_rows), len({r["id"] for r in base_rows}),
                        sum((tmp / "out_run" / r["id"] / "_COMPLETE").is_file() for r in base_rows),
                        sum(r["status"] != "ok" for r in base_rows), f"{baseline_s:.1f}", "1.00", ""]]
-        local = killed_watch(inbox, rig, spec, tmp / "out_local", ["--workers", "2"], args.kills, rng, True,
-                             (4.0, 20.0))
+        local = killed_watch(inbox, rig, spec, tmp / "out_local", ["--workers", "2"], args.kills, args.parts, rng,
+                             True)
         table_rows.append(summary_row("watch, local cluster, killed", local, args.parts, tmp / "out_local",
                                       baseline_s))
         address, services = start_scheduler(tmp)
         try:
-            remote = killed_watch(inbox, rig, spec, tmp / "out_sched", ["--scheduler", address], args.kills, rng,
-                                  False, (2.0, 12.0))
+            remote = killed_watch(inbox, rig, spec, tmp / "out_sched", ["--scheduler", address], args.kills,
+                                  args.parts, rng, False)
         finally:
             for proc in services:
                 proc.send_signal(signal.SIGINT)
@@ -189,10 +203,11 @@ def main(argv: list[str] | None = None) -> int:
     if base.returncode != 0:
         print(base.stderr, file=sys.stderr)
     table = Table(["run", "parts", "rows", "distinct ids", "complete folders", "rows not ok", "wall (s)",
-                   "wall / baseline", "kills: after s / rows then"], table_rows, "lrrrrrrrl")
+                   "wall / baseline", "each kill: s after start: complete folders, rows then"], table_rows, "lrrrrrrrl")
     text = write_results("watch_kill", "inspect watch under SIGKILL", [
         f"{args.parts} parts ({args.size} x {args.size} px, 4 lights, rendered in {t_render:.0f} s), "
-        f"{args.kills} SIGKILLs of the watch at random moments (seed {args.seed}), a restart after each, then "
+        f"{args.kills} SIGKILLs of the watch at random moments mid-run (once a random number of further parts is "
+        f"complete, plus 0-0.5 s; seed {args.seed}), a restart after each, then "
         "one last watch (--timeout 1); every watch polls every 0.3 s with --settle 0. Expected: rows = distinct "
         "ids = complete folders = parts, no row failed. Wall time includes every start of the CLI and its "
         "cluster; the baseline is one uninterrupted `inspect run --workers 2` in the same run.",

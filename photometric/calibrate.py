@@ -40,10 +40,11 @@ __all__ = ["SphereImages", "read_sphere_set", "sphere_from_outline", "highlight_
 WINDOW_PX = 4
 #: Smallest centroid uncertainty assumed (pixels): sampling of a highlight a few pixels wide.
 MIN_CENTROID_SIGMA_PX = 0.02
-#: Rays whose rms residual exceeds this many times the one the highlight noise explains do not meet:
-#: a sphere's radius or centre is wrong. Rendered sets with the right geometry give 1.2-1.5 times;
-#: a radius 20 % off 8-17 times, a floating sphere taken to rest on the plane 50 times.
-RESIDUAL_FACTOR = 5.0
+#: Rays whose rms residual exceeds this many times the one the highlight noise explains (linear
+#: propagation of the centroid noise to the residuals) do not meet: a sphere's radius or centre is
+#: wrong. Rendered sets (datasets_synthetic.spheres) with the right geometry give 1.1-1.5 times; a
+#: radius 20 % off 2.6-17 times, a floating sphere taken to rest on the plane 50 times.
+RESIDUAL_FACTOR = 3.0
 
 
 @dataclass(frozen=True)
@@ -441,7 +442,7 @@ def calibrate_positions(sets, camera: Camera, *, window_px: int = WINDOW_PX) -> 
     P, dist = _positions(sets, camera, shape, rows, cols)
     # linear propagation of every centroid's noise (central differences of the whole construction)
     var = np.zeros((n, 3))
-    var_dist = np.zeros_like(dist)  # the residuals' spread from the same noise: what a right geometry leaves
+    var_dist = np.zeros_like(dist)  # the residuals' spread from the same noise, by the same differences
     eps = 0.05
     for i in range(len(sets)):
         for which in (rows, cols):

@@ -36,7 +36,17 @@ input paths and ``OUT`` under the same names (a shared filesystem).
 """
 
 
-from workbench.batch.driver import LOCK_NAME, Plan, connect, dashboard_link, heal, plan, prepare_out, run_batch
+from workbench.batch.driver import (
+    LOCK_NAME,
+    Plan,
+    check_out,
+    connect,
+    dashboard_link,
+    heal,
+    plan,
+    prepare_out,
+    run_batch,
+)
 from workbench.batch.jobs import ID_PATTERN, KINDS, Job, check_job_id, job_folder
 from workbench.batch.manifest import coerce_value, discover_jobs, job_id, load_jobs, read_manifest
 from workbench.batch.results import (
@@ -77,6 +87,7 @@ __all__ = [
     "dashboard_link",
     "discover_jobs",
     "check_job_id",
+    "check_out",
     "execute_job",
     "failed_figures",
     "heal",

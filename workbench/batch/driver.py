@@ -379,15 +379,37 @@ def prepare_out(out: str | os.PathLike) -> Path:
         ``out`` is an existing file, cannot be created (read-only, no permission), or its
         ``results.csv`` or ``failed`` is a symbolic link (nothing is written through a link).
     """
-    out = Path(out).resolve()
-    if out.exists() and not out.is_dir():
-        raise InputError(f"--out: {out} exists and is not a folder")
+    out = check_out(out)
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise InputError(f"--out: cannot create {out} ({exc.strerror or one_line_error(exc)})") from None
     if not os.access(out, os.W_OK | os.X_OK):
         raise InputError(f"--out: {out} is not writable")
+    return out
+
+
+def check_out(out: str | os.PathLike) -> Path:
+    """Check a batch output folder without creating anything (:func:`prepare_out` also creates it).
+
+    Parameters
+    ----------
+    out : path
+        Batch output folder (may not exist yet).
+
+    Returns
+    -------
+    Path
+        The folder, absolute.
+
+    Raises
+    ------
+    InputError
+        ``out`` is an existing file, or its ``results.csv`` or ``failed`` is a symbolic link.
+    """
+    out = Path(out).resolve()
+    if out.exists() and not out.is_dir():
+        raise InputError(f"--out: {out} exists and is not a folder")
     for name in (RESULTS_NAME, FAILED_DIR):
         if (out / name).is_symlink():
             raise InputError(f"--out: {out / name} is a symbolic link; the batch writes only inside {out} "

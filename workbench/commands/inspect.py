@@ -179,9 +179,8 @@ def _print_run(run, out) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from pathlib import Path
 
-    from workbench.batch import plan
+    from workbench.batch import plan, prepare_out
     from workbench.inspect.part import load_rig
     from workbench.inspect.run import check_run_options, load_parts, make_jobs, retry_rule, run_inspection
     from workbench.inspect.spec import check_spec_field, load_spec
@@ -192,9 +191,7 @@ def _run(args: argparse.Namespace) -> int:
     check_spec_field(spec, rig.image_size, rig.camera.nominal_pixel_mm())
     options = check_run_options(_options(args), rig)
     parts = load_parts(args.parts)
-    out = Path(args.out).resolve()
-    if out.exists() and not out.is_dir():
-        raise InputError(f"--out: {out} exists and is not a folder")
+    out = prepare_out(args.out)  # created (or refused) before the progress bar: a bad --out is one line
     steps = plan(make_jobs(parts, args.rig, spec), out, retry=retry_rule(args.retry_failed, out))
     again = f" ({len(steps.retried)} of them failed before: measured again)" if steps.retried else ""
     print(f"{len(parts)} part(s): {len(steps.to_run)} to inspect{again}, {len(steps.complete)} finished before "
