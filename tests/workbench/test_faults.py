@@ -561,3 +561,113 @@ def test_sphere_calibration_says_what_is_wrong(sphere_sets, tmp_path, capsys, ca
     if case == "floating":
         assert "sphere_03 without sphere.json is taken to rest on the reference plane" in err
     assert not (tmp_path / "rig.json").exists()
+
+
+def test_a_twin_task_keeps_the_finished_folder(tmp_path):
+    """A watch killed while its scheduler runs a part, restarted: the part may run twice at once; the
+    second to finish keeps the first one's complete folder and reports ok (never a failed row beside it)."""
+    from workbench.batch import Job, execute_job
+
+    out = tmp_path / "out"
+    (out / "p1").mkdir(parents=True)
+    (out / "p1" / "result.json").write_text("first")
+    (out / "p1" / COMPLETE_MARKER).write_text(json.dumps({"row": {"kind": "slices"}}))
+
+    def runner(job, folder):
+        (folder / "result.json").write_text("second")
+        return {"volume_ml": 1.0}
+
+    row = execute_job(Job("p1", "slices", "/d/p1.json"), out, runner=runner)
+    assert row["status"] == "ok" and (out / "p1" / "result.json").read_text() == "first"
+    assert sorted(p.name for p in out.iterdir()) == ["p1"]
+
+
+def _killed_watches(argv: list[str], out: Path, n: int, kills: int, seed: int, tree: bool) -> list[tuple]:
+    """Start `workbench inspect watch` and SIGKILL it mid-run `kills` times (after a random number of further
+    complete parts); what is left of its process tree is killed by pid when `tree`."""
+    import random
+
+    import psutil
+
+    rng = random.Random(seed)
+    env = {**os.environ, "PYTHONPATH": str(REPO)}
+    moments = []
+    for _ in range(kills):
+        proc = subprocess.Popen([sys.executable, "-m", "workbench", *argv], env=env, stdout=subprocess.DEVNULL,
+                                stderr=subprocess.DEVNULL)
+        done = sum(1 for _ in out.glob("*/_COMPLETE"))
+        target = rng.randint(min(done + 1, n - 1), n - 1) if done < n - 1 else n
+        deadline = time.monotonic() + 240
+        while (sum(1 for _ in out.glob("*/_COMPLETE")) < target and time.monotonic() < deadline
+               and proc.poll() is None):
+            time.sleep(0.02)
+        time.sleep(rng.uniform(0.0, 0.3))
+        children = psutil.Process(proc.pid).children(recursive=True) if tree and proc.poll() is None else []
+        proc.send_signal(signal.SIGKILL)
+        proc.wait()
+        for child in children:
+            try:
+                child.kill()
+            except psutil.NoSuchProcess:
+                pass
+        moments.append((target, sum(1 for _ in out.glob("*/_COMPLETE"))))
+    return moments
+
+
+@pytest.fixture()
+def dask_services(tmp_path):
+    """`dask scheduler` and `dask worker` (1 process) on loopback, started by the test, stopped after."""
+    dask = str(Path(sys.executable).with_name("dask"))
+    file = tmp_path / "scheduler.json"
+    env = {**os.environ, "PYTHONPATH": str(REPO)}
+    sched = subprocess.Popen([dask, "scheduler", "--host", "127.0.0.1", "--port", "0", "--dashboard-address", ":0",
+                              "--scheduler-file", str(file)], env=env, cwd=tmp_path, stdout=subprocess.DEVNULL,
+                             stderr=subprocess.DEVNULL)
+    worker = None
+    try:
+        deadline = time.monotonic() + 60
+        while not file.is_file() and time.monotonic() < deadline:
+            time.sleep(0.1)
+        address = json.loads(file.read_text())["address"]
+        worker = subprocess.Popen([dask, "worker", address, "--nworkers", "1", "--nthreads", "1", "--no-dashboard",
+                                   "--local-directory", str(tmp_path / "dask-worker")], env=env, cwd=tmp_path,
+                                  stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        from distributed import Client
+
+        with Client(address, timeout="30s") as client:
+            client.wait_for_workers(1, timeout=60)
+        yield address
+    finally:
+        for proc in (worker, sched):
+            if proc is not None:
+                proc.send_signal(signal.SIGINT)
+        for proc in (worker, sched):
+            if proc is not None:
+                try:
+                    proc.wait(timeout=30)
+                except subprocess.TimeoutExpired:
+                    proc.kill()
+                    proc.wait()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("where", ["local", "scheduler"])
+def test_watch_killed_mid_run_gives_exactly_one_row_per_part(small_lot, tmp_path, request, where):
+    """Item 4: 48 parts and 5 kills of a watch on a running scheduler gave 43 rows. Here 8 parts, 2 kills
+    (benchmarks/bench_watch_kill.py runs 48 parts and 5 kills of each kind)."""
+    inbox = tmp_path / "inbox"
+    for copy in ("a", "b"):
+        for part in small_lot["parts"].iterdir():
+            shutil.copytree(part, inbox / f"{copy}_{part.name}")
+    out = tmp_path / "out"
+    place = (["--scheduler", request.getfixturevalue("dask_services")] if where == "scheduler"
+             else ["--workers", "1"])
+    argv = ["inspect", "watch", str(inbox), "--rig", str(small_lot["rig"]), "--spec", str(small_lot["spec"]),
+            "--out", str(out), "--interval", "0.2", "--settle", "0", *place]
+    moments = _killed_watches(argv, out, 8, 2, seed=31, tree=where == "local")
+    assert main([*argv, "--timeout", "1"]) == 0, moments
+    rows = _csv_rows(out)
+    ids = sorted(r["id"] for r in rows)
+    assert len(rows) == 8 and ids == sorted(p.name for p in inbox.iterdir()), (moments, ids)
+    assert all(r["status"] == "ok" for r in rows) and all((out / i / COMPLETE_MARKER).is_file() for i in ids)
+    assert not list(out.glob(".tmp-*"))
