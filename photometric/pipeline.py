@@ -63,7 +63,7 @@ from photometric.stereo import (
     restrict,
     screen_images,
 )
-from photometric.uncertainty import Tolerances, UncertaintyResult
+from photometric.uncertainty import Tolerances, UncertaintyResult, check_monte_carlo_size
 from surfaces.bezier import BezierPatches
 from surfaces.mesh import TriangleMesh
 from surfaces.validate import as_array, InputError, positive
@@ -663,6 +663,7 @@ def reconstruct(
     timings["read"] = time.perf_counter() - t0
     n_img, rows, cols = data.images.shape[:3]
     channels = data.images.shape[3] if data.images.ndim == 4 else 1
+    check_monte_carlo_size(uncertainty, (rows, cols))  # before any solve: the size named
 
     say("normals")
     t0 = time.perf_counter()

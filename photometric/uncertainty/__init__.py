@@ -86,10 +86,12 @@ from __future__ import annotations
 from photometric.uncertainty.budget import (
     COVERAGE_FACTOR,
     FIGURES,
+    MC_PIXEL_SAMPLES_LIMIT,
     METHODS,
     SOURCES,
     Tolerances,
     UncertaintyResult,
+    check_monte_carlo_size,
     format_value,
 )
 from photometric.uncertainty.heights import height_noise_variance, linear_variance
@@ -107,6 +109,7 @@ __all__ = [
     "SOURCES",
     "FIGURES",
     "COVERAGE_FACTOR",
+    "MC_PIXEL_SAMPLES_LIMIT",
     "Tolerances",
     "UncertaintyResult",
     "PointLightModel",
@@ -118,4 +121,5 @@ __all__ = [
     "linear_variance",
     "propagate",
     "format_value",
+    "check_monte_carlo_size",
 ]

@@ -25,6 +25,45 @@ FIGURES = ("max_depth_mm", "mean_width_mm", "length_mm", "area_mm2", "volume_mm3
 
 #: Coverage factor of the expanded uncertainty (about 95 %).
 COVERAGE_FACTOR = 2.0
+#: Monte Carlo work allowed before any is done: samples x image pixels (1e10 is 200 samples of a 50 MP
+#: image, about an hour of solves on one core); :func:`check_monte_carlo_size` refuses more
+MC_PIXEL_SAMPLES_LIMIT = 1e10
+
+
+def check_monte_carlo_size(tolerances, shape, name: str = "--mc-samples") -> None:
+    """Refuse Monte Carlo work above :data:`MC_PIXEL_SAMPLES_LIMIT` before any of it is done.
+
+    Parameters
+    ----------
+    tolerances : Tolerances
+        Its ``method`` and ``mc_samples`` (only ``montecarlo`` is checked).
+    shape : (H, W)
+        Image size, pixels.
+    name : str
+        The option, for the message.
+
+    Raises
+    ------
+    InputError
+        Naming the size: samples x H x W pixel solves and the largest sample count allowed.
+
+    Examples
+    --------
+    >>> check_monte_carlo_size(Tolerances(method="montecarlo", mc_samples=100), (1944, 2592))
+    >>> check_monte_carlo_size(Tolerances(method="montecarlo", mc_samples=10**8), (224, 224))
+    Traceback (most recent call last):
+    ...
+    surfaces.validate.InputError: --mc-samples 100000000: 100000000 samples x 224 x 224 px = 5.02e+12 pixel \
+solves, above the limit of 1e+10; give at most 199298 samples
+    """
+    if tolerances is None or tolerances.method != "montecarlo":
+        return
+    h, w = int(shape[0]), int(shape[1])
+    n = int(tolerances.mc_samples)
+    work = float(n) * h * w
+    if work > MC_PIXEL_SAMPLES_LIMIT:
+        raise InputError(f"{name} {n}: {n} samples x {h} x {w} px = {work:.3g} pixel solves, above the limit of "
+                         f"{MC_PIXEL_SAMPLES_LIMIT:.0e}; give at most {int(MC_PIXEL_SAMPLES_LIMIT // (h * w))} samples")
 
 
 #: Powers of the pixel size in each figure (heights scale with ``h`` like lengths).

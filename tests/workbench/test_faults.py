@@ -423,7 +423,7 @@ def test_failed_part_is_measured_again_when_its_images_change_or_with_retry_fail
     (["--light-tolerance-deg", "inf"], "--light-tolerance-deg: must be a finite"),
     (["--option", "tolerance_mm=nan"], "--option tolerance_mm: expected a finite number, got nan"),
     (["--uncertainty", "montecarlo", "--mc-samples", "100000000"],
-     "--mc-samples 100000000: 100000000 samples x 224 x 224 px = 5.02e+12 pixel solves per part, above the limit "
+     "--mc-samples 100000000: 100000000 samples x 224 x 224 px = 5.02e+12 pixel solves, above the limit "
      "of 1e+10; give at most 199298 samples"),
 ])
 def test_options_are_checked_before_any_part(small_lot, tmp_path, capsys, extra, message):
@@ -671,3 +671,15 @@ def test_watch_killed_mid_run_gives_exactly_one_row_per_part(small_lot, tmp_path
     assert len(rows) == 8 and ids == sorted(p.name for p in inbox.iterdir()), (moments, ids)
     assert all(r["status"] == "ok" for r in rows) and all((out / i / COMPLETE_MARKER).is_file() for i in ids)
     assert not list(out.glob(".tmp-*"))
+
+
+def test_reconstruct_refuses_monte_carlo_work_before_the_solve(small_lot, tmp_path, capsys):
+    """Item 9: `photometric reconstruct ... --uncertainty montecarlo --mc-samples 100000000` had no estimate."""
+    images = sorted(str(p) for p in (small_lot["parts"] / "clean").glob("*.png"))
+    t0 = time.monotonic()
+    assert main(["photometric", "reconstruct", "--images", *images, "--rig", str(small_lot["rig"]),
+                 "--uncertainty", "montecarlo", "--mc-samples", "100000000", "--out", str(tmp_path / "o")]) == 2
+    # the last line: the stage bar before it is the progress display's (not this issue's)
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert err.startswith("workbench: error: --mc-samples 100000000: 100000000 samples x 224 x 224 px = 5.02e+12")
+    assert time.monotonic() - t0 < 30 and not (tmp_path / "o").exists()

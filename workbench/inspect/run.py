@@ -43,7 +43,7 @@ from workbench.batch import (
 from workbench.inspect.part import IMAGE_SUFFIXES, check_options, load_rig
 from workbench.inspect.spec import Spec, check_spec_field, load_spec, parse_spec
 
-__all__ = ["KIND", "MC_PIXEL_SAMPLES_LIMIT", "RUN_FILE", "InspectionRun", "check_run_options", "input_signature",
+__all__ = ["KIND", "RUN_FILE", "InspectionRun", "check_run_options", "input_signature",
            "load_parts", "make_jobs", "retry_changed", "retry_rule", "run_inspect_job", "run_inspection", "scan_parts"]
 
 #: the batch job kind of one part
@@ -211,11 +211,6 @@ def _frozen(spec) -> Spec:
     return spec if isinstance(spec, Spec) else load_spec(spec)
 
 
-#: Monte Carlo work a part may ask for: samples x image pixels (1e10 is 200 samples of a 50 MP image,
-#: or about an hour of solves per part on one core); above it a run is refused before any part
-MC_PIXEL_SAMPLES_LIMIT = 1e10
-
-
 def check_run_options(options: dict | None, rig) -> dict:
     """Check a run's reconstruction options before any part: names, numbers, uncertainty, work size.
 
@@ -237,9 +232,9 @@ def check_run_options(options: dict | None, rig) -> dict:
     InputError
         An unknown or reserved option (:func:`workbench.inspect.part.check_options`), a number
         that is NaN or infinite, a bad tolerance, or Monte Carlo work (``mc_samples`` x image
-        pixels) above :data:`MC_PIXEL_SAMPLES_LIMIT` (the message names the size).
+        pixels) above :data:`photometric.uncertainty.MC_PIXEL_SAMPLES_LIMIT` (the message names the size).
     """
-    from photometric.uncertainty import Tolerances
+    from photometric.uncertainty import Tolerances, check_monte_carlo_size
 
     opts = check_options(dict(options or {}))
     for key, value in opts.items():
@@ -252,13 +247,7 @@ def check_run_options(options: dict | None, rig) -> dict:
         if isinstance(value, float) and not math.isfinite(value):
             raise InputError(f"--{key.replace('_', '-')}: expected a finite number, got {value}")
     tol = unc if isinstance(unc, Tolerances) else Tolerances(**unc)
-    if tol.method == "montecarlo":
-        h, w = load_rig(rig).image_size
-        work = float(tol.mc_samples) * h * w
-        if work > MC_PIXEL_SAMPLES_LIMIT:
-            raise InputError(f"--mc-samples {tol.mc_samples}: {tol.mc_samples} samples x {h} x {w} px = {work:.3g} "
-                             f"pixel solves per part, above the limit of {MC_PIXEL_SAMPLES_LIMIT:.0e}; give at most "
-                             f"{int(MC_PIXEL_SAMPLES_LIMIT // (h * w))} samples")
+    check_monte_carlo_size(tol, load_rig(rig).image_size)
     return opts
 
 
