@@ -26,6 +26,7 @@ import argparse
 import csv
 import json
 import os
+import platform
 import random
 import shutil
 import signal
@@ -204,7 +205,11 @@ def main(argv: list[str] | None = None) -> int:
         print(base.stderr, file=sys.stderr)
     table = Table(["run", "parts", "rows", "distinct ids", "complete folders", "rows not ok", "wall (s)",
                    "wall / baseline", "each kill: s after start: complete folders, rows then"], table_rows, "lrrrrrrrl")
+    command = (f"Command: `.venv/bin/python benchmarks/bench_watch_kill.py --parts {args.parts} --kills {args.kills} "
+               f"--size {args.size} --seed {args.seed}`; machine: {os.cpu_count()} CPUs shared with other work, "
+               f"Python {platform.python_version()}.")
     text = write_results("watch_kill", "inspect watch under SIGKILL", [
+        command,
         f"{args.parts} parts ({args.size} x {args.size} px, 4 lights, rendered in {t_render:.0f} s), "
         f"{args.kills} SIGKILLs of the watch at random moments mid-run (once a random number of further parts is "
         f"complete, plus 0-0.5 s; seed {args.seed}), a restart after each, then "
@@ -212,7 +217,7 @@ def main(argv: list[str] | None = None) -> int:
         "ids = complete folders = parts, no row failed. Wall time includes every start of the CLI and its "
         "cluster; the baseline is one uninterrupted `inspect run --workers 2` in the same run.",
         table,
-        f"Host: {os.cpu_count()} CPUs, shared. Last line of the last watch: local "
+        "Last line of the last watch: local "
         f"{' '.join(local['stdout'])!r}, scheduler {' '.join(remote['stdout'])!r}.",
     ])
     print(text)
