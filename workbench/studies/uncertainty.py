@@ -22,7 +22,7 @@ import numpy as np
 
 from photometric.uncertainty import COVERAGE_FACTOR, FIGURES, SOURCES, Tolerances, format_value
 from surfaces.io import atomic_write_bytes
-from surfaces.validate import InputError, positive
+from surfaces.validate import InputError, positive, reading
 
 __all__ = ["FIGURE_LABELS", "TARGET_COVERAGE", "uncertainty_budget", "draw_budget", "coverage_interval",
            "coverage_study"]
@@ -48,7 +48,8 @@ def _read_json(path: Path) -> dict:
     if not path.is_file():
         raise FileNotFoundError(f"result_dir: {path.name} not found in {path.parent} (run 'workbench photometric "
                                 "reconstruct' with an uncertainty option, e.g. --light-tolerance-deg)")
-    return json.loads(path.read_text())
+    with reading(path, "JSON file"):
+        return json.loads(path.read_text())
 
 
 def draw_budget(budget: dict, title: str = ""):
