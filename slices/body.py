@@ -462,8 +462,8 @@ def build_body_once(body: Body, spacing: float, options: SurfaceOptions | None =
         grid = capmod._close_grid(buffer, bottom, top, centers[0, :2], centers[-1, :2], d / 2, low, high)
     # the grid's columns are the checked side's and caps over its end curves: finite and closed as the
     # side is (close_side checks its inputs)
-    patches = BezierPatches._trusted(grid.control, closed_u=True)
-    side_patches = BezierPatches._trusted(grid.control[:, grid.side_columns], closed_u=True)
+    patches = BezierPatches.unchecked(grid.control, closed_u=True)
+    side_patches = BezierPatches.unchecked(grid.control[:, grid.side_columns], closed_u=True)
     volume, area = capmod.grid_integrals(grid)
     # deviation at the control points, evaluated on the final surface
     j = np.concatenate(sc.nodes)

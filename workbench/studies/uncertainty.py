@@ -163,7 +163,7 @@ def _trial(rng: np.random.Generator, opts: dict, method: str, mc_samples: int) -
     from datasets_synthetic.render import render
     from photometric.lights import light_field, point_lights, ring_lights
     from photometric.pipeline import reconstruct
-    from photometric.uncertainty.propagation import _perturbed_lights
+    from photometric.uncertainty.propagation import perturbed_lights
 
     size, h = opts["size"], opts["pixel_size"]
     L = ring_lights(opts["n_lights"], opts["slant_deg"])
@@ -185,7 +185,7 @@ def _trial(rng: np.random.Generator, opts: dict, method: str, mc_samples: int) -
         tol = Tolerances(noise_sigma=opts["noise"], light_position_tolerance_mm=opts["light_position_tolerance_mm"],
                          method=method, mc_samples=mc_samples, seed=int(rng.integers(1 << 31)))
     else:
-        true_lights = _perturbed_lights(L, math.radians(opts["light_tolerance_deg"]), rng)
+        true_lights = perturbed_lights(L, math.radians(opts["light_tolerance_deg"]), rng)
         images = render(hf, true_lights, albedo=opts["albedo"], noise=opts["noise"], seed=rng)
         inputs = {"lights": L}
         tol = Tolerances(noise_sigma=opts["noise"], light_tolerance_deg=opts["light_tolerance_deg"], method=method,
