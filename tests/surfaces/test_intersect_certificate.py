@@ -79,6 +79,7 @@ def test_fold_phantoms_are_never_proven(name):
             assert suspects is None or suspects.any()
 
 
+@pytest.mark.slow
 def test_meshes_folded_on_purpose():
     """Vertices moved within their level (the mesh stays layered) fold it; the suspects hold every crossing."""
     rng = np.random.default_rng(7)
