@@ -809,11 +809,12 @@ def _gauss_tangents(order: int) -> tuple[np.ndarray, np.ndarray]:
 
 @lru_cache(maxsize=8)
 def _gauss_bezier(order: int) -> tuple[tuple, np.ndarray]:
-    """Bernstein weights (:func:`_bezier_weights`) at the ``order`` Gauss nodes of [0, 1], and the nodes' weights."""
-    x, w = np.polynomial.legendre.leggauss(order)
-    weights = 0.5 * w
-    weights.flags.writeable = False
-    return _bezier_weights(0.5 * (x + 1.0)), weights
+    """Bernstein weights (:func:`_bezier_weights`) at the ``order`` Gauss nodes of [0, 1], and the nodes' weights
+    (the patch quadrature's own rule, :func:`surfaces.measure.gauss_legendre`)."""
+    from surfaces.measure import gauss_legendre
+
+    nodes, weights = gauss_legendre(order)
+    return _bezier_weights(nodes), weights
 
 
 def grid_integrals(grid: CappedGrid, order: int = 5) -> tuple[float, float]:
