@@ -10,11 +10,13 @@ from datasets_synthetic.dicom import write_ct_series, write_rtstruct
 from datasets_synthetic.heightfields import SCENES, HeightField, make_scene
 from datasets_synthetic.phantoms import SHAPES, Phantom, make_phantom, write_phantom
 from datasets_synthetic.render import make_triad_folder, write_diligent_folder
+from surfaces.validate import InputError  # bad input; the same class in every package
 
 __all__ = [
     "SCENES",
     "SHAPES",
     "HeightField",
+    "InputError",
     "Phantom",
     "make_phantom",
     "make_scene",

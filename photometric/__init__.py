@@ -19,6 +19,8 @@ from __future__ import annotations
 
 import importlib
 
+from surfaces.validate import InputError  # bad input; the same class in every package
+
 _HOMES = {
     "lights": (
         "CONVENTION", "validate_lights", "condition_number", "lights_from_angles", "light_angles",
@@ -39,7 +41,7 @@ _HOMES = {
 }
 _MODULE_OF = {name: module for module, names in _HOMES.items() for name in names}
 
-__all__ = [*_MODULE_OF, "errors", "integrate"]
+__all__ = [*_MODULE_OF, "errors", "integrate", "InputError"]
 
 
 def __getattr__(name: str):

@@ -31,7 +31,7 @@ import cv2
 import numpy as np
 
 from photometric.camera import Camera, Orthographic, Perspective, camera_from_dict, pixel_offsets, pixel_rays
-from surfaces.validate import as_array, InputError, positive
+from surfaces.validate import as_array, InputError, positive, reads_file
 
 __all__ = ["SphereImages", "read_sphere_set", "sphere_from_outline", "highlight_centroids", "reflected_rays",
            "nearest_point", "calibrate_positions", "calibrate_rig"]
@@ -72,6 +72,7 @@ class SphereImages:
     centre_from: str = "sphere.json"
 
 
+@reads_file("sphere image folder")
 def read_sphere_set(folder, camera: Camera | None = None) -> tuple[SphereImages, Camera | None]:
     """Read one mirror-sphere calibration folder.
 

@@ -37,7 +37,7 @@ from photometric.lights import (
     point_lights,
     validate_lights,
 )
-from surfaces.validate import InputError
+from surfaces.validate import InputError, reads_file
 
 IMAGE_SUFFIXES = (".png", ".tif", ".tiff", ".bmp", ".jpg", ".jpeg", ".npy", ".exr")
 
@@ -143,6 +143,7 @@ def full_scale_of(paths: Sequence) -> float | None:
     return None if any(Path(p).suffix.lower() in FLOAT_SUFFIXES for p in paths) else 1.0
 
 
+@reads_file("image")
 def read_image(path) -> np.ndarray:
     """Read one image as float32 in [0, 1] (integer types scaled by their maximum).
 
@@ -224,6 +225,7 @@ def read_images(paths: Sequence) -> np.ndarray:
     return out
 
 
+@reads_file("mask image")
 def read_mask(path, shape: tuple[int, int] | None = None) -> np.ndarray:
     """Read a binary mask (any non-zero pixel is inside).
 
@@ -268,6 +270,7 @@ def _read_normal_gt(folder: Path, shape: tuple[int, int]) -> np.ndarray | None:
     return gt
 
 
+@reads_file("photometric folder")
 def read_folder(folder, select: str | Sequence[str] | None = None) -> PhotometricData:
     """Read a DiLiGenT-style (or RobustPhotometricStereo-style) folder.
 
@@ -346,6 +349,7 @@ def read_folder(folder, select: str | Sequence[str] | None = None) -> Photometri
     )
 
 
+@reads_file("scene folder")
 def read_scene(folder) -> dict:
     """A folder's ``scene.json`` as a dict (empty when there is none).
 

@@ -53,7 +53,7 @@ from pathlib import Path
 
 import numpy as np
 
-from surfaces.validate import as_array, InputError
+from surfaces.validate import as_array, InputError, reads_file
 
 __all__ = [
     "CONVENTION",
@@ -565,6 +565,7 @@ def point_lights(positions, axes=None, mu=None, name: str = "light_positions") -
     return PointLights(pos, ax, m, known)
 
 
+@reads_file("light position file")
 def load_light_positions(path) -> np.ndarray:
     """Read LED positions (``light_positions.txt``: one ``x y z`` row in mm per image).
 
@@ -691,6 +692,7 @@ def _existing(path, name: str) -> Path:
     return p
 
 
+@reads_file("light file")
 def load_lights(path) -> np.ndarray:
     """Read light directions from a file.
 
@@ -771,6 +773,7 @@ def as_intensities(values, n: int, name: str = "intensities") -> np.ndarray:
     return arr
 
 
+@reads_file("light intensity file")
 def load_intensities(path, n: int) -> np.ndarray:
     """Read per-light intensities (DiLiGenT ``light_intensities.txt``: ``r g b`` per row).
 

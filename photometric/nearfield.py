@@ -109,8 +109,12 @@ ANCHOR_RULE = "median height of the valid pixels = reference_height_mm"
 INTEGRATORS = ("dct", "fc", "lsq", "robust")
 
 
-class NotConvergedError(ValueError):
+class NotConvergedError(InputError):
     """The alternation stopped before the height change fell below the tolerance.
+
+    An :class:`~surfaces.validate.InputError`: what the user changes is the input or
+    its options (``max_iterations``, ``tol``, the lights' positions), so the command
+    line reports it as one line with exit code 2.
 
     Attributes
     ----------

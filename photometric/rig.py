@@ -34,7 +34,7 @@ import numpy as np
 from photometric.camera import Camera, camera_from_dict, plane_points
 from photometric.lights import PointLights, as_intensities, point_lights
 from photometric.stereo import _check_images, _grey_planes
-from surfaces.validate import as_array, InputError, positive
+from surfaces.validate import as_array, InputError, positive, reads_file
 
 __all__ = ["RIG_FORMAT", "RIG_VERSION", "GAINS_FILE", "FLAT_SMOOTHING_PX", "RIG_KEYS", "Rig", "flat_field_gains",
            "rig_to_dict", "read_rig", "check_rig", "loads_unique"]
@@ -234,6 +234,7 @@ def rig_to_dict(rig: Rig, gains_file: str = GAINS_FILE) -> dict:
     }
 
 
+@reads_file("rig file")
 def read_rig(path) -> Rig:
     """Read ``rig.json`` and its gains file.
 

@@ -42,11 +42,13 @@ from slices.options import ReadOptions, SurfaceOptions
 from slices.pipeline import SlicesReconstruction, reconstruct
 from slices.structure import Reconstruction, reconstruct_contours, reconstruct_roi
 from slices.surface import side_surface, slice_curves
+from surfaces.validate import InputError  # bad input; the same class in every package
 
 __all__ = [
     "Body",
     "BodySurface",
     "Contour",
+    "InputError",
     "ContourParameters",
     "ContourStack",
     "ReadOptions",

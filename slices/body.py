@@ -284,9 +284,9 @@ def build_body(body: Body, spacing: float, options: SurfaceOptions | None = None
     """Surface, volume and area of one body, rebuilt more conservatively while its mesh folds.
 
     With ``options.unfold`` and a mesh, the mesh is checked for self-intersecting
-    faces (:func:`surfaces.intersect.is_fold_free`: the exact test of
+    faces (:func:`surfaces.folds.is_fold_free`: the exact test of
     :func:`surfaces.intersect.self_intersections` on the faces that the certificate
-    of :func:`surfaces.intersect.fold_suspects` cannot clear); a folded body is built
+    of :func:`surfaces.folds.fold_suspects` cannot clear); a folded body is built
     again with the next surface of :data:`FALLBACKS` (the blend linking the
     slices by arc length, limited to be monotone; then straight lines between
     the slices; then both again with the arc length's origin following the
@@ -305,7 +305,7 @@ def _build_unfolded(body: Body, spacing: float, options: SurfaceOptions | None, 
     folds alone are counted (the stepped slabs' cheaper choice: the aligned ruled surface folds
     in the fewest slabs, and counting every surface's folds costs more than the steps).
     """
-    from surfaces.intersect import folded_faces, is_fold_free
+    from surfaces.folds import folded_faces, is_fold_free
 
     opts = SurfaceOptions() if options is None else options
     first = build_body_once(body, spacing, opts, mesh=mesh)
@@ -462,8 +462,8 @@ def build_body_once(body: Body, spacing: float, options: SurfaceOptions | None =
         grid = capmod._close_grid(buffer, bottom, top, centers[0, :2], centers[-1, :2], d / 2, low, high)
     # the grid's columns are the checked side's and caps over its end curves: finite and closed as the
     # side is (close_side checks its inputs)
-    patches = BezierPatches._trusted(grid.control, closed_u=True)
-    side_patches = BezierPatches._trusted(grid.control[:, grid.side_columns], closed_u=True)
+    patches = BezierPatches.unchecked(grid.control, closed_u=True)
+    side_patches = BezierPatches.unchecked(grid.control[:, grid.side_columns], closed_u=True)
     volume, area = capmod.grid_integrals(grid)
     # deviation at the control points, evaluated on the final surface
     j = np.concatenate(sc.nodes)

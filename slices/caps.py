@@ -36,7 +36,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from surfaces.mesh import TriangleMesh, _weld_tolerance, compact, merge_meshes, points_apart, weld
+from surfaces.mesh import TriangleMesh, weld_tolerance, compact, merge_meshes, points_apart, weld
 from surfaces.validate import as_array, InputError, positive
 
 CAP_KINDS = ("none", "flat", "half", "dome")
@@ -584,7 +584,7 @@ def _planar_cap_mesh(c: np.ndarray, samples: int, outward_z: float, inset: bool 
     normal = np.zeros_like(vertices)
     normal[:, 2] = 1.0 if outward_z > 0 else -1.0
     # from a checked curve: finite points, the triangles of its own ring
-    return TriangleMesh._trusted(vertices, tri, normal)
+    return TriangleMesh.unchecked(vertices, tri, normal)
 
 
 @lru_cache(maxsize=16)
@@ -809,11 +809,12 @@ def _gauss_tangents(order: int) -> tuple[np.ndarray, np.ndarray]:
 
 @lru_cache(maxsize=8)
 def _gauss_bezier(order: int) -> tuple[tuple, np.ndarray]:
-    """Bernstein weights (:func:`_bezier_weights`) at the ``order`` Gauss nodes of [0, 1], and the nodes' weights."""
-    x, w = np.polynomial.legendre.leggauss(order)
-    weights = 0.5 * w
-    weights.flags.writeable = False
-    return _bezier_weights(0.5 * (x + 1.0)), weights
+    """Bernstein weights (:func:`_bezier_weights`) at the ``order`` Gauss nodes of [0, 1], and the nodes' weights
+    (the patch quadrature's own rule, :func:`surfaces.measure.gauss_legendre`)."""
+    from surfaces.measure import gauss_legendre
+
+    nodes, weights = gauss_legendre(order)
+    return _bezier_weights(nodes), weights
 
 
 def grid_integrals(grid: CappedGrid, order: int = 5) -> tuple[float, float]:
@@ -928,7 +929,7 @@ def _welded(merged: TriangleMesh, side: TriangleMesh, rep: np.ndarray) -> Triang
                                                 or np.bincount(side_tri.ravel(), minlength=n_side).all()):
         tri = rep[merged.triangles]
         keep = (tri[:, 0] != tri[:, 1]) & (tri[:, 1] != tri[:, 2]) & (tri[:, 2] != tri[:, 0])
-        return compact(TriangleMesh._trusted(merged.vertices, tri[keep], merged.vertex_normals, merged.vertex_colors,
+        return compact(TriangleMesh.unchecked(merged.vertices, tri[keep], merged.vertex_normals, merged.vertex_colors,
                                     dict(merged.metadata)))
     # the side's vertices keep their numbers, the caps' used ones follow
     used = np.zeros(merged.n_vertices - n_side, dtype=bool)
@@ -936,7 +937,7 @@ def _welded(merged: TriangleMesh, side: TriangleMesh, rep: np.ndarray) -> Triang
     used[cap_vertex[cap_vertex >= n_side] - n_side] = True
     new_index = np.concatenate([np.arange(n_side), n_side - 1 + np.cumsum(used)])
     normals = merged.vertex_normals
-    return TriangleMesh._trusted(
+    return TriangleMesh.unchecked(
         np.concatenate([side.vertices, merged.vertices[n_side:][used]]),
         np.concatenate([side.triangles, new_index[cap_tri]]),
         None if normals is None else np.concatenate([side.vertex_normals, normals[n_side:][used]]),
@@ -958,7 +959,7 @@ def _rim_weld_map(merged: TriangleMesh, side: TriangleMesh, caps: list, flat_cap
     the side's vertices in its end planes.
     """
     verts = merged.vertices
-    tol = _weld_tolerance(verts)  # the spatial weld's own
+    tol = weld_tolerance(verts)  # the spatial weld's own
     rep = np.arange(len(verts))
     n_side = side.n_vertices
     boundary, partner, others = [], [], [rim]

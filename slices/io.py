@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from slices.polygons import clean_contour, signed_area
-from surfaces.validate import as_array, InputError, positive
+from surfaces.validate import as_array, InputError, positive, reads_file
 
 #: Relative tolerance on slice spacing (a fraction of the spacing).
 SPACING_RTOL = 0.01
@@ -528,6 +528,7 @@ def check_spacing(z, label: str, allow_gaps: bool = False) -> float:
     return ref
 
 
+@reads_file("CT series")
 def read_ct_series(folder, hu_min=None, hu_max=None, resample: bool = False) -> ContourStack:
     """Segment a DICOM CT (or label) series and extract its contours.
 
@@ -663,6 +664,7 @@ def parse_spacing(text) -> tuple[float, float, float]:
     return tuple(positive(p, "--spacing") for p in parts)
 
 
+@reads_file("mask stack")
 def read_mask_stack(path, spacing, hu_min=None, hu_max=None) -> ContourStack:
     """Contours of a mask or image stack (``.npy``, multi-page ``.tif``, folder of PNGs).
 
@@ -817,6 +819,7 @@ def read_nifti(path, label=None) -> ContourStack:
     return ContourStack(contours, "nifti", name, [note])
 
 
+@reads_file("contour JSON file")
 def read_contour_json(path) -> ContourStack:
     """Contours from ``{"units": "mm", "contours": [{"z": mm, "points": [[x, y], ...]}, ...]}``.
 

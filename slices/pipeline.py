@@ -37,8 +37,8 @@ UNION_MODES = ("auto", "yes", "no", True, False)
 #: ``import slices`` stays light; :func:`reconstruct` loads them before its clocks start, so that
 #: ``surface_time_s`` and ``union_time_s`` time the work and not a fresh process's first imports
 #: (~0.2 s of SciPy, manifold3d and the checks, against ~10 ms of surface for an ordinary organ).
-STAGE_MODULES = ("scipy.sparse.csgraph", "scipy.spatial", "manifold3d", "surfaces.intersect", "surfaces.measure",
-                 "surfaces.mixed")
+STAGE_MODULES = ("scipy.sparse.csgraph", "scipy.spatial", "manifold3d", "surfaces.intersect", "surfaces.folds",
+                 "surfaces.measure", "surfaces.mixed")
 
 
 def _load_stage_modules() -> None:

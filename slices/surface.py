@@ -308,8 +308,8 @@ def slice_curves(contours, z, n_rays: int, n_lattice: int | None = None,
     # coordinate by coordinate, so that every operation of the curves and their cut runs along all points
     flat_xy = np.ascontiguousarray(flat.T)
     # in the plane only: every Bezier point of a slice's curve lies at its z exactly
-    t, _, _ = blending._closed_parameters(flat, _geometry_parameters(flat_xy, start, ns, geometry), ns)
-    by_coordinate, knots = blending._overhauser_closed_by_coordinate(flat_xy, t, start, ns)
+    t, _, _ = blending.closed_curve_parameters(flat, _geometry_parameters(flat_xy, start, ns, geometry), ns)
+    by_coordinate, knots = blending.overhauser_closed_by_coordinate(flat_xy, t, start, ns)
     # lattice node j sits at t(j), t piecewise linear through (q_i, t_i) (np.interp's formula): on
     # every lattice interval the curve is one cubic piece, cut exactly (Bezier points do not depend
     # on the affine parameter of the interval); the period starts at node q0, so lattice interval
@@ -336,7 +336,7 @@ def slice_curves(contours, z, n_rays: int, n_lattice: int | None = None,
     b_hi = np.where(x + 1.0 == x_hi, k_hi, slope * (x + 1.0 - x_lo) + k_lo)
     cut = np.empty((n_c, m, 4, 3))
     cut[..., 2] = zz[:, None, None]
-    blending._restrict_rows(by_coordinate.take(g, axis=2), k_lo, k_hi, b_lo, b_hi, m,
+    blending.restrict_closed_rows(by_coordinate.take(g, axis=2), k_lo, k_hi, b_lo, b_hi, m,
                             cut.reshape(n_c * m, 4, 3)[..., :2])
     p3 = np.empty((len(flat), 3))
     p3[:, :2] = flat
@@ -366,7 +366,7 @@ def _corner_eval(patches: BezierPatches, n_slices: int) -> NodeEval:
 def _side_blending(curves: np.ndarray, v: np.ndarray, monotone: bool = False,
                    out: np.ndarray | None = None) -> tuple[BezierPatches, NodeEval]:
     # side_surface has checked the curves (finite) and v (strictly increasing)
-    patches, limited = blending._blend(curves, True, v, bool(monotone), trusted=True, out=out)
+    patches, limited = blending.blend_validated(curves, True, v, bool(monotone), trusted=True, out=out)
     if monotone and len(curves) >= 3:
         _last_overshoot[:] = [curves.copy(), v.copy(), _overshoot_count(limited)]
     return patches, _corner_eval(patches, len(curves))

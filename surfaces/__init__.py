@@ -15,7 +15,8 @@ measures            ``measure`` (area and volume by quadrature), ``distance``
                     (signed deviation from a reference surface)
 meshes              ``mesh`` (:class:`TriangleMesh`, tessellation, welding, signed
                     volume), ``topology`` (edges, shells, chains), ``intersect``
-                    (self-intersecting faces), ``voxelize`` (a solid onto a voxel grid)
+                    (self-intersecting faces), ``folds`` (the fold certificate of layered
+                    meshes), ``voxelize`` (a solid onto a voxel grid)
 solids              ``boolean`` (set operations, seed 002b), ``repair`` (checks and
                     repair of solid boundaries), ``smooth`` (Loop subdivision)
 files               ``io`` (meshes, patch files, PNG, JSON; atomic writes)
@@ -55,6 +56,7 @@ _MODULES = (
     "coons",
     "curves",
     "distance",
+    "folds",
     "frames",
     "grid",
     "intersect",

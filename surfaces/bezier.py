@@ -168,11 +168,25 @@ class BezierPatches:
                 )
 
     @classmethod
-    def _trusted(cls, control: np.ndarray, closed_u: bool = False, closed_v: bool = False) -> BezierPatches:
+    def unchecked(cls, control: np.ndarray, closed_u: bool = False, closed_v: bool = False) -> BezierPatches:
         """Patches over control points known to be valid (from checked patches), without the checks.
 
-        ``control`` (R, C, 4, 4, 3) float64, finite, closing where flagged; kept as a read-only view,
-        not copied (a view of some columns of a grid too).
+        The kernel path of code that builds patches from patches it has checked (a
+        blend of finite curves, the side columns of a checked grid): no copy, no
+        finiteness or closing test. Anything else should call the constructor.
+
+        Parameters
+        ----------
+        control : numpy.ndarray, shape (R, C, 4, 4, 3), float64
+            Finite control points (mm), closing where flagged; kept as a read-only
+            view, not copied (a view of some columns of a grid too).
+        closed_u, closed_v : bool
+            Whether the patch rows (columns) close on themselves; not checked.
+
+        Returns
+        -------
+        BezierPatches
+            Over a view of ``control``.
         """
         ctrl = control.view()
         ctrl.setflags(write=False)

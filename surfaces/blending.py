@@ -216,13 +216,46 @@ def overhauser_closed_curves(points, params, sizes) -> tuple[np.ndarray, np.ndar
     True
     """
     pts = as_array(points, "points", ndim=2)
-    t, start, ns = _closed_parameters(pts, params, sizes)
+    t, start, ns = closed_curve_parameters(pts, params, sizes)
     return _overhauser_closed(pts, t, start, ns)
 
 
-def _closed_parameters(pts: np.ndarray, params, sizes) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The validated ``params`` and ``sizes`` of :func:`overhauser_closed_curves` of ``pts``,
-    with the curves' first rows."""
+def closed_curve_parameters(pts: np.ndarray, params, sizes) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Check the parameters of several closed curves stacked in one array, and find where each starts.
+
+    The validation of :func:`overhauser_closed_curves`, public for callers that go on
+    with the kernels (:func:`overhauser_closed_by_coordinate`, :func:`restrict_closed_rows`).
+
+    Parameters
+    ----------
+    pts : numpy.ndarray, shape (N, d)
+        The curves' points, curve after curve (only ``len(pts)`` is used).
+    params : array_like, shape (N,)
+        Each point's parameter: strictly increasing along every curve, each curve
+        spanning less than one period (1.0).
+    sizes : array_like of int, shape (K,)
+        Points per curve, each at least 3, summing to ``N``.
+
+    Returns
+    -------
+    t : numpy.ndarray, shape (N,), float64
+        The parameters.
+    start : numpy.ndarray, shape (K,), int64
+        Row of each curve's first point.
+    ns : numpy.ndarray, shape (K,), int64
+        The sizes.
+
+    Raises
+    ------
+    InputError
+        On sizes that do not add up or parameters that do not increase or span a period.
+
+    Examples
+    --------
+    >>> t, start, ns = closed_curve_parameters(np.zeros((7, 2)), [0, 0.3, 0.6, 0, 0.2, 0.5, 0.7], [3, 4])
+    >>> start.tolist(), ns.tolist()
+    ([0, 3], [3, 4])
+    """
     t = as_array(params, "params", shape=(len(pts),))
     ns = np.asarray(sizes)
     if ns.ndim != 1 or not len(ns) or ns.dtype.kind not in "iu" or ns.min() < 3 or int(ns.sum()) != len(pts):
@@ -241,14 +274,31 @@ def _closed_parameters(pts: np.ndarray, params, sizes) -> tuple[np.ndarray, np.n
 def _overhauser_closed(pts: np.ndarray, t: np.ndarray, start: np.ndarray,
                        ns: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """:func:`overhauser_closed_curves` of validated arrays, the curves starting at rows ``start``."""
-    by_coordinate, knots = _overhauser_closed_by_coordinate(np.ascontiguousarray(pts.T), t, start, ns)
+    by_coordinate, knots = overhauser_closed_by_coordinate(np.ascontiguousarray(pts.T), t, start, ns)
     return np.ascontiguousarray(by_coordinate.transpose(2, 0, 1)), knots
 
 
-def _overhauser_closed_by_coordinate(p: np.ndarray, t: np.ndarray, start: np.ndarray,
+def overhauser_closed_by_coordinate(p: np.ndarray, t: np.ndarray, start: np.ndarray,
                                      ns: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`_overhauser_closed` of the points' coordinates ``p`` (d, N): the Bezier points
-    as (4, d, N) (every operation runs along all points), and the knots."""
+    """Closed Overhauser curves of checked arrays, coordinate by coordinate (the kernel of
+    :func:`overhauser_closed_curves`).
+
+    Every operation runs along all ``N`` points of all curves at once.
+
+    Parameters
+    ----------
+    p : numpy.ndarray, shape (d, N), float64
+        The points' coordinates, one row per coordinate (mm).
+    t, start, ns : numpy.ndarray
+        As :func:`closed_curve_parameters` returns them (not checked again).
+
+    Returns
+    -------
+    ctrl : numpy.ndarray, shape (4, d, N)
+        Bezier points of the segment that starts at each point.
+    knots : numpy.ndarray, shape (N + K,)
+        Each curve's parameters followed by its first parameter plus one period.
+    """
     last = start + ns - 1
     n = p.shape[1]
     nxt = np.arange(1, n + 1)
@@ -474,9 +524,9 @@ def _restrict_segments(c: np.ndarray, k0: np.ndarray, k1: np.ndarray, b0: np.nda
     return out
 
 
-def _restrict_rows(c: np.ndarray, k0: np.ndarray, k1: np.ndarray, b0: np.ndarray, b1: np.ndarray,
+def restrict_closed_rows(c: np.ndarray, k0: np.ndarray, k1: np.ndarray, b0: np.ndarray, b1: np.ndarray,
                    n_row: int, out: np.ndarray) -> np.ndarray:
-    """:func:`restrict_segments` of pieces that tile closed curves, each breakpoint evaluated once.
+    """:func:`restrict_segments` of pieces that tile closed curves, each breakpoint evaluated once (a kernel).
 
     The ``P`` pieces form rows of ``n_row``, each row one closed curve: piece
     ``i`` ends where the next one in its row starts (the last where the first
@@ -485,6 +535,24 @@ def _restrict_rows(c: np.ndarray, k0: np.ndarray, k1: np.ndarray, b0: np.ndarray
     otherwise the piece ends at its segment's end ``k1``. ``c`` (4, d, P) holds
     each piece's segment, coordinate by coordinate (so that every operation runs
     along ``P``); the Bezier points go into ``out`` (P, 4, d).
+
+    Parameters
+    ----------
+    c : numpy.ndarray, shape (4, d, P), float64
+        Bezier points of each piece's segment, coordinate by coordinate.
+    k0, k1 : numpy.ndarray, shape (P,)
+        Parameter of each segment's start and end (``k1 > k0``).
+    b0, b1 : numpy.ndarray, shape (P,)
+        Parameter of each piece's start and end, inside ``[k0, k1]``.
+    n_row : int
+        Pieces per closed curve (``P`` is a multiple of it).
+    out : numpy.ndarray, shape (P, 4, d), float64
+        Receives the pieces' Bezier points.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``out``.
     """
     h = k1 - k0
     s = (b0 - k0) / h
@@ -627,7 +695,7 @@ def blend_curves(curves, closed_u: bool = True, params=None, monotone: bool = Fa
     c = as_array(curves, "curves", shape=(None, None, 4, 3))
     if len(c) < 2:
         raise InputError(f"curves: need at least 2 curves, got {len(c)}")
-    return _blend(c, closed_u, params, monotone)[0]
+    return blend_validated(c, closed_u, params, monotone)[0]
 
 
 def monotone_blend(curves, closed_u: bool = True, params=None) -> tuple[BezierPatches, np.ndarray]:
@@ -653,18 +721,39 @@ def monotone_blend(curves, closed_u: bool = True, params=None) -> tuple[BezierPa
     c = as_array(curves, "curves", shape=(None, None, 4, 3))
     if len(c) < 2:
         raise InputError(f"curves: need at least 2 curves, got {len(c)}")
-    return _blend(c, closed_u, params, True)
+    return blend_validated(c, closed_u, params, True)
 
 
-def _blend(c: np.ndarray, closed_u: bool, params, monotone: bool,
+def blend_validated(c: np.ndarray, closed_u: bool, params, monotone: bool,
            trusted: bool = False, out: np.ndarray | None = None) -> tuple[BezierPatches, np.ndarray | None]:
-    """:func:`blend_curves` of validated curves, with the limited tangents when ``monotone``.
+    """:func:`blend_curves` of validated curves, with the limited tangents when ``monotone`` (the kernel).
 
-    ``trusted``: ``c`` is finite and ``params`` (or None) validated, strictly increasing, as
-    :func:`slices.surface.side_surface` checks them; the patches then skip their finiteness check
-    (a blend of finite curves is finite), only the closing of ``u`` is checked.
-    ``out``: float64 (M, K - 1, 4, 4, 3) with its last three axes contiguous (such as the side
-    columns of a capped grid): the control points are written there and the patches are a view of it.
+    Parameters
+    ----------
+    c : numpy.ndarray, shape (K, M, 4, 3), float64
+        ``K`` validated cubic Bezier curves of ``M`` segments each (mm).
+    closed_u : bool
+        Whether the curves close on themselves.
+    params : array_like, shape (K,), optional
+        The curves' parameters along ``v`` (default: uniform).
+    monotone : bool
+        Limit the tangents along ``v`` so that every coordinate stays monotone
+        between curves (:func:`monotone_blend`).
+    trusted : bool
+        ``c`` is finite and ``params`` (or None) validated, strictly increasing, as
+        :func:`slices.surface.side_surface` checks them; the patches then skip their
+        finiteness check (a blend of finite curves is finite), only the closing of
+        ``u`` is checked.
+    out : numpy.ndarray, shape (M, K - 1, 4, 4, 3), float64, optional
+        With its last three axes contiguous (such as the side columns of a capped
+        grid): the control points are written there and the patches are a view of it.
+
+    Returns
+    -------
+    patches : BezierPatches
+        ``M`` x ``K - 1`` patches.
+    limited : numpy.ndarray, shape (K, M, 4, 3) bool, or None
+        The tangents that were limited (``monotone``), else None.
     """
     k, m = c.shape[:2]
     w = blend_weights(k, params) if not trusted else _blend_weights(k, None if params is None else params)
@@ -700,7 +789,7 @@ def _blend(c: np.ndarray, closed_u: bool, params, monotone: bool,
         gap = float(np.abs(control[-1, :, 3] - control[0, :, 0]).max())
         if gap > _JOIN_RTOL * max(float(ends.max()), -float(ends.min()), 1.0):
             raise InputError(f"closed_u: the last patch row does not join the first (gap {gap:.3g})")
-    return BezierPatches._trusted(control, closed_u=closed_u), limited
+    return BezierPatches.unchecked(control, closed_u=closed_u), limited
 
 
 @dataclass(frozen=True)

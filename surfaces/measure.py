@@ -33,7 +33,34 @@ from surfaces.validate import InputError
 _POINT_CHUNK = 25600
 
 
-def _gauss(order: int) -> tuple[np.ndarray, np.ndarray]:
+def gauss_legendre(order: int) -> tuple[np.ndarray, np.ndarray]:
+    """Gauss-Legendre nodes and weights on ``[0, 1]``: the quadrature rule of every integral here.
+
+    Exact for polynomials up to degree ``2 order - 1``. One rule for the package
+    and its callers (``slices.caps`` integrates its extrusions' curve lengths with
+    it), made once per order and shared read-only.
+
+    Parameters
+    ----------
+    order : int
+        Number of nodes (at least 1).
+
+    Returns
+    -------
+    nodes, weights : numpy.ndarray, shape (order,), float64
+        Read-only; the weights sum to 1.
+
+    Raises
+    ------
+    InputError
+        When ``order`` is below 1.
+
+    Examples
+    --------
+    >>> t, w = gauss_legendre(3)
+    >>> bool(abs(w @ t**5 - 1 / 6) < 1e-15), bool(abs(w @ t**6 - 1 / 7) > 1e-5)  # exact to degree 5, not 6
+    (True, True)
+    """
     order = int(order)
     if order < 1:
         raise InputError(f"order: need at least 1 quadrature point, got {order}")
@@ -55,7 +82,7 @@ def _gauss_cached(order: int) -> tuple[np.ndarray, np.ndarray]:
 def _node_basis(order: int) -> tuple[np.ndarray, np.ndarray]:
     """Tensor weights of the 16 control points for ``S``, ``S_u``, ``S_v`` at the nodes (3 order^2, 16),
     and the node weights (order^2,); read-only, made once per order."""
-    t, w = _gauss(order)
+    t, w = gauss_legendre(order)
     b0, b1 = bernstein(t), bernstein(t, 1)
 
     def tensor(bu, bv):
@@ -149,7 +176,7 @@ def side_integrals(control: np.ndarray, order: int = 5) -> tuple[float, float]:
     q, n = len(weights), order
     derivatives = _derivative_basis(order)
     v_weighted, v_derivative = _v_basis(order)
-    w = _gauss(order)[1]
+    w = gauss_legendre(order)[1]
     n_rows, n_cols = control.shape[:2]
     flux = area = 0.0
     # chunks of whole patch rows: a view of some columns is copied a chunk at a time
@@ -209,7 +236,7 @@ def side_integrals(control: np.ndarray, order: int = 5) -> tuple[float, float]:
 def _v_basis(order: int) -> tuple[np.ndarray, np.ndarray]:
     """Bernstein weights (order, 4) of the points, times the nodes' Gauss weights, and of the derivatives
     at the ``v`` nodes (read-only)."""
-    t, w = _gauss(order)
+    t, w = gauss_legendre(order)
     b0, b1 = w[:, None] * bernstein(t), bernstein(t, 1)
     b0.flags.writeable = False
     b1.flags.writeable = False
@@ -351,7 +378,7 @@ def flux_z(patches: BezierPatches, order: int = 5) -> float:
 
 def _vector_area(segments: np.ndarray) -> np.ndarray:
     """``1/2 closed-integral x cross dx`` of closed piecewise-cubic Bezier curves (S, 4, 3)."""
-    t, w = _gauss(3)  # the integrand has degree 5: three Gauss points are exact
+    t, w = gauss_legendre(3)  # the integrand has degree 5: three Gauss points are exact
     x = np.einsum("ta,sak->stk", bernstein(t), segments)
     dx = np.einsum("ta,sak->stk", bernstein(t, 1), segments)
     return 0.5 * np.einsum("t,stk->k", w, cross(x, dx))

@@ -33,6 +33,7 @@ __all__ = [
     "vertex_normals",
     "weld",
     "weld_map",
+    "weld_tolerance",
     "points_apart",
     "compact",
     "tessellate",
@@ -166,9 +167,29 @@ class TriangleMesh:
                 setattr(self, name, as_array(value, name, shape=(len(self.vertices), 3)))
 
     @classmethod
-    def _trusted(cls, vertices: np.ndarray, triangles: np.ndarray, vertex_normals: np.ndarray | None = None,
+    def unchecked(cls, vertices: np.ndarray, triangles: np.ndarray, vertex_normals: np.ndarray | None = None,
                  vertex_colors: np.ndarray | None = None, metadata: dict | None = None) -> TriangleMesh:
-        """A mesh of arrays known to be valid (made from checked meshes or patches), without the checks."""
+        """A mesh of arrays known to be valid (made from checked meshes or patches), without the checks.
+
+        The kernel path of code that builds meshes from meshes or patches it has
+        checked (tessellation, welding, caps): no shape, finiteness or index test.
+        Anything else should call the constructor.
+
+        Parameters
+        ----------
+        vertices : numpy.ndarray, shape (V, 3)
+            Finite vertex positions (mm), as float64.
+        triangles : numpy.ndarray, shape (T, 3)
+            Vertex indices in ``[0, V)``, as int64.
+        vertex_normals, vertex_colors : numpy.ndarray, shape (V, 3), optional
+            Kept as given.
+        metadata : dict, optional
+            Kept as given (default: a new empty dict).
+
+        Returns
+        -------
+        TriangleMesh
+        """
         out = object.__new__(cls)
         out.vertices = np.asarray(vertices, dtype=np.float64)
         out.triangles = np.asarray(triangles, dtype=np.int64)
@@ -364,7 +385,7 @@ def compact(mesh: TriangleMesh) -> TriangleMesh:
     used = np.zeros(mesh.n_vertices, dtype=bool)
     used[mesh.triangles.ravel()] = True
     new_index = np.cumsum(used) - 1
-    return TriangleMesh._trusted(
+    return TriangleMesh.unchecked(
         mesh.vertices[used],
         new_index[mesh.triangles].reshape(-1, 3),
         None if mesh.vertex_normals is None else mesh.vertex_normals[used],
@@ -373,8 +394,24 @@ def compact(mesh: TriangleMesh) -> TriangleMesh:
     )
 
 
-def _weld_tolerance(verts: np.ndarray) -> float:
-    """:func:`weld`'s default tolerance: ``1e-9`` times the bounding-box diagonal of ``verts`` (V, 3)."""
+def weld_tolerance(verts: np.ndarray) -> float:
+    """:func:`weld`'s default tolerance: ``1e-9`` times the bounding-box diagonal of ``verts``.
+
+    Parameters
+    ----------
+    verts : numpy.ndarray, shape (V, 3), float64
+        Vertex positions (mm); not checked.
+
+    Returns
+    -------
+    float
+        The tolerance (mm), at least ``1e-309`` (a single point's box has no diagonal).
+
+    Examples
+    --------
+    >>> weld_tolerance(np.array([[0.0, 0, 0], [3, 4, 0]]))
+    5e-09
+    """
     # the extents from a coordinate-major copy: numpy reduces an (N, 3) array along its first axis, or
     # along one of its strided columns, several times slower
     by_coordinate = np.ascontiguousarray(verts.T)
@@ -407,7 +444,7 @@ def weld(mesh: TriangleMesh, tolerance: float | None = None, candidates=None) ->
     if len(verts) == 0:
         return mesh.copy()
     if tolerance is None:
-        tolerance = _weld_tolerance(verts)
+        tolerance = weld_tolerance(verts)
     rep = weld_map(verts, tolerance, candidates)
     merged = np.any(rep != np.arange(len(verts)))
     tri = rep[mesh.triangles] if merged else mesh.triangles
@@ -415,7 +452,7 @@ def weld(mesh: TriangleMesh, tolerance: float | None = None, candidates=None) ->
     if not merged and keep.all() and candidates is not None:
         return mesh  # nothing to merge (the common case of an open or flagged-closed grid)
     return compact(
-        TriangleMesh._trusted(verts, tri[keep], mesh.vertex_normals, mesh.vertex_colors, dict(mesh.metadata))
+        TriangleMesh.unchecked(verts, tri[keep], mesh.vertex_normals, mesh.vertex_colors, dict(mesh.metadata))
     )
 
 
@@ -670,7 +707,7 @@ def tessellate(patches: BezierPatches, samples: int | tuple[int, int] = PATCH_SA
     normals, collapsed = _lattice_normals(patches, dus, dvs, n_v, nu, nv)
     tri = _grid_triangles(n_u, n_v, patches.closed_u, patches.closed_v)
     # from checked patches: finite points and unit normals, the lattice's own triangles
-    mesh = TriangleMesh._trusted(verts, tri, normals)
+    mesh = TriangleMesh.unchecked(verts, tri, normals)
     if weld_seams:
         # Seams inside the grid are shared by construction; only the grid's open
         # outer edges and collapsed rows (poles: S_u x S_v = 0) can coincide.
@@ -686,7 +723,7 @@ def tessellate(patches: BezierPatches, samples: int | tuple[int, int] = PATCH_SA
         unchanged = False
         if distinct:
             # weld_map's own first proof (candidates sorted and distinct, as it takes them) before the map
-            tol = _weld_tolerance(verts)
+            tol = weld_tolerance(verts)
             unchanged = points_apart(verts[candidates], tol) or np.array_equal(weld_map(verts, tol, candidates),
                                                                                 np.arange(len(verts)))
         if not unchanged:
@@ -852,5 +889,5 @@ def merge_meshes(meshes, weld_vertices: bool = False) -> TriangleMesh:
         if all(m.vertex_colors is not None for m in meshes)
         else None
     )
-    out = TriangleMesh._trusted(verts, tri, normals, colors)
+    out = TriangleMesh.unchecked(verts, tri, normals, colors)
     return weld(out) if weld_vertices else out

@@ -7,11 +7,14 @@ the argument and says what is wrong.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import functools
+import os
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 
 import numpy as np
 
-__all__ = ["InputError", "as_array"]
+__all__ = ["InputError", "as_array", "reading", "reads_file"]
 
 
 class InputError(ValueError):
@@ -31,6 +34,96 @@ class InputError(ValueError):
     ...     print(type(err).__name__, isinstance(err, ValueError))
     InputError True
     """
+
+
+@contextmanager
+def reading(path: str | os.PathLike, what: str, also: tuple[type[BaseException], ...] = ()) -> Iterator[None]:
+    """Report a foreign parser's complaint about a file's content as :class:`InputError` naming the file.
+
+    The edge where a reader hands bytes to a library (``json``, ``numpy.loadtxt``,
+    ``numpy.load``, pydicom, nibabel, OpenCV): their ``ValueError`` (a
+    ``json.JSONDecodeError``, a ``UnicodeDecodeError``, numpy's "could not convert
+    string to float") and the exception types in ``also`` mean the file is bad, so
+    they become one ``InputError`` that names the file and what was expected. An
+    ``InputError`` and every other exception pass unchanged.
+
+    Parameters
+    ----------
+    path : path-like
+        The file being read, named in the message.
+    what : str
+        What the file should be, e.g. ``"JSON file"``, ``"light table"``.
+    also : tuple of exception types, optional
+        More exception types that mean a damaged file for this reader (e.g.
+        ``pydicom.errors.InvalidDicomError``, ``zipfile.BadZipFile``, ``EOFError``).
+
+    Raises
+    ------
+    InputError
+        ``"<path>: not a readable <what> (<the library's message>)"``.
+
+    Examples
+    --------
+    >>> import json
+    >>> try:
+    ...     with reading("spec.json", "JSON file"):
+    ...         json.loads("{not json")
+    ... except InputError as err:
+    ...     print(err)
+    spec.json: not a readable JSON file (Expecting property name enclosed in double quotes: line 1 column 2 (char 1))
+    """
+    try:
+        yield
+    except InputError:
+        raise
+    except (ValueError, *also) as exc:
+        detail = str(exc).strip().splitlines()
+        detail = f" ({detail[0]})" if detail else f" ({type(exc).__name__})"
+        raise InputError(f"{os.fspath(path)}: not a readable {what}{detail}") from exc
+
+
+def reads_file(what: str, also: tuple[type[BaseException], ...] = ()) -> Callable[[Callable], Callable]:
+    """Decorate a reader whose first argument is a file: its foreign errors become :class:`InputError`.
+
+    The whole body of the reader runs inside :func:`reading` with the first
+    argument as the path: a reader's job is to parse its file, so a
+    ``ValueError`` raised while it runs (``json``, ``numpy``, ``float()`` on a
+    field) says the file is bad.
+
+    Parameters
+    ----------
+    what : str
+        What the file should be (``"contour JSON file"``), named in the message.
+    also : tuple of exception types, optional
+        More exception types that mean a damaged file (see :func:`reading`).
+
+    Returns
+    -------
+    callable
+        The decorator.
+
+    Examples
+    --------
+    >>> @reads_file("number file")
+    ... def read_number(path):
+    ...     return float("twelve")
+    >>> try:
+    ...     read_number("n.txt")
+    ... except InputError as err:
+    ...     print(err)
+    n.txt: not a readable number file (could not convert string to float: 'twelve')
+    """
+
+    def decorate(func: Callable) -> Callable:
+        @functools.wraps(func)
+        def read(*args, **kwargs):
+            path = args[0] if args else kwargs.get("path", "input")
+            with reading(path, what, also):
+                return func(*args, **kwargs)
+
+        return read
+
+    return decorate
 
 
 def as_array(

@@ -10,9 +10,11 @@ dask, open3d and matplotlib are imported only where they are used.
 from workbench.batch import BatchReport, Job, Plan, load_jobs, plan, run_batch, write_report
 from workbench.cli import build_parser, main
 from workbench.report import Report
+from surfaces.validate import InputError  # bad input; the same class in every package
 
 __all__ = [
     "BatchReport",
+    "InputError",
     "Job",
     "Plan",
     "Report",

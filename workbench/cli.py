@@ -1,8 +1,12 @@
 """The ``workbench`` console script: one entry point, sub-commands per package.
 
-Errors that come from bad input (``ValueError``, ``FileNotFoundError``,
-``NotADirectoryError``, ``PermissionError``) are printed as one line on stderr
-and the process exits with code 2, without a traceback. Python warnings raised
+Errors that come from bad input (:class:`surfaces.validate.InputError`, which
+every reader and option check raises, and the file errors ``FileNotFoundError``,
+``NotADirectoryError``, ``IsADirectoryError``, ``PermissionError`` and any other
+``OSError`` that names a file) are printed as one line on stderr and the
+process exits with code 2, without a traceback. Every other exception (a
+``ValueError`` from inside numpy, an ``IndexError``, ...) is a bug and keeps its
+traceback. Python warnings raised
 while a command runs (a library's ``UserWarning``, SciPy's and NumPy's
 ``RuntimeWarning``) are printed as one line each, ``workbench: warning: ...``,
 without their source line.
@@ -15,6 +19,8 @@ import importlib
 import sys
 import warnings
 from collections.abc import Sequence
+
+from surfaces.validate import InputError
 
 # group name -> (help text, modules that register sub-commands into the group)
 GROUPS: dict[str, tuple[str, tuple[str, ...]]] = {
@@ -51,7 +57,33 @@ GROUPS: dict[str, tuple[str, tuple[str, ...]]] = {
 # modules that add top-level commands (``workbench view``, ``workbench demo``)
 TOP_LEVEL: tuple[str, ...] = ("workbench.commands.view", "workbench.commands.demo")
 
-INPUT_ERRORS = (ValueError, FileNotFoundError, NotADirectoryError, IsADirectoryError, PermissionError)
+#: the exceptions that mean bad input: one line on stderr and exit code 2 (an ``OSError`` only when it names a file)
+INPUT_ERRORS = (InputError, FileNotFoundError, NotADirectoryError, IsADirectoryError, PermissionError)
+
+
+def is_input_error(exc: BaseException) -> bool:
+    """Whether an exception reports bad input (one line, exit 2) rather than a bug (traceback).
+
+    Parameters
+    ----------
+    exc : BaseException
+        The exception a command raised.
+
+    Returns
+    -------
+    bool
+        True for :data:`INPUT_ERRORS` and for an ``OSError`` about a named file
+        (``exc.filename`` set: a full disk, a file in use); False otherwise, a plain
+        ``ValueError`` from numpy included.
+
+    Examples
+    --------
+    >>> is_input_error(InputError("--grid: must be at least 2")), is_input_error(ValueError("shapes differ"))
+    (True, False)
+    >>> is_input_error(OSError(28, "No space left on device", "out/mesh.ply"))
+    True
+    """
+    return isinstance(exc, INPUT_ERRORS) or (isinstance(exc, OSError) and exc.filename is not None)
 
 
 class _Parser(argparse.ArgumentParser):
@@ -161,6 +193,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         Exit code: 0 on success, 2 on bad input or usage (one line on stderr,
         ``workbench: error: ...``), 130 when interrupted.
 
+    Raises
+    ------
+    Exception
+        Any exception that is not bad input (:func:`is_input_error`) propagates with its
+        traceback: it is a bug to report, not a message for the user.
+
     Examples
     --------
     >>> main(["surfaces", "info", "no_such_part.npz"])  # stderr: workbench: error: no_such_part.npz: ...
@@ -178,7 +216,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         with warnings.catch_warnings():
             warnings.showwarning = _one_line_warning
             code = func(args)
-    except INPUT_ERRORS as exc:
+    except (InputError, OSError) as exc:
+        if not is_input_error(exc):
+            raise
         message = str(exc) or exc.__class__.__name__
         print(f"workbench: error: {message.splitlines()[0] if message else ''}", file=sys.stderr)
         return 2

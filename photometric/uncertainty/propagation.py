@@ -302,8 +302,33 @@ def propagate(
     return UncertaintyResult(p_u=p_u, q_u=q_u, height_u=height_u, defects=out_defects, summary=summary)
 
 
-def _perturbed_lights(L: np.ndarray, u_rad: float, rng: np.random.Generator) -> np.ndarray:
-    """Lights moved by independent tangent deviations of standard uncertainty ``u_rad`` per axis."""
+def perturbed_lights(L: np.ndarray, u_rad: float, rng: np.random.Generator) -> np.ndarray:
+    """Lights moved by independent random tangent deviations of standard uncertainty ``u_rad`` per axis.
+
+    One Monte Carlo draw of the light-direction uncertainty: each light moves along
+    its slant and azimuth tangents by normal deviates, then is normalised again.
+
+    Parameters
+    ----------
+    L : numpy.ndarray, shape (N, 3)
+        Unit light directions.
+    u_rad : float
+        Standard uncertainty of each tangent component (radians).
+    rng : numpy.random.Generator
+        Source of the deviates.
+
+    Returns
+    -------
+    numpy.ndarray, shape (N, 3)
+        The moved unit directions.
+
+    Examples
+    --------
+    >>> L = np.array([[0.0, 0.0, 1.0], [0.6, 0.0, 0.8]])
+    >>> moved = perturbed_lights(L, 0.01, np.random.default_rng(0))
+    >>> bool(np.allclose(np.linalg.norm(moved, axis=1), 1.0)), bool(np.degrees(np.arccos((moved * L).sum(1))).max() < 3)
+    (True, True)
+    """
     e_s, e_a = _tangents(L)
     d = rng.normal(0.0, u_rad, (L.shape[0], 2))
     moved = L + d[:, :1] * e_s + d[:, 1:] * e_a
@@ -334,7 +359,7 @@ def _monte_carlo(images, L, E, sigma, tol, resolve, defects, shape, h, rng, draw
     missing = 0
     u_dir = math.radians(tol.light_tolerance_deg)
     for _ in range(n):
-        Lm = draw(rng) if draw is not None else _perturbed_lights(L, u_dir, rng) if u_dir > 0 else L
+        Lm = draw(rng) if draw is not None else perturbed_lights(L, u_dir, rng) if u_dir > 0 else L
         Em = E * (1.0 + tol.intensity_tolerance * rng.standard_normal(E.shape[0]).reshape(
             (-1,) + (1,) * (E.ndim - 1))) if tol.intensity_tolerance > 0 else E
         im = imgs + rng.normal(0.0, sigma, imgs.shape).astype(np.float32) if sigma > 0 else imgs

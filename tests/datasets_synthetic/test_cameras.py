@@ -74,6 +74,7 @@ def test_perspective_hits_on_a_sphere_cap_are_the_closed_form(cap_mm, f, height)
                                   < np.sqrt(2 * radius * cap_mm - cap_mm**2))
 
 
+@pytest.mark.slow
 def test_perspective_hits_on_a_defect_plate_agree_with_open3d_ray_casting():
     """An independent implementation: Embree rays against a finely triangulated mesh of the scene."""
     import open3d as o3d

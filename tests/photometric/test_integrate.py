@@ -227,24 +227,6 @@ def test_robust_two_parts_and_bad_input():
         robust_least_squares(np.zeros((4, 4)), np.zeros((4, 4)), mask=np.zeros((4, 4), bool))
 
 
-def test_robust_integrator_from_the_command_line(tmp_path):
-    """``--integrator robust`` reaches the integrator and is stated in summary.json."""
-    import json
-
-    from datasets_synthetic.render import make_triad_folder
-    from workbench.cli import main
-
-    folder = tmp_path / "plate"
-    make_triad_folder(folder, scene="plate", size=48, noise=0.0, shadows="attached", deviate=None,
-                      albedo=0.8, pixel_size=0.2, seed=1)
-    for integrator in ("lsq", "robust"):
-        assert main(["photometric", "reconstruct", str(folder), "--integrator", integrator, "--surface", "coons",
-                     "--out", str(tmp_path / integrator)]) == 0
-    lsq, robust = (json.loads((tmp_path / i / "summary.json").read_text()) for i in ("lsq", "robust"))
-    assert robust["integrator"] == "robust"
-    assert robust["height_rmse_mm"] < 1.05 * lsq["height_rmse_mm"] + 1e-6
-
-
 def test_nearfield_takes_the_robust_integrator():
     """A masked plane under point lights: the robust integral is the least-squares one (no curl)."""
     from photometric.camera import make_camera, pixel_offsets

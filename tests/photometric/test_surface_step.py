@@ -11,7 +11,6 @@ from scipy.spatial import cKDTree
 
 from surfaces.grid import pixel_grid
 from surfaces.mixed import MixedPatches
-from workbench.cli import main
 
 
 @pytest.fixture(scope="module")
@@ -82,21 +81,3 @@ def test_fit_normals_follow_the_measured_normals(both):
 def test_bad_surface_options(crack_folder, kwargs, message):
     with pytest.raises(ValueError, match=message):
         reconstruct(crack_folder, **kwargs)
-
-
-def test_cli_surface_options(crack_folder, tmp_path, capsys):
-    out = tmp_path / "o"
-    assert main(["photometric", "reconstruct", str(crack_folder), "--surface-tolerance", "0.01",
-                 "--out", str(out)]) == 0
-    summary = json.loads((out / "summary.json").read_text())
-    assert summary["surface"] == "fit" and summary["surface_tolerance_mm"] == 0.01
-    assert summary["surface_max_dev_mm"] <= 0.02
-    text = capsys.readouterr().out
-    assert f"{summary['n_patches']} patches (fit" in text
-    assert main(["photometric", "reconstruct", str(crack_folder), "--surface", "coons", "--step", "8",
-                 "--out", str(tmp_path / "c")]) == 0
-    coons = json.loads((tmp_path / "c" / "summary.json").read_text())
-    assert coons["surface"] == "coons" and coons["n_patches"] == 32 * 32 and coons["patches"] == [32, 32]
-    assert main(["photometric", "reconstruct", str(crack_folder), "--surface-tolerance", "0",
-                 "--out", str(tmp_path / "bad")]) == 2
-    assert "surface_tolerance" in capsys.readouterr().err

@@ -55,7 +55,8 @@ def test_composition_needs_closed_solids(shared_data, tmp_path):
 @pytest.mark.parametrize("roi", ["Nodes", "Scar", "Borders", "Tumor Bed", "Tumor Bed Block"])
 def test_fold_certificate_on_real_bodies(shared_data, roi):
     """The meshes the fold check clears with the certificate are clean by the exact test on every face."""
-    from surfaces.intersect import fold_suspects, self_intersections
+    from surfaces.folds import fold_suspects
+    from surfaces.intersect import self_intersections
 
     result = reconstruct(_rtss(shared_data), roi=roi, caps="half", reference=False)
     for b in result.reconstruction.bodies:

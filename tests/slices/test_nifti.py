@@ -6,7 +6,6 @@ import numpy as np
 import pytest
 
 from slices.io import is_nifti, load, nifti_labels, read_nifti
-from workbench.runs.slices import reconstruct_to_folder
 
 nibabel = pytest.importorskip("nibabel")
 
@@ -44,19 +43,6 @@ def test_contours_lie_in_mm_through_the_affine(tmp_path):
     assert nifti_labels(path)[0] == {"label": 1, "n_voxels": 360, "n_planes": 6}
 
 
-def test_a_label_volume_reconstructs_each_label(tmp_path):
-    path = _save(tmp_path / "boxes.nii", _two_boxes(), np.diag([1.0, 1.0, 2.0, 1.0]))
-    for label, (nx, ny, nz) in ((1, (10, 6, 6)), (2, (12, 10, 8))):
-        s = reconstruct_to_folder(path, tmp_path / f"o{label}", roi=label, caps="half", render=False,
-                                  reference=False, samples=2)
-        # each section: the voxels' rectangle less four corner triangles of 1/8 voxel (the 0.5 level
-        # cuts the corners), end planes half in the slab count
-        section = nx * ny - 0.5
-        assert s["slab_volume_mm3"] == pytest.approx(section * 2.0 * (nz - 1), rel=1e-9)
-        assert s["volume_mm3"] == pytest.approx(section * 2.0 * nz, rel=0.03)
-        assert s["source"] == "nifti"
-
-
 def test_bad_nifti_input(tmp_path):
     path = _save(tmp_path / "boxes.nii.gz", _two_boxes(), np.eye(4))
     with pytest.raises(ValueError, match="no voxel .* value 3"):
@@ -76,18 +62,3 @@ def test_bad_nifti_input(tmp_path):
         read_nifti(tmp_path / "junk.nii.gz")
     with pytest.raises(FileNotFoundError):
         read_nifti(tmp_path / "missing.nii")
-
-
-def test_an_exported_phantom_mask_reads_back_at_the_phantom_volume(tmp_path):
-    from datasets_synthetic.phantoms import make_phantom
-
-    ph = make_phantom("ellipsoid", a=12.0, b=9.0, c=10.0)
-    contours = tmp_path / "contours.json"
-    contours.write_text(__import__("json").dumps({"contours": [
-        {"z": c["z"], "points": c["points"].tolist()} for c in ph.contours(2.0, n_points=64)]}))
-    mask = tmp_path / "mask.nii.gz"
-    reconstruct_to_folder(contours, tmp_path / "a", caps="half", render=False, reference=False, samples=3,
-                          export_mask=str(mask), mask_spacing="0.5,0.5,1")
-    back = reconstruct_to_folder(mask, tmp_path / "b", caps="half", render=False, reference=False, samples=2)
-    assert back["source"] == "nifti" and back["mesh_watertight"]
-    assert back["volume_mm3"] == pytest.approx(ph.volume_mm3, rel=0.01)

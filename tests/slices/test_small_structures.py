@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 
 import numpy as np
 import pytest
@@ -11,7 +10,6 @@ from datasets_synthetic.phantoms import make_phantom
 from slices.chaining import planning_volumes, slab_volume
 from slices.polygons import clean_contour
 from slices.io import Contour
-from workbench.runs.slices import reconstruct_to_folder
 
 
 def _stack(shape: str, spacing: float, n_points: int = 256):
@@ -62,17 +60,3 @@ def test_holes_and_uneven_planes():
     assert got["slab_half_ends"] == pytest.approx(slab_volume(conts, None), rel=1e-12)
     single = planning_volumes(conts[:2], 2.0)
     assert single["slab_full_ends"] == pytest.approx(ring * 2.0, rel=1e-12) and single["n_planes"] == 1
-
-
-def test_summary_reports_the_planning_volume_beside_ours(tmp_path):
-    ph, conts = _stack("lens", 2.0, n_points=64)
-    path = tmp_path / "lens.json"
-    path.write_text(json.dumps({"contours": [{"z": c.z, "points": c.points.tolist()} for c in conts]}))
-    summary = reconstruct_to_folder(path, tmp_path / "out", caps="half", render=False, reference=False)
-    plan = summary["planning_volume_mm3"]
-    assert plan["small_structure"] and plan["ours_mm3"] == summary["volume_mm3"]
-    assert plan["slab_half_ends"] == pytest.approx(summary["slab_volume_mm3"], rel=1e-12)
-    assert plan["ours_over_full_ends"] == pytest.approx(summary["volume_mm3"] / plan["slab_full_ends"])
-    assert any(n.startswith("small structure (3 plane(s))") for n in summary["notes"])
-    written = json.loads((tmp_path / "out" / "summary.json").read_text())
-    assert written["planning_volume_mm3"]["slab_full_ends"] == pytest.approx(plan["slab_full_ends"])

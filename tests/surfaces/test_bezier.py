@@ -107,7 +107,7 @@ def test_trusted_patches_are_the_checked_ones_without_a_copy():
     rng = np.random.default_rng(3)
     control = rng.normal(size=(3, 5, 4, 4, 3))
     columns = control[:, 1:4]
-    trusted = BezierPatches._trusted(columns, closed_v=True)
+    trusted = BezierPatches.unchecked(columns, closed_v=True)
     checked = BezierPatches(columns, closed_u=False, closed_v=False)
     assert np.shares_memory(trusted.control, control) and not trusted.control.flags.writeable
     assert control.flags.writeable  # the caller's array stays as it was

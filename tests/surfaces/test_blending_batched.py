@@ -165,7 +165,7 @@ def test_restrict_rows_equals_restrict_segments_on_tiled_closed_curves():
     g, k0, k1, b0, b1 = (np.concatenate(x) for x in zip(*rows))
     expect = blending.restrict_segments(ctrl[g], k0, k1, b0, b1)
     out = np.full((len(g), 4, 3), np.nan)
-    blending._restrict_rows(np.ascontiguousarray(ctrl[g].transpose(1, 2, 0)), k0, k1, b0, b1, m, out[..., :2])
+    blending.restrict_closed_rows(np.ascontiguousarray(ctrl[g].transpose(1, 2, 0)), k0, k1, b0, b1, m, out[..., :2])
     np.testing.assert_allclose(out[..., :2], expect, rtol=0, atol=1e-12)
     assert np.isnan(out[..., 2]).all()  # only the given view is written
 

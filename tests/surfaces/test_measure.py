@@ -74,17 +74,17 @@ def test_sphere_closed_by_poles_and_open_surfaces():
 
 
 def test_gauss_nodes_cached_read_only_and_exact():
-    from surfaces.measure import _gauss
+    from surfaces.measure import gauss_legendre
 
-    t, w = _gauss(5)
-    t2, w2 = _gauss(5)
+    t, w = gauss_legendre(5)
+    t2, w2 = gauss_legendre(5)
     assert t is t2 and w is w2
     assert not t.flags.writeable and not w.flags.writeable
     x, v = np.polynomial.legendre.leggauss(5)
     np.testing.assert_array_equal(t, 0.5 * (x + 1.0))
     np.testing.assert_array_equal(w, 0.5 * v)
     with pytest.raises(ValueError, match="order"):
-        _gauss(0)
+        gauss_legendre(0)
 
 
 @pytest.mark.parametrize("shape", [(1, 1), (7, 3), (300, 2)])

@@ -236,7 +236,7 @@ def test_meshes_made_from_checked_ones_equal_the_checked_construction():
             assert a.dtype == b.dtype and np.array_equal(a, b)
         assert out.vertex_colors is None and out.metadata == {}
     assert compact(extra).n_vertices == len(v)
-    trusted = Mesh._trusted(np.array(v, dtype=np.float32), np.asarray(t, dtype=np.int32))
+    trusted = Mesh.unchecked(np.array(v, dtype=np.float32), np.asarray(t, dtype=np.int32))
     assert trusted.vertices.dtype == np.float64 and trusted.triangles.dtype == np.int64
 
 

@@ -6,6 +6,7 @@ import importlib
 
 import pytest
 
+from surfaces.validate import InputError
 from workbench.cli import GROUPS, TOP_LEVEL, build_parser, main
 
 
@@ -69,6 +70,82 @@ def test_other_errors_are_not_hidden(monkeypatch):
     monkeypatch.setattr("workbench.commands.demo.run", broken)
     with pytest.raises(ZeroDivisionError):
         main(["demo"])
+
+
+def test_a_plain_value_error_keeps_its_traceback(monkeypatch):
+    """numpy's own ValueError (a bug: shapes that do not broadcast) is not bad input: no exit 2, it propagates."""
+    import numpy as np
+
+    def buggy(args):
+        return np.ones(3) + np.ones(4)
+
+    monkeypatch.setattr("workbench.commands.demo.run", buggy)
+    with pytest.raises(ValueError, match="could not be broadcast") as raised:
+        main(["demo"])
+    assert not isinstance(raised.value, InputError)
+
+
+def test_the_console_script_prints_a_bug_with_its_traceback(tmp_path):
+    """Through the real entry point: a ValueError from numpy gives a traceback and exit 1, bad input one line and 2."""
+    import os
+    import subprocess
+    import sys
+
+    script = (
+        "import sys, numpy as np, workbench.commands.demo as d\n"
+        "d.run = lambda args: np.ones(3) + np.ones(4)\n"
+        "from workbench.cli import main\n"
+        "sys.exit(main(sys.argv[1:]))\n"
+    )
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
+    bug = subprocess.run([sys.executable, "-c", script, "demo"], capture_output=True, text=True, env=env,
+                         cwd=tmp_path, timeout=120)
+    assert bug.returncode == 1
+    assert "Traceback (most recent call last)" in bug.stderr
+    assert "ValueError: operands could not be broadcast" in bug.stderr
+    assert "workbench: error" not in bug.stderr
+    bad = subprocess.run([sys.executable, "-c", script, "surfaces", "info", "none.ply"], capture_output=True,
+                         text=True, env=env, cwd=tmp_path, timeout=120)
+    assert bad.returncode == 2
+    assert bad.stderr == "workbench: error: none.ply: no such mesh file\n"
+
+
+@pytest.mark.parametrize(
+    ("error", "code"),
+    [
+        (InputError("--grid: must be at least 2"), 2),
+        (FileNotFoundError("part.ply: no such mesh file"), 2),
+        (PermissionError(13, "Permission denied", "out/report.json"), 2),
+        (OSError(28, "No space left on device", "out/mesh.ply"), 2),
+        (OSError("a socket went away"), None),
+        (ValueError("a bug"), None),
+        (KeyError("a bug"), None),
+    ],
+)
+def test_only_input_and_file_errors_are_exit_2(monkeypatch, capsys, error, code):
+    def failing(args):
+        raise error
+
+    monkeypatch.setattr("workbench.commands.demo.run", failing)
+    if code is None:
+        with pytest.raises(type(error)):
+            main(["demo"])
+    else:
+        assert main(["demo"]) == code
+        err = capsys.readouterr().err
+        assert err.startswith("workbench: error: ") and err.count("\n") == 1
+
+
+def test_every_package_exports_the_same_input_error():
+    import datasets_synthetic
+    import photometric
+    import slices
+    import surfaces
+    import workbench
+
+    for package in (surfaces, photometric, slices, datasets_synthetic, workbench):
+        assert package.InputError is InputError, package.__name__
+        assert "InputError" in package.__all__, package.__name__
 
 
 def test_version(capsys):

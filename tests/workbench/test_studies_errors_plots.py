@@ -16,6 +16,7 @@ def report():
     return analyse(ring_lights(3, 45.0), deviation_max=2.0, grid=7, samples=200, crack=False)
 
 
+@pytest.mark.slow
 def test_every_figure_is_a_png(report, tmp_path):
     pictures = write_plots(report, tmp_path)
     assert set(pictures) == {"maps", "curves", "mc", "condition"}
@@ -28,6 +29,7 @@ def test_every_figure_is_a_png(report, tmp_path):
     assert pictures["maps"][0] == "map_1_square_L1slant_L2slant.png"
 
 
+@pytest.mark.slow
 def test_surface_and_crack_figures_when_present(tmp_path):
     rows, cols = np.mgrid[0:16, 0:16]
     rep = analyse(ring_lights(3, 45.0), deviation_max=2.0, grid=7, samples=200, crack_size=40,

@@ -16,6 +16,7 @@ def report():
     return analyse(ring_lights(3, 45.0), deviation_max=2.0, grid=7, samples=200, crack=False)
 
 
+@pytest.mark.slow
 def test_files_and_json(report, tmp_path):
     files = write_report(report, tmp_path / "out")
     out = tmp_path / "out"

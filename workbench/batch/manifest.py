@@ -21,7 +21,7 @@ from typing import Any
 from workbench.batch.jobs import Job, check_job_id, check_kind
 from workbench.batch.results import COMPLETE_MARKER, FAILED_DIR, RESULTS_NAME
 from workbench.batch.runners import pipeline
-from surfaces.validate import InputError
+from surfaces.validate import InputError, reads_file
 
 # manifest columns holding file paths (resolved against the manifest's folder)
 _PATH_OPTIONS: dict[str, tuple[str, ...]] = {
@@ -63,6 +63,7 @@ def load_jobs(source: str | os.PathLike, kind: str, defaults: Mapping[str, Any] 
     return read_manifest(path, kind, defaults)
 
 
+@reads_file("manifest")
 def read_manifest(path: str | os.PathLike, kind: str, defaults: Mapping[str, Any] | None = None) -> list[Job]:
     """Parse a CSV (header row) or JSON-lines manifest into jobs.
 

@@ -1,8 +1,9 @@
 """Helpers every sub-command module shares: adding a command, reading inputs, checking and writing outputs.
 
-Each helper raises a ``ValueError`` or ``FileNotFoundError`` that names the
-option or file and what is wrong; :func:`workbench.cli.main` prints it as one
-line and exits with code 2.
+Each helper raises an :class:`~surfaces.validate.InputError` or a
+``FileNotFoundError`` that names the option or file and what is wrong;
+:func:`workbench.cli.main` prints it as one line and exits with code 2 (any
+other exception is a bug and keeps its traceback).
 """
 
 from __future__ import annotations
@@ -83,7 +84,7 @@ def read_model(path: str | os.PathLike):
     ------
     FileNotFoundError
         When the file does not exist (the message names it).
-    ValueError
+    InputError
         On an unsupported suffix or an unreadable file.
     """
     p = Path(path)
@@ -111,7 +112,7 @@ def load_npy(path: str | os.PathLike, name: str) -> np.ndarray:
     ------
     FileNotFoundError
         When the file does not exist.
-    ValueError
+    InputError
         When it is not a readable ``.npy`` file.
     """
     p = Path(path)
@@ -141,7 +142,7 @@ def npy_shape(path: str | os.PathLike, name: str) -> tuple[int, ...]:
     ------
     FileNotFoundError
         When the file does not exist.
-    ValueError
+    InputError
         When it is not a readable ``.npy`` file of numbers.
     """
     p = Path(path)
@@ -185,7 +186,7 @@ def parse_size(text: str, name: str) -> int:
 
     Raises
     ------
-    ValueError
+    InputError
         When ``text`` is not a positive size.
 
     Examples
@@ -239,7 +240,7 @@ def mesh_out(path: str | os.PathLike, name: str = "--out") -> Path:
 
     Raises
     ------
-    ValueError
+    InputError
         On a suffix that is not a mesh format.
     FileNotFoundError
         When the folder does not exist.
@@ -278,7 +279,7 @@ def parse_vector(text: str, name: str) -> np.ndarray:
 
     Raises
     ------
-    ValueError
+    InputError
         When ``text`` is not three finite numbers.
 
     Examples

@@ -42,8 +42,8 @@ __all__ = ["COMPLETE_MARKER", "FolderBusy", "check_out_folder", "hold_lock", "is
 COMPLETE_MARKER = "_COMPLETE"
 
 
-class FolderBusy(ValueError):
-    """Another live process holds the lock of a result folder."""
+class FolderBusy(InputError):
+    """Another live process holds the lock of a result folder (bad input: the folder given is in use; exit 2)."""
 
 
 def check_out_folder(out: str | os.PathLike, name: str = "out_dir", owned: Iterable[str] | None = None) -> Path:

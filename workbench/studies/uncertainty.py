@@ -22,7 +22,7 @@ import numpy as np
 
 from photometric.uncertainty import COVERAGE_FACTOR, FIGURES, SOURCES, Tolerances, format_value
 from surfaces.io import atomic_write_bytes
-from surfaces.validate import InputError, positive
+from surfaces.validate import InputError, positive, reading
 
 __all__ = ["FIGURE_LABELS", "TARGET_COVERAGE", "uncertainty_budget", "draw_budget", "coverage_interval",
            "coverage_study"]
@@ -48,7 +48,8 @@ def _read_json(path: Path) -> dict:
     if not path.is_file():
         raise FileNotFoundError(f"result_dir: {path.name} not found in {path.parent} (run 'workbench photometric "
                                 "reconstruct' with an uncertainty option, e.g. --light-tolerance-deg)")
-    return json.loads(path.read_text())
+    with reading(path, "JSON file"):
+        return json.loads(path.read_text())
 
 
 def draw_budget(budget: dict, title: str = ""):
@@ -162,7 +163,7 @@ def _trial(rng: np.random.Generator, opts: dict, method: str, mc_samples: int) -
     from datasets_synthetic.render import render
     from photometric.lights import light_field, point_lights, ring_lights
     from photometric.pipeline import reconstruct
-    from photometric.uncertainty.propagation import _perturbed_lights
+    from photometric.uncertainty.propagation import perturbed_lights
 
     size, h = opts["size"], opts["pixel_size"]
     L = ring_lights(opts["n_lights"], opts["slant_deg"])
@@ -184,7 +185,7 @@ def _trial(rng: np.random.Generator, opts: dict, method: str, mc_samples: int) -
         tol = Tolerances(noise_sigma=opts["noise"], light_position_tolerance_mm=opts["light_position_tolerance_mm"],
                          method=method, mc_samples=mc_samples, seed=int(rng.integers(1 << 31)))
     else:
-        true_lights = _perturbed_lights(L, math.radians(opts["light_tolerance_deg"]), rng)
+        true_lights = perturbed_lights(L, math.radians(opts["light_tolerance_deg"]), rng)
         images = render(hf, true_lights, albedo=opts["albedo"], noise=opts["noise"], seed=rng)
         inputs = {"lights": L}
         tol = Tolerances(noise_sigma=opts["noise"], light_tolerance_deg=opts["light_tolerance_deg"], method=method,

@@ -1,4 +1,4 @@
-"""The fold certificate of layered meshes (:func:`surfaces.intersect.fold_suspects`) against the exact test.
+"""The fold certificate of layered meshes (:func:`surfaces.folds.fold_suspects`) against the exact test.
 
 Whatever the mesh, every pair of faces that :func:`self_intersections` finds
 crossing must have both faces among the suspects; a mesh without suspects must
@@ -18,7 +18,8 @@ from slices.body import FALLBACKS, build_body_once
 from slices.chaining import chain
 from slices.io import Contour
 from slices.options import SurfaceOptions
-from surfaces.intersect import fold_suspects, folded_faces, is_fold_free, layered_radial_graph, self_intersections
+from surfaces.folds import fold_suspects, folded_faces, is_fold_free, layered_radial_graph
+from surfaces.intersect import self_intersections
 from tests.surfaces.test_intersect import uv_sphere
 
 
@@ -79,6 +80,7 @@ def test_fold_phantoms_are_never_proven(name):
             assert suspects is None or suspects.any()
 
 
+@pytest.mark.slow
 def test_meshes_folded_on_purpose():
     """Vertices moved within their level (the mesh stays layered) fold it; the suspects hold every crossing."""
     rng = np.random.default_rng(7)
@@ -125,7 +127,7 @@ def test_a_uv_sphere_is_proven():
 def test_closed_and_oriented_against_counting_the_directed_edges():
     from collections import Counter
 
-    from surfaces.intersect import _closed_and_oriented
+    from surfaces.folds import _closed_and_oriented
 
     def by_counting(t):
         edges = Counter((int(a), int(b)) for tri in t for a, b in zip(tri, np.roll(tri, -1)))
@@ -145,7 +147,7 @@ def test_closed_and_oriented_against_counting_the_directed_edges():
 
 def _both_forms(monkeypatch, v: np.ndarray, t: np.ndarray) -> tuple[np.ndarray | None, np.ndarray | None]:
     """Suspects of the lattice form (where it applies) and of the general form alone."""
-    import surfaces.intersect as si
+    import surfaces.folds as si
     lattice = fold_suspects(v, t)
     with monkeypatch.context() as m:
         m.setattr(si, "_lattice_shape", lambda t, n: None)
@@ -160,8 +162,8 @@ def _same(a: np.ndarray | None, b: np.ndarray | None) -> bool:
 def test_lattice_form_clears_what_the_general_form_clears(monkeypatch):
     """On the body meshes (side lattice and caps), perturbed copies and the fold phantoms the lattice form
     gives the general form's suspects, face for face."""
-    import surfaces.intersect as si
-    from surfaces.intersect import _lattice_shape
+    import surfaces.folds as si
+    from surfaces.folds import _lattice_shape
     monkeypatch.setattr(si, "LATTICE_MIN_FACES", 0)  # the small meshes here take the lattice form too
     rng = np.random.default_rng(11)
     meshes = []
@@ -188,7 +190,7 @@ def test_lattice_form_clears_what_the_general_form_clears(monkeypatch):
 def test_few_bad_arcs_compared_directly_give_the_table_of_taken_bins(monkeypatch):
     """The suspects from the direct comparison of every arc with a few bad ones are the suspects from the
     table of taken bins, in both forms, on perturbed body meshes with bad faces."""
-    import surfaces.intersect as si
+    import surfaces.folds as si
     monkeypatch.setattr(si, "LATTICE_MIN_FACES", 0)
     rng = np.random.default_rng(5)
     n_bad = 0
@@ -211,8 +213,8 @@ def test_few_bad_arcs_compared_directly_give_the_table_of_taken_bins(monkeypatch
 
 def test_lattice_form_declines_what_is_not_a_lattice(monkeypatch):
     """A lattice whose triangles are shuffled or whose rings leave their level goes to the general form."""
-    import surfaces.intersect as si
-    from surfaces.intersect import _lattice_shape
+    import surfaces.folds as si
+    from surfaces.folds import _lattice_shape
     monkeypatch.setattr(si, "LATTICE_MIN_FACES", 0)
     rng = np.random.default_rng(3)
     contours = [Contour(2.0 * k, _star(rng, 40, 1.0)) for k in range(4)]
@@ -230,7 +232,7 @@ def test_lattice_form_declines_what_is_not_a_lattice(monkeypatch):
 def test_crossing_winding_equals_the_summed_angle_steps():
     """The certificate's windings (signed crossings of a half-line) against the angle steps summed over
     2 pi, on random closed chains about the origin that wind 0, 1, 2 times either way or wander."""
-    from surfaces.intersect import _crossings
+    from surfaces.folds import _crossings
 
     rng = np.random.default_rng(7)
     for trial in range(300):
@@ -245,3 +247,16 @@ def test_crossing_winding_equals_the_summed_angle_steps():
         expected = np.arctan2(x * yn - y * xn, x * xn + y * yn).sum() / (2 * np.pi)
         (at,), step = _crossings(x, y, xn, yn)
         assert int(step.sum()) == round(expected), trial
+
+
+def test_the_certificate_is_still_found_in_surfaces_intersect():
+    """The fold certificate moved to surfaces.folds (issue 30); its names stay importable from surfaces.intersect."""
+    import surfaces.folds as folds
+    import surfaces.intersect as intersect
+    from surfaces.intersect import is_fold_free as old_name
+
+    assert old_name is folds.is_fold_free
+    for name in intersect.MOVED_TO_FOLDS:
+        assert getattr(intersect, name) is getattr(folds, name)
+    with pytest.raises(AttributeError, match="no_such_name"):
+        intersect.no_such_name  # noqa: B018
