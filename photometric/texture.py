@@ -105,6 +105,8 @@ MEANINGS: dict[str, str] = {
 }
 
 FORMS = ("none", "plane", "poly2")
+#: parameters that grow with added noise as a root of summed variances (bias-corrected in their squares)
+QUADRATIC = ("Sa", "Sq", "Sdq")
 
 
 @dataclass(frozen=True)
@@ -298,12 +300,12 @@ def gaussian_sigma_px(cutoff_mm: float, pixel_size: float) -> float:
     return ALPHA * cutoff_mm / math.sqrt(2.0 * math.pi) / pixel_size
 
 
-def _transfer(shape, pixel_size: float, cutoff_mm: float) -> np.ndarray:
-    """ISO 16610-61 Gaussian transfer exp(-pi (alpha lambda f)^2) on an rfft2 grid."""
+def _transfer(shape, pixel_size: float, cutoff_mm: float) -> tuple[np.ndarray, np.ndarray]:
+    """ISO 16610-61 Gaussian transfer exp(-pi (alpha lambda f)^2) on an rfft2 grid, as its two 1-D factors."""
     fy = sfft.fftfreq(shape[0], d=pixel_size)
     fx = sfft.rfftfreq(shape[1], d=pixel_size)
     a = math.pi * (ALPHA * cutoff_mm) ** 2
-    return np.outer(np.exp(-a * fy**2), np.exp(-a * fx**2)).astype(np.float32)
+    return np.exp(-a * fy**2).astype(np.float32)[:, None], np.exp(-a * fx**2).astype(np.float32)[None, :]
 
 
 class _Convolver:
@@ -320,7 +322,7 @@ class _Convolver:
         self._den: dict[float, np.ndarray] = {}
         self._T: dict[float, np.ndarray] = {}
 
-    def transfer(self, cutoff: float) -> np.ndarray:
+    def transfer(self, cutoff: float) -> tuple[np.ndarray, np.ndarray]:
         if cutoff not in self._T:
             self._T[cutoff] = _transfer(self.pad, self.pixel, cutoff)
         return self._T[cutoff]
@@ -329,8 +331,8 @@ class _Convolver:
         """rfft2 of a field that is zero outside the mask (single precision: 1e-7 of the texture's range)."""
         return sfft.rfft2(np.asarray(z0, dtype=np.float32), s=self.pad, workers=-1)
 
-    def weight(self, cutoff: float) -> np.ndarray:
-        """The filtered mask (the normaliser)."""
+    def weight(self, cutoff: float) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+        """The filtered mask (the normaliser); two 1-D factors for a full rectangle."""
         if cutoff not in self._den:
             if self.full:
                 # a full rectangle's filtered mask is separable: two 1-D convolutions
@@ -339,10 +341,13 @@ class _Convolver:
                 for n, p in zip(self.shape, self.pad):
                     t = np.exp(-a * sfft.rfftfreq(p, d=self.pixel) ** 2)
                     cols.append(sfft.irfft(sfft.rfft(np.ones(n), n=p) * t, n=p)[:n])
-                self._den[cutoff] = np.outer(cols[0], cols[1]).astype(np.float32)
+                self._den[cutoff] = (cols[0].astype(np.float32)[:, None], cols[1].astype(np.float32)[None, :])
             else:
                 F = self.spectrum(self.m)
-                self._den[cutoff] = self.inverse(F * self.transfer(cutoff))
+                ty, tx = self.transfer(cutoff)
+                F *= ty
+                F *= tx
+                self._den[cutoff] = np.maximum(self.inverse(F), np.float32(1e-12))
         return self._den[cutoff]
 
     def inverse(self, F: np.ndarray) -> np.ndarray:
@@ -350,12 +355,20 @@ class _Convolver:
         return sfft.irfft2(F, s=self.pad, workers=-1)[:h, :w]
 
     def lowpass(self, z0: np.ndarray, cutoff: float, F: np.ndarray | None = None) -> np.ndarray:
-        """Normalised Gaussian low pass of ``z0`` (zero outside the mask)."""
+        """Normalised Gaussian low pass of ``z0`` (zero outside the mask); ``F`` (its spectrum) is overwritten."""
         if F is None:
             F = self.spectrum(z0)
-        num = self.inverse(F * self.transfer(cutoff))
+        ty, tx = self.transfer(cutoff)
+        F *= ty
+        F *= tx
+        num = self.inverse(F)
         den = self.weight(cutoff)
-        return num / np.maximum(den, np.float32(1e-12))
+        if isinstance(den, tuple):  # separable (full rectangle)
+            num /= den[0]
+            num /= den[1]
+            return num
+        num /= den
+        return num
 
 
 def gaussian_filter(height, pixel_size: float, cutoff_mm: float, mask=None) -> np.ndarray:
@@ -422,7 +435,7 @@ def _excess_sum(s: np.ndarray, weight: np.ndarray | None) -> float:
 
 def _hybrid(z: np.ndarray, area: np.ndarray, d: float, full: bool) -> dict:
     """Sdq (forward differences, each direction averaged over its own pairs) and Sdr (D.15)."""
-    z32 = z.astype(np.float32)
+    z32 = np.asarray(z, dtype=np.float32)
     gx = np.diff(z32, axis=1)
     gx *= np.float32(1.0 / d)
     gy = np.diff(z32, axis=0)
@@ -493,7 +506,7 @@ def _acf(z0: np.ndarray, ok: np.ndarray, full: bool) -> tuple[np.ndarray, tuple[
     cols = np.r_[pad[1] - lx: pad[1], 0: lx + 1]
 
     def corr(a):
-        F = sfft.rfft2(a.astype(np.float32), s=pad, workers=-1)
+        F = sfft.rfft2(np.asarray(a, dtype=np.float32), s=pad, workers=-1)
         F = F.real * F.real + F.imag * F.imag
         out = sfft.irfft2(F, s=pad, workers=-1)
         return out[rows][:, cols]
@@ -502,7 +515,9 @@ def _acf(z0: np.ndarray, ok: np.ndarray, full: bool) -> tuple[np.ndarray, tuple[
     if full:
         ty = np.arange(-ly, ly + 1)
         tx = np.arange(-lx, lx + 1)
-        return num / np.outer(h - np.abs(ty), w - np.abs(tx)).astype(np.float32), (ly, lx)
+        num /= (h - np.abs(ty)).astype(np.float32)[:, None]
+        num /= (w - np.abs(tx)).astype(np.float32)[None, :]
+        return num, (ly, lx)
     count = np.rint(corr(ok))
     with np.errstate(invalid="ignore", divide="ignore"):
         return np.where(count > 0.5, num / count, np.nan).astype(np.float32), (ly, lx)
@@ -908,8 +923,14 @@ def _monte_carlo(chain, primary, values, shape, pixel, height_u, slope_u, n, see
         sd = float(np.std(col, ddof=1))
         # adding noise to the measured surface shifts the parameter as the measurement noise shifted the
         # true surface's: the mean shift is the noise bias; the value as measured carries it, the corrected
-        # value carries the uncertainty of its estimate (sd / sqrt(n))
-        bias = float(np.mean(col)) - v
-        per[name] = {"U": 2.0 * math.hypot(sd, bias), "bias": bias, "corrected": v - bias,
+        # value carries the uncertainty of its estimate (sd / sqrt(n)). Noise adds variance, so the
+        # root-mean-square parameters are corrected in their squares (additive), the others linearly.
+        if name in QUADRATIC:
+            shift = float(np.mean(col * col)) - v * v
+            corrected = math.sqrt(max(v * v - shift, 0.0))
+        else:
+            corrected = 2.0 * v - float(np.mean(col))
+        bias = v - corrected
+        per[name] = {"U": 2.0 * math.hypot(sd, bias), "bias": bias, "corrected": corrected,
                      "U_corrected": 2.0 * sd * math.sqrt(1.0 + 1.0 / len(col)), "sd": sd}
     return {"method": "Monte Carlo", "samples": n, "k": 2, **model, "parameters": per}
