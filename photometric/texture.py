@@ -929,8 +929,9 @@ def texture(
     if height_u is not None or slope_u is not None:
         unc = _monte_carlo(chain, primary, values, z.shape, pixel, height_u, slope_u, mc_samples, seed,
                            smr_c_um, acf_threshold)
-    return Texture(values=values, surface=np.where(chain.area, sl, np.nan).astype(np.float64), area=chain.area, band=band,
-                   filters=filters, form=form_name, smr_c_um=float(smr_c_um), notes=notes, uncertainty=unc)
+    surface = np.where(chain.area, sl, np.nan).astype(np.float64)
+    return Texture(values=values, surface=surface, area=chain.area, band=band, filters=filters, form=form_name,
+                   smr_c_um=float(smr_c_um), notes=notes, uncertainty=unc)
 
 
 # ------------------------------------------------------------------------------------------------ uncertainty

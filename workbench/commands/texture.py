@@ -57,6 +57,9 @@ def register(subparsers) -> None:
                    "4 sigma of the L-filter (about 0.75 lambda_c) along every edge")
     p.add_argument("--mask", default=None, metavar="M",
                    help="valid pixels (.npy of bool, (H, W); default the folder's valid.npy, else the finite heights)")
+    p.add_argument("--integrator", default=None, choices=("dct", "lsq", "robust", "fc", "none"),
+                   help="the slope integrator that made the heights: its transfer is divided out within the "
+                   "S-filter (default: the folder's summary.json integrator; none for a .npy)")
     p.add_argument("--smr-c-um", type=float, default=0.0, metavar="C",
                    help="height c of Smr(c), um above the mean plane (default 0)")
     p.add_argument("--height-u-mm", type=float, default=None, metavar="U",
@@ -69,22 +72,27 @@ def register(subparsers) -> None:
     p.add_argument("--out", default="texture_out", help="output folder (default texture_out)")
 
 
-def _read(source: str, args: argparse.Namespace) -> tuple[np.ndarray, float, np.ndarray | None, dict, str]:
-    """Height (mm), pixel size, mask, noise model keyword arguments and the pixel size's source."""
+def _read(source: str, args: argparse.Namespace) -> tuple[np.ndarray, float, np.ndarray | None, dict, str, str]:
+    """Height (mm), pixel size, mask, noise model keyword arguments, the pixel size's source, the integrator."""
     src = Path(source)
     noise: dict = {}
     mask = None
+    integrator = args.integrator
     pixel, pixel_source = args.pixel_size, "--pixel-size"
     if src.is_dir():
         height = load_npy(src / "height.npy", "HEIGHT_DIR")
         summary = src / "summary.json"
-        if pixel is None:
-            if not summary.is_file():
-                raise InputError(f"--pixel-size: required, {src} has no summary.json")
+        info = {}
+        if summary.is_file():
             try:
                 info = json.loads(summary.read_text())
             except (OSError, ValueError) as exc:
                 raise InputError(f"HEIGHT_DIR: {summary} is not readable JSON ({exc})") from None
+        if integrator is None and info.get("integrator") in ("dct", "lsq", "robust", "fc"):
+            integrator = info["integrator"]
+        if pixel is None:
+            if not summary.is_file():
+                raise InputError(f"--pixel-size: required, {src} has no summary.json")
             if "pixel_size_mm" not in info:
                 raise InputError(f"--pixel-size: required, {summary} states no pixel_size_mm")
             if str(info.get("pixel_size_source", "")).startswith("default"):
@@ -123,7 +131,11 @@ def _read(source: str, args: argparse.Namespace) -> tuple[np.ndarray, float, np.
         noise = {}
     if not (pixel is not None and math.isfinite(pixel) and pixel > 0):
         raise InputError(f"--pixel-size: must be a positive number of mm, got {pixel}")
-    return np.asarray(height, dtype=np.float64), float(pixel), mask, noise, pixel_source
+    if integrator == "none":
+        integrator = None
+    if integrator is not None and args.s_filter_mm is None:
+        integrator = None  # without an S-filter the integrator's transfer cannot be divided out (stated in the JSON)
+    return np.asarray(height, dtype=np.float64), float(pixel), mask, noise, pixel_source, integrator
 
 
 def _picture(tex, path: Path) -> None:
@@ -161,10 +173,10 @@ def run(args: argparse.Namespace) -> int:
     """
     from photometric.texture import DEFAULT_MC_SAMPLES, texture
 
-    height, pixel, mask, noise, pixel_source = _read(args.source, args)
+    height, pixel, mask, noise, pixel_source, integrator = _read(args.source, args)
     tex = texture(height, pixel, mask, s_filter_mm=args.s_filter_mm, l_filter_mm=args.l_filter_mm, form=args.form,
-                  edge=args.edge, smr_c_um=args.smr_c_um, mc_samples=args.mc_samples or DEFAULT_MC_SAMPLES,
-                  seed=args.seed, **noise)
+                  edge=args.edge, smr_c_um=args.smr_c_um, integrator=integrator,
+                  mc_samples=args.mc_samples or DEFAULT_MC_SAMPLES, seed=args.seed, **noise)
     out = Path(args.out)
     summary = tex.as_dict()
     summary["source"] = str(args.source)
