@@ -295,7 +295,7 @@ def gaussian_sigma_px(cutoff_mm: float, pixel_size: float) -> float:
     Examples
     --------
     >>> round(gaussian_sigma_px(0.8, 0.01), 4)
-    14.9886
+    14.9913
     """
     return ALPHA * cutoff_mm / math.sqrt(2.0 * math.pi) / pixel_size
 
@@ -708,7 +708,7 @@ def _material(v: np.ndarray, c: float, p: float, q: float) -> dict:
 
     return {
         "Smr": smr(c),
-        "Sk": upper - lower,
+        "Sk": float(upper - lower),
         "Spk": 2.0 * a1 / smr1 if a1 > 0 else 0.0,
         "Svk": 2.0 * a2 / (100.0 - smr2) if a2 > 0 else 0.0,
         "Smr1": smr1,
