@@ -47,7 +47,8 @@ def test_reconstruct_folder(tmp_path, plate):
     write_diligent_folder(tmp_path / "plate", images, L, np.ones(4), np.ones(plate.shape, bool), plate.normals,
                           plate.height, {"pixel_size_mm": D})
     rec = tmp_path / "rec"
-    assert main(["photometric", "reconstruct", str(tmp_path / "plate"), "--noise-sigma", "0.01", "--out", str(rec)]) == 0
+    code = main(["photometric", "reconstruct", str(tmp_path / "plate"), "--noise-sigma", "0.01", "--out", str(rec)])
+    assert code == 0
     out = tmp_path / "tex"
     assert main(["photometric", "texture", str(rec), "--s-filter-mm", "0.04", "--l-filter-mm", "0.25",
                  "--mc-samples", "10", "--out", str(out)]) == 0
