@@ -81,3 +81,24 @@ def test_bad_input_exits_2(tmp_path, capsys, plate, args, message):
     err = capsys.readouterr().err
     assert code == 2 and message in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "o" / "texture.json").exists()
+
+
+def test_spec_limits_and_the_reconstruct_hook(tmp_path, plate):
+    from workbench.commands.texture import judge_texture, texture_of_result
+
+    np.save(tmp_path / "height.npy", plate.height)
+    (tmp_path / "summary.json").write_text(json.dumps({"pixel_size_mm": D, "pixel_size_source": "option",
+                                                       "integrator": "fc"}))
+    np.save(tmp_path / "height_u.npy", np.full(plate.shape, 5e-5))
+    doc = texture_of_result(tmp_path, s_filter_mm=0.02, l_filter_mm=0.25, mc_samples=8)
+    assert (tmp_path / "texture.json").is_file() and (tmp_path / "texture.png").is_file()
+    assert doc["uncertainty"]["model"].startswith("white height noise")
+    sa = doc["parameters"]["Sa"]
+    v, U = sa["corrected"], sa["U_corrected"]
+    limits = {"max_Sa_um": v + 3 * U, "max_Sq_um": 0.5 * doc["parameters"]["Sq"]["value"], "max_Sz_um": 1e3,
+              "roi_mm": [[0, 0]]}
+    checks = {c["limit_key"]: c for c in judge_texture(doc, limits, "guard_band")}
+    assert set(checks) == {"max_Sa_um", "max_Sq_um", "max_Sz_um"}
+    assert checks["max_Sa_um"]["verdict"] == "pass" and checks["max_Sq_um"]["verdict"] == "fail"
+    assert judge_texture(doc, {"max_Sa_um": v + 0.5 * U}, "guard_band")[0]["verdict"] == "uncertain"
+    assert judge_texture(doc, {"max_Sa_um": v + 0.5 * U}, "simple")[0]["verdict"] == "pass"

@@ -138,6 +138,90 @@ def _read(source: str, args: argparse.Namespace) -> tuple[np.ndarray, float, np.
     return np.asarray(height, dtype=np.float64), float(pixel), mask, noise, pixel_source, integrator
 
 
+#: spec.json key -> the texture parameter it limits (upper limits, in the parameter's unit)
+TEXTURE_LIMITS: dict[str, str] = {
+    "max_Sa_um": "Sa", "max_Sq_um": "Sq", "max_Sz_um": "Sz", "max_Sp_um": "Sp", "max_Sv_um": "Sv",
+    "max_Sdq": "Sdq", "max_Sdr_pct": "Sdr", "max_Sk_um": "Sk", "max_Spk_um": "Spk", "max_Svk_um": "Svk",
+    "max_Vmp_ml_m2": "Vmp", "max_Vvv_ml_m2": "Vvv",
+}
+
+
+def judge_texture(texture_json: dict, limits: dict, rule: str) -> list[dict]:
+    """Check texture parameters against spec limits with the inspection's decision rules.
+
+    The value judged is the noise-bias ``corrected`` value with ``U_corrected`` when the
+    texture has an uncertainty, else the value as measured (then only the ``simple``
+    rule can decide).
+
+    Parameters
+    ----------
+    texture_json : dict
+        What ``texture.json`` holds (:meth:`photometric.texture.Texture.as_dict`).
+    limits : dict
+        Spec keys of :data:`TEXTURE_LIMITS` -> limit (other keys are ignored).
+    rule : {"simple", "guard_band"}
+        ISO 14253-1 decision rule (:func:`workbench.inspect.decide.decide_value`).
+
+    Returns
+    -------
+    list of dict
+        One check per limit: ``limit_key``, ``quantity``, ``value``, ``U``, ``limit``,
+        ``unit``, ``verdict`` (``"pass"``, ``"uncertain"`` or ``"fail"``; a parameter that
+        could not be determined is ``"uncertain"``).
+
+    Examples
+    --------
+    >>> doc = {"parameters": {"Sa": {"value": 0.8, "U": 0.05, "unit": "um", "corrected": 0.79, "U_corrected": 0.02}}}
+    >>> [c["verdict"] for c in judge_texture(doc, {"max_Sa_um": 0.8}, "guard_band")]
+    ['uncertain']
+    """
+    from workbench.inspect.decide import decide_value
+
+    checks = []
+    for key, limit in limits.items():
+        if key not in TEXTURE_LIMITS:
+            continue
+        name = TEXTURE_LIMITS[key]
+        rec = texture_json["parameters"].get(name, {})
+        if rec.get("corrected") is not None and rec.get("U_corrected") is not None:
+            value, U = rec["corrected"], rec["U_corrected"]
+        else:
+            value, U = rec.get("value"), rec.get("U")
+        if value is None:
+            verdict = "uncertain"
+        else:
+            verdict = decide_value(value, U, limit, rule)
+        checks.append({"limit_key": key, "quantity": name, "value": value, "U": U, "limit": float(limit),
+                       "unit": rec.get("unit"), "verdict": verdict})
+    return checks
+
+
+def texture_of_result(folder, out=None, *, s_filter_mm: float | None, l_filter_mm: float | None,
+                      form: str = "plane", edge: str = "normalised", mc_samples: int | None = None,
+                      seed: int = 0) -> dict:
+    """The hook of ``photometric reconstruct --texture``: texture of a result folder, written beside it.
+
+    Parameters
+    ----------
+    folder : path-like
+        A ``photometric reconstruct`` result folder (or its staging folder before the swap).
+    out : path-like, optional
+        Where ``texture.json`` and ``texture.png`` go (default: ``folder``).
+    s_filter_mm, l_filter_mm, form, edge, mc_samples, seed
+        As the options of ``workbench photometric texture``.
+
+    Returns
+    -------
+    dict
+        What ``texture.json`` holds.
+    """
+    args = argparse.Namespace(source=str(folder), pixel_size=None, s_filter_mm=s_filter_mm, l_filter_mm=l_filter_mm,
+                              form=form, edge=edge, mask=None, integrator=None, smr_c_um=0.0, height_u_mm=None,
+                              no_uncertainty=False, mc_samples=mc_samples, seed=seed,
+                              out=str(folder if out is None else out))
+    return _measure_and_write(args)
+
+
 def _picture(tex, path: Path) -> None:
     """The S-L surface with a colour bar, at most about 1000 pixels across."""
     from surfaces.io import write_png
@@ -171,6 +255,20 @@ def run(args: argparse.Namespace) -> int:
     int
         Exit code 0.
     """
+    summary = _measure_and_write(args)
+    out = Path(args.out)
+    band = summary["band"]
+    print(f"band {band['short_mm'] * 1000:.4g} um ({band['short_limit']}) to {band['long_mm']:.4g} mm "
+          f"({band['long_limit']}), form {summary['form']}, {summary['evaluation_area_px']} pixels")
+    pars = summary["parameters"]
+    for group in (("Sa", "Sq", "Sz", "Ssk", "Sku"), ("Sdq", "Sdr", "Sal", "Str"), ("Sk", "Spk", "Svk", "Vmp", "Vvv")):
+        print("  " + ", ".join(f"{name} {_pm(pars[name])}" for name in group))
+    print(f"wrote {out / 'texture.json'} (every parameter, value, U (k = 2), unit) and {out / 'texture.png'}")
+    return 0
+
+
+def _measure_and_write(args: argparse.Namespace) -> dict:
+    """Read, measure, write ``texture.json`` and ``texture.png``; return the JSON document."""
     from photometric.texture import DEFAULT_MC_SAMPLES, texture
 
     height, pixel, mask, noise, pixel_source, integrator = _read(args.source, args)
@@ -186,11 +284,4 @@ def run(args: argparse.Namespace) -> int:
                                   "--height-u-mm" if not args.no_uncertainty else "--no-uncertainty"}
     write_summary(out / "texture.json", summary)
     _picture(tex, out / "texture.png")
-    band = summary["band"]
-    print(f"band {band['short_mm'] * 1000:.4g} um ({band['short_limit']}) to {band['long_mm']:.4g} mm "
-          f"({band['long_limit']}), form {summary['form']}, {summary['evaluation_area_px']} pixels")
-    pars = summary["parameters"]
-    for group in (("Sa", "Sq", "Sz", "Ssk", "Sku"), ("Sdq", "Sdr", "Sal", "Str"), ("Sk", "Spk", "Svk", "Vmp", "Vvv")):
-        print("  " + ", ".join(f"{name} {_pm(pars[name])}" for name in group))
-    print(f"wrote {out / 'texture.json'} (every parameter, value, U (k = 2), unit) and {out / 'texture.png'}")
-    return 0
+    return summary
