@@ -258,14 +258,16 @@ def remove_form(height, mask=None, form="plane") -> np.ndarray:
     # normalised coordinates in [-1, 1] keep the normal equations well conditioned
     x = np.linspace(-1.0, 1.0, w)
     y = np.linspace(-1.0, 1.0, h)
-    m = ok.astype(np.float64)
-    mz = np.where(ok, z, 0.0)
     terms = [(a, t - a) for t in range(degree + 1) for a in range(t + 1)]
     # sums over valid pixels of x^a y^b, as (rows of the mask) @ x^a then . y^b: no (N, terms) design matrix
     xpow = np.stack([x**k for k in range(2 * degree + 1)], axis=1)
     ypow = np.stack([y**k for k in range(2 * degree + 1)], axis=1)
-    mx = m @ xpow  # (H, 2d+1): per row, sum of m x^k
-    zx = mz @ xpow[:, : degree + 1]
+    if ok.all():
+        mx = np.broadcast_to(xpow.sum(axis=0), (h, 2 * degree + 1))  # (H, 2d+1): per row, sum of m x^k
+        zx = z @ xpow[:, : degree + 1]
+    else:
+        mx = ok.astype(np.float64) @ xpow
+        zx = np.where(ok, z, 0.0) @ xpow[:, : degree + 1]
     gram = np.array([[ypow[:, b1 + b2] @ mx[:, a1 + a2] for (a2, b2) in terms] for (a1, b1) in terms])
     rhs = np.array([ypow[:, b] @ zx[:, a] for (a, b) in terms])
     coef = np.linalg.lstsq(gram, rhs, rcond=None)[0]
@@ -912,7 +914,7 @@ def texture(
     if not 0.0 < acf_threshold < 1.0:
         raise InputError(f"acf_threshold: must lie in (0, 1), got {acf_threshold}")
     sl = _filtered(chain, primary)
-    values, notes = _parameters(np.where(chain.area, sl, 0.0), chain.area, pixel * 1000.0, float(smr_c_um),
+    values, notes = _parameters(sl if chain.area is ok else np.where(chain.area, sl, 0.0), chain.area, pixel * 1000.0, float(smr_c_um),
                                 acf_threshold)
     field_mm = min(z.shape) * pixel
     short = max(s_mm or 0.0, 2.0 * pixel)
