@@ -177,6 +177,7 @@ class Texture:
             "filters": self.filters,
             "form": self.form,
             "evaluation_area_px": int(self.area.sum()),
+            "notes": {k: v for k, v in self.notes.items() if k not in UNITS},
             "uncertainty": None if not unc else {k: v for k, v in unc.items() if k != "parameters"},
         }
 
@@ -908,14 +909,14 @@ def texture(
     if deconvolve and s_mm is None:
         raise InputError(f"integrator: correcting the {integrator} integrator's transfer needs an S-filter "
                          "(its inverse grows without bound towards two pixels per wavelength)")
+    if not 0.0 < acf_threshold < 1.0:
+        raise InputError(f"acf_threshold: must lie in (0, 1), got {acf_threshold}")
     form_name = form if isinstance(form, str) else f"poly{int(form)}"
     primary = np.where(ok, remove_form(z, ok, form) * 1000.0, 0.0)
     chain, band_px = _chain(ok, pixel, s_mm, l_mm, edge, deconvolve)
-    if not 0.0 < acf_threshold < 1.0:
-        raise InputError(f"acf_threshold: must lie in (0, 1), got {acf_threshold}")
     sl = _filtered(chain, primary)
-    values, notes = _parameters(sl if chain.area is ok else np.where(chain.area, sl, 0.0), chain.area, pixel * 1000.0, float(smr_c_um),
-                                acf_threshold)
+    values, notes = _parameters(sl if chain.area is ok else np.where(chain.area, sl, 0.0), chain.area,
+                                pixel * 1000.0, float(smr_c_um), acf_threshold)
     field_mm = min(z.shape) * pixel
     short = max(s_mm or 0.0, 2.0 * pixel)
     band = {"short_mm": short, "long_mm": min(l_mm, field_mm) if l_mm is not None else field_mm,
@@ -937,10 +938,19 @@ def texture(
 
 
 # ------------------------------------------------------------------------------------------------ uncertainty
+def _field(value, shape, name: str) -> np.ndarray:
+    """One value or an (H, W) map of standard uncertainties."""
+    try:
+        return np.broadcast_to(np.asarray(value, dtype=np.float64), shape)
+    except (ValueError, TypeError):
+        raise InputError(f"{name}: expected one value or a map of shape {shape}, got "
+                         f"{np.shape(value)}") from None
+
+
 def _noise_model(shape, ok, pixel, height_u, slope_u):
     """A function rng -> one noise field in um (zero outside the mask), and its description."""
     if height_u is not None:
-        u = np.broadcast_to(np.asarray(height_u, dtype=np.float64), shape)
+        u = _field(height_u, shape, "height_u")
         if not np.all(np.isfinite(u[ok])) or np.any(u[ok] < 0):
             raise InputError("height_u: standard uncertainties must be finite and >= 0 on the valid pixels")
         u_um = np.where(ok, u, 0.0) * 1000.0
@@ -954,7 +964,7 @@ def _noise_model(shape, ok, pixel, height_u, slope_u):
 
     if len(slope_u) != 2:
         raise InputError("slope_u: expected (p_u, q_u)")
-    pu, qu = (np.broadcast_to(np.asarray(a, dtype=np.float64), shape) for a in slope_u)
+    pu, qu = (_field(a, shape, "slope_u") for a in slope_u)
     for name, a in (("p_u", pu), ("q_u", qu)):
         if not np.all(np.isfinite(a[ok])) or np.any(a[ok] < 0):
             raise InputError(f"slope_u: {name} must be finite and >= 0 on the valid pixels")

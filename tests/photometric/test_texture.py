@@ -250,6 +250,7 @@ def test_through_the_photometric_path():
         ({"pixel_size": -1.0}, "pixel_size"),
         ({"height_u": -1.0}, "height_u"),
         ({"height_u": 0.001, "mc_samples": 1}, "mc_samples"),
+        ({"height_u": np.ones((5, 5))}, "height_u: expected one value or a map"),
     ],
 )
 def test_bad_input(kwargs, message):
