@@ -55,8 +55,9 @@ def test_reconstruct_folder(tmp_path, plate):
     data = json.loads((out / "texture.json").read_text())
     assert data["pixel_size_source"] == "summary.json" and data["band"]["pixel_size_mm"] == D
     assert data["filters"]["integrator_transfer"] == "divided out (dct)"
+    assert data["filters"]["edge"] == "drop" and data["filters"]["edge_band_px"] == 38
     assert data["uncertainty"]["model"].startswith("integrated white slope noise")
-    truth = texture(plate.height, D, s_filter_mm=0.04, l_filter_mm=0.25).values
+    truth = texture(plate.height, D, s_filter_mm=0.04, l_filter_mm=0.25, edge="drop").values
     sq = data["parameters"]["Sq"]
     assert sq["value"] == pytest.approx(truth["Sq"], rel=0.05)
     assert abs(sq["corrected"] - truth["Sq"]) <= sq["U_corrected"] + 0.01 * truth["Sq"]

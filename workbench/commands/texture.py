@@ -52,9 +52,10 @@ def register(subparsers) -> None:
                    help="L-filter nesting index lambda_c, mm (default none: the band ends at the field size)")
     p.add_argument("--form", default="plane", choices=("plane", "poly2", "none"),
                    help="F-operator: least-squares plane (default), second-degree polynomial, or none")
-    p.add_argument("--edge", default="normalised", choices=("normalised", "drop"),
-                   help="edge handling of the filters: normalised convolution (default), or also drop a band of "
-                   "4 sigma of the L-filter (about 0.75 lambda_c) along every edge")
+    p.add_argument("--edge", default=None, choices=("normalised", "drop"),
+                   help="edge handling of the filters: normalised convolution, or also drop a band of 4 sigma of "
+                   "the L-filter (about 0.75 lambda_c) along every edge (default: drop for heights integrated "
+                   "from slopes, whose integrator leaves a boundary layer; normalised otherwise)")
     p.add_argument("--mask", default=None, metavar="M",
                    help="valid pixels (.npy of bool, (H, W); default the folder's valid.npy, else the finite heights)")
     p.add_argument("--integrator", default=None, choices=("dct", "lsq", "robust", "fc", "none"),
@@ -197,7 +198,7 @@ def judge_texture(texture_json: dict, limits: dict, rule: str) -> list[dict]:
 
 
 def texture_of_result(folder, out=None, *, s_filter_mm: float | None, l_filter_mm: float | None,
-                      form: str = "plane", edge: str = "normalised", mc_samples: int | None = None,
+                      form: str = "plane", edge: str | None = None, mc_samples: int | None = None,
                       seed: int = 0) -> dict:
     """The hook of ``photometric reconstruct --texture``: texture of a result folder, written beside it.
 
@@ -269,11 +270,18 @@ def run(args: argparse.Namespace) -> int:
 
 def _measure_and_write(args: argparse.Namespace) -> dict:
     """Read, measure, write ``texture.json`` and ``texture.png``; return the JSON document."""
-    from photometric.texture import DEFAULT_MC_SAMPLES, texture
+    from photometric.texture import DEFAULT_MC_SAMPLES, gaussian_sigma_px, texture
 
     height, pixel, mask, noise, pixel_source, integrator = _read(args.source, args)
+    edge = args.edge
+    if edge is None:
+        # integrated heights carry the integrator's boundary layer: leave it out when the field allows
+        edge = "normalised"
+        if integrator in ("dct", "lsq", "robust") and args.l_filter_mm:
+            band = math.ceil(4.0 * gaussian_sigma_px(args.l_filter_mm, pixel))
+            edge = "drop" if min(height.shape) - 2 * band >= 32 else "normalised"
     tex = texture(height, pixel, mask, s_filter_mm=args.s_filter_mm, l_filter_mm=args.l_filter_mm, form=args.form,
-                  edge=args.edge, smr_c_um=args.smr_c_um, integrator=integrator,
+                  edge=edge, smr_c_um=args.smr_c_um, integrator=integrator,
                   mc_samples=args.mc_samples or DEFAULT_MC_SAMPLES, seed=args.seed, **noise)
     out = Path(args.out)
     summary = tex.as_dict()
