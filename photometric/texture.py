@@ -552,10 +552,10 @@ def autocorrelation(surface, mask=None) -> tuple[np.ndarray, tuple[int, int]]:
     return _acf(np.where(ok, z, 0.0), ok, bool(ok.all()))
 
 
-def _acf(z0: np.ndarray, ok: np.ndarray, full: bool) -> tuple[np.ndarray, tuple[int, int]]:
+def _acf(z0: np.ndarray, ok: np.ndarray, full: bool, divisor: int = 2) -> tuple[np.ndarray, tuple[int, int]]:
     h, w = z0.shape
-    ly, lx = h // 2, w // 2
-    # zero padding by half the field: no lag up to half the field wraps around
+    ly, lx = h // divisor, w // divisor
+    # zero padding by the largest lag: no lag wraps around
     pad = (sfft.next_fast_len(h + ly, real=True), sfft.next_fast_len(w + lx, real=True))
     rows = np.r_[pad[0] - ly: pad[0], 0: ly + 1]
     cols = np.r_[pad[1] - lx: pad[1], 0: lx + 1]
@@ -620,14 +620,20 @@ def _crossings(acf: np.ndarray, center, ends: np.ndarray, thr: float) -> np.ndar
 
 
 def _spatial(z0: np.ndarray, area: np.ndarray, full: bool, d: float, s: float) -> tuple[dict, dict]:
-    acf, center = _acf(z0, area, full)
-    notes = {}
-    thr = s * float(acf[center])
-    above = acf > thr  # NaN lags (no valid pairs) are not above
-    region, (w0, v0) = _region(above, center)
-    sl = ndimage.find_objects(region.astype(np.int8))[0]
-    # the region and its one-pixel outer boundary, with a margin for the cubic spline's prefilter
+    # the region above s: first within a quarter of the field (a smaller FFT), within half of it when it
+    # (or the spline's margin around it) reaches that window's border
     margin = 12
+    for divisor in (4, 2):
+        acf, center = _acf(z0, area, full, divisor)
+        thr = s * float(acf[center])
+        above = acf > thr  # NaN lags (no valid pairs) are not above
+        region, (w0, v0) = _region(above, center)
+        sl = ndimage.find_objects(region.astype(np.int8))[0]
+        inside = (w0 + sl[0].start > margin and v0 + sl[1].start > margin
+                  and w0 + sl[0].stop < acf.shape[0] - margin and v0 + sl[1].stop < acf.shape[1] - margin)
+        if inside:
+            break
+    notes = {}
     r0, r1 = max(w0 + sl[0].start - margin, 0), min(w0 + sl[0].stop + margin, acf.shape[0])
     c0, c1 = max(v0 + sl[1].start - margin, 0), min(v0 + sl[1].stop + margin, acf.shape[1])
     sub = np.zeros((r1 - r0, c1 - c0), bool)

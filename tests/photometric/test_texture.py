@@ -166,10 +166,11 @@ def _surfalize(height_mm, d_mm, s_mm, l_mm, band):
     return ref
 
 
-@pytest.mark.parametrize("kind", ["shot_blasted", "ground"])
+@pytest.mark.parametrize("kind", ["shot_blasted", "ground", "turned"])
 def test_surfalize_agrees_within_0_1_percent(kind):
     d = 0.002
-    hf = textured_plate(kind, size=(240, 320), pixel_size=d, sq_um=2.0, corr_mm=0.012, tilt=(0.01, -0.02), seed=4)
+    hf = textured_plate(kind, size=(240, 320), pixel_size=d, sq_um=2.0, corr_mm=0.012, feed_mm=0.064,
+                        tilt=(0.01, -0.02), seed=4)
     t = texture(hf.height, d, s_filter_mm=0.008, l_filter_mm=0.2, form="plane", edge="drop", smr_c_um=0.5)
     ref = _surfalize(hf.height, d, 0.008, 0.2, t.filters["edge_band_px"])
     for name, r in ref.items():

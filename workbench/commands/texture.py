@@ -288,8 +288,10 @@ def _measure_and_write(args: argparse.Namespace) -> dict:
     summary["source"] = str(args.source)
     summary["pixel_size_source"] = pixel_source
     if not noise:
-        summary["uncertainty"] = {"method": "not measured", "reason": "no uncertainty map in the input and no "
-                                  "--height-u-mm" if not args.no_uncertainty else "--no-uncertainty"}
+        reason = ("no uncertainty map in the input (run 'photometric reconstruct' with an uncertainty option, e.g. "
+                  "--uncertainty linear, for p_u.npy and q_u.npy) and no --height-u-mm"
+                  if not args.no_uncertainty else "--no-uncertainty")
+        summary["uncertainty"] = {"method": "not measured", "reason": reason}
     write_summary(out / "texture.json", summary)
     _picture(tex, out / "texture.png")
     return summary
