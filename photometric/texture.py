@@ -651,6 +651,8 @@ def _spatial(z0: np.ndarray, area: np.ndarray, full: bool, d: float, s: float) -
     sal, slow = float(lengths.min()), float(lengths.max())
     top, left = w0 + sl[0].start, v0 + sl[1].start
     touches = top == 0 or left == 0 or w0 + sl[0].stop == acf.shape[0] or v0 + sl[1].stop == acf.shape[1]
+    # lags without valid pairs (masked fields) bound the region like the window's border does
+    touches = touches or bool(np.isnan(acf[r0:r1, c0:c1][edge]).any())
     if touches:
         notes["Str"] = (f"not determined: in some direction the autocorrelation does not decay to s = {s} "
                         "within half the field (slowest decay longer than the field allows)")
@@ -777,6 +779,11 @@ def _parameters(z0: np.ndarray, ok: np.ndarray, d: float, c: float, s: float, p:
                 q: float = 80.0) -> tuple[dict, dict]:
     """Every parameter of a surface that is zero outside the evaluation area ``ok`` (d: pixel, um)."""
     full = bool(ok.all())
+    if not full:
+        # the bounding box of the evaluation area is the field (its size bounds the autocorrelation's lags)
+        box = ndimage.find_objects(ok.astype(np.int8))[0]
+        z0, ok = z0[box], ok[box]
+        full = bool(ok.all())
     v = (z0.ravel() if full else z0[ok]).astype(np.float64)
     mean = float(v.mean())
     v = v - mean

@@ -259,3 +259,17 @@ def test_bad_input(kwargs, message):
     args.update(kwargs)
     with pytest.raises(InputError, match=message):
         texture(args.pop("height"), args.pop("pixel_size"), **args)
+
+
+def test_a_rectangular_mask_is_the_cropped_field():
+    hf = textured_plate("turned", size=(120, 160), pixel_size=0.002, sq_um=2.0, corr_mm=0.012, feed_mm=0.064, seed=3)
+    z = hf.height * 1000
+    mask = np.zeros(z.shape, bool)
+    mask[20:100, 30:140] = True
+    a, notes_a = parameters(np.where(mask, z, np.nan), 0.002)
+    b, notes_b = parameters(z[20:100, 30:140], 0.002)
+    for name in UNITS:
+        if math.isnan(b[name]):
+            assert math.isnan(a[name]) and name in notes_a, name
+        else:
+            assert a[name] == pytest.approx(b[name], rel=1e-6), name
