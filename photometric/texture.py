@@ -987,6 +987,7 @@ def _noise_model(shape, ok, pixel, height_u, slope_u):
     for name, a in (("p_u", pu), ("q_u", qu)):
         if not np.all(np.isfinite(a[ok])) or np.any(a[ok] < 0):
             raise InputError(f"slope_u: {name} must be finite and >= 0 on the valid pixels")
+    pu, qu = np.where(ok, pu, 0.0), np.where(ok, qu, 0.0)
 
     def slopes(rng):
         dp = pu * rng.standard_normal(shape)
