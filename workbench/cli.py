@@ -35,7 +35,7 @@ GROUPS: dict[str, tuple[str, tuple[str, ...]]] = {
     ),
     "photometric": (
         "photometric stereo: normals, height, defects, light-deviation error analysis",
-        ("workbench.commands.photometric", "workbench.commands.errors"),
+        ("workbench.commands.photometric", "workbench.commands.errors", "workbench.commands.texture"),
     ),
     "slices": (
         "CT contour stacks and structure sets to one interpolating surface",
