@@ -36,9 +36,10 @@ def test_contours_lie_in_mm_through_the_affine(tmp_path):
     z = stack.planes
     np.testing.assert_allclose(z, 30.0 + 2.5 * np.arange(1, 9))
     pts = np.concatenate([c.points for c in stack.contours])
-    # the boundary runs half-way between voxel centres: columns 16-27 (x), rows 10-19 (y)
-    np.testing.assert_allclose(pts.min(axis=0), [-10 + 0.5 * 15.5, 4 + 0.8 * 9.5])
-    np.testing.assert_allclose(pts.max(axis=0), [-10 + 0.5 * 27.5, 4 + 0.8 * 19.5])
+    # the boundary runs half-way between voxel centres: columns 16-27 (x), rows 10-19 (y), in RAS;
+    # the contours are in DICOM patient coordinates (LPS: x and y negated)
+    np.testing.assert_allclose(pts.max(axis=0), [-(-10 + 0.5 * 15.5), -(4 + 0.8 * 9.5)])
+    np.testing.assert_allclose(pts.min(axis=0), [-(-10 + 0.5 * 27.5), -(4 + 0.8 * 19.5)])
     assert len(read_nifti(path).contours) == 6 * 2 + 2  # every non-zero voxel: both boxes
     assert [r["label"] for r in nifti_labels(path)] == [1, 2]
     assert nifti_labels(path)[0] == {"label": 1, "n_voxels": 360, "n_planes": 6}
@@ -90,4 +91,14 @@ def test_an_exported_phantom_mask_reads_back_at_the_phantom_volume(tmp_path):
                           export_mask=str(mask), mask_spacing="0.5,0.5,1")
     back = reconstruct_to_folder(mask, tmp_path / "b", caps="half", render=False, reference=False, samples=2)
     assert back["source"] == "nifti" and back["mesh_watertight"]
-    assert back["volume_mm3"] == pytest.approx(ph.volume_mm3, rel=0.01)
+    # the mask holds the contours' slabs: planes at 1 mm from -8 to 8 mm (contours at -8 ... 8 mm, 2 mm apart,
+    # each standing for +-1 mm; the planes at +-9 mm lie exactly half a spacing out and are left empty), read
+    # back with half caps: the ellipsoid between -8.5 and 8.5 mm; the planes between contours are blended
+    # linearly in distance, a little inside the convex outline (about 2 %)
+    h = 8.5
+    clipped = np.pi * 12.0 * 9.0 * (2 * h - 2 * h**3 / (3 * 10.0**2))
+    assert back["volume_mm3"] == pytest.approx(clipped, rel=0.025)
+    # the mask comes back where the contours were (RAS in the file, LPS in the contours)
+    first = read_nifti(mask).contours
+    assert np.mean([c.points.mean(axis=0) for c in first], axis=0) == pytest.approx(
+        np.mean([c["points"].mean(axis=0) for c in ph.contours(2.0, n_points=64)], axis=0), abs=0.3)
