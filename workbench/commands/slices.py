@@ -49,8 +49,10 @@ def register(sub) -> None:
     p.add_argument("--rays", type=int, default=defaults.n_rays,
                    help=f"rays from each contour's centroid (seed 000 eq. 1, N1 >= 3; default {defaults.n_rays})")
     p.add_argument("--caps", default=defaults.caps, choices=CAP_KINDS,
-                   help="end caps: none (open surface), flat (in the end contour planes), half (half a "
-                   "slice beyond, as planning systems count), dome (smooth closure); "
+                   help="end caps: trend (the structure beyond its end planes from the contours' area trend; "
+                   "volume_mm3 is then the whole structure's, with its uncertainty), none (open surface), flat (in "
+                   "the end contour planes), half (half a slice beyond, as planning systems count), dome (smooth "
+                   "closure); "
                    f"default {defaults.caps}")
     p.add_argument("--out", default="slices_out", help="output folder (default slices_out)")
     p.add_argument("--hu-min", type=float, default=None,
@@ -138,8 +140,14 @@ def _reconstruct(args: argparse.Namespace) -> int:
     print(f"{summary['roi']}: {summary['n_contours']} contours on {summary['n_slices']} planes, "
           f"{summary['n_bodies']} bodies ({summary['chaining']})")
     print(f"volume {summary['volume_mm3']:.1f} mm^3 = {summary['volume_ml']:.3f} ml "
-          f"(slab {summary['slab_volume_mm3'] / 1000:.3f} ml), area {summary['area_mm2']:.1f} mm^2, "
+          f"(slab {summary['slab_volume_mm3'] / 1000:.3f} ml, end planes half), area {summary['area_mm2']:.1f} mm^2, "
           f"{summary['n_patches']} patches")
+    print(f"  {summary['volume_caps']}")
+    if summary.get("volume_U_mm3") is not None:
+        from slices.volume import format_volume
+
+        print(f"  {format_volume(summary['volume_mm3'], summary['volume_U_mm3'])} (budget in summary.json "
+              "volume_uncertainty)")
     dev_ref = ref.get("max_control_point_deviation_mm")
     print(f"max control-point deviation {summary['max_control_point_deviation_mm']:.2e} mm"
           + (f" (smoothing B-spline reference: {dev_ref:.3f} mm)" if dev_ref is not None else ""))
