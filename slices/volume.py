@@ -28,11 +28,12 @@ from surfaces.validate import positive
 __all__ = ["DELINEATION_PIXELS", "PIXEL_SIZE_REL", "SAMPLING_FACTOR", "CAP_FACTOR", "plane_areas", "whole_volume",
            "volume_uncertainty", "format_volume"]
 
-#: Delineation: standard uncertainty of a contour's position, in pixels (a systematic offset of every contour).
+#: Delineation: standard uncertainty of a contour's position, in pixels (a systematic offset of every contour,
+#: normal: "about a pixel" at k = 2).
 DELINEATION_PIXELS = 0.5
 
-#: Pixel size: relative standard uncertainty of the in-plane scale (CT geometric QA, +-0.5 % rectangular).
-PIXEL_SIZE_REL = 0.005 / np.sqrt(3.0)
+#: Pixel size: relative standard uncertainty of the in-plane scale (CT geometric QA: +-0.5 % at k = 2).
+PIXEL_SIZE_REL = 0.0025
 
 #: Slice sampling: standard uncertainty per mm^3 of |spline - trapezoid| between the planes (calibrated on
 #: analytic solids, benchmarks/bench_ct_volume.py).
@@ -157,8 +158,11 @@ def whole_volume(contours, spacing: float | None = None) -> dict:
     d = positive(d, "spacing")
     between = trap = caps = half = 0.0
     runs = _runs(z, d)
+    short = []
     for run in runs:
         zr, ar = z[run], a[run]
+        if len(zr) <= 2:
+            short.append((float(abs(ar[0])), float(abs(ar[-1]))))
         m, t = _between(zr, ar)
         between += m
         trap += t
@@ -166,7 +170,7 @@ def whole_volume(contours, spacing: float | None = None) -> dict:
             trend_cap_volume(ar[:3], d) + trend_cap_volume(ar[::-1][:3], d)
         half += (abs(ar[0]) + abs(ar[-1])) * d / 2
     return {"volume_mm3": between + caps, "between_mm3": between, "caps_mm3": caps, "trapezoid_mm3": trap,
-            "half_caps_mm3": half, "n_runs": len(runs), "spacing_mm": d,
+            "half_caps_mm3": half, "n_runs": len(runs), "spacing_mm": d, "short_run_end_areas_mm2": short,
             "rule": "section areas (outer contours minus holes) integrated with a cubic spline between the planes "
                     "(two planes: a parabola with a sphere's curvature), caps from the areas' trend beyond each "
                     "end plane (half a slab where the trend does not close within one spacing)"}
@@ -202,15 +206,19 @@ def volume_uncertainty(contours, spacing: float | None = None, pixel_mm: float =
             "u_mm3": SAMPLING_FACTOR * abs(w["between_mm3"] - w["trapezoid_mm3"]),
             "basis": f"{SAMPLING_FACTOR:g} x |spline - trapezoid rule| between the planes"},
         "cap_model": {
-            "u_mm3": CAP_FACTOR * abs(w["caps_mm3"] - w["half_caps_mm3"]),
-            "basis": f"{CAP_FACTOR:g} x |trend caps - half caps| (the conventions' spread beyond the end planes)"},
+            "u_mm3": float(np.sqrt((CAP_FACTOR * abs(w["caps_mm3"] - w["half_caps_mm3"])) ** 2
+                                   + sum((a0 * a0 + a1 * a1) * d * d / 12.0
+                                         for a0, a1 in w["short_run_end_areas_mm2"]))),
+            "basis": f"{CAP_FACTOR:g} x |trend caps - half caps| (the conventions' spread beyond the end planes); "
+                     "runs of one or two planes (caps from a prior): each end anywhere within one spacing "
+                     "(end area x spacing / sqrt(12))"},
         "contour_position": {
             "u_mm3": dv_ddelta * DELINEATION_PIXELS * px,
-            "basis": f"every contour offset by {DELINEATION_PIXELS:g} pixel ({DELINEATION_PIXELS * px:g} mm, "
-                     "standard): perimeters x spacing x offset"},
+            "basis": f"every contour offset by u = {DELINEATION_PIXELS:.3g} pixel ({DELINEATION_PIXELS * px:.3g} mm; "
+                     "about a pixel at k = 2): perimeters x spacing x offset"},
         "pixel_size": {
             "u_mm3": 2.0 * PIXEL_SIZE_REL * abs(w["volume_mm3"]),
-            "basis": f"in-plane scale +-0.5 % (rectangular, u = {PIXEL_SIZE_REL * 100:.2f} %), volume ~ scale^2"},
+            "basis": f"in-plane scale u = {PIXEL_SIZE_REL * 100:.2f} % (+-0.5 % at k = 2), volume ~ scale^2"},
     }
     u = float(np.sqrt(sum(c["u_mm3"] ** 2 for c in budget.values())))
     return {"volume_mm3": w["volume_mm3"], "u_mm3": u, "k": 2, "U_mm3": 2.0 * u, "budget": budget,
