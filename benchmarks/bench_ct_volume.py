@@ -194,9 +194,10 @@ def main(argv: list[str] | None = None) -> int:
     cov = coverage_study(args.trials, args.seed + 1)
     t_cov = time.perf_counter() - t0
     cov_rows = []
-    for label, keep in (("all", lambda r: True), ("spheres", lambda r: r["kind"] == "sphere"),
-                        ("ellipsoids", lambda r: r["kind"] == "ellipsoid"), ("tori", lambda r: r["kind"] == "torus"),
-                        ("1-2 planes", lambda r: r["n_planes"] <= 2), ("3 planes or more", lambda r: r["n_planes"] >= 3)):
+    cov_groups = (("all", lambda r: True), ("spheres", lambda r: r["kind"] == "sphere"),
+                  ("ellipsoids", lambda r: r["kind"] == "ellipsoid"), ("tori", lambda r: r["kind"] == "torus"),
+                  ("1-2 planes", lambda r: r["n_planes"] <= 2), ("3 planes or more", lambda r: r["n_planes"] >= 3))
+    for label, keep in cov_groups:
         sel = [r for r in cov if keep(r)]
         if not sel:
             continue
