@@ -42,8 +42,10 @@ def test_reconstruct_returns_everything_and_writes_nothing(ellipsoid):
     # the whole ellipsoid, to its 40-point polygons' area (0.4 % under the ellipses')
     assert abs(s["volume_mm3"] / truth["volume_mm3"] - 1) < 8e-3
     assert s["volume_by_caps_mm3"]["flat"] < s["volume_mm3"] < s["volume_by_caps_mm3"]["half"] + 1e-9 * s["volume_mm3"]
-    # mostly the contours' position within a pixel (0.29 mm standard) over a 1400 mm^2 surface
-    assert 0.05 * s["volume_mm3"] < s["volume_U_mm3"] < 0.2 * s["volume_mm3"] and s["volume_k"] == 2
+    # mostly the contours' position (0.5 mm standard, 1 mm pixels assumed) over the ~1000 mm^2 side surface
+    budget = s["volume_uncertainty"]["budget"]
+    assert budget["contour_position"]["u_mm3"] == pytest.approx(0.5 * rec.sensitivity_mm3 / 0.5, rel=0.1)
+    assert 0.1 * s["volume_mm3"] < s["volume_U_mm3"] < 0.3 * s["volume_mm3"] and s["volume_k"] == 2
     assert (s["rays"], s["caps"], s["method"], s["ray_start"], s["source"]) == (32, "trend", "blending", "auto", "json")
     assert s["n_slices"] == truth["n_planes"] and s["n_contours"] == len(conts)
     assert s["reference_bspline"] == result.reference and s["reference_bspline"]["smooth_mm"] > 0
