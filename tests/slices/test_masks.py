@@ -210,3 +210,35 @@ def test_export_mask_end_to_end_on_the_breast_heart(shared_data, tmp_path):
     assert _dice(np.asarray(img.dataobj), ref) >= 0.99
     # whole end slabs: dicompyler-core's 432.84 cc counts them half
     assert m["voxel_volume_mm3"] / 1000 == pytest.approx(439.70, rel=0.01)
+
+
+def test_the_command_refuses_a_huge_mask_at_once(tmp_path, capsys):
+    from workbench.cli import main
+
+    t = np.linspace(0, 2 * np.pi, 48, endpoint=False)
+    disc = np.stack([10 * np.cos(t), 10 * np.sin(t)], 1)
+    path = tmp_path / "cyl.json"
+    path.write_text(json.dumps({"contours": [{"z": z, "points": disc.tolist()} for z in (0.0, 2.0, 4.0)]}))
+    before = sorted(p.name for p in tmp_path.iterdir())
+    code = main(["slices", "reconstruct", str(path), "--out", str(tmp_path / "out"), "--export-mask",
+                 str(tmp_path / "m.nii.gz"), "--mask-spacing", "0.001,0.001,0.001"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and "over the limit" in err[-1] and "TiB" in err[-1]
+    assert sorted(p.name for p in tmp_path.iterdir()) == before
+
+
+def test_a_nifti_reference_image_gives_its_grid(shared_data, tmp_path):
+    sitk = pytest.importorskip("SimpleITK")
+    ct_dir, rs = shared_data / "ibsi_ct_phantom" / "ct", shared_data / "ibsi_ct_phantom" / "RS.dcm"
+    reader = sitk.ImageSeriesReader()
+    reader.SetFileNames(reader.GetGDCMSeriesFileNames(str(ct_dir)))
+    sitk.WriteImage(reader.Execute(), str(tmp_path / "ct.nii.gz"))  # SimpleITK writes the RAS affine
+    from_nifti, source, _ = plan_grid(None, reference_image=tmp_path / "ct.nii.gz")
+    from_ct, _, _ = plan_grid(None, reference_image=ct_dir)
+    assert source == "reference_image" and from_nifti.shape == from_ct.shape
+    np.testing.assert_allclose(from_nifti.affine, from_ct.affine, atol=1e-4)
+    with pytest.raises(InputError, match="give one grid"):
+        plan_grid(None, reference_image=ct_dir, spacing="1,1,1")
+    with pytest.raises(FileNotFoundError):
+        plan_grid(None, reference_image=tmp_path / "missing.nii")
+    assert plan_grid(None, input_path=rs)[1] == "ct_series"

@@ -226,7 +226,7 @@ def planning_summary(result: SlicesReconstruction) -> dict:
     dict
         ``slab_full_ends`` and ``slab_half_ends`` (mm^3, :func:`slices.chaining.planning_volumes`:
         every contour a slab of one spacing, the end slabs whole or half), ``ours_mm3``
-        (the base ROI's patch volume with the caps asked for), ``ours_over_full_ends``,
+        (the summary's ``volume_mm3``, with the caps asked for), ``ours_over_full_ends``,
         ``n_planes``, ``small_structure`` and ``rule`` (the counting rule in words).
     """
     from slices.chaining import planning_volumes
@@ -234,9 +234,10 @@ def planning_summary(result: SlicesReconstruction) -> dict:
     rec = result.reconstruction
     out = planning_volumes(result.stack.contours, rec.spacing)
     full = out["slab_full_ends"]
+    ours = result.summary.get("volume_mm3", rec.volume_mm3)  # the summary's: whole structure with caps trend
     out.update({
-        "ours_mm3": rec.volume_mm3,
-        "ours_over_full_ends": rec.volume_mm3 / full if full else None,
+        "ours_mm3": ours,
+        "ours_over_full_ends": ours / full if full else None,
         "rule": f"every contour a slab of one slice spacing ({rec.spacing:g} mm), holes subtracted; "
                 "slab_full_ends keeps the end contours' whole slabs, slab_half_ends half of them",
     })
@@ -354,8 +355,8 @@ def reconstruct_to_folder(input_path, out_dir, *, roi=None, progress=None, atomi
             result.summary["notes"].append(
                 f"small structure ({plan['n_planes']} plane(s)): planning systems count "
                 f"{plan['slab_full_ends'] / 1000:.3f} ml (whole end slabs) or {plan['slab_half_ends'] / 1000:.3f} ml "
-                f"(half end slabs); the surface encloses {plan['ours_mm3'] / 1000:.3f} ml with caps "
-                f"{result.summary['caps']} (planning_volume_mm3)")
+                f"(half end slabs); ours is {plan['ours_mm3'] / 1000:.3f} ml, {result.summary['volume_caps']} "
+                "(planning_volume_mm3)")
         if mask_path is not None:
             result.summary["export_mask"] = export_mask(result, mask_path, grid=grid, grid_info=grid_info)
         return result
