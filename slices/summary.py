@@ -10,7 +10,7 @@ import numpy as np
 
 from slices.io import ContourStack
 from slices.structure import SENSITIVITY_OFFSET_MM, Reconstruction
-from slices.volume import volume_uncertainty
+from slices.volume import area_uncertainty, volume_uncertainty
 from surfaces.mesh import TriangleMesh
 
 
@@ -208,6 +208,8 @@ def summarize(input_path, stack: ContourStack, rec: Reconstruction, mesh: Triang
         "volume_k": 2,
         "volume_uncertainty": {**{k: v for k, v in whole.items() if k != "model"}, "model": whole["model"],
                                "applies_to": "the area-trend volume (volume_by_caps_mm3.trend)"},
+        "area_U_mm2": None,
+        "area_uncertainty": None,
         "slab_volume_mm3": rec.slab_volume_mm3,
         "slab_volume_ml": rec.slab_volume_mm3 / 1000.0,
         "volume_by_caps_mm3": by_caps,
@@ -236,6 +238,9 @@ def summarize(input_path, stack: ContourStack, rec: Reconstruction, mesh: Triang
         "notes": list(stack.notes),
         **timings,
     }
+    if composition is None:
+        ua = area_uncertainty(stack.contours, area, rec.spacing)
+        summary["area_U_mm2"], summary["area_uncertainty"] = ua["U_mm2"], ua
     if composition is not None:
         summary["composition"] = composition
         summary["notes"].append(

@@ -25,8 +25,8 @@ import numpy as np
 from slices.caps import SPHERE_CURVATURE, trend_cap_volume
 from surfaces.validate import positive
 
-__all__ = ["DELINEATION_PIXELS", "PIXEL_SIZE_REL", "SAMPLING_FACTOR", "CAP_FACTOR", "plane_areas", "whole_volume",
-           "volume_uncertainty", "format_volume"]
+__all__ = ["DELINEATION_PIXELS", "PIXEL_SIZE_REL", "SAMPLING_FACTOR", "CAP_FACTOR", "area_uncertainty",
+           "plane_areas", "whole_volume", "volume_uncertainty", "format_volume"]
 
 #: Delineation: standard uncertainty of a contour's position, in pixels (a systematic offset of every contour,
 #: normal: "about a pixel" at k = 2).
@@ -223,6 +223,63 @@ def volume_uncertainty(contours, spacing: float | None = None, pixel_mm: float =
     u = float(np.sqrt(sum(c["u_mm3"] ** 2 for c in budget.values())))
     return {"volume_mm3": w["volume_mm3"], "u_mm3": u, "k": 2, "U_mm3": 2.0 * u, "budget": budget,
             "pixel_mm": px, "model": w}
+
+
+def area_uncertainty(contours, area_mm2: float, spacing: float | None = None, pixel_mm: float = 1.0) -> dict:
+    """The surface area's uncertainty budget (GUM, k = 2), the same four causes as the volume's.
+
+    Parameters
+    ----------
+    contours : sequence of slices.io.Contour
+    area_mm2 : float
+        The area measured (the written surface's).
+    spacing : float, optional
+        Plane spacing (mm).
+    pixel_mm : float
+        In-plane pixel size (mm).
+
+    Returns
+    -------
+    dict
+        ``area_mm2``, ``u_mm2``, ``k`` (2), ``U_mm2`` and ``budget`` (each component's
+        ``u_mm2`` and ``basis``): slice sampling (0.5 x the area's difference from the
+        stack of prisms, perimeters x spacing plus the end faces), cap model (0.5 x the
+        walls of half a slab at every end of a run), contour position (an offset of
+        0.5 pixel: each outline's length grows by 2 pi per outer contour and shrinks by
+        2 pi per hole, the end faces by their perimeters) and pixel size (the area
+        scales as the in-plane scale to a power between 1 and 2: 1.5).
+    """
+    from slices.chaining import Outlines
+
+    table = Outlines.of(list(contours))
+    sign = np.where(table.hole, -1.0, 1.0)
+    n = len(table.planes)
+    z = np.asarray(table.planes, float)
+    d = float(spacing) if spacing is not None else (float(np.median(np.diff(z))) if n > 1 else 1.0)
+    d = positive(d, "spacing")
+    area_net = np.bincount(table.plane_of, sign * np.abs(table.area), minlength=n)
+    perim = np.bincount(table.plane_of, table.perimeter, minlength=n)
+    turning = np.bincount(table.plane_of, sign, minlength=n)
+    runs = _runs(z, d)
+    prisms = float(np.sum(perim) * d)
+    ends_perim = sum(perim[r][0] + perim[r][-1] for r in runs)
+    prisms += sum(abs(area_net[r][0]) + abs(area_net[r][-1]) for r in runs)
+    px = positive(pixel_mm, "pixel_mm")
+    ds_ddelta = float(np.sum(2 * np.pi * turning) * d + ends_perim)
+    budget = {
+        "slice_sampling": {"u_mm2": SAMPLING_FACTOR * abs(float(area_mm2) - prisms),
+                           "basis": f"{SAMPLING_FACTOR:g} x |area - stack of prisms (perimeters x spacing + end "
+                                    "faces)|"},
+        "cap_model": {"u_mm2": CAP_FACTOR * ends_perim * d / 2,
+                      "basis": f"{CAP_FACTOR:g} x the walls of half a slab at every end (the conventions' spread)"},
+        "contour_position": {"u_mm2": abs(ds_ddelta) * DELINEATION_PIXELS * px,
+                             "basis": f"every contour offset by {DELINEATION_PIXELS:g} pixel: 2 pi x spacing per outer "
+                                      "contour (minus per hole) plus the end faces' perimeters, x offset"},
+        "pixel_size": {"u_mm2": 1.5 * PIXEL_SIZE_REL * abs(float(area_mm2)),
+                       "basis": f"in-plane scale u = {PIXEL_SIZE_REL * 100:.2f} %, area ~ scale^1.5"},
+    }
+    u = float(np.sqrt(sum(c["u_mm2"] ** 2 for c in budget.values())))
+    return {"area_mm2": float(area_mm2), "u_mm2": u, "k": 2, "U_mm2": 2.0 * u, "budget": budget, "pixel_mm": px}
 
 
 def format_volume(volume_mm3: float, U_mm3: float) -> str:

@@ -157,3 +157,20 @@ def test_breast_heart_and_lung_stay_inside_their_planning_references(shared_data
     assert heart["caps"] == "trend" and heart["volume_caps"].startswith("caps trend")
     lung = reconstruct_to_folder(rs, tmp_path / "l", roi="Lt Lung", render=False, reference=False, samples=1)
     assert lung["volume_ml"] == pytest.approx(1995.18, rel=0.01)  # dicompyler-core, holes subtracted
+
+
+def test_area_u_is_in_the_summary_and_covers_spheres(tmp_path):
+    from slices.pipeline import reconstruct
+
+    rng = np.random.default_rng(8)
+    for _ in range(4):
+        r, d = rng.uniform(5, 12), rng.uniform(1, 3)
+        ph = make_phantom("ellipsoid", a=r, b=r, c=r)
+        path = tmp_path / "s.json"
+        path.write_text(json.dumps({"contours": [{"z": c["z"], "points": c["points"].tolist()}
+                                                 for c in ph.contours(d, n_points=64, offset_mm=rng.uniform(0, d))]}))
+        s = reconstruct(path, reference=False, samples=2).summary
+        ua = s["area_uncertainty"]
+        assert set(ua["budget"]) == {"slice_sampling", "cap_model", "contour_position", "pixel_size"}
+        assert s["area_U_mm2"] == pytest.approx(2 * ua["u_mm2"]) and ua["area_mm2"] == s["area_mm2"]
+        assert abs(s["area_mm2"] - ph.area_mm2) <= s["area_U_mm2"] < 0.5 * ph.area_mm2
