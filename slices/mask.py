@@ -158,21 +158,21 @@ def _dicom_files(folder: Path, limit: int):
         yield path, ds
 
 
-def _ct_slices(folder) -> list:
+def _ct_slices(folder, label: str = "--reference-image") -> list:
     folder = Path(folder)
     if not folder.is_dir():
-        raise FileNotFoundError(f"--reference-image: no such folder or NIfTI file: {folder}")
+        raise FileNotFoundError(f"{label}: no such folder or NIfTI file: {folder}")
     slices = [ds for _, ds in _dicom_files(folder, CT_SEARCH_LIMIT)
               if "ImagePositionPatient" in ds and "ImageOrientationPatient" in ds and "PixelSpacing" in ds]
     if not slices:
-        raise InputError(f"--reference-image: {folder} holds no DICOM image slices")
+        raise InputError(f"{label}: {folder} holds no DICOM image slices")
     series = {str(ds.get("SeriesInstanceUID", "")) for ds in slices}
     if len(series) > 1:
-        raise InputError(f"--reference-image: {folder} holds {len(series)} image series; give the folder of one")
+        raise InputError(f"{label}: {folder} holds {len(series)} image series; give the folder of one")
     return slices
 
 
-def grid_from_ct(folder, slices=None) -> tuple[VoxelGrid, str]:
+def grid_from_ct(folder, slices=None, label: str = "--reference-image") -> tuple[VoxelGrid, str]:
     """The voxel grid of a DICOM CT series (the same physical points SimpleITK and planning systems use).
 
     Voxel ``(i, j, k)`` is column ``i`` and row ``j`` of the ``k``-th slice along
@@ -185,6 +185,8 @@ def grid_from_ct(folder, slices=None) -> tuple[VoxelGrid, str]:
         Folder of the series' files.
     slices : list of pydicom.Dataset, optional
         The series' headers, when already read.
+    label : str
+        Names the option in messages.
 
     Returns
     -------
@@ -193,13 +195,13 @@ def grid_from_ct(folder, slices=None) -> tuple[VoxelGrid, str]:
     note : str
         What was read.
     """
-    slices = _ct_slices(folder) if slices is None else slices
+    slices = _ct_slices(folder, label) if slices is None else slices
     iop = np.asarray(slices[0].ImageOrientationPatient, dtype=np.float64)
     row_dir, col_dir = iop[:3], iop[3:]
     normal = np.cross(row_dir, col_dir)
     for ds in slices:
         if np.abs(np.asarray(ds.ImageOrientationPatient, float) - iop).max() > 1e-4:
-            raise InputError(f"--reference-image: {folder}: slices have different ImageOrientationPatient")
+            raise InputError(f"{label}: {folder}: slices have different ImageOrientationPatient")
     pos = np.array([float(np.dot(normal, np.asarray(ds.ImagePositionPatient, float))) for ds in slices])
     order = np.argsort(pos)
     slices, pos = [slices[i] for i in order], pos[order]
@@ -208,7 +210,7 @@ def grid_from_ct(folder, slices=None) -> tuple[VoxelGrid, str]:
         steps = np.diff(pos)
         dz = float(np.median(steps))
         if dz <= 0 or np.abs(steps - dz).max() > 0.01 * dz:
-            raise InputError(f"--reference-image: {folder}: slice positions are not evenly spaced "
+            raise InputError(f"{label}: {folder}: slice positions are not evenly spaced "
                              f"(steps {np.round(steps.min(), 4)} to {np.round(steps.max(), 4)} mm)")
     else:
         dz = float(slices[0].get("SliceThickness", 0) or 0) or 1.0
@@ -217,6 +219,8 @@ def grid_from_ct(folder, slices=None) -> tuple[VoxelGrid, str]:
     affine[:3, 3] = np.asarray(slices[0].ImagePositionPatient, float)
     grid = VoxelGrid(affine, (int(slices[0].Columns), int(slices[0].Rows), len(slices)))
     return grid, f"CT series {folder} ({len(slices)} slices, {dc:g} x {dr:g} x {dz:g} mm)"
+
+
 
 
 def grid_from_nifti(path) -> tuple[VoxelGrid, str]:
@@ -297,7 +301,8 @@ def plan_grid(contours, *, input_path=None, reference_image=None, spacing=None, 
     ----------
     contours : sequence of slices.io.Contour
     input_path : str or os.PathLike, optional
-        The input; an RT Structure Set's CT series found beside it gives the default grid.
+        The input: a CT series folder or a NIfTI image gives its own grid, an RT
+        Structure Set's CT series found beside it gives the default grid.
     reference_image : str or os.PathLike, optional
         A CT series folder or a NIfTI image whose grid the mask takes.
     spacing, origin, size : optional
@@ -308,7 +313,7 @@ def plan_grid(contours, *, input_path=None, reference_image=None, spacing=None, 
     grid : VoxelGrid
         Axial, in LPS mm.
     source : str
-        ``"reference_image"``, ``"ct_series"``, ``"explicit"`` or ``"contour_planes"``.
+        ``"reference_image"``, ``"input_image"``, ``"ct_series"``, ``"explicit"`` or ``"contour_planes"``.
     info : dict
         ``grid`` (in words), ``shape``, ``n_voxels``, ``bytes``.
     """
@@ -326,9 +331,16 @@ def plan_grid(contours, *, input_path=None, reference_image=None, spacing=None, 
     elif explicit:
         grid, source = grid_on_contours(contours, spacing, origin, size), "explicit"
         note = "explicit grid"
+    elif input_path is not None and _is_nifti_name(input_path):  # a NIfTI input: its own grid
+        grid, note = grid_from_nifti(input_path)
+        source, note = "input_image", note.replace("NIfTI image", "the input NIfTI image")
+    elif input_path is not None and Path(input_path).is_dir() and not any(
+            p.suffix.lower() == ".png" for p in Path(input_path).iterdir()):  # a CT series input: its own grid
+        grid, note = grid_from_ct(input_path, label="--export-mask (the input CT series' grid)")
+        source = "input_image"
     else:
         found = None
-        if input_path is not None and Path(input_path).is_file() and not _is_nifti_name(input_path):
+        if input_path is not None and Path(input_path).is_file():
             found = find_ct_series(input_path)
         if found is not None:
             grid, note = grid_from_ct(found[0], found[1])

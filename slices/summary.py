@@ -115,8 +115,9 @@ def volume_caps_text(caps: str, composed: bool = False) -> str:
     -------
     str
     """
-    text = f"caps {caps}: {CAPS_TEXT.get(caps, caps)}"
-    return text + "; composed meshes" if composed else text
+    if composed:
+        return f"caps {caps}: the composition of the ROIs' meshes, each capped {caps} (the written solid's volume)"
+    return f"caps {caps}: {CAPS_TEXT.get(caps, caps)}"
 
 
 def summarize(input_path, stack: ContourStack, rec: Reconstruction, mesh: TriangleMesh, union: bool,

@@ -102,3 +102,16 @@ def test_an_exported_phantom_mask_reads_back_at_the_phantom_volume(tmp_path):
     first = read_nifti(mask).contours
     assert np.mean([c.points.mean(axis=0) for c in first], axis=0) == pytest.approx(
         np.mean([c["points"].mean(axis=0) for c in ph.contours(2.0, n_points=64)], axis=0), abs=0.3)
+
+
+def test_a_label_volume_comes_back_voxel_for_voxel_on_its_own_grid(tmp_path):
+    affine = np.diag([-0.7, -0.9, 2.0, 1.0])  # a RAS affine as a DICOM converter writes it (LPS axes)
+    affine[:3, 3] = (40.0, 60.0, -10.0)
+    path = _save(tmp_path / "boxes.nii.gz", _two_boxes(), affine)
+    s = reconstruct_to_folder(path, tmp_path / "o", roi=2, render=False, reference=False, samples=2,
+                              export_mask=str(tmp_path / "back.nii.gz"))
+    assert s["export_mask"]["grid_source"] == "input_image"
+    back = nibabel.load(str(tmp_path / "back.nii.gz"))
+    np.testing.assert_allclose(back.affine, affine)
+    # the contours (find_contours at 0.5) filled at the voxel centres: the label's voxels exactly
+    np.testing.assert_array_equal(np.asarray(back.dataobj) > 0, _two_boxes() == 2)
