@@ -91,6 +91,9 @@ def chaining_text(rec: Reconstruction) -> str:
     return text
 
 
+#: The pixel size behind the contour-position terms of the uncertainty budgets.
+PIXEL_NOTE = "1 mm pixels assumed for the contour position (the image's own pixel is not passed to the summary)"
+
 #: What each ``caps`` choice counts beyond the end planes (named beside every printed volume).
 CAPS_TEXT = {
     "trend": "whole structure: areas integrated between the planes, caps from the areas' trend beyond the end planes",
@@ -208,7 +211,8 @@ def summarize(input_path, stack: ContourStack, rec: Reconstruction, mesh: Triang
         "volume_U_mm3": whole["U_mm3"] if trend else None,
         "volume_k": 2,
         "volume_uncertainty": {**{k: v for k, v in whole.items() if k != "model"}, "model": whole["model"],
-                               "applies_to": "the area-trend volume (volume_by_caps_mm3.trend)"},
+                               "applies_to": "the area-trend volume (volume_by_caps_mm3.trend)",
+                               "pixel_note": PIXEL_NOTE},
         "area_U_mm2": None,
         "area_uncertainty": None,
         "slab_volume_mm3": rec.slab_volume_mm3,
@@ -241,7 +245,7 @@ def summarize(input_path, stack: ContourStack, rec: Reconstruction, mesh: Triang
     }
     if composition is None:
         ua = area_uncertainty(stack.contours, area, rec.spacing)
-        summary["area_U_mm2"], summary["area_uncertainty"] = ua["U_mm2"], ua
+        summary["area_U_mm2"], summary["area_uncertainty"] = ua["U_mm2"], {**ua, "pixel_note": PIXEL_NOTE}
     if composition is not None:
         summary["composition"] = composition
         summary["notes"].append(
