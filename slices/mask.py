@@ -142,20 +142,25 @@ def grid_on_contours(contours, spacing=None, origin=None, size=None) -> VoxelGri
 
 
 def _dicom_files(folder: Path, limit: int):
+    """(path, header) of the DICOM files in ``folder`` and below, at most ``limit`` files looked at
+    (walked lazily, so a large parent folder is not listed whole)."""
+    import os
+
     import pydicom
 
     seen = 0
-    for path in sorted(folder.rglob("*")):
-        if not path.is_file():
-            continue
-        seen += 1
-        if seen > limit:
-            return
-        try:
-            ds = pydicom.dcmread(str(path), stop_before_pixels=True)
-        except Exception:  # not DICOM: skipped, as any viewer does
-            continue
-        yield path, ds
+    for root, dirs, files in os.walk(folder):
+        dirs.sort()
+        for name in sorted(files):
+            seen += 1
+            if seen > limit:
+                return
+            path = Path(root) / name
+            try:
+                ds = pydicom.dcmread(str(path), stop_before_pixels=True)
+            except Exception:  # not DICOM: skipped, as any viewer does
+                continue
+            yield path, ds
 
 
 def _ct_slices(folder, label: str = "--reference-image") -> list:
