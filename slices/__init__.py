@@ -8,13 +8,16 @@ reading             ``io`` (RTSTRUCT, CT series, mask stacks, contour JSON: ``lo
 one contour         ``control_points`` (checks and orientation, the seed's parameters:
                     rays, support and turning points, chord length; eqs. 1-5)
 one body            ``surface`` (slice curves on a common lattice, side surfaces:
-                    blending, Coons, B-spline), ``caps`` (none, flat, half, dome),
+                    blending, Coons, B-spline), ``caps`` (trend, none, flat, half, dome),
                     ``body`` (surface, volume, area and mesh of one chain of contours)
 a structure         ``chaining`` (holes, bodies by overlap, the slab volume),
                     ``structure`` (all bodies, the united solid), ``compose`` (set
                     operations of ROIs), ``reference`` (the smoothing B-spline comparison)
 end to end          ``pipeline`` (an input in, a :class:`SlicesReconstruction` out),
                     ``summary`` (its figures), ``options`` (every default, once)
+volume and masks    ``volume`` (the whole structure's volume from its areas, and the
+                    volume's and area's uncertainty, k = 2), ``mask`` (the contours as
+                    a voxel mask on a planning grid: the CT's, an image's, explicit)
 ==================  ==================================================================
 
 The library computes and returns; it writes no files (``workbench.runs.slices``

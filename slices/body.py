@@ -86,6 +86,9 @@ class BodySurface:
     mesh_samples : (int, int) or None
         Tessellation subdivisions of every patch around and across the slices
         (:func:`mesh_samples` with ``samples=None``); None without a mesh.
+    extrusions_mm : (float, float)
+        Heights of the low and the high end's prism (half caps: half a spacing; trend
+        caps: the trend's volume over the end area, :func:`slices.caps.resolve_trend`); 0 where none.
     """
 
     body: Body
@@ -107,6 +110,7 @@ class BodySurface:
     surface: str = ""
     self_intersecting_faces: int | None = None
     mesh_samples: tuple[int, int] | None = None
+    extrusions_mm: tuple[float, float] = (0.0, 0.0)
 
     def volume_with_caps(self, caps: str) -> float | None:
         """The body's volume had it been capped with ``caps`` (none, flat or half).
@@ -130,8 +134,9 @@ class BodySurface:
         if "dome" in self.caps_used:
             return None
         wanted = capmod.end_kinds(caps, self.body.start, self.body.stop, len(self.body.contours))
-        prism = [a * self.spacing / 2 for a in self.end_areas_mm2]
-        extra = sum(p * ((w == "half") - (u == "half")) for p, w, u in zip(prism, wanted, self.caps_used))
+        # the prisms of half and trend caps (their extrusions) off, those of the wanted half caps on
+        extra = sum(a * ((w == "half") * self.spacing / 2 - (u in capmod.PRISM_KINDS) * h)
+                    for a, w, u, h in zip(self.end_areas_mm2, wanted, self.caps_used, self.extrusions_mm))
         return float(self.volume_mm3 + extra)
 
 
@@ -435,6 +440,7 @@ def build_body_once(body: Body, spacing: float, options: SurfaceOptions | None =
     centers[:, :2] = [p.center for p in sc.params]
     centers[:, 2] = z
     stack, prepend = capmod._add_dome_rings(curves, centers, d / 2, low, high)
+    heights = capmod.resolve_trend(curves, d, low, high)  # extrusions: half caps d/2, trend caps their volume
     n_limited = 0
     buffer = None
     if len(stack) >= 2 and not ruled and opts.method == "blending":
@@ -457,9 +463,9 @@ def build_body_once(body: Body, spacing: float, options: SurfaceOptions | None =
             return curves[0][j, 0]
 
     if buffer is None:
-        grid = capmod.close_side(side_ctrl, bottom, top, centers[0, :2], centers[-1, :2], d / 2, low, high)
+        grid = capmod.close_side(side_ctrl, bottom, top, centers[0, :2], centers[-1, :2], heights, low, high)
     else:
-        grid = capmod._close_grid(buffer, bottom, top, centers[0, :2], centers[-1, :2], d / 2, low, high)
+        grid = capmod._close_grid(buffer, bottom, top, centers[0, :2], centers[-1, :2], heights, low, high)
     # the grid's columns are the checked side's and caps over its end curves: finite and closed as the
     # side is (close_side checks its inputs)
     patches = BezierPatches.unchecked(grid.control, closed_u=True)
@@ -494,5 +500,5 @@ def build_body_once(body: Body, spacing: float, options: SurfaceOptions | None =
         int(len(pts)), int(np.count_nonzero(np.concatenate([p.turning for p in sc.params]))), int(curves.shape[1]),
         float(sc.start_angle), n_limited, (low, high),
         (abs(capmod._curve_area(curves[0])), abs(capmod._curve_area(curves[-1]))), float(d),
-        mesh_samples=density,
+        mesh_samples=density, extrusions_mm=grid.extrusions,
     )

@@ -1,5 +1,16 @@
-"""End caps of a body: none, flat, half a slice beyond, or a smooth dome.
+"""End caps of a body: the contours' own trend, none, flat, half a slice beyond, or a smooth dome.
 
+* ``trend`` (the default): the structure beyond each end plane estimated from
+  the contours' own area trend (:func:`trend_profile`): a quadratic through the
+  areas of the last three planes (two planes: a sphere's curvature; one plane:
+  a sphere through its outline), extrapolated until the area vanishes
+  (:func:`trend_cap_volume`: exact for spheres and ellipsoids, whatever the
+  planes' offset). Where it does not vanish within one slice spacing (a
+  structure cut off, a cylinder's end), the end is unknown between the end
+  plane and the next: the half cap, the expected end. The surface is the end
+  contour extruded by that volume over its area (:func:`resolve_trend`), so
+  it encloses the trend's volume; :mod:`slices.volume` integrates the same
+  model over the whole structure's areas.
 * ``flat``: planar caps in the first and last contour planes.
 * ``half``: the end contour extruded by half a slice spacing, then a flat cap
   (the volume treatment-planning systems count, which gives each contour a
@@ -39,7 +50,10 @@ import numpy as np
 from surfaces.mesh import TriangleMesh, weld_tolerance, compact, merge_meshes, points_apart, weld
 from surfaces.validate import as_array, InputError, positive
 
-CAP_KINDS = ("none", "flat", "half", "dome")
+CAP_KINDS = ("none", "flat", "half", "dome", "trend")
+
+#: Cap kinds extruded beyond the end curve (a prism, then a flat cap): half a spacing, or the trend's volume.
+PRISM_KINDS = ("half", "trend")
 
 #: Rings of a dome cap (more rings: closer to the quarter ellipse).
 DOME_RINGS = 3
@@ -344,6 +358,155 @@ def dome_rings(curve, center, height: float, upward: bool, n_rings: int = DOME_R
     return rings
 
 
+#: Curvature of a sphere's section area, d^2 A / dz^2 (mm^2 per mm^2): the prior of one- and two-plane ends.
+SPHERE_CURVATURE = -2.0 * np.pi
+
+
+def trend_profile(areas, spacing: float) -> tuple[float, float, float] | None:
+    """The section area beyond an end plane, ``A(t) = a0 + a1 t + a2 t^2``, from the last planes' areas.
+
+    ``t`` is the distance beyond the end plane (mm). Three or more planes: the
+    quadratic through the last three areas; two planes: the line through them
+    bent by a sphere's curvature (:data:`SPHERE_CURVATURE`); one plane: a sphere
+    whose equator is the contour (``a1 = 0``). Exact for spheres and ellipsoids
+    (their section areas are quadratic in z) at any plane offset.
+
+    Parameters
+    ----------
+    areas : array_like, shape (K,)
+        Areas (mm^2) of the end plane first, then the planes inward (K >= 1; only
+        the first three are used).
+    spacing : float
+        Plane spacing (mm).
+
+    Returns
+    -------
+    (a0, a1, a2) or None
+        The coefficients, or None when the area does not vanish within one
+        spacing (the structure is cut off between this plane and the next:
+        :func:`trend_cap_volume` then counts the half cap).
+
+    Examples
+    --------
+    A sphere of radius 5 mm cut at z = 4, 2 and 0 mm (end plane at 4): it closes 1 mm beyond.
+
+    >>> a = [np.pi * (25 - z * z) for z in (4.0, 2.0, 0.0)]
+    >>> c = trend_profile(a, 2.0)
+    >>> round(c[0] / np.pi, 9), round(c[1] / np.pi, 9), round(c[2] / np.pi, 9), round(trend_height(c), 9)
+    (9.0, -8.0, -1.0, 1.0)
+    >>> trend_profile([100.0, 100.0, 100.0], 1.0) is None  # a cylinder: cut off
+    True
+    """
+    a = np.abs(np.asarray(areas, dtype=np.float64).ravel())
+    d = positive(spacing, "spacing")
+    if len(a) == 0 or a[0] <= 0:
+        return None
+    if len(a) >= 3:
+        # through (0, a0), (-d, a1), (-2d, a2)
+        c2 = (a[0] - 2 * a[1] + a[2]) / (2 * d * d)
+        c1 = (a[0] - a[1]) / d + c2 * d
+    elif len(a) == 2:
+        c2 = SPHERE_CURVATURE / 2
+        c1 = (a[0] - a[1]) / d + c2 * d
+    else:
+        c2, c1 = SPHERE_CURVATURE / 2, 0.0
+    r = _first_root(a[0], c1, c2)
+    if r is None or r > d:
+        return None
+    return float(a[0]), float(c1), float(c2)
+
+
+def _first_root(c0: float, c1: float, c2: float) -> float | None:
+    """The smallest t > 0 with c0 + c1 t + c2 t^2 = 0 (c0 > 0), None when there is none."""
+    if abs(c2) < 1e-12 * max(abs(c1), c0, 1e-300):
+        return -c0 / c1 if c1 < 0 else None
+    disc = c1 * c1 - 4 * c2 * c0
+    if disc < 0:
+        return None
+    q = np.sqrt(disc)
+    roots = [t for t in ((-c1 - q) / (2 * c2), (-c1 + q) / (2 * c2)) if t > 0]
+    return float(min(roots)) if roots else None
+
+
+def trend_height(profile) -> float:
+    """Where the trend's area vanishes (mm beyond the end plane).
+
+    Parameters
+    ----------
+    profile : (float, float, float)
+        :func:`trend_profile`'s coefficients.
+
+    Returns
+    -------
+    float
+    """
+    return float(_first_root(*profile))
+
+
+def trend_cap_volume(areas, spacing: float) -> float:
+    """Volume beyond an end plane under the trend model (mm^3).
+
+    Parameters
+    ----------
+    areas : array_like, shape (K,)
+        Areas of the end plane first, then inward (:func:`trend_profile`).
+    spacing : float
+        Plane spacing (mm).
+
+    Returns
+    -------
+    float
+        ``integral_0^r A(t) dt`` up to the trend's closing height ``r``; the
+        half cap (end area x half a spacing) where the trend does not close
+        within one spacing.
+
+    Examples
+    --------
+    >>> a = [np.pi * (25 - z * z) for z in (4.0, 2.0, 0.0)]  # sphere of radius 5: cap of height 1 mm
+    >>> round(trend_cap_volume(a, 2.0) / np.pi, 9)  # pi h^2 (3 R - h) / 3
+    4.666666667
+    """
+    prof = trend_profile(areas, spacing)
+    if prof is None:
+        return float(abs(np.asarray(areas, float).ravel()[0]) * positive(spacing, "spacing") / 2)
+    r = trend_height(prof)
+    return float(prof[0] * r + prof[1] * r * r / 2 + prof[2] * r**3 / 3)
+
+
+def resolve_trend(curves, spacing: float, low: str, high: str) -> tuple[float, float]:
+    """Extrusion heights of a body's ends: a trend cap's volume as a prism over the end curve.
+
+    A ``"trend"`` end is extruded (as a half cap is) by ``V / A``: the trend's
+    volume beyond the end plane (:func:`trend_cap_volume`) over the end curve's
+    area, so the written surface encloses the trend's volume; at most one
+    spacing. Other ends keep half a spacing (used by half caps only).
+
+    Parameters
+    ----------
+    curves : array_like, shape (K, M, 4, 3)
+        The body's slice curves, lowest first.
+    spacing : float
+        Plane spacing (mm).
+    low, high : str
+        Cap kinds from :func:`end_kinds`.
+
+    Returns
+    -------
+    (float, float)
+        Heights in mm of the low and the high end's extrusion.
+    """
+    d = positive(spacing, "spacing")
+    heights = [d / 2, d / 2]
+    for end, kind in enumerate((low, high)):
+        if kind != "trend":
+            continue
+        c = curves[:3] if end == 0 else curves[::-1][:3]
+        areas = [abs(_curve_area(x)) for x in c]
+        if areas[0] > 0:
+            heights[end] = float(min(trend_cap_volume(areas, d) / areas[0], d))
+    return heights[0], heights[1]
+
+
 #: ``H`` of :func:`curve_area`: the area ``1/2 integral (x y' - y x')`` of one cubic Bezier segment is
 #: ``x^T H y`` for the x and y (4,) of its control points (one matrix product for every segment, instead
 #: of the quadrature's sixteen small products).
@@ -605,7 +768,7 @@ def end_kinds(caps: str, start: str, stop: str, n_contours: int = 2) -> tuple[st
 
     Parameters
     ----------
-    caps : {"none", "flat", "half", "dome"}
+    caps : {"none", "flat", "half", "dome", "trend"}
         The requested caps.
     start, stop : str
         Why the body's chain starts and stops (:class:`slices.chaining.Body`):
@@ -736,8 +899,9 @@ def close_side(side, bottom, top, low_center, high_center, height: float, low: s
     low_center, high_center : array_like, shape (2,)
         x, y of the preferred fan apex of the low and the high cap (mm); moved
         into the end curve's kernel where the fan would fold (:func:`fan_apex`).
-    height : float
-        Extrusion of half caps in mm (half a slice spacing).
+    height : float or (float, float)
+        Extrusion of half and trend caps in mm (half a slice spacing; per end as
+        (low, high) from :func:`resolve_trend`).
     low, high : str
         Cap kinds of the two ends (:func:`end_kinds`).
 
@@ -753,7 +917,7 @@ def close_side(side, bottom, top, low_center, high_center, height: float, low: s
     if side is not None:
         side = as_array(side, "side", shape=(len(bottom), None, 4, 4, 3))
         n_mid = side.shape[1]
-    if not n_mid and "half" not in (low, high):
+    if not n_mid and low not in PRISM_KINDS and high not in PRISM_KINDS:
         raise InputError("side: a single slice has no side surface; it needs a half cap at one end at least")
     # every column (fans, extrusions, side) written into the grid in place: the side is copied once
     control, mid = _grid_buffer(len(bottom), n_mid, low, high)
@@ -768,8 +932,9 @@ def _grid_buffer(m: int, n_mid: int, low: str, high: str) -> tuple[np.ndarray, s
     The side surface written into those columns (:func:`slices.surface.side_surface`'s blend can), then
     :func:`_close_grid` fills the caps' columns around it: the side's points are written once.
     """
-    first = int(low != "dome") + (low == "half")
-    return np.empty((m, first + n_mid + (high == "half") + (high != "dome"), 4, 4, 3)), slice(first, first + n_mid)
+    first = int(low != "dome") + (low in PRISM_KINDS)
+    return (np.empty((m, first + n_mid + (high in PRISM_KINDS) + (high != "dome"), 4, 4, 3)),
+            slice(first, first + n_mid))
 
 
 def _close_grid(control: np.ndarray, bottom: np.ndarray, top: np.ndarray, low_center, high_center, height: float,
@@ -777,11 +942,12 @@ def _close_grid(control: np.ndarray, bottom: np.ndarray, top: np.ndarray, low_ce
     """:func:`close_side` on a :func:`_grid_buffer` whose side columns hold the side (validated inputs)."""
     first = int(low != "dome")
     stop = control.shape[1] - (high != "dome")
-    if low == "half":
-        control[:, first] = _prism_points(bottom, -float(height))
+    h_low, h_high = (float(height), float(height)) if np.ndim(height) == 0 else (float(height[0]), float(height[1]))
+    if low in PRISM_KINDS:
+        control[:, first] = _prism_points(bottom, -h_low)
         bottom = control[:, first, :, 0]  # the curve lowered by the height, as the extrusion's own edge
-    if high == "half":
-        control[:, stop - 1] = _prism_points(top, float(height))
+    if high in PRISM_KINDS:
+        control[:, stop - 1] = _prism_points(top, h_high)
         top = control[:, stop - 1, :, 3]
     flat = []
     if low != "dome":
@@ -793,7 +959,7 @@ def _close_grid(control: np.ndarray, bottom: np.ndarray, top: np.ndarray, low_ce
         if high != "none":
             flat.append((top, 1.0))
     return CappedGrid(control, slice(first, stop), tuple(flat), (float(bottom[0, 0, 2]), float(top[0, 0, 2])),
-                      (float(height) if low == "half" else 0.0, float(height) if high == "half" else 0.0))
+                      (h_low if low in PRISM_KINDS else 0.0, h_high if high in PRISM_KINDS else 0.0))
 
 
 @lru_cache(maxsize=8)

@@ -766,8 +766,9 @@ def read_nifti(path, label=None) -> ContourStack:
     Every axial slice of the chosen voxels is contoured at sub-pixel
     precision (:func:`skimage.measure.find_contours` at level 0.5, the
     boundary half-way between voxel centres) and mapped to mm through the
-    file's affine as it stands (voxel ``(i, j, k)`` at ``affine @ (i, j, k, 1)``,
-    the convention of ``--export-mask``; no RAS/LPS flip). All components are
+    file's affine, which NIfTI defines in RAS, turned into DICOM patient
+    coordinates (LPS: x and y negated, :func:`surfaces.voxelize.lps_to_ras`), the
+    frame of RT Structure Sets and of ``--export-mask``'s grid. All components are
     kept (a structure may have several bodies); holes come out as inner contours.
 
     Parameters
@@ -785,8 +786,11 @@ def read_nifti(path, label=None) -> ContourStack:
     from skimage.measure import find_contours
 
     path = _existing(path, "NIfTI file")
+    from surfaces.voxelize import lps_to_ras
+
     data, affine = _nifti_volume(path)
     axis = _slice_axis(affine, path)
+    affine = lps_to_ras(affine)  # RAS -> LPS (the flip is its own inverse)
     if label is None:
         mask, what = data != 0, "non-zero voxels"
     else:
@@ -817,6 +821,41 @@ def read_nifti(path, label=None) -> ContourStack:
     name = path.name if label is None else f"{path.name} label {label}"
     note = f"NIfTI {what}: contoured per axial slice at sub-pixel precision (find_contours at 0.5)"
     return ContourStack(contours, "nifti", name, [note])
+
+
+def write_nifti_mask(path, mask, affine_lps) -> np.ndarray:
+    """Write a mask as NIfTI (nibabel, atomically) with its affine in RAS, as NIfTI defines it.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        ``.nii`` or ``.nii.gz`` file.
+    mask : numpy.ndarray, shape (ni, nj, nk)
+        Voxel values (array axes i, j, k).
+    affine_lps : array_like, shape (4, 4)
+        Voxel indices to DICOM patient mm (LPS); stored with x and y negated
+        (:func:`surfaces.voxelize.lps_to_ras`), as qform and sform (code 1, scanner).
+
+    Returns
+    -------
+    numpy.ndarray, shape (4, 4)
+        The RAS affine written.
+    """
+    import nibabel
+
+    from surfaces.io import atomic_path
+    from surfaces.voxelize import lps_to_ras
+
+    path = Path(path)
+    if not is_nifti(path):
+        raise InputError(f"--export-mask: must end in .nii or .nii.gz, got {str(path)!r}")
+    affine = lps_to_ras(affine_lps)
+    img = nibabel.Nifti1Image(np.asarray(mask), affine)
+    img.set_qform(affine, code=1)
+    img.set_sform(affine, code=1)
+    with atomic_path(path, suffix=".nii.gz" if path.name.lower().endswith(".gz") else ".nii") as tmp:
+        nibabel.save(img, str(tmp))
+    return affine
 
 
 @reads_file("contour JSON file")

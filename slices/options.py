@@ -39,8 +39,9 @@ class SurfaceOptions:
         Side surface (:func:`slices.surface.side_surface`).
     n_rays : int
         Rays per contour (seed 000, eq. 1), at least 3.
-    caps : {"none", "flat", "half", "dome"}
-        End caps (:mod:`slices.caps`).
+    caps : {"none", "flat", "half", "dome", "trend"}
+        End caps (:mod:`slices.caps`); default ``"trend"``, the structure beyond its end
+        planes from the contours' area trend.
     lattice_factor : float
         Lattice values per point of a body's largest contour (``M = lattice_factor * max n``,
         :func:`slices.surface.lattice_size`), at least 1.
@@ -78,7 +79,7 @@ class SurfaceOptions:
 
     method: str = "blending"
     n_rays: int = 64
-    caps: str = "flat"
+    caps: str = "trend"
     lattice_factor: float = 2.0
     lattice_mode: str = "balanced"
     correspondence: str = "seed"

@@ -174,7 +174,7 @@ def reconstruct_contours(contours: list[Contour], *, spacing: float | None = Non
     >>> from slices.io import Contour
     >>> t = np.linspace(0, 2 * np.pi, 64, endpoint=False)
     >>> circle = 10 * np.stack([np.cos(t), np.sin(t)], axis=1)
-    >>> rec = reconstruct_contours([Contour(z, circle) for z in (0.0, 5.0, 10.0, 15.0, 20.0)], mesh=False)
+    >>> rec = reconstruct_contours([Contour(z, circle) for z in (0.0, 5.0, 10.0, 15.0, 20.0)], mesh=False, caps="flat")
     >>> len(rec.bodies), rec.max_deviation_mm < 1e-9
     (1, True)
     >>> round(rec.volume_mm3 / (np.pi * 10**2 * 20), 4)

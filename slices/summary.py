@@ -10,6 +10,7 @@ import numpy as np
 
 from slices.io import ContourStack
 from slices.structure import SENSITIVITY_OFFSET_MM, Reconstruction
+from slices.volume import area_uncertainty, volume_uncertainty
 from surfaces.mesh import TriangleMesh
 
 
@@ -90,6 +91,38 @@ def chaining_text(rec: Reconstruction) -> str:
     return text
 
 
+#: The pixel size behind the contour-position terms of the uncertainty budgets.
+PIXEL_NOTE = "1 mm pixels assumed for the contour position (the image's own pixel is not passed to the summary)"
+
+#: What each ``caps`` choice counts beyond the end planes (named beside every printed volume).
+CAPS_TEXT = {
+    "trend": "whole structure: areas integrated between the planes, caps from the areas' trend beyond the end planes",
+    "flat": "between the end planes only (flat caps in the end planes)",
+    "half": "end slabs half a spacing beyond the end planes (as planning systems count)",
+    "dome": "dome caps of half a spacing beyond the end planes",
+    "none": "between the end planes only (open surface, closed flat for the volume)",
+}
+
+
+def volume_caps_text(caps: str, composed: bool = False) -> str:
+    """The cap convention of a printed volume, in words.
+
+    Parameters
+    ----------
+    caps : str
+        :data:`slices.caps.CAP_KINDS`.
+    composed : bool
+        The volume is a composition's (its meshes' caps).
+
+    Returns
+    -------
+    str
+    """
+    if composed:
+        return f"caps {caps}: the composition of the ROIs' meshes, each capped {caps} (the written solid's volume)"
+    return f"caps {caps}: {CAPS_TEXT.get(caps, caps)}"
+
+
 def summarize(input_path, stack: ContourStack, rec: Reconstruction, mesh: TriangleMesh, union: bool,
               composition: dict | None, reference: dict | None, timings: dict, *,
               checks: dict | None = None) -> dict:
@@ -146,7 +179,12 @@ def summarize(input_path, stack: ContourStack, rec: Reconstruction, mesh: Triang
         checks = {"watertight": mesh.is_watertight(), "oriented": mesh.is_oriented()}
     n_out = sum(b.body.kind == "outer" for b in rec.bodies)
     by_caps = rec.volume_by_caps()
+    whole = volume_uncertainty(stack.contours, rec.spacing)
+    by_caps["trend"] = whole["volume_mm3"]
+    trend = opts.caps == "trend" and composition is None
     volume = rec.volume_mm3 if composition is None else composition["result_volume_mm3"]
+    if trend:
+        volume = whole["volume_mm3"]
     if composition is not None:
         area, area_source = composition["area_mm2"], "composition"
     elif union:
@@ -167,7 +205,16 @@ def summarize(input_path, stack: ContourStack, rec: Reconstruction, mesh: Triang
         "area_mm2": area,
         "area_source": area_source,
         "bodies_area_mm2": rec.area_mm2,
-        "volume_source": "patches" if composition is None else "composition",
+        "volume_source": "composition" if composition is not None else ("area trend" if trend else "patches"),
+        "volume_caps": volume_caps_text(opts.caps, composition is not None),
+        "surface_volume_mm3": rec.volume_mm3,
+        "volume_U_mm3": whole["U_mm3"] if trend else None,
+        "volume_k": 2,
+        "volume_uncertainty": {**{k: v for k, v in whole.items() if k != "model"}, "model": whole["model"],
+                               "applies_to": "the area-trend volume (volume_by_caps_mm3.trend)",
+                               "pixel_note": PIXEL_NOTE},
+        "area_U_mm2": None,
+        "area_uncertainty": None,
         "slab_volume_mm3": rec.slab_volume_mm3,
         "slab_volume_ml": rec.slab_volume_mm3 / 1000.0,
         "volume_by_caps_mm3": by_caps,
@@ -196,6 +243,9 @@ def summarize(input_path, stack: ContourStack, rec: Reconstruction, mesh: Triang
         "notes": list(stack.notes),
         **timings,
     }
+    if composition is None:
+        ua = area_uncertainty(stack.contours, area, rec.spacing)
+        summary["area_U_mm2"], summary["area_uncertainty"] = ua["U_mm2"], {**ua, "pixel_note": PIXEL_NOTE}
     if composition is not None:
         summary["composition"] = composition
         summary["notes"].append(

@@ -35,9 +35,10 @@ def test_contours_lie_in_mm_through_the_affine(tmp_path):
     z = stack.planes
     np.testing.assert_allclose(z, 30.0 + 2.5 * np.arange(1, 9))
     pts = np.concatenate([c.points for c in stack.contours])
-    # the boundary runs half-way between voxel centres: columns 16-27 (x), rows 10-19 (y)
-    np.testing.assert_allclose(pts.min(axis=0), [-10 + 0.5 * 15.5, 4 + 0.8 * 9.5])
-    np.testing.assert_allclose(pts.max(axis=0), [-10 + 0.5 * 27.5, 4 + 0.8 * 19.5])
+    # the boundary runs half-way between voxel centres: columns 16-27 (x), rows 10-19 (y), in RAS;
+    # the contours are in DICOM patient coordinates (LPS: x and y negated)
+    np.testing.assert_allclose(pts.max(axis=0), [-(-10 + 0.5 * 15.5), -(4 + 0.8 * 9.5)])
+    np.testing.assert_allclose(pts.min(axis=0), [-(-10 + 0.5 * 27.5), -(4 + 0.8 * 19.5)])
     assert len(read_nifti(path).contours) == 6 * 2 + 2  # every non-zero voxel: both boxes
     assert [r["label"] for r in nifti_labels(path)] == [1, 2]
     assert nifti_labels(path)[0] == {"label": 1, "n_voxels": 360, "n_planes": 6}

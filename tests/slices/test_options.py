@@ -13,7 +13,7 @@ from slices.surface import CORRESPONDENCES, LATTICE_MODES, METHODS
 
 def test_defaults():
     opts = SurfaceOptions()
-    assert (opts.method, opts.n_rays, opts.caps, opts.lattice_factor) == ("blending", 64, "flat", 2.0)
+    assert (opts.method, opts.n_rays, opts.caps, opts.lattice_factor) == ("blending", 64, "trend", 2.0)
     assert (opts.lattice_mode, opts.correspondence, opts.start_angle, opts.samples) == ("balanced", "seed", None, None)
     assert ReadOptions() == ReadOptions(None, None, None, False)
 

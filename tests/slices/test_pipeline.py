@@ -36,9 +36,17 @@ def test_reconstruct_returns_everything_and_writes_nothing(ellipsoid):
     assert result.mesh.is_watertight() and not result.union  # one body: nothing to unite
     assert result.display_mesh.n_triangles == result.mesh.n_triangles
     s = result.summary
-    assert s["volume_mm3"] == rec.volume_mm3 and s["volume_ml"] == rec.volume_mm3 / 1000
-    assert abs(s["volume_mm3"] / truth["volume_between_end_planes_mm3"] - 1) < 5e-3
-    assert (s["rays"], s["caps"], s["method"], s["ray_start"], s["source"]) == (32, "flat", "blending", "auto", "json")
+    # default caps "trend": volume_mm3 is the whole structure's (area trend), the surface's volume beside it
+    assert s["surface_volume_mm3"] == rec.volume_mm3 and s["volume_ml"] == s["volume_mm3"] / 1000
+    assert s["volume_source"] == "area trend" and s["volume_caps"].startswith("caps trend: whole structure")
+    # the whole ellipsoid, to its 40-point polygons' area (0.4 % under the ellipses')
+    assert abs(s["volume_mm3"] / truth["volume_mm3"] - 1) < 8e-3
+    assert s["volume_by_caps_mm3"]["flat"] < s["volume_mm3"] < s["volume_by_caps_mm3"]["half"] + 1e-9 * s["volume_mm3"]
+    # mostly the contours' position (0.5 mm standard, 1 mm pixels assumed) over the ~1000 mm^2 side surface
+    budget = s["volume_uncertainty"]["budget"]
+    assert budget["contour_position"]["u_mm3"] == pytest.approx(0.5 * rec.sensitivity_mm3 / 0.5, rel=0.1)
+    assert 0.1 * s["volume_mm3"] < s["volume_U_mm3"] < 0.3 * s["volume_mm3"] and s["volume_k"] == 2
+    assert (s["rays"], s["caps"], s["method"], s["ray_start"], s["source"]) == (32, "trend", "blending", "auto", "json")
     assert s["n_slices"] == truth["n_planes"] and s["n_contours"] == len(conts)
     assert s["reference_bspline"] == result.reference and s["reference_bspline"]["smooth_mm"] > 0
     assert s["time_s"] >= s["surface_time_s"] > 0

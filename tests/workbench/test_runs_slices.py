@@ -92,7 +92,7 @@ def test_bad_options_leave_no_folder(fork, tmp_path):
     assert not any((tmp_path / name).exists() for name in "abc")
 
 
-def test_export_mask_rasterises_the_solid(tmp_path):
+def test_export_mask_rasterises_the_contours(tmp_path):
     import nibabel
 
     t = np.linspace(0, 2 * np.pi, 48, endpoint=False)
@@ -104,10 +104,13 @@ def test_export_mask_rasterises_the_solid(tmp_path):
                                         reference=False, export_mask=str(mask_path), mask_spacing="0.5,0.5,1")
     img = nibabel.load(str(mask_path))
     data = np.asarray(img.dataobj)
-    assert np.allclose(np.diag(img.affine)[:3], [0.5, 0.5, 1.0]) and set(np.unique(data)) == {0, 1}
+    # RAS affine (DICOM LPS with x and y negated)
+    assert np.allclose(np.diag(img.affine)[:3], [-0.5, -0.5, 1.0]) and set(np.unique(data)) == {0, 1}
     voxels = summary["export_mask"]["voxel_volume_mm3"]
     assert voxels == pytest.approx(data.sum() * 0.25, rel=1e-12)
-    # the patch volume stays the volume; the voxels agree with it to the raster's resolution
-    assert summary["volume_mm3"] == pytest.approx(voxels, rel=0.03)
+    # planes on 0..6 mm and half a contour spacing (1 mm) beyond the ends at 1 mm: 7 planes of the disc,
+    # the slab count of the contours; the surface volume (half caps) counts 4 slabs of 2 mm
+    assert voxels == pytest.approx(7 * np.pi * 100, rel=0.03)
+    assert summary["volume_mm3"] == pytest.approx(voxels * 8 / 7, rel=0.03)
     with pytest.raises(ValueError, match="export-mask"):
         run.reconstruct_to_folder(path, tmp_path / "o2", export_mask=str(tmp_path / "m.png"), render=False)

@@ -11,11 +11,12 @@ import json
 import numpy as np
 import pytest
 
+from slices.io import read_nifti
 from tests.slices.test_nifti import _save, _two_boxes
 from tests.slices.test_small_structures import _stack
 from workbench.runs.slices import reconstruct_to_folder
 
-pytest.importorskip("nibabel")
+nibabel = pytest.importorskip("nibabel")
 
 
 def test_a_label_volume_reconstructs_each_label(tmp_path):
@@ -43,7 +44,17 @@ def test_an_exported_phantom_mask_reads_back_at_the_phantom_volume(tmp_path):
                           export_mask=str(mask), mask_spacing="0.5,0.5,1")
     back = reconstruct_to_folder(mask, tmp_path / "b", caps="half", render=False, reference=False, samples=2)
     assert back["source"] == "nifti" and back["mesh_watertight"]
-    assert back["volume_mm3"] == pytest.approx(ph.volume_mm3, rel=0.01)
+    # the mask holds the contours' slabs: planes at 1 mm from -8 to 8 mm (contours at -8 ... 8 mm, 2 mm apart,
+    # each standing for +-1 mm; the planes at +-9 mm lie exactly half a spacing out and are left empty), read
+    # back with half caps: the ellipsoid between -8.5 and 8.5 mm; the planes between contours are blended
+    # linearly in distance, a little inside the convex outline (about 2 %)
+    h = 8.5
+    clipped = np.pi * 12.0 * 9.0 * (2 * h - 2 * h**3 / (3 * 10.0**2))
+    assert back["volume_mm3"] == pytest.approx(clipped, rel=0.025)
+    # the mask comes back where the contours were (RAS in the file, LPS in the contours)
+    first = read_nifti(mask).contours
+    assert np.mean([c.points.mean(axis=0) for c in first], axis=0) == pytest.approx(
+        np.mean([c["points"].mean(axis=0) for c in ph.contours(2.0, n_points=64)], axis=0), abs=0.3)
 
 
 def test_summary_reports_the_planning_volume_beside_ours(tmp_path):
@@ -58,3 +69,16 @@ def test_summary_reports_the_planning_volume_beside_ours(tmp_path):
     assert any(n.startswith("small structure (3 plane(s))") for n in summary["notes"])
     written = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert written["planning_volume_mm3"]["slab_full_ends"] == pytest.approx(plan["slab_full_ends"])
+
+
+def test_a_label_volume_comes_back_voxel_for_voxel_on_its_own_grid(tmp_path):
+    affine = np.diag([-0.7, -0.9, 2.0, 1.0])  # a RAS affine as a DICOM converter writes it (LPS axes)
+    affine[:3, 3] = (40.0, 60.0, -10.0)
+    path = _save(tmp_path / "boxes.nii.gz", _two_boxes(), affine)
+    s = reconstruct_to_folder(path, tmp_path / "o", roi=2, render=False, reference=False, samples=2,
+                              export_mask=str(tmp_path / "back.nii.gz"))
+    assert s["export_mask"]["grid_source"] == "input_image"
+    back = nibabel.load(str(tmp_path / "back.nii.gz"))
+    np.testing.assert_allclose(back.affine, affine)
+    # the contours (find_contours at 0.5) filled at the voxel centres: the label's voxels exactly
+    np.testing.assert_array_equal(np.asarray(back.dataobj) > 0, _two_boxes() == 2)

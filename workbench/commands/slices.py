@@ -49,8 +49,10 @@ def register(sub) -> None:
     p.add_argument("--rays", type=int, default=defaults.n_rays,
                    help=f"rays from each contour's centroid (seed 000 eq. 1, N1 >= 3; default {defaults.n_rays})")
     p.add_argument("--caps", default=defaults.caps, choices=CAP_KINDS,
-                   help="end caps: none (open surface), flat (in the end contour planes), half (half a "
-                   "slice beyond, as planning systems count), dome (smooth closure); "
+                   help="end caps: trend (the structure beyond its end planes from the contours' area trend; "
+                   "volume_mm3 is then the whole structure's, with its uncertainty), none (open surface), flat (in "
+                   "the end contour planes), half (half a slice beyond, as planning systems count), dome (smooth "
+                   "closure); "
                    f"default {defaults.caps}")
     p.add_argument("--out", default="slices_out", help="output folder (default slices_out)")
     p.add_argument("--hu-min", type=float, default=None,
@@ -93,9 +95,17 @@ def register(sub) -> None:
     p.add_argument("--reference", action="store_true",
                    help="also compare with the smoothing B-spline reference (seed 000, ref. [5]; adds its time)")
     p.add_argument("--export-mask", default=None, metavar="OUT.nii.gz",
-                   help="also write the solid rasterised onto a voxel grid as a NIfTI mask")
+                   help="also write the structure as a NIfTI mask (RAS affine) on a planning grid: the contours "
+                   "rasterised (even-odd) on the planes that hold them, interpolated between; by default on the "
+                   "grid of the CT series found beside an RT Structure Set, else on planes through the contour planes")
     p.add_argument("--mask-spacing", default=None, metavar="X,Y,Z",
                    help="voxel size of --export-mask in mm (default 1,1 and the slice spacing)")
+    p.add_argument("--reference-image", default=None, metavar="CT_DIR|NIfTI",
+                   help="--export-mask on the grid of this CT series folder or NIfTI image (same physical points)")
+    p.add_argument("--mask-origin", default=None, metavar="X,Y,Z",
+                   help="--export-mask: centre of voxel (0,0,0) in patient mm (DICOM LPS)")
+    p.add_argument("--mask-size", default=None, metavar="NX,NY,NZ",
+                   help="--export-mask: voxels along x, y, z")
 
     r = add_command(sub, "rois", _rois, help="list the ROIs of an RT structure set (or the labels of a NIfTI volume)",
                     description="List ROI numbers, names, contour and plane counts; for a NIfTI label volume, "
@@ -123,14 +133,21 @@ def _reconstruct(args: argparse.Namespace) -> int:
             lattice=args.lattice, render=not args.no_render, samples=args.samples, progress=progress,
             correspondence=args.correspondence, union=args.union, minus=args.minus, plus=args.plus,
             repair=args.repair, ray_start=args.ray_start, reference=args.reference, export_mask=args.export_mask,
-            mask_spacing=args.mask_spacing,
+            mask_spacing=args.mask_spacing, reference_image=args.reference_image, mask_origin=args.mask_origin,
+            mask_size=args.mask_size,
         )
     ref = summary.get("reference_bspline", {})
     print(f"{summary['roi']}: {summary['n_contours']} contours on {summary['n_slices']} planes, "
           f"{summary['n_bodies']} bodies ({summary['chaining']})")
     print(f"volume {summary['volume_mm3']:.1f} mm^3 = {summary['volume_ml']:.3f} ml "
-          f"(slab {summary['slab_volume_mm3'] / 1000:.3f} ml), area {summary['area_mm2']:.1f} mm^2, "
+          f"(slab {summary['slab_volume_mm3'] / 1000:.3f} ml, end planes half), area {summary['area_mm2']:.1f} mm^2, "
           f"{summary['n_patches']} patches")
+    print(f"  {summary['volume_caps']}")
+    if summary.get("volume_U_mm3") is not None:
+        from slices.volume import format_volume
+
+        print(f"  {format_volume(summary['volume_mm3'], summary['volume_U_mm3'])} (budget in summary.json "
+              "volume_uncertainty)")
     dev_ref = ref.get("max_control_point_deviation_mm")
     print(f"max control-point deviation {summary['max_control_point_deviation_mm']:.2e} mm"
           + (f" (smoothing B-spline reference: {dev_ref:.3f} mm)" if dev_ref is not None else ""))

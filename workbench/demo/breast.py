@@ -46,11 +46,13 @@ def section_breast(ctx: Context) -> None:
     rays = 32 if ctx.quick else 64
     rows, meshes, colors = [], [], []
     for roi in rois:
-        s = reconstruct_to_folder(rtss, roi_folder(ctx, roi), roi=roi, caps="flat", render=False,
+        # default caps (trend): the whole structure, as the references count it (not between the end planes only)
+        s = reconstruct_to_folder(rtss, roi_folder(ctx, roi), roi=roi, render=False,
                                   reference=False, rays=rays, samples=2 if roi == "Lt Lung" else 3)
         ctx.step(f"ct: {roi} reconstructed")
         refs = REFERENCES_CC[roi]
-        nums[roi] = {"volume_cc": s["volume_ml"], "slab_volume_cc": s["slab_volume_ml"],
+        nums[roi] = {"volume_cc": s["volume_ml"], "slab_volume_cc": s["slab_volume_ml"], "caps": s["caps"],
+                     "volume_U_cc": s["volume_U_mm3"] / 1000, "volume_caps": s["volume_caps"],
                      "n_contours": s["n_contours"], "n_bodies": s["n_bodies"],
                      "references_cc": refs}
         for name, ref in refs.items():
@@ -71,8 +73,12 @@ def section_breast(ctx: Context) -> None:
                " && ".join(ctx.cmd("slices", "reconstruct", str(rtss), "--roi", roi, "--rays",
                                    str(rays), "--out", str(roi_folder(ctx, roi)))
                            for roi in rois))
-    rep.table(["structure", "contours", "our volume (cc)", "our slab volume (cc)",
+    rep.table(["structure", "contours", "our volume (cc, caps trend)", "our slab volume (cc, end planes half)",
                "reference", "reference volume (cc)", "difference (%)"], rows,
-              caption="Volumes of the same contours: ours (surface, divergence theorem; slab = "
-              "contour areas x spacing) beside other systems' figures. Planning systems "
-              "disagree among themselves by about 1-5 %, mostly at the end slices.", digits=5)
+              caption="Volumes of the same contours beside other systems' figures. Ours: caps trend, the "
+              "whole structure (section areas integrated between the planes, the structure beyond the end "
+              "planes from the areas' trend; U (k = 2) in summary.json); our slab volume counts every contour "
+              "a slab and the end planes half, the convention of dicompyler-core's polygon figure (like with "
+              "like). The planning system's DVH and the dose-grid rasterisation count voxels, whose end slabs "
+              "reach about half a spacing beyond the end planes. Planning systems disagree among themselves "
+              "by about 1-5 %, mostly at the end slices.", digits=5)

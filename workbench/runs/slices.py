@@ -22,13 +22,14 @@ import numpy as np
 
 from slices.pipeline import SlicesReconstruction, reconstruct
 from surfaces.io import atomic_path, jsonable, write_json, write_mesh, write_png
-from surfaces.validate import InputError, positive
+from surfaces.validate import InputError
 from workbench.runs.folder import result_folder
 
 #: The options :func:`reconstruct_to_folder` accepts (command-line and manifest names).
 OPTIONS = frozenset({
     "method", "rays", "caps", "hu_min", "hu_max", "spacing", "resample", "lattice", "samples", "correspondence",
     "ray_start", "union", "minus", "plus", "repair", "render", "reference", "export_mask", "mask_spacing",
+    "reference_image", "mask_origin", "mask_size",
 })
 
 #: Files written into the output folder (``render.png`` only when rendering).
@@ -113,8 +114,16 @@ def save_body_patches(result: SlicesReconstruction, path) -> None:
             np.savez(fh, **arrays)
 
 
-def export_mask(result: SlicesReconstruction, path, spacing=None) -> dict:
-    """Write the solid rasterised onto a voxel grid as a NIfTI mask (nibabel).
+def export_mask(result: SlicesReconstruction, path, spacing=None, *, grid=None, grid_info=None) -> dict:
+    """Write the structure as a NIfTI mask on a planning grid (nibabel), its affine in RAS.
+
+    The mask is the structure's contours rasterised on the grid
+    (:func:`slices.mask.contour_mask`: even-odd fill on the planes that hold
+    contours, shape-based interpolation between them, half a slab beyond the end
+    planes); with ``--minus``/``--plus`` it is the composed solid's voxels (ray
+    parity, :func:`surfaces.voxelize.grid_occupancy`). The grid is in DICOM patient
+    coordinates (LPS); the file's affine is RAS (x and y negated), as every NIfTI
+    reader expects, so the mask overlays its CT.
 
     Parameters
     ----------
@@ -122,36 +131,87 @@ def export_mask(result: SlicesReconstruction, path, spacing=None) -> dict:
     path : str or os.PathLike
         ``.nii`` or ``.nii.gz`` file.
     spacing : str or sequence of float, optional
-        Voxel size ``x,y,z`` in mm; default 1 mm in-plane and the slice spacing
-        along z.
+        Voxel size ``x,y,z`` in mm when ``grid`` is not given (a grid on the
+        contour planes, :func:`slices.mask.grid_on_contours`).
+    grid : surfaces.voxelize.VoxelGrid, optional
+        The grid, planned before the reconstruction (:func:`slices.mask.plan_grid`).
+    grid_info : dict, optional
+        What :func:`slices.mask.plan_grid` said about it (``grid``, ``source``).
 
     Returns
     -------
     dict
-        ``path``, ``shape``, ``spacing_mm``, ``n_voxels`` (inside) and
-        ``voxel_volume_mm3`` (voxels x voxel volume; ``volume_mm3`` stays the
-        patch volume).
+        ``path``, ``shape``, ``spacing_mm``, ``n_voxels`` (inside), ``bytes``,
+        ``voxel_volume_mm3`` (voxels x voxel volume, the slab convention;
+        ``volume_mm3`` stays the surface's volume), ``grid`` (how it was chosen),
+        ``grid_source``, ``affine_ras``, ``orientation`` (nibabel's axis codes) and ``rule``.
     """
     import nibabel
 
-    from surfaces.voxelize import occupancy
+    from slices.io import write_nifti_mask
+    from slices.mask import contour_mask, grid_on_contours
+    from surfaces.voxelize import grid_occupancy
 
     path = Path(path)
     if not (path.name.endswith(".nii") or path.name.endswith(".nii.gz")):
         raise InputError(f"--export-mask: must end in .nii or .nii.gz, got {str(path)!r}")
-    if spacing is None:
-        sp = (1.0, 1.0, float(result.reconstruction.spacing))
+    info = dict(grid_info or {})
+    if grid is None:
+        grid = grid_on_contours(result.stack.contours, spacing)
+        info.setdefault("grid", "planes on the contour planes" if spacing is None else "explicit grid")
+        info.setdefault("source", "contour_planes" if spacing is None else "explicit")
+    if result.composition is not None:
+        mask = grid_occupancy(result.mesh, grid)
+        rule = "the composed solid's voxels (ray parity of the written mesh at the voxel centres)"
     else:
-        parts = str(spacing).split(",") if isinstance(spacing, str) else list(spacing)
-        if len(parts) != 3:
-            raise InputError(f"--mask-spacing: expected x,y,z in mm, got {spacing!r}")
-        sp = tuple(positive(v, "--mask-spacing") for v in parts)
-    mask, affine = occupancy(result.mesh, sp, margin=max(sp))
-    with atomic_path(path, suffix=".nii.gz" if path.name.endswith(".gz") else ".nii") as tmp:
-        nibabel.save(nibabel.Nifti1Image(mask, affine), str(tmp))
+        mask, counts = contour_mask(result.stack.contours, grid)
+        rule = counts.pop("rule")
+        info.update(counts)
+    affine = write_nifti_mask(path, mask, grid.affine)
     n = int(mask.sum())
-    return {"path": str(path), "shape": list(mask.shape), "spacing_mm": list(sp), "n_voxels": n,
-            "voxel_volume_mm3": n * float(np.prod(sp))}
+    sp = [float(v) for v in grid.spacing]
+    out = {"path": str(path), "shape": list(mask.shape), "spacing_mm": sp, "n_voxels": n,
+           "bytes": int(mask.size), "voxel_volume_mm3": n * float(np.prod(sp)),
+           "voxel_volume_convention": "each voxel a whole box; on the contour planes this is the planning "
+                                      "systems' slab count, end planes with whole slabs",
+           "grid": info.pop("grid", ""), "grid_source": info.pop("source", ""),
+           "affine_ras": affine.tolist(), "orientation": "".join(nibabel.aff2axcodes(affine)), "rule": rule}
+    out.update({k: v for k, v in info.items() if k not in ("shape", "n_voxels", "bytes")})
+    return out
+
+
+def plan_mask_grid(input_path, roi, options: dict, spacing=None, *, reference_image=None, mask_origin=None,
+                   mask_size=None):
+    """The ``--export-mask`` grid, planned and size-checked before any reconstruction (:func:`slices.mask.plan_grid`).
+
+    Parameters
+    ----------
+    input_path : str or os.PathLike
+    roi : str or int or None
+    options : dict
+        The reading options (``hu_min``, ``hu_max``, ``spacing``, ``resample``) as users give them.
+    spacing, mask_origin, mask_size : optional
+        An explicit grid (x,y,z mm; x,y,z mm of voxel (0, 0, 0); voxels along x,y,z).
+    reference_image : str or os.PathLike, optional
+        CT series folder or NIfTI image whose grid the mask takes.
+
+    Returns
+    -------
+    grid : surfaces.voxelize.VoxelGrid
+    info : dict
+        ``grid`` (in words), ``source``, ``shape``, ``n_voxels``, ``bytes``.
+    """
+    from slices.io import load
+    from slices.mask import plan_grid
+
+    contours = None
+    if reference_image is None:  # a grid from the contours needs them (read only, nothing reconstructed)
+        contours = load(input_path, roi, options.get("hu_min"), options.get("hu_max"), options.get("spacing"),
+                        bool(options.get("resample", False))).contours
+    grid, source, info = plan_grid(contours, input_path=input_path, reference_image=reference_image,
+                                   spacing=spacing, origin=mask_origin, size=mask_size)
+    info["source"] = source
+    return grid, info
 
 
 def planning_summary(result: SlicesReconstruction) -> dict:
@@ -166,7 +226,7 @@ def planning_summary(result: SlicesReconstruction) -> dict:
     dict
         ``slab_full_ends`` and ``slab_half_ends`` (mm^3, :func:`slices.chaining.planning_volumes`:
         every contour a slab of one spacing, the end slabs whole or half), ``ours_mm3``
-        (the base ROI's patch volume with the caps asked for), ``ours_over_full_ends``,
+        (the summary's ``volume_mm3``, with the caps asked for), ``ours_over_full_ends``,
         ``n_planes``, ``small_structure`` and ``rule`` (the counting rule in words).
     """
     from slices.chaining import planning_volumes
@@ -174,9 +234,10 @@ def planning_summary(result: SlicesReconstruction) -> dict:
     rec = result.reconstruction
     out = planning_volumes(result.stack.contours, rec.spacing)
     full = out["slab_full_ends"]
+    ours = result.summary.get("volume_mm3", rec.volume_mm3)  # the summary's: whole structure with caps trend
     out.update({
-        "ours_mm3": rec.volume_mm3,
-        "ours_over_full_ends": rec.volume_mm3 / full if full else None,
+        "ours_mm3": ours,
+        "ours_over_full_ends": ours / full if full else None,
         "rule": f"every contour a slab of one slice spacing ({rec.spacing:g} mm), holes subtracted; "
                 "slab_full_ends keeps the end contours' whole slabs, slab_half_ends half of them",
     })
@@ -257,9 +318,13 @@ def reconstruct_to_folder(input_path, out_dir, *, roi=None, progress=None, atomi
         +x for every body, or "auto" (default): per body the rotation that keeps
         support points steadiest), ``union``, ``minus``, ``plus``, ``repair``,
         ``reference`` (see :func:`slices.pipeline.reconstruct`), ``render``
-        (default True), ``export_mask`` (a ``.nii``/``.nii.gz`` path: the solid
-        rasterised, :func:`export_mask`) and ``mask_spacing`` (its voxel size
-        x,y,z mm). Defaults are those of :class:`slices.options.SurfaceOptions`
+        (default True), ``export_mask`` (a ``.nii``/``.nii.gz`` path: the structure
+        as a mask on a planning grid, :func:`export_mask`), its grid: ``reference_image``
+        (a CT series folder or NIfTI image), or ``mask_spacing`` (voxel size x,y,z mm),
+        ``mask_origin`` (x,y,z mm of voxel 0) and ``mask_size`` (voxels x,y,z); by default
+        the CT series found beside an RT Structure Set, else planes on the contour planes.
+        The grid's size is checked before any work (:data:`slices.mask.MASK_VOXEL_LIMIT`).
+        Defaults are those of :class:`slices.options.SurfaceOptions`
         and :func:`slices.pipeline.reconstruct`.
 
     Returns
@@ -273,8 +338,14 @@ def reconstruct_to_folder(input_path, out_dir, *, roi=None, progress=None, atomi
         raise InputError(f"options: unknown {sorted(unknown)}")
     render = bool(options.pop("render", True))
     mask_path, mask_spacing = options.pop("export_mask", None), options.pop("mask_spacing", None)
+    mask_grid = {k: options.pop(k, None) for k in ("reference_image", "mask_origin", "mask_size")}
     if mask_path is not None and not (str(mask_path).endswith(".nii") or str(mask_path).endswith(".nii.gz")):
         raise InputError(f"--export-mask: must end in .nii or .nii.gz, got {str(mask_path)!r}")
+    if mask_path is None and (mask_spacing is not None or any(v is not None for v in mask_grid.values())):
+        raise InputError("--mask-spacing/--mask-origin/--mask-size/--reference-image: only with --export-mask")
+    grid, grid_info = None, None
+    if mask_path is not None:  # the grid and its size before any reconstruction work
+        grid, grid_info = plan_mask_grid(input_path, roi, options, mask_spacing, **mask_grid)
 
     def run():
         result = reconstruct(input_path, roi=roi, progress=progress, **library_options(options))
@@ -284,10 +355,10 @@ def reconstruct_to_folder(input_path, out_dir, *, roi=None, progress=None, atomi
             result.summary["notes"].append(
                 f"small structure ({plan['n_planes']} plane(s)): planning systems count "
                 f"{plan['slab_full_ends'] / 1000:.3f} ml (whole end slabs) or {plan['slab_half_ends'] / 1000:.3f} ml "
-                f"(half end slabs); the surface encloses {plan['ours_mm3'] / 1000:.3f} ml with caps "
-                f"{result.summary['caps']} (planning_volume_mm3)")
+                f"(half end slabs); ours is {plan['ours_mm3'] / 1000:.3f} ml, {result.summary['volume_caps']} "
+                "(planning_volume_mm3)")
         if mask_path is not None:
-            result.summary["export_mask"] = export_mask(result, mask_path, mask_spacing)
+            result.summary["export_mask"] = export_mask(result, mask_path, grid=grid, grid_info=grid_info)
         return result
 
     if not atomic:
