@@ -6,14 +6,11 @@ skimage.draw.polygon at the pixel centres and the rings of a plane combined by X
 
 from __future__ import annotations
 
-import json
-import time
-
 import numpy as np
 import pytest
 
 from slices.io import Contour, read_rtstruct, write_nifti_mask
-from slices.mask import MASK_VOXEL_LIMIT, check_size, contour_mask, grid_on_contours, plan_grid
+from slices.mask import contour_mask, grid_on_contours, plan_grid
 from surfaces.validate import InputError
 from surfaces.voxelize import VoxelGrid, fill_polygons, grid_affine, lps_to_ras
 
@@ -126,26 +123,6 @@ def test_planes_between_contours_are_interpolated_and_end_slabs_are_half_a_spaci
     assert area[list(z).index(5.0)] == area[list(z).index(4.0)] and area[list(z).index(6.0)] == 0
 
 
-def test_the_mask_size_is_refused_before_any_work(tmp_path):
-    from workbench.runs.slices import reconstruct_to_folder
-
-    t = np.linspace(0, 2 * np.pi, 48, endpoint=False)
-    disc = np.stack([10 * np.cos(t), 10 * np.sin(t)], 1)
-    path = tmp_path / "cyl.json"
-    path.write_text(json.dumps({"contours": [{"z": z, "points": disc.tolist()} for z in (0.0, 2.0, 4.0)]}))
-    t0 = time.perf_counter()
-    with pytest.raises(InputError, match=r"--export-mask: a mask of .* voxels \(.* TiB as uint8\).* over the limit"):
-        reconstruct_to_folder(path, tmp_path / "out", export_mask=str(tmp_path / "m.nii.gz"),
-                              mask_spacing="0.001,0.001,0.001", render=False)
-    assert time.perf_counter() - t0 < 5.0
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["cyl.json"]  # nothing written, no folder
-    with pytest.raises(InputError, match="only with --export-mask"):
-        reconstruct_to_folder(path, tmp_path / "out", mask_spacing="1,1,1", render=False)
-    assert check_size(VoxelGrid(np.eye(4), (2, 3, 4)))["n_voxels"] == 24
-    with pytest.raises(InputError, match="over the limit"):
-        check_size(VoxelGrid(np.eye(4), (MASK_VOXEL_LIMIT, 2, 1)))
-
-
 def test_ibsi_mask_on_the_ct_grid_overlays_the_ct_and_matches_the_contours(shared_data, tmp_path):
     sitk = pytest.importorskip("SimpleITK")
     ct_dir, rs = shared_data / "ibsi_ct_phantom" / "ct", shared_data / "ibsi_ct_phantom" / "RS.dcm"
@@ -191,40 +168,6 @@ def test_every_breast_roi_matches_the_even_odd_fill(shared_data):
             # the slab count of the contour areas: 1995.18 cc by dicompyler-core (end planes half; ours whole)
             assert mask.sum() * np.prod(grid.spacing) / 1000 == pytest.approx(1995.18, rel=0.01)
     assert "one slice only" in grid_info["grid"]
-
-
-def test_export_mask_end_to_end_on_the_breast_heart(shared_data, tmp_path):
-    from workbench.runs.slices import reconstruct_to_folder
-
-    rs = shared_data / "rtstruct_breast" / "rtss.dcm"
-    s = reconstruct_to_folder(rs, tmp_path / "out", roi="Heart", render=False, reference=False, samples=2,
-                              export_mask=str(tmp_path / "heart.nii.gz"))
-    m = s["export_mask"]
-    assert m["grid_source"] == "ct_series" and m["orientation"] == "LPS"
-    img = nibabel.load(str(tmp_path / "heart.nii.gz"))
-    assert nibabel.aff2axcodes(img.affine) == ("L", "P", "S")
-    ct = __import__("pydicom").dcmread(str(shared_data / "rtstruct_breast" / "ct.0.dcm"))
-    # voxel (0, 0) of every plane is the CT's first pixel, in RAS
-    np.testing.assert_allclose(img.affine[:2, 3], -np.asarray(ct.ImagePositionPatient[:2], float), atol=1e-4)
-    ref = _reference_fill(_raw_contours(rs, "Heart"), VoxelGrid(lps_to_ras(img.affine), img.shape))
-    assert _dice(np.asarray(img.dataobj), ref) >= 0.99
-    # whole end slabs: dicompyler-core's 432.84 cc counts them half
-    assert m["voxel_volume_mm3"] / 1000 == pytest.approx(439.70, rel=0.01)
-
-
-def test_the_command_refuses_a_huge_mask_at_once(tmp_path, capsys):
-    from workbench.cli import main
-
-    t = np.linspace(0, 2 * np.pi, 48, endpoint=False)
-    disc = np.stack([10 * np.cos(t), 10 * np.sin(t)], 1)
-    path = tmp_path / "cyl.json"
-    path.write_text(json.dumps({"contours": [{"z": z, "points": disc.tolist()} for z in (0.0, 2.0, 4.0)]}))
-    before = sorted(p.name for p in tmp_path.iterdir())
-    code = main(["slices", "reconstruct", str(path), "--out", str(tmp_path / "out"), "--export-mask",
-                 str(tmp_path / "m.nii.gz"), "--mask-spacing", "0.001,0.001,0.001"])
-    err = capsys.readouterr().err.strip().splitlines()
-    assert code == 2 and "over the limit" in err[-1] and "TiB" in err[-1]
-    assert sorted(p.name for p in tmp_path.iterdir()) == before
 
 
 def test_a_nifti_reference_image_gives_its_grid(shared_data, tmp_path):
