@@ -6,6 +6,8 @@ Package map
 
 from __future__ import annotations
 
+from surfaces import __version__ as __version__  # the distribution's version, one home
+
 from datasets_synthetic.dicom import write_ct_series, write_rtstruct
 from datasets_synthetic.heightfields import SCENES, HeightField, make_scene
 from datasets_synthetic.phantoms import SHAPES, Phantom, make_phantom, write_phantom

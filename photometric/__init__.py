@@ -17,6 +17,8 @@ with its module on first use, so ``import photometric`` stays light. The integra
 
 from __future__ import annotations
 
+from surfaces import __version__ as __version__  # the distribution's version, one home
+
 import importlib
 
 _HOMES = {

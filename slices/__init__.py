@@ -32,6 +32,8 @@ Examples
 
 from __future__ import annotations
 
+from surfaces import __version__ as __version__  # the distribution's version, one home
+
 from slices.body import BodySurface, build_body
 from slices.chaining import Body, chain, slab_volume
 from slices.compose import compose_rois

@@ -43,6 +43,12 @@ Examples
 from __future__ import annotations
 
 from importlib import import_module
+from importlib.metadata import PackageNotFoundError, version
+
+try:  # every package of the workbench reports the version of its one distribution
+    __version__ = version("surface-workbench")
+except PackageNotFoundError:  # a source tree on the path, not installed
+    __version__ = "0+unknown"
 
 _MODULES = (
     "bezier",

@@ -97,10 +97,15 @@ def _mesh_summary(mesh) -> dict:
 
 
 def _patch_summary(patches) -> dict:
-    from surfaces.measure import area, volume
+    import warnings
+
+    from surfaces.measure import InwardOrientationWarning, area, volume
 
     a, err = area(patches, return_error=True)
     closed = patches.closed_u and patches.closed_v
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", InwardOrientationWarning)  # the command warns once, with how to flip it
+        signed = volume(patches)
     return {
         "n_patches": patches.n_patches,
         "patch_rows": patches.shape[0],
@@ -111,7 +116,7 @@ def _patch_summary(patches) -> dict:
         "area_error_estimate": err,
         # the divergence theorem gives the enclosed volume for closed surfaces;
         # for an open one the flux is still reported, under another name
-        "volume" if closed else "flux_volume_open_surface": volume(patches),
+        "volume" if closed else "flux_volume_open_surface": signed,
     }
 
 
