@@ -97,9 +97,9 @@ def section_breast(ctx: Context) -> None:
                 "the surface closes it with a flat cap on that contour (caps flat) and does not invent shape "
                 "between the planes.")
         if ln["straight_wall_contours"]:
-            lung += (f" Its flat wall facing the viewer in 'front' is in the contours themselves: "
+            lung += (f" Its straight vertical edge on the left of 'front' is in the contours themselves: "
                      f"{ln['straight_wall_contours']} contours run straight along x = {ln['straight_wall_x_mm']:.1f}"
-                     " mm (the structure was cut at that plane when it was drawn).")
+                     " mm.")
     ctx.figure("ct-breast", breast_view,
                "Structures of the real breast RT structure set reconstructed from their "
                f"contours: {' and '.join(rois)} (red: Heart, blue: Lt Lung; DICOM patient "

@@ -94,9 +94,9 @@ def section_ct(ctx: Context) -> None:
                "distance of the nearest true surface sample to the reconstruction (mm, positive "
                "outside), drawn unshaded so that the colour reads true on every side. The colour bar "
                f"spans +-{lim:.2f} mm, the 99th percentile of |d|: {100 * outside:.1f} % of the samples lie beyond "
-               f"it, the largest ({k['surface_distance_max_mm']:.2f} mm) {where}. The radial spokes on the "
-               "caps are how the colour is sampled, not a shape: the cap's vertices lie on the seed's rays "
-               "from the contour's centre, and each vertex takes the distance of its nearest true sample "
+               f"it, the largest ({k['surface_distance_max_mm']:.2f} mm) {where}. The radial spokes at the "
+               "top are how the colour is sampled, not a shape: the surface's vertices lie on the seed's rays "
+               "from each contour's centre, and each vertex takes the distance of its nearest true sample "
                f"({len(pts)} scattered points), so the colour changes along the rays and jumps between them.",
                f"{cmd_ph} && {cmd_rec}",
                params={"mesh": ctx.rel(out / "surface.ply"), "contours": ctx.rel(kid / "contours.json"),

@@ -148,7 +148,9 @@ def crack_profile(crack: dict, truth: np.ndarray, height: np.ndarray, surface: n
     -------
     dict
         ``s_mm`` (N,) position across the crack, ``true_mm``, ``height_mm``, ``surface_mm`` (N,)
-        each minus its median beyond 1.5 widths, and ``depth_*_mm``: minus each profile's minimum.
+        each minus its median beyond 1.5 widths, ``depth_*_mm``: minus each profile's minimum,
+        ``max_dev_height_um`` (integrated height against truth), ``max_dev_surface_um`` (surface
+        against integrated height) and ``stretch``, the height axis' exaggeration in the plot.
     """
     w = float(crack["width_mm"])
     s = np.linspace(-2.5 * w, 2.5 * w, 501)
@@ -164,6 +166,10 @@ def crack_profile(crack: dict, truth: np.ndarray, height: np.ndarray, surface: n
         vals = vals - np.nanmedian(vals[outside])
         out[f"{key}_mm"] = vals
         out[f"depth_{key}_mm"] = float(-np.nanmin(vals))
+    out["max_dev_height_um"] = float(1000 * np.nanmax(np.abs(out["height_mm"] - out["true_mm"])))
+    out["max_dev_surface_um"] = float(1000 * np.nanmax(np.abs(out["surface_mm"] - out["height_mm"])))
+    # the plot is about 2.5 times wider than tall: how much the height axis is stretched
+    out["stretch"] = float((s[-1] - s[0]) / max(out["depth_true_mm"], 1e-12) / 2.5)
     return out
 
 
@@ -220,11 +226,11 @@ def bezier_view(src: Source, recon: str, exaggeration: float, size: list) -> np.
 
 @drawer
 def deviation_view(src: Source, mesh: str, exaggeration: float, size: list, dev_um: np.ndarray) -> np.ndarray:
-    """The fitted mesh coloured by its deviation from the integrated height (um)."""
+    """The fitted mesh coloured by its deviation from the integrated height (um), unshaded."""
     fmesh = read_mesh(src.path(mesh))
     fmesh.vertices[:, 2] *= exaggeration
     return render(fmesh, ["iso", "top"], tuple(size), scalars=np.asarray(dev_um, float), colorbar_label="|dz| um",
-                  cmap="magma", vmin=0.0, antialias=2, light=PICTURE_LIGHT)
+                  cmap="magma", vmin=0.0, antialias=2, ambient=1.0, diffuse=0.0, specular=0.0)
 
 
 @drawer
@@ -357,22 +363,26 @@ def section_inspection(ctx: Context) -> None:
     ctx.figure("inspection-deviation", deviation_view,
                f"Deviation |dz| of the fitted surface from the integrated height at the mesh vertices "
                f"(largest {nums['surface_max_dev_um']:.1f} um at the pixel centres, tolerance "
-               f"{fit.tolerance * 1000:.1f} um); height exaggerated {EXAGGERATION:g}x, 2 x 2 rays per pixel. "
+               f"{fit.tolerance * 1000:.1f} um); height exaggerated {BEZIER_EXAGGERATION:g}x, 2 x 2 rays per "
+               "pixel, drawn unshaded so that the colour is the deviation alone. "
                "The largest deviations sit on the crack's floor and rim, kinks that no smooth patch "
                "follows exactly.", recon_cmd,
-               params={"mesh": ctx.rel(fitted), "exaggeration": EXAGGERATION, "size": list(vsize)},
+               params={"mesh": ctx.rel(fitted), "exaggeration": BEZIER_EXAGGERATION, "size": list(vsize)},
                arrays={"dev_um": dev_um})
     crack = next((d for d in scene["defects"] if d["kind"] == "v_crack"), None)
     if crack is not None:
         prof = crack_profile(crack, height_gt, height, fit.surface[..., 2], pixel)
-        nums["crack_profile"] = {k: prof[k] for k in ("depth_true_mm", "depth_height_mm", "depth_surface_mm")}
+        nums["crack_profile"] = {k: v for k, v in prof.items() if not k.endswith("_mm") or k.startswith("depth")}
         ctx.figure("inspection-crack-profile", profile_plot,
-                   f"Profile across the crack at its centre, true scale in mm (no exaggeration): the true "
-                   f"V ({prof['depth_true_mm']:.3f} mm deep), the height integrated from the normals "
-                   f"({prof['depth_height_mm']:.3f} mm) and the fitted Bezier surface "
-                   f"({prof['depth_surface_mm']:.3f} mm), each levelled on the plate beyond 1.5 crack widths. "
-                   "The integration rounds the V's sharp floor and rims over a few pixels "
-                   f"({pixel:g} mm each); the surface follows the integrated height.",
+                   f"Profile across the crack at its centre, both axes in mm (the height axis stretched "
+                   f"about {prof['stretch']:.0f}x): the true height sampled at the pixel centres (deepest "
+                   f"{prof['depth_true_mm']:.4f} mm; the scene's V is {crack['depth_mm']:.4f} mm deep at its "
+                   f"exact floor line, between pixel centres), the height integrated from the normals "
+                   f"({prof['depth_height_mm']:.4f} mm) and the fitted Bezier surface "
+                   f"({prof['depth_surface_mm']:.4f} mm), each levelled on the plate beyond 1.5 crack widths. "
+                   f"Along the profile the integrated height stays within {prof['max_dev_height_um']:.1f} um of "
+                   f"the truth and the surface within {prof['max_dev_surface_um']:.1f} um of the integrated "
+                   f"height; pixels are {pixel:g} mm.",
                    recon_cmd, params={"width_mm": crack["width_mm"]},
                    arrays={k: prof[k] for k in ("s_mm", "true_mm", "height_mm", "surface_mm")})
     ctx.step("inspection: Bezier surface")
