@@ -62,3 +62,17 @@ def test_batch_turns_dask_kill_lines_into_one_warning():
         logging.getLogger("distributed.nanny").warning("Worker process still alive after 4.0 seconds, killing")
         logging.getLogger("distributed.nanny").warning("other")
     assert len(killed) == 1
+
+
+def test_height_rmse_states_its_convention_and_the_plane_removed_figure(tmp_path, capsys):
+    """A deviated light tilts the whole height field: the RMSE says so and is also given without the plane."""
+    tri, out = tmp_path / "tri", tmp_path / "rec"
+    assert main(["synth", "triad", "--scene", "plate", "--size", "128", "--pixel-size", "0.2", "--lights", "3",
+                 "--deviate", "2,0,0", "--out", str(tri)]) == 0
+    capsys.readouterr()
+    assert main(["photometric", "reconstruct", str(tri), "--out", str(out)]) == 0
+    line = next(t for t in capsys.readouterr().out.splitlines() if t.startswith("height RMSE"))
+    assert "means removed" in line and "tilt" in line and "best plane removed" in line and "2 deg" in line
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["height_rmse_plane_removed_mm"] < 0.2 * summary["height_rmse_mm"]
+    assert summary["height_error_tilt_deg"] > 0.3
