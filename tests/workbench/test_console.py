@@ -76,3 +76,21 @@ def test_height_rmse_states_its_convention_and_the_plane_removed_figure(tmp_path
     summary = json.loads((out / "summary.json").read_text())
     assert summary["height_rmse_plane_removed_mm"] < 0.2 * summary["height_rmse_mm"]
     assert summary["height_error_tilt_deg"] > 0.3
+
+
+def test_camera_options_that_contradict_the_folder_are_warned(tmp_path, capsys):
+    """A rounded --pixel-size, and a perspective camera on an orthographic folder: one warning line each."""
+    tri = tmp_path / "tri"
+    assert main(["synth", "triad", "--scene", "plate", "--size", "64", "--pixel-size", "0.05859375",
+                 "--out", str(tri)]) == 0
+    capsys.readouterr()
+    assert main(["photometric", "reconstruct", str(tri), "--pixel-size", "0.0586", "--out", str(tmp_path / "a")]) == 0
+    warned = [t for t in capsys.readouterr().err.splitlines() if t.startswith("workbench: warning:")]
+    assert len(warned) == 1 and "--pixel-size 0.0586 differs" in warned[0] and "0.05859375" in warned[0]
+    assert main(["photometric", "reconstruct", str(tri), "--camera", "perspective", "--focal-length-px", "4000",
+                 "--camera-height", "400", "--out", str(tmp_path / "b")]) == 0
+    warned = [t for t in capsys.readouterr().err.splitlines() if t.startswith("workbench: warning:")]
+    assert any("--camera perspective contradicts the orthographic camera" in t for t in warned), warned
+    assert main(["photometric", "reconstruct", str(tri), "--pixel-size", "0.05859375",
+                 "--out", str(tmp_path / "c")]) == 0
+    assert "warning" not in capsys.readouterr().err

@@ -5,7 +5,9 @@ from __future__ import annotations
 
 import argparse
 import json
+from pathlib import Path
 from surfaces.validate import InputError
+from workbench.commands.camera_check import warn_camera_conflicts
 
 
 def _numbers(text: str, name: str) -> float | list[float]:
@@ -256,6 +258,10 @@ def _calibrate(args: argparse.Namespace) -> int:
     from workbench.runs.photometric import calibrate_to_rig
 
     opts = _camera_options(args)
+    folders = [*(args.spheres or []), *([Path(args.light_positions).parent] if args.light_positions else []),
+               *(Path(f).parent for f in args.flat_field or [])]
+    warn_camera_conflicts(dict.fromkeys(folders), pixel_size=args.pixel_size, camera=args.camera,
+                          focal_length_px=args.focal_length_px, camera_height_mm=args.camera_height)
     camera = None
     if any(v is not None for v in (*opts.values(), args.pixel_size)):
         model = opts["camera"] or ("perspective" if args.focal_length_px or args.camera_height else "orthographic")
@@ -354,6 +360,9 @@ def _reconstruct(args: argparse.Namespace) -> int:
     if args.images is not None and (args.triad or args.select):
         raise InputError("--triad/--select: only apply to a folder input")
     select = "triad" if args.triad else args.select
+    warn_camera_conflicts([] if args.folder is None else [args.folder], rig=args.rig, pixel_size=args.pixel_size,
+                          camera=args.camera, focal_length_px=args.focal_length_px,
+                          camera_height_mm=args.camera_height)
     tolerances = _uncertainty_options(args)
     stages = ["read", "normals", "height", "surface", "defects", *(["uncertainty"] if tolerances else []), "write"]
     with tqdm(total=len(stages), desc="photometric", unit="stage", leave=False) as bar:
