@@ -140,5 +140,10 @@ def _summary(report: dict, out: Path, files: dict) -> None:
     for c in cs.get("cases", []):
         print(f"  crack, light 1 slant {c['deviations_deg'][0][0]:g} deg: max |dp| measured "
               f"{c['max_abs_dp_measured']:.3g} / predicted {c['max_abs_dp_predicted']:.3g}, "
-              f"depth {c['depth_mm']:.4g} mm (true {cs['true_depth_mm']:.4g})")
+              f"depth {c['depth_mm']:.4g} mm (true {cs['true_depth_mm']:.4g}; "
+              f"{c['depth_change_mm']:+.2g} mm from the deviation)")
+    if "depth_nominal_mm" in cs:
+        print(f"  crack depth with exact lights {cs['depth_nominal_mm']:.4g} mm against the true "
+              f"{cs['true_depth_mm']:.4g}: not the lights, the integration of a V only a few pixels wide rounds "
+              "its floor; that bias is in every row, the change from it is the deviation's effect")
     print(f"wrote {out / files['json']}, {out / files['markdown']} and {len(files['plots'])} plots")
