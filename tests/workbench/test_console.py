@@ -94,3 +94,17 @@ def test_camera_options_that_contradict_the_folder_are_warned(tmp_path, capsys):
     assert main(["photometric", "reconstruct", str(tri), "--pixel-size", "0.05859375",
                  "--out", str(tmp_path / "c")]) == 0
     assert "warning" not in capsys.readouterr().err
+
+
+def test_worker_warnings_are_one_line(capsys):
+    import warnings
+
+    from workbench.commands.batch import one_line_warnings
+
+    with warnings.catch_warnings():  # restores showwarning on exit
+        warnings.simplefilter("always")
+        one_line_warnings()
+        warnings.warn("The maximal number of iterations (20) allowed\nfor finding smoothing spline", RuntimeWarning,
+                      stacklevel=1)
+    err = capsys.readouterr().err
+    assert err == "workbench: warning: The maximal number of iterations (20) allowed\n"

@@ -115,6 +115,22 @@ def _options(items: list[str]) -> dict:
     return options
 
 
+def one_line_warnings() -> None:
+    """Print every Python warning of this process as one ``workbench: warning:`` line on stderr.
+
+    Run on each Dask worker of a batch (``client.run``): a library's multi-line
+    warning (a SciPy RuntimeWarning with its source line) then reads as the
+    command line's own warnings do, whichever worker process printed it.
+    """
+    import warnings
+
+    def show(message, category, filename, lineno, file=None, line=None) -> None:
+        text = str(message).strip().splitlines()
+        print(f"workbench: warning: {text[0] if text else category.__name__}", file=sys.stderr, flush=True)
+
+    warnings.showwarning = show
+
+
 @contextlib.contextmanager
 def _quiet_shutdown():
     """Collect distributed's "Worker process still alive ..., killing" log lines instead of printing them.
@@ -158,6 +174,7 @@ def _run(kind: str, args: argparse.Namespace) -> int:
     if steps.to_run:
         with (_quiet_shutdown() as killed,
               batch.connect(args.scheduler, args.workers, args.threads_per_worker) as client):
+            client.run(one_line_warnings)  # a library warning in a job: one line, as on the command line
             dashboard = batch.dashboard_link(client)
             n_workers = len(client.scheduler_info().get("workers", {}))
             address = client.scheduler.address
