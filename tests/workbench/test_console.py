@@ -108,3 +108,12 @@ def test_worker_warnings_are_one_line(capsys):
                       stacklevel=1)
     err = capsys.readouterr().err
     assert err == "workbench: warning: The maximal number of iterations (20) allowed\n"
+
+
+@pytest.mark.parametrize("argv", [["photometric", "reconstruct", "nosuch_folder"],
+                                  ["surfaces", "coons", "nosuch_grid.npy"],
+                                  ["photometric", "errors", "--lights", "nosuch_lights.txt"]])
+def test_a_quick_error_prints_no_progress_bar(argv, tmp_path, capsys):
+    assert main([*argv, "--out", str(tmp_path / "o.ply" if argv[0] == "surfaces" else tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("workbench: error:"), err

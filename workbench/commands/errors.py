@@ -99,9 +99,10 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"--crack-size: need at least 32 pixels, got {args.crack_size}")
     surface = _read_surface(args.surface) if args.surface else None
     stages = 6 + (surface is not None) + (not args.no_crack)  # the steps analyse() reports
-    with tqdm(total=stages, desc="errors", unit="stage", leave=False) as bar:
+    # delay: no bar at all before an error in the first half second
+    with tqdm(total=stages, desc="errors", unit="stage", leave=False, delay=0.5) as bar:
         def progress(label: str) -> None:
-            bar.set_postfix_str(label)
+            bar.set_postfix_str(label, refresh=False)  # update() draws it, after the delay
             bar.update(1)
 
         report = analyse(

@@ -365,11 +365,12 @@ def _reconstruct(args: argparse.Namespace) -> int:
                           camera_height_mm=args.camera_height)
     tolerances = _uncertainty_options(args)
     stages = ["read", "normals", "height", "surface", "defects", *(["uncertainty"] if tolerances else []), "write"]
-    with tqdm(total=len(stages), desc="photometric", unit="stage", leave=False) as bar:
+    # delay: no bar at all before an error in the first half second
+    with tqdm(total=len(stages), desc="photometric", unit="stage", leave=False, delay=0.5) as bar:
         def progress(stage: str) -> None:
+            bar.set_postfix_str(stage, refresh=False)  # update() draws it, after the delay
             if bar.n or stage != stages[0]:
                 bar.update(1)
-            bar.set_postfix_str(stage)
 
         summary = reconstruct_to_folder(
             args.folder if args.folder is not None else args.images,
