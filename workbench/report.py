@@ -19,6 +19,10 @@ from pathlib import Path
 import numpy as np
 from surfaces.validate import InputError
 
+#: widest picture the report shows at its own size (the page's 1200 px column less its padding): wider
+#: ones are scaled down by the browser, and their colour-bar labels with them
+REPORT_WIDTH_PX = 1160
+
 CSS = """
 body { font-family: system-ui, -apple-system, 'Segoe UI', sans-serif; margin: 2em auto;
        max-width: 1200px; color: #222; line-height: 1.45; padding: 0 1em; }

@@ -14,6 +14,7 @@ import time
 from html.parser import HTMLParser
 from pathlib import Path
 
+import cv2
 import numpy as np
 import pytest
 
@@ -155,8 +156,12 @@ def test_quick_demo_report(quick_demo):
     assert missing == (set() if shared_data_dir().is_dir() else REAL_DATA_SECTIONS)
     parsed = check_report(out / "report.html")
     assert len(parsed.images) == len(summary["figures"]) >= (9 if missing else 15)
+    from workbench.report import REPORT_WIDTH_PX
+
     for fig in summary["figures"]:
         assert (out / fig["file"]).is_file() and parses(fig["command"]), fig["command"]
+        # shown at its own size in the report: colour-bar and tile labels keep their 11 px
+        assert cv2.imread(str(out / fig["file"])).shape[1] <= REPORT_WIDTH_PX, fig["file"]
     # the figure index (section 5) lists every figure with its command
     for fig in summary["figures"]:
         assert fig["command"] in parsed.cells
@@ -191,8 +196,6 @@ def test_quick_demo_real_data(quick_demo, shared_data):
 def test_quick_demo_report_is_portable_and_redrawable(quick_demo, tmp_path):
     """No absolute path in report.html; --figures-only redraws every figure from the saved data, unchanged."""
     import shutil
-
-    import cv2
 
     from workbench.cli import main
     from workbench.demo.figures import DRAWERS

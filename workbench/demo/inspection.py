@@ -19,6 +19,8 @@ from surfaces.render import render
 from workbench import images as im
 from workbench.demo.context import Context
 from workbench.demo.figures import Source, drawer
+from workbench.images import COLORBAR_PX
+from workbench.report import REPORT_WIDTH_PX
 from workbench.demo.meshes import heightfield_mesh
 from workbench.runs.photometric import reconstruct_to_folder
 from workbench.studies.uncertainty import FIGURE_LABELS, draw_budget, uncertainty_budget
@@ -206,12 +208,15 @@ def normals_montage(src: Source, triad: str, recon: str) -> np.ndarray:
 def height_maps(src: Source, triad: str, recon: str) -> np.ndarray:
     """Angular error, integrated height and its absolute error (see :func:`height_errors`)."""
     err, height, herr = height_errors(src.path(recon), src.path(triad))
+    # two maps with their colour bars side by side within the report's width (labels at their own size)
+    side = (REPORT_WIDTH_PX - 4) // 2 - COLORBAR_PX
+    err, height, herr = (im.fit(a, side) for a in (err, height, herr))
     valid = np.isfinite(err)
     return im.montage([
         im.error_image(err, valid, label="angle deg"),
         im.height_image(height, valid, label="height mm", cmap="cividis"),
         im.error_image(np.abs(herr), valid, label="|dz| mm", cmap="magma"),
-    ], cols=3)
+    ], cols=2)
 
 
 @drawer
@@ -295,7 +300,7 @@ def section_inspection(ctx: Context) -> None:
     triad_cmd = ctx.cmd("synth", "triad", "--scene", "plate", "--size", str(size), "--pixel-size",
                         str(pixel), "--deviate", "0,0,0", "--out", str(folder))
     height_gt = np.load(folder / "height_gt.npy")
-    vsize = (800, 400) if ctx.quick else (1200, 560)
+    vsize = (800, 400) if ctx.quick else (REPORT_WIDTH_PX, 540)
     ctx.figure("inspection-truth", truth_view,
                f"The plate's true height field, ray-cast with shadow rays (height exaggerated "
                f"{EXAGGERATION:g}x, 2 x 2 rays per pixel; colour = true height in mm). Crack upper left, dent "

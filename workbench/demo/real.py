@@ -11,6 +11,8 @@ from surfaces.render import render
 from workbench import images as im
 from workbench.demo.context import Context
 from workbench.demo.figures import Source, drawer
+from workbench.images import COLORBAR_PX
+from workbench.report import REPORT_WIDTH_PX
 from workbench.runs.photometric import reconstruct_to_folder
 
 #: published mean angular errors of plain least squares on the bear subset (degrees)
@@ -68,8 +70,9 @@ def bear_normals(src: Source, folder: str, runs: dict, step: int) -> np.ndarray:
 def bear_errors(src: Source, folder: str, runs: dict, step: int) -> np.ndarray:
     """Angular error maps of the triad and the 14 images, clipped at 30 deg."""
     data, _, errs = _bear_errors(src, folder, runs)
-    tiles = [im.error_image(errs[k][::step, ::step], data.mask[::step, ::step], vmax=30.0, label="angle deg")
-             for k in ("triad", "all14")]
+    side = (REPORT_WIDTH_PX - 4) // 2 - COLORBAR_PX  # both maps and their bars within the report's width
+    tiles = [im.error_image(im.fit(errs[k][::step, ::step], side), im.fit(data.mask[::step, ::step], side),
+                            vmax=30.0, label="angle deg") for k in ("triad", "all14")]
     return im.montage(tiles, cols=2, labels=[f"triad: mean {np.nanmean(errs['triad']):.2f} deg",
                                              f"14 images: mean {np.nanmean(errs['all14']):.2f} deg"])
 
@@ -137,7 +140,7 @@ def section_real(ctx: Context) -> None:
                "patches fitted by least squares to the height and slopes, trimmed along the "
                "mask's outline; pixel units), ray-cast.", cmd_all,
                params={"mesh": ctx.rel(results["all14"][3] / "surface.ply"),
-                       "size": [900, 420] if ctx.quick else [1200, 560]})
+                       "size": [900, 420] if ctx.quick else [REPORT_WIDTH_PX, 540]})
     ctx.step("bear: figures")
     rep.table(["light set", "images", "our mean error (deg)", "our median (deg)",
                "baseline mean (deg)", "difference (deg)"], [
