@@ -6,8 +6,6 @@ Package map
 
 from __future__ import annotations
 
-from surfaces import __version__ as __version__  # the distribution's version, one home
-
 from datasets_synthetic.dicom import write_ct_series, write_rtstruct
 from datasets_synthetic.heightfields import SCENES, HeightField, make_scene
 from datasets_synthetic.phantoms import SHAPES, Phantom, make_phantom, write_phantom
@@ -26,3 +24,11 @@ __all__ = [
     "write_phantom",
     "write_rtstruct",
 ]
+
+
+def __getattr__(name: str):
+    if name == "__version__":  # the distribution's version, read on first use (one home: surfaces)
+        import surfaces
+
+        return surfaces.__version__
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -17,8 +17,6 @@ with its module on first use, so ``import photometric`` stays light. The integra
 
 from __future__ import annotations
 
-from surfaces import __version__ as __version__  # the distribution's version, one home
-
 import importlib
 
 _HOMES = {
@@ -45,6 +43,10 @@ __all__ = [*_MODULE_OF, "errors", "integrate"]
 
 
 def __getattr__(name: str):
+    if name == "__version__":  # the distribution's version, read on first use (one home: surfaces)
+        import surfaces
+
+        return surfaces.__version__
     if name in _HOMES or name == "errors":
         return importlib.import_module(f"photometric.{name}")
     if name not in _MODULE_OF:

@@ -32,8 +32,6 @@ Examples
 
 from __future__ import annotations
 
-from surfaces import __version__ as __version__  # the distribution's version, one home
-
 from slices.body import BodySurface, build_body
 from slices.chaining import Body, chain, slab_volume
 from slices.compose import compose_rois
@@ -71,3 +69,11 @@ __all__ = [
     "slab_volume",
     "slice_curves",
 ]
+
+
+def __getattr__(name: str):
+    if name == "__version__":  # the distribution's version, read on first use (one home: surfaces)
+        import surfaces
+
+        return surfaces.__version__
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -7,7 +7,6 @@ the batch API (:func:`load_jobs`, :func:`plan`, :func:`run_batch`,
 dask, open3d and matplotlib are imported only where they are used.
 """
 
-from surfaces import __version__ as __version__  # the distribution's version, one home
 from workbench.batch import BatchReport, Job, Plan, load_jobs, plan, run_batch, write_report
 from workbench.cli import build_parser, main
 from workbench.report import Report
@@ -24,3 +23,11 @@ __all__ = [
     "run_batch",
     "write_report",
 ]
+
+
+def __getattr__(name: str):
+    if name == "__version__":  # the distribution's version, read on first use (one home: surfaces)
+        import surfaces
+
+        return surfaces.__version__
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
