@@ -175,6 +175,11 @@ def crack_profile(crack: dict, truth: np.ndarray, height: np.ndarray, surface: n
     return out
 
 
+def _columns(n: int, tile_px: int = 512) -> int:
+    """Tiles per row that keep a montage within the report's column (shown at its own size)."""
+    return max(1, min(n, (REPORT_WIDTH_PX + 4) // (tile_px + 4)))
+
+
 @drawer
 def truth_view(src: Source, triad: str, pixel_size: float, exaggeration: float, size: list) -> np.ndarray:
     """The true height field ray-cast (iso and top views, shadow rays, 2 x 2 rays per pixel)."""
@@ -188,7 +193,8 @@ def truth_view(src: Source, triad: str, pixel_size: float, exaggeration: float, 
 def images_montage(src: Source, triad: str, labels: list) -> np.ndarray:
     """The rendered images side by side, linear grey."""
     data = read_folder(src.path(triad))
-    return im.montage([im.enlarge(im.to_uint8(img, vmax=1.0)) for img in data.images], cols=3, labels=labels)
+    return im.montage([im.enlarge(im.to_uint8(img, vmax=1.0)) for img in data.images], cols=_columns(len(data.images)),
+                      labels=labels)
 
 
 @drawer
@@ -201,7 +207,7 @@ def normals_montage(src: Source, triad: str, recon: str) -> np.ndarray:
         im.label_image(im.enlarge(im.normal_map(np.load(folder / "normals.npy"), valid)), "normals, RGB = (n+1)/2"),
         im.label_image(im.enlarge(im.normal_map(read_folder(src.path(triad)).normal_gt)), "true normals"),
     ]
-    return im.montage(tiles, cols=3)
+    return im.montage(tiles, cols=_columns(len(tiles)))
 
 
 @drawer

@@ -39,12 +39,52 @@ def display_image(data: PhotometricData, k: int) -> np.ndarray:
     return im.to_uint8(img, vmax=float(np.percentile(img[data.mask], 99.5)))
 
 
+def object_box(mask: np.ndarray, margin: int = 12) -> tuple[slice, slice]:
+    """Rows and columns of the object's bounding box in the mask, with a margin (the captures' black border
+    left out of the pictures).
+
+    Parameters
+    ----------
+    mask : (H, W) bool
+        Object mask.
+    margin : int
+        Pixels kept around the box.
+
+    Returns
+    -------
+    (slice, slice)
+
+    Examples
+    --------
+    >>> m = np.zeros((100, 80), bool); m[40:50, 30:35] = True
+    >>> object_box(m, margin=5)
+    (slice(35, 55, None), slice(25, 40, None))
+    """
+    rows, cols = np.flatnonzero(mask.any(axis=1)), np.flatnonzero(mask.any(axis=0))
+    if rows.size == 0:
+        return slice(None), slice(None)
+    return (slice(max(0, int(rows[0]) - margin), min(mask.shape[0], int(rows[-1]) + 1 + margin)),
+            slice(max(0, int(cols[0]) - margin), min(mask.shape[1], int(cols[-1]) + 1 + margin)))
+
+
+def _row(tiles: list, bar_px: int = 0) -> tuple[list, int]:
+    """The tiles side by side when they fit the report's column, else fewer per row; shrunk to fit."""
+    cols = len(tiles)
+    while cols > 1 and cols * (tiles[0].shape[1] + bar_px + 4) > REPORT_WIDTH_PX + 4:
+        cols -= 1
+    side = (REPORT_WIDTH_PX + 4) // cols - 4 - bar_px
+    return [im.fit(t, side) for t in tiles], cols
+
+
 @drawer
 def bear_images(src: Source, folder: str, select: str | None, step: int, cols: int) -> np.ndarray:
-    """The captures of a light set, divided by their intensities, every ``step``-th pixel."""
+    """The captures of a light set, divided by their intensities and cropped to the object."""
     data = read_folder(src.path(folder), select=select)
-    return im.montage([display_image(data, k)[::step, ::step] for k in range(len(data.names))], cols=cols,
-                      labels=list(data.names))
+    box = object_box(data.mask)
+    tiles = [display_image(data, k)[box][::step, ::step] for k in range(len(data.names))]
+    if len(tiles) <= cols:
+        tiles, cols = _row(tiles)
+    return im.montage(tiles, cols=cols, labels=list(data.names))
 
 
 def _bear_errors(src: Source, folder: str, runs: dict):
@@ -56,23 +96,26 @@ def _bear_errors(src: Source, folder: str, runs: dict):
 
 @drawer
 def bear_normals(src: Source, folder: str, runs: dict, step: int) -> np.ndarray:
-    """Ground-truth normals beside the triad's and the 14 images'."""
+    """Ground-truth normals beside the triad's and the 14 images', cropped to the object."""
     data, normals, _ = _bear_errors(src, folder, runs)
+    box = object_box(data.mask)
     tiles = [
-        im.label_image(im.normal_map(data.normal_gt, data.mask), "ground truth"),
-        im.label_image(im.normal_map(normals["triad"], data.mask), "triad"),
-        im.label_image(im.normal_map(normals["all14"], data.mask), "14 images"),
+        im.label_image(im.normal_map(data.normal_gt[box], data.mask[box]), "ground truth"),
+        im.label_image(im.normal_map(normals["triad"][box], data.mask[box]), "triad"),
+        im.label_image(im.normal_map(normals["all14"][box], data.mask[box]), "14 images"),
     ]
-    return im.montage([t[::step, ::step] for t in tiles], cols=3)
+    tiles, cols = _row([t[::step, ::step] for t in tiles])
+    return im.montage(tiles, cols=cols)
 
 
 @drawer
 def bear_errors(src: Source, folder: str, runs: dict, step: int) -> np.ndarray:
-    """Angular error maps of the triad and the 14 images, clipped at 30 deg."""
+    """Angular error maps of the triad and the 14 images, clipped at 30 deg, cropped to the object."""
     data, _, errs = _bear_errors(src, folder, runs)
-    side = (REPORT_WIDTH_PX - 4) // 2 - COLORBAR_PX  # both maps and their bars within the report's width
-    tiles = [im.error_image(im.fit(errs[k][::step, ::step], side), im.fit(data.mask[::step, ::step], side),
-                            vmax=30.0, label="angle deg") for k in ("triad", "all14")]
+    box = object_box(data.mask)
+    maps, _ = _row([errs[k][box][::step, ::step] for k in ("triad", "all14")], bar_px=COLORBAR_PX)
+    mask = im.fit(data.mask[box][::step, ::step], max(maps[0].shape))
+    tiles = [im.error_image(m, mask, vmax=30.0, label="angle deg") for m in maps]
     return im.montage(tiles, cols=2, labels=[f"triad: mean {np.nanmean(errs['triad']):.2f} deg",
                                              f"14 images: mean {np.nanmean(errs['all14']):.2f} deg"])
 
@@ -126,8 +169,8 @@ def section_real(ctx: Context) -> None:
                "The triad (lights about 40 deg slant, 120 deg apart), divided by the light "
                "intensities.", cmd_triad, params={"folder": ctx.rel(folder), "select": "triad", "step": step,
                                                   "cols": 3})
-    ctx.figure("bear-all-images", bear_images, "All 14 images (quarter size).", cmd_all,
-               params={"folder": ctx.rel(folder), "select": None, "step": 4, "cols": 7})
+    ctx.figure("bear-all-images", bear_images, "All 14 images (half size).", cmd_all,
+               params={"folder": ctx.rel(folder), "select": None, "step": 2, "cols": 7})
     ctx.figure("bear-normals", bear_normals,
                "Normal maps: ground truth, least squares on the triad and on all 14 images.",
                cmd_all, params={"folder": ctx.rel(folder), "runs": runs, "step": step})
