@@ -248,7 +248,7 @@ def error_image(
 
 
 def fit(values: np.ndarray, max_side: int) -> np.ndarray:
-    """Shrink a map or picture (nearest neighbour: NaN and labels stay as they are) to at most ``max_side`` per side.
+    """Shrink a map (nearest neighbour: values and NaN kept) or a uint8 picture (area average) to ``max_side``.
 
     Parameters
     ----------
@@ -278,7 +278,8 @@ def fit(values: np.ndarray, max_side: int) -> np.ndarray:
         return a
     size = (max(1, round(a.shape[1] * scale)), max(1, round(a.shape[0] * scale)))
     work = a.astype(np.float32) if a.dtype == np.float64 or a.dtype == bool else a
-    out = cv2.resize(work, size, interpolation=cv2.INTER_NEAREST)
+    # a uint8 picture is averaged over each output pixel's area; maps keep their own values (and NaN)
+    out = cv2.resize(work, size, interpolation=cv2.INTER_AREA if a.dtype == np.uint8 else cv2.INTER_NEAREST)
     return out.astype(a.dtype) if out.dtype != a.dtype else out
 
 

@@ -175,9 +175,10 @@ def crack_profile(crack: dict, truth: np.ndarray, height: np.ndarray, surface: n
     return out
 
 
-def _columns(n: int, tile_px: int = 512) -> int:
-    """Tiles per row that keep a montage within the report's column (shown at its own size)."""
-    return max(1, min(n, (REPORT_WIDTH_PX + 4) // (tile_px + 4)))
+def _in_a_row(tiles: list) -> list:
+    """The pictures shrunk (area average) so that one row of them fits the report's column at its own size."""
+    side = (REPORT_WIDTH_PX + 4) // len(tiles) - 4
+    return [im.fit(t, side) for t in tiles]
 
 
 @drawer
@@ -193,8 +194,8 @@ def truth_view(src: Source, triad: str, pixel_size: float, exaggeration: float, 
 def images_montage(src: Source, triad: str, labels: list) -> np.ndarray:
     """The rendered images side by side, linear grey."""
     data = read_folder(src.path(triad))
-    return im.montage([im.enlarge(im.to_uint8(img, vmax=1.0)) for img in data.images], cols=_columns(len(data.images)),
-                      labels=labels)
+    tiles = _in_a_row([im.enlarge(im.to_uint8(img, vmax=1.0)) for img in data.images])
+    return im.montage(tiles, cols=len(tiles), labels=labels)
 
 
 @drawer
@@ -203,11 +204,11 @@ def normals_montage(src: Source, triad: str, recon: str) -> np.ndarray:
     folder = src.path(recon)
     valid = np.load(folder / "valid.npy")
     tiles = [
-        im.label_image(im.enlarge(im.albedo_image(np.load(folder / "albedo.npy"), valid)), "albedo"),
-        im.label_image(im.enlarge(im.normal_map(np.load(folder / "normals.npy"), valid)), "normals, RGB = (n+1)/2"),
-        im.label_image(im.enlarge(im.normal_map(read_folder(src.path(triad)).normal_gt)), "true normals"),
+        im.enlarge(im.albedo_image(np.load(folder / "albedo.npy"), valid)),
+        im.enlarge(im.normal_map(np.load(folder / "normals.npy"), valid)),
+        im.enlarge(im.normal_map(read_folder(src.path(triad)).normal_gt)),
     ]
-    return im.montage(tiles, cols=_columns(len(tiles)))
+    return im.montage(_in_a_row(tiles), cols=len(tiles), labels=["albedo", "normals, RGB = (n+1)/2", "true normals"])
 
 
 @drawer

@@ -99,13 +99,10 @@ def bear_normals(src: Source, folder: str, runs: dict, step: int) -> np.ndarray:
     """Ground-truth normals beside the triad's and the 14 images', cropped to the object."""
     data, normals, _ = _bear_errors(src, folder, runs)
     box = object_box(data.mask)
-    tiles = [
-        im.label_image(im.normal_map(data.normal_gt[box], data.mask[box]), "ground truth"),
-        im.label_image(im.normal_map(normals["triad"][box], data.mask[box]), "triad"),
-        im.label_image(im.normal_map(normals["all14"][box], data.mask[box]), "14 images"),
-    ]
-    tiles, cols = _row([t[::step, ::step] for t in tiles])
-    return im.montage(tiles, cols=cols)
+    tiles = [im.normal_map(n[box], data.mask[box])[::step, ::step]
+             for n in (data.normal_gt, normals["triad"], normals["all14"])]
+    tiles, cols = _row(tiles)
+    return im.montage(tiles, cols=cols, labels=["ground truth", "triad", "14 images"])
 
 
 @drawer
