@@ -165,7 +165,7 @@ class Report:
         decimals : dict, optional
             Column index -> fixed decimals for the floats of that column: a column of
             figures with one resolution (degrees to 0.01 beside a baseline given so) reads
-            ``-0.00``, not ``-0.0001685`` beside ``9.6``.
+            ``0.00``, not ``-0.0001685`` beside ``9.6``.
         """
         if not headers:
             raise InputError("headers: a table needs at least one column")
@@ -230,7 +230,8 @@ def _format_cell(cell, digits: int, where: str, decimals: int | None = None) -> 
             raise InputError(f"{where}: non-finite number {cell!r}")
         x = float(cell)
         if decimals is not None:
-            return f"{x:.{int(decimals)}f}", True
+            text = f"{x:.{int(decimals)}f}"
+            return (f"{0.0:.{int(decimals)}f}" if float(text) == 0 else text), True  # no "-0.00"
         if x == 0 or not 1e-3 <= abs(x) < 1e12:
             return f"{x:.{digits}g}", True
         # fixed-point with ``digits`` significant digits (never fewer than all integer digits)
