@@ -57,8 +57,11 @@ def section_ct(ctx: Context) -> None:
     pts = np.load(kid / "surface_points.npy")
     dist = deviation(pts, mesh)
     # colour each vertex by the distance of its nearest true surface sample
-    _, nearest = cKDTree(pts).query(mesh.vertices)
-    vertex_dev = dist[nearest]
+    # colour each vertex by the distances of its 8 nearest true samples (inverse-distance weights): one
+    # nearest sample per vertex jumps from sample to sample and draws streaks
+    near_d, near = cKDTree(pts).query(mesh.vertices, k=8)
+    weights = 1.0 / np.maximum(near_d, 1e-9) ** 2
+    vertex_dev = (dist[near] * weights).sum(axis=1) / weights.sum(axis=1)
     lim = float(np.percentile(np.abs(dist), 99))
     k = nums["kidney"] = {
         "spacing_mm": spacing,
@@ -91,13 +94,14 @@ def section_ct(ctx: Context) -> None:
     ctx.figure("ct-kidney", kidney_view,
                f"Kidney phantom (sections fold: the hilum is concave) reconstructed from "
                f"{k['n_contours']} contours {spacing:g} mm apart (black lines); colour = signed "
-               "distance of the nearest true surface sample to the reconstruction (mm, positive "
-               "outside), drawn unshaded so that the colour reads true on every side. The colour bar "
+               "distance of the true surface to the reconstruction (mm, positive outside), drawn unshaded "
+               "so that the colour reads true on every side. The colour bar "
                f"spans +-{lim:.2f} mm, the 99th percentile of |d|: {100 * outside:.1f} % of the samples lie beyond "
-               f"it, the largest ({k['surface_distance_max_mm']:.2f} mm) {where}. The radial spokes at the "
-               "top are how the colour is sampled, not a shape: the surface's vertices lie on the seed's rays "
-               "from each contour's centre, and each vertex takes the distance of its nearest true sample "
-               f"({len(pts)} scattered points), so the colour changes along the rays and jumps between them.",
+               f"it, the largest ({k['surface_distance_max_mm']:.2f} mm) {where}. The radial streaks at the "
+               "top are how the colour is drawn, not a shape: there the surface's vertices lie on the seed's "
+               "rays from the end contour's centre, and the colour, given per vertex (the inverse-distance "
+               f"weighted distance of its 8 nearest true samples out of {len(pts)}), is interpolated across "
+               "the long thin triangles between the rays.",
                f"{cmd_ph} && {cmd_rec}",
                params={"mesh": ctx.rel(out / "surface.ply"), "contours": ctx.rel(kid / "contours.json"),
                        "lim": lim},
