@@ -45,6 +45,10 @@ __all__ = [*_MODULE_OF, "errors", "integrate", "InputError"]
 
 
 def __getattr__(name: str):
+    if name == "__version__":  # the distribution's version, read on first use (one home: surfaces)
+        import surfaces
+
+        return surfaces.__version__
     if name in _HOMES or name == "errors":
         return importlib.import_module(f"photometric.{name}")
     if name not in _MODULE_OF:

@@ -57,6 +57,30 @@ def body_table(rec: Reconstruction) -> list[dict]:
     return out
 
 
+def count_noun(n: int, one: str, many: str | None = None) -> str:
+    """``n`` and the noun in the number it takes: ``1 body``, ``2 bodies``, ``0 holes``.
+
+    Parameters
+    ----------
+    n : int
+        The count.
+    one : str
+        The singular noun.
+    many : str, optional
+        The plural (default ``one + "s"``).
+
+    Returns
+    -------
+    str
+
+    Examples
+    --------
+    >>> count_noun(1, "body", "bodies"), count_noun(3, "body", "bodies"), count_noun(0, "hole")
+    ('1 body', '3 bodies', '0 holes')
+    """
+    return f"{n} {one if n == 1 else (many or one + 's')}"
+
+
 def chaining_text(rec: Reconstruction) -> str:
     """How the contours were chained into bodies, in one sentence.
 
@@ -71,23 +95,23 @@ def chaining_text(rec: Reconstruction) -> str:
     n_out = sum(b.body.kind == "outer" for b in rec.bodies)
     n_hole = len(rec.bodies) - n_out
     splits = sum(b.body.stop in ("branch", "merge") for b in rec.bodies)
-    text = (f"{len(rec.bodies)} body(ies) chained by overlap of contours on neighbouring planes: "
-            f"{n_out} outer, {n_hole} hole(s) (volume subtracted)")
+    text = (f"{count_noun(len(rec.bodies), 'body', 'bodies')} chained by overlap of contours on neighbouring "
+            f"planes: {n_out} outer, {count_noun(n_hole, 'hole')} (volume subtracted)")
     if splits:
-        text += f"; {splits} chain(s) split at a branching or merging contour"
+        text += f"; {count_noun(splits, 'chain')} split at a branching or merging contour"
     joined = sum(b.body.start == "split" for b in rec.bodies) + sum(b.body.stop == "split" for b in rec.bodies)
     if joined:
-        text += (f"; {joined} chain end(s) joined at a contour divided along the mid-line between its "
+        text += (f"; {count_noun(joined, 'chain end')} joined at a contour divided along the mid-line between its "
                  "branches (flat joints inside the union)")
     steps = sum(b.body.stop == "step" for b in rec.bodies)
     if steps:
-        text += (f"; {steps} slab(s) stepped where every fallback surface folded (two half caps meeting "
+        text += (f"; {count_noun(steps, 'slab')} stepped where every fallback surface folded (two half caps meeting "
                  "half-way, ends \"step\")")
     singles = sum(len(b.body.contours) == 1 and b.caps_used == ("half", "half") and rec.options.caps in ("none", "flat")
                   and "step" not in (b.body.start, b.body.stop) for b in rec.bodies)
     if singles:
-        text += (f"; {singles} single-contour body(ies) given half caps (no thickness with "
-                 f"caps {rec.options.caps})")
+        text += (f"; {count_noun(singles, 'single-contour body', 'single-contour bodies')} given half caps "
+                 f"(no thickness with caps {rec.options.caps})")
     return text
 
 

@@ -119,8 +119,21 @@ _NAMES = {
 __all__ = sorted({*_MODULES, *_NAMES})
 
 
+def _distribution_version() -> str:
+    """The ``surface-workbench`` distribution's version, every package's ``__version__`` (read on first use:
+    importing importlib.metadata costs about 20 ms)."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("surface-workbench")
+    except PackageNotFoundError:  # a source tree on the path, not installed
+        return "0+unknown"
+
+
 def __getattr__(name: str):
-    if name in _NAMES:
+    if name == "__version__":
+        value = _distribution_version()
+    elif name in _NAMES:
         value = getattr(import_module(f"surfaces.{_NAMES[name]}"), name)
     elif name in _MODULES:
         value = import_module(f"surfaces.{name}")

@@ -121,7 +121,9 @@ def colorbar_image(
     strip[top : top + bar_h, x0 : x0 + bar_w] = (colors[:, None, :] * 255).astype(np.uint8)
     ink = (30, 30, 30)
     cv2.rectangle(strip, (x0, top), (x0 + bar_w - 1, top + bar_h - 1), ink, 1)
-    scale = max(min(height / 900.0, 0.5), 0.3)
+    # OpenCV's simplex font at 0.5 draws digits 11 px high: legible where a report shows the
+    # picture at its own size (0.3 on short bars gave 7 px, issue 37)
+    scale = 0.5 if height >= 120 else 0.4
     from matplotlib.ticker import MaxNLocator
 
     ticks = MaxNLocator(6 if bar_h > 150 else 3).tick_values(vmin, vmax)

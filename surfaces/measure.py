@@ -295,6 +295,45 @@ def area(patches: BezierPatches, order: int = 8, return_error: bool = False, per
     return _result(value, patches, per_patch), _result(np.abs(finer - value), patches, per_patch)
 
 
+class InwardOrientationWarning(UserWarning):
+    """A closed surface whose ``S_u x S_v`` points inward: its signed volume is negative."""
+
+
+def encloses(patches: BezierPatches) -> bool:
+    """Whether the patches bound a solid on their own: closed in both directions, or closed in one
+    with both ends of the other collapsed to poles (a sphere grid either way round).
+
+    Parameters
+    ----------
+    patches : BezierPatches
+
+    Returns
+    -------
+    bool
+
+    Examples
+    --------
+    >>> from surfaces.coons import from_grid
+    >>> th, ph = np.meshgrid(np.linspace(0, np.pi, 9), np.linspace(0, 2 * np.pi, 16, endpoint=False), indexing="ij")
+    >>> ball = np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)], -1)
+    >>> encloses(from_grid(ball, closed_v=True)), encloses(from_grid(ball[1:-1], closed_v=True))
+    (True, False)
+    """
+    c = patches.control
+    tol = 1e-12 * max(1.0, float(np.abs(c).max()))
+
+    def collapsed(*edges) -> bool:
+        return all(np.ptp(e.reshape(-1, 3), axis=0).max() <= tol for e in edges)
+
+    if patches.closed_u and patches.closed_v:
+        return True
+    if patches.closed_v:
+        return collapsed(c[0, :, 0], c[-1, :, 3])
+    if patches.closed_u:
+        return collapsed(c[:, 0, :, 0], c[:, -1, :, 3])
+    return False
+
+
 def volume(patches: BezierPatches, order: int = 5, per_patch: bool = False):
     """Enclosed volume by the divergence theorem, integrated over the patches.
 
@@ -312,7 +351,16 @@ def volume(patches: BezierPatches, order: int = 5, per_patch: bool = False):
     -------
     float or numpy.ndarray
         ``1/3 * flux of x`` through the surface, in cubed model units; positive
-        when ``S_u x S_v`` points outward.
+        when ``S_u x S_v`` points outward. The sign is kept (callers add signed
+        fluxes); a surface that :func:`encloses` a solid with a negative total
+        gets an :class:`InwardOrientationWarning` saying so (use
+        ``patches.flipped()`` or :func:`area_and_volume`, which orients it).
+
+    Warns
+    -----
+    InwardOrientationWarning
+        The patches enclose a solid and ``S_u x S_v`` points inward (not with
+        ``per_patch``).
 
     Examples
     --------
@@ -326,7 +374,35 @@ def volume(patches: BezierPatches, order: int = 5, per_patch: bool = False):
     >>> v = volume(from_grid(ring, closed_u=True, closed_v=True))
     >>> bool(abs(v / (2 * np.pi**2 * 3) - 1) < 5e-3)
     True
+
+    A sphere grid with the angle around first (``S_u x S_v`` inward) warns and
+    keeps its sign:
+
+    >>> import warnings
+    >>> ph, th = np.meshgrid(np.linspace(0, 2 * np.pi, 16, endpoint=False), np.linspace(0, np.pi, 9), indexing="ij")
+    >>> ball = np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)], -1)
+    >>> with warnings.catch_warnings(record=True) as caught:
+    ...     warnings.simplefilter("always")
+    ...     v = volume(from_grid(ball, closed_u=True))
+    >>> round(v, 2), caught[0].category.__name__
+    (-4.18, 'InwardOrientationWarning')
     """
+    value = _signed_volume(patches, order, per_patch)
+    if not per_patch:
+        _warn_inward(value, patches)
+    return value
+
+
+def _warn_inward(value: float, patches: BezierPatches) -> None:
+    if value < 0 and encloses(patches):
+        import warnings
+
+        warnings.warn(f"volume: the patches enclose a solid but S_u x S_v points inward, so the signed volume is "
+                      f"{value:.6g} (returned as it is; patches.flipped() or area_and_volume() orient it: "
+                      f"{-value:.6g})", InwardOrientationWarning, stacklevel=3)
+
+
+def _signed_volume(patches: BezierPatches, order: int = 5, per_patch: bool = False):
     (value,) = _per_patch(patches, order, [_volume_density])
     return _result(value, patches, per_patch)
 
@@ -347,10 +423,13 @@ def integrals(patches: BezierPatches, order: int = 5, per_patch: bool = False):
     Returns
     -------
     volume, area : float or numpy.ndarray
-        As :func:`volume` and :func:`area`.
+        As :func:`volume` (with its :class:`InwardOrientationWarning`) and :func:`area`.
     """
     vol, ar = _per_patch(patches, order, [_volume_density, _area_density])
-    return _result(vol, patches, per_patch), _result(ar, patches, per_patch)
+    vol = _result(vol, patches, per_patch)
+    if not per_patch:
+        _warn_inward(vol, patches)
+    return vol, _result(ar, patches, per_patch)
 
 
 def flux_z(patches: BezierPatches, order: int = 5) -> float:
@@ -430,15 +509,12 @@ def area_and_volume(patches: BezierPatches) -> dict:
         ``volume_method`` (str), ``orientation`` ("outward"/"inward"/None: of ``S_u x S_v``).
     """
     out = {"area": float(area(patches)), "volume": None, "volume_method": None, "orientation": None}
-    c = patches.control
-    poles = all(np.ptp(e.reshape(-1, 3), axis=0).max() <= 1e-12 * max(1.0, np.abs(c).max())
-                for e in (c[0, :, 0], c[-1, :, 3]))
     if patches.closed_u and patches.closed_v:
-        signed, method = volume(patches), "divergence theorem (closed surface)"
+        signed, method = _signed_volume(patches), "divergence theorem (closed surface)"
     elif patches.closed_u:
-        signed, method = volume(patches) + cap_flux(patches) / 3.0, "divergence theorem + end caps"
-    elif patches.closed_v and poles:
-        signed, method = volume(patches), "divergence theorem (closed by poles)"
+        signed, method = _signed_volume(patches) + cap_flux(patches) / 3.0, "divergence theorem + end caps"
+    elif patches.closed_v and encloses(patches):
+        signed, method = _signed_volume(patches), "divergence theorem (closed by poles)"
     else:
         return out
     out.update(volume=abs(float(signed)), volume_method=method,

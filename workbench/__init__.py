@@ -25,3 +25,11 @@ __all__ = [
     "run_batch",
     "write_report",
 ]
+
+
+def __getattr__(name: str):
+    if name == "__version__":  # the distribution's version, read on first use (one home: surfaces)
+        import surfaces
+
+        return surfaces.__version__
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -18,6 +18,9 @@ import numpy as np
 
 from surfaces.validate import as_array, InputError, positive
 
+#: width of the colour bar :func:`scalar_image` appends, pixels
+COLORBAR_PX = 110
+
 
 def _mask(mask, shape: tuple[int, int]) -> np.ndarray:
     if mask is None:
@@ -179,7 +182,7 @@ def scalar_image(
     if k > 1:
         out = np.repeat(np.repeat(out, k, axis=0), k, axis=1)
     if colorbar:
-        bar = colorbar_image(out.shape[0], lo, hi, cmap, label, width=110, background=background)
+        bar = colorbar_image(out.shape[0], lo, hi, cmap, label, width=COLORBAR_PX, background=background)
         out = np.concatenate([out, bar], axis=1)
     return out
 
@@ -242,6 +245,42 @@ def error_image(
     if vmax is None:
         vmax = float(np.percentile(err[m], 99)) if m.any() else 1.0
     return scalar_image(err, m, cmap=cmap, vmin=0.0, vmax=max(float(vmax), 1e-12), label=label)
+
+
+def fit(values: np.ndarray, max_side: int) -> np.ndarray:
+    """Shrink a map (nearest neighbour: values and NaN kept) or a uint8 picture (area average) to ``max_side``.
+
+    Parameters
+    ----------
+    values : (H, W[, C]) array
+        Map or picture.
+    max_side : int
+        Largest height and width in pixels (> 0).
+
+    Returns
+    -------
+    (H', W'[, C]) array
+        ``values`` itself when it already fits, else a copy scaled by ``max_side / max(H, W)``.
+
+    Examples
+    --------
+    >>> fit(np.zeros((512, 256)), 128).shape, fit(np.zeros((100, 50)), 128).shape
+    ((128, 64), (100, 50))
+    """
+    import cv2
+
+    a = np.asarray(values)
+    if a.ndim not in (2, 3) or min(a.shape[:2]) == 0:
+        raise InputError(f"values: expected (H, W) or (H, W, C), got {a.shape}")
+    side = int(positive(max_side, "max_side"))
+    scale = side / max(a.shape[:2])
+    if scale >= 1:
+        return a
+    size = (max(1, round(a.shape[1] * scale)), max(1, round(a.shape[0] * scale)))
+    work = a.astype(np.float32) if a.dtype == np.float64 or a.dtype == bool else a
+    # a uint8 picture is averaged over each output pixel's area; maps keep their own values (and NaN)
+    out = cv2.resize(work, size, interpolation=cv2.INTER_AREA if a.dtype == np.uint8 else cv2.INTER_NEAREST)
+    return out.astype(a.dtype) if out.dtype != a.dtype else out
 
 
 def enlarge(image: np.ndarray, min_height: int = 256) -> np.ndarray:

@@ -19,6 +19,10 @@ from pathlib import Path
 import numpy as np
 from surfaces.validate import InputError
 
+#: widest picture the report shows at its own size (the page's 1200 px column less its padding): wider
+#: ones are scaled down by the browser, and their colour-bar labels with them
+REPORT_WIDTH_PX = 1160
+
 CSS = """
 body { font-family: system-ui, -apple-system, 'Segoe UI', sans-serif; margin: 2em auto;
        max-width: 1200px; color: #222; line-height: 1.45; padding: 0 1em; }
@@ -142,7 +146,8 @@ class Report:
         )
         return path
 
-    def table(self, headers: list[str], rows: list[list], caption: str = "", digits: int = 4) -> None:
+    def table(self, headers: list[str], rows: list[list], caption: str = "", digits: int = 4,
+              decimals: dict[int, int] | None = None) -> None:
         """Add a table; every cell must have a value.
 
         Parameters
@@ -157,6 +162,10 @@ class Report:
             Shown above the table.
         digits : int
             Significant digits of floats.
+        decimals : dict, optional
+            Column index -> fixed decimals for the floats of that column: a column of
+            figures with one resolution (degrees to 0.01 beside a baseline given so) reads
+            ``0.00``, not ``-0.0001685`` beside ``9.6``.
         """
         if not headers:
             raise InputError("headers: a table needs at least one column")
@@ -166,7 +175,8 @@ class Report:
                 raise InputError(f"rows[{r}]: expected {len(headers)} cells, got {len(row)}")
             tds = []
             for c, cell in enumerate(row):
-                text, numeric = _format_cell(cell, digits, f"rows[{r}][{c}] ({headers[c]})")
+                text, numeric = _format_cell(cell, digits, f"rows[{r}][{c}] ({headers[c]})",
+                                             (decimals or {}).get(c))
                 cls = ' class="num"' if numeric else ""
                 tds.append(f"<td{cls}>{text}</td>")
             cells_html.append("<tr>" + "".join(tds) + "</tr>")
@@ -207,7 +217,7 @@ class Report:
         return out
 
 
-def _format_cell(cell, digits: int, where: str) -> tuple[str, bool]:
+def _format_cell(cell, digits: int, where: str, decimals: int | None = None) -> tuple[str, bool]:
     """HTML text of a table cell and whether it is numeric; ValueError for a missing value."""
     if cell is None:
         raise InputError(f"{where}: empty cell (None); say why the value is missing instead")
@@ -219,6 +229,9 @@ def _format_cell(cell, digits: int, where: str) -> tuple[str, bool]:
         if not math.isfinite(float(cell)):
             raise InputError(f"{where}: non-finite number {cell!r}")
         x = float(cell)
+        if decimals is not None:
+            text = f"{x:.{int(decimals)}f}"
+            return (f"{0.0:.{int(decimals)}f}" if float(text) == 0 else text), True  # no "-0.00"
         if x == 0 or not 1e-3 <= abs(x) < 1e12:
             return f"{x:.{digits}g}", True
         # fixed-point with ``digits`` significant digits (never fewer than all integer digits)

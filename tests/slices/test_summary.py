@@ -36,8 +36,8 @@ def test_body_table(fork):
 def test_chaining_text(fork):
     _, rec = fork
     assert chaining_text(rec) == (
-        "4 body(ies) chained by overlap of contours on neighbouring planes: 4 outer, 0 hole(s) (volume "
-        "subtracted); 1 chain(s) split at a branching or merging contour; 1 single-contour body(ies) given "
+        "4 bodies chained by overlap of contours on neighbouring planes: 4 outer, 0 holes (volume "
+        "subtracted); 1 chain split at a branching or merging contour; 1 single-contour body given "
         "half caps (no thickness with caps flat)")
 
 

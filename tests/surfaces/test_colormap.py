@@ -46,3 +46,15 @@ def test_vertex_values_checks_shapes():
         vertex_values(3, np.zeros((3, 3)), np.zeros(3))
     with pytest.raises(ValueError, match="scalars"):
         vertex_values(3, scalars=np.zeros(4))
+
+
+@pytest.mark.parametrize("height", [256, 384, 900])
+def test_colorbar_tick_labels_are_at_least_11_px_high(height):
+    """Tick digits drawn at least 11 px high on every bar of 120 px and more (7 px before, issue 37)."""
+    bar = colorbar_image(height, -0.04, 0.04, "coolwarm", "")
+    ink = bar[:, 40:].min(axis=2) < 128  # right of the bar and its tick marks: the labels only
+    rows = np.flatnonzero(ink.any(axis=1))
+    runs = np.split(rows, np.flatnonzero(np.diff(rows) > 1) + 1)
+    assert len(runs) >= 3
+    # the digit '0' and the minus sign's row: the tallest run of a label
+    assert max(len(r) for r in runs) >= 11

@@ -6,12 +6,15 @@ Each demo module has its own tests in ``tests/workbench/demo/``.
 from __future__ import annotations
 
 import base64
+import html
 import json
 import math
+import re
 import time
 from html.parser import HTMLParser
 from pathlib import Path
 
+import cv2
 import numpy as np
 import pytest
 
@@ -153,8 +156,12 @@ def test_quick_demo_report(quick_demo):
     assert missing == (set() if shared_data_dir().is_dir() else REAL_DATA_SECTIONS)
     parsed = check_report(out / "report.html")
     assert len(parsed.images) == len(summary["figures"]) >= (9 if missing else 15)
+    from workbench.report import REPORT_WIDTH_PX
+
     for fig in summary["figures"]:
         assert (out / fig["file"]).is_file() and parses(fig["command"]), fig["command"]
+        # shown at its own size in the report: colour-bar and tile labels keep their 11 px
+        assert cv2.imread(str(out / fig["file"])).shape[1] <= REPORT_WIDTH_PX, fig["file"]
     # the figure index (section 5) lists every figure with its command
     for fig in summary["figures"]:
         assert fig["command"] in parsed.cells
@@ -183,3 +190,36 @@ def test_quick_demo_real_data(quick_demo, shared_data):
     assert real["triad_mean_error_deg"] == pytest.approx(11.74, abs=0.3)
     assert real["all14_mean_error_deg"] == pytest.approx(9.60, abs=0.3)
     assert summary["ct"]["Heart"]["volume_cc"] == pytest.approx(437.46, rel=0.05)
+
+
+@pytest.mark.slow
+def test_quick_demo_report_is_portable_and_redrawable(quick_demo, tmp_path):
+    """No absolute path in report.html; --figures-only redraws every figure from the saved data, unchanged."""
+    import shutil
+
+    from workbench.cli import main
+    from workbench.demo.figures import DRAWERS
+
+    out, code, _ = quick_demo
+    assert code == 0
+    page = (out / "report.html").read_text()
+    text = re.sub(r"data:image/png;base64,[A-Za-z0-9+/=]+", "", page)
+    for absolute in {str(out), str(out.resolve()), str(Path.home()), "/tmp/", "/work/"}:
+        assert absolute not in text, absolute
+    summary = json.loads((out / "demo.json").read_text())
+    names = [Path(f["file"]).stem for f in summary["figures"]]
+    for name in names:
+        spec = json.loads((out / "figures" / f"{name}.json").read_text())
+        assert spec["draw"] in DRAWERS and spec["command"] in html.unescape(text)
+    # a copy of the folder elsewhere: its figures are redrawn from the copy's own data
+    copy = tmp_path / "moved"
+    shutil.copytree(out, copy)
+    before = {n: cv2.imread(str(copy / "figures" / f"{n}.png")) for n in names}
+    for n in names:
+        (copy / "figures" / f"{n}.png").unlink()
+    assert main(["demo", "--figures-only", str(copy)]) == 0
+    for n in names:
+        after = cv2.imread(str(copy / "figures" / f"{n}.png"))
+        assert after is not None and after.shape == before[n].shape, n
+        assert np.abs(after.astype(int) - before[n].astype(int)).mean() < 0.5, n
+    assert (copy / "report.html").read_text().count("data:image/png;base64,") == len(names)

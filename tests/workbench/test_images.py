@@ -132,3 +132,16 @@ def test_enlarge_integer_factor(shape, k):
     out = images.enlarge(img, 256)
     assert out.shape[:2] == (shape[0] * k, shape[1] * k)
     assert np.array_equal(out[::k, ::k], img)
+
+
+def test_fit_keeps_nan_dtype_and_small_inputs():
+    from workbench.images import fit
+
+    values = np.arange(512 * 256, dtype=np.float64).reshape(512, 256)
+    values[:64] = np.nan
+    out = fit(values, 128)
+    assert out.shape == (128, 64) and out.dtype == np.float64
+    assert np.isnan(out[:16]).all() and np.isfinite(out[16:]).all()
+    assert fit(values > 10, 128).dtype == bool
+    small = np.ones((40, 30, 3), np.uint8)
+    assert fit(small, 128) is small

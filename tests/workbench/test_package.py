@@ -30,3 +30,16 @@ def test_python_dash_m():
     run = subprocess.run([sys.executable, "-m", "workbench", "synth", "triad", "--size", "x"],
                          capture_output=True, text=True)
     assert run.returncode == 2 and "Traceback" not in run.stderr
+
+
+def test_every_package_has_the_distribution_version():
+    from importlib.metadata import version
+
+    import datasets_synthetic
+    import photometric
+    import slices
+    import surfaces
+
+    expected = version("surface-workbench")
+    for package in (photometric, slices, surfaces, datasets_synthetic, workbench):
+        assert package.__version__ == expected, package.__name__

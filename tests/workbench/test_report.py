@@ -76,3 +76,12 @@ def test_figure_must_encode(tmp_path):
     with pytest.raises(ValueError):
         rep.figure(np.zeros((4, 4, 3), np.float64), "f", "c", "cmd")
     assert rep.figures == []
+
+
+def test_table_decimals_per_column(tmp_path):
+    """A column of one resolution: fixed decimals, not significant digits (0.00 beside 9.60, never -0.00)."""
+    rep = Report("t", tmp_path)
+    rep.table(["set", "mean (deg)", "difference (deg)"], [["all 14", 9.5998315, -0.0001685]], decimals={1: 2, 2: 2})
+    page = rep.write().read_text()
+    assert '<td class="num">9.60</td><td class="num">0.00</td>' in page
+    assert "0.0001685" not in page

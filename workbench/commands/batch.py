@@ -9,6 +9,8 @@ is also in ``OUT/batch_<kind>.json``; per-job figures are in ``OUT/results.csv``
 from __future__ import annotations
 
 import argparse
+import contextlib
+import logging
 import os
 import sys
 from pathlib import Path
@@ -113,6 +115,48 @@ def _options(items: list[str]) -> dict:
     return options
 
 
+def one_line_warnings() -> None:
+    """Print every Python warning of this process as one ``workbench: warning:`` line on stderr.
+
+    Run on each Dask worker of a batch (``client.run``): a library's multi-line
+    warning (a SciPy RuntimeWarning with its source line) then reads as the
+    command line's own warnings do, whichever worker process printed it.
+    """
+    import warnings
+
+    def show(message, category, filename, lineno, file=None, line=None) -> None:
+        text = str(message).strip().splitlines()
+        print(f"workbench: warning: {text[0] if text else category.__name__}", file=sys.stderr, flush=True)
+
+    warnings.showwarning = show
+
+
+@contextlib.contextmanager
+def _quiet_shutdown():
+    """Collect distributed's "Worker process still alive ..., killing" log lines instead of printing them.
+
+    A local cluster closes after every job has reported; a worker still releasing
+    memory or threads then is killed by its nanny, which logs a multi-line warning
+    that reads like a failure. The caller prints one ``workbench: warning:`` line.
+    """
+    killed: list[str] = []
+
+    class _Filter(logging.Filter):
+        def filter(self, record: logging.LogRecord) -> bool:
+            if "killing" in record.getMessage():
+                killed.append(record.getMessage())
+                return False
+            return True
+
+    logger = logging.getLogger("distributed.nanny")
+    flt = _Filter()
+    logger.addFilter(flt)
+    try:
+        yield killed
+    finally:
+        logger.removeFilter(flt)
+
+
 def _run(kind: str, args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
@@ -128,14 +172,18 @@ def _run(kind: str, args: argparse.Namespace) -> int:
     )
     dashboard, n_workers, address = None, 0, None
     if steps.to_run:
-        with batch.connect(args.scheduler, args.workers, args.threads_per_worker) as client:
+        with (_quiet_shutdown() as killed,
+              batch.connect(args.scheduler, args.workers, args.threads_per_worker) as client):
+            client.run(one_line_warnings)  # a library warning in a job: one line, as on the command line
             dashboard = batch.dashboard_link(client)
             n_workers = len(client.scheduler_info().get("workers", {}))
             address = client.scheduler.address
             print(f"scheduler {address} with {n_workers} worker(s)")
             if dashboard:
                 print(f"dashboard: {dashboard}")
-            with tqdm(total=len(steps.to_run), unit="job", file=sys.stderr, dynamic_ncols=True) as bar:
+            # miniters=1, mininterval=0: redraw at every finished job, however unevenly they finish
+            with tqdm(total=len(steps.to_run), unit="job", file=sys.stderr, dynamic_ncols=True, miniters=1,
+                      mininterval=0) as bar:
                 counts = {"ok": 0, "failed": 0}
 
                 def progress(row: dict) -> None:
@@ -149,8 +197,12 @@ def _run(kind: str, args: argparse.Namespace) -> int:
                         refresh=False,
                     )
                     bar.update(1)
+                    bar.refresh()
 
                 report = batch.run_batch(jobs, out, client, retry_failed=args.retry_failed, progress=progress)
+        if killed:
+            print(f"workbench: warning: Dask stopped {len(killed)} worker process(es) still busy at the cluster's "
+                  "shutdown (after every job had reported; no result is lost)", file=sys.stderr)
     else:
         report = batch.run_batch(jobs, out, retry_failed=args.retry_failed)
     path = batch.write_report(

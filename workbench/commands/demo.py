@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 
 from workbench.commands.common import add_command
 
@@ -11,6 +12,14 @@ def run(args: argparse.Namespace) -> int:
     """Run the demo, print a short summary (all numbers are in DIR/demo.json)."""
     from workbench.demo import run_demo
 
+    if args.figures_only is not None:
+        from workbench.demo.figures import redraw
+
+        done = redraw(args.figures_only, shared=args.shared_data)
+        print(f"redrew {len(done['redrawn'])} figures into {args.figures_only}/figures and {done['report']}")
+        for name, reason in done["skipped"].items():
+            print(f"workbench: warning: {name} not redrawn: {reason}", file=sys.stderr)
+        return 0
     summary = run_demo(args.out, quick=args.quick, shared=args.shared_data, progress=True)
     print(f"report: {summary['report']} ({len(summary['figures'])} figures, "
           f"{summary['seconds']:.0f} s); numbers in {args.out}/demo.json")
@@ -48,5 +57,8 @@ def register(subparsers) -> None:
     p.add_argument("--out", default="demo_out", help="output folder (default demo_out)")
     p.add_argument("--quick", action="store_true",
                    help="reduced sizes (the CI smoke test; well under a minute)")
+    p.add_argument("--figures-only", default=None, metavar="DIR",
+                   help="redraw every figure of the demo folder DIR from the data saved beside the PNGs "
+                   "(figures/<name>.json, .npz) and embed them in DIR/report.html again; runs no pipeline")
     p.add_argument("--shared-data", default=None,
                    help="real-data folder (default $WORKBENCH_SHARED_DATA or ../shared/data)")

@@ -99,9 +99,10 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"--crack-size: need at least 32 pixels, got {args.crack_size}")
     surface = _read_surface(args.surface) if args.surface else None
     stages = 6 + (surface is not None) + (not args.no_crack)  # the steps analyse() reports
-    with tqdm(total=stages, desc="errors", unit="stage", leave=False) as bar:
+    # delay: no bar at all before an error in the first half second
+    with tqdm(total=stages, desc="errors", unit="stage", leave=False, delay=0.5) as bar:
         def progress(label: str) -> None:
-            bar.set_postfix_str(label)
+            bar.set_postfix_str(label, refresh=False)  # update() draws it, after the delay
             bar.update(1)
 
         report = analyse(
@@ -140,5 +141,10 @@ def _summary(report: dict, out: Path, files: dict) -> None:
     for c in cs.get("cases", []):
         print(f"  crack, light 1 slant {c['deviations_deg'][0][0]:g} deg: max |dp| measured "
               f"{c['max_abs_dp_measured']:.3g} / predicted {c['max_abs_dp_predicted']:.3g}, "
-              f"depth {c['depth_mm']:.4g} mm (true {cs['true_depth_mm']:.4g})")
+              f"depth {c['depth_mm']:.4g} mm (true {cs['true_depth_mm']:.4g}; "
+              f"{c['depth_change_mm']:+.2g} mm from the deviation)")
+    if "depth_nominal_mm" in cs:
+        print(f"  crack depth with exact lights {cs['depth_nominal_mm']:.4g} mm against the true "
+              f"{cs['true_depth_mm']:.4g}: not the lights, the integration of a V only a few pixels wide rounds "
+              "its floor; that bias is in every row, the change from it is the deviation's effect")
     print(f"wrote {out / files['json']}, {out / files['markdown']} and {len(files['plots'])} plots")

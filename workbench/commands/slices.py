@@ -118,15 +118,19 @@ def register(sub) -> None:
 def _reconstruct(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
+    from slices.summary import count_noun as count
     from workbench.runs.slices import reconstruct_to_folder
 
-    with tqdm(desc="bodies", unit="body", leave=False) as bar:
+    bars = []  # opened at the first finished body: no empty bar before an error or after a run without bodies
 
-        def progress(done: int, total: int) -> None:
-            bar.total = total
-            bar.n = done
-            bar.refresh()
+    def progress(done: int, total: int) -> None:
+        if not bars:
+            bars.append(tqdm(total=total, desc="bodies", unit="body", leave=False))
+        bars[0].total = total
+        bars[0].n = done
+        bars[0].refresh()
 
+    try:
         summary = reconstruct_to_folder(
             args.input, args.out, roi=_roi_or_label(args), method=args.method, rays=args.rays, caps=args.caps,
             hu_min=args.hu_min, hu_max=args.hu_max, spacing=args.spacing, resample=args.resample,
@@ -136,9 +140,12 @@ def _reconstruct(args: argparse.Namespace) -> int:
             mask_spacing=args.mask_spacing, reference_image=args.reference_image, mask_origin=args.mask_origin,
             mask_size=args.mask_size,
         )
+    finally:
+        for bar in bars:
+            bar.close()
     ref = summary.get("reference_bspline", {})
     print(f"{summary['roi']}: {summary['n_contours']} contours on {summary['n_slices']} planes, "
-          f"{summary['n_bodies']} bodies ({summary['chaining']})")
+          f"{count(summary['n_bodies'], 'body', 'bodies')} ({summary['chaining']})")
     print(f"volume {summary['volume_mm3']:.1f} mm^3 = {summary['volume_ml']:.3f} ml "
           f"(slab {summary['slab_volume_mm3'] / 1000:.3f} ml, end planes half), area {summary['area_mm2']:.1f} mm^2, "
           f"{summary['n_patches']} patches")

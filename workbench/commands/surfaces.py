@@ -97,10 +97,15 @@ def _mesh_summary(mesh) -> dict:
 
 
 def _patch_summary(patches) -> dict:
-    from surfaces.measure import area, volume
+    import warnings
+
+    from surfaces.measure import InwardOrientationWarning, area, volume
 
     a, err = area(patches, return_error=True)
     closed = patches.closed_u and patches.closed_v
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", InwardOrientationWarning)  # the command warns once, with how to flip it
+        signed = volume(patches)
     return {
         "n_patches": patches.n_patches,
         "patch_rows": patches.shape[0],
@@ -111,7 +116,7 @@ def _patch_summary(patches) -> dict:
         "area_error_estimate": err,
         # the divergence theorem gives the enclosed volume for closed surfaces;
         # for an open one the flux is still reported, under another name
-        "volume" if closed else "flux_volume_open_surface": volume(patches),
+        "volume" if closed else "flux_volume_open_surface": signed,
     }
 
 
@@ -212,28 +217,29 @@ def _coons(args: argparse.Namespace) -> int:
 
     t0 = time.perf_counter()
     _check_coons_inputs(args)
-    with tqdm(total=5, desc="coons", unit="stage", leave=False) as bar:
-        bar.set_postfix_str("read")
+    # delay: no bar at all before an error in the first half second
+    with tqdm(total=5, desc="coons", unit="stage", leave=False, delay=0.5) as bar:
+        bar.set_postfix_str("read", refresh=False)
         grid = load_npy(args.grid, "grid")
         pu = load_npy(args.pu, "--pu") if args.pu else None
         pv = load_npy(args.pv, "--pv") if args.pv else None
         twist = args.twist if args.twist in ("zero", "fd") else load_npy(args.twist, "--twist")
         out = mesh_out(args.out)
+        bar.set_postfix_str("patches", refresh=False)
         bar.update()
-        bar.set_postfix_str("patches")
         patches = from_grid(
             grid, pu, pv, twist, closed_u=args.closed_u, closed_v=args.closed_v, chord_length=not args.uniform
         )
         del grid, pu, pv, twist
+        bar.set_postfix_str("tessellate", refresh=False)
         bar.update()
-        bar.set_postfix_str("tessellate")
         mesh = tessellate(patches, args.samples)
+        bar.set_postfix_str("measure", refresh=False)
         bar.update()
-        bar.set_postfix_str("measure")
         summary = {"input": str(args.grid), "units": UNITS, **_patch_summary(patches), **_mesh_summary(mesh)}
         summary["time_s"] = time.perf_counter() - t0
+        bar.set_postfix_str("write", refresh=False)
         bar.update()
-        bar.set_postfix_str("write")
         write_mesh(mesh, out)
         save_patches(patches, out.with_suffix(".npz"))
         inward = _orientation(summary, FLIP_GRID)

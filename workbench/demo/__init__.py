@@ -24,7 +24,10 @@ shared :class:`~workbench.demo.context.Context`:
    (:mod:`~workbench.demo.run`, which also runs the sections in order).
 
 :mod:`~workbench.demo.meshes` holds the geometry only the demo draws (the true
-height field, contour lines). A section whose real data is absent is reported
+height field, contour lines). Every figure is drawn by a registered drawer from
+data saved beside its PNG (:mod:`~workbench.demo.figures`: ``figures/<name>.json``
+and ``.npz``), so ``workbench demo --figures-only DIR`` redraws them all; the
+report's commands are relative to its folder. A section whose real data is absent is reported
 as "not available: <reason>" and listed under ``unavailable`` in the returned
 summary; any error propagates.
 """

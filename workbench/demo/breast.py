@@ -8,6 +8,7 @@ from surfaces.io import read_mesh
 from surfaces.mesh import TriangleMesh, merge_meshes
 from surfaces.render import render
 from workbench.demo.context import Context
+from workbench.demo.figures import Source, drawer
 from workbench.runs.slices import reconstruct_to_folder
 
 #: the Heart's volume (cc) by other systems, from the same contours
@@ -26,6 +27,33 @@ def roi_folder(ctx: Context, roi: str):
     return ctx.out / "ct" / roi.lower().replace(" ", "_")
 
 
+def _outline_facts(rtss, roi: str, folder) -> dict:
+    """What the caption says about a structure's shape: bodies and holes, contours cut along one x plane."""
+    import json
+
+    from slices.io import read_rtstruct
+
+    bodies = json.loads((folder / "summary.json").read_text()).get("bodies", [])
+    stack = read_rtstruct(rtss, roi)
+    x_min = min(float(c.points[:, 0].min()) for c in stack.contours)
+    # a contour with a run of >= 5 vertices within 1 mm of the structure's smallest x: a straight cut
+    straight = sum(int(np.sum(np.abs(c.points[:, 0] - x_min) < 1.0) >= 5) for c in stack.contours)
+    return {"n_outer": sum(b.get("kind") == "outer" for b in bodies),
+            "n_holes": sum(b.get("kind") == "hole" for b in bodies),
+            "straight_wall_contours": straight, "straight_wall_x_mm": x_min}
+
+
+@drawer
+def breast_view(src: Source, meshes: list, colors: list) -> np.ndarray:
+    """The structures' surfaces in their colours, front and left views."""
+    parts, rgb = [], []
+    for path, color in zip(meshes, colors):
+        m = read_mesh(src.path(path))
+        parts.append(TriangleMesh(m.vertices, m.triangles, m.vertex_normals, None))
+        rgb.append(np.broadcast_to(np.asarray(color, float), m.vertices.shape))
+    return render(merge_meshes(parts), ["front", "left"], (1000, 520), colors=np.concatenate(rgb))
+
+
 def section_breast(ctx: Context) -> None:
     """The breast structure set's Heart (and Lt Lung) against the reference volumes.
 
@@ -40,11 +68,11 @@ def section_breast(ctx: Context) -> None:
     rtss = ctx.shared / "rtstruct_breast" / "rtss.dcm"
     if not rtss.is_file():
         ctx.missing("CT: breast structure set",
-                    f"the real structure set {rtss} is absent (set WORKBENCH_SHARED_DATA)")
+                    "the real structure set rtstruct_breast/rtss.dcm is absent (set WORKBENCH_SHARED_DATA)")
         return
     rois = ["Heart"] if ctx.quick else ["Heart", "Lt Lung"]
     rays = 32 if ctx.quick else 64
-    rows, meshes, colors = [], [], []
+    rows = []
     for roi in rois:
         # default caps (trend): the whole structure, as the references count it (not between the end planes only)
         s = reconstruct_to_folder(rtss, roi_folder(ctx, roi), roi=roi, render=False,
@@ -58,21 +86,32 @@ def section_breast(ctx: Context) -> None:
         for name, ref in refs.items():
             rows.append([roi, s["n_contours"], s["volume_ml"], s["slab_volume_ml"], name, ref,
                          100 * (s["volume_ml"] / ref - 1)])
-        m = read_mesh(roi_folder(ctx, roi) / "surface.ply")
-        meshes.append(TriangleMesh(m.vertices, m.triangles, m.vertex_normals, None))
-        colors.append(np.broadcast_to(PALETTE[roi], m.vertices.shape))
+        if roi == "Lt Lung":
+            nums[roi].update(_outline_facts(rtss, roi, roi_folder(ctx, roi)))
     if ctx.quick:
         rep.note("--quick: only the Heart is reconstructed; the full run adds the Lt Lung "
                  "(165 contours on 80 planes, with holes).")
-    pic = render(merge_meshes(meshes), ["front", "left"], (1000, 520), colors=np.concatenate(colors))
-    rep.figure(pic, "ct-breast",
+    lung = ""
+    if "Lt Lung" in rois:
+        ln = nums["Lt Lung"]
+        lung = (f" The Lt Lung's horizontal ledges are the ends of its {ln['n_outer']} outer bodies and "
+                f"{ln['n_holes']} holes: where a chain of contours starts or stops between two 3 mm planes, "
+                "the surface closes it with a flat-topped cap on that contour (the default caps extrude it by the "
+                "areas' trend) and does not invent shape between the planes.")
+        if ln["straight_wall_contours"]:
+            lung += (f" Its straight vertical edge on the left of 'front' is in the contours themselves: "
+                     f"{ln['straight_wall_contours']} contours run straight along x = {ln['straight_wall_x_mm']:.1f}"
+                     " mm.")
+    ctx.figure("ct-breast", breast_view,
                "Structures of the real breast RT structure set reconstructed from their "
                f"contours: {' and '.join(rois)} (red: Heart, blue: Lt Lung; DICOM patient "
                "coordinates, x towards the patient's left, so 'front' is the anterior view "
-               "and 'left' looks from the patient's right).",
+               "and 'left' looks from the patient's right)." + lung,
                " && ".join(ctx.cmd("slices", "reconstruct", str(rtss), "--roi", roi, "--rays",
                                    str(rays), "--out", str(roi_folder(ctx, roi)))
-                           for roi in rois))
+                           for roi in rois),
+               params={"meshes": [ctx.rel(roi_folder(ctx, roi) / "surface.ply") for roi in rois],
+                       "colors": [list(PALETTE[roi]) for roi in rois]})
     rep.table(["structure", "contours", "our volume (cc, caps trend)", "our slab volume (cc, end planes half)",
                "reference", "reference volume (cc)", "difference (%)"], rows,
               caption="Volumes of the same contours beside other systems' figures. Ours: caps trend, the "

@@ -50,6 +50,9 @@ class Context:
     >>> ctx = Context(out=Path("o"), quick=True, shared=Path("s"), report=None)
     >>> ctx.cmd("slices", "reconstruct", "rtss.dcm", "--roi", "Lt Lung")
     "workbench slices reconstruct rtss.dcm --roi 'Lt Lung'"
+    >>> print(ctx.cmd("slices", "reconstruct", str(Path("s/rt ss.dcm").resolve()),
+    ...               "--out", str(Path("o/ct").resolve())))
+    workbench slices reconstruct "$WORKBENCH_SHARED_DATA"/'rt ss.dcm' --out ct
     """
 
     out: Path
@@ -67,7 +70,11 @@ class Context:
             self.bar.update(1)
 
     def cmd(self, *words: str) -> str:
-        """The shell command ``workbench <words>`` that reproduces a figure's data.
+        """The shell command ``workbench <words>`` that reproduces a figure's data, run from the report's folder.
+
+        Paths inside :attr:`out` are written relative to it, paths inside :attr:`shared`
+        as ``"$WORKBENCH_SHARED_DATA"/<path>``, so that the report holds no absolute path
+        and its commands work wherever the folder is copied.
 
         Parameters
         ----------
@@ -78,7 +85,54 @@ class Context:
         -------
         str
         """
-        return "workbench " + shlex.join(words)
+        return "workbench " + " ".join(self.shell_word(w) for w in words)
+
+    def shell_word(self, word: str) -> str:
+        """One word of a command, quoted for the shell, with a path made portable (see :meth:`cmd`)."""
+        if os.path.isabs(word):
+            path = Path(word)
+            for base, prefix in ((self.out, None), (self.shared, '"$WORKBENCH_SHARED_DATA"')):
+                try:
+                    rel = path.resolve().relative_to(Path(base).resolve())
+                except ValueError:
+                    continue
+                if prefix is None:
+                    return shlex.quote(rel.as_posix() or ".")
+                return prefix + ("/" + shlex.quote(rel.as_posix()) if rel.parts else "")
+        return shlex.quote(word)
+
+    def rel(self, path: str | os.PathLike) -> str:
+        """A path of the run as the figure data stores it: relative to :attr:`out`, or ``shared:<path>``."""
+        from workbench.demo.figures import SHARED
+
+        p = Path(path).resolve()
+        try:
+            return p.relative_to(Path(self.out).resolve()).as_posix()
+        except ValueError:
+            return SHARED + p.relative_to(Path(self.shared).resolve()).as_posix()
+
+    def figure(self, name: str, draw, caption: str, command: str, params: dict | None = None,
+               arrays: dict | None = None) -> None:
+        """Save a figure's data beside its PNG, draw it from that data and add it to the report.
+
+        Parameters
+        ----------
+        name : str
+            Figure name (``figures/<name>.png``).
+        draw : callable
+            A drawer of :mod:`workbench.demo.figures` (``draw(source, **params, **arrays)``).
+        caption, command : str
+            What the figure shows and the command that reproduces its data.
+        params : dict, optional
+            JSON keyword arguments of the drawer (paths via :meth:`rel`).
+        arrays : dict, optional
+            Array keyword arguments of the drawer.
+        """
+        from workbench.demo import figures
+
+        figures.save(self.out, name, draw, caption, command, params, arrays)
+        picture = figures.draw(figures.Source(Path(self.out), Path(self.shared)), name)
+        self.report.figure(picture, name, caption, command)
 
     def missing(self, what: str, reason: str) -> None:
         """Record that the section ``what`` could not run for ``reason`` (real data absent).

@@ -26,7 +26,10 @@ INTRO = (
     "(no precomputed results): synthetic scenes with exact ground truth, the shared real data "
     "(DiLiGenT bear, a breast RT structure set) when present, the photometric-stereo and CT "
     "pipelines, and the one Bezier surface model both converge on. Pictures are ray-cast "
-    "headless with open3d's RaycastingScene."
+    "headless with open3d's RaycastingScene. Every command below runs from this report's folder "
+    "(paths are relative to it; \"$WORKBENCH_SHARED_DATA\" is the real-data folder, ../shared/data beside "
+    "the repository by default), and `workbench demo --figures-only .` redraws every figure from the data "
+    "saved beside it in figures/ (figures/<name>.json and .npz)."
 )
 
 
@@ -48,7 +51,8 @@ def finish_report(ctx: Context, seconds: float) -> Path:
     report = ctx.report
     report.section("5. Figures and the commands that reproduce them",
                    "Each figure's data comes from the command shown; the pictures themselves are "
-                   "drawn by the demo.")
+                   "drawn by the demo from the data saved in figures/ (workbench demo --figures-only "
+                   "redraws them).")
     report.table(["figure", "file", "what it shows", "command"],
                  [[f, file, cap, f"`{cmd}`"] for f, file, cap, cmd in report.figure_index()])
     if ctx.unavailable:

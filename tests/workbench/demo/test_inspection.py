@@ -63,7 +63,7 @@ def test_section_on_a_small_plate(quick_inspection):
     assert all(d["depth_measured_mm"] is not None for d in nums["defects"])
     names = [f.file for f in ctx.report.figures]
     assert names == [f"figures/inspection-{n}.png" for n in
-                     ("truth", "images", "normals", "height", "bezier", "deviation", "bezier-net", "budget")]
+                     ("truth", "images", "normals", "height", "bezier", "deviation", "crack-profile", "budget")]
     assert all(parses(f.command) for f in ctx.report.figures)
     assert (ctx.out / "inspection" / "reconstruction" / "defects.json").is_file()
     assert not ctx.unavailable
