@@ -7,8 +7,10 @@ error), ``io`` (images and DiLiGenT-style folders), ``stereo`` (normals and albe
 distant lights), ``nearfield`` (point lights: the alternation of normals and depth),
 ``rig`` (flat-field gains, ``rig.json``), ``calibrate`` (LED positions from mirror
 spheres), ``integrate`` (height from gradients, height field to Bezier patches),
-``defects`` (crack/dent measures), ``pipeline`` (input to measured surface, no files) and
-the package ``errors`` (accuracy against deviated lights).
+``defects`` (crack/dent measures), ``options`` (:class:`~photometric.options.PhotometricOptions`,
+every default once), ``stages`` (read, solve, integrate, surface, measure, uncertainty: each
+public with a typed result), ``pipeline`` (their composition: input to measured surface, no
+files) and the package ``errors`` (accuracy against deviated lights).
 
 The names users call are importable from here (``photometric.solve``); each is loaded
 with its module on first use, so ``import photometric`` stays light. The integrator is
@@ -36,14 +38,15 @@ _HOMES = {
     "integrate": ("height_to_patches",),
     "defects": ("fit_background", "measure_defects"),
     "pipeline": ("PhotometricReconstruction", "reconstruct"),
+    "options": ("PhotometricOptions",),
 }
 _MODULE_OF = {name: module for module, names in _HOMES.items() for name in names}
 
-__all__ = [*_MODULE_OF, "errors", "integrate"]
+__all__ = [*_MODULE_OF, "errors", "integrate", "stages"]
 
 
 def __getattr__(name: str):
-    if name in _HOMES or name == "errors":
+    if name in _HOMES or name in ("errors", "stages"):
         return importlib.import_module(f"photometric.{name}")
     if name not in _MODULE_OF:
         raise AttributeError(f"module 'photometric' has no attribute {name!r}")

@@ -69,6 +69,7 @@ from photometric.camera import (
     surface_xy,
 )
 from photometric.lights import PointLights, _scaled_vectors, as_intensities, validate_lights
+from photometric.options import DARK, MAX_ITERATIONS, SATURATION, TOLERANCE_MM
 from photometric.stereo import MAX_CONDITION, _check_images, _check_options, _grey_planes, _solve
 from surfaces.validate import as_array, InputError, positive
 
@@ -85,7 +86,7 @@ __all__ = [
 ]
 
 #: Default convergence tolerance: largest height change of a pixel between passes, mm.
-DEFAULT_TOLERANCE_MM = 1e-3
+DEFAULT_TOLERANCE_MM = TOLERANCE_MM
 #: Most pixels of the coarse copy the alternation starts on.
 COARSE_PIXELS = 1 << 18
 #: Pixels per image block of a whole-image pass (fits the CPU cache with its temporaries).
@@ -328,13 +329,13 @@ def solve_nearfield(
     mask=None,
     gains=None,
     outliers: bool = False,
-    dark: float = 0.1,
-    saturation: float = 0.99,
+    dark: float = DARK,
+    saturation: float = SATURATION,
     highlight: float | None = None,
     integrator: str = "dct",
     reference_height_mm: float = 0.0,
     tolerance_mm: float = DEFAULT_TOLERANCE_MM,
-    max_iterations: int = 30,
+    max_iterations: int = MAX_ITERATIONS,
     coarse_pixels: int = COARSE_PIXELS,
     threads: int | None = None,
     setup: NearFieldSetup | None = None,

@@ -17,6 +17,7 @@ import cv2
 import numpy as np
 
 from photometric.lights import as_intensities, validate_lights
+from photometric.options import DARK, SATURATION
 from surfaces.validate import as_array, InputError
 
 #: Light sub-matrices worse conditioned than this give no trustworthy normal; a light
@@ -317,8 +318,8 @@ def solve(
     mask=None,
     outliers: bool = False,
     *,
-    dark: float = 0.1,
-    saturation: float = 0.99,
+    dark: float = DARK,
+    saturation: float = SATURATION,
     highlight: float | None = None,
     iterations: int = 2,
     on_block: Callable[[slice, StereoResult], None] | None = None,
