@@ -141,8 +141,8 @@ def reconstruct(source, options: PhotometricOptions | None = None, *, progress: 
     surf = stages.surface(inp, sol, height, opts)
     say("defects")
     found = stages.measure(inp, sol, height, opts)
-    timings = {"read": inp.seconds, "solve": sol.seconds, "integrate": height.seconds, "surface": surf.seconds,
-               "defects": found.seconds}
+    timings = {"read": inp.seconds, "solve": sol.timings_s["solve"], "integrate": height.seconds,
+               "surface": surf.seconds, "defects": found.seconds}
     unc = None
     if opts.uncertainty is not None:
         say("uncertainty")

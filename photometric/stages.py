@@ -54,9 +54,9 @@ from photometric.stereo import (
     WARN_CONDITION,
     StereoResult,
     _check_images,
+    _light_matrix,
     _solve,
     _solve_rows,
-    check_light_matrix,
     restrict,
     screen_images,
 )
@@ -165,8 +165,10 @@ class Solution:
         Mean fit residual over the valid pixels (None when ``residual=False``).
     angular_errors_deg : numpy.ndarray or None, shape (M,)
         Angular error against the folder's ``normal_gt`` over the mask, degrees.
-    seconds : float
-        Wall time of the solve (near field: without its integrations).
+    timings_s : dict
+        Wall seconds: ``screen`` (images and light matrix), ``solve`` (the normals; near
+        field without its integrations), ``integrate`` (near field: its integrations) and
+        ``total`` (the stage).
     """
 
     fit: StereoResult | NearFieldResult
@@ -176,7 +178,7 @@ class Solution:
     warnings: list
     mean_residual: float | None
     angular_errors_deg: np.ndarray | None = None
-    seconds: float = 0.0
+    timings_s: dict | None = None
 
 
 @dataclass(frozen=True)
@@ -244,7 +246,19 @@ class Defects:
 
 
 def _lights(lights) -> np.ndarray:
+    if isinstance(lights, _Checked):
+        return lights.directions
     return load_lights(lights) if isinstance(lights, (str, Path)) else validate_lights(lights)
+
+
+@dataclass(frozen=True)
+class _Checked:
+    """Unit light directions checked already (towards LEDs that :func:`point_lights` or the rig checked)."""
+
+    directions: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.directions)
 
 
 def _intensities(intensities, n: int) -> np.ndarray:
@@ -603,9 +617,9 @@ def read(source, options: PhotometricOptions | None = None, *, lights=None, inte
         # point lights give the far-field directions (from the origin to each LED)
         if light_positions is not None:
             pos = load_light_positions(light_positions) if isinstance(light_positions, (str, Path)) else light_positions
-            lights, name = point_lights(pos).directions, "light_positions"
+            lights, name = _Checked(point_lights(pos).directions), "light_positions"
         elif rig_obj is not None:
-            lights, name = rig_obj.lights.directions, "rig"
+            lights, name = _Checked(rig_obj.lights.directions), "rig"
         if lights is not None and isinstance(source, (Sequence, np.ndarray)) and not isinstance(source, str) \
                 and len(source) != len(lights):
             raise InputError(f"{name}: {len(lights)} LEDs for {len(source)} images")
@@ -702,10 +716,11 @@ def solve(inp: PhotometricInput, options: PhotometricOptions | None = None, *,
         if near is None:
             data = data.subset(screen.usable)
     directions = data.lights if near is None or near.model == "directional" else near.lights.directions
-    cond, light_notes = check_light_matrix(directions, opts.force)
+    cond, light_notes = _light_matrix(directions, opts.force)  # the lights were checked by read
     notes += light_notes
     for note in notes:
         warnings.warn(note, UserWarning, stacklevel=3)
+    timings = {"screen": time.perf_counter() - t0}
     sinks = None
     if out is not None:
         channels = data.images.shape[3] if data.images.ndim == 4 else 1
@@ -727,12 +742,12 @@ def solve(inp: PhotometricInput, options: PhotometricOptions | None = None, *,
         else:
             fit = _solve(data.images, data.lights, data.intensities, data.mask, *args)
         fit = restrict(fit, screen.enough)
-        seconds = time.perf_counter() - t0
+        timings["solve"] = time.perf_counter() - t0 - timings["screen"]
     else:
         base = {"input": inp.info, "images": list(data.names), "size": inp.size}
         fit = _nearfield(replace(data, mask=data.mask & screen.enough), near, opts, base, threads=threads,
                          setup=setup, residual=residual)
-        seconds = fit.timings_s["solve"]
+        timings.update(solve=fit.timings_s["solve"], integrate=fit.timings_s["integrate"])
     del screen
     mean_residual = None
     if fit.residual is not None:
@@ -747,7 +762,8 @@ def solve(inp: PhotometricInput, options: PhotometricOptions | None = None, *,
         errors = np.concatenate(gt_errors) if gt_errors else None
         if errors is None and fit.normals is not None:
             errors = angular_error_deg(fit.normals, data.normal_gt)[data.mask]
-    return Solution(fit, data, float(cond), np.asarray(directions), notes, mean_residual, errors, seconds)
+    timings["total"] = time.perf_counter() - t0
+    return Solution(fit, data, float(cond), np.asarray(directions), notes, mean_residual, errors, timings)
 
 
 def integrate(inp: PhotometricInput, sol: Solution, options: PhotometricOptions | None = None) -> Height:

@@ -211,7 +211,11 @@ def check_light_matrix(lights, force: bool = False) -> tuple[float, list[str]]:
         :data:`MAX_CONDITION` (nearly coplanar lights: the error of ``rho n`` is that
         many times the image noise) unless ``force``.
     """
-    L = validate_lights(lights)
+    return _light_matrix(validate_lights(lights), force)
+
+
+def _light_matrix(L: np.ndarray, force: bool = False) -> tuple[float, list[str]]:
+    """:func:`check_light_matrix` of unit lights already checked (the pipeline's stages)."""
     back = np.flatnonzero(L[:, 2] < 0)
     if back.size:
         raise InputError(

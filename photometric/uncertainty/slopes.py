@@ -270,7 +270,9 @@ def _point_fields(model: PointLightModel, albedo, p, q, ok, z, sigma, tol, chann
     ``G |P - X0|^2``); noise: ``Cov(m) = sum_k w_k c_k c_k^T``,
     ``w_k = sigma^2 / (channels * plane_scale_k^2)``.
     """
-    from photometric.lights import _scaled_vectors, point_lights
+    from dataclasses import replace
+
+    from photometric.lights import _scaled_vectors
     from photometric.nearfield import _strengths
 
     lights = model.lights
@@ -280,7 +282,7 @@ def _point_fields(model: PointLightModel, albedo, p, q, ok, z, sigma, tol, chann
     def strength(k, position):
         moved = lights.positions.copy()
         moved[k] = position
-        one = point_lights(moved, lights.axes, lights.mu if lights.mu_known else None)
+        one = replace(lights, positions=moved)  # one LED moved by a small step: nothing new to check
         return _strengths(one, model.camera, shape, model.gains, ones)[k]
     n = len(lights)
     x = model.xy[..., 0].astype(np.float64)
