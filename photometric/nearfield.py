@@ -3,7 +3,7 @@
 Model
 -----
 An LED ``k`` at ``P_k`` lights the surface point ``X`` that a pixel sees with the scaled
-light vector ``s_k(X) = E_k(X) l_k(X)`` of :func:`photometric.lights.light_field`
+light vector ``s_k(X) = E_k(X) l_k(X)`` of :func:`photometric.leds.light_field`
 (inverse-square falloff, LED lobe ``cos^mu``), so a Lambertian pixel reads
 ``I_k = albedo * max(0, s_k(X) . n)`` (Mecca et al., "Near field photometric stereo with
 point light sources", SIAM J. Imaging Sci. 2014; Queau et al., "LED-based photometric
@@ -68,7 +68,8 @@ from photometric.camera import (
     plane_points,
     surface_xy,
 )
-from photometric.lights import PointLights, _scaled_vectors, as_intensities, validate_lights
+from photometric.leds import PointLights, _scaled_vectors
+from photometric.lights import as_intensities, validate_lights
 from photometric.options import DARK, MAX_ITERATIONS, SATURATION, TOLERANCE_MM
 from photometric.stereo import MAX_CONDITION, _check_images, _check_options, _grey_planes, _solve
 from surfaces.validate import as_array, InputError, positive
@@ -253,7 +254,7 @@ def nearfield_setup(lights: PointLights, camera, shape, gains=None, *,
     Parameters
     ----------
     lights : PointLights
-        LEDs (:func:`photometric.lights.point_lights`).
+        LEDs (:func:`photometric.leds.point_lights`).
     camera : Orthographic or Perspective
     shape : (H, W)
         Image size, pixels.
@@ -277,7 +278,7 @@ def nearfield_setup(lights: PointLights, camera, shape, gains=None, *,
     ((64, 64), [4], (16, 16))
     """
     if not isinstance(lights, PointLights):
-        raise InputError(f"lights: expected PointLights (photometric.lights.point_lights), got {type(lights).__name__}")
+        raise InputError(f"lights: expected PointLights (photometric.leds.point_lights), got {type(lights).__name__}")
     camera = _check_camera(camera)
     if len(shape) != 2 or min(int(shape[0]), int(shape[1])) < 1:
         raise InputError(f"shape: expected (H, W) with H, W >= 1, got {shape}")
@@ -350,7 +351,7 @@ def solve_nearfield(
         Linear images; colour in RGB order (one normal from the channel mean, albedo per
         channel).
     lights : PointLights or array_like, shape (N, 3)
-        LEDs (:func:`photometric.lights.point_lights`), or unit directions of distant
+        LEDs (:func:`photometric.leds.point_lights`), or unit directions of distant
         lights (then one solve and one integration, no alternation).
     camera : Orthographic or Perspective
         :func:`photometric.camera.make_camera`.
@@ -904,7 +905,7 @@ def _block(level: _Level, lights: PointLights, camera: Camera, z: np.ndarray, op
     """Light vectors, normal equations and the closed-form 3 x 3 solve for rows ``r0:r1``.
 
     The light vectors stay one (h, w) plane per light and component as
-    :func:`photometric.lights._scaled_vectors` returns them (an ``(N, 3, h, w)`` array only in
+    :func:`photometric.leds._scaled_vectors` returns them (an ``(N, 3, h, w)`` array only in
     the outlier mode, which indexes them by pixel), and the normals, albedo and validity are
     written straight into ``out``: every pass over the block is arithmetic.
     """

@@ -6,7 +6,7 @@ their uncertainty; it is checked once, when it is made, and the stages
 reconstruct``, ``workbench inspect run|watch``, batch manifests) reads its defaults from
 here. :data:`READ_KEYWORDS` are the other keywords of
 :func:`photometric.pipeline.reconstruct`: what the input is (lights, mask, LED positions,
-camera, rig), read by :func:`photometric.pipeline.read`.
+camera, rig), read by :func:`photometric.stages.read`.
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ import numpy as np
 from surfaces.validate import InputError, positive
 
 __all__ = ["PhotometricOptions", "READ_KEYWORDS", "SURFACES", "LIGHT_MODELS", "BACKGROUNDS", "DARK", "SATURATION",
-           "TOLERANCE_MM", "MAX_ITERATIONS", "photometric_options", "split_keywords"]
+           "TOLERANCE_MM", "MAX_ITERATIONS", "U_NAMES", "photometric_options", "split_keywords"]
 
 # The numbers are held here, where nothing heavy is imported (the command line reads them at start-up);
 # the solvers' own keyword defaults are these names (photometric.stereo, photometric.nearfield).
@@ -38,7 +38,11 @@ SURFACES = ("fit", "coons")
 LIGHT_MODELS = ("auto", "point", "directional")
 #: Backgrounds removed before the defects are measured (:func:`photometric.defects.fit_background`).
 BACKGROUNDS = ("plane", "smooth")
-#: Keywords of :func:`photometric.pipeline.read` (the input), beside the options.
+#: Names of the input standard uncertainties that say ``u`` (a ``tolerance`` is a limit): accepted in an
+#: ``uncertainty`` dict beside the older :class:`photometric.uncertainty.Tolerances` field names they map to.
+U_NAMES = {"light_u_deg": "light_tolerance_deg", "light_position_u_mm": "light_position_tolerance_mm",
+           "intensity_u": "intensity_tolerance", "pixel_size_u": "pixel_size_tolerance"}
+#: Keywords of :func:`photometric.stages.read` (the input), beside the options.
 READ_KEYWORDS = ("lights", "intensities", "mask", "select", "pixel_size", "light_positions", "led_mu",
                  "flat_field", "flat_albedo", "camera", "focal_length_px", "camera_height_mm",
                  "principal_point_px", "rig")
@@ -113,7 +117,8 @@ class PhotometricOptions:
         Background removed before measuring defects.
     uncertainty : photometric.uncertainty.Tolerances or None
         Input standard uncertainties and the method (:mod:`photometric.uncertainty`); a
-        dict is turned into ``Tolerances``. None: no uncertainty stage.
+        dict is turned into ``Tolerances`` and may use the ``u`` names of :data:`U_NAMES`
+        (``light_u_deg`` for ``light_tolerance_deg``, ...). None: no uncertainty stage.
 
     Examples
     --------
@@ -166,7 +171,10 @@ class PhotometricOptions:
             object.__setattr__(self, "surface_tolerance", positive(self.surface_tolerance, "surface_tolerance"))
         unc = self.uncertainty
         if isinstance(unc, dict):
-            object.__setattr__(self, "uncertainty", Tolerances(**unc))
+            both = sorted(k for k in unc if k in U_NAMES and U_NAMES[k] in unc)
+            if both:
+                raise InputError(f"uncertainty: {both[0]} and {U_NAMES[both[0]]} name the same standard uncertainty")
+            object.__setattr__(self, "uncertainty", Tolerances(**{U_NAMES.get(k, k): v for k, v in unc.items()}))
         elif unc is not None and not isinstance(unc, Tolerances):
             raise InputError(f"uncertainty: expected Tolerances, a dict or None, got {type(unc).__name__}")
 

@@ -36,15 +36,9 @@ import numpy as np
 
 from photometric.camera import Camera, Orthographic, Perspective, make_camera
 from photometric.io import PhotometricData, full_scale_of, read_folder, read_images, read_mask
-from photometric.lights import (
-    PointLights,
-    as_intensities,
-    load_intensities,
-    load_light_positions,
-    load_lights,
-    point_lights,
-    validate_lights,
-)
+from photometric.io import load_intensities, load_light_positions, load_lights
+from photometric.leds import PointLights, point_lights
+from photometric.lights import as_intensities, validate_lights
 from photometric.nearfield import COARSE_PIXELS, NearFieldResult, NotConvergedError, _check_setup, _solve_nearfield
 from photometric.options import PhotometricOptions
 from photometric.rig import FLAT_SMOOTHING_PX, Rig, check_rig, flat_field_gains, read_rig
@@ -80,7 +74,7 @@ class LightSetup:
     ----------
     model : {"point", "directional"}
         Point lights (LED positions) or distant lights seen by a perspective camera.
-    lights : photometric.lights.PointLights or numpy.ndarray, shape (N, 3)
+    lights : photometric.leds.PointLights or numpy.ndarray, shape (N, 3)
         The LEDs, or the unit directions.
     camera : photometric.camera.Orthographic or Perspective
     camera_source : str

@@ -234,7 +234,7 @@ class PointLightModel:
 
     Attributes
     ----------
-    lights : photometric.lights.PointLights
+    lights : photometric.leds.PointLights
         Nominal LED positions, axes and lobe exponents.
     camera : photometric.camera.Orthographic or Perspective
         The camera (the flat field's reference-plane points).
@@ -272,7 +272,7 @@ def _point_fields(model: PointLightModel, albedo, p, q, ok, z, sigma, tol, chann
     """
     from dataclasses import replace
 
-    from photometric.lights import _scaled_vectors
+    from photometric.leds import _scaled_vectors
     from photometric.nearfield import _strengths
 
     lights = model.lights

@@ -12,7 +12,7 @@ import photometric
 
 
 MODULES = ("lights", "normals", "io", "stereo", "integrate", "defects", "pipeline", "camera", "nearfield", "rig",
-           "calibrate", "options")
+           "calibrate", "options", "leds")
 
 
 @pytest.mark.parametrize("name", sorted(photometric.__all__))

@@ -36,6 +36,17 @@ def test_options_take_a_tolerance_dict_and_keywords_split():
         photometric_options(mask=None)
 
 
+def test_uncertainty_dict_takes_the_u_names():
+    """``u`` names a standard uncertainty; the older ``tolerance`` names stay working."""
+    new = PhotometricOptions(uncertainty={"light_u_deg": 0.3, "light_position_u_mm": 0.2, "intensity_u": 0.01,
+                                          "pixel_size_u": 0.002})
+    old = PhotometricOptions(uncertainty={"light_tolerance_deg": 0.3, "light_position_tolerance_mm": 0.2,
+                                          "intensity_tolerance": 0.01, "pixel_size_tolerance": 0.002})
+    assert new.uncertainty == old.uncertainty and new.uncertainty.light_tolerance_deg == 0.3
+    with pytest.raises(InputError, match="light_u_deg and light_tolerance_deg"):
+        PhotometricOptions(uncertainty={"light_u_deg": 0.3, "light_tolerance_deg": 0.3})
+
+
 def test_reconstruct_is_the_composition_of_the_stages_in_at_most_60_lines():
     assert len(inspect.getsource(reconstruct).splitlines()) <= 60
     params = inspect.signature(reconstruct).parameters

@@ -486,3 +486,18 @@ def test_cli_defaults_are_the_options_defaults():
         checked += 1
     assert checked >= 13  # integrator ... background: every option has its flag
     assert args.tolerance is None and defaults.tolerance_mm == 1e-3
+
+
+def test_cli_u_flags_and_their_tolerance_aliases():
+    """``--light-u-deg`` (a standard uncertainty says u) and the older ``--light-tolerance-deg`` are one option."""
+    from workbench.cli import build_parser
+
+    parser = build_parser()
+    base = ["photometric", "reconstruct", "folder"]
+    pairs = [("--light-u-deg", "--light-tolerance-deg", "light_tolerance_deg"),
+             ("--light-position-u-mm", "--light-position-tolerance-mm", "light_position_tolerance_mm"),
+             ("--intensity-u", "--intensity-tolerance", "intensity_tolerance"),
+             ("--pixel-size-u", "--pixel-size-tolerance", "pixel_size_tolerance")]
+    for new, old, dest in pairs:
+        assert getattr(parser.parse_args([*base, new, "0.25"]), dest) == 0.25
+        assert getattr(parser.parse_args([*base, old, "0.25"]), dest) == 0.25

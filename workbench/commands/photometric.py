@@ -79,14 +79,17 @@ def add_uncertainty_options(p: argparse.ArgumentParser, note: str = UNCERTAINTY_
     g.add_argument("--noise-sigma", type=float, default=None, metavar="S",
                    help="image noise, standard deviation in full-scale units 0-1 (default: estimated from the "
                    "residuals with 4 or more lights, none with a triad)")
-    g.add_argument("--light-tolerance-deg", type=float, default=None, metavar="DEG",
-                   help="standard uncertainty of each light's direction, degrees (isotropic: each tangent axis)")
-    g.add_argument("--light-position-tolerance-mm", type=float, default=None, metavar="MM",
-                   help="standard uncertainty of each LED coordinate, mm (near-field rigs)")
-    g.add_argument("--intensity-tolerance", type=float, default=None, metavar="R",
-                   help="relative standard uncertainty of each light's intensity")
-    g.add_argument("--pixel-size-tolerance", type=float, default=None, metavar="R",
-                   help="relative standard uncertainty of the pixel size")
+    # "u" names a standard uncertainty, "tolerance" a limit; the older "-tolerance" flags stay as aliases
+    g.add_argument("--light-u-deg", "--light-tolerance-deg", dest="light_tolerance_deg", type=float, default=None,
+                   metavar="DEG",
+                   help="standard uncertainty u of each light's direction, degrees (isotropic: each tangent axis)")
+    g.add_argument("--light-position-u-mm", "--light-position-tolerance-mm", dest="light_position_tolerance_mm",
+                   type=float, default=None, metavar="MM",
+                   help="standard uncertainty u of each LED coordinate, mm (near-field rigs)")
+    g.add_argument("--intensity-u", "--intensity-tolerance", dest="intensity_tolerance", type=float, default=None,
+                   metavar="R", help="relative standard uncertainty u of each light's intensity")
+    g.add_argument("--pixel-size-u", "--pixel-size-tolerance", dest="pixel_size_tolerance", type=float,
+                   default=None, metavar="R", help="relative standard uncertainty u of the pixel size")
     g.add_argument("--uncertainty", default=None, choices=("linear", "montecarlo"),
                    help=method_help or "propagation: linear (default; closed form) or montecarlo (repeat the "
                    "fast solve with perturbed inputs)")
@@ -109,9 +112,10 @@ def _uncertainty_options(args: argparse.Namespace):
     }
     if all(v is None for v in given.values()):
         return None
-    names = {"noise_sigma": "--noise-sigma", "light_tolerance_deg": "--light-tolerance-deg",
-             "light_position_tolerance_mm": "--light-position-tolerance-mm",
-             "intensity_tolerance": "--intensity-tolerance", "pixel_size_tolerance": "--pixel-size-tolerance"}
+    names = {"noise_sigma": "--noise-sigma", "light_tolerance_deg": "--light-u-deg (--light-tolerance-deg)",
+             "light_position_tolerance_mm": "--light-position-u-mm (--light-position-tolerance-mm)",
+             "intensity_tolerance": "--intensity-u (--intensity-tolerance)",
+             "pixel_size_tolerance": "--pixel-size-u (--pixel-size-tolerance)"}
     for key, flag in names.items():
         if given[key] is not None and not given[key] >= 0:
             raise InputError(f"{flag}: must be a non-negative standard uncertainty, got {given[key]}")
