@@ -270,7 +270,7 @@ def nearfield_setup(lights: PointLights, camera, shape, gains=None, *,
     Examples
     --------
     >>> from photometric.camera import make_camera
-    >>> from photometric.lights import point_lights
+    >>> from photometric.leds import point_lights
     >>> lights = point_lights([[100.0, 0, 150], [-50, 87, 150], [-50, -87, 150]])
     >>> cam = make_camera("orthographic", pixel_size_mm=0.5)
     >>> s = nearfield_setup(lights, cam, (64, 64), np.ones((3, 64, 64), np.float32), coarse_pixels=256)
@@ -410,7 +410,7 @@ def solve_nearfield(
     A plate lit by three LEDs 150 mm away, seen by a 0.5 mm-pixel telecentric camera:
 
     >>> from photometric.camera import make_camera
-    >>> from photometric.lights import light_field, point_lights
+    >>> from photometric.leds import light_field, point_lights
     >>> lights = point_lights(150 * np.array([[0.7071, 0, 0.7071], [-0.3536, 0.6124, 0.7071],
     ...                                       [-0.3536, -0.6124, 0.7071]]))
     >>> cam = make_camera("orthographic", pixel_size_mm=0.5)

@@ -114,7 +114,7 @@ def flat_field_gains(flat_images, lights: PointLights, camera: Camera, albedo: f
     under the LED.
 
     >>> from photometric.camera import make_camera
-    >>> from photometric.lights import light_field, point_lights
+    >>> from photometric.leds import light_field, point_lights
     >>> lights = point_lights([[0, 0, 100], [100, 0, 100], [0, 100, 100]])
     >>> cam = make_camera("orthographic", pixel_size_mm=1.0)
     >>> flat = 0.5 * light_field(lights, plane_points(cam, (5, 5)))[..., 2]
