@@ -280,10 +280,10 @@ def _point_fields(model: PointLightModel, albedo, p, q, ok, z, sigma, tol, chann
     ones = np.ones((len(lights), 3))
 
     def strength(k, position):
-        moved = lights.positions.copy()
-        moved[k] = position
-        one = replace(lights, positions=moved)  # one LED moved by a small step: nothing new to check
-        return _strengths(one, model.camera, shape, model.gains, ones)[k]
+        # light k alone, moved by a small step (nothing new to check): its strength map, not every light's
+        one = replace(lights.subset([k]), positions=np.asarray(position, float)[None])
+        gains = None if model.gains is None else model.gains[k:k + 1]
+        return _strengths(one, model.camera, shape, gains, ones[k:k + 1])[0]
     n = len(lights)
     x = model.xy[..., 0].astype(np.float64)
     y = model.xy[..., 1].astype(np.float64)
