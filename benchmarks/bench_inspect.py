@@ -86,6 +86,11 @@ def lot_section(root: Path, client, n: int, size: int) -> list:
         run = run_inspection(root / "parts", rig, _spec(root, rule), root / f"out_{rule}", client=client,
                              options=options)
         outcome[rule] = run
+    # the same guard_band lot through photometric.pipeline.reconstruct (the route before the stages: a
+    # pipeline-only option sends a part there), to compare every verdict and U
+    before = run_inspection(root / "parts", rig, _spec(root, "guard_band"), root / "out_before", client=client,
+                            options={"uncertainty": UNCERTAINTY, **BEFORE})
+    same_verdicts, same_u = _compare(root / "out_guard_band", root / "out_before", [p["id"] for p in truth["parts"]])
     classes = ["clean", "under (0.3-0.6 x limit)", "borderline (0.93-1.07 x limit)", "over (1.5-2.2 x limit)"]
     rows, errors, checks = [], [], {"clean pass": [0, 0], "over by > 2U fail": [0, 0],
                                     "under by > 2U pass": [0, 0], "within U of the limit uncertain": [0, 0]}
@@ -136,10 +141,38 @@ def lot_section(root: Path, client, n: int, size: int) -> list:
         "measurement stated U): "
         + "; ".join(f"{k}: {ok} of {total}" for k, (total, ok) in checks.items()) + ".",
     ]
+    parts.append(f"guard_band through the stages (no surface) and through `reconstruct` (the route before, "
+                 f"{before.batch.wall_s:.1f} s against {outcome['guard_band'].batch.wall_s:.1f} s on the cluster): "
+                 f"same verdict for {same_verdicts} of {n} parts, same imperfections and U (rel. 1e-6) for {same_u} "
+                 f"of {n}.")
     if failed_reasons:
         parts.append("guard_band parts not measured: " + "; ".join(failed_reasons) + " (guard_band never "
                      "invents a U: without the stated uncertainty of a near-field solve it refuses).")
     return parts
+
+
+#: options that send a part through photometric.pipeline.reconstruct, as every guard_band part went before the
+#: stages (a coarse Coons surface and mesh that nothing in result.json uses, the rig's strengths from its gains
+#: each part)
+BEFORE = {"surface": "coons"}
+
+
+def _compare(a: Path, b: Path, ids: list) -> tuple[int, int]:
+    """Parts with the same verdict, and with the same imperfections (values exact, U to rel. 1e-6)."""
+    verdicts = same = 0
+    for pid in ids:
+        ra, rb = (json.loads((root / pid / "result.json").read_text()) for root in (a, b))
+        verdicts += ra["verdict"] == rb["verdict"]
+        ia, ib = ra["imperfections"], rb["imperfections"]
+        ok = len(ia) == len(ib)
+        for x, y in zip(ia, ib):
+            for key, value in x["values"].items():
+                other = y["values"][key]
+                ok &= value["value"] == other["value"] and (value["U"] == other["U"] or (
+                    value["U"] is not None and other["U"] is not None
+                    and abs(value["U"] - other["U"]) <= 1e-6 * abs(other["U"])))
+        same += ok
+    return verdicts, same
 
 
 def _tiff_copies(parts: list, root: Path) -> list:
@@ -194,6 +227,12 @@ def throughput_section(root: Path, client, n_parts: int, workers: int) -> list:
     run_tif = run_inspection(timed_tif, rig, spec, root / "out_tif", client=client)
     same = all(json.loads((root / "out" / pid / "result.json").read_text())["imperfections"]
                == json.loads((root / "out_tif" / pid / "result.json").read_text())["imperfections"] for pid, _ in timed)
+    guard = _spec(root, "guard_band")
+    run_guard = run_inspection(timed, rig, guard, root / "out_guard", client=client,
+                               options={"uncertainty": UNCERTAINTY})
+    run_before = run_inspection(timed, rig, guard, root / "out_before", client=client,
+                                options={"uncertainty": UNCERTAINTY, **BEFORE})
+    guard_same = _compare(root / "out_guard", root / "out_before", [pid for pid, _ in timed])
     rate, rate_tif = run.parts_per_second, run_tif.parts_per_second
     mean, mean_tif = _stage_means(root / "out", timed), _stage_means(root / "out_tif", timed)
     # the same parts through `workbench photometric reconstruct`, one process per part, one after another
@@ -232,6 +271,39 @@ def throughput_section(root: Path, client, n_parts: int, workers: int) -> list:
         "the inspection composes the library stages itself: read, screening, the near-field solve with the rig's "
         "strengths prepared once per worker, the defect measures; no surface model or mesh):",
         Table(["stage", "PNG s", "TIFF s", "% (PNG)"], rows, "lrrr"),
+        *_guard_section(root, timed, run_guard, run_before, guard_same),
+    ]
+
+
+def _part_means(out: Path, timed: list) -> dict:
+    """Mean wall seconds of the measurement and of the part, and CPU seconds, over the parts' result.json."""
+    keys = {"measurement (read to U)": "reconstruct", "one part (inside its worker)": "total",
+            "CPU s of one part (its worker process)": "cpu"}
+    t = [json.loads((out / pid / "result.json").read_text())["timings_s"] for pid, _ in timed]
+    means = {name: sum(x[key] for x in t) / len(t) for name, key in keys.items()}
+    means["of which uncertainty"] = sum(x["stages"].get("uncertainty", 0.0) for x in t) / len(t)
+    means["of which surface model and mesh"] = sum(x["stages"].get("surface", 0.0) for x in t) / len(t)
+    return means
+
+
+def _guard_section(root: Path, timed: list, run_guard, run_before, same: tuple) -> list:
+    new, old = _part_means(root / "out_guard", timed), _part_means(root / "out_before", timed)
+    rows = [[k, f"{old[k]:.2f}", f"{new[k]:.2f}", f"{old[k] / new[k]:.2f}" if new[k] > 0 else ""] for k in new]
+    rows.append(["parts/s, 2 workers (wall)", f"{run_before.parts_per_second:.3f}",
+                 f"{run_guard.parts_per_second:.3f}",
+                 f"{run_guard.parts_per_second / run_before.parts_per_second:.2f}"])
+    cpu = "CPU s of one part (its worker process)"
+    return [
+        "### guard_band: the stages against the route before",
+        f"The same {len(timed)} PNG parts under `guard_band` with U from {UNCERTAINTY}: through the part's "
+        "stages (read, solve with the rig's strengths prepared once per worker, integrate, measure, uncertainty; "
+        "no surface) and through `photometric.pipeline.reconstruct`, the route every part with an uncertainty "
+        "took before (a coarse Coons surface and mesh that nothing in result.json uses, the rig's strengths "
+        f"from its gains each part), in the same run. Same verdict for {same[0]} of {len(timed)} parts, same "
+        f"imperfections and U for {same[1]} of {len(timed)}.",
+        Table(["per part (mean)", "before s", "stages s", "before / stages"], rows, "lrrr"),
+        f"CPU per guard_band part: {old[cpu]:.2f} s before, {new[cpu]:.2f} s with the stages: "
+        f"**{100 * (1 - new[cpu] / old[cpu]):.0f} % less** (target: at least 10 %).",
     ]
 
 

@@ -46,7 +46,7 @@ from datasets_synthetic.spheres import make_sphere_folders  # noqa: E402
 from photometric.calibrate import calibrate_rig  # noqa: E402
 from photometric.camera import make_camera  # noqa: E402
 from photometric.integrate import integrate  # noqa: E402
-from photometric.lights import point_lights  # noqa: E402
+from photometric.leds import point_lights  # noqa: E402
 from photometric.nearfield import solve_nearfield  # noqa: E402
 from photometric.pipeline import reconstruct  # noqa: E402
 from photometric.stereo import solve  # noqa: E402

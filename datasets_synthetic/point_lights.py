@@ -11,62 +11,24 @@ The light model of the shared near-field format contract. Light ``k`` sits at
 so an LED aimed at the origin delivers ``e_k`` there. A light at slant ``s``,
 azimuth ``a`` and distance ``D`` from the origin sits at
 ``P = D (sin s cos a, sin s sin a, cos s)``; the directions come from
-:mod:`photometric.lights` (the one home of light geometry).
+:mod:`photometric.lights` (the one home of light geometry) and the lights are
+:class:`photometric.leds.PointLights` (the one class; here with their intensities ``e_k``).
+The renderer's factory :func:`point_lights` takes any number of lights (a solve needs 3).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 from datasets_synthetic.render import _deviations
+from photometric.leds import PointLights
 from photometric.lights import deviate_lights, ring_lights
 from surfaces.validate import as_array, InputError, positive
 
 
-@dataclass(frozen=True)
-class PointLights:
-    """N point lights (see the module docstring).
-
-    Attributes
-    ----------
-    positions : (N, 3) float64 array
-        LED positions ``P_k`` in mm, all above the reference plane.
-    axes : (N, 3) float64 array
-        Unit LED axes ``a_k`` (from the LED into the scene).
-    mu : (N,) float64 array
-        Lobe exponents (0: isotropic).
-    intensities : (N,) or (N, 3) float64 array
-        Intensities ``e_k`` (grey or RGB).
-    """
-
-    positions: np.ndarray
-    axes: np.ndarray
-    mu: np.ndarray
-    intensities: np.ndarray
-
-    def __len__(self) -> int:
-        return len(self.positions)
-
-    @property
-    def d0(self) -> np.ndarray:
-        """(N,) reference distances ``|P_k|`` in mm."""
-        return np.linalg.norm(self.positions, axis=1)
-
-    @property
-    def directions(self) -> np.ndarray:
-        """(N, 3) unit directions from the origin to each LED (``light_directions.txt``)."""
-        return self.positions / self.d0[:, None]
-
-    def as_dict(self) -> dict:
-        """The lights as the format contract writes them in ``scene.json``."""
-        return {"model": "point", "positions_mm": self.positions.tolist(), "axes": self.axes.tolist(),
-                "mu": self.mu.tolist(), "intensities": self.intensities.tolist(), "d0_mm": self.d0.tolist()}
-
-
 def point_lights(positions, axes=None, mu=0.0, intensities=None) -> PointLights:
-    """Check and assemble point lights.
+    """Check and assemble the point lights of a rendered rig (:class:`photometric.leds.PointLights`,
+    the one class of the workbench, with their intensities).
 
     Parameters
     ----------
@@ -121,7 +83,7 @@ def point_lights(positions, axes=None, mu=0.0, intensities=None) -> PointLights:
     if e.shape not in ((n,), (n, 3)) or np.any(e <= 0):
         raise InputError(f"intensities: expected positive values, one or one RGB triple per light ({n}), "
                          f"got shape {e.shape}")
-    return PointLights(pos, ax, m, e)
+    return PointLights(pos, ax, m, True, e)
 
 
 def ring_point_lights(n: int, slant_deg: float, distance_mm: float, azimuth0_deg: float = 90.0, mu=0.0,

@@ -1,4 +1,5 @@
-"""LED positions from images of mirror spheres (near-field rig calibration).
+"""LED positions from images of mirror spheres (near-field rig calibration), and distant
+light directions from one mirror sphere (:func:`calibrate_mirror_sphere`).
 
 A calibration set is one image per LED of a polished sphere of known radius ``R`` and
 centre ``c`` (``sphere.json``, rig frame, mm), or of a sphere found by its outline and
@@ -34,7 +35,7 @@ from photometric.camera import Camera, Orthographic, Perspective, camera_from_di
 from surfaces.validate import as_array, InputError, positive, reads_file
 
 __all__ = ["SphereImages", "read_sphere_set", "sphere_from_outline", "highlight_centroids", "reflected_rays",
-           "nearest_point", "calibrate_positions", "calibrate_rig"]
+           "nearest_point", "calibrate_positions", "calibrate_rig", "sphere_from_mask", "calibrate_mirror_sphere"]
 
 #: Half width (pixels) of the window around the highlight peak.
 WINDOW_PX = 4
@@ -506,8 +507,9 @@ def calibrate_rig(*, spheres=None, light_positions=None, camera: Camera | None =
     -------
     photometric.rig.Rig
     """
-    from photometric.io import read_images
-    from photometric.lights import as_intensities, load_intensities, load_light_positions, point_lights
+    from photometric.io import load_intensities, load_light_positions, read_images
+    from photometric.leds import point_lights
+    from photometric.lights import as_intensities
     from photometric.rig import FLAT_SMOOTHING_PX, Rig, flat_field_gains
     from photometric.stereo import _check_images
 
@@ -559,3 +561,89 @@ def calibrate_rig(*, spheres=None, light_positions=None, camera: Camera | None =
         intens = load_intensities(intensities, n) if isinstance(intensities, (str, Path)) else \
             as_intensities(intensities, n)
     return Rig(lights, camera, (int(shape[0]), int(shape[1])), intens, gains, albedo, smoothing, info)
+
+
+# ----------------------------------------------------------------------------- distant lights from one sphere
+
+
+def sphere_from_mask(mask) -> tuple[float, float, float]:
+    """Circle of a sphere's silhouette from its binary mask (area and centroid).
+
+    Parameters
+    ----------
+    mask : array_like, shape (H, W)
+        True on the sphere.
+
+    Returns
+    -------
+    row, col, radius : float
+        Centre in pixel indices (pixel centres at integers) and radius in pixels,
+        ``r = sqrt(area / pi)``; both moments are unbiased for a digitised disc.
+    """
+    m = as_array(mask, "mask", ndim=2, dtype=bool)
+    area = int(m.sum())
+    if area < 20:
+        raise InputError(f"mask: sphere silhouette has only {area} pixels")
+    rows, cols = np.nonzero(m)
+    return float(rows.mean()), float(cols.mean()), float(np.sqrt(area / np.pi))
+
+
+def calibrate_mirror_sphere(
+    images, mask, *, threshold: float = 0.8
+) -> tuple[np.ndarray, dict]:
+    """Light directions from images of a mirror (chrome) sphere.
+
+    For each image the specular highlight's intensity-weighted centroid ``(r, c)``
+    inside the sphere gives the sphere normal there,
+    ``n = ((c - c0) / R, -(r - r0) / R, sqrt(1 - n_x^2 - n_y^2))`` (y up), and the
+    light is the mirror reflection of the view direction ``v = (0, 0, 1)``:
+    ``l = 2 (n . v) n - v`` (returning ``n`` itself is the classic bug).
+
+    Parameters
+    ----------
+    images : array_like, shape (N, H, W) or (N, H, W, C)
+        Images of the sphere, one per light; colour is averaged to grey.
+    mask : array_like, shape (H, W)
+        Sphere silhouette (True inside).
+    threshold : float, optional
+        Pixels above ``threshold * max`` of each image (inside the mask) form the
+        highlight.
+
+    Returns
+    -------
+    lights : numpy.ndarray, shape (N, 3), float64
+        Unit light directions in the convention of :data:`photometric.lights.CONVENTION`.
+    info : dict
+        ``center_rc`` (row, col), ``radius_px``, ``highlights_rc`` (N, 2) list.
+    """
+    imgs = as_array(images, "images", ndim=(3, 4), dtype=np.float32)
+    if imgs.ndim == 4:
+        imgs = imgs.mean(axis=3)
+    m = as_array(mask, "mask", shape=imgs.shape[1:], dtype=bool)
+    if not 0 < threshold < 1:
+        raise InputError(f"threshold: must lie in (0, 1), got {threshold}")
+    r0, c0, radius = sphere_from_mask(m)
+    inside = np.where(m[None], imgs, 0.0)
+    peak = inside.reshape(len(imgs), -1).max(axis=1)
+    if np.any(peak <= 0):
+        raise InputError(f"images: no highlight inside the sphere in image(s) {np.flatnonzero(peak <= 0).tolist()}")
+    weight = np.clip(inside - threshold * peak[:, None, None], 0.0, None)
+    rows = np.arange(m.shape[0], dtype=np.float64)[None, :, None]
+    cols = np.arange(m.shape[1], dtype=np.float64)[None, None, :]
+    total = weight.sum(axis=(1, 2), dtype=np.float64)
+    hr = (weight * rows).sum(axis=(1, 2), dtype=np.float64) / total
+    hc = (weight * cols).sum(axis=(1, 2), dtype=np.float64) / total
+    nx = (hc - c0) / radius
+    ny = -(hr - r0) / radius
+    rr = nx**2 + ny**2
+    if np.any(rr >= 1.0):
+        raise InputError(f"images: highlight outside the sphere circle in image(s) {np.flatnonzero(rr >= 1).tolist()}")
+    n = np.stack([nx, ny, np.sqrt(1.0 - rr)], axis=1)
+    v = np.array([0.0, 0.0, 1.0])
+    lights = 2.0 * (n @ v)[:, None] * n - v
+    info = {
+        "center_rc": [r0, c0],
+        "radius_px": radius,
+        "highlights_rc": np.stack([hr, hc], axis=1).tolist(),
+    }
+    return lights / np.linalg.norm(lights, axis=1, keepdims=True), info

@@ -158,7 +158,7 @@ def make_camera(
     >>> make_camera("perspective", focal_length_px=2400)
     Traceback (most recent call last):
     ...
-    surfaces.validate.InputError: camera: a perspective camera needs --focal-length-px and --camera-height (missing: camera-height)
+    surfaces.validate.InputError: camera: a perspective camera needs --focal-length-px and --camera-height ...
     """
     if model not in MODELS:
         raise InputError(f"camera: expected one of {MODELS}, got {model!r}")

@@ -1,4 +1,7 @@
-"""Reading photometric-stereo inputs: images, masks and DiLiGenT-style folders.
+"""Reading photometric-stereo inputs: images, masks, light files and DiLiGenT-style folders.
+
+Light files: :func:`load_lights` (directions, or slant and azimuth), :func:`load_intensities`
+and :func:`load_light_positions` (LEDs, mm); each checks what it reads once.
 
 A DiLiGenT-style folder holds ``filenames.txt`` (image files in light order),
 ``light_directions.txt`` (``x y z`` per row), optionally ``light_intensities.txt``
@@ -29,14 +32,8 @@ import cv2
 import numpy as np
 
 from photometric.camera import Camera, camera_from_dict
-from photometric.lights import (
-    PointLights,
-    load_intensities,
-    load_light_positions,
-    load_lights,
-    point_lights,
-    validate_lights,
-)
+from photometric.leds import PointLights, point_lights
+from photometric.lights import as_intensities, lights_from_angles, validate_lights
 from surfaces.validate import InputError, reads_file
 
 IMAGE_SUFFIXES = (".png", ".tif", ".tiff", ".bmp", ".jpg", ".jpeg", ".npy", ".exr")
@@ -61,7 +58,7 @@ class PhotometricData:
         Ground-truth normals when the folder has them.
     names : tuple of str
         Image file names, in light order.
-    point_lights : photometric.lights.PointLights or None
+    point_lights : photometric.leds.PointLights or None
         LED positions (``light_positions.txt``) with the axes and lobe exponents of
         ``scene.json`` when it states them (near-field folders).
     flat_images : numpy.ndarray or None, shape like ``images``
@@ -104,7 +101,7 @@ class PhotometricData:
         k = np.flatnonzero(np.asarray(keep, bool))
         pl = self.point_lights
         if pl is not None:
-            pl = replace(pl, positions=pl.positions[k], axes=pl.axes[k], mu=pl.mu[k])
+            pl = pl.subset(k)
         return replace(
             self, images=self.images[k], lights=self.lights[k], intensities=self.intensities[k],
             names=tuple(self.names[i] for i in k), point_lights=pl,
@@ -412,3 +409,136 @@ def _read_nearfield(d: Path, all_names: list[str], names: list[str], image_shape
         if flat.get("albedo") is not None:
             out["flat_albedo"] = float(flat["albedo"])
     return out
+
+
+# ----------------------------------------------------------------------------- light files
+
+
+def _read_table(path: Path, name: str) -> np.ndarray:
+    """Numbers from a text or .npy file."""
+    suffix = path.suffix.lower()
+    if suffix == ".npy":
+        return np.load(path, allow_pickle=False)
+    try:
+        return np.loadtxt(path, ndmin=2, delimiter="," if suffix == ".csv" else None)
+    except ValueError as exc:
+        raise InputError(f"{name}: {path} is not a table of numbers ({exc})") from None
+
+
+def _read_json(path: Path, name: str):
+    try:
+        return json.loads(path.read_text())
+    except json.JSONDecodeError as exc:
+        raise InputError(f"{name}: {path} is not valid JSON ({exc})") from None
+
+
+def _existing(path, name: str) -> Path:
+    p = Path(path)
+    if not p.is_file():
+        raise FileNotFoundError(f"{name}: file {p} does not exist")
+    return p
+
+
+@reads_file("light file")
+def load_lights(path) -> np.ndarray:
+    """Read light directions from a file.
+
+    Parameters
+    ----------
+    path : str or Path
+        One of
+
+        * text (``.txt``, ``.csv``, ...): one ``x y z`` row per light (DiLiGenT
+          ``light_directions.txt``), or two columns ``slant azimuth`` in degrees (the
+          "slant tilt" form of vision software: tilt is the azimuth);
+        * ``.npy``: an ``(N, 3)`` array;
+        * ``.json``: a list of ``[x, y, z]``, or an object with ``"lights"``
+          (list of ``[x, y, z]``) or ``"slant_deg"`` and ``"azimuth_deg"`` lists
+          (``"tilt_deg"`` is accepted for ``"azimuth_deg"``).
+
+    Returns
+    -------
+    numpy.ndarray, shape (N, 3), float64
+        Unit light directions, validated once by :func:`validate_lights`.
+
+    Raises
+    ------
+    FileNotFoundError
+        The file does not exist.
+    ValueError
+        Unreadable content or invalid lights.
+    """
+    p = _existing(path, "lights")
+    name = f"lights ({p.name})"
+    if p.suffix.lower() == ".json":
+        data = _read_json(p, "lights")
+        if isinstance(data, dict):
+            if "lights" in data:
+                data = data["lights"]
+            elif "slant_deg" in data and ("azimuth_deg" in data or "tilt_deg" in data):
+                data = lights_from_angles(data["slant_deg"], data.get("azimuth_deg"), tilt_deg=data.get("tilt_deg"))
+            else:
+                raise InputError(f"lights: {p} needs a 'lights' list or 'slant_deg' and 'azimuth_deg' (or 'tilt_deg')")
+        return validate_lights(data, name)
+    table = _read_table(p, "lights")
+    if table.ndim == 2 and table.shape[1] == 2:
+        table = lights_from_angles(table[:, 0], table[:, 1])
+    return validate_lights(table, name)
+
+
+@reads_file("light intensity file")
+def load_intensities(path, n: int) -> np.ndarray:
+    """Read per-light intensities (DiLiGenT ``light_intensities.txt``: ``r g b`` per row).
+
+    Parameters
+    ----------
+    path : str or Path
+        Text (one value or one ``r g b`` row per light), ``.npy`` or ``.json`` (a list,
+        or an object with an ``"intensities"`` list).
+    n : int
+        Number of lights the file must describe.
+
+    Returns
+    -------
+    numpy.ndarray, shape (N, 3), float64
+        See :func:`as_intensities`.
+    """
+    p = _existing(path, "intensities")
+    if p.suffix.lower() == ".json":
+        data = _read_json(p, "intensities")
+        if isinstance(data, dict):
+            data = data.get("intensities")
+            if data is None:
+                raise InputError(f"intensities: {p} needs an 'intensities' list")
+        return as_intensities(data, n, f"intensities ({p.name})")
+    table = _read_table(p, "intensities")
+    if table.ndim == 2 and table.shape[0] == 1 and n != 1:
+        table = table.reshape(-1)
+    return as_intensities(table, n, f"intensities ({p.name})")
+
+
+@reads_file("light position file")
+def load_light_positions(path) -> np.ndarray:
+    """Read LED positions (``light_positions.txt``: one ``x y z`` row in mm per image).
+
+    Parameters
+    ----------
+    path : str or Path
+        Text (whitespace or ``.csv`` comma separated), ``.npy`` ``(N, 3)`` or ``.json``
+        (a list of ``[x, y, z]`` or an object with ``"positions_mm"``).
+
+    Returns
+    -------
+    numpy.ndarray, shape (N, 3), float64
+        Positions in mm, checked by :func:`point_lights`.
+    """
+    p = _existing(path, "light_positions")
+    if p.suffix.lower() == ".json":
+        data = _read_json(p, "light_positions")
+        if isinstance(data, dict):
+            data = data.get("positions_mm")
+            if data is None:
+                raise InputError(f"light_positions: {p} needs a 'positions_mm' list")
+    else:
+        data = _read_table(p, "light_positions")
+    return point_lights(data, name=f"light_positions ({p.name})").positions

@@ -3,7 +3,7 @@
 Model
 -----
 An LED ``k`` at ``P_k`` lights the surface point ``X`` that a pixel sees with the scaled
-light vector ``s_k(X) = E_k(X) l_k(X)`` of :func:`photometric.lights.light_field`
+light vector ``s_k(X) = E_k(X) l_k(X)`` of :func:`photometric.leds.light_field`
 (inverse-square falloff, LED lobe ``cos^mu``), so a Lambertian pixel reads
 ``I_k = albedo * max(0, s_k(X) . n)`` (Mecca et al., "Near field photometric stereo with
 point light sources", SIAM J. Imaging Sci. 2014; Queau et al., "LED-based photometric
@@ -68,7 +68,9 @@ from photometric.camera import (
     plane_points,
     surface_xy,
 )
-from photometric.lights import PointLights, _scaled_vectors, as_intensities, validate_lights
+from photometric.leds import PointLights, _scaled_vectors
+from photometric.lights import as_intensities, validate_lights
+from photometric.options import DARK, MAX_ITERATIONS, SATURATION, TOLERANCE_MM
 from photometric.stereo import MAX_CONDITION, _check_images, _check_options, _grey_planes, _solve
 from surfaces.validate import as_array, InputError, positive
 
@@ -85,7 +87,7 @@ __all__ = [
 ]
 
 #: Default convergence tolerance: largest height change of a pixel between passes, mm.
-DEFAULT_TOLERANCE_MM = 1e-3
+DEFAULT_TOLERANCE_MM = TOLERANCE_MM
 #: Most pixels of the coarse copy the alternation starts on.
 COARSE_PIXELS = 1 << 18
 #: Pixels per image block of a whole-image pass (fits the CPU cache with its temporaries).
@@ -256,7 +258,7 @@ def nearfield_setup(lights: PointLights, camera, shape, gains=None, *,
     Parameters
     ----------
     lights : PointLights
-        LEDs (:func:`photometric.lights.point_lights`).
+        LEDs (:func:`photometric.leds.point_lights`).
     camera : Orthographic or Perspective
     shape : (H, W)
         Image size, pixels.
@@ -272,7 +274,7 @@ def nearfield_setup(lights: PointLights, camera, shape, gains=None, *,
     Examples
     --------
     >>> from photometric.camera import make_camera
-    >>> from photometric.lights import point_lights
+    >>> from photometric.leds import point_lights
     >>> lights = point_lights([[100.0, 0, 150], [-50, 87, 150], [-50, -87, 150]])
     >>> cam = make_camera("orthographic", pixel_size_mm=0.5)
     >>> s = nearfield_setup(lights, cam, (64, 64), np.ones((3, 64, 64), np.float32), coarse_pixels=256)
@@ -280,7 +282,7 @@ def nearfield_setup(lights: PointLights, camera, shape, gains=None, *,
     ((64, 64), [4], (16, 16))
     """
     if not isinstance(lights, PointLights):
-        raise InputError(f"lights: expected PointLights (photometric.lights.point_lights), got {type(lights).__name__}")
+        raise InputError(f"lights: expected PointLights (photometric.leds.point_lights), got {type(lights).__name__}")
     camera = _check_camera(camera)
     if len(shape) != 2 or min(int(shape[0]), int(shape[1])) < 1:
         raise InputError(f"shape: expected (H, W) with H, W >= 1, got {shape}")
@@ -332,13 +334,13 @@ def solve_nearfield(
     mask=None,
     gains=None,
     outliers: bool = False,
-    dark: float = 0.1,
-    saturation: float = 0.99,
+    dark: float = DARK,
+    saturation: float = SATURATION,
     highlight: float | None = None,
     integrator: str = "dct",
     reference_height_mm: float = 0.0,
     tolerance_mm: float = DEFAULT_TOLERANCE_MM,
-    max_iterations: int = 30,
+    max_iterations: int = MAX_ITERATIONS,
     coarse_pixels: int = COARSE_PIXELS,
     threads: int | None = None,
     setup: NearFieldSetup | None = None,
@@ -353,7 +355,7 @@ def solve_nearfield(
         Linear images; colour in RGB order (one normal from the channel mean, albedo per
         channel).
     lights : PointLights or array_like, shape (N, 3)
-        LEDs (:func:`photometric.lights.point_lights`), or unit directions of distant
+        LEDs (:func:`photometric.leds.point_lights`), or unit directions of distant
         lights (then one solve and one integration, no alternation).
     camera : Orthographic or Perspective
         :func:`photometric.camera.make_camera`.
@@ -412,7 +414,7 @@ def solve_nearfield(
     A plate lit by three LEDs 150 mm away, seen by a 0.5 mm-pixel telecentric camera:
 
     >>> from photometric.camera import make_camera
-    >>> from photometric.lights import light_field, point_lights
+    >>> from photometric.leds import light_field, point_lights
     >>> lights = point_lights(150 * np.array([[0.7071, 0, 0.7071], [-0.3536, 0.6124, 0.7071],
     ...                                       [-0.3536, -0.6124, 0.7071]]))
     >>> cam = make_camera("orthographic", pixel_size_mm=0.5)
@@ -907,7 +909,7 @@ def _block(level: _Level, lights: PointLights, camera: Camera, z: np.ndarray, op
     """Light vectors, normal equations and the closed-form 3 x 3 solve for rows ``r0:r1``.
 
     The light vectors stay one (h, w) plane per light and component as
-    :func:`photometric.lights._scaled_vectors` returns them (an ``(N, 3, h, w)`` array only in
+    :func:`photometric.leds._scaled_vectors` returns them (an ``(N, 3, h, w)`` array only in
     the outlier mode, which indexes them by pixel), and the normals, albedo and validity are
     written straight into ``out``: every pass over the block is arithmetic.
     """

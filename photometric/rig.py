@@ -32,7 +32,8 @@ import cv2
 import numpy as np
 
 from photometric.camera import Camera, camera_from_dict, plane_points
-from photometric.lights import PointLights, as_intensities, point_lights
+from photometric.leds import PointLights, point_lights
+from photometric.lights import as_intensities
 from photometric.stereo import _check_images, _grey_planes
 from surfaces.validate import as_array, InputError, positive, reads_file
 
@@ -114,7 +115,7 @@ class Rig:
 
     Attributes
     ----------
-    lights : photometric.lights.PointLights
+    lights : photometric.leds.PointLights
         LED positions (mm), axes and lobe exponents (``mu_known`` False when ``mu`` is null).
     camera : photometric.camera.Orthographic or Perspective
     image_size : tuple of int
@@ -150,7 +151,7 @@ def flat_field_gains(flat_images, lights: PointLights, camera: Camera, albedo: f
     flat_images : array_like, shape (N, H, W) or (N, H, W, 3)
         One image per light, same camera, exposure and light order as the part images;
         colour is averaged to grey.
-    lights : photometric.lights.PointLights
+    lights : photometric.leds.PointLights
         LED positions (mm).
     camera : photometric.camera.Orthographic or Perspective
     albedo : float, optional
@@ -172,7 +173,7 @@ def flat_field_gains(flat_images, lights: PointLights, camera: Camera, albedo: f
     under the LED.
 
     >>> from photometric.camera import make_camera
-    >>> from photometric.lights import light_field, point_lights
+    >>> from photometric.leds import light_field, point_lights
     >>> lights = point_lights([[0, 0, 100], [100, 0, 100], [0, 100, 100]])
     >>> cam = make_camera("orthographic", pixel_size_mm=1.0)
     >>> flat = 0.5 * light_field(lights, plane_points(cam, (5, 5)))[..., 2]
@@ -181,7 +182,7 @@ def flat_field_gains(flat_images, lights: PointLights, camera: Camera, albedo: f
     """
     imgs = _check_images(flat_images)
     if not isinstance(lights, PointLights):
-        raise InputError("lights: a flat field needs point lights (photometric.lights.point_lights)")
+        raise InputError("lights: a flat field needs point lights (photometric.leds.point_lights)")
     n = imgs.shape[0]
     if n != len(lights):
         raise InputError(f"flat_field: {n} flat-field image(s) for {len(lights)} lights (one per light, same order)")

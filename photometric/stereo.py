@@ -17,6 +17,7 @@ import cv2
 import numpy as np
 
 from photometric.lights import as_intensities, validate_lights
+from photometric.options import DARK, SATURATION
 from surfaces.validate import as_array, InputError
 
 #: Light sub-matrices worse conditioned than this give no trustworthy normal; a light
@@ -210,7 +211,11 @@ def check_light_matrix(lights, force: bool = False) -> tuple[float, list[str]]:
         :data:`MAX_CONDITION` (nearly coplanar lights: the error of ``rho n`` is that
         many times the image noise) unless ``force``.
     """
-    L = validate_lights(lights)
+    return _light_matrix(validate_lights(lights), force)
+
+
+def _light_matrix(L: np.ndarray, force: bool = False) -> tuple[float, list[str]]:
+    """:func:`check_light_matrix` of unit lights already checked (the pipeline's stages)."""
     back = np.flatnonzero(L[:, 2] < 0)
     if back.size:
         raise InputError(
@@ -317,8 +322,8 @@ def solve(
     mask=None,
     outliers: bool = False,
     *,
-    dark: float = 0.1,
-    saturation: float = 0.99,
+    dark: float = DARK,
+    saturation: float = SATURATION,
     highlight: float | None = None,
     iterations: int = 2,
     on_block: Callable[[slice, StereoResult], None] | None = None,

@@ -75,7 +75,7 @@ def _read_then_check(read, path: Path, data: bytes) -> None:
 
 def _readers():
     from photometric.io import read_image, read_mask
-    from photometric.lights import load_lights
+    from photometric.io import load_lights
     from slices.io import list_rois, read_contour_json, read_rtstruct
     from surfaces.io import load_patches, read_mesh
     from workbench.batch import read_manifest

@@ -234,7 +234,7 @@ class PointLightModel:
 
     Attributes
     ----------
-    lights : photometric.lights.PointLights
+    lights : photometric.leds.PointLights
         Nominal LED positions, axes and lobe exponents.
     camera : photometric.camera.Orthographic or Perspective
         The camera (the flat field's reference-plane points).
@@ -270,7 +270,9 @@ def _point_fields(model: PointLightModel, albedo, p, q, ok, z, sigma, tol, chann
     ``G |P - X0|^2``); noise: ``Cov(m) = sum_k w_k c_k c_k^T``,
     ``w_k = sigma^2 / (channels * plane_scale_k^2)``.
     """
-    from photometric.lights import _scaled_vectors, point_lights
+    from dataclasses import replace
+
+    from photometric.leds import _scaled_vectors
     from photometric.nearfield import _strengths
 
     lights = model.lights
@@ -278,10 +280,10 @@ def _point_fields(model: PointLightModel, albedo, p, q, ok, z, sigma, tol, chann
     ones = np.ones((len(lights), 3))
 
     def strength(k, position):
-        moved = lights.positions.copy()
-        moved[k] = position
-        one = point_lights(moved, lights.axes, lights.mu if lights.mu_known else None)
-        return _strengths(one, model.camera, shape, model.gains, ones)[k]
+        # light k alone, moved by a small step (nothing new to check): its strength map, not every light's
+        one = replace(lights.subset([k]), positions=np.asarray(position, float)[None])
+        gains = None if model.gains is None else model.gains[k:k + 1]
+        return _strengths(one, model.camera, shape, gains, ones[k:k + 1])[0]
     n = len(lights)
     x = model.xy[..., 0].astype(np.float64)
     y = model.xy[..., 1].astype(np.float64)

@@ -12,13 +12,13 @@ import photometric
 
 
 MODULES = ("lights", "normals", "io", "stereo", "integrate", "defects", "pipeline", "camera", "nearfield", "rig",
-           "calibrate")
+           "calibrate", "options", "leds")
 
 
 @pytest.mark.parametrize("name", sorted(photometric.__all__))
 def test_every_public_name_is_its_home_object(name):
     value = getattr(photometric, name)
-    if name in ("errors", "integrate"):
+    if name in ("errors", "integrate", "stages"):
         assert value is importlib.import_module(f"photometric.{name}")
         return
     homes = [m for m in MODULES if getattr(importlib.import_module(f"photometric.{m}"), name, None) is value]

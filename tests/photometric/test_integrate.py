@@ -230,7 +230,7 @@ def test_robust_two_parts_and_bad_input():
 def test_nearfield_takes_the_robust_integrator():
     """A masked plane under point lights: the robust integral is the least-squares one (no curl)."""
     from photometric.camera import make_camera, pixel_offsets
-    from photometric.lights import light_field, point_lights
+    from photometric.leds import light_field, point_lights
     from photometric.nearfield import INTEGRATORS, solve_nearfield
 
     assert "robust" in INTEGRATORS

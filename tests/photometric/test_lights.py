@@ -4,6 +4,8 @@ import warnings
 import numpy as np
 import pytest
 
+from photometric import calibrate, leds
+from photometric import io as pio
 from photometric import lights as lt
 from photometric.normals import angular_error_deg
 from tests.photometric._render import ring
@@ -203,26 +205,26 @@ def test_load_lights_formats(tmp_path, fmt):
         else:
             path = tmp_path / "sa.txt"
             np.savetxt(path, np.stack([s, a], 1))
-    assert np.allclose(lt.load_lights(path), lights, atol=1e-12)
+    assert np.allclose(pio.load_lights(path), lights, atol=1e-12)
 
 
 def test_load_lights_bad_content(tmp_path):
     path = tmp_path / "l.json"
     path.write_text(json.dumps({"slant_deg": [40, 40, 40]}))
     with pytest.raises(ValueError, match="azimuth_deg"):
-        lt.load_lights(path)
+        pio.load_lights(path)
     path.write_text("{not json")
     with pytest.raises(ValueError, match="JSON"):
-        lt.load_lights(path)
+        pio.load_lights(path)
     text = tmp_path / "l.txt"
     text.write_text("0 0 1\n0 0 1\n0 0 1\n")
     with pytest.raises(ValueError, match="coplanar"):
-        lt.load_lights(text)
+        pio.load_lights(text)
 
 
 def test_load_lights_missing(tmp_path):
     with pytest.raises(FileNotFoundError):
-        lt.load_lights(tmp_path / "nope.txt")
+        pio.load_lights(tmp_path / "nope.txt")
 
 
 @pytest.mark.parametrize(
@@ -238,7 +240,7 @@ def test_intensities(tmp_path, values, expected):
     if values is not None and np.ndim(values) > 0:
         path = tmp_path / "i.txt"
         np.savetxt(path, np.atleast_1d(values))
-        assert np.allclose(lt.load_intensities(path, 3), out)
+        assert np.allclose(pio.load_intensities(path, 3), out)
     with pytest.raises(ValueError):
         lt.as_intensities([1, 2], 3)
     with pytest.raises(ValueError, match="positive"):
@@ -264,7 +266,7 @@ def _mirror_sphere(lights, size=201, radius=80.0, blob=1.5):
 def test_mirror_sphere_calibration(slant):
     truth = ring(6, slant, 17.0)
     images, mask = _mirror_sphere(truth)
-    est, info = lt.calibrate_mirror_sphere(images, mask)
+    est, info = calibrate.calibrate_mirror_sphere(images, mask)
     err = np.degrees(np.arccos(np.clip(np.sum(est * truth, 1), -1, 1)))
     assert err.max() < 0.5, err
     assert abs(info["radius_px"] - 80.0) < 0.5
@@ -278,11 +280,11 @@ def test_mirror_sphere_calibration(slant):
 def test_sphere_from_mask_recovers_the_circle(r0, c0, radius):
     rows, cols = np.mgrid[0:100, 0:110]
     mask = (rows - r0) ** 2 + (cols - c0) ** 2 <= radius**2
-    r, c, rad = lt.sphere_from_mask(mask)
+    r, c, rad = calibrate.sphere_from_mask(mask)
     assert abs(r - r0) < 0.05 and abs(c - c0) < 0.05
     assert rad == pytest.approx(radius, abs=0.1)
     with pytest.raises(ValueError, match="mask"):
-        lt.sphere_from_mask(np.zeros((10, 10), bool))
+        calibrate.sphere_from_mask(np.zeros((10, 10), bool))
 
 
 # ----------------------------------------------------------------------------- point lights
@@ -290,12 +292,12 @@ def test_sphere_from_mask_recovers_the_circle(r0, c0, radius):
 
 def test_point_lights_defaults_and_directions():
     pos = 150.0 * ring(3, 45.0)
-    lights = lt.point_lights(pos)
+    lights = leds.point_lights(pos)
     np.testing.assert_allclose(lights.axes, -ring(3, 45.0))
     np.testing.assert_allclose(lights.d0, 150.0)
     np.testing.assert_allclose(lights.directions, ring(3, 45.0))
     assert lights.mu.tolist() == [0.0, 0.0, 0.0] and not lights.mu_known and len(lights) == 3
-    known = lt.point_lights(pos, axes=[[0, 0, -1]] * 3, mu=[1.0, 2.0, 0.0])
+    known = leds.point_lights(pos, axes=[[0, 0, -1]] * 3, mu=[1.0, 2.0, 0.0])
     assert known.mu_known and known.mu.tolist() == [1.0, 2.0, 0.0]
     np.testing.assert_allclose(known.axes, [[0, 0, -1]] * 3)
 
@@ -315,37 +317,37 @@ def test_point_lights_defaults_and_directions():
 )
 def test_point_lights_errors(kwargs, message):
     with pytest.raises(ValueError, match=message):
-        lt.point_lights(**kwargs)
+        leds.point_lights(**kwargs)
 
 
 def test_light_field_falloff_and_lobe():
-    lights = lt.point_lights([[0, 0, 100], [100, 0, 100], [0, 100, 100]], mu=2.0)
+    lights = leds.point_lights([[0, 0, 100], [100, 0, 100], [0, 100, 100]], mu=2.0)
     # straight below the first LED at 50 and 200 mm: inverse square, lobe 1
-    s = lt.light_field(lights, [[0, 0, 50], [0, 0, -100]], intensities=[2.0, 1.0, 1.0])
+    s = leds.light_field(lights, [[0, 0, 50], [0, 0, -100]], intensities=[2.0, 1.0, 1.0])
     np.testing.assert_allclose(s[0], [[0, 0, 8.0], [0, 0, 0.5]])
     # off axis: cos of the angle to the LED axis, squared
-    s = lt.light_field(lights, [[100, 0, 0]])
+    s = leds.light_field(lights, [[100, 0, 0]])
     d = np.array([-100.0, 0.0, 100.0])
     r = np.linalg.norm(d)
     expect = (100.0 / r) ** 2 * (np.cos(np.pi / 4) ** 2) * d / r
     np.testing.assert_allclose(s[0, 0], expect)
     with pytest.raises(ValueError, match="at or above the height of a light"):
-        lt.light_field(lights, [[0, 0, 100]])
+        leds.light_field(lights, [[0, 0, 100]])
     with pytest.raises(ValueError, match="PointLights"):
-        lt.light_field(np.eye(3), [[0, 0, 0]])
+        leds.light_field(np.eye(3), [[0, 0, 0]])
 
 
 def test_load_light_positions(tmp_path):
     pos = 150.0 * ring(4, 30.0)
     np.savetxt(tmp_path / "light_positions.txt", pos)
-    np.testing.assert_allclose(lt.load_light_positions(tmp_path / "light_positions.txt"), pos)
+    np.testing.assert_allclose(pio.load_light_positions(tmp_path / "light_positions.txt"), pos)
     (tmp_path / "p.json").write_text(json.dumps({"positions_mm": pos.tolist()}))
-    np.testing.assert_allclose(lt.load_light_positions(tmp_path / "p.json"), pos)
+    np.testing.assert_allclose(pio.load_light_positions(tmp_path / "p.json"), pos)
     np.savetxt(tmp_path / "low.txt", pos * [1, 1, -1])
     with pytest.raises(ValueError, match=r"light_positions \(low.txt\): light 0 .* below the reference plane"):
-        lt.load_light_positions(tmp_path / "low.txt")
+        pio.load_light_positions(tmp_path / "low.txt")
     with pytest.raises(FileNotFoundError, match="light_positions"):
-        lt.load_light_positions(tmp_path / "missing.txt")
+        pio.load_light_positions(tmp_path / "missing.txt")
     (tmp_path / "bad.json").write_text(json.dumps({"lights": []}))
     with pytest.raises(ValueError, match="positions_mm"):
-        lt.load_light_positions(tmp_path / "bad.json")
+        pio.load_light_positions(tmp_path / "bad.json")

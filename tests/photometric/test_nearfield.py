@@ -1,7 +1,7 @@
 """photometric.nearfield: point lights and perspective cameras, checked on closed-form planes.
 
 A plane under point lights has a closed-form image (written out here, independently of
-photometric.lights.light_field); rendered scenes (sphere cap, defect plate) come from
+photometric.leds.light_field); rendered scenes (sphere cap, defect plate) come from
 datasets_synthetic in test_nearfield_renders.py.
 """
 
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from photometric.camera import make_camera, pixel_offsets
-from photometric.lights import light_field, point_lights
+from photometric.leds import light_field, point_lights
 from photometric.nearfield import NotConvergedError, solve_nearfield
 from photometric.rig import flat_field_gains
 

@@ -17,7 +17,7 @@ from datasets_synthetic.nearfield import render_near_field
 from datasets_synthetic.point_lights import ring_point_lights
 from photometric.camera import make_camera
 from photometric.defects import measure_defects
-from photometric.lights import point_lights
+from photometric.leds import point_lights
 from photometric.nearfield import solve_nearfield
 from photometric.normals import angular_error_deg
 from photometric.rig import flat_field_gains

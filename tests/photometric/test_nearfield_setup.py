@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from photometric.camera import make_camera
-from photometric.lights import point_lights
+from photometric.leds import point_lights
 from photometric.nearfield import nearfield_setup, solve_nearfield
 from photometric.rig import flat_field_gains
 from tests.photometric.test_nearfield import PERSP, plane_images, plane_points_and_normal, ring

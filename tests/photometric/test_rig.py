@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from photometric.camera import make_camera, plane_points
-from photometric.lights import point_lights
+from photometric.leds import point_lights
 from photometric.rig import GAINS_FILE, RIG_FORMAT, Rig, check_rig, flat_field_gains, read_rig, rig_to_dict
 from tests.photometric._render import ring
 

@@ -271,7 +271,7 @@ def test_light_position_tolerance_needs_point_lights():
 
 
 def _near_scene(size=96, h=0.05):
-    from photometric.lights import light_field, point_lights
+    from photometric.leds import light_field, point_lights
     from surfaces.grid import pixel_grid
 
     hf = u_scratch(size, h, depth_mm=0.05, width_mm=0.4, length_mm=3.0, axis_deg=20.0)
@@ -290,7 +290,7 @@ def _near_scene(size=96, h=0.05):
 def test_led_position_jacobian_matches_the_near_field_solver():
     """Move one LED coordinate by 2 mm: the integrated sensitivity field predicts the height change."""
     from photometric.camera import make_camera
-    from photometric.lights import point_lights
+    from photometric.leds import point_lights
 
     hf, nominal, images = _near_scene()
     h = 0.05

@@ -463,3 +463,41 @@ def test_cli_uncertainty_needs_a_pixel_size(plate_folder, tmp_path, capsys):
             "--out", str(tmp_path / "o")]
     assert main(args) == 2
     assert "pixel size" in capsys.readouterr().err
+
+
+def test_cli_defaults_are_the_options_defaults():
+    """Every default of ``photometric reconstruct`` that is an option is PhotometricOptions' (held once)."""
+    from dataclasses import fields
+
+    from photometric.options import PhotometricOptions
+    from workbench.cli import build_parser
+
+    args = build_parser().parse_args(["photometric", "reconstruct", "folder"])
+    defaults = PhotometricOptions()
+    flags = {"reference_height_mm": "reference_height", "tolerance_mm": "tolerance", "uncertainty": None}
+    checked = 0
+    for f in fields(PhotometricOptions):
+        name = flags.get(f.name, f.name)
+        if name is None or not hasattr(args, name):
+            continue
+        given = getattr(args, name)
+        # --tolerance and the surface step/samples say "not given" with None; the options then hold the value
+        assert given == getattr(defaults, f.name) or (given is None and f.name == "tolerance_mm"), f.name
+        checked += 1
+    assert checked >= 13  # integrator ... background: every option has its flag
+    assert args.tolerance is None and defaults.tolerance_mm == 1e-3
+
+
+def test_cli_u_flags_and_their_tolerance_aliases():
+    """``--light-u-deg`` (a standard uncertainty says u) and the older ``--light-tolerance-deg`` are one option."""
+    from workbench.cli import build_parser
+
+    parser = build_parser()
+    base = ["photometric", "reconstruct", "folder"]
+    pairs = [("--light-u-deg", "--light-tolerance-deg", "light_tolerance_deg"),
+             ("--light-position-u-mm", "--light-position-tolerance-mm", "light_position_tolerance_mm"),
+             ("--intensity-u", "--intensity-tolerance", "intensity_tolerance"),
+             ("--pixel-size-u", "--pixel-size-tolerance", "pixel_size_tolerance")]
+    for new, old, dest in pairs:
+        assert getattr(parser.parse_args([*base, new, "0.25"]), dest) == 0.25
+        assert getattr(parser.parse_args([*base, old, "0.25"]), dest) == 0.25

@@ -37,7 +37,7 @@ def register(subparsers) -> None:
     p.add_argument("--lights", required=True,
                    help="nominal light directions: text file with one 'x y z' row per light "
                         "(DiLiGenT light_directions.txt) or 'slant azimuth' in degrees, .npy or .json "
-                        "(photometric.lights.load_lights)")
+                        "(photometric.io.load_lights)")
     p.add_argument("--deviation-max", type=float, default=5.0,
                    help="half-width of the deviation grids of the error maps and curves, degrees (default 5)")
     p.add_argument("--derivative-range", type=float, default=1.0,
@@ -88,7 +88,7 @@ def run(args: argparse.Namespace) -> int:
     """
     from tqdm import tqdm
 
-    from photometric.lights import load_lights
+    from photometric.io import load_lights
     from workbench.studies.errors_analysis import analyse
     from workbench.studies.errors_report import write_report
 

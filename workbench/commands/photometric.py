@@ -6,8 +6,13 @@ from __future__ import annotations
 import argparse
 import json
 from pathlib import Path
+
+from photometric.options import BACKGROUNDS, LIGHT_MODELS, SURFACES, PhotometricOptions
 from surfaces.validate import InputError
 from workbench.commands.camera_check import warn_camera_conflicts
+
+#: the reconstruction's defaults: the options hold them (photometric.options), the parser shows them
+DEFAULTS = PhotometricOptions()
 
 
 def _numbers(text: str, name: str) -> float | list[float]:
@@ -77,14 +82,17 @@ def add_uncertainty_options(p: argparse.ArgumentParser, note: str = UNCERTAINTY_
     g.add_argument("--noise-sigma", type=float, default=None, metavar="S",
                    help="image noise, standard deviation in full-scale units 0-1 (default: estimated from the "
                    "residuals with 4 or more lights, none with a triad)")
-    g.add_argument("--light-tolerance-deg", type=float, default=None, metavar="DEG",
-                   help="standard uncertainty of each light's direction, degrees (isotropic: each tangent axis)")
-    g.add_argument("--light-position-tolerance-mm", type=float, default=None, metavar="MM",
-                   help="standard uncertainty of each LED coordinate, mm (near-field rigs)")
-    g.add_argument("--intensity-tolerance", type=float, default=None, metavar="R",
-                   help="relative standard uncertainty of each light's intensity")
-    g.add_argument("--pixel-size-tolerance", type=float, default=None, metavar="R",
-                   help="relative standard uncertainty of the pixel size")
+    # "u" names a standard uncertainty, "tolerance" a limit; the older "-tolerance" flags stay as aliases
+    g.add_argument("--light-u-deg", "--light-tolerance-deg", dest="light_tolerance_deg", type=float, default=None,
+                   metavar="DEG",
+                   help="standard uncertainty u of each light's direction, degrees (isotropic: each tangent axis)")
+    g.add_argument("--light-position-u-mm", "--light-position-tolerance-mm", dest="light_position_tolerance_mm",
+                   type=float, default=None, metavar="MM",
+                   help="standard uncertainty u of each LED coordinate, mm (near-field rigs)")
+    g.add_argument("--intensity-u", "--intensity-tolerance", dest="intensity_tolerance", type=float, default=None,
+                   metavar="R", help="relative standard uncertainty u of each light's intensity")
+    g.add_argument("--pixel-size-u", "--pixel-size-tolerance", dest="pixel_size_tolerance", type=float,
+                   default=None, metavar="R", help="relative standard uncertainty u of the pixel size")
     g.add_argument("--uncertainty", default=None, choices=("linear", "montecarlo"),
                    help=method_help or "propagation: linear (default; closed form) or montecarlo (repeat the "
                    "fast solve with perturbed inputs)")
@@ -107,9 +115,10 @@ def _uncertainty_options(args: argparse.Namespace):
     }
     if all(v is None for v in given.values()):
         return None
-    names = {"noise_sigma": "--noise-sigma", "light_tolerance_deg": "--light-tolerance-deg",
-             "light_position_tolerance_mm": "--light-position-tolerance-mm",
-             "intensity_tolerance": "--intensity-tolerance", "pixel_size_tolerance": "--pixel-size-tolerance"}
+    names = {"noise_sigma": "--noise-sigma", "light_tolerance_deg": "--light-u-deg (--light-tolerance-deg)",
+             "light_position_tolerance_mm": "--light-position-u-mm (--light-position-tolerance-mm)",
+             "intensity_tolerance": "--intensity-u (--intensity-tolerance)",
+             "pixel_size_tolerance": "--pixel-size-u (--pixel-size-tolerance)"}
     for key, flag in names.items():
         if given[key] is not None and not given[key] >= 0:
             raise InputError(f"{flag}: must be a non-negative standard uncertainty, got {given[key]}")
@@ -159,7 +168,7 @@ def register(sub) -> None:
     p.add_argument("--intensities", default=None, metavar="I",
                    help="light intensities: one value or 'r g b' per row (text, .npy or .json)")
     p.add_argument("--mask", default=None, metavar="M", help="object mask image (non-zero inside)")
-    p.add_argument("--integrator", default="dct", choices=("dct", "fc", "lsq", "robust"),
+    p.add_argument("--integrator", default=DEFAULTS.integrator, choices=("dct", "fc", "lsq", "robust"),
                    help="height integrator: dct (Simchony, free boundary; default), fc "
                    "(Frankot-Chellappa, periodic), lsq (masked least squares, multigrid CG), robust "
                    "(lsq reweighted per edge: keeps depth jumps and silhouettes local)")
@@ -181,16 +190,18 @@ def register(sub) -> None:
     p.add_argument("--rig", default=None, metavar="RIG",
                    help="calibrated rig (rig.json of 'workbench photometric calibrate'): LED positions, "
                    "camera, flat-field gains")
-    p.add_argument("--light-model", default="auto", choices=("auto", "point", "directional"),
+    p.add_argument("--light-model", default=DEFAULTS.light_model, choices=LIGHT_MODELS,
                    help="auto (default): point lights when LED positions are known; directional: today's "
                    "far-field model even then")
-    p.add_argument("--reference-height", type=float, default=0.0, metavar="MM",
-                   help="near-field anchor: median height of the valid pixels, mm (default 0: the part lies "
+    p.add_argument("--reference-height", type=float, default=DEFAULTS.reference_height_mm, metavar="MM",
+                   help=f"near-field anchor: median height of the valid pixels, mm (default "
+                   f"{DEFAULTS.reference_height_mm:g}: the part lies "
                    "on the reference plane)")
     p.add_argument("--tolerance", type=float, default=None, metavar="MM",
-                   help="near-field convergence: largest height change between passes, mm (default 0.001)")
-    p.add_argument("--max-iterations", type=int, default=30, metavar="N",
-                   help="near-field: most passes per resolution (default 30)")
+                   help="near-field convergence: largest height change between passes, mm (default "
+                   f"{DEFAULTS.tolerance_mm:g})")
+    p.add_argument("--max-iterations", type=int, default=DEFAULTS.max_iterations, metavar="N",
+                   help=f"near-field: most passes per resolution (default {DEFAULTS.max_iterations})")
     p.add_argument("--out", default="photometric_out", help="output folder (default photometric_out)")
     sel = p.add_mutually_exclusive_group()
     sel.add_argument("--triad", action="store_true",
@@ -200,15 +211,15 @@ def register(sub) -> None:
     p.add_argument("--outliers", action="store_true",
                    help="shadow/highlight mode: drop dark or saturated observations and re-solve "
                    "(N >= 4); a triad marks such pixels invalid")
-    p.add_argument("--dark", type=float, default=0.1,
-                   help="outlier mode: an observation below DARK x albedo is a shadow (default 0.1)")
-    p.add_argument("--saturation", type=float, default=0.99,
+    p.add_argument("--dark", type=float, default=DEFAULTS.dark,
+                   help=f"outlier mode: an observation below DARK x albedo is a shadow (default {DEFAULTS.dark:g})")
+    p.add_argument("--saturation", type=float, default=DEFAULTS.saturation,
                    help="outlier mode: input values at or above this (full scale 1) are saturated "
-                   "(default 0.99)")
+                   f"(default {DEFAULTS.saturation:g})")
     p.add_argument("--highlight", type=float, default=None,
                    help="outlier mode: also drop observations brighter than the Lambertian "
                    "prediction by more than HIGHLIGHT x albedo (default off)")
-    p.add_argument("--surface", default="fit", choices=("fit", "coons"),
+    p.add_argument("--surface", default=DEFAULTS.surface, choices=SURFACES,
                    help="surface model: fit (bicubic patches fitted by least squares to the height and "
                    "the slopes of every pixel, smaller where they miss --surface-tolerance; default) or "
                    "coons (Coons patches through every STEP-th height, tangents from single pixels)")
@@ -225,8 +236,8 @@ def register(sub) -> None:
                    "coons grid step (default: about 64 patches across)")
     p.add_argument("--samples", type=int, default=None,
                    help="mesh subdivisions per (largest) patch side (default min(step, 8))")
-    p.add_argument("--background", default="plane", choices=("plane", "smooth"),
-                   help="background removed before measuring defects (default plane)")
+    p.add_argument("--background", default=DEFAULTS.background, choices=BACKGROUNDS,
+                   help=f"background removed before measuring defects (default {DEFAULTS.background})")
     add_uncertainty_options(p)
     p.set_defaults(func=_reconstruct)
 
@@ -348,7 +359,6 @@ def _reconstruct(args: argparse.Namespace) -> int:
 
     from tqdm import tqdm
 
-    from photometric.nearfield import DEFAULT_TOLERANCE_MM
     from workbench.runs.photometric import reconstruct_to_folder
 
     if (args.folder is None) == (args.images is None):
@@ -400,7 +410,7 @@ def _reconstruct(args: argparse.Namespace) -> int:
             rig=args.rig,
             light_model=args.light_model,
             reference_height_mm=args.reference_height,
-            tolerance_mm=DEFAULT_TOLERANCE_MM if args.tolerance is None else args.tolerance,
+            tolerance_mm=DEFAULTS.tolerance_mm if args.tolerance is None else args.tolerance,
             max_iterations=args.max_iterations,
             uncertainty=tolerances,
             force=args.force,

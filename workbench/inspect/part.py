@@ -11,15 +11,14 @@ file atomically:
 ``overlay.png``
     :func:`workbench.inspect.overlay.overlay_image`.
 
-The measurement is composed here from the library's stages, only those an inspection
-needs: :func:`photometric.io.read_images`, :func:`photometric.stereo.screen_images`,
-:func:`photometric.nearfield.solve_nearfield` (with the rig's strengths prepared once per
-process, :func:`photometric.nearfield.nearfield_setup`) and
-:func:`photometric.defects.measure_defects`; no surface model and no mesh, which nothing of
-``result.json`` uses. The same stages and options as :func:`photometric.pipeline.reconstruct`
-with the rig, so the figures are the same. With ``keep_arrays``, or with an option only the
-pipeline takes (``uncertainty``, ``surface``, ...), the part runs through
-:func:`photometric.pipeline.reconstruct` instead, and ``keep_arrays`` writes its heavy files
+The measurement composes the library's stages (:mod:`photometric.stages`) with the same
+:class:`photometric.options.PhotometricOptions` as :func:`photometric.pipeline.reconstruct`:
+read, solve (near field with the rig's strengths prepared once per process,
+:func:`photometric.nearfield.nearfield_setup`), integrate, measure and, when asked, the
+uncertainty, which needs the height and the defects; no surface model and no mesh, which
+nothing of ``result.json`` uses. With ``keep_arrays``, or with an option only the pipeline
+takes (``surface``, ``step``, ...), the part runs through :func:`photometric.pipeline.reconstruct`
+instead, and ``keep_arrays`` writes its heavy files
 (:func:`workbench.runs.photometric.write_result`: npy arrays, PNG previews,
 ``surface.ply``, ``defects.json``, ``summary.json``). The part folder itself appears
 complete or not at all when the part runs through :func:`workbench.batch.execute_job`
@@ -32,13 +31,12 @@ import functools
 import inspect as _inspect
 import os
 import time
-import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from photometric.rig import Rig, check_rig, read_rig
+from photometric.rig import Rig, read_rig
 from surfaces.io import write_json, write_png
 from workbench.inspect.decide import judge
 from workbench.inspect.overlay import overlay_image
@@ -53,11 +51,14 @@ IMAGE_SUFFIXES = (".png", ".tif", ".tiff", ".npy")
 #: ``format`` of result.json
 RESULT_FORMAT = "workbench-inspection"
 #: reconstruct options the inspection sets itself (the rig gives lights and camera)
-RESERVED_OPTIONS = ("source", "rig", "lights", "light_positions", "mask", "progress", "select")
+RESERVED_OPTIONS = ("source", "rig", "lights", "light_positions", "mask", "progress", "select", "options", "out")
 #: reconstruct options the inspection's own composition of the stages takes (any other option, or
 #: ``keep_arrays``, runs :func:`photometric.pipeline.reconstruct`)
 DIRECT_OPTIONS = ("integrator", "background", "outliers", "dark", "saturation", "highlight", "reference_height_mm",
-                  "tolerance_mm", "max_iterations", "force")
+                  "tolerance_mm", "max_iterations", "force", "uncertainty")
+# what result.json reports of a measurement's summary (photometric.stages.summarize)
+_SUMMARY_KEYS = ("pixel_size_mm", "light_model", "camera", "converged", "iterations", "n_defects", "invalid_fraction",
+                 "size", "uncertainty", "timings_s")
 # files of a captured or rendered folder that are not part images
 _NOT_IMAGES = ("mask.png",)
 
@@ -78,9 +79,11 @@ def check_options(options: dict) -> dict:
 
     Raises
     ------
-    ValueError
-        An option the pipeline does not take, or one the inspection sets itself.
+    InputError
+        An option the pipeline does not take, one the inspection sets itself, or a value
+        :class:`photometric.options.PhotometricOptions` refuses.
     """
+    from photometric.options import split_keywords
     from photometric.pipeline import reconstruct
 
     known = set(_inspect.signature(reconstruct).parameters) - set(RESERVED_OPTIONS)
@@ -90,6 +93,7 @@ def check_options(options: dict) -> dict:
         if key not in known:
             raise InputError(f"--option {key}: not an option of photometric reconstruct (known: "
                              f"{', '.join(sorted(known))})")
+    split_keywords(options)  # the values too: PhotometricOptions checks them once, before any part
     return options
 
 
@@ -205,78 +209,42 @@ class _Measured:
 
 
 def _measure_direct(paths: list, mask_path, rig: Rig, options: dict, threads: int | None) -> _Measured:
-    """Read, screen, solve and measure one part with the library stages the inspection needs.
+    """Read, solve, integrate, measure (and, when asked, the uncertainty of) one part: the library's stages.
 
-    The same stages, checks and options as :func:`photometric.pipeline.reconstruct` with
-    ``rig`` (its near-field path), without the surface model and the mesh.
+    The same stages and options as :func:`photometric.pipeline.reconstruct` with ``rig`` (its
+    near-field path), without the surface model and the mesh, which nothing of ``result.json`` uses.
     """
-    from photometric.defects import measure_defects
-    from photometric.io import full_scale_of, read_images, read_mask
-    from photometric.lights import as_intensities
-    from photometric.nearfield import solve_nearfield
-    from photometric.stereo import SATURATED, check_light_matrix, screen_images
+    from photometric import stages
+    from photometric.options import photometric_options
 
-    opts = {"integrator": "dct", "background": "plane", "outliers": False, "dark": 0.1, "saturation": 0.99,
-            "highlight": None, "reference_height_mm": 0.0, "tolerance_mm": None, "max_iterations": 30,
-            "force": False, **options}
-    timings = {}
-    t_all = t0 = time.perf_counter()
-    images = read_images([str(p) for p in paths])
-    n_img, shape = images.shape[0], images.shape[1:3]
-    check_rig(rig, n_img, shape)
-    mask = np.ones(shape, bool) if mask_path is None else read_mask(mask_path, shape)
-    if not mask.any():
-        raise InputError("mask: no pixel is selected")
-    timings["read"] = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    names = [Path(p).name for p in paths]
-    screen = screen_images(images, mask, SATURATED if full_scale_of(paths) else np.inf)
-    notes = []
-    if not screen.usable.all():
-        bad = "; ".join(screen.problems(names))
-        if screen.usable.sum() < 3:
-            raise InputError(f"images: only {int(screen.usable.sum())} of {n_img} images are usable ({bad}); "
-                             "photometric stereo needs 3")
-        notes.append(f"images: {bad}: left out of the solve")
-    notes += check_light_matrix(rig.lights.directions, opts["force"])[1]
-    for note in notes:
-        warnings.warn(note, UserWarning, stacklevel=3)
-    timings["screen"] = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    # nothing of result.json uses the fit residual: the solve skips it (about a tenth of the normal solves)
-    near = {} if opts["tolerance_mm"] is None else {"tolerance_mm": opts["tolerance_mm"]}
-    res = solve_nearfield(
-        images, rig.lights, rig.camera, intensities=rig.intensities if rig.intensities is not None
-        else as_intensities(None, n_img), mask=mask & screen.enough, outliers=opts["outliers"], dark=opts["dark"],
-        saturation=opts["saturation"], highlight=opts["highlight"], integrator=opts["integrator"],
-        reference_height_mm=opts["reference_height_mm"], max_iterations=opts["max_iterations"], threads=threads,
-        setup=_setup(rig) if rig.gains is not None else None, gains=None, residual=False, **near)
-    del images
-    timings["nearfield"] = time.perf_counter() - t0
-    timings["solve"] = res.timings_s["solve"]
-    timings["integrate"] = res.timings_s["integrate"]
-    t0 = time.perf_counter()
-    h = rig.camera.nominal_pixel_mm()
-    on_points = {} if rig.camera.model == "orthographic" else {"xy": res.xy, "area": res.footprint_mm2}
-    defects = measure_defects(res.height, h, res.valid, background=opts["background"], p=res.p, q=res.q,
-                              **on_points)
-    timings["defects"] = time.perf_counter() - t0
+    opts = photometric_options(**options)
+    t_all = time.perf_counter()
+    inp = stages.read([str(p) for p in paths], opts, rig=rig, mask=None if mask_path is None else str(mask_path))
+    # nothing of result.json uses the fit residual: the solve skips it unless the noise is estimated from it
+    sol = stages.solve(inp, opts, residual=opts.uncertainty is not None, threads=threads,
+                       setup=_setup(rig) if rig.gains is not None else None)
+    height = stages.integrate(inp, sol, opts)
+    found = stages.measure(inp, sol, height, opts)
+    timings = {"read": inp.seconds, "screen": sol.timings_s["screen"],
+               "nearfield": sol.timings_s["total"] - sol.timings_s["screen"], "solve": sol.timings_s["solve"],
+               "integrate": sol.timings_s["integrate"], "defects": found.seconds}
+    defects, unc = found.defects, None
+    if opts.uncertainty is not None:
+        t0 = time.perf_counter()
+        unc = stages.uncertainty(inp, sol, height, found, opts)
+        timings["uncertainty"] = time.perf_counter() - t0
+        defects = _with_u(defects, unc)
     timings["total"] = time.perf_counter() - t_all
-    n_mask = int(mask.sum())
-    summary = {
-        "pixel_size_mm": h,
-        "light_model": "point",
-        "camera": rig.camera.to_dict(shape),
-        "converged": True,
-        "iterations": res.iterations,
-        "flat_field": rig.gains is not None,
-        "n_defects": len(defects),
-        "invalid_fraction": float(1.0 - res.valid[mask].sum() / max(n_mask, 1)),
-        "size": {"height": shape[0], "width": shape[1]},
-        "uncertainty": None,
-        "timings_s": {k: round(v, 4) for k, v in timings.items()},
-    }
-    return _Measured(res.albedo, mask, res.valid, defects, h, summary)
+    s = stages.summarize(inp, sol, height, found, opts, unc=unc, timings=timings)
+    summary = {k: s.get(k) for k in _SUMMARY_KEYS}
+    summary["flat_field"] = s.get("flat_field") is not None
+    return _Measured(sol.fit.albedo, sol.data.mask, sol.fit.valid, defects, inp.pixel_size_mm, summary)
+
+
+def _with_u(defects: list, unc) -> list:
+    """The defects with the expanded uncertainties (k = 2) of their figures."""
+    stated = {d["id"]: d["uncertainty_k2"] for d in unc.defects}
+    return [{**d, "uncertainty_k2": stated.get(d["id"])} for d in defects]
 
 
 def _measure_pipeline(paths: list, mask_path, rig: Rig, options: dict, keep_arrays: bool) -> _Measured:
@@ -291,13 +259,8 @@ def _measure_pipeline(paths: list, mask_path, rig: Rig, options: dict, keep_arra
     res = reconstruct([str(p) for p in paths], rig=rig, mask=None if mask_path is None else str(mask_path),
                       **options)
     s = res.summary
-    defects = res.defects
-    if res.uncertainty is not None:
-        stated = {d["id"]: d["uncertainty_k2"] for d in res.uncertainty.defects}
-        defects = [{**d, "uncertainty_k2": stated.get(d["id"])} for d in defects]
-    summary = {k: s.get(k) for k in ("light_model", "camera", "converged", "iterations", "n_defects",
-                                      "invalid_fraction", "size", "uncertainty", "timings_s")}
-    summary["pixel_size_mm"] = float(s["pixel_size_mm"])
+    defects = res.defects if res.uncertainty is None else _with_u(res.defects, res.uncertainty)
+    summary = {k: s.get(k) for k in _SUMMARY_KEYS}
     summary["flat_field"] = s.get("flat_field") is not None
     return _Measured(res.albedo, res.mask, res.valid, defects, float(s["pixel_size_mm"]), summary, res)
 

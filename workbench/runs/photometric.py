@@ -245,7 +245,9 @@ def reconstruct_to_folder(
         The content of ``summary.json``: input, sizes, options, light model and camera,
         light condition number, invalid fraction, timings (s), files, mesh size, number
         of defects and, when the folder has ground truth, ``mean_angular_error_deg``
-        (over the mask) and ``height_rmse_mm`` (over valid pixels, means removed).
+        (over the mask) and ``height_rmse_mm`` (over valid pixels, means removed;
+        :func:`datasets_synthetic.truth.height_errors`, with ``height_bias_mm`` and
+        ``xy_rmse_mm`` for near-field solves).
 
     Raises
     ------
@@ -288,6 +290,12 @@ def _reconstruct_or_summary(source, out: Path, progress, options) -> Photometric
     except NotConvergedError as exc:
         write_json(out / "summary.json", {**exc.summary, "files": ["summary.json"]})
         raise
+    if isinstance(source, (str, Path)) and Path(source).is_dir():
+        # a synthetic folder's height_gt.npy / xy_gt.npy: the errors go into summary.json
+        from datasets_synthetic.truth import height_errors, read_truth
+
+        result.summary.update(height_errors(result.height, result.valid, read_truth(source), xy=result.xy,
+                                            anchored=result.xy is not None))
     if progress is not None:
         progress("write")
     return result

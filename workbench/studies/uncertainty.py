@@ -161,7 +161,8 @@ def _trial(rng: np.random.Generator, opts: dict, method: str, mc_samples: int) -
     """One rendered scratch under randomly deviated lights, reconstructed with the nominal ones."""
     from datasets_synthetic.heightfields import u_scratch
     from datasets_synthetic.render import render
-    from photometric.lights import light_field, point_lights, ring_lights
+    from photometric.leds import light_field, point_lights
+    from photometric.lights import ring_lights
     from photometric.pipeline import reconstruct
     from photometric.uncertainty.propagation import perturbed_lights
 
@@ -300,7 +301,7 @@ def coverage_study(
         ``far``: distant lights deviated in direction; ``near``: LEDs at
         ``light_distance_mm`` on the same ring (point lights, inverse-square falloff,
         orthographic camera) whose TRUE positions deviate by ``light_position_tolerance_mm``
-        per coordinate (rendered with :func:`photometric.lights.light_field`).
+        per coordinate (rendered with :func:`photometric.leds.light_field`).
     light_distance_mm, light_position_tolerance_mm :
         The near-field rig.
 

@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from photometric.lights import load_lights, ring_lights
+from photometric.io import load_lights
+from photometric.lights import ring_lights
 from workbench.demo.accuracy import RANGES, TOLERANCES, section_accuracy
 
 from .test_context import parses, quick_context

@@ -118,6 +118,49 @@ def test_without_arrays_the_coarse_surface_leaves_the_figures_unchanged(small_lo
     assert a["measurement"] == b["measurement"]
 
 
+def test_uncertainty_composes_the_stages_without_a_surface(small_lot, tmp_path):
+    """guard_band with stated uncertainties: the part's stages (no surface, no mesh) give the imperfections,
+    their U and the verdict of photometric.pipeline.reconstruct (a pipeline-only option sends it there)."""
+    spec = parse_spec({"max_depth_mm": 0.10, "decision_rule": "guard_band"})
+    unc = {"method": "linear", "light_position_tolerance_mm": 0.2}
+    fast = inspect_part(small_lot["parts"] / "scratch_over", tmp_path / "fast", small_lot["rig"], spec,
+                        uncertainty=unc)
+    full = inspect_part(small_lot["parts"] / "scratch_over", tmp_path / "full", small_lot["rig"], spec,
+                        uncertainty=unc, surface="coons")
+    a, b = (json.loads((tmp_path / name / "result.json").read_text()) for name in ("fast", "full"))
+    assert a["imperfections"] and a["max_depth_U_mm"] > 0
+    for ra, rb in zip(a["imperfections"], b["imperfections"], strict=True):
+        assert ra["verdict"] == rb["verdict"]
+        for key, value in ra["values"].items():
+            assert value["value"] == pytest.approx(rb["values"][key]["value"], rel=1e-9, abs=1e-12)
+            assert value["U"] == (None if rb["values"][key]["U"] is None else pytest.approx(rb["values"][key]["U"],
+                                                                                          rel=1e-6))
+    assert a["verdict"] == b["verdict"] and a["measurement"]["uncertainty"] is not None
+    assert "surface" not in fast["timings_s"]["stages"] and "surface" in full["timings_s"]["stages"]
+    assert "uncertainty" in fast["timings_s"]["stages"]
+
+
+def test_lights_are_validated_once_per_part(small_lot, tmp_path, monkeypatch):
+    import photometric.lights
+
+    calls = []
+    original = photometric.lights.validate_lights
+
+    def counted(*args, **kwargs):
+        calls.append(1)
+        return original(*args, **kwargs)
+
+    load_rig(small_lot["rig"])  # the rig's own check happens when it is read, once per process
+    for module in ("photometric.lights", "photometric.stereo", "photometric.stages", "photometric.nearfield"):
+        mod = __import__(module, fromlist=["x"])
+        if hasattr(mod, "validate_lights"):
+            monkeypatch.setattr(mod, "validate_lights", counted)
+    guard = parse_spec({"max_depth_mm": 0.10, "decision_rule": "guard_band"})
+    inspect_part(small_lot["parts"] / "scratch_over", tmp_path / "o", small_lot["rig"], guard,
+                 uncertainty={"light_position_tolerance_mm": 0.2})
+    assert len(calls) <= 1
+
+
 def test_bad_parts_write_nothing(small_lot, tmp_path):
     small = tmp_path / "small"
     for k in range(4):
