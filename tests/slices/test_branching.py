@@ -68,7 +68,7 @@ def test_trouser_phantom_is_one_clean_solid_without_a_shelf(merge):
     assert solid.signed_volume() == pytest.approx(rec.volume_mm3, rel=1e-3)
     planes = np.unique([c.z for c in conts])
     assert _shelf_area(solid, planes) < 0.5  # mm^2: slivers where the parts' curves meet the parent's
-    assert "3 chain end(s) joined at a contour divided along the mid-line" in chaining_text(rec)
+    assert "3 chain ends joined at a contour divided along the mid-line" in chaining_text(rec)
 
 
 def test_without_the_split_the_branching_leaves_a_shelf(monkeypatch):

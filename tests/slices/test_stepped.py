@@ -45,7 +45,8 @@ def test_stepped_slabs_unfold_the_fold_phantoms(name):
     for low, high in zip(pieces[:-1], pieces[1:]):
         assert low.body.stop == high.body.start == "step"
         assert low.caps_used[1] == high.caps_used[0] == "half"
-    assert f"{len(sizes) - 1} slab(s) stepped" in chaining_text(rec)
+    n = len(sizes) - 1
+    assert f"{n} {'slab' if n == 1 else 'slabs'} stepped" in chaining_text(rec)
     # a stepped slab encloses what the blend did, to the trapezoid rule
     assert rec.volume_mm3 == pytest.approx(whole.volume_mm3, rel=0.01)
     solid, united = rec.solid_mesh()

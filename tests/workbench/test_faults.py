@@ -421,7 +421,7 @@ def test_failed_part_is_measured_again_when_its_images_change_or_with_retry_fail
     (["--light-tolerance-deg", "nan"], "--light-tolerance-deg: must be a finite non-negative standard uncertainty"),
     (["--noise-sigma", "-1"], "--noise-sigma: must be a finite non-negative standard uncertainty, got -1.0"),
     (["--light-tolerance-deg", "inf"], "--light-tolerance-deg: must be a finite"),
-    (["--option", "tolerance_mm=nan"], "--option tolerance_mm: expected a finite number, got nan"),
+    (["--option", "tolerance_mm=nan"], "tolerance_mm: must be a finite positive number, got nan"),
     (["--uncertainty", "montecarlo", "--mc-samples", "100000000"],
      "--mc-samples 100000000: 100000000 samples x 224 x 224 px = 5.02e+12 pixel solves, above the limit "
      "of 1e+10; give at most 199298 samples"),
