@@ -94,7 +94,7 @@ class Material:
     alpha : float
         GGX roughness (not for diffuse).
     specular : float
-        roughplastic: normal-incidence reflectance of the coat relative to ``albedo``.
+        roughplastic: the coat's ``specular_reflectance`` relative to ``albedo``.
     ior : float
         roughplastic: refractive index of the coat.
     conductor : str
@@ -129,10 +129,10 @@ class Material:
         if self.kind == "diffuse":
             return {"type": "diffuse", "reflectance": grey}
         if self.kind == "roughplastic":
-            spec = self.specular * self.albedo / self.coat_f0
+            spec = self.specular * self.albedo
             return {"type": "roughplastic", "distribution": "ggx", "alpha": self.alpha, "int_ior": self.ior,
                     "ext_ior": 1.0, "diffuse_reflectance": grey, "nonlinear": False,
-                    # a plain float: Mitsuba refuses RGB reflectances above 1, a uniform spectrum it takes
+                    # a plain float: Mitsuba refuses RGB reflectances above 1 (specular > 1 / albedo)
                     "specular_reflectance": float(spec)}
         return {"type": "roughconductor", "distribution": "ggx", "alpha": self.alpha, "material": self.conductor,
                 "specular_reflectance": grey}
@@ -153,10 +153,11 @@ def material(kind: str = "diffuse", albedo: float = 0.8, alpha: float = 0.3, spe
     alpha : float
         GGX roughness (Mitsuba's ``alpha``, > 0).
     specular : float
-        roughplastic only: the coat's reflectance at normal incidence relative to the
-        diffuse albedo (``specular = F0 * specular_reflectance / albedo`` with the
-        coat's Fresnel ``F0 = ((ior - 1) / (ior + 1))^2``), so 0.3 makes a lobe
-        holding 0.3 of the diffuse albedo; >= 0.
+        roughplastic only: the weight of the specular lobe relative to the diffuse one,
+        Mitsuba's ``specular_reflectance = specular * albedo`` (>= 0). The coat's
+        Fresnel term multiplies it: at normal incidence the lobe reflects
+        ``F0 * specular * albedo`` with ``F0 = ((ior - 1) / (ior + 1))^2`` (0.04 at
+        ior 1.5); ``specular`` = 1 / albedo is an ordinary plastic.
     ior : float
         roughplastic: the coat's refractive index (> 1).
     conductor : str
@@ -169,8 +170,8 @@ def material(kind: str = "diffuse", albedo: float = 0.8, alpha: float = 0.3, spe
     Examples
     --------
     >>> m = material("roughplastic", 0.8, alpha=0.3, specular=0.3)
-    >>> round(m.bsdf()["specular_reflectance"], 3)
-    6.0
+    >>> m.bsdf()["specular_reflectance"], round(m.coat_f0, 3)
+    (0.24, 0.04)
     """
     if kind not in MATERIALS:
         raise InputError(f"kind: expected one of {MATERIALS}, got {kind!r}")
