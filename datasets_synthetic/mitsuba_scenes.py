@@ -59,7 +59,7 @@ from surfaces.validate import InputError, as_array, positive
 
 #: The Mitsuba variant used (CPU, RGB; ``llvm_ad_rgb`` needs an LLVM this machine's is not).
 VARIANT = "scalar_rgb"
-MATERIALS = ("diffuse", "roughplastic", "roughconductor")
+MATERIALS = ("diffuse", "roughplastic", "roughconductor", "lambertian_ggx")
 INTEGRATORS = ("direct", "path")
 #: Default brightest clean value (full scale 1) when the exposure is chosen automatically.
 PEAK = 0.9
@@ -86,15 +86,17 @@ class Material:
 
     Attributes
     ----------
-    kind : {"diffuse", "roughplastic", "roughconductor"}
-        Mitsuba plugin.
+    kind : {"diffuse", "roughplastic", "roughconductor", "lambertian_ggx"}
+        Mitsuba plugin (``lambertian_ggx``: a ``blendbsdf`` of ``diffuse`` and a
+        perfectly reflecting ``roughconductor``).
     albedo : float
         Diffuse reflectance (roughplastic: of the base under the coat; roughconductor:
         the specular reflectance scale).
     alpha : float
         GGX roughness (not for diffuse).
     specular : float
-        roughplastic: the coat's ``specular_reflectance`` relative to ``albedo``.
+        roughplastic: the coat's ``specular_reflectance`` relative to ``albedo``;
+        lambertian_ggx: the lobe's reflectance relative to ``albedo``.
     ior : float
         roughplastic: refractive index of the coat.
     conductor : str
@@ -119,6 +121,8 @@ class Material:
         out = {"kind": self.kind, "albedo": self.albedo}
         if self.kind == "roughplastic":
             out.update(alpha=self.alpha, specular=self.specular, ior=self.ior, distribution="ggx")
+        elif self.kind == "lambertian_ggx":
+            out.update(alpha=self.alpha, specular=self.specular, distribution="ggx")
         elif self.kind == "roughconductor":
             out.update(alpha=self.alpha, conductor=self.conductor, distribution="ggx")
         return out
@@ -134,6 +138,14 @@ class Material:
                     "ext_ior": 1.0, "diffuse_reflectance": grey, "nonlinear": False,
                     # a plain float: Mitsuba refuses RGB reflectances above 1 (specular > 1 / albedo)
                     "specular_reflectance": float(spec)}
+        if self.kind == "lambertian_ggx":
+            # (1 - t) diffuse(a) + t lobe(a) with t = w / (1 + w), a = albedo (1 + w): diffuse albedo, lobe w albedo
+            t = self.specular / (1.0 + self.specular)
+            a = self.albedo * (1.0 + self.specular)
+            return {"type": "blendbsdf", "weight": t,
+                    "diffuse": {"type": "diffuse", "reflectance": a},
+                    "lobe": {"type": "roughconductor", "distribution": "ggx", "alpha": self.alpha, "material": "none",
+                             "specular_reflectance": a}}
         return {"type": "roughconductor", "distribution": "ggx", "alpha": self.alpha, "material": self.conductor,
                 "specular_reflectance": grey}
 
@@ -144,10 +156,13 @@ def material(kind: str = "diffuse", albedo: float = 0.8, alpha: float = 0.3, spe
 
     Parameters
     ----------
-    kind : {"diffuse", "roughplastic", "roughconductor"}
+    kind : {"diffuse", "roughplastic", "roughconductor", "lambertian_ggx"}
         ``diffuse``: Lambertian (the matte control). ``roughplastic``: Lambertian base
-        under a dielectric coat with a GGX microfacet lobe. ``roughconductor``: a GGX
-        metal (no diffuse part).
+        under a dielectric coat with a GGX microfacet lobe (the coat's Fresnel
+        transmission also makes the base depart from Lambert's law). ``roughconductor``:
+        a GGX metal (no diffuse part). ``lambertian_ggx``: a gloss lobe alone, the
+        Lambertian albedo plus a GGX lobe without Fresnel falloff (Mitsuba's
+        ``blendbsdf`` of ``diffuse`` and a perfectly reflecting ``roughconductor``).
     albedo : float
         Diffuse albedo in (0, 1] (roughconductor: scale of its reflectance).
     alpha : float
@@ -157,7 +172,8 @@ def material(kind: str = "diffuse", albedo: float = 0.8, alpha: float = 0.3, spe
         Mitsuba's ``specular_reflectance = specular * albedo`` (>= 0). The coat's
         Fresnel term multiplies it: at normal incidence the lobe reflects
         ``F0 * specular * albedo`` with ``F0 = ((ior - 1) / (ior + 1))^2`` (0.04 at
-        ior 1.5); ``specular`` = 1 / albedo is an ordinary plastic.
+        ior 1.5); ``specular`` = 1 / albedo is an ordinary plastic. lambertian_ggx: the
+        lobe's reflectance relative to the diffuse albedo.
     ior : float
         roughplastic: the coat's refractive index (> 1).
     conductor : str

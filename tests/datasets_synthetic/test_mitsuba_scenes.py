@@ -63,19 +63,29 @@ def test_disc_led_is_a_cosine_lobe():
     assert np.max(np.abs(r.images[0] / iso - 1.0)) > 0.1
 
 
+def test_a_gloss_lobe_of_weight_zero_is_the_matte_plate():
+    camera = orthographic_camera(SHAPE, 0.5)
+    lights = point_lights([[10.0, 5.0, 80.0]])
+    args = dict(spp=4, exposure=1.0, flats=False)
+    matte = render_mitsuba(plane(SHAPE, 0.5), camera, lights, material("diffuse", 0.7), **args).images[0]
+    none = render_mitsuba(plane(SHAPE, 0.5), camera, lights, material("lambertian_ggx", 0.7, specular=0.0), **args)
+    np.testing.assert_allclose(none.images[0], matte, rtol=1e-5)
+
+
 def test_point_leds_with_a_lobe_are_refused():
     camera = orthographic_camera(SHAPE, 0.5)
     with pytest.raises(InputError, match="isotropic"):
         render_mitsuba(plane(SHAPE, 0.5), camera, point_lights([[0.0, 0.0, 100.0]], mu=2.0))
 
 
-def test_gloss_peaks_at_the_mirror_point():
-    """roughplastic under a point LED above the field: the gloss excess peaks where n is the half vector."""
+@pytest.mark.parametrize("kind, specular", [("roughplastic", 1.25), ("lambertian_ggx", 0.3)])
+def test_gloss_peaks_at_the_mirror_point(kind, specular):
+    """A glossy plate under a point LED above the field: the gloss excess peaks where n is the half vector."""
     camera = orthographic_camera(SHAPE, 0.5)
     hf = plane(SHAPE, 0.5)
     lights = point_lights([[10.0, 5.0, 80.0]])
     matte = render_mitsuba(hf, camera, lights, material("diffuse", 0.8), spp=4, exposure=1.0, flats=False)
-    gloss = render_mitsuba(hf, camera, lights, material("roughplastic", 0.8, alpha=0.2, specular=1.25), spp=16,
+    gloss = render_mitsuba(hf, camera, lights, material(kind, 0.8, alpha=0.2, specular=specular), spp=16,
                            exposure=1.0, flats=False)
     excess = gloss.images[0] / matte.images[0]
     row, col = np.unravel_index(np.argmax(excess), SHAPE)
