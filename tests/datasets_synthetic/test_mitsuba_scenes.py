@@ -6,6 +6,7 @@ import json
 
 import numpy as np
 import pytest
+from scipy.ndimage import binary_dilation
 
 pytest.importorskip("mitsuba", reason="Mitsuba 3 (pip install mitsuba) renders these scenes")
 
@@ -170,3 +171,17 @@ def test_folder_reads_as_a_near_field_capture(tmp_path):
     json.loads((tmp_path / "set" / "scene.json").read_text())
     data = read_folder(tmp_path / "set")
     np.testing.assert_allclose(np.asarray(data.images, float), r.images, atol=1.0 / 65535)
+
+
+def test_path_tracing_adds_light_only_where_the_surface_sees_itself():
+    camera = orthographic_camera((64, 64), 0.25)
+    part = inspection_part((64, 64), 0.25, "crack", depth_mm=2.0, width_mm=4.0, length_mm=12.0, center_mm=(0.0, 0.0),
+                           axis_deg=90.0)
+    lights = point_lights([[0.0, 0.0, 100.0]])
+    args = dict(spp=32, exposure=1.0, flats=False, seed=2)
+    direct = render_mitsuba(part, camera, lights, integrator="direct", **args).images[0]
+    path = render_mitsuba(part, camera, lights, integrator="path", max_depth=3, **args).images[0]
+    inside = part.defect_mask
+    flat = ~binary_dilation(inside, iterations=3)
+    assert np.median(np.abs(path[flat] / direct[flat] - 1.0)) < 0.01
+    assert np.median(path[inside] / direct[inside]) > 1.05
