@@ -158,7 +158,7 @@ def _normal(p: np.ndarray, q: np.ndarray) -> np.ndarray:
 
 
 def fit_glossy(images, light_vectors, view, alpha: float, weight: float, normals, albedo, valid=None,
-               iterations: int = 15) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+               iterations: int = 15, dark: float | None = 0.1) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Refine normals and albedo per pixel under the Lambertian + GGX model (see the module docstring).
 
     Minimises ``sum_k (I_k - albedo (s_k . n + c F_k(n)))^2`` over the slopes ``p, q`` of
@@ -186,6 +186,11 @@ def fit_glossy(images, light_vectors, view, alpha: float, weight: float, normals
         Pixels to refine (others are returned unchanged).
     iterations : int
         Levenberg-Marquardt steps.
+    dark : float or None
+        Observations darker than ``dark * albedo * |s_k|`` (the starting albedo) are left
+        out of the pixel's fit: cast shadows, which neither model holds (as the outlier
+        mode of :func:`photometric.nearfield.solve_nearfield` does); a pixel keeps at least
+        4 observations (its brightest). None: every observation.
 
     Returns
     -------
@@ -194,7 +199,7 @@ def fit_glossy(images, light_vectors, view, alpha: float, weight: float, normals
     albedo : (H, W) float64 array
         Refined albedo.
     rms : (H, W) float64 array
-        RMS residual per pixel over the lights (image units).
+        RMS residual per pixel over the observations fitted (image units).
 
     Raises
     ------
@@ -225,16 +230,25 @@ def fit_glossy(images, light_vectors, view, alpha: float, weight: float, normals
         m = ok[rows]
         if not m.any():
             continue
-        nn, rr, res = _fit_pixels(imgs[:, rows][:, m], S[:, rows][:, m], v[rows][m], a2, c, n0[rows][m],
-                                  rho0[rows][m], iterations)
+        X = imgs[:, rows][:, m]
+        Sb = S[:, rows][:, m]
+        rb = rho0[rows][m]
+        W = None
+        if dark is not None:
+            bright = X >= dark * rb[None] * np.linalg.norm(Sb, axis=-1)
+            # at least 4 observations: the brightest ones where shadows leave fewer
+            rank = np.argsort(np.argsort(-X, axis=0), axis=0)
+            W = (bright | (rank < 4)).astype(np.float64)
+        nn, rr, res = _fit_pixels(X, Sb, v[rows][m], a2, c, n0[rows][m], rb, iterations, W)
         out_n[rows][m] = nn
         out_rho[rows][m] = rr
         rms[rows][m] = res
     return out_n, out_rho, rms
 
 
-def _fit_pixels(X, S, v, a2, c, n0, rho, iterations):
-    """Levenberg-Marquardt over P pixels: X (N, P), S (N, P, 3), v (P, 3), n0 (P, 3), rho (P,)."""
+def _fit_pixels(X, S, v, a2, c, n0, rho, iterations, W=None):
+    """Levenberg-Marquardt over P pixels: X (N, P), S (N, P, 3), v (P, 3), n0 (P, 3), rho (P,), weights W (N, P)."""
+    W = np.ones(X.shape) if W is None else W
     E = np.linalg.norm(S, axis=-1)
     nz = np.where(np.abs(n0[:, 2]) > 1e-6, n0[:, 2], 1e-6)
     p, q = -n0[:, 0] / nz, -n0[:, 1] / nz
@@ -245,15 +259,15 @@ def _fit_pixels(X, S, v, a2, c, n0, rho, iterations):
         return np.maximum(np.einsum("kpi,pi->kp", S, n), 0.0) + c * _lobe(n, S, E, v, a2)
 
     m = model(p, q)
-    cost = ((X - rho * m) ** 2).sum(0)
+    cost = (W * (X - rho * m) ** 2).sum(0)
     lam = np.full(p.shape, 1e-3)
     eps = 1e-6
     for _ in range(iterations):
         jp = rho * (model(p + eps, q) - m) / eps
         jq = rho * (model(p, q + eps) - m) / eps
         J = np.stack([jp, jq, m], axis=-1)  # d(prediction) / d(p, q, rho): (N, P, 3)
-        A = np.einsum("kpi,kpj->pij", J, J)
-        g = np.einsum("kpi,kp->pi", J, X - rho * m)
+        A = np.einsum("kpi,kpj->pij", J * W[..., None], J)
+        g = np.einsum("kpi,kp->pi", J, W * (X - rho * m))
         diag = np.einsum("pii->pi", A)
         A = A + (lam[:, None] * np.maximum(diag, 1e-12))[:, :, None] * np.eye(3)[None]
         try:
@@ -262,10 +276,10 @@ def _fit_pixels(X, S, v, a2, c, n0, rho, iterations):
             break
         p2, q2, rho2 = p + d[:, 0], q + d[:, 1], rho + d[:, 2]
         m2 = model(p2, q2)
-        cost2 = ((X - rho2 * m2) ** 2).sum(0)
+        cost2 = (W * (X - rho2 * m2) ** 2).sum(0)
         better = (cost2 < cost) & np.isfinite(cost2)
         p, q, rho = np.where(better, p2, p), np.where(better, q2, q), np.where(better, rho2, rho)
         m = np.where(better[None], m2, m)
         cost = np.where(better, cost2, cost)
         lam = np.where(better, lam * 0.3, lam * 10.0)
-    return _normal(p, q), rho, np.sqrt(cost / len(X))
+    return _normal(p, q), rho, np.sqrt(cost / W.sum(0))

@@ -93,3 +93,17 @@ def test_bad_input():
         ggx_lobe(n, np.ones((4, 3)), (0.0, 0.0, 0.0), 0.3)
     with pytest.raises(InputError, match="weight"):
         fit_glossy(np.ones((4, 4, 4)), np.ones((4, 3)), UP, 0.3, -1.0, n, np.ones((4, 4)))
+
+
+def test_dark_observations_are_left_out():
+    """A cast shadow (an observation read as black) tilts the fit unless it is left out."""
+    r, s = _render(plane((SIZE, SIZE), PIXEL_MM), 0.3, 0.3, seed=2)
+    images = r.images.copy()
+    images[0, :, : SIZE // 2] = 0.0  # light 1 shadowed on the left half
+    n0, rho0 = _lambertian(r.images, s)
+    c = np.pi * 0.3
+    n, _, _ = fit_glossy(images, s, UP, 0.3, c, n0, rho0)
+    n_all, _, _ = fit_glossy(images, s, UP, 0.3, c, n0, rho0, dark=None)
+    left = np.s_[:, : SIZE // 2]
+    assert np.median(angular_error_deg(n[left], r.hits.normals[left])) < 0.2
+    assert np.median(angular_error_deg(n_all[left], r.hits.normals[left])) > 2.0
