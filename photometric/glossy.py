@@ -55,11 +55,17 @@ def _smith(cos: np.ndarray, a2: float) -> np.ndarray:
     return 2.0 / (1.0 + np.sqrt(1.0 + a2 * (1.0 - c2) / c2))
 
 
-def _lobe(n: np.ndarray, S: np.ndarray, E: np.ndarray, v: np.ndarray, a2: float) -> np.ndarray:
-    """``F_k`` on checked arrays: n (..., 3), S (N, ..., 3), E = |S| (N, ...), v (..., 3)."""
+def _geometry(S: np.ndarray, E: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Unit light vectors and half vectors (N, ..., 3): they do not depend on the normal."""
     unit = S / np.where(E > 0, E, 1.0)[..., None]
     h = unit + v[None]
     h /= np.maximum(np.linalg.norm(h, axis=-1, keepdims=True), 1e-12)
+    return unit, h
+
+
+def _lobe(n: np.ndarray, S: np.ndarray, E: np.ndarray, v: np.ndarray, a2: float, geometry=None) -> np.ndarray:
+    """``F_k`` on checked arrays: n (..., 3), S (N, ..., 3), E = |S| (N, ...), v (..., 3)."""
+    unit, h = _geometry(S, E, v) if geometry is None else geometry
     nh = np.einsum("k...i,...i->k...", h, n)
     nl = np.einsum("k...i,...i->k...", unit, n)
     nv = np.einsum("...i,...i->...", v, n)[None]
@@ -254,9 +260,11 @@ def _fit_pixels(X, S, v, a2, c, n0, rho, iterations, W=None):
     p, q = -n0[:, 0] / nz, -n0[:, 1] / nz
     rho = rho.astype(np.float64)
 
+    geometry = _geometry(S, E, v)
+
     def model(pp, qq):
         n = _normal(pp, qq)
-        return np.maximum(np.einsum("kpi,pi->kp", S, n), 0.0) + c * _lobe(n, S, E, v, a2)
+        return np.maximum(np.einsum("kpi,pi->kp", S, n), 0.0) + c * _lobe(n, S, E, v, a2, geometry)
 
     m = model(p, q)
     cost = (W * (X - rho * m) ** 2).sum(0)
