@@ -41,7 +41,7 @@ import numpy as np
 from photometric.rig import Rig, check_rig, read_rig
 from surfaces.io import write_json, write_png
 from workbench.inspect.decide import judge
-from workbench.inspect.overlay import overlay_image
+from workbench.inspect.overlay import overlay_image, overlay_text
 from workbench.inspect.spec import Spec, load_spec
 from surfaces.validate import InputError
 
@@ -202,6 +202,8 @@ class _Measured:
     pixel_size_mm: float
     summary: dict  # the pipeline summary's keys that result.json reports, and timings_s
     result: object = None  # the full PhotometricReconstruction (pipeline path only)
+    height: np.ndarray | None = None  # mm, NaN where not measured (the overlay's shaded panel)
+    labels: np.ndarray | None = None  # id + 1 on each defect's pixels (the overlay's outlines)
 
 
 def _measure_direct(paths: list, mask_path, rig: Rig, options: dict, threads: int | None) -> _Measured:
@@ -258,8 +260,8 @@ def _measure_direct(paths: list, mask_path, rig: Rig, options: dict, threads: in
     t0 = time.perf_counter()
     h = rig.camera.nominal_pixel_mm()
     on_points = {} if rig.camera.model == "orthographic" else {"xy": res.xy, "area": res.footprint_mm2}
-    defects = measure_defects(res.height, h, res.valid, background=opts["background"], p=res.p, q=res.q,
-                              **on_points)
+    defects, labels = measure_defects(res.height, h, res.valid, background=opts["background"], p=res.p, q=res.q,
+                                      return_labels=True, **on_points)
     timings["defects"] = time.perf_counter() - t0
     timings["total"] = time.perf_counter() - t_all
     n_mask = int(mask.sum())
@@ -276,7 +278,7 @@ def _measure_direct(paths: list, mask_path, rig: Rig, options: dict, threads: in
         "uncertainty": None,
         "timings_s": {k: round(v, 4) for k, v in timings.items()},
     }
-    return _Measured(res.albedo, mask, res.valid, defects, h, summary)
+    return _Measured(res.albedo, mask, res.valid, defects, h, summary, height=res.height, labels=labels)
 
 
 def _measure_pipeline(paths: list, mask_path, rig: Rig, options: dict, keep_arrays: bool) -> _Measured:
@@ -299,7 +301,19 @@ def _measure_pipeline(paths: list, mask_path, rig: Rig, options: dict, keep_arra
                                       "invalid_fraction", "size", "uncertainty", "timings_s")}
     summary["pixel_size_mm"] = float(s["pixel_size_mm"])
     summary["flat_field"] = s.get("flat_field") is not None
-    return _Measured(res.albedo, res.mask, res.valid, defects, float(s["pixel_size_mm"]), summary, res)
+    return _Measured(res.albedo, res.mask, res.valid, defects, float(s["pixel_size_mm"]), summary, res,
+                     height=res.height, labels=_labels_of(res, rig))
+
+
+def _labels_of(res, rig: Rig) -> np.ndarray | None:
+    """The defects' label image of a pipeline result, for the overlay's outlines (the same segmentation again:
+    the pipeline keeps only the records); None when it does not give the same defects."""
+    from photometric.defects import measure_defects
+
+    h = float(res.summary["pixel_size_mm"])
+    found, labels = measure_defects(res.height, h, res.valid, background=res.background, p=res.p, q=res.q,
+                                    xy=None if rig.camera.model == "orthographic" else res.xy, return_labels=True)
+    return labels if [d["id"] for d in found] == [d["id"] for d in res.defects] else None
 
 
 def _frames(paths: list, mask_path, rig: Rig):
@@ -393,7 +407,8 @@ def inspect_part(folder, out_dir, rig, spec, *, keep_arrays: bool = False, part_
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
-    write_png(out / "overlay.png", overlay_image(m.albedo, m.mask, decision, spec_obj, pixel))
+    write_png(out / "overlay.png", overlay_image(m.albedo, m.mask, decision, spec_obj, pixel, height=m.height,
+                                                 labels=m.labels))
     t_overlay = time.perf_counter() - t0
     files = ["overlay.png", "result.json"]
     t0 = time.perf_counter()
@@ -421,6 +436,7 @@ def inspect_part(folder, out_dir, rig, spec, *, keep_arrays: bool = False, part_
         "coverage_factor": 2,
         "imperfections": decision.imperfections,
         "part_checks": decision.part_checks,
+        "overlay_text": overlay_text(decision),
         **{k: v for k, v in figures.items() if k != "verdict"},
         "spec": spec_obj.to_dict(),
         "spec_sha256": spec_obj.sha256,
