@@ -97,7 +97,9 @@ def shaded_height(height, pixel_size: float, mask=None, exaggeration: float | No
         Pixels to shade (default: the finite ones); the rest are 0.
     exaggeration : float, optional
         Relief factor; default: a round number (1, 2 or 5 times a power of ten, at least 1)
-        that brings the 99.9th percentile of the slope residual near 1 (45 degrees).
+        that brings the 90th percentile of the slope residual (the background's roughness and
+        noise, which most pixels are) near 0.15, so the background shows a faint texture and an
+        imperfection stands out dark or bright whatever its direction.
 
     Returns
     -------
@@ -115,8 +117,8 @@ def shaded_height(height, pixel_size: float, mask=None, exaggeration: float | No
     gr -= np.median(gr[ok])
     gc -= np.median(gc[ok])
     if exaggeration is None:
-        top = float(np.percentile(np.hypot(gr[ok], gc[ok]), 99.9))
-        exaggeration = _round_down_125(max(1.0, min(1e4, 1.0 / top))) if top > 0 else 1.0
+        top = float(np.percentile(np.hypot(gr[ok], gc[ok]), 90.0))
+        exaggeration = _round_down_125(max(1.0, min(1e4, 0.15 / top))) if top > 1e-9 else 1.0  # a plane: 1
     e = float(exaggeration)
     # normal (-dz/dx, -dz/dy, 1) with y up (dz/dy = -dz/drow); light from (-x, +y) at 45 degrees
     dzdx, dzdy = e * gc, -e * gr
@@ -127,7 +129,7 @@ def shaded_height(height, pixel_size: float, mask=None, exaggeration: float | No
     return shade, e
 
 
-def imperfection_outlines(labels) -> dict[int, list[np.ndarray]]:
+def imperfection_outlines(labels, grow: int = 0) -> dict[int, list[np.ndarray]]:
     """The outline of each imperfection's region: the contours of its pixels.
 
     Parameters
@@ -135,6 +137,9 @@ def imperfection_outlines(labels) -> dict[int, list[np.ndarray]]:
     labels : array_like, shape (H, W), int
         ``id + 1`` on each imperfection's pixels, 0 elsewhere (the label image of
         :func:`photometric.defects.measure_defects` with ``return_labels``).
+    grow : int, optional
+        Dilate each region by this many pixels first (a disc), so that a line drawn on the
+        outline lies just outside the region and leaves it visible.
 
     Returns
     -------
@@ -147,9 +152,12 @@ def imperfection_outlines(labels) -> dict[int, list[np.ndarray]]:
     for k, box in enumerate(ndimage.find_objects(lab), start=1):
         if box is None:
             continue
-        part = np.pad((lab[box] == k).astype(np.uint8), 1)
+        g = max(0, int(grow))
+        part = np.pad((lab[box] == k).astype(np.uint8), g + 1)
+        if g:
+            part = cv2.dilate(part, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * g + 1, 2 * g + 1)))
         contours, _ = cv2.findContours(part, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
-        shift = np.array([box[1].start - 1, box[0].start - 1], float)
+        shift = np.array([box[1].start - g - 1, box[0].start - g - 1], float)
         polys = sorted((c[:, 0, :].astype(float) + shift for c in contours), key=len, reverse=True)
         out[k - 1] = polys
     return out
@@ -160,7 +168,7 @@ def _decimals(U: float | None, default: int = 3) -> int:
     if U is None or not np.isfinite(U) or U <= 0:
         return default
     lead = int(np.floor(np.log10(U)))
-    first = int(U / 10.0 ** lead)
+    first = int(np.floor(round(U / 10.0 ** lead, 9)))
     return int(np.clip(-lead + (1 if first < 3 else 0), 0, 6))
 
 
@@ -255,10 +263,17 @@ def overlay_text(decision: Decision) -> list[str]:
     return lines
 
 
-def _text(pic, text: str, org, colour, scale: float = _SCALE, thick: int = 1) -> tuple[int, int, int, int]:
-    """Put ``text`` with a dark halo, moved inside the picture; return its box (x0, y0, x1, y1)."""
+def _text(pic, text: str, org, colour, scale: float = _SCALE, thick: int = 1, fit: bool = False
+          ) -> tuple[int, int, int, int]:
+    """Put ``text`` with a dark halo, moved inside the picture; return its box (x0, y0, x1, y1).
+
+    With ``fit``, a text wider than the picture is drawn smaller (down to 0.3) rather than cut.
+    """
     (tw, th), base = cv2.getTextSize(text, _FONT, scale, thick)
     h, w = pic.shape[:2]
+    while fit and tw > w - 4 and scale > 0.3:
+        scale = max(0.3, scale - 0.05)
+        (tw, th), base = cv2.getTextSize(text, _FONT, scale, thick)
     x = int(np.clip(org[0], 2, max(2, w - tw - 2)))
     y = int(np.clip(org[1], th + 2, max(th + 2, h - base - 2)))
     for dx, dy in ((-1, -1), (-1, 1), (1, -1), (1, 1), (0, 2), (0, -2), (2, 0), (-2, 0)):  # a dark halo
@@ -288,7 +303,7 @@ def draw_scale_bar(panel: np.ndarray, mm_per_px: float) -> tuple[int, int, int, 
     x0, y0 = 8, h - 10
     cv2.rectangle(panel, (x0 - 2, y0 - 5), (x0 + bar_px + 2, y0 + 5), (0, 0, 0), -1)
     cv2.rectangle(panel, (x0, y0 - 3), (x0 + bar_px, y0 + 3), (255, 255, 255), -1)
-    return _text(panel, f"{bar:g} mm", (x0, y0 - 10), (255, 255, 255))
+    return _text(panel, f"{bar:g} mm", (x0, y0 - 10), (255, 255, 255), fit=True)
 
 
 def _grey(image) -> np.ndarray:
@@ -364,11 +379,20 @@ def overlay_image(albedo, mask, decision: Decision, spec: Spec, pixel_size: floa
     pw, ph = max(1, round(shape[1] * scale)), max(1, round(shape[0] * scale))
     scale = pw / shape[1]
 
-    outlines = imperfection_outlines(labels) if labels is not None else {}
-    polys = {}
-    for rec in decision.imperfections:
-        got = outlines.get(int(rec["id"]))
-        polys[rec["id"]] = got if got else [_mm_polygon(rec["outline_mm"], shape, pixel_size)]
+    cache = {}
+
+    def outlines(grow: int) -> dict:
+        """Imperfection id -> contours, each region grown by ``grow`` pixels (the box without labels)."""
+        if grow not in cache:
+            got = imperfection_outlines(labels, grow) if labels is not None else {}
+            cache[grow] = {rec["id"]: got.get(int(rec["id"])) or [_mm_polygon(rec["outline_mm"], shape, pixel_size)]
+                           for rec in decision.imperfections}
+        return cache[grow]
+
+    def grow_for(s: float) -> int:
+        """Grow the regions by about 2 display pixels: the line then lies just outside the region."""
+        return int(max(1, np.ceil(2.0 / s)))
+
     ordered = _ordered(decision)
     zoomed = [r for r in ordered if r["region"] == "inspected"][:_ZOOMS] if shade is not None else []
     lines = overlay_text(decision)
@@ -401,6 +425,7 @@ def overlay_image(albedo, mask, decision: Decision, spec: Spec, pixel_size: floa
         for zone, colour in zones:
             if zone is not None:
                 _draw_outline(panel, [_mm_polygon(zone, shape, pixel_size)], scale, 0.0, colour, 1)
+        polys = outlines(grow_for(scale))
         for rec in ordered[::-1]:  # the worst drawn last, on top
             colour = COLOURS.get(rec["verdict"], COLOURS[None])
             _draw_outline(panel, polys[rec["id"]], scale, 0.0, colour)
@@ -408,22 +433,26 @@ def overlay_image(albedo, mask, decision: Decision, spec: Spec, pixel_size: floa
             lo, hi = pts.min(axis=0), pts.max(axis=0)
             if (hi - lo).max() < 8:  # too small to see at this scale: a ring around it
                 cv2.circle(panel, tuple(int(v) for v in np.round((lo + hi) / 2)), 10, colour, 1, cv2.LINE_AA)
-            _text(panel, f"#{rec['id']}", (int(hi[0]) + 5, int(lo[1]) + TEXT_PX), colour)
+            right = pts[np.argmax(pts[:, 0])]  # the id beside the outline's rightmost point
+            _text(panel, f"#{rec['id']}", (int(right[0]) + 6, int(right[1]) + TEXT_PX // 2), colour)
         draw_scale_bar(panel, pixel_size / scale)
 
     y = y_panel + ph + _GAP
     if zoomed:
-        _text(pic, "zoom on the shaded height, worst first (outline of the measured region)",
-              (_GAP, y + title - 6), (235, 235, 235))
+        _text(pic, "zooms on the shaded height, worst first, centred on each imperfection (outline just outside "
+              "its measured region)", (_GAP, y + title - 6), (235, 235, 235))
         y += title
+        exact = outlines(0)
         for i, rec in enumerate(zoomed):
             x0 = _GAP + i * (zs + _GAP)
             tile = pic[y:y + zs, x0:x0 + zs]
-            pts = np.concatenate(polys[rec["id"]])
-            c = (pts.min(axis=0) + pts.max(axis=0)) / 2
-            half = max(12.0, 0.8 * float((pts.max(axis=0) - pts.min(axis=0)).max()))
-            c0 = np.floor(c - half).astype(int)
-            side = int(np.ceil(2 * half)) + 1
+            pts = np.concatenate(exact[rec["id"]])
+            row, col = xy_to_pixel(*np.asarray(rec["center_mm"], float), shape, pixel_size)
+            c = np.array([col, row], float)
+            # the whole region with a margin, but at least twice the panel's scale (a long scratch: its middle)
+            side = int(np.clip(1.6 * float((pts.max(axis=0) - pts.min(axis=0)).max()) + 4, 24,
+                               max(24.0, zs / (2.0 * scale))))
+            c0 = np.floor(c - side / 2).astype(int)
             crop = np.zeros((side, side), np.float32)
             r0, r1 = max(0, c0[1]), min(shape[0], c0[1] + side)
             q0, q1 = max(0, c0[0]), min(shape[1], c0[0] + side)
@@ -432,8 +461,8 @@ def overlay_image(albedo, mask, decision: Decision, spec: Spec, pixel_size: floa
             tile[:] = np.repeat((255.0 * _resize(crop, (zs, zs)) + 0.5).astype(np.uint8)[..., None], 3, axis=2)
             z = zs / side
             colour = COLOURS.get(rec["verdict"], COLOURS[None])
-            _draw_outline(tile, polys[rec["id"]], z, c0.astype(float), colour)
-            _text(tile, f"#{rec['id']}  zoom x {z:.1f}", (6, TEXT_PX + 6), colour)
+            _draw_outline(tile, outlines(grow_for(z))[rec["id"]], z, c0.astype(float), colour)
+            _text(tile, f"#{rec['id']}", (6, TEXT_PX + 6), colour)
             draw_scale_bar(tile, pixel_size / z)
         y += zs + _GAP
 
