@@ -46,6 +46,7 @@ _GAP = 8
 _LINE = TEXT_PX + 9  # legend line pitch
 _MAX_LINES = 16
 _ZOOMS = 4  # zoomed imperfections at most
+_SAMPLES = 200_000  # pixels the shading's statistics (median height and slope, roughness) are taken on
 _NAMES = {"max_depth_mm": ("depth", "mm"), "length_mm": ("length", "mm"), "mean_width_mm": ("width", "mm"),
           "max_width_mm": ("max width", "mm"), "area_mm2": ("area", "mm^2"), "volume_mm3": ("volume", "mm^3"),
           "count": ("count", ""), "total_area_mm2": ("total area", "mm^2"), "min_distance_mm": ("distance", "mm")}
@@ -108,23 +109,28 @@ def shaded_height(height, pixel_size: float, mask=None, exaggeration: float | No
     exaggeration : float
         The relief factor used.
     """
-    z = np.asarray(height, np.float64)
+    z = np.asarray(height)
     ok = np.isfinite(z) if mask is None else np.isfinite(z) & np.asarray(mask, bool)
     if not ok.any():
         return np.zeros(z.shape, np.float32), 1.0 if exaggeration is None else float(exaggeration)
-    filled = np.where(ok, z, np.nanmedian(z[ok]))
-    gr, gc = np.gradient(filled, float(pixel_size))
-    gr -= np.median(gr[ok])
-    gc -= np.median(gc[ok])
+    some = np.flatnonzero(ok)[::max(1, int(ok.sum()) // _SAMPLES)]  # the statistics on a spread sample
+    filled = np.where(ok, z - np.median(z.flat[some]), 0.0).astype(np.float32)
+    gr, gc = np.gradient(filled, np.float32(pixel_size))
+    slope = np.array([np.median(gr.flat[some]), np.median(gc.flat[some])], np.float32)
+    gr -= slope[0]
+    gc -= slope[1]
     if exaggeration is None:
-        top = float(np.percentile(np.hypot(gr[ok], gc[ok]), 90.0))
-        exaggeration = _round_down_125(max(1.0, min(1e4, 0.15 / top))) if top > 1e-9 else 1.0  # a plane: 1
+        top = float(np.percentile(np.hypot(gr.flat[some], gc.flat[some]), 90.0))
+        # a plane (rounding only): 1
+        exaggeration = (_round_down_125(max(1.0, min(1e4, 0.15 / top))) if top > 1e-5 * (1 + np.abs(slope).max())
+                        else 1.0)
     e = float(exaggeration)
     # normal (-dz/dx, -dz/dy, 1) with y up (dz/dy = -dz/drow); light from (-x, +y) at 45 degrees
-    dzdx, dzdy = e * gc, -e * gr
-    light = np.array([-0.5, 0.5, np.sqrt(0.5)])
-    shade = (-dzdx * light[0] - dzdy * light[1] + light[2]) / np.sqrt(1.0 + dzdx ** 2 + dzdy ** 2)
-    shade = np.clip(shade, 0.0, 1.0).astype(np.float32)
+    gc *= np.float32(e)
+    gr *= np.float32(-e)  # now dz/dx, dz/dy
+    light = np.array([-0.5, 0.5, np.sqrt(0.5)], np.float32)
+    shade = (-gc * light[0] - gr * light[1] + light[2]) / np.sqrt(1.0 + gc * gc + gr * gr)
+    np.clip(shade, 0.0, 1.0, out=shade)
     shade[~ok] = 0.0
     return shade, e
 
@@ -363,13 +369,6 @@ def overlay_image(albedo, mask, decision: Decision, spec: Spec, pixel_size: floa
     grey = np.asarray(_grey(albedo), np.float32)
     shape = grey.shape
     mask = np.ones(shape, bool) if mask is None else np.asarray(mask, bool)
-    if height is not None:
-        shade, exag = shaded_height(height, pixel_size, mask)
-        left = np.repeat((255.0 * shade + 0.5).astype(np.uint8)[..., None], 3, axis=2)
-        left_title = f"shaded height (relief x {exag:g}, light from upper left)"
-    else:
-        shade, left, left_title = None, images.albedo_image(grey, mask), "albedo (no height given)"
-    right = images.albedo_image(grey, mask)
 
     # panel size: two across the width, at most 1.3 times as tall as wide
     pw = (width - 3 * _GAP) // 2
@@ -378,6 +377,16 @@ def overlay_image(albedo, mask, decision: Decision, spec: Spec, pixel_size: floa
         scale = 1.3 * pw / shape[0]
     pw, ph = max(1, round(shape[1] * scale)), max(1, round(shape[0] * scale))
     scale = pw / shape[1]
+
+    # the albedo scaled on the panel's pixels (area averages: the same percentile to a few 1e-3)
+    small = cv2.resize(mask.astype(np.uint8), (pw, ph), interpolation=cv2.INTER_NEAREST) > 0
+    right = images.albedo_image(_resize(np.where(mask, grey, 0.0).astype(np.float32), (pw, ph)), small)
+    if height is not None:
+        shade, exag = shaded_height(height, pixel_size, mask)
+        left = np.repeat((255.0 * _resize(shade, (pw, ph)) + 0.5).astype(np.uint8)[..., None], 3, axis=2)
+        left_title = f"shaded height (relief x {exag:g}, light from upper left)"
+    else:
+        shade, left, left_title = None, right, "albedo (no height given)"
 
     cache = {}
 
@@ -390,8 +399,8 @@ def overlay_image(albedo, mask, decision: Decision, spec: Spec, pixel_size: floa
         return cache[grow]
 
     def grow_for(s: float) -> int:
-        """Grow the regions by about 2 display pixels: the line then lies just outside the region."""
-        return int(max(1, np.ceil(2.0 / s)))
+        """Grow the regions by about 3 display pixels: the line lies just outside the region and leaves it seen."""
+        return int(max(1, np.ceil(3.0 / s)))
 
     ordered = _ordered(decision)
     zoomed = [r for r in ordered if r["region"] == "inspected"][:_ZOOMS] if shade is not None else []
@@ -420,7 +429,7 @@ def overlay_image(albedo, mask, decision: Decision, spec: Spec, pixel_size: floa
         x_panel = _GAP + i * (pw + _GAP)
         _text(pic, name, (x_panel, y_panel - 6), (235, 235, 235))
         panel = pic[y_panel:y_panel + ph, x_panel:x_panel + pw]
-        panel[:] = _resize(np.ascontiguousarray(image), (pw, ph))
+        panel[:] = image
         zones = [(spec.roi, (80, 160, 255))] + [(z, (150, 150, 150)) for z in spec.exclusions]
         for zone, colour in zones:
             if zone is not None:
@@ -449,9 +458,11 @@ def overlay_image(albedo, mask, decision: Decision, spec: Spec, pixel_size: floa
             pts = np.concatenate(exact[rec["id"]])
             row, col = xy_to_pixel(*np.asarray(rec["center_mm"], float), shape, pixel_size)
             c = np.array([col, row], float)
-            # the whole region with a margin, but at least twice the panel's scale (a long scratch: its middle)
+            # the whole region with a margin; a long scratch: its middle, at least twice the panel's scale and
+            # about 10 widths across, so its cross-section shows
+            across = float(rec["values"].get("max_width_mm", {}).get("value", np.inf)) / pixel_size
             side = int(np.clip(1.6 * float((pts.max(axis=0) - pts.min(axis=0)).max()) + 4, 24,
-                               max(24.0, zs / (2.0 * scale))))
+                               max(24.0, min(zs / (2.0 * scale), 10.0 * across))))
             c0 = np.floor(c - side / 2).astype(int)
             crop = np.zeros((side, side), np.float32)
             r0, r1 = max(0, c0[1]), min(shape[0], c0[1] + side)
