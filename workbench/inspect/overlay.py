@@ -414,7 +414,10 @@ def overlay_image(albedo, mask, decision: Decision, spec: Spec, pixel_size: floa
     title = _LINE
     zs = (width - (_ZOOMS + 1) * _GAP) // _ZOOMS
     zoom_h = (title + zs + _GAP) if zoomed else 0
-    total_h = head + title + ph + _GAP + zoom_h + len(shown) * _LINE + _GAP
+    zones = [name for name, there in (("blue: the region of interest", spec.roi is not None),
+                                      ("grey boxes: exclusion zones", bool(spec.exclusions))) if there]
+    notes = ["; ".join(zones) + " (imperfections outside are drawn grey and do not decide)"] if zones else []
+    total_h = head + title + ph + _GAP + zoom_h + (len(shown) + len(notes)) * _LINE + _GAP
     pic = np.empty((total_h, width, 3), np.uint8)
     pic[:] = _BACK
 
@@ -483,5 +486,8 @@ def overlay_image(albedo, mask, decision: Decision, spec: Spec, pixel_size: floa
         if line.startswith("#") and head_word.lower() not in COLOURS:
             colour = COLOURS[None]
         _text(pic, line, (_GAP, y + TEXT_PX + 3), colour)
+        y += _LINE
+    for line in notes:
+        _text(pic, line, (_GAP, y + TEXT_PX + 3), (170, 170, 170))
         y += _LINE
     return pic
