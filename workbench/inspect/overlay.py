@@ -234,6 +234,13 @@ def _ordered(decision: Decision) -> list:
     return sorted(decision.imperfections, key=lambda r: (_SEVERITY.get(r["verdict"], 3), -depth(r)))
 
 
+def _decider(entry: str) -> str:
+    """``imperfection 3 max_depth_mm`` -> ``#3 depth``; ``part count`` -> ``part count``."""
+    words = entry.split(" ")
+    name = _NAMES.get(words[-1], (words[-1],))[0]
+    return f"#{words[1]} {name}" if words[0] == "imperfection" and len(words) == 3 else f"{words[0]} {name}"
+
+
 def overlay_text(decision: Decision) -> list[str]:
     """The overlay's text: the part's verdict, then one line per check (every label of the picture).
 
@@ -250,7 +257,8 @@ def overlay_text(decision: Decision) -> list[str]:
         and why it does not decide), then the part checks ``part <VERDICT>  <check_label>``.
     """
     rule = "guard band, ISO 14253-1" if decision.rule == "guard_band" else "simple: value against limit"
-    why = ", ".join(decision.decided_by) if decision.decided_by else "every check passed"
+    why = ("decided by " + ", ".join(_decider(d) for d in decision.decided_by) if decision.decided_by
+           else "every check passed")
     lines = [f"{decision.verdict.upper()} ({rule}): {why}"]
     for rec in _ordered(decision):
         tag = f"#{rec['id']}"

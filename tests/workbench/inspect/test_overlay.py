@@ -90,7 +90,7 @@ def test_labels_state_the_quantity_U_k_and_the_limit():
     d = judge([_defect(0, 0.0991, [50, 50], U=0.0042), _defect(1, 0.0795, [150, 150], U=0.004),
                _defect(2, 0.03, [100, 150], U=0.0015)], spec, (200, 200), 0.1)
     text = overlay_text(d)
-    assert text[0].startswith("FAIL (guard band")
+    assert text[0] == "FAIL (guard band, ISO 14253-1): decided by #0 depth, part count"
     assert "#0 FAIL  depth 0.099 +- 0.004 mm (k = 2) > 0.080 limit" in text
     assert "#1 UNCERTAIN  depth 0.080 +- 0.004 mm (k = 2) within U of 0.080 limit" in text
     assert "#2 PASS  depth 0.0300 +- 0.0015 mm (k = 2) < 0.0800 limit" in text  # two digits of a U starting in 1
@@ -150,3 +150,11 @@ def test_result_json_holds_the_overlay_text(small_lot, tmp_path):
         line.startswith("#0 FAIL  depth ") and line.endswith("> 0.100 limit") for line in text)
     pic = cv2.imread(str(tmp_path / "p" / "overlay.png"))
     assert pic.shape[1] == REPORT_WIDTH and TEXT_PX >= 11
+
+
+def test_a_tall_image_keeps_the_width_and_a_bounded_height():
+    spec = parse_spec({"max_depth_mm": 0.1})
+    d = judge([_defect(0, 0.2, [1500, 500])], spec, (3000, 1000), 0.02)
+    pic = overlay_image(np.full((3000, 1000), 0.5, np.float32), None, d, spec, 0.02)
+    pw = (REPORT_WIDTH - 3 * 8) // 2
+    assert pic.shape[1] == REPORT_WIDTH and pic.shape[0] < 1.3 * pw + 200
