@@ -39,7 +39,7 @@ import numpy as np
 from photometric.rig import Rig, read_rig
 from surfaces.io import write_json, write_png
 from workbench.inspect.decide import judge
-from workbench.inspect.overlay import overlay_image
+from workbench.inspect.overlay import overlay_image, overlay_text
 from workbench.inspect.spec import Spec, load_spec
 from surfaces.validate import InputError
 
@@ -206,6 +206,8 @@ class _Measured:
     pixel_size_mm: float
     summary: dict  # the pipeline summary's keys that result.json reports, and timings_s
     result: object = None  # the full PhotometricReconstruction (pipeline path only)
+    height: np.ndarray | None = None  # mm, NaN where not measured (the overlay's shaded panel)
+    labels: np.ndarray | None = None  # id + 1 on each defect's pixels (the overlay's outlines)
 
 
 def _measure_direct(paths: list, mask_path, rig: Rig, options: dict, threads: int | None) -> _Measured:
@@ -224,7 +226,7 @@ def _measure_direct(paths: list, mask_path, rig: Rig, options: dict, threads: in
     sol = stages.solve(inp, opts, residual=opts.uncertainty is not None, threads=threads,
                        setup=_setup(rig) if rig.gains is not None else None)
     height = stages.integrate(inp, sol, opts)
-    found = stages.measure(inp, sol, height, opts)
+    found = stages.measure(inp, sol, height, opts, labels=True)  # the overlay draws the outlines
     timings = {"read": inp.seconds, "screen": sol.timings_s["screen"],
                "nearfield": sol.timings_s["total"] - sol.timings_s["screen"], "solve": sol.timings_s["solve"],
                "integrate": sol.timings_s["integrate"], "defects": found.seconds}
@@ -238,7 +240,8 @@ def _measure_direct(paths: list, mask_path, rig: Rig, options: dict, threads: in
     s = stages.summarize(inp, sol, height, found, opts, unc=unc, timings=timings)
     summary = {k: s.get(k) for k in _SUMMARY_KEYS}
     summary["flat_field"] = s.get("flat_field") is not None
-    return _Measured(sol.fit.albedo, sol.data.mask, sol.fit.valid, defects, inp.pixel_size_mm, summary)
+    return _Measured(sol.fit.albedo, sol.data.mask, sol.fit.valid, defects, inp.pixel_size_mm, summary,
+                     height=height.height, labels=found.labels)
 
 
 def _with_u(defects: list, unc) -> list:
@@ -262,7 +265,19 @@ def _measure_pipeline(paths: list, mask_path, rig: Rig, options: dict, keep_arra
     defects = res.defects if res.uncertainty is None else _with_u(res.defects, res.uncertainty)
     summary = {k: s.get(k) for k in _SUMMARY_KEYS}
     summary["flat_field"] = s.get("flat_field") is not None
-    return _Measured(res.albedo, res.mask, res.valid, defects, float(s["pixel_size_mm"]), summary, res)
+    return _Measured(res.albedo, res.mask, res.valid, defects, float(s["pixel_size_mm"]), summary, res,
+                     height=res.height, labels=_labels_of(res, rig))
+
+
+def _labels_of(res, rig: Rig) -> np.ndarray | None:
+    """The defects' label image of a pipeline result, for the overlay's outlines (the same segmentation again:
+    the pipeline keeps only the records); None when it does not give the same defects."""
+    from photometric.defects import measure_defects
+
+    h = float(res.summary["pixel_size_mm"])
+    found, labels = measure_defects(res.height, h, res.valid, background=res.background, p=res.p, q=res.q,
+                                    xy=None if rig.camera.model == "orthographic" else res.xy, return_labels=True)
+    return labels if [d["id"] for d in found] == [d["id"] for d in res.defects] else None
 
 
 def _frames(paths: list, mask_path, rig: Rig):
@@ -356,7 +371,8 @@ def inspect_part(folder, out_dir, rig, spec, *, keep_arrays: bool = False, part_
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
-    write_png(out / "overlay.png", overlay_image(m.albedo, m.mask, decision, spec_obj, pixel))
+    write_png(out / "overlay.png", overlay_image(m.albedo, m.mask, decision, spec_obj, pixel, height=m.height,
+                                                 labels=m.labels))
     t_overlay = time.perf_counter() - t0
     files = ["overlay.png", "result.json"]
     t0 = time.perf_counter()
@@ -384,6 +400,7 @@ def inspect_part(folder, out_dir, rig, spec, *, keep_arrays: bool = False, part_
         "coverage_factor": 2,
         "imperfections": decision.imperfections,
         "part_checks": decision.part_checks,
+        "overlay_text": overlay_text(decision),
         **{k: v for k, v in figures.items() if k != "verdict"},
         "spec": spec_obj.to_dict(),
         "spec_sha256": spec_obj.sha256,

@@ -15,6 +15,7 @@ import cv2
 import numpy as np
 
 from workbench.batch import RESULTS_NAME, read_results
+from workbench.inspect.overlay import REPORT_WIDTH
 from workbench.report import Report
 
 __all__ = ["WORST_PARTS", "collect_results", "depth_histogram", "write_inspection_report"]
@@ -84,7 +85,9 @@ def depth_histogram(depths, limit: float | None, size=(560, 320)) -> np.ndarray:
     return np.asarray(canvas.buffer_rgba())[..., :3].copy()
 
 
-def _thumbnail(path: Path, width: int = 480) -> np.ndarray:
+def _thumbnail(path: Path, width: int = REPORT_WIDTH) -> np.ndarray:
+    """An overlay at most ``width`` wide: shown at its own size in the report's column, so its labels keep
+    :data:`workbench.inspect.overlay.TEXT_PX` pixels (an older, larger overlay is shrunk to fit)."""
     img = cv2.imread(str(path), cv2.IMREAD_COLOR)[..., ::-1]
     scale = min(1.0, width / img.shape[1])
     if scale < 1.0:
@@ -132,8 +135,11 @@ def write_inspection_report(out, command: str, title: str = "Inspection run") ->
                       + (f"; red: the limit {spec['max_depth_mm']:g} mm" if "max_depth_mm" in spec else ""),
                       command)
         worst = sorted(results, key=lambda r: (_SEVERITY[r["verdict"]], -float(r.get("max_depth_mm") or 0.0)))
-        report.section("Worst parts", "Failed parts first, then uncertain ones, deepest imperfection first; "
-                       "outlines coloured by verdict (red fail, amber uncertain, green pass).")
+        report.section("Worst parts", "Failed parts first, then uncertain ones, deepest imperfection first. "
+                       "Each overlay: the shaded height (relief exaggerated by the stated factor) and the albedo, "
+                       "each imperfection's measured outline coloured by verdict (red fail, amber uncertain, "
+                       "green pass, grey not decided), zooms on the worst ones, and one line per check: the "
+                       "value, its U (k = 2) and the limit it is compared with.")
         table = []
         for r in worst[:WORST_PARTS]:
             depth = r.get("max_depth_mm") or 0.0
