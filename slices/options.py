@@ -124,12 +124,17 @@ class ReadOptions:
     resample : bool
         Unequal slice spacing: resample CT series and image stacks onto uniform
         slices, or blend contour inputs at their true positions, instead of failing.
+    slice_thickness : float or None
+        Slab thickness (mm) of a structure drawn on a single plane (``--slice-thickness``);
+        None: the structure set's ``ContourSlabThickness``, else the SliceThickness of
+        the CT images beside it (:func:`slices.structure.read_roi`).
     """
 
     hu_min: float | None = None
     hu_max: float | None = None
     spacing: str | tuple | None = None
     resample: bool = False
+    slice_thickness: float | None = None
 
 
 def _names(cls) -> set[str]:

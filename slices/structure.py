@@ -15,7 +15,8 @@ import numpy as np
 
 from slices.body import BodySurface, build_body, build_stepped
 from slices.chaining import Outlines, chain, offset_sensitivity, slab_volume
-from slices.io import SPACING_RTOL, Contour, ContourStack, check_spacing, load, parse_spacing
+from slices.io import (SPACING_RTOL, Contour, ContourStack, check_spacing, load, parse_spacing,
+                       referenced_slice_thickness)
 from slices.options import ReadOptions, SurfaceOptions, surface_options
 from surfaces.mesh import TriangleMesh, merge_meshes, weld
 from surfaces.threads import one_blas_thread
@@ -196,8 +197,8 @@ def reconstruct_contours(contours: list[Contour], *, spacing: float | None = Non
             raise InputError(f"spacing: {s} mm given but the planes are {d} mm apart")
         d = s
     if d == 0:
-        raise InputError("contours: a single plane has no slice spacing; give spacing (--spacing z,y,x "
-                         "on the command line)")
+        raise InputError("contours: a single plane has no slice spacing and the input states no slab "
+                         "thickness; give it (--slice-thickness MM on the command line)")
     bodies = chain(contours, None if irregular else d, outlines)
     built = []
     # a body's work is thousands of thin products (16 control points a patch): BLAS threads only wait
@@ -224,8 +225,10 @@ def read_roi(input_path, roi=None, *, reading: ReadOptions | None = None) -> tup
     roi : str or int, optional
         ROI name or number (RTSTRUCT).
     reading : ReadOptions, optional
-        Intensity window, voxel spacing (its z is also the slab of a single
-        plane of contours), resampling. With ``resample``, contour
+        Intensity window, voxel spacing, slice thickness (the slab of a single plane of
+        contours: ``slice_thickness``, else the z of ``spacing``, else the structure set's
+        ``ContourSlabThickness``, else the SliceThickness of the CT images beside it,
+        :func:`slices.io.referenced_slice_thickness`), resampling. With ``resample``, contour
         inputs (RTSTRUCT, JSON) are blended at their true plane positions
         (``irregular`` of :func:`reconstruct_contours`).
 
@@ -239,11 +242,24 @@ def read_roi(input_path, roi=None, *, reading: ReadOptions | None = None) -> tup
     read = ReadOptions() if reading is None else reading
     stack = load(input_path, roi, read.hu_min, read.hu_max, read.spacing, bool(read.resample))
     spacing = None
-    if read.spacing is not None and len(stack.planes) == 1:
-        # one plane has no spacing of its own: the z of --spacing z,y,x gives its slab
-        given = read.spacing
-        single = isinstance(given, int | float) or (isinstance(given, str) and "," not in given)
-        spacing = positive(given, "--spacing") if single else parse_spacing(given)[0]
+    if len(stack.planes) == 1:
+        # one plane has no spacing of its own: its slab is --slice-thickness, the z of --spacing z,y,x,
+        # the structure set's ContourSlabThickness or the SliceThickness of the images beside it
+        source = ""
+        if read.slice_thickness is not None:
+            spacing, source = positive(read.slice_thickness, "--slice-thickness"), "--slice-thickness"
+        elif read.spacing is not None:
+            given = read.spacing
+            single = isinstance(given, int | float) or (isinstance(given, str) and "," not in given)
+            spacing = positive(given, "--spacing") if single else parse_spacing(given)[0]
+            source = "--spacing"
+        elif stack.thickness_mm:
+            spacing, source = stack.thickness_mm, stack.thickness_source
+        elif stack.source == "rtstruct":
+            spacing, source = referenced_slice_thickness(input_path)
+        if spacing:
+            stack.notes.append(f"a single plane of contours: reconstructed as a slab {spacing:g} mm thick "
+                               f"(from {source})")
     return stack, {"spacing": spacing,
                    "irregular": bool(read.resample) and stack.source in ("rtstruct", "json")}
 

@@ -130,7 +130,9 @@ def summarize(input_path, stack: ContourStack, rec: Reconstruction, mesh: Triang
         convention (``volume_by_caps_mm3``: none, flat, half, slab) and their range
         (``volume_range_mm3``), the volume's sensitivity to a 0.5 mm contour offset
         (``volume_sensitivity_mm3_per_0.5mm`` and its method), counts, mesh checks,
-        bodies, chaining, notes, timings; ``composition`` and ``reference_bspline`` when given.
+        bodies, chaining, notes, ``contour_repairs`` (the contours repaired into simple polygons, each
+        with its area change, :attr:`slices.io.ContourStack.repairs`), timings; ``composition`` and
+        ``reference_bspline`` when given.
         ``area_mm2`` is the area of the solid's true surface (``area_source`` says which):
         the patches' (Gauss-Legendre) for one body or bodies left side by side; the
         written triangle mesh's when the bodies were united (``union``), so walls where
@@ -194,6 +196,7 @@ def summarize(input_path, stack: ContourStack, rec: Reconstruction, mesh: Triang
         "bodies": body_table(rec),
         "chaining": chaining_text(rec),
         "notes": list(stack.notes),
+        "contour_repairs": list(stack.repairs),
         **timings,
     }
     if composition is not None:

@@ -39,6 +39,11 @@ def register(sub) -> None:
                    "folder of PNGs), NIfTI label or mask volume (.nii, .nii.gz) or contour .json")
     p.add_argument("--roi", default=None, metavar="NAME",
                    help="ROI name (case-insensitive) or number of an RT structure set")
+    p.add_argument("--roi-number", type=int, default=None, metavar="N",
+                   help="ROI number of an RT structure set (to pick one of several ROIs with the same name)")
+    p.add_argument("--slice-thickness", type=float, default=None, metavar="MM",
+                   help="slab thickness of a structure drawn on a single plane (default: the structure set's "
+                   "ContourSlabThickness, else the SliceThickness of the CT images beside it)")
     p.add_argument("--label", default=None, metavar="N",
                    help="NIfTI input: the voxel value of the structure (default: every non-zero voxel); "
                    "with --minus/--plus, those name labels too")
@@ -84,8 +89,8 @@ def register(sub) -> None:
     p.add_argument("--plus", action="append", default=[], metavar="NAME",
                    help="structure sets: add (unite) this ROI to --roi before any --minus; repeatable")
     p.add_argument("--repair", action="store_true",
-                   help="with --minus/--plus: repair each mesh (weld, orient, fill small holes) before "
-                   "the set operations; what was repaired goes into summary.json")
+                   help="repair the written solid (weld, orient, fill small holes); with --minus/--plus, each "
+                   "mesh before the set operations; what was repaired goes into summary.json")
     p.add_argument("--samples", type=int, default=defaults.samples, metavar="N",
                    help="tessellation subdivisions per patch side (default: adapted so that the mesh "
                    f"has about {MESH_BUDGET:,} vertices)")
@@ -123,9 +128,13 @@ def _reconstruct(args: argparse.Namespace) -> int:
             lattice=args.lattice, render=not args.no_render, samples=args.samples, progress=progress,
             correspondence=args.correspondence, union=args.union, minus=args.minus, plus=args.plus,
             repair=args.repair, ray_start=args.ray_start, reference=args.reference, export_mask=args.export_mask,
-            mask_spacing=args.mask_spacing,
+            mask_spacing=args.mask_spacing, slice_thickness=args.slice_thickness,
         )
     ref = summary.get("reference_bspline", {})
+    for r in summary.get("contour_repairs", []):
+        change = "n/a" if r["area_change_pct"] is None else f"{r['area_change_pct']:+.4f} %"
+        print(f"repaired contour {r['contour']} at z={r['z_mm']:.2f} mm: {r['parts']} part(s), {r['holes']} hole(s), "
+              f"area {r['area_before_mm2']:.2f} -> {r['area_after_mm2']:.2f} mm^2 ({change})")
     print(f"{summary['roi']}: {summary['n_contours']} contours on {summary['n_slices']} planes, "
           f"{summary['n_bodies']} bodies ({summary['chaining']})")
     print(f"volume {summary['volume_mm3']:.1f} mm^3 = {summary['volume_ml']:.3f} ml "
@@ -149,6 +158,10 @@ def _roi_or_label(args: argparse.Namespace):
     """``--label`` for NIfTI input, ``--roi`` for the others (the library takes either as ``roi``)."""
     from slices.io import is_nifti
 
+    if args.roi_number is not None:
+        if args.roi is not None or args.label is not None:
+            raise InputError("--roi-number: give either --roi NAME or --roi-number N (or --label), not both")
+        return int(args.roi_number)
     if args.label is None:
         return args.roi
     if not is_nifti(args.input):

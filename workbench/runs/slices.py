@@ -29,6 +29,7 @@ from workbench.runs.folder import result_folder
 OPTIONS = frozenset({
     "method", "rays", "caps", "hu_min", "hu_max", "spacing", "resample", "lattice", "samples", "correspondence",
     "ray_start", "union", "minus", "plus", "repair", "render", "reference", "export_mask", "mask_spacing",
+    "slice_thickness",
 })
 
 #: Files written into the output folder (``render.png`` only when rendering).
@@ -259,7 +260,8 @@ def reconstruct_to_folder(input_path, out_dir, *, roi=None, progress=None, atomi
         ``reference`` (see :func:`slices.pipeline.reconstruct`), ``render``
         (default True), ``export_mask`` (a ``.nii``/``.nii.gz`` path: the solid
         rasterised, :func:`export_mask`) and ``mask_spacing`` (its voxel size
-        x,y,z mm). Defaults are those of :class:`slices.options.SurfaceOptions`
+        x,y,z mm), ``slice_thickness`` (mm: the slab of a single plane). Defaults are those
+        of :class:`slices.options.SurfaceOptions`
         and :func:`slices.pipeline.reconstruct`.
 
     Returns
