@@ -15,6 +15,7 @@ import numpy as np
 
 from slices.body import BodySurface, build_body, build_stepped
 from slices.chaining import Outlines, chain, offset_sensitivity, slab_volume
+from slices.implicit import ImplicitSurface, implicit_surface
 from slices.io import (SPACING_RTOL, Contour, ContourStack, check_spacing, load, parse_spacing,
                        referenced_slice_thickness)
 from slices.options import ReadOptions, SurfaceOptions, surface_options
@@ -61,6 +62,9 @@ class Reconstruction:
     sensitivity_mm3 : float
         Change of the volume when every contour grows outward by
         :data:`SENSITIVITY_OFFSET_MM` (:func:`slices.chaining.offset_sensitivity`).
+    implicit : ImplicitSurface or None
+        The structure's one implicit surface (:func:`slices.implicit.implicit_surface`); then
+        ``bodies`` is empty and the volume, area and mesh are the isosurface's.
     """
 
     bodies: list
@@ -70,6 +74,12 @@ class Reconstruction:
     spacing: float
     options: SurfaceOptions
     sensitivity_mm3: float = 0.0
+    implicit: ImplicitSurface | None = None
+
+    @property
+    def surface_path(self) -> str:
+        """``"implicit"`` (:mod:`slices.implicit`) or ``"coons"`` (the seed's patches, body by body)."""
+        return "coons" if self.implicit is None else "implicit"
 
     def volume_by_caps(self) -> dict:
         """The structure's volume under each end-slice convention, and the slab count.
@@ -84,6 +94,10 @@ class Reconstruction:
         """
         sign = {"outer": 1.0, "hole": -1.0}
         out = {}
+        if self.implicit is not None:
+            out = {caps: self.implicit.volume_with_caps(caps) for caps in ("none", "flat", "half")}
+            out["slab"] = float(self.slab_volume_mm3)
+            return out
         for caps in ("none", "flat", "half"):
             total = 0.0
             for b in self.bodies:
@@ -101,18 +115,24 @@ class Reconstruction:
         """All bodies' triangles concatenated in one mesh (None when no mesh was built).
 
         Bodies that meet half-way between planes at a branching keep their
-        caps there (internal walls); see :meth:`solid_mesh`.
+        caps there (internal walls); see :meth:`solid_mesh`. The implicit surface's mesh when there is one.
         """
+        if self.implicit is not None:
+            return self.implicit.mesh
         return _merged([b.mesh for b in self.bodies])
 
     @property
     def display_mesh(self) -> TriangleMesh | None:
-        """All bodies' display meshes (caps shaded with their own normals)."""
+        """All bodies' display meshes (caps shaded with their own normals), or the implicit surface's mesh."""
+        if self.implicit is not None:
+            return self.implicit.mesh
         return _merged([b.display_mesh for b in self.bodies])
 
     @property
     def max_deviation_mm(self) -> float:
-        """Largest control-point deviation over all bodies."""
+        """Largest control-point deviation over all bodies (the implicit surface: contour point to nearest vertex)."""
+        if self.implicit is not None:
+            return self.implicit.max_deviation_mm
         return max((b.max_deviation_mm for b in self.bodies), default=0.0)
 
     def solid_mesh(self) -> tuple[TriangleMesh | None, bool]:
@@ -199,7 +219,14 @@ def reconstruct_contours(contours: list[Contour], *, spacing: float | None = Non
     if d == 0:
         raise InputError("contours: a single plane has no slice spacing and the input states no slab "
                          "thickness; give it (--slice-thickness MM on the command line)")
-    bodies = chain(contours, None if irregular else d, outlines)
+    slab = slab_volume(contours, None if irregular else d, outlines)
+    sensitivity = offset_sensitivity(contours, None if irregular else d, SENSITIVITY_OFFSET_MM, outlines)
+    # a single chain (one contour per plane, no hole) gets the seed's patches; the others one implicit surface
+    single = (not outlines.hole.any() and len(planes) == len(contours))
+    path = opts.surface_path
+    bodies = chain(contours, None if irregular else d, outlines) if path == "coons" or single else []
+    if path == "implicit" or (path == "auto" and (not single or len(bodies) != 1)):
+        return _implicit(contours, d, irregular, opts, slab, sensitivity, progress)
     built = []
     # a body's work is thousands of thin products (16 control points a patch): BLAS threads only wait
     with one_blas_thread():
@@ -207,12 +234,21 @@ def reconstruct_contours(contours: list[Contour], *, spacing: float | None = Non
             built.extend(build_stepped(body, d, opts, mesh=mesh))
             if progress is not None:
                 progress(i + 1, len(bodies))
+    if path == "auto" and mesh and (len(built) > 1 or any(b.self_intersecting_faces for b in built)):
+        # the patches folded or stepped: the implicit surface is one clean solid
+        return _implicit(contours, d, irregular, opts, slab, sensitivity, progress)
     sign = {"outer": 1.0, "hole": -1.0}
     volume = sum(sign[b.body.kind] * b.volume_mm3 for b in built)
     area = sum(b.area_mm2 for b in built)
-    slab = slab_volume(contours, None if irregular else d, outlines)
-    sensitivity = offset_sensitivity(contours, None if irregular else d, SENSITIVITY_OFFSET_MM, outlines)
     return Reconstruction(built, float(volume), float(area), slab, d, opts, sensitivity)
+
+
+def _implicit(contours, d, irregular, opts, slab, sensitivity, progress) -> Reconstruction:
+    """The structure as one implicit surface (:func:`slices.implicit.implicit_surface`)."""
+    imp = implicit_surface(contours, d, [], caps=opts.caps, irregular=irregular)
+    if progress is not None:
+        progress(1, 1)
+    return Reconstruction([], imp.volume_mm3, imp.area_mm2, slab, d, opts, sensitivity, implicit=imp)
 
 
 def read_roi(input_path, roi=None, *, reading: ReadOptions | None = None) -> tuple[ContourStack, dict]:

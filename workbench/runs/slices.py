@@ -100,12 +100,15 @@ def save_body_patches(result: SlicesReconstruction, path) -> None:
     result : SlicesReconstruction
     path : str or os.PathLike
         Destination; holds ``body<i>_control`` per body, ``control`` (the
-        largest body's), ``closed_u`` (True), ``closed_v`` (False) and
-        ``body_kind`` ("outer"/"hole" per body).
+        largest body's; an empty (0, 0, 4, 4, 3) grid for an implicit surface), ``closed_u`` (True),
+        ``closed_v`` (False), ``body_kind`` ("outer"/"hole" per body) and ``surface_path``.
     """
     bodies = result.reconstruction.bodies
     arrays = {f"body{i}_control": b.patches.control for i, b in enumerate(bodies)}
-    arrays["control"] = max(bodies, key=lambda b: b.patches.n_patches).patches.control
+    # an implicit surface has no patches (surface_path "implicit"): an empty grid
+    arrays["control"] = (max(bodies, key=lambda b: b.patches.n_patches).patches.control if bodies
+                         else np.zeros((0, 0, 4, 4, 3)))
+    arrays["surface_path"] = np.array(result.reconstruction.surface_path)
     arrays["closed_u"] = np.array(True)
     arrays["closed_v"] = np.array(False)
     arrays["body_kind"] = np.array([b.body.kind for b in bodies])
