@@ -16,8 +16,9 @@ Ends: beyond the first and the last plane a pad plane one slice spacing away hol
 ``-f (d / delta - 1)`` inside the end contours and ``f`` outside (``f`` the end plane's distance),
 so the surface closes ``delta`` beyond the end plane: half a spacing for ``caps="half"`` (and
 ``"dome"``), :data:`FLAT_FRACTION` of it for ``"flat"`` (and ``"none"``: an implicit surface is
-closed). Bodies that end inside the structure (a branch stops) close where the blended distances
-change sign, as shape-based interpolation does.
+closed); single contours on an end plane (nothing on the neighbouring plane) always get a slab of
+one spacing, as the seed's single-contour bodies do. Bodies that end inside the structure (a branch
+stops, or a body lies on one plane) close half-way to the next plane (:func:`close_ends`).
 """
 
 from __future__ import annotations
@@ -75,7 +76,8 @@ class ImplicitSurface:
     cap_offset_mm : float
         How far beyond the end planes the surface closes.
     end_areas_mm2 : (float, float)
-        Areas of the contours on the lowest and the highest plane (holes subtracted).
+        Areas of the contours on the lowest and the highest plane (holes subtracted) that got the
+        caps asked for (less the single contours there, which always get a slab of one spacing).
     spacing : float
         Slice spacing (mm).
     contours : list of Contour
@@ -174,6 +176,8 @@ def plane_distances(contours: list[Contour], hole: np.ndarray, plane_of: np.ndar
     pad = int(np.ceil(clamp / pixel)) + 2
     pix = [(c.points - lo) / pixel for c in contours]
     bands = []
+    masks = np.zeros((n_planes, *shape), dtype=np.uint8)
+    boxes = {}
     for k in np.unique(plane_of):
         members = np.flatnonzero(plane_of == k)
         box_lo = np.floor(np.min([pix[i].min(axis=0) for i in members], axis=0)).astype(int) - pad
@@ -187,6 +191,8 @@ def plane_distances(contours: list[Contour], hole: np.ndarray, plane_of: np.ndar
             poly = np.round((pix[i] - (c0, r0)) * 16).astype(np.int32)
             cv2.fillPoly(img, [poly], 1, lineType=cv2.LINE_8, shift=4)
             m ^= img
+        masks[k, r0:r1, c0:c1] = m
+        boxes[int(k)] = (r0, r1, c0, c1)
         inside = cv2.distanceTransform(m, cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
         outside = cv2.distanceTransform(1 - m, cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
         crop = np.where(m > 0, 0.5 - inside, outside - 0.5) * np.float32(pixel)
@@ -217,7 +223,61 @@ def plane_distances(contours: list[Contour], hole: np.ndarray, plane_of: np.ndar
         xy = np.column_stack([lo[0] + cc * pixel, lo[1] + rr * pixel])
         _, near = tree.query(np.column_stack([xy, kk * big]))
         sdf[kk, rr, cc] = np.einsum("ij,ij->i", xy - samples[near], normals[near]).astype(np.float32)
-    return sdf
+    lonely = close_ends(sdf, masks, boxes)
+    return sdf, lonely
+
+
+def close_ends(sdf: np.ndarray, masks: np.ndarray, boxes: dict) -> tuple[np.ndarray, np.ndarray]:
+    """Let every body that ends inside the structure close half-way to the next plane (in place).
+
+    Where a connected region of a plane's fill overlaps nothing on the neighbouring plane (a branch
+    or body stops there, or the next plane is empty), the neighbour's distances inside that region
+    are lowered to the region's depth: ``min(d_next, -d_here)``. They stay positive (the
+    neighbour's own zero level is untouched) and the blend changes sign half-way, the end-slice
+    convention of the planning systems and of rasterise + marching cubes; unlowered, a small body
+    would close a few tenths of the gap from its plane against a far neighbour.
+
+    Parameters
+    ----------
+    sdf : numpy.ndarray, shape (P, rows, cols) float32
+        The planes' signed distances (mm, negative inside), changed in place.
+    masks : numpy.ndarray, shape (P, rows, cols) uint8
+        The planes' even-odd fills.
+    boxes : dict
+        Plane index -> ``(r0, r1, c0, c1)``, the box holding that plane's fill and its clamp margin.
+
+    Returns
+    -------
+    (numpy.ndarray, numpy.ndarray), each shape (rows, cols) bool
+        The regions of the first and of the last plane that overlap nothing on their neighbour (single
+        contours: a slab of one spacing, whatever the caps).
+    """
+    import cv2
+
+    n = len(sdf)
+    lonely = [np.zeros(sdf.shape[1:], dtype=bool), np.zeros(sdf.shape[1:], dtype=bool)]
+    for k, (r0, r1, c0, c1) in boxes.items():
+        m = masks[k, r0:r1, c0:c1]
+        count, labels = cv2.connectedComponents(m, connectivity=8)
+        if count < 2:
+            continue
+        for other in (k - 1, k + 1):
+            if not 0 <= other < n:
+                continue  # beyond the end planes: the pad planes close the structure
+            touched = np.zeros(count, dtype=bool)
+            touched[labels[masks[other, r0:r1, c0:c1] > 0]] = True
+            touched[0] = True
+            if touched.all():
+                continue
+            region = ~touched[labels]
+            for end, plane in enumerate((0, n - 1)):
+                if k == plane:
+                    lonely[end][r0:r1, c0:c1] |= region
+            target = sdf[other, r0:r1, c0:c1]
+            target[region] = np.minimum(target[region], -sdf[k, r0:r1, c0:c1][region])
+    if n == 1:
+        lonely = [masks[0] > 0, masks[0] > 0]
+    return lonely[0], lonely[1]
 
 
 def implicit_surface(contours: list[Contour], spacing: float, bodies: list, *, caps: str = "flat",
@@ -266,11 +326,11 @@ def implicit_surface(contours: list[Contour], spacing: float, bodies: list, *, c
     shape = (int(np.ceil((pts[:, 1].max() + margin - lo[1]) / pixel)) + 1,
              int(np.ceil((pts[:, 0].max() + margin - lo[0]) / pixel)) + 1)
     clamp = max(CLAMP_SPACINGS * spacing, 8 * pixel)
-    sdf = plane_distances(contours, outlines.hole, plane_of, n, lo, shape, pixel, clamp).reshape(n, -1)
+    sdf, lonely = plane_distances(contours, outlines.hole, plane_of, n, lo, shape, pixel, clamp)
+    sdf = sdf.reshape(n, -1)
 
     # the fine levels: parabolic blending between planes (Bernstein weights of the Bezier rows)
-    # one plane is a slab of one spacing whatever the caps (as a single contour's body gets half caps)
-    delta = spacing / 2 if caps in ("half", "dome") or n == 1 else FLAT_FRACTION * spacing
+    delta = spacing / 2 if caps in ("half", "dome") else FLAT_FRACTION * spacing
     if n > 1:
         w = blend_weights(n, planes if irregular else None)  # (n - 1, 4, n)
         t = np.arange(levels) / levels
@@ -282,10 +342,12 @@ def implicit_surface(contours: list[Contour], spacing: float, bodies: list, *, c
     else:
         z_fine, fine = planes, sdf.astype(np.float32)
     del sdf
-    ratio = np.float32(spacing / delta - 1.0)
+    # single contours on an end plane (nothing above or below on the neighbour) keep a slab of one spacing
+    ratio_lo = np.where(lonely[0].ravel(), np.float32(1.0), np.float32(spacing / delta - 1.0))
+    ratio_hi = np.where(lonely[1].ravel(), np.float32(1.0), np.float32(spacing / delta - 1.0))
     first, last = fine[0], fine[-1]
-    pad_lo = np.where(first < 0, -first * ratio, first)
-    pad_hi = np.where(last < 0, -last * ratio, last)
+    pad_lo = np.where(first < 0, -first * ratio_lo, first)
+    pad_hi = np.where(last < 0, -last * ratio_hi, last)
     outer = np.float32(np.abs(fine).max() + spacing)
     field_ = np.empty((len(fine) + 4, fine.shape[1]), dtype=np.float32)
     field_[0], field_[1], field_[2:-2], field_[-2], field_[-1] = outer, pad_lo, fine, pad_hi, outer
@@ -307,6 +369,8 @@ def implicit_surface(contours: list[Contour], spacing: float, bodies: list, *, c
         mesh, enclosed = TriangleMesh._trusted(xyz, np.ascontiguousarray(faces[:, ::-1]).astype(np.int64)), -enclosed
     sign = np.where(outlines.hole, -1.0, 1.0)
     area = np.array([abs(_area(c.points)) for c in contours]) * sign
-    ends = (float(area[plane_of == 0].sum()), float(area[plane_of == n - 1].sum()))
+    # the end planes' areas that got the caps asked for (single contours there got a whole slab)
+    ends = tuple(max(float(area[plane_of == p].sum()) - float(lone.sum()) * pixel**2, 0.0)
+                 for p, lone in ((0, lonely[0]), (n - 1, lonely[1])))
     return ImplicitSurface(list(bodies), mesh, float(enclosed), float(mesh.surface_area()), pixel,
                            levels, float(delta), ends, float(spacing), list(contours))

@@ -54,7 +54,7 @@ def test_phantoms_give_one_clean_solid(shape, caps, request):
         request.applymarker(pytest.mark.xfail(strict=True, reason="known: the outer contour's dome closes over "
                                               "the ring's hole, leaving a cavity (2 shells)"))
     _, conts, _ = phantom_stack(shape, 2.5)
-    rec = reconstruct_contours(conts, caps=caps, samples=2)
+    rec = reconstruct_contours(conts, surface_path="coons", caps=caps, samples=2)
     solid, _ = rec.solid_mesh()
     assert_clean_solid(solid)
     assert all(b.self_intersecting_faces == 0 for b in rec.bodies)
@@ -79,13 +79,13 @@ def test_small_structures_report_every_convention(shape):
 
 
 def test_branching_and_c_shape_give_one_clean_solid():
-    rec = reconstruct_contours(branching_stack(), caps="half", samples=3)
+    rec = reconstruct_contours(branching_stack(), surface_path="coons", caps="half", samples=3)
     solid, united = rec.solid_mesh()
     assert united and len(rec.bodies) == 3
     assert_clean_solid(solid)
     # the united solid has no inner caps: less area than the bodies side by side
     assert solid.surface_area() < rec.mesh.surface_area()
-    rec = reconstruct_contours(c_shape_stack(), caps="flat", samples=2)
+    rec = reconstruct_contours(c_shape_stack(), surface_path="coons", caps="flat", samples=2)
     solid, _ = rec.solid_mesh()
     assert_clean_solid(solid)
 
@@ -93,8 +93,8 @@ def test_branching_and_c_shape_give_one_clean_solid():
 def test_single_contour_holes_are_subtracted_under_flat_caps():
     disc = [Contour(z, circle(0, 0, 20, 64)) for z in (0.0, 3.0, 6.0, 9.0)]
     hole = [Contour(3.0, circle(0, 0, 5, 32))]
-    with_hole = reconstruct_contours(disc + hole, caps="flat", samples=2)
-    without = reconstruct_contours(disc, caps="flat", samples=2)
+    with_hole = reconstruct_contours(disc + hole, surface_path="coons", caps="flat", samples=2)
+    without = reconstruct_contours(disc, surface_path="coons", caps="flat", samples=2)
     hole_slab = abs(with_hole.bodies[-1].volume_mm3)
     assert with_hole.bodies[-1].body.kind == "hole" and with_hole.bodies[-1].caps_used == ("half", "half")
     assert with_hole.volume_mm3 == pytest.approx(without.volume_mm3 - hole_slab)
