@@ -3,11 +3,13 @@
 Each plane's contours become a signed distance (mm, negative inside; an even-odd fill, so holes
 and islands come out right): OpenCV's exact Euclidean distance transform of the plane's raster
 far from the outline, and near it (within :data:`BAND_PIXELS` pixels) the signed distance to the
-outline's local tangent line at its nearest point (the outline resampled at half a pixel, SciPy's
+outline's local tangent line at its nearest point (the outline resampled at one pixel, SciPy's
 k-d tree), so the zero level follows the contour to a small fraction of a pixel. The planes'
 distances are blended across the planes with the seed's parabolic blending
 (:func:`surfaces.blending.blend_weights`: the surface through three neighbouring planes, blended;
-it passes through every plane's field), sampled at :func:`z_samples` levels per slice gap, and the
+it passes through every plane's field), limited to stay between the two planes' values (shape
+preserving: the sign changes only where theirs differ, so the parabolas' dips beside a ridge make
+no islands), sampled at :func:`z_samples` levels per slice gap, and the
 zero level is extracted with scikit-image's Lewiner marching cubes on a padded volume, so the
 surface is closed, manifold and one shell per connected part: bodies that meet are one solid, not
 bodies touching along a seam.
@@ -40,8 +42,9 @@ PIXEL_RANGE_MM = (0.25, 1.0)
 #: Most grid values of the blended volume; a larger structure gets a coarser pixel.
 MAX_VOXELS = 40_000_000
 
-#: Pixels either side of the outline whose distance is the exact one to the outline's tangent line.
-BAND_PIXELS = 1.5
+#: Pixels either side of the outline whose distance is the exact one to the outline's tangent line
+#: (those whose neighbour lies across the outline: marching cubes interpolates between them).
+BAND_PIXELS = 1.0
 
 #: Signed distances are clipped to this many slice spacings (at least 8 pixels): far values would
 #: reach across planes through the blend's negative weights (an empty plane beside a body).
@@ -117,21 +120,26 @@ class ImplicitSurface:
         return self._deviation
 
 
-def pixel_size(contours: list[Contour], n_planes: int, z_levels: int) -> float:
+def pixel_size(z: np.ndarray, area: np.ndarray, extent: np.ndarray, n_planes: int, z_levels: int) -> float:
     """In-plane pixel (mm) for a structure: its size over :data:`PIXELS_ACROSS`, within :data:`PIXEL_RANGE_MM`
-    and coarse enough that the blended volume stays under :data:`MAX_VOXELS` values."""
-    z = np.round([c.z for c in contours], 6)
-    area = np.array([abs(_area(c.points)) for c in contours])
-    per_plane = np.bincount(np.unique(z, return_inverse=True)[1], area)
+    and coarse enough that the blended volume stays under :data:`MAX_VOXELS` values.
+
+    Parameters
+    ----------
+    z : numpy.ndarray, shape (C,)
+        Each contour's plane (mm).
+    area : numpy.ndarray, shape (C,)
+        Each contour's area (mm^2).
+    extent : numpy.ndarray, shape (2,)
+        The structure's x and y extent (mm).
+    n_planes, z_levels : int
+        Planes and levels per gap of the blended volume.
+    """
+    per_plane = np.bincount(np.unique(np.round(z, 6), return_inverse=True)[1], np.abs(area))
     pixel = float(np.clip(np.sqrt(per_plane.max()) / PIXELS_ACROSS, *PIXEL_RANGE_MM))
-    pts = np.concatenate([c.points for c in contours])
-    extent = np.ptp(pts, axis=0) + 8 * pixel
+    box = extent + 8 * pixel
     levels = max(n_planes - 1, 1) * z_levels + 5
-    return float(max(pixel, np.sqrt(extent[0] * extent[1] * levels / MAX_VOXELS)))
-
-
-def _area(p: np.ndarray) -> float:
-    return 0.5 * float(np.dot(p[:, 0], np.roll(p[:, 1], -1)) - np.dot(p[:, 1], np.roll(p[:, 0], -1)))
+    return float(max(pixel, np.sqrt(box[0] * box[1] * levels / MAX_VOXELS)))
 
 
 def z_samples(spacing: float, pixel: float) -> int:
@@ -193,20 +201,21 @@ def plane_distances(contours: list[Contour], hole: np.ndarray, plane_of: np.ndar
             m ^= img
         masks[k, r0:r1, c0:c1] = m
         boxes[int(k)] = (r0, r1, c0, c1)
-        inside = cv2.distanceTransform(m, cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
-        outside = cv2.distanceTransform(1 - m, cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+        # far from the outline a 5x5-mask distance (within 2 %) will do: near it the exact one replaces it
+        inside = cv2.distanceTransform(m, cv2.DIST_L2, cv2.DIST_MASK_5)
+        outside = cv2.distanceTransform(1 - m, cv2.DIST_L2, cv2.DIST_MASK_5)
         crop = np.where(m > 0, 0.5 - inside, outside - 0.5) * np.float32(pixel)
         rr, cc = np.nonzero(np.abs(crop) < BAND_PIXELS * pixel)
         bands.append((np.full(len(rr), k), rr + r0, cc + c0))
         sdf[k, r0:r1, c0:c1] = np.clip(crop, -far, far)
     # near the outline: the signed distance to the tangent line at the nearest point of the outline
-    samples, normals, planes = [], [], []
+    samples, normals, planes, owners = [], [], [], []
     for k, c in enumerate(contours):
         p = c.points
         q = np.roll(p, -1, axis=0)
         seg = q - p
         length = np.linalg.norm(seg, axis=1)
-        n_sub = np.maximum(np.ceil(length / (0.5 * pixel)).astype(np.int64), 1)
+        n_sub = np.maximum(np.ceil(length / pixel).astype(np.int64), 1)
         idx = np.repeat(np.arange(len(p)), n_sub)
         t = (np.arange(n_sub.sum()) - np.repeat(np.cumsum(n_sub) - n_sub, n_sub)) / n_sub[idx]
         samples.append(p[idx] + seg[idx] * t[:, None])
@@ -215,27 +224,38 @@ def plane_distances(contours: list[Contour], hole: np.ndarray, plane_of: np.ndar
         out = np.column_stack([direction[:, 1], -direction[:, 0]])
         normals.append(-out if hole[k] else out)
         planes.append(np.full(len(idx), plane_of[k]))
+        owners.append(np.full(len(idx), bool(hole[k])))
     samples, normals, planes = np.concatenate(samples), np.concatenate(normals), np.concatenate(planes)
+    owners = np.concatenate(owners)
     kk, rr, cc = (np.concatenate(a) for a in zip(*bands))
     if len(kk):
         big = 10.0 * (max(shape) + 2) * pixel  # planes far apart in the tree's third coordinate
         tree = cKDTree(np.column_stack([samples, planes * big]))
         xy = np.column_stack([lo[0] + cc * pixel, lo[1] + rr * pixel])
         _, near = tree.query(np.column_stack([xy, kk * big]))
-        sdf[kk, rr, cc] = np.einsum("ij,ij->i", xy - samples[near], normals[near]).astype(np.float32)
+        value = np.einsum("ij,ij->i", xy - samples[near], normals[near])
+        # the tangent line's side can be wrong beside a corner; the fill cannot be, one way: OpenCV fills
+        # every pixel the outline touches, so a pixel left out of an outer contour's fill is outside the
+        # solid, and one left in beside a hole's outline is inside it
+        filled = masks[kk, rr, cc] > 0
+        by_hole = owners[near]
+        value = np.where(~by_hole & ~filled, np.abs(value), np.where(by_hole & filled, -np.abs(value), value))
+        sdf[kk, rr, cc] = value.astype(np.float32)
     lonely = close_ends(sdf, masks, boxes)
     return sdf, lonely
 
 
 def close_ends(sdf: np.ndarray, masks: np.ndarray, boxes: dict) -> tuple[np.ndarray, np.ndarray]:
-    """Let every body that ends inside the structure close half-way to the next plane (in place).
+    """Let every body (and every hole) that ends inside the structure close half-way to the next plane (in place).
 
     Where a connected region of a plane's fill overlaps nothing on the neighbouring plane (a branch
     or body stops there, or the next plane is empty), the neighbour's distances inside that region
-    are lowered to the region's depth: ``min(d_next, -d_here)``. They stay positive (the
-    neighbour's own zero level is untouched) and the blend changes sign half-way, the end-slice
-    convention of the planning systems and of rasterise + marching cubes; unlowered, a small body
-    would close a few tenths of the gap from its plane against a far neighbour.
+    are lowered to the region's depth: ``min(d_next, -d_here)``; where a hole of a plane meets only
+    fill on the neighbour, the neighbour's distances there are raised to ``max(d_next, -d_here)``.
+    They keep their sign (the neighbour's own zero level is untouched) and the blend changes sign
+    half-way, the end-slice convention of the planning systems and of rasterise + marching cubes;
+    unchanged, a small body would close a few tenths of the gap from its plane against a far
+    neighbour.
 
     Parameters
     ----------
@@ -261,27 +281,40 @@ def close_ends(sdf: np.ndarray, masks: np.ndarray, boxes: dict) -> tuple[np.ndar
         count, labels = cv2.connectedComponents(m, connectivity=8)
         if count < 2:
             continue
+        # the holes: components of the unfilled pixels that do not reach the box's border
+        n_holes, hole_labels = cv2.connectedComponents((m == 0).astype(np.uint8), connectivity=4)
+        border = np.unique(np.concatenate([hole_labels[0], hole_labels[-1], hole_labels[:, 0], hole_labels[:, -1]]))
+        here = sdf[k, r0:r1, c0:c1]
         for other in (k - 1, k + 1):
             if not 0 <= other < n:
                 continue  # beyond the end planes: the pad planes close the structure
-            touched = np.zeros(count, dtype=bool)
-            touched[labels[masks[other, r0:r1, c0:c1] > 0]] = True
-            touched[0] = True
-            if touched.all():
-                continue
-            region = ~touched[labels]
-            for end, plane in enumerate((0, n - 1)):
-                if k == plane:
-                    lonely[end][r0:r1, c0:c1] |= region
+            there = masks[other, r0:r1, c0:c1] > 0
             target = sdf[other, r0:r1, c0:c1]
-            target[region] = np.minimum(target[region], -sdf[k, r0:r1, c0:c1][region])
+            touched = np.zeros(count, dtype=bool)
+            touched[labels[there]] = True
+            touched[0] = True
+            if not touched.all():
+                region = ~touched[labels]
+                for end, plane in enumerate((0, n - 1)):
+                    if k == plane:
+                        lonely[end][r0:r1, c0:c1] |= region
+                target[region] = np.minimum(target[region], -here[region])
+            if n_holes > 1:
+                # a hole that ends (the neighbour is filled all across it) closes half-way too
+                open_ = np.zeros(n_holes, dtype=bool)
+                open_[hole_labels[~there]] = True
+                open_[0] = True
+                open_[border] = True
+                if not open_.all():
+                    region = ~open_[hole_labels]
+                    target[region] = np.maximum(target[region], -here[region])
     if n == 1:
         lonely = [masks[0] > 0, masks[0] > 0]
     return lonely[0], lonely[1]
 
 
 def implicit_surface(contours: list[Contour], spacing: float, bodies: list, *, caps: str = "flat",
-                     irregular: bool = False) -> ImplicitSurface:
+                     irregular: bool = False, outlines=None) -> ImplicitSurface:
     """One closed surface of a structure from its contours' blended signed distances (module docstring).
 
     Parameters
@@ -296,6 +329,8 @@ def implicit_surface(contours: list[Contour], spacing: float, bodies: list, *, c
         How far beyond the end planes the surface closes (module docstring).
     irregular : bool
         The planes are where the contours are (unequal spacing); the blend uses their positions.
+    outlines : slices.chaining.Outlines, optional
+        The contours' table when the caller has built it already.
 
     Returns
     -------
@@ -307,7 +342,7 @@ def implicit_surface(contours: list[Contour], spacing: float, bodies: list, *, c
     from slices.chaining import Outlines
     from surfaces.blending import blend_weights
 
-    outlines = Outlines.of(contours)
+    outlines = Outlines.of(contours) if outlines is None else outlines
     zc = np.round([c.z for c in contours], 6)
     z_all = np.unique(zc)
     if irregular or len(z_all) < 2:
@@ -317,10 +352,10 @@ def implicit_surface(contours: list[Contour], spacing: float, bodies: list, *, c
         planes = z_all[0] + spacing * np.arange(steps[-1] + 1)
     n = len(planes)
     plane_of = np.clip(np.searchsorted(planes, zc - 1e-6 * max(spacing, 1.0)), 0, n - 1)
-    pixel = pixel_size(contours, n, 4)
-    levels = z_samples(spacing, pixel)
-    pixel = pixel_size(contours, n, levels)
     pts = np.concatenate([c.points for c in contours])
+    extent = np.ptp(pts, axis=0)
+    levels = z_samples(spacing, pixel_size(zc, outlines.area, extent, n, 4))
+    pixel = pixel_size(zc, outlines.area, extent, n, levels)
     margin = 4 * pixel
     lo = pts.min(axis=0) - margin
     shape = (int(np.ceil((pts[:, 1].max() + margin - lo[1]) / pixel)) + 1,
@@ -339,6 +374,11 @@ def implicit_surface(contours: list[Contour], spacing: float, bodies: list, *, c
         rows = np.vstack([rows, np.eye(n)[-1:]])
         z_fine = np.concatenate([(planes[:-1, None] + np.diff(planes)[:, None] * t[None, :]).ravel(), planes[-1:]])
         fine = (sparse.csr_matrix(np.where(np.abs(rows) < 1e-12, 0.0, rows)) @ sdf).astype(np.float32)
+        # shape-preserving: between two planes the blend stays within their two values, so it changes
+        # sign only where they differ (no islands where the parabolas dip below zero beside a ridge)
+        inner = fine[:-1].reshape(n - 1, levels, -1)
+        np.clip(inner, np.minimum(sdf[:-1], sdf[1:])[:, None, :], np.maximum(sdf[:-1], sdf[1:])[:, None, :],
+                out=inner)
     else:
         z_fine, fine = planes, sdf.astype(np.float32)
     del sdf
@@ -349,11 +389,22 @@ def implicit_surface(contours: list[Contour], spacing: float, bodies: list, *, c
     pad_lo = np.where(first < 0, -first * ratio_lo, first)
     pad_hi = np.where(last < 0, -last * ratio_hi, last)
     outer = np.float32(np.abs(fine).max() + spacing)
-    field_ = np.empty((len(fine) + 4, fine.shape[1]), dtype=np.float32)
-    field_[0], field_[1], field_[2:-2], field_[-2], field_[-1] = outer, pad_lo, fine, pad_hi, outer
+    # two levels around the cap between each end plane and its pad (at t * delta / spacing with t = 1/2 and
+    # 3/2 for flat caps, 1/2 and 3/2 of half a gap for half caps): the cap's rim is then chamfered over a
+    # third of the gap or less, not over the whole gap
+    t_cap = delta / spacing
+    low, high = 0.5 * t_cap, t_cap + 0.5 * min(t_cap, 1.0 - t_cap)
+    field_ = np.empty((len(fine) + 8, fine.shape[1]), dtype=np.float32)
+    field_[0], field_[1] = outer, pad_lo
+    field_[2], field_[3] = first + np.float32(high) * (pad_lo - first), first + np.float32(low) * (pad_lo - first)
+    field_[4:-4] = fine
+    field_[-4], field_[-3] = last + np.float32(low) * (pad_hi - last), last + np.float32(high) * (pad_hi - last)
+    field_[-2], field_[-1] = pad_hi, outer
     del fine
-    z_grid = np.concatenate([[planes[0] - 2 * spacing, planes[0] - spacing], z_fine,
-                             [planes[-1] + spacing, planes[-1] + 2 * spacing]])
+    z_grid = np.concatenate([[planes[0] - 2 * spacing, planes[0] - spacing, planes[0] - high * spacing,
+                              planes[0] - low * spacing], z_fine,
+                             [planes[-1] + low * spacing, planes[-1] + high * spacing, planes[-1] + spacing,
+                              planes[-1] + 2 * spacing]])
     # no value at or near the level: marching cubes would put vertices on or next to grid nodes
     # (degenerate triangles, and vertices that a weld would merge into non-manifold edges)
     tiny = np.float32(NODE_CLEARANCE * pixel)
@@ -363,14 +414,19 @@ def implicit_surface(contours: list[Contour], spacing: float, bodies: list, *, c
     verts, faces, _, _ = marching_cubes(volume, 0.0, method="lewiner", allow_degenerate=False)
     xyz = np.column_stack([lo[0] + verts[:, 2] * pixel, lo[1] + verts[:, 1] * pixel,
                            np.interp(verts[:, 0], np.arange(len(z_grid)), z_grid)])
-    mesh = TriangleMesh._trusted(xyz, faces.astype(np.int64))
-    enclosed = mesh.signed_volume()
+    faces = faces.astype(np.int64)
+    # volume and area in one pass over the triangles
+    corner = xyz[faces]
+    cross = np.cross(corner[:, 1] - corner[:, 0], corner[:, 2] - corner[:, 0])
+    enclosed = float(np.einsum("ij,ij->", corner[:, 0], cross)) / 6.0
+    surface = 0.5 * float(np.sqrt(np.einsum("ij,ij->i", cross, cross)).sum())
     if enclosed < 0:
-        mesh, enclosed = TriangleMesh._trusted(xyz, np.ascontiguousarray(faces[:, ::-1]).astype(np.int64)), -enclosed
+        faces, enclosed = np.ascontiguousarray(faces[:, ::-1]), -enclosed
+    mesh = TriangleMesh._trusted(xyz, faces)
     sign = np.where(outlines.hole, -1.0, 1.0)
-    area = np.array([abs(_area(c.points)) for c in contours]) * sign
+    area = np.abs(outlines.area) * sign
     # the end planes' areas that got the caps asked for (single contours there got a whole slab)
     ends = tuple(max(float(area[plane_of == p].sum()) - float(lone.sum()) * pixel**2, 0.0)
                  for p, lone in ((0, lonely[0]), (n - 1, lonely[1])))
-    return ImplicitSurface(list(bodies), mesh, float(enclosed), float(mesh.surface_area()), pixel,
+    return ImplicitSurface(list(bodies), mesh, enclosed, surface, pixel,
                            levels, float(delta), ends, float(spacing), list(contours))

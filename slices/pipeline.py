@@ -38,7 +38,7 @@ UNION_MODES = ("auto", "yes", "no", True, False)
 #: ``surface_time_s`` and ``union_time_s`` time the work and not a fresh process's first imports
 #: (~0.2 s of SciPy, manifold3d and the checks, against ~10 ms of surface for an ordinary organ).
 STAGE_MODULES = ("scipy.sparse.csgraph", "scipy.spatial", "manifold3d", "surfaces.intersect", "surfaces.measure",
-                 "surfaces.mixed")
+                 "surfaces.mixed", "cv2", "skimage.measure")
 
 
 def _load_stage_modules() -> None:

@@ -226,7 +226,7 @@ def reconstruct_contours(contours: list[Contour], *, spacing: float | None = Non
     path = opts.surface_path
     bodies = chain(contours, None if irregular else d, outlines) if path == "coons" or single else []
     if path == "implicit" or (path == "auto" and (not single or len(bodies) != 1)):
-        return _implicit(contours, d, irregular, opts, slab, sensitivity, progress)
+        return _implicit(contours, d, irregular, opts, slab, sensitivity, progress, outlines)
     built = []
     # a body's work is thousands of thin products (16 control points a patch): BLAS threads only wait
     with one_blas_thread():
@@ -236,16 +236,16 @@ def reconstruct_contours(contours: list[Contour], *, spacing: float | None = Non
                 progress(i + 1, len(bodies))
     if path == "auto" and mesh and (len(built) > 1 or any(b.self_intersecting_faces for b in built)):
         # the patches folded or stepped: the implicit surface is one clean solid
-        return _implicit(contours, d, irregular, opts, slab, sensitivity, progress)
+        return _implicit(contours, d, irregular, opts, slab, sensitivity, progress, outlines)
     sign = {"outer": 1.0, "hole": -1.0}
     volume = sum(sign[b.body.kind] * b.volume_mm3 for b in built)
     area = sum(b.area_mm2 for b in built)
     return Reconstruction(built, float(volume), float(area), slab, d, opts, sensitivity)
 
 
-def _implicit(contours, d, irregular, opts, slab, sensitivity, progress) -> Reconstruction:
+def _implicit(contours, d, irregular, opts, slab, sensitivity, progress, outlines) -> Reconstruction:
     """The structure as one implicit surface (:func:`slices.implicit.implicit_surface`)."""
-    imp = implicit_surface(contours, d, [], caps=opts.caps, irregular=irregular)
+    imp = implicit_surface(contours, d, [], caps=opts.caps, irregular=irregular, outlines=outlines)
     if progress is not None:
         progress(1, 1)
     return Reconstruction([], imp.volume_mm3, imp.area_mm2, slab, d, opts, sensitivity, implicit=imp)
