@@ -1,16 +1,16 @@
 """Branching and multi-body structures as one implicit surface: shape-based interpolation (issue 34).
 
 Each plane's contours become a signed distance (mm, negative inside; an even-odd fill, so holes
-and islands come out right): OpenCV's exact Euclidean distance transform of the plane's raster
-far from the outline, and near it (within :data:`BAND_PIXELS` pixels) the signed distance to the
+and islands come out right): at the pixels beside the fill's edge, the signed distance to the
 outline's local tangent line at its nearest point (the outline resampled at one pixel, SciPy's
-k-d tree), so the zero level follows the contour to a small fraction of a pixel. The planes'
+k-d tree), so the zero level follows the contour to a small fraction of a pixel; elsewhere the
+distance to the outline point of the nearest such pixel (OpenCV's distance transform with labels),
+so the field is smooth, without the raster's half-pixel steps. The planes'
 distances are blended across the planes with the seed's parabolic blending
 (:func:`surfaces.blending.blend_weights`: the surface through three neighbouring planes, blended;
-it passes through every plane's field), limited to stay between the two planes' values (shape
-preserving: the sign changes only where theirs differ, so the parabolas' dips beside a ridge make
-no islands), sampled at :func:`z_samples` levels per slice gap, and the
-zero level is extracted with scikit-image's Lewiner marching cubes on a padded volume, so the
+it passes through every plane's field), limited to keep the sign where two neighbouring planes
+agree (so the parabolas' dips beside a ridge make no islands), sampled at :func:`z_samples` levels
+per slice gap, and the zero level is extracted with scikit-image's Lewiner marching cubes on a padded volume, so the
 surface is closed, manifold and one shell per connected part: bodies that meet are one solid, not
 bodies touching along a seam.
 
@@ -41,10 +41,6 @@ PIXEL_RANGE_MM = (0.25, 1.0)
 
 #: Most grid values of the blended volume; a larger structure gets a coarser pixel.
 MAX_VOXELS = 40_000_000
-
-#: Pixels either side of the outline whose distance is the exact one to the outline's tangent line
-#: (those whose neighbour lies across the outline: marching cubes interpolates between them).
-BAND_PIXELS = 1.0
 
 #: Signed distances are clipped to this many slice spacings (at least 8 pixels): far values would
 #: reach across planes through the blend's negative weights (an empty plane beside a body).
@@ -186,6 +182,7 @@ def plane_distances(contours: list[Contour], hole: np.ndarray, plane_of: np.ndar
     bands = []
     masks = np.zeros((n_planes, *shape), dtype=np.uint8)
     boxes = {}
+    cross = cv2.getStructuringElement(cv2.MORPH_CROSS, (3, 3))
     for k in np.unique(plane_of):
         members = np.flatnonzero(plane_of == k)
         box_lo = np.floor(np.min([pix[i].min(axis=0) for i in members], axis=0)).astype(int) - pad
@@ -201,14 +198,11 @@ def plane_distances(contours: list[Contour], hole: np.ndarray, plane_of: np.ndar
             m ^= img
         masks[k, r0:r1, c0:c1] = m
         boxes[int(k)] = (r0, r1, c0, c1)
-        # far from the outline a 5x5-mask distance (within 2 %) will do: near it the exact one replaces it
-        inside = cv2.distanceTransform(m, cv2.DIST_L2, cv2.DIST_MASK_5)
-        outside = cv2.distanceTransform(1 - m, cv2.DIST_L2, cv2.DIST_MASK_5)
-        crop = np.where(m > 0, 0.5 - inside, outside - 0.5) * np.float32(pixel)
-        rr, cc = np.nonzero(np.abs(crop) < BAND_PIXELS * pixel)
+        # the band: pixels with a 4-neighbour across the fill's edge
+        rr, cc = np.nonzero((m != cv2.erode(m, cross)) | (m != cv2.dilate(m, cross)))
         bands.append((np.full(len(rr), k), rr + r0, cc + c0))
-        sdf[k, r0:r1, c0:c1] = np.clip(crop, -far, far)
-    # near the outline: the signed distance to the tangent line at the nearest point of the outline
+    # the outline resampled at one pixel, with its outward normals (outward of the solid: right of a
+    # counter-clockwise outer contour, left of a hole's)
     samples, normals, planes, owners = [], [], [], []
     for k, c in enumerate(contours):
         p = c.points
@@ -219,7 +213,6 @@ def plane_distances(contours: list[Contour], hole: np.ndarray, plane_of: np.ndar
         idx = np.repeat(np.arange(len(p)), n_sub)
         t = (np.arange(n_sub.sum()) - np.repeat(np.cumsum(n_sub) - n_sub, n_sub)) / n_sub[idx]
         samples.append(p[idx] + seg[idx] * t[:, None])
-        # outward of the solid: right of a counter-clockwise outer contour, left of a hole's
         direction = seg[idx] / np.maximum(length[idx], 1e-300)[:, None]
         out = np.column_stack([direction[:, 1], -direction[:, 0]])
         normals.append(-out if hole[k] else out)
@@ -228,19 +221,38 @@ def plane_distances(contours: list[Contour], hole: np.ndarray, plane_of: np.ndar
     samples, normals, planes = np.concatenate(samples), np.concatenate(normals), np.concatenate(planes)
     owners = np.concatenate(owners)
     kk, rr, cc = (np.concatenate(a) for a in zip(*bands))
-    if len(kk):
-        big = 10.0 * (max(shape) + 2) * pixel  # planes far apart in the tree's third coordinate
-        tree = cKDTree(np.column_stack([samples, planes * big]))
-        xy = np.column_stack([lo[0] + cc * pixel, lo[1] + rr * pixel])
-        _, near = tree.query(np.column_stack([xy, kk * big]))
-        value = np.einsum("ij,ij->i", xy - samples[near], normals[near])
-        # the tangent line's side can be wrong beside a corner; the fill cannot be, one way: OpenCV fills
-        # every pixel the outline touches, so a pixel left out of an outer contour's fill is outside the
-        # solid, and one left in beside a hole's outline is inside it
-        filled = masks[kk, rr, cc] > 0
-        by_hole = owners[near]
-        value = np.where(~by_hole & ~filled, np.abs(value), np.where(by_hole & filled, -np.abs(value), value))
-        sdf[kk, rr, cc] = value.astype(np.float32)
+    # the band: the signed distance to the tangent line at the nearest point of the outline
+    big = 10.0 * (max(shape) + 2) * pixel  # planes far apart in the tree's third coordinate
+    tree = cKDTree(np.column_stack([samples, planes * big]))
+    xy = np.column_stack([lo[0] + cc * pixel, lo[1] + rr * pixel])
+    _, near = tree.query(np.column_stack([xy, kk * big]))
+    value = np.einsum("ij,ij->i", xy - samples[near], normals[near])
+    # the tangent line's side can be wrong beside a corner; the fill cannot be, one way: OpenCV fills
+    # every pixel the outline touches, so a pixel left out of an outer contour's fill is outside the
+    # solid, and one left in beside a hole's outline is inside it
+    filled = masks[kk, rr, cc] > 0
+    by_hole = owners[near]
+    value = np.where(~by_hole & ~filled, np.abs(value), np.where(by_hole & filled, -np.abs(value), value))
+    nearest = samples[near]
+    # elsewhere: the distance to the outline point of the nearest band pixel (OpenCV's distance transform
+    # with the label of the nearest band pixel), its sign the fill's: consistent with the band's, so the
+    # blend between planes sees a smooth field, not the raster's half-pixel steps
+    start = np.searchsorted(kk, np.arange(n_planes + 1))
+    for k, (r0, r1, c0, c1) in boxes.items():
+        sl = slice(start[k], start[k + 1])
+        src = np.ones((r1 - r0, c1 - c0), np.uint8)
+        src[rr[sl] - r0, cc[sl] - c0] = 0
+        _, labels = cv2.distanceTransformWithLabels(src, cv2.DIST_L2, cv2.DIST_MASK_5,
+                                                    labelType=cv2.DIST_LABEL_PIXEL)
+        lut = np.zeros(int(labels.max()) + 1, dtype=np.int64)
+        lut[labels[rr[sl] - r0, cc[sl] - c0]] = np.arange(start[k], start[k + 1])
+        owner = lut[labels]
+        gy = (lo[1] + np.arange(r0, r1) * pixel)[:, None]
+        gx = (lo[0] + np.arange(c0, c1) * pixel)[None, :]
+        dist = np.sqrt((gx - nearest[owner, 0]) ** 2 + (gy - nearest[owner, 1]) ** 2)
+        crop = np.where(masks[k, r0:r1, c0:c1] > 0, -dist, dist).astype(np.float32)
+        crop[rr[sl] - r0, cc[sl] - c0] = value[sl]
+        sdf[k, r0:r1, c0:c1] = np.clip(crop, -far, far)
     lonely = close_ends(sdf, masks, boxes)
     return sdf, lonely
 
@@ -374,11 +386,17 @@ def implicit_surface(contours: list[Contour], spacing: float, bodies: list, *, c
         rows = np.vstack([rows, np.eye(n)[-1:]])
         z_fine = np.concatenate([(planes[:-1, None] + np.diff(planes)[:, None] * t[None, :]).ravel(), planes[-1:]])
         fine = (sparse.csr_matrix(np.where(np.abs(rows) < 1e-12, 0.0, rows)) @ sdf).astype(np.float32)
-        # shape-preserving: between two planes the blend stays within their two values, so it changes
-        # sign only where they differ (no islands where the parabolas dip below zero beside a ridge)
+        # sign-preserving: where two neighbouring planes agree in sign the blend keeps it (at least a
+        # quarter of the smaller magnitude), so it changes sign only where they differ: no islands where the
+        # parabolas dip below zero beside a ridge, and the blend's overshoot is kept elsewhere (a limit to
+        # the two values would flatten every extremum across the planes into a rib)
         inner = fine[:-1].reshape(n - 1, levels, -1)
-        np.clip(inner, np.minimum(sdf[:-1], sdf[1:])[:, None, :], np.maximum(sdf[:-1], sdf[1:])[:, None, :],
-                out=inner)
+        a, b = sdf[:-1], sdf[1:]
+        big = np.float32(np.abs(sdf).max() * 4 + 1)
+        low = np.where((a > 0) & (b > 0), 0.25 * np.minimum(a, b), -big).astype(np.float32)
+        high = np.where((a < 0) & (b < 0), 0.25 * np.maximum(a, b), big).astype(np.float32)
+        np.clip(inner, low[:, None, :], high[:, None, :], out=inner)
+        del low, high
     else:
         z_fine, fine = planes, sdf.astype(np.float32)
     del sdf

@@ -68,8 +68,9 @@ class SurfaceOptions:
     surface_path : {"auto", "coons", "implicit"}
         ``auto``: the seed's patches for a single chain of contours (one contour per plane,
         no hole, one body), the implicit surface (:mod:`slices.implicit`) for branching,
-        multi-body and holed structures, and for a chain whose patches fold or step;
-        ``coons`` or ``implicit`` force one.
+        multi-body and holed structures, and for a chain whose patches' mesh folds (with
+        ``unfold``); ``coons`` forces the patches (with their fallback surfaces and
+        stepped slabs, :func:`slices.body.build_stepped`), ``implicit`` the implicit surface.
 
     Examples
     --------

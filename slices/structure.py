@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from slices.body import BodySurface, build_body, build_stepped
+from slices.body import BodySurface, build_body, build_body_once, build_stepped
 from slices.chaining import Outlines, chain, offset_sensitivity, slab_volume
 from slices.implicit import ImplicitSurface, implicit_surface
 from slices.io import (SPACING_RTOL, Contour, ContourStack, check_spacing, load, parse_spacing,
@@ -230,13 +230,23 @@ def reconstruct_contours(contours: list[Contour], *, spacing: float | None = Non
     built = []
     # a body's work is thousands of thin products (16 control points a patch): BLAS threads only wait
     with one_blas_thread():
-        for i, body in enumerate(bodies):
-            built.extend(build_stepped(body, d, opts, mesh=mesh))
+        if path == "auto" and mesh and opts.unfold:
+            # one chain: the seed's patches as asked for; if their mesh folds, the implicit surface (one clean
+            # solid, as fast as a raster) rather than the slower fallback surfaces and stepped slabs
+            from surfaces.intersect import is_fold_free
+
+            first = build_body_once(bodies[0], d, opts, mesh=True)
+            if not is_fold_free(first.mesh.vertices, first.mesh.triangles):
+                return _implicit(contours, d, irregular, opts, slab, sensitivity, progress, outlines)
+            first.surface, first.self_intersecting_faces = f"{opts.method} ({opts.correspondence})", 0
+            built.append(first)
             if progress is not None:
-                progress(i + 1, len(bodies))
-    if path == "auto" and mesh and (len(built) > 1 or any(b.self_intersecting_faces for b in built)):
-        # the patches folded or stepped: the implicit surface is one clean solid
-        return _implicit(contours, d, irregular, opts, slab, sensitivity, progress, outlines)
+                progress(1, 1)
+        else:
+            for i, body in enumerate(bodies):
+                built.extend(build_stepped(body, d, opts, mesh=mesh))
+                if progress is not None:
+                    progress(i + 1, len(bodies))
     sign = {"outer": 1.0, "hole": -1.0}
     volume = sum(sign[b.body.kind] * b.volume_mm3 for b in built)
     area = sum(b.area_mm2 for b in built)
