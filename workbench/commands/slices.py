@@ -137,9 +137,10 @@ def _reconstruct(args: argparse.Namespace) -> int:
               f"area {r['area_before_mm2']:.2f} -> {r['area_after_mm2']:.2f} mm^2 ({change})")
     print(f"{summary['roi']}: {summary['n_contours']} contours on {summary['n_slices']} planes, "
           f"{summary['n_bodies']} bodies ({summary['chaining']})")
+    made = (f"{summary['n_patches']} patches" if summary.get("surface_path", "coons") == "coons" else
+            f"implicit surface ({summary['mesh_triangles']} triangles)")
     print(f"volume {summary['volume_mm3']:.1f} mm^3 = {summary['volume_ml']:.3f} ml "
-          f"(slab {summary['slab_volume_mm3'] / 1000:.3f} ml), area {summary['area_mm2']:.1f} mm^2, "
-          f"{summary['n_patches']} patches")
+          f"(slab {summary['slab_volume_mm3'] / 1000:.3f} ml), area {summary['area_mm2']:.1f} mm^2, {made}")
     dev_ref = ref.get("max_control_point_deviation_mm")
     print(f"max control-point deviation {summary['max_control_point_deviation_mm']:.2e} mm"
           + (f" (smoothing B-spline reference: {dev_ref:.3f} mm)" if dev_ref is not None else ""))
