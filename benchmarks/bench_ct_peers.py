@@ -95,12 +95,17 @@ def row_sources() -> list[tuple[str, Path, str]]:
 
 
 def independent_checks(verts, faces) -> dict:
-    """pymeshlab's self-intersecting faces and topology after welding (:data:`WELD_MM`), trimesh's checks."""
+    """pymeshlab's self-intersecting faces and topology after welding (:data:`WELD_MM`) on the solid as the
+    command writes it (``surface.ply``, :func:`surfaces.io.write_mesh`), trimesh's checks."""
     import pymeshlab
     import trimesh
 
+    from surfaces.io import write_mesh
+
     ms = pymeshlab.MeshSet()
-    ms.add_mesh(pymeshlab.Mesh(vertex_matrix=np.asarray(verts, np.float64), face_matrix=np.asarray(faces, np.int32)))
+    with tempfile.TemporaryDirectory() as folder:
+        write_mesh(TriangleMesh(verts, faces), Path(folder) / "surface.ply")
+        ms.load_new_mesh(str(Path(folder) / "surface.ply"))
     ms.compute_selection_by_self_intersections_per_face()
     crossing = ms.current_mesh().selected_face_number()
     ms.meshing_merge_close_vertices(threshold=pymeshlab.PureValue(WELD_MM))

@@ -20,9 +20,17 @@ trimesh = pytest.importorskip("trimesh")
 
 # ------------------------------------------------------------------ independent checks
 def independent_checks(mesh, weld_mm: float = 1e-3) -> dict:
-    """pymeshlab's self-intersecting faces and topology after welding at ``weld_mm``; trimesh's checks."""
+    """pymeshlab's self-intersecting faces and topology after welding at ``weld_mm`` on the mesh as written
+    (``surface.ply``, :func:`surfaces.io.write_mesh`); trimesh's checks."""
+    import tempfile
+    from pathlib import Path
+
+    from surfaces.io import write_mesh
+
     ms = pymeshlab.MeshSet()
-    ms.add_mesh(pymeshlab.Mesh(vertex_matrix=mesh.vertices, face_matrix=mesh.triangles.astype(np.int32)))
+    with tempfile.TemporaryDirectory() as folder:
+        write_mesh(mesh, Path(folder) / "surface.ply")
+        ms.load_new_mesh(str(Path(folder) / "surface.ply"))
     ms.compute_selection_by_self_intersections_per_face()
     crossing = ms.current_mesh().selected_face_number()
     ms.meshing_merge_close_vertices(threshold=pymeshlab.PureValue(weld_mm))
@@ -304,3 +312,19 @@ def test_ibsi_gtv_is_accepted_and_valid(shared_data):
     assert_valid_solid(result.mesh)
     # the peers (shared data README): plastimatch 358.7 cc, rasterise + marching cubes 358.4 cc
     assert s["volume_ml"] == pytest.approx(358.5, rel=0.01)
+
+
+def test_rtutils_mim_sample_rois_are_valid_solids():
+    """rt-utils' early sample data (a MIM export, 4 ROIs on 3 planes; ``sample/rt.dcm`` of
+    github.com/qurit/rt-utils before commit 63c77e4): set ``RTUTILS_SAMPLE`` to that file."""
+    import os
+    from pathlib import Path
+
+    sample = os.environ.get("RTUTILS_SAMPLE")
+    if not sample or not Path(sample).is_file():
+        pytest.skip("rt-utils' MIM sample is not here (set RTUTILS_SAMPLE to its sample/rt.dcm, fetched from "
+                    "github.com/qurit/rt-utils before commit 63c77e4)")
+    for roi in io.list_rois(sample):
+        if roi["n_contours"]:
+            result = reconstruct(sample, roi=roi["number"], caps="half", reference=False)
+            assert_valid_solid(result.mesh, components=1)
