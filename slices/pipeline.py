@@ -36,9 +36,10 @@ UNION_MODES = ("auto", "yes", "no", True, False)
 #: Modules the surface and union stages call. Their own modules import them lazily, so that
 #: ``import slices`` stays light; :func:`reconstruct` loads them before its clocks start, so that
 #: ``surface_time_s`` and ``union_time_s`` time the work and not a fresh process's first imports
-#: (~0.2 s of SciPy, manifold3d and the checks, against ~10 ms of surface for an ordinary organ).
+#: (~0.2 s of SciPy, manifold3d and the checks, against ~10 ms of surface for an ordinary organ; scikit-image
+#: loads its marching cubes lazily, 0.4 s, on the implicit path's first call).
 STAGE_MODULES = ("scipy.sparse.csgraph", "scipy.spatial", "manifold3d", "surfaces.intersect", "surfaces.measure",
-                 "surfaces.mixed", "cv2", "skimage.measure")
+                 "surfaces.mixed", "cv2", "scipy.sparse", "skimage.measure._marching_cubes_lewiner")
 
 
 def _load_stage_modules() -> None:
