@@ -255,7 +255,7 @@ def reconstruct_contours(contours: list[Contour], *, spacing: float | None = Non
 
 def _implicit(contours, d, irregular, opts, slab, sensitivity, progress, outlines) -> Reconstruction:
     """The structure as one implicit surface (:func:`slices.implicit.implicit_surface`)."""
-    imp = implicit_surface(contours, d, [], caps=opts.caps, irregular=irregular, outlines=outlines)
+    imp = implicit_surface(contours, d, caps=opts.caps, irregular=irregular, outlines=outlines)
     if progress is not None:
         progress(1, 1)
     return Reconstruction([], imp.volume_mm3, imp.area_mm2, slab, d, opts, sensitivity, implicit=imp)
