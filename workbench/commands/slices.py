@@ -51,6 +51,10 @@ def register(sub) -> None:
                    help="side surface: blending (seed 000 parabolic blending), coons "
                    "(seed 001 Coons patches over the lattice nodes), bspline (interpolating "
                    f"cubic B-spline over the lattice nodes); default {defaults.method}")
+    p.add_argument("--surface-path", default=defaults.surface_path, choices=("auto", "coons", "implicit"),
+                   help="auto (default): the seed's patches for a single chain of contours, an implicit surface "
+                   "(blended signed distances, marching cubes) for branching, multi-body and holed structures and "
+                   "for chains whose patches fold; coons or implicit force one")
     p.add_argument("--rays", type=int, default=defaults.n_rays,
                    help=f"rays from each contour's centroid (seed 000 eq. 1, N1 >= 3; default {defaults.n_rays})")
     p.add_argument("--caps", default=defaults.caps, choices=CAP_KINDS,
@@ -128,7 +132,7 @@ def _reconstruct(args: argparse.Namespace) -> int:
             lattice=args.lattice, render=not args.no_render, samples=args.samples, progress=progress,
             correspondence=args.correspondence, union=args.union, minus=args.minus, plus=args.plus,
             repair=args.repair, ray_start=args.ray_start, reference=args.reference, export_mask=args.export_mask,
-            mask_spacing=args.mask_spacing, slice_thickness=args.slice_thickness,
+            mask_spacing=args.mask_spacing, slice_thickness=args.slice_thickness, surface_path=args.surface_path,
         )
     ref = summary.get("reference_bspline", {})
     for r in summary.get("contour_repairs", []):

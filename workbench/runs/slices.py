@@ -29,7 +29,7 @@ from workbench.runs.folder import result_folder
 OPTIONS = frozenset({
     "method", "rays", "caps", "hu_min", "hu_max", "spacing", "resample", "lattice", "samples", "correspondence",
     "ray_start", "union", "minus", "plus", "repair", "render", "reference", "export_mask", "mask_spacing",
-    "slice_thickness",
+    "slice_thickness", "surface_path",
 })
 
 #: Files written into the output folder (``render.png`` only when rendering).
@@ -263,7 +263,8 @@ def reconstruct_to_folder(input_path, out_dir, *, roi=None, progress=None, atomi
         ``reference`` (see :func:`slices.pipeline.reconstruct`), ``render``
         (default True), ``export_mask`` (a ``.nii``/``.nii.gz`` path: the solid
         rasterised, :func:`export_mask`) and ``mask_spacing`` (its voxel size
-        x,y,z mm), ``slice_thickness`` (mm: the slab of a single plane). Defaults are those
+        x,y,z mm), ``slice_thickness`` (mm: the slab of a single plane), ``surface_path`` (auto, coons
+        or implicit, :class:`slices.options.SurfaceOptions`). Defaults are those
         of :class:`slices.options.SurfaceOptions`
         and :func:`slices.pipeline.reconstruct`.
 
