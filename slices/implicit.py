@@ -259,8 +259,9 @@ def close_ends(sdf: np.ndarray, masks: np.ndarray, boxes: dict) -> tuple[np.ndar
 
     Where a connected region of a plane's fill overlaps nothing on the neighbouring plane (a branch
     or body stops there, or the next plane is empty), the neighbour's distances inside that region
-    are lowered to the region's depth: ``min(d_next, -d_here)``; where a hole of a plane meets only
-    fill on the neighbour, the neighbour's distances there are raised to ``max(d_next, -d_here)``.
+    are lowered to the region's depth: ``min(d_next, |d_here|)`` (and those of the plane beyond, which
+    the blend reaches too); where a hole of a plane meets only fill on the neighbour, the neighbour's
+    distances there are raised to ``max(d_next, -|d_here|)``.
     They keep their sign (the neighbour's own zero level is untouched) and the blend changes sign
     half-way, the end-slice convention of the planning systems and of rasterise + marching cubes;
     unchanged, a small body would close a few tenths of the gap from its plane against a far
@@ -307,7 +308,14 @@ def close_ends(sdf: np.ndarray, masks: np.ndarray, boxes: dict) -> tuple[np.ndar
                 for end, plane in enumerate((0, n - 1)):
                     if k == plane:
                         lonely[end][r0:r1, c0:c1] |= region
-                target[region] = np.minimum(target[region], -here[region])
+                # the fill's edge pixels may lie just outside the outline (OpenCV fills every pixel it touches):
+                # their depth is their distance, never a sign change on the neighbour
+                depth = np.abs(here[region])
+                target[region] = np.minimum(target[region], depth)
+                if 0 <= 2 * other - k < n:
+                    # the plane beyond too, so that the blend (which reaches two planes) closes half-way
+                    beyond = sdf[2 * other - k, r0:r1, c0:c1]
+                    beyond[region] = np.minimum(beyond[region], depth)
             if n_holes > 1:
                 # a hole that ends (the neighbour is filled all across it) closes half-way too
                 open_ = np.zeros(n_holes, dtype=bool)
@@ -316,7 +324,11 @@ def close_ends(sdf: np.ndarray, masks: np.ndarray, boxes: dict) -> tuple[np.ndar
                 open_[border] = True
                 if not open_.all():
                     region = ~open_[hole_labels]
-                    target[region] = np.maximum(target[region], -here[region])
+                    depth = -np.abs(here[region])
+                    target[region] = np.maximum(target[region], depth)
+                    if 0 <= 2 * other - k < n:
+                        beyond = sdf[2 * other - k, r0:r1, c0:c1]
+                        beyond[region] = np.maximum(beyond[region], depth)
     if n == 1:
         lonely = [masks[0] > 0, masks[0] > 0]
     return lonely[0], lonely[1]

@@ -328,3 +328,21 @@ def test_rtutils_mim_sample_rois_are_valid_solids():
         if roi["n_contours"]:
             result = reconstruct(sample, roi=roi["number"], caps="half", reference=False)
             assert_valid_solid(result.mesh, components=1)
+
+
+def test_bodies_across_missing_planes_close_half_way():
+    # two discs of radius 10 mm 6 mm apart along z (planes 6 and 8 missing) and a disc of radius 4 mm beside the
+    # lower one: three parts, each a slab of its planes with half caps, no island in the empty planes
+    contours = ([Contour(z, circle(0, 0, 10, 96)) for z in (0.0, 2.0, 4.0, 10.0, 12.0, 14.0)]
+                + [Contour(z, circle(40, 0, 4, 64)) for z in (0.0, 2.0, 4.0)])
+    rec = reconstruct_contours(contours, caps="half")
+    assert rec.surface_path == "implicit"
+    assert_valid_solid(rec.mesh, components=3)
+    from slices.summary import implicit_table
+
+    rows = sorted(implicit_table(rec), key=lambda r: -r["volume_mm3"])
+    from slices.polygons import signed_area
+
+    area = [signed_area(circle(0, 0, 10, 96)), signed_area(circle(0, 0, 4, 64))]
+    assert [r["volume_mm3"] for r in rows] == pytest.approx([6 * area[0], 6 * area[0], 6 * area[1]], rel=0.01)
+    assert [(r["z_min_mm"], r["z_max_mm"]) for r in rows[2:]] == [pytest.approx((-1.0, 5.0), abs=0.05)]
