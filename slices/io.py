@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from slices.polygons import clean_contour, signed_area
+from slices.polygons import clean_contour, repair_contour, signed_area
 from surfaces.validate import as_array, InputError, positive, reads_file
 
 #: Relative tolerance on slice spacing (a fraction of the spacing).
@@ -51,12 +51,28 @@ class ContourStack:
         ROI or file name.
     notes : list of str
         What the reader did (resampling, segmentation, ...), for the summary.
+    repairs : list of dict
+        Contours repaired into simple polygons (:func:`slices.polygons.repair_contour`): ``contour``
+        (index in the input), ``z_mm``, ``area_before_mm2``, ``area_after_mm2``, ``area_change_pct``,
+        ``parts`` and ``holes``.
+    frame : numpy.ndarray, shape (3, 3), or None
+        Contours on oblique planes: the rows ``u, v, n`` of their plane frame (patient
+        coordinates); the contours' ``x, y, z`` are ``u . p, v . p, n . p`` of the patient
+        points ``p``, and a point ``q`` of the reconstruction lies at ``q @ frame``. None: axial.
+    thickness_mm : float or None
+        Slab thickness the input states for its planes (RTSTRUCT ``ContourSlabThickness``), or None.
+    thickness_source : str
+        Where :attr:`thickness_mm` comes from.
     """
 
     contours: list[Contour]
     source: str
     name: str
     notes: list[str] = field(default_factory=list)
+    repairs: list[dict] = field(default_factory=list)
+    frame: np.ndarray | None = None
+    thickness_mm: float | None = None
+    thickness_source: str = ""
 
     @property
     def planes(self) -> np.ndarray:
@@ -157,20 +173,170 @@ def _first_close_pair(q: np.ndarray, tol: float) -> tuple[int, int] | None:
     return int(lo[k]), int(hi[k])
 
 
-def _contours_from_list(items, label: str, notes: list | None = None) -> list[Contour]:
-    """Validated contours from ``(z, points)`` pairs, keyholes opened (said in ``notes``)."""
+#: Contour planes closer than this (mm) are one plane: a plane written twice with a rounding difference.
+PLANE_MERGE_MM = 0.01
+
+#: Two contours of one plane whose symmetric difference is below this fraction of their area are one
+#: contour written twice (an even-odd fill would cancel them out).
+DUPLICATE_RTOL = 1e-3
+
+
+def _degenerate(p: np.ndarray) -> str:
+    """Why a contour (n, 2) encloses nothing (fewer than 3 distinct points, zero area), or ``""``."""
+    if len(p) >= 2:
+        keep = np.any(p != np.roll(p, 1, axis=0), axis=1)
+        p = p[keep] if np.any(keep) else p[:1]
+    if len(np.unique(p, axis=0)) < 3:
+        return f"{len(np.unique(p, axis=0))} distinct point(s)"
+    extent = float(np.ptp(p, axis=0).max())
+    d, e = p[1:] - p[0], p[-1] - p[0]
+    if extent == 0 or np.all(np.abs(d[:, 0] * e[1] - d[:, 1] * e[0]) <= 1e-12 * extent**2):
+        return "zero area"
+    return ""
+
+
+def _contours_from_list(items, label: str, notes: list | None = None,
+                        repairs: list | None = None) -> list[Contour]:
+    """Validated contours from ``(z, points)`` or ``(z, points, index)`` items.
+
+    Keyholes are opened (:func:`open_keyholes`); contours that enclose nothing (fewer than 3
+    distinct points, zero area) are skipped; pinched and self-crossing outlines are repaired
+    into simple polygons (:func:`slices.polygons.repair_contour`, each in ``repairs``); planes
+    closer than :data:`PLANE_MERGE_MM` are merged and duplicated contours of one plane dropped
+    (:func:`drop_duplicates`). Each is said in ``notes``.
+    """
     out = []
     keyholes = 0
-    for i, (z, pts) in enumerate(items):
-        name = f"{label} contour {i} at z={z:.2f} mm"
-        loops = open_keyholes(pts)
+    skipped = []
+    repaired = [] if repairs is None else repairs
+    for i, item in enumerate(items):
+        z, pts = item[0], item[1]
+        index = item[2] if len(item) > 2 else i
+        name = f"{label} contour {index} at z={z:.2f} mm"
+        p = as_array(pts, name, ndim=2)
+        why = _degenerate(p) if p.shape[1:] == (2,) else ""
+        if why:
+            skipped.append(f"{index} at z={z:.2f} mm ({why})")
+            continue
+        loops = open_keyholes(p)
         keyholes += len(loops) > 1
-        out += [Contour(float(z), clean_contour(q, name)) for q in loops]
+        for q in loops:
+            try:
+                out.append(Contour(float(z), clean_contour(q, name)))
+                continue
+            except InputError as exc:
+                if "self-intersecting" not in str(exc):
+                    raise
+            rings, parts, before, after = repair_contour(q)
+            out += [Contour(float(z), clean_contour(r, f"{name} (repaired)")) for r in rings]
+            repaired.append({"contour": int(index), "z_mm": float(z), "area_before_mm2": before,
+                             "area_after_mm2": after, "area_change_pct": 100.0 * (after - before) / max(before, 1e-300)
+                             if before > 0 else None, "parts": parts, "holes": len(rings) - parts})
     out.sort(key=lambda c: c.z)
-    if keyholes and notes is not None:
+    if notes is None:
+        notes = []
+    if keyholes:
         notes.append(f"{keyholes} keyhole contour(s) (a hole reached by a zero-width cut) opened into "
                      "separate outer and inner contours")
-    return out
+    if skipped:
+        notes.append(f"skipped {len(skipped)} contour(s) that enclose nothing: " + "; ".join(skipped[:10])
+                     + ("; ..." if len(skipped) > 10 else ""))
+    if repaired:
+        worst = max((abs(r["area_change_pct"]) for r in repaired if r["area_change_pct"] is not None), default=0.0)
+        notes.append(f"repaired {len(repaired)} pinched or self-crossing contour(s) into simple polygons "
+                     f"(shapely make_valid; largest area change {worst:.3g} %): "
+                     + ", ".join(f"{r['contour']} at z={r['z_mm']:.2f} mm" for r in repaired[:10])
+                     + (", ..." if len(repaired) > 10 else ""))
+    return drop_duplicates(merge_planes(out, notes), notes)
+
+
+def merge_planes(contours: list[Contour], notes: list | None = None) -> list[Contour]:
+    """Contours whose planes lie within :data:`PLANE_MERGE_MM` of each other moved onto one plane.
+
+    Parameters
+    ----------
+    contours : list of Contour
+        Sorted by ``z``.
+    notes : list of str, optional
+        Gets a note when planes were merged.
+
+    Returns
+    -------
+    list of Contour
+        The same contours, those of a merged plane at its lowest ``z``.
+    """
+    if len(contours) < 2:
+        return contours
+    z = np.array([c.z for c in contours])
+    gaps = np.diff(z)
+    close = (gaps > 1e-6) & (gaps < PLANE_MERGE_MM)
+    if not close.any():
+        return contours
+    # each contour takes the z of the first plane of its run of close planes
+    start = np.r_[True, gaps >= PLANE_MERGE_MM]
+    base = z[np.maximum.accumulate(np.where(start, np.arange(len(z)), 0))]
+    if notes is not None:
+        pairs = ", ".join(f"z={a:.4f}/{b:.4f} mm" for a, b in zip(z[:-1][close][:5], z[1:][close][:5]))
+        notes.append(f"merged {int(close.sum())} plane(s) within {PLANE_MERGE_MM:g} mm of another ({pairs}): "
+                     "one plane written twice")
+    return [c if c.z == b else Contour(float(b), c.points) for c, b in zip(contours, base)]
+
+
+def drop_duplicates(contours: list[Contour], notes: list | None = None) -> list[Contour]:
+    """The contours without the duplicates of one plane (identical, or nearly: see :data:`DUPLICATE_RTOL`).
+
+    A contour given twice would cancel itself in an even-odd fill (a planning system's or a
+    rasteriser's) and make a zero-thickness body here; the later copy is dropped.
+
+    Parameters
+    ----------
+    contours : list of Contour
+        Sorted by ``z``.
+    notes : list of str, optional
+        Gets a note naming the dropped copies.
+
+    Returns
+    -------
+    list of Contour
+    """
+    if len(contours) < 2:
+        return contours
+    z = np.round([c.z for c in contours], 6)
+    area = np.array([signed_area(c.points) for c in contours])
+    lo = np.array([c.points.min(axis=0) for c in contours])
+    hi = np.array([c.points.max(axis=0) for c in contours])
+    drop, said = set(), []
+    for plane in np.flatnonzero(np.r_[True, z[1:] != z[:-1]]):
+        members = np.flatnonzero(z == z[plane])
+        if len(members) < 2:
+            continue
+        for a_i, a in enumerate(members):
+            for b in members[a_i + 1:]:
+                if a in drop or b in drop:
+                    continue
+                size = max(abs(area[a]), abs(area[b]))
+                extent = float(max(np.ptp(contours[a].points, axis=0).max(), 1e-9))
+                if (abs(area[a] - area[b]) > DUPLICATE_RTOL * size
+                        or np.abs(lo[a] - lo[b]).max() > DUPLICATE_RTOL * extent
+                        or np.abs(hi[a] - hi[b]).max() > DUPLICATE_RTOL * extent):
+                    continue
+                if _difference_area(contours[a].points, contours[b].points) <= DUPLICATE_RTOL * size:
+                    drop.add(int(b))
+                    said.append(f"z={z[b]:.2f} mm")
+    if not drop:
+        return contours
+    if notes is not None:
+        notes.append(f"dropped {len(drop)} duplicated contour(s) (the same outline twice on one plane, within "
+                     f"{100 * DUPLICATE_RTOL:g} % of its area; a fill would cancel them): " + ", ".join(said[:10])
+                     + (", ..." if len(said) > 10 else ""))
+    return [c for k, c in enumerate(contours) if k not in drop]
+
+
+def _difference_area(a: np.ndarray, b: np.ndarray) -> float:
+    """Area (mm^2) of the symmetric difference of two simple polygons (shapely)."""
+    from shapely.geometry import Polygon
+
+    return float(Polygon(a).symmetric_difference(Polygon(b)).area)
 
 
 def _existing(path, what: str, kind: str = "file") -> Path:
@@ -309,24 +475,31 @@ def _roi_table(ds) -> list[dict]:
 def read_rtstruct(path, roi) -> ContourStack:
     """Closed planar contours of one ROI of an RT Structure Set.
 
+    Contours that are not CLOSED_PLANAR (OPEN_PLANAR, POINT, ...) and contours that enclose
+    nothing are skipped and named in the notes; pinched outlines are repaired
+    (:func:`_contours_from_list`). Contours on oblique planes are taken into their plane frame
+    (``frame``, as SlicerRT does).
+
     Parameters
     ----------
     path : str or os.PathLike
         RTSTRUCT file.
     roi : str or int
-        ROI name (case-insensitive) or number.
+        ROI name (case-insensitive) or number; an ``int`` is always a number (``--roi-number``),
+        a string of digits a number when no ROI has it as its name.
 
     Returns
     -------
     ContourStack
-        Contours in patient coordinates (mm), ``z`` the patient z of each plane.
+        Contours in patient coordinates (mm), ``z`` the patient z of each plane (or the plane
+        frame's, see :attr:`ContourStack.frame`).
 
     Raises
     ------
     ValueError
-        Unknown ROI (the message lists the existing ones), an ROI without
-        contours, non-planar or non-axial contours, fewer than 3 points,
-        self-intersecting contours.
+        Unknown ROI (the message lists the existing ones), a name that several ROIs carry
+        (the message lists their numbers), an ROI without closed contours, non-planar
+        contours, planes of different orientations.
     """
     path, ds, rois = _open_rtstruct(path, counts=False)
     if roi is None:
@@ -334,55 +507,170 @@ def read_rtstruct(path, roi) -> ContourStack:
             f"{path}: choose an ROI with --roi; existing: " + ", ".join(r["name"] for r in rois)
         )
     key = str(roi).strip()
-    match = [r for r in rois if r["name"].lower() == key.lower()]
-    if not match and key.isdigit():
+    by_number = isinstance(roi, int | np.integer) and not isinstance(roi, bool)
+    match = [] if by_number else [r for r in rois if r["name"].lower() == key.lower()]
+    if len(match) > 1:
+        raise InputError(f"{path}: {len(match)} ROIs are named {match[0]['name']!r} (ROI numbers "
+                         f"{', '.join(str(r['number']) for r in match)}); choose one with --roi-number N")
+    if not match and (by_number or key.isdigit()):
         match = [r for r in rois if r["number"] == int(key)]
     if not match:
         names = ", ".join(f"{r['number']}: {r['name']}" for r in rois)
-        raise InputError(f"{path}: no ROI named {roi!r}; existing ROIs are {names}")
+        what = f"number {roi}" if by_number else f"named {roi!r}"
+        raise InputError(f"{path}: no ROI {what}; existing ROIs are {names}")
     number, name = match[0]["number"], match[0]["name"]
     try:
-        items, skipped = _roi_contours(ds, number, name)
+        items, skipped, thickness = _roi_contours(ds, number, name)
     except _INCOMPLETE as exc:
         if isinstance(exc, ValueError) and str(exc).startswith("ROI "):
             raise
         raise InputError(f"{path}: the RT Structure Set is truncated or incomplete in ROI {name!r} "
                          f"({type(exc).__name__}: {exc})") from None
-    if not items:
-        raise InputError(f"{path}: ROI {name!r} has no CLOSED_PLANAR contours")
     notes: list[str] = []
-    stack = ContourStack(_contours_from_list(items, f"ROI {name!r}", notes), "rtstruct", name, notes)
     if skipped:
-        stack.notes.append(f"skipped {skipped} contour(s) that are not CLOSED_PLANAR")
+        kinds = {}
+        for kind, i, z in skipped:
+            kinds.setdefault(kind, []).append(f"{i}" + ("" if z is None else f" at z={z:.2f} mm"))
+        notes.append("skipped contour(s) that enclose no area: " + "; ".join(
+            f"{len(v)} {k} ({', '.join(v[:6])}{', ...' if len(v) > 6 else ''})" for k, v in kinds.items())
+            + " (only CLOSED_PLANAR contours bound a volume)")
+    if not items:
+        raise InputError(f"{path}: ROI {name!r} has no CLOSED_PLANAR contours" + (f" ({notes[0]})" if notes else ""))
+    items, frame = _plane_frame(items, name)
+    if frame is not None:
+        notes.append("contours on oblique planes (normal "
+                     f"{np.round(frame[2], 4).tolist()}): reconstructed in their plane frame and the solid "
+                     "turned back into patient coordinates (as SlicerRT does); patches.npz and the contours' "
+                     "z are in the plane frame")
+    repairs: list[dict] = []
+    stack = ContourStack(_contours_from_list(items, f"ROI {name!r}", notes, repairs), "rtstruct", name, notes,
+                         repairs, frame)
+    if not stack.contours:
+        raise InputError(f"{path}: ROI {name!r} has no closed contour that encloses an area ({'; '.join(notes)})")
+    if thickness:
+        stack.thickness_mm, stack.thickness_source = thickness, "the structure set's ContourSlabThickness"
     return stack
 
 
-def _roi_contours(ds, number: int, name: str) -> tuple[list, int]:
-    """(z, points) of every CLOSED_PLANAR contour of one ROI, and how many other contours were skipped."""
+def _roi_contours(ds, number: int, name: str) -> tuple[list, list, float | None]:
+    """(z, xyz points, index) of every CLOSED_PLANAR contour of one ROI, the skipped ones and the slab thickness.
+
+    Returns
+    -------
+    items : list of (float, numpy.ndarray (n, 3), int)
+    skipped : list of (kind, index, z or None)
+        Contours that are not CLOSED_PLANAR, or have fewer than 3 points.
+    thickness : float or None
+        The contours' ``ContourSlabThickness`` (mm) when the file gives one.
+    """
     items = []
-    skipped = 0
+    skipped = []
+    thickness = []
     for rc in ds.get("ROIContourSequence", []):
         if int(rc.ReferencedROINumber) != number:
             continue
         for i, c in enumerate(rc.get("ContourSequence", [])):
             kind = str(c.get("ContourGeometricType", "CLOSED_PLANAR"))
-            if kind != "CLOSED_PLANAR":
-                skipped += 1
-                continue
             data = _contour_array(c)
-            if data.size % 3 or data.size < 9:
-                raise InputError(
-                    f"ROI {name!r} contour {i}: needs at least 3 points, got {data.size // 3}"
-                )
+            z = float(data[2]) if data.size >= 3 else None
+            if kind != "CLOSED_PLANAR":
+                skipped.append((kind, i, z))
+                continue
+            if data.size % 3:
+                raise InputError(f"ROI {name!r} contour {i}: its ContourData holds {data.size} values, "
+                                 "not x, y, z triples")
+            if data.size < 9:
+                skipped.append((f"CLOSED_PLANAR with {data.size // 3} point(s)", i, z))
+                continue
+            if "ContourSlabThickness" in c:
+                thickness.append(float(c.ContourSlabThickness))
             xyz = data.reshape(-1, 3)
-            z = xyz[:, 2]
-            if np.ptp(z) > 1e-3:
-                raise InputError(
-                    f"ROI {name!r} contour {i}: not in an axial plane (z spans "
-                    f"{z.min():.3f} to {z.max():.3f} mm); non-axial planes are not supported"
-                )
-            items.append((float(z.mean()), xyz[:, :2]))
-    return items, skipped
+            items.append((float(xyz[:, 2].mean()), xyz, i))
+    slab = float(np.median(thickness)) if thickness and np.median(thickness) > 0 else None
+    return items, skipped, slab
+
+
+#: Largest distance of a contour point from its plane, as a fraction of the contour's extent (planarity).
+PLANAR_RTOL = 1e-3
+
+
+def _plane_frame(items: list, name: str) -> tuple[list, np.ndarray | None]:
+    """Contours (z, xyz (n, 3), index) as (z, xy (n, 2), index) in the frame of their common plane orientation.
+
+    Axial contours (z spans at most 1e-3 mm) keep patient x, y and z; otherwise every contour's plane
+    (least squares) must share one normal ``n``, and the frame's rows are ``u`` (patient x projected
+    on the plane, or y when ``n`` is along x), ``v = n x u`` and ``n``.
+    """
+    if all(np.ptp(xyz[:, 2]) <= 1e-3 for _, xyz, _ in items):
+        return [(z, xyz[:, :2], i) for z, xyz, i in items], None
+    normals = []
+    for _, xyz, i in items:
+        centred = xyz - xyz.mean(axis=0)
+        _, sv, vt = np.linalg.svd(centred, full_matrices=False)
+        extent = float(np.ptp(xyz, axis=0).max())
+        if len(xyz) >= 3 and sv[-1] / np.sqrt(len(xyz)) > PLANAR_RTOL * max(extent, 1e-9) * 2:
+            raise InputError(f"ROI {name!r} contour {i}: not planar (points up to ~{sv[-1] / np.sqrt(len(xyz)):.3f} "
+                             "mm off their plane)")
+        n = vt[-1]
+        normals.append(n if n[np.argmax(np.abs(n))] > 0 else -n)
+    normals = np.asarray(normals)
+    n = normals[0]
+    off = np.abs(np.abs(normals @ n) - 1.0)
+    if np.any(off > 1e-4):
+        k = int(np.argmax(off))
+        raise InputError(f"ROI {name!r}: contours lie on planes of different orientations (contour {items[k][2]} "
+                         f"normal {np.round(normals[k], 4).tolist()} against {np.round(n, 4).tolist()})")
+    n = np.mean(normals * np.sign(normals @ n)[:, None], axis=0)
+    n /= np.linalg.norm(n)
+    axis = np.eye(3)[0] if abs(n[0]) < 0.9 else np.eye(3)[1]
+    u = axis - (axis @ n) * n
+    u /= np.linalg.norm(u)
+    frame = np.stack([u, np.cross(n, u), n])
+    out = []
+    for _, xyz, i in items:
+        q = xyz @ frame.T
+        out.append((float(q[:, 2].mean()), q[:, :2], i))
+    return out, frame
+
+
+def referenced_slice_thickness(path) -> tuple[float | None, str]:
+    """SliceThickness of the CT images beside an RT Structure Set (its folder and the folders in it).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        RTSTRUCT file.
+
+    Returns
+    -------
+    thickness : float or None
+        The median SliceThickness (mm) of the CT images that share the structure set's frame of
+        reference (all CT images when it names none); None when there are none.
+    source : str
+        Where it was found.
+    """
+    import pydicom
+
+    path = Path(path)
+    ds = pydicom.dcmread(str(path), stop_before_pixels=True, specific_tags=["ReferencedFrameOfReferenceSequence"])
+    frames = {str(f.get("FrameOfReferenceUID", "")) for f in ds.get("ReferencedFrameOfReferenceSequence", [])} - {""}
+    folders = [path.parent] + sorted(p for p in path.parent.iterdir() if p.is_dir())
+    found = []
+    for folder in folders:
+        for f in sorted(folder.iterdir())[:2000]:
+            if not f.is_file() or f == path:
+                continue
+            try:
+                im = pydicom.dcmread(str(f), stop_before_pixels=True,
+                                     specific_tags=["Modality", "SliceThickness", "FrameOfReferenceUID"])
+            except Exception:  # not DICOM: pydicom raises several unrelated types
+                continue
+            if str(im.get("Modality", "")) in ("CT", "MR", "PT") and im.get("SliceThickness") not in (None, ""):
+                if not frames or str(im.get("FrameOfReferenceUID", "")) in frames:
+                    found.append(float(im.SliceThickness))
+        if found:
+            return float(np.median(found)), f"SliceThickness of {len(found)} image(s) in {folder}"
+    return None, ""
 
 
 # ------------------------------------------------------------------ volumes
@@ -885,9 +1173,9 @@ def read_contour_json(path) -> ContourStack:
         if not isinstance(c, dict) or "z" not in c or "points" not in c:
             raise InputError(f"{path}: contour {i} needs 'z' and 'points'")
         pts = np.asarray(c["points"], dtype=np.float64)
-        if pts.ndim != 2 or pts.shape[1] not in (2, 3) or len(pts) < 3:
+        if pts.ndim != 2 or pts.shape[1] not in (2, 3) or len(pts) < 1:
             raise InputError(
-                f"{path}: contour {i} at z={c['z']} needs at least 3 [x, y] points, got shape {pts.shape}"
+                f"{path}: contour {i} at z={c['z']} needs [x, y] points, got shape {pts.shape}"
             )
         if pts.shape[1] == 3 and np.ptp(pts[:, 2]) > 1e-3:
             raise InputError(f"{path}: contour {i} is not in an axial plane (its z values differ)")
@@ -895,7 +1183,11 @@ def read_contour_json(path) -> ContourStack:
     if not items:
         raise InputError(f"{path}: holds no contours")
     notes: list[str] = []
-    return ContourStack(_contours_from_list(items, path.name, notes), "json", path.stem, notes)
+    repairs: list[dict] = []
+    stack = ContourStack(_contours_from_list(items, path.name, notes, repairs), "json", path.stem, notes, repairs)
+    if not stack.contours:
+        raise InputError(f"{path}: no contour encloses an area ({'; '.join(notes)})")
+    return stack
 
 
 def load(path, roi=None, hu_min=None, hu_max=None, spacing=None, resample: bool = False) -> ContourStack:

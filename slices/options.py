@@ -66,6 +66,12 @@ class SurfaceOptions:
     unfold : bool
         Check every body's mesh for self-intersecting faces and rebuild folded
         bodies (:func:`slices.body.build_body`).
+    surface_path : {"auto", "coons", "implicit"}
+        ``auto``: the seed's patches for a single chain of contours (one contour per plane,
+        no hole, one body), the implicit surface (:mod:`slices.implicit`) for branching,
+        multi-body and holed structures, and for a chain whose patches' mesh folds (with
+        ``unfold``); ``coons`` forces the patches (with their fallback surfaces and
+        stepped slabs, :func:`slices.body.build_stepped`), ``implicit`` the implicit surface.
 
     Examples
     --------
@@ -87,6 +93,7 @@ class SurfaceOptions:
     samples: int | None = None
     monotone: bool = False
     unfold: bool = True
+    surface_path: str = "auto"
 
     def __post_init__(self) -> None:
         # the modules that use the names hold them (imported here: they import these defaults)
@@ -97,6 +104,7 @@ class SurfaceOptions:
         _choice(self.caps, "caps", CAP_KINDS)
         _choice(self.lattice_mode, "lattice_mode", LATTICE_MODES)
         _choice(self.correspondence, "correspondence", CORRESPONDENCES)
+        _choice(self.surface_path, "surface_path", SURFACE_PATHS)
         n_rays = _whole(self.n_rays, "n_rays", 3, "rays (seed 000, eq. 1)")
         factor = positive(self.lattice_factor, "lattice_factor")
         if factor < 1:
@@ -125,12 +133,21 @@ class ReadOptions:
     resample : bool
         Unequal slice spacing: resample CT series and image stacks onto uniform
         slices, or blend contour inputs at their true positions, instead of failing.
+    slice_thickness : float or None
+        Slab thickness (mm) of a structure drawn on a single plane (``--slice-thickness``);
+        None: the structure set's ``ContourSlabThickness``, else the SliceThickness of
+        the CT images beside it (:func:`slices.structure.read_roi`).
     """
 
     hu_min: float | None = None
     hu_max: float | None = None
     spacing: str | tuple | None = None
     resample: bool = False
+    slice_thickness: float | None = None
+
+
+#: Values of :attr:`SurfaceOptions.surface_path`.
+SURFACE_PATHS = ("auto", "coons", "implicit")
 
 
 def _names(cls) -> set[str]:

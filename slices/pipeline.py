@@ -36,9 +36,10 @@ UNION_MODES = ("auto", "yes", "no", True, False)
 #: Modules the surface and union stages call. Their own modules import them lazily, so that
 #: ``import slices`` stays light; :func:`reconstruct` loads them before its clocks start, so that
 #: ``surface_time_s`` and ``union_time_s`` time the work and not a fresh process's first imports
-#: (~0.2 s of SciPy, manifold3d and the checks, against ~10 ms of surface for an ordinary organ).
+#: (~0.2 s of SciPy, manifold3d and the checks, against ~10 ms of surface for an ordinary organ; scikit-image
+#: loads its marching cubes lazily, 0.4 s, on the implicit path's first call).
 STAGE_MODULES = ("scipy.sparse.csgraph", "scipy.spatial", "manifold3d", "surfaces.intersect", "surfaces.folds",
-                 "surfaces.measure", "surfaces.mixed")
+                 "surfaces.measure", "surfaces.mixed", "cv2", "scipy.sparse", "skimage.measure._marching_cubes_lewiner")
 
 
 def _load_stage_modules() -> None:
@@ -86,8 +87,32 @@ class SlicesReconstruction:
 
     @property
     def display_mesh(self) -> TriangleMesh:
-        """What a picture shows: the bodies with flat-shaded caps, or the composed solid."""
-        return self.reconstruction.display_mesh if self.composition is None else self.mesh
+        """What a picture shows: the bodies with flat-shaded caps, or the composed solid (patient coordinates)."""
+        if self.composition is not None:
+            return self.mesh
+        shown = self.reconstruction.display_mesh
+        return shown if shown is None else to_patient(shown, self.stack.frame)
+
+
+def to_patient(mesh: TriangleMesh, frame) -> TriangleMesh:
+    """A mesh built in the plane frame of oblique contours turned into patient coordinates.
+
+    Parameters
+    ----------
+    mesh : TriangleMesh
+        Vertices (V, 3) in the frame's ``u, v, n`` coordinates (mm).
+    frame : numpy.ndarray, shape (3, 3), or None
+        Rows ``u, v, n`` (:attr:`slices.io.ContourStack.frame`); None: the mesh as it is.
+
+    Returns
+    -------
+    TriangleMesh
+        Vertices ``q @ frame`` (a rotation: orientation, volume and area kept).
+    """
+    if frame is None:
+        return mesh
+    normals = None if mesh.vertex_normals is None else mesh.vertex_normals @ frame
+    return TriangleMesh(mesh.vertices @ frame, mesh.triangles, vertex_normals=normals)
 
 
 def reconstruct(input_path, *, roi=None, union="auto", minus=(), plus=(), repair: bool = False,
@@ -108,7 +133,9 @@ def reconstruct(input_path, *, roi=None, union="auto", minus=(), plus=(), repair
         ROIs subtracted from / added to ``roi``: the solid is
         ``(roi u plus...) - (minus...)`` (:func:`slices.compose.compose_rois`).
     repair : bool
-        Repair the meshes before composing.
+        Repair the meshes before composing; without ``minus``/``plus``, repair the written solid
+        (:func:`surfaces.repair.repair_mesh`: weld, drop degenerate and duplicate triangles, orient,
+        fill small holes), what was done in ``summary["mesh_repair"]``.
     reference : bool
         Compare with the smoothing B-spline reference (seed 000, ref. [5]).
     progress : callable, optional
@@ -184,6 +211,14 @@ def reconstruct(input_path, *, roi=None, union="auto", minus=(), plus=(), repair
             stack.notes.append(f"bodies' meshes concatenated, not united ({n_tri} triangles; "
                                "--union yes forces the union)")
     t_union = time.perf_counter() - t_union
+    mesh_repair = None
+    if repair and not (minus or plus):
+        from surfaces.repair import repair_mesh
+
+        mesh, mesh_repair = repair_mesh(mesh, f"ROI {stack.name!r} solid")
+        stack.notes.append("--repair: " + (", ".join(f"{k.replace('_', ' ')} {v}" for k, v in mesh_repair.items()
+                                                      if k != "repaired" and v) or "nothing to repair"))
+    mesh = to_patient(mesh, stack.frame)
     # checked once here; the summary reports the same two flags
     checks = {"watertight": mesh.is_watertight(), "oriented": mesh.is_oriented()}
     if opts.caps != "none" and not (checks["watertight"] and checks["oriented"] and mesh.signed_volume() > 0):
@@ -197,5 +232,7 @@ def reconstruct(input_path, *, roi=None, union="auto", minus=(), plus=(), repair
     summary = summarize(input_path, stack, rec, mesh, united, composition, ref,
                         {"read_time_s": t_read, "surface_time_s": t_surface, "union_time_s": t_union,
                          "reference_time_s": t_ref}, checks=checks)
+    if mesh_repair is not None:
+        summary["mesh_repair"] = mesh_repair
     summary["time_s"] = time.perf_counter() - t0
     return SlicesReconstruction(stack, rec, mesh, united, composition, ref, summary)

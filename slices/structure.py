@@ -13,9 +13,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from slices.body import BodySurface, build_body, build_stepped
+from slices.body import BodySurface, build_body, build_body_once, build_stepped
 from slices.chaining import Outlines, chain, offset_sensitivity, slab_volume
-from slices.io import SPACING_RTOL, Contour, ContourStack, check_spacing, load, parse_spacing
+from slices.implicit import ImplicitSurface, implicit_surface
+from slices.io import (SPACING_RTOL, Contour, ContourStack, check_spacing, load, parse_spacing,
+                       referenced_slice_thickness)
 from slices.options import ReadOptions, SurfaceOptions, surface_options
 from surfaces.mesh import TriangleMesh, merge_meshes, weld
 from surfaces.threads import one_blas_thread
@@ -60,6 +62,9 @@ class Reconstruction:
     sensitivity_mm3 : float
         Change of the volume when every contour grows outward by
         :data:`SENSITIVITY_OFFSET_MM` (:func:`slices.chaining.offset_sensitivity`).
+    implicit : ImplicitSurface or None
+        The structure's one implicit surface (:func:`slices.implicit.implicit_surface`); then
+        ``bodies`` is empty and the volume, area and mesh are the isosurface's.
     """
 
     bodies: list
@@ -69,6 +74,12 @@ class Reconstruction:
     spacing: float
     options: SurfaceOptions
     sensitivity_mm3: float = 0.0
+    implicit: ImplicitSurface | None = None
+
+    @property
+    def surface_path(self) -> str:
+        """``"implicit"`` (:mod:`slices.implicit`) or ``"coons"`` (the seed's patches, body by body)."""
+        return "coons" if self.implicit is None else "implicit"
 
     def volume_by_caps(self) -> dict:
         """The structure's volume under each end-slice convention, and the slab count.
@@ -83,6 +94,10 @@ class Reconstruction:
         """
         sign = {"outer": 1.0, "hole": -1.0}
         out = {}
+        if self.implicit is not None:
+            out = {caps: self.implicit.volume_with_caps(caps) for caps in ("none", "flat", "half")}
+            out["slab"] = float(self.slab_volume_mm3)
+            return out
         for caps in ("none", "flat", "half"):
             total = 0.0
             for b in self.bodies:
@@ -100,18 +115,24 @@ class Reconstruction:
         """All bodies' triangles concatenated in one mesh (None when no mesh was built).
 
         Bodies that meet half-way between planes at a branching keep their
-        caps there (internal walls); see :meth:`solid_mesh`.
+        caps there (internal walls); see :meth:`solid_mesh`. The implicit surface's mesh when there is one.
         """
+        if self.implicit is not None:
+            return self.implicit.mesh
         return _merged([b.mesh for b in self.bodies])
 
     @property
     def display_mesh(self) -> TriangleMesh | None:
-        """All bodies' display meshes (caps shaded with their own normals)."""
+        """All bodies' display meshes (caps shaded with their own normals), or the implicit surface's mesh."""
+        if self.implicit is not None:
+            return self.implicit.mesh
         return _merged([b.display_mesh for b in self.bodies])
 
     @property
     def max_deviation_mm(self) -> float:
-        """Largest control-point deviation over all bodies."""
+        """Largest control-point deviation over all bodies (the implicit surface: contour point to nearest vertex)."""
+        if self.implicit is not None:
+            return self.implicit.max_deviation_mm
         return max((b.max_deviation_mm for b in self.bodies), default=0.0)
 
     def solid_mesh(self) -> tuple[TriangleMesh | None, bool]:
@@ -196,22 +217,48 @@ def reconstruct_contours(contours: list[Contour], *, spacing: float | None = Non
             raise InputError(f"spacing: {s} mm given but the planes are {d} mm apart")
         d = s
     if d == 0:
-        raise InputError("contours: a single plane has no slice spacing; give spacing (--spacing z,y,x "
-                         "on the command line)")
-    bodies = chain(contours, None if irregular else d, outlines)
+        raise InputError("contours: a single plane has no slice spacing and the input states no slab "
+                         "thickness; give it (--slice-thickness MM on the command line)")
+    slab = slab_volume(contours, None if irregular else d, outlines)
+    sensitivity = offset_sensitivity(contours, None if irregular else d, SENSITIVITY_OFFSET_MM, outlines)
+    # a single chain (one contour per plane, no hole) gets the seed's patches; the others one implicit surface
+    single = (not outlines.hole.any() and len(planes) == len(contours))
+    path = opts.surface_path
+    bodies = chain(contours, None if irregular else d, outlines) if path == "coons" or single else []
+    if path == "implicit" or (path == "auto" and (not single or len(bodies) != 1)):
+        return _implicit(contours, d, irregular, opts, slab, sensitivity, progress, outlines)
     built = []
     # a body's work is thousands of thin products (16 control points a patch): BLAS threads only wait
     with one_blas_thread():
-        for i, body in enumerate(bodies):
-            built.extend(build_stepped(body, d, opts, mesh=mesh))
+        if path == "auto" and mesh and opts.unfold:
+            # one chain: the seed's patches as asked for; if their mesh folds, the implicit surface (one clean
+            # solid, as fast as a raster) rather than the slower fallback surfaces and stepped slabs
+            from surfaces.intersect import is_fold_free
+
+            first = build_body_once(bodies[0], d, opts, mesh=True)
+            if not is_fold_free(first.mesh.vertices, first.mesh.triangles):
+                return _implicit(contours, d, irregular, opts, slab, sensitivity, progress, outlines)
+            first.surface, first.self_intersecting_faces = f"{opts.method} ({opts.correspondence})", 0
+            built.append(first)
             if progress is not None:
-                progress(i + 1, len(bodies))
+                progress(1, 1)
+        else:
+            for i, body in enumerate(bodies):
+                built.extend(build_stepped(body, d, opts, mesh=mesh))
+                if progress is not None:
+                    progress(i + 1, len(bodies))
     sign = {"outer": 1.0, "hole": -1.0}
     volume = sum(sign[b.body.kind] * b.volume_mm3 for b in built)
     area = sum(b.area_mm2 for b in built)
-    slab = slab_volume(contours, None if irregular else d, outlines)
-    sensitivity = offset_sensitivity(contours, None if irregular else d, SENSITIVITY_OFFSET_MM, outlines)
     return Reconstruction(built, float(volume), float(area), slab, d, opts, sensitivity)
+
+
+def _implicit(contours, d, irregular, opts, slab, sensitivity, progress, outlines) -> Reconstruction:
+    """The structure as one implicit surface (:func:`slices.implicit.implicit_surface`)."""
+    imp = implicit_surface(contours, d, caps=opts.caps, irregular=irregular, outlines=outlines)
+    if progress is not None:
+        progress(1, 1)
+    return Reconstruction([], imp.volume_mm3, imp.area_mm2, slab, d, opts, sensitivity, implicit=imp)
 
 
 def read_roi(input_path, roi=None, *, reading: ReadOptions | None = None) -> tuple[ContourStack, dict]:
@@ -224,8 +271,10 @@ def read_roi(input_path, roi=None, *, reading: ReadOptions | None = None) -> tup
     roi : str or int, optional
         ROI name or number (RTSTRUCT).
     reading : ReadOptions, optional
-        Intensity window, voxel spacing (its z is also the slab of a single
-        plane of contours), resampling. With ``resample``, contour
+        Intensity window, voxel spacing, slice thickness (the slab of a single plane of
+        contours: ``slice_thickness``, else the z of ``spacing``, else the structure set's
+        ``ContourSlabThickness``, else the SliceThickness of the CT images beside it,
+        :func:`slices.io.referenced_slice_thickness`), resampling. With ``resample``, contour
         inputs (RTSTRUCT, JSON) are blended at their true plane positions
         (``irregular`` of :func:`reconstruct_contours`).
 
@@ -239,11 +288,24 @@ def read_roi(input_path, roi=None, *, reading: ReadOptions | None = None) -> tup
     read = ReadOptions() if reading is None else reading
     stack = load(input_path, roi, read.hu_min, read.hu_max, read.spacing, bool(read.resample))
     spacing = None
-    if read.spacing is not None and len(stack.planes) == 1:
-        # one plane has no spacing of its own: the z of --spacing z,y,x gives its slab
-        given = read.spacing
-        single = isinstance(given, int | float) or (isinstance(given, str) and "," not in given)
-        spacing = positive(given, "--spacing") if single else parse_spacing(given)[0]
+    if len(stack.planes) == 1:
+        # one plane has no spacing of its own: its slab is --slice-thickness, the z of --spacing z,y,x,
+        # the structure set's ContourSlabThickness or the SliceThickness of the images beside it
+        source = ""
+        if read.slice_thickness is not None:
+            spacing, source = positive(read.slice_thickness, "--slice-thickness"), "--slice-thickness"
+        elif read.spacing is not None:
+            given = read.spacing
+            single = isinstance(given, int | float) or (isinstance(given, str) and "," not in given)
+            spacing = positive(given, "--spacing") if single else parse_spacing(given)[0]
+            source = "--spacing"
+        elif stack.thickness_mm:
+            spacing, source = stack.thickness_mm, stack.thickness_source
+        elif stack.source == "rtstruct":
+            spacing, source = referenced_slice_thickness(input_path)
+        if spacing:
+            stack.notes.append(f"a single plane of contours: reconstructed as a slab {spacing:g} mm thick "
+                               f"(from {source})")
     return stack, {"spacing": spacing,
                    "irregular": bool(read.resample) and stack.source in ("rtstruct", "json")}
 

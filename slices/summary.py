@@ -34,6 +34,8 @@ def body_table(rec: Reconstruction) -> list[dict]:
         :func:`slices.body.mesh_samples`; None without a mesh),
         ``max_control_point_deviation_mm``, ``ray_start_deg``.
     """
+    if rec.implicit is not None:
+        return implicit_table(rec)
     out = []
     for b in rec.bodies:
         z = b.body.z
@@ -49,6 +51,7 @@ def body_table(rec: Reconstruction) -> list[dict]:
             "n_control_points": b.n_points, "n_turning_points": b.n_turning,
             "n_blend_limited": b.n_limited,
             "surface": b.surface,
+            "surface_path": "coons",
             "self_intersecting_faces": b.self_intersecting_faces,
             "mesh_samples": None if b.mesh_samples is None else list(b.mesh_samples),
             "max_control_point_deviation_mm": b.max_deviation_mm,
@@ -81,6 +84,41 @@ def count_noun(n: int, one: str, many: str | None = None) -> str:
     return f"{n} {one if n == 1 else (many or one + 's')}"
 
 
+def implicit_table(rec: Reconstruction) -> list[dict]:
+    """One row per connected part (shell) of an implicit surface's mesh.
+
+    Parameters
+    ----------
+    rec : Reconstruction
+        With :attr:`Reconstruction.implicit`.
+
+    Returns
+    -------
+    list of dict
+        ``kind`` (``"outer"``, or ``"hole"`` for a cavity), ``z_min_mm``, ``z_max_mm``, ``volume_mm3``
+        (positive), ``area_mm2``, ``n_triangles``, ``surface`` and ``surface_path`` (``"implicit"``),
+        ``pixel_mm`` and ``z_samples`` (:class:`slices.implicit.ImplicitSurface`).
+    """
+    from surfaces.topology import shells
+
+    imp = rec.implicit
+    mesh = imp.mesh
+    label = shells(mesh.triangles, mesh.n_vertices)
+    c = mesh.vertices[mesh.triangles]
+    volume = np.bincount(label, np.einsum("ij,ij->i", c[:, 0], np.cross(c[:, 1], c[:, 2])) / 6.0)
+    area = np.bincount(label, 0.5 * np.linalg.norm(np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0]), axis=1))
+    count = np.bincount(label)
+    zlo = np.full(len(count), np.inf)
+    zhi = np.full(len(count), -np.inf)
+    np.minimum.at(zlo, label, c[:, :, 2].min(axis=1))
+    np.maximum.at(zhi, label, c[:, :, 2].max(axis=1))
+    return [{"kind": "outer" if volume[k] > 0 else "hole", "z_min_mm": float(zlo[k]), "z_max_mm": float(zhi[k]),
+             "volume_mm3": float(abs(volume[k])), "area_mm2": float(area[k]), "n_triangles": int(count[k]),
+             "subtracted": bool(volume[k] < 0), "surface": "implicit", "surface_path": "implicit",
+             "pixel_mm": imp.pixel_mm, "z_samples": imp.z_samples}
+            for k in np.argsort(zlo, kind="stable")]
+
+
 def chaining_text(rec: Reconstruction) -> str:
     """How the contours were chained into bodies, in one sentence.
 
@@ -92,6 +130,14 @@ def chaining_text(rec: Reconstruction) -> str:
     -------
     str
     """
+    if rec.implicit is not None:
+        imp = rec.implicit
+        rows = implicit_table(rec)
+        n_out = sum(r["kind"] == "outer" for r in rows)
+        return (f"one implicit surface (branching, several bodies or holes): every plane's contours as a signed "
+                f"distance on a {imp.pixel_mm:.2f} mm raster, blended across the planes with the seed's parabolic "
+                f"blending ({imp.z_samples} levels per slice gap), marching cubes; {n_out} connected part(s), "
+                f"{len(rows) - n_out} cavity(ies); caps {imp.cap_offset_mm:.3g} mm beyond the end planes")
     n_out = sum(b.body.kind == "outer" for b in rec.bodies)
     n_hole = len(rec.bodies) - n_out
     splits = sum(b.body.stop in ("branch", "merge") for b in rec.bodies)
@@ -187,7 +233,11 @@ def summarize(input_path, stack: ContourStack, rec: Reconstruction, mesh: Triang
         convention (``volume_by_caps_mm3``: none, flat, half, slab) and their range
         (``volume_range_mm3``), the volume's sensitivity to a 0.5 mm contour offset
         (``volume_sensitivity_mm3_per_0.5mm`` and its method), counts, mesh checks,
-        bodies, chaining, notes, timings; ``composition`` and ``reference_bspline`` when given.
+        bodies (``surface_path`` of the structure and of every body row: ``"coons"``, the seed's
+        patches, or ``"implicit"``, :mod:`slices.implicit`, whose rows are the connected parts),
+        chaining, notes, ``contour_repairs`` (the contours repaired into simple polygons, each
+        with its area change, :attr:`slices.io.ContourStack.repairs`), timings; ``composition`` and
+        ``reference_bspline`` when given.
         ``area_mm2`` is the area of the solid's true surface (``area_source`` says which):
         the patches' (Gauss-Legendre) for one body or bodies left side by side; the
         written triangle mesh's when the bodies were united (``union``), so walls where
@@ -201,7 +251,8 @@ def summarize(input_path, stack: ContourStack, rec: Reconstruction, mesh: Triang
     opts = rec.options
     if checks is None:
         checks = {"watertight": mesh.is_watertight(), "oriented": mesh.is_oriented()}
-    n_out = sum(b.body.kind == "outer" for b in rec.bodies)
+    table = body_table(rec)
+    n_out = sum(b["kind"] == "outer" for b in table)
     by_caps = rec.volume_by_caps()
     whole = volume_uncertainty(stack.contours, rec.spacing)
     by_caps["trend"] = whole["volume_mm3"]
@@ -211,6 +262,8 @@ def summarize(input_path, stack: ContourStack, rec: Reconstruction, mesh: Triang
         volume = whole["volume_mm3"]
     if composition is not None:
         area, area_source = composition["area_mm2"], "composition"
+    elif rec.implicit is not None:
+        area, area_source = rec.area_mm2, "implicit surface"
     elif union:
         area, area_source = mesh.surface_area(), "united solid"
     else:
@@ -229,7 +282,9 @@ def summarize(input_path, stack: ContourStack, rec: Reconstruction, mesh: Triang
         "area_mm2": area,
         "area_source": area_source,
         "bodies_area_mm2": rec.area_mm2,
-        "volume_source": "composition" if composition is not None else ("area trend" if trend else "patches"),
+        "volume_source": ("composition" if composition is not None else "area trend" if trend else
+                          "implicit surface" if rec.implicit is not None else "patches"),
+        "surface_path": rec.surface_path,
         "volume_caps": volume_caps_text(opts.caps, composition is not None),
         "surface_volume_mm3": rec.volume_mm3,
         "volume_U_mm3": whole["U_mm3"] if trend else None,
@@ -251,9 +306,9 @@ def summarize(input_path, stack: ContourStack, rec: Reconstruction, mesh: Triang
         "spacing_mm": rec.spacing,
         "n_slices": int(len(stack.planes)),
         "n_contours": len(stack.contours),
-        "n_bodies": len(rec.bodies),
+        "n_bodies": len(table),
         "n_outer_bodies": int(n_out),
-        "n_hole_bodies": int(len(rec.bodies) - n_out),
+        "n_hole_bodies": int(len(table) - n_out),
         "n_patches": int(sum(b.patches.n_patches for b in rec.bodies)),
         "n_control_points": int(sum(b.n_points for b in rec.bodies)),
         "max_control_point_deviation_mm": rec.max_deviation_mm,
@@ -262,9 +317,10 @@ def summarize(input_path, stack: ContourStack, rec: Reconstruction, mesh: Triang
         "mesh_watertight": bool(checks["watertight"]),
         "mesh_oriented": bool(checks["oriented"]),
         "mesh_union": union,
-        "bodies": body_table(rec),
+        "bodies": table,
         "chaining": chaining_text(rec),
         "notes": list(stack.notes),
+        "contour_repairs": list(stack.repairs),
         **timings,
     }
     if composition is None:

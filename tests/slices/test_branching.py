@@ -55,7 +55,7 @@ def test_split_parts_cover_the_parent_along_the_mid_line():
 @pytest.mark.parametrize("merge", [False, True])
 def test_trouser_phantom_is_one_clean_solid_without_a_shelf(merge):
     conts = _trouser(merge)
-    rec = reconstruct_contours(conts, caps="flat", samples=2)
+    rec = reconstruct_contours(conts, surface_path="coons", caps="flat", samples=2)
     assert len(rec.bodies) == 3
     assert sum("split" in (b.body.start, b.body.stop) for b in rec.bodies) == 3
     assert all(b.caps_used.count("flat") == 2 for b in rec.bodies)
@@ -75,7 +75,7 @@ def test_without_the_split_the_branching_leaves_a_shelf(monkeypatch):
     # what main did: half caps meeting half-way between the planes, a flat shelf where the parent is wider
     monkeypatch.setattr(chaining, "split_contour", lambda parent, children: None)
     conts = _trouser()
-    rec = reconstruct_contours(conts, caps="flat", samples=2, unfold=False)
+    rec = reconstruct_contours(conts, surface_path="coons", caps="flat", samples=2, unfold=False)
     assert {b.body.stop for b in rec.bodies} == {"branch", "end"}
     solid, _ = rec.solid_mesh()
     assert _shelf_area(solid, np.unique([c.z for c in conts])) > 20.0

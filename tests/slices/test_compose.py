@@ -91,10 +91,10 @@ def test_composition_needs_a_structure_set(tmp_path):
 def test_roi_solid_unites_bodies_or_says_why_not():
     from slices.io import ContourStack
 
-    rec = reconstruct_contours(branching_stack(), caps="flat", samples=2)
+    rec = reconstruct_contours(branching_stack(), surface_path="coons", caps="flat", samples=2)
     stack = ContourStack(branching_stack(), "json", "fork")
     solid = roi_solid(stack, rec)
     assert solid.is_watertight() and solid.surface_area() < rec.mesh.surface_area()  # inner caps gone
-    open_rec = reconstruct_contours(branching_stack(), caps="none", samples=2)
+    open_rec = reconstruct_contours(branching_stack(), surface_path="coons", caps="none", samples=2)
     with pytest.raises(ValueError, match="fork: its 3 bodies could not be united"):
         roi_solid(stack, open_rec)

@@ -31,13 +31,17 @@ def test_json_reader_orients_and_sorts(tmp_path):
     assert all(signed_area(c.points) > 0 for c in stack.contours)
 
 
-@pytest.mark.parametrize("bad, message", [
-    ([(0.0, [[0, 0], [1, 0]])], "at least 3"),
-    ([(0.0, [[0, 0], [10, 10], [10, 0], [0, 10]])], "self-intersecting"),
-])
-def test_json_bad_contours(tmp_path, bad, message):
-    with pytest.raises(ValueError, match=message):
-        io.load(_write_json(tmp_path / "bad.json", bad))
+def test_json_without_any_closed_contour(tmp_path):
+    with pytest.raises(ValueError, match="no contour encloses an area.*2 distinct point"):
+        io.load(_write_json(tmp_path / "bad.json", [(0.0, [[0, 0], [1, 0]])]))
+
+
+def test_json_crossing_contour_is_repaired(tmp_path):
+    # a bow tie: shapely's make_valid gives its two triangles (the shoelace area was 0)
+    stack = io.load(_write_json(tmp_path / "bow.json", [(0.0, [[0, 0], [10, 10], [10, 0], [0, 10]])]))
+    assert len(stack.contours) == 2
+    assert sum(signed_area(c.points) for c in stack.contours) == pytest.approx(50.0)
+    assert stack.repairs[0]["parts"] == 2 and stack.repairs[0]["area_after_mm2"] == pytest.approx(50.0)
 
 
 def test_json_not_axial_and_missing(tmp_path):

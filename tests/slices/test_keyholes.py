@@ -55,9 +55,9 @@ def test_keyhole_stack_reconstructs_like_outer_and_hole(tmp_path):
     stack = read_contour_json(path)
     assert len(stack.contours) == 2 * len(planes)
     assert any("keyhole" in n for n in stack.notes)
-    keyed = reconstruct_contours(stack.contours, caps="half", mesh=False, n_rays=32)
+    keyed = reconstruct_contours(stack.contours, surface_path="coons", caps="half", mesh=False, n_rays=32)
     pair = reconstruct_contours([Contour(z, clean_contour(c)) for z in planes for c in (outer, hole)],
-                                caps="half", mesh=False, n_rays=32)
+                                surface_path="coons", caps="half", mesh=False, n_rays=32)
     assert [b.body.kind for b in keyed.bodies] == ["outer", "hole"]
     assert keyed.volume_mm3 == pytest.approx(pair.volume_mm3, rel=5e-3)
     # half caps: each polygon section times one spacing per plane

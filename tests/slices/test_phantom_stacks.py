@@ -14,7 +14,7 @@ from surfaces.io import write_json
 def test_reconstruct_every_phantom(shape, spacing, tmp_path):
     ph = make_phantom(shape)
     path = write_json(tmp_path / "contours.json", {"units": "mm", "contours": ph.contours(spacing, n_points=48)})
-    result = reconstruct(path, caps="flat", n_rays=32, samples=1, reference=False)
+    result = reconstruct(path, surface_path="coons", caps="flat", n_rays=32, samples=1, reference=False)
     summary = result.summary
     truth = ph.truth(spacing)
     assert summary["n_slices"] == truth["n_planes"]

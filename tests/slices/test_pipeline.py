@@ -70,15 +70,15 @@ def test_start_angle_in_radians_reported_in_degrees(ellipsoid):
 
 def test_union_modes(tmp_path):
     path = _file(tmp_path / "fork.json", branching_stack())
-    united = reconstruct(path, samples=2, reference=False)
+    united = reconstruct(path, surface_path="coons", samples=2, reference=False)
     assert united.union and united.summary["mesh_union"] and united.summary["n_bodies"] == 3
-    apart = reconstruct(path, union="no", samples=2, reference=False)
+    apart = reconstruct(path, surface_path="coons", union="no", samples=2, reference=False)
     assert not apart.union and apart.mesh.n_triangles == apart.reconstruction.mesh.n_triangles
     assert any("concatenated, not united" in n for n in apart.summary["notes"])
-    assert reconstruct(path, union=True, samples=2, reference=False).union
+    assert reconstruct(path, surface_path="coons", union=True, samples=2, reference=False).union
     assert UNION_LIMIT > united.mesh.n_triangles
     with pytest.raises(ValueError, match="union"):
-        reconstruct(path, union="maybe")
+        reconstruct(path, surface_path="coons", union="maybe")
 
 
 def test_bad_options_fail_before_reading(tmp_path):
@@ -130,7 +130,7 @@ def test_united_area_is_the_outer_surface_of_touching_bodies(tmp_path, caps):
     """
     r, h = 10.0, 4.0
     path = _file(tmp_path / "halves.json", [Contour(0.0, half_disc(1, r)), Contour(0.0, half_disc(-1, r))])
-    result = reconstruct(path, caps=caps, spacing=h, reference=False)
+    result = reconstruct(path, surface_path="coons", caps=caps, spacing=h, reference=False)
     s = result.summary
     assert result.union and s["n_bodies"] == 2 and s["area_source"] == "united solid"
     cylinder = 2 * np.pi * r * h + 2 * np.pi * r**2
@@ -139,7 +139,7 @@ def test_united_area_is_the_outer_surface_of_touching_bodies(tmp_path, caps):
     assert s["bodies_area_mm2"] == pytest.approx(cylinder + 2 * 2 * r * h, rel=3e-3)
     assert result.mesh.is_watertight() and result.mesh.is_oriented()
     # side by side, the bodies' own area stays the figure
-    apart = reconstruct(path, caps=caps, spacing=h, union="no", reference=False).summary
+    apart = reconstruct(path, surface_path="coons", caps=caps, spacing=h, union="no", reference=False).summary
     assert apart["area_source"] == "patches" and apart["area_mm2"] == apart["bodies_area_mm2"]
 
 

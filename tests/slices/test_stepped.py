@@ -34,7 +34,7 @@ def test_stepped_slabs_unfold_the_fold_phantoms(name):
     # the cleanest of all fallback surfaces still folds: the cause is reproduced
     assert whole.self_intersecting_faces > 0
     assert whole.surface in [n for n, _ in FALLBACKS] + ["blending (seed)"]
-    rec = reconstruct_contours(conts, caps="half", samples=samples)
+    rec = reconstruct_contours(conts, surface_path="coons", caps="half", samples=samples)
     pieces = rec.bodies
     assert [len(p.body.contours) for p in pieces] == sizes
     assert all(p.self_intersecting_faces == 0 for p in pieces)

@@ -78,7 +78,7 @@ def test_kidney_accuracy():
 
 def test_ring_hole_is_subtracted():
     _, conts, truth = phantom_stack("ring", n_points=48)
-    rec = reconstruct_contours(conts, caps="flat", samples=2)
+    rec = reconstruct_contours(conts, surface_path="coons", caps="flat", samples=2)
     kinds = sorted(b.body.kind for b in rec.bodies)
     assert kinds == ["hole", "outer"]
     assert abs(rec.volume_mm3 / truth["volume_between_end_planes_mm3"] - 1) < 5e-3
@@ -89,7 +89,7 @@ def test_ring_hole_is_subtracted():
 
 def test_branching_splits_chain_and_separate_bodies():
     conts = branching_stack() + [Contour(0.0, circle(40, 0, 5)), Contour(2.0, circle(40, 0, 5))]
-    rec = reconstruct_contours(conts, caps="flat", samples=2)
+    rec = reconstruct_contours(conts, surface_path="coons", caps="flat", samples=2)
     # the split bodies meet half-way: volume close to the slab count of the middle slab
     assert rec.volume_mm3 > 0 and len(rec.bodies) == 4
     assert rec.mesh.is_watertight()
@@ -101,7 +101,7 @@ def test_single_contour_bodies():
     area = abs(curve_area(slice_curves([circle(0, 0, 10, 64)], [0.0], 16).curves[0]))
     for caps in ("none", "flat", "half", "dome"):
         # a single contour is never dropped: with none/flat it gets the planning systems' slab
-        rec = reconstruct_contours(conts, spacing=3.0, caps=caps, mesh=False)
+        rec = reconstruct_contours(conts, surface_path="coons", spacing=3.0, caps=caps, mesh=False)
         assert len(rec.bodies) == 2
         single = next(b for b in rec.bodies if len(b.body.contours) == 1)
         if caps != "dome":
@@ -157,7 +157,7 @@ def test_unequal_spacing_accepted_when_asked(ellipsoid):
 
 
 def test_branching_solid_has_no_internal_walls():
-    rec = reconstruct_contours(branching_stack(64), caps="flat", samples=2)
+    rec = reconstruct_contours(branching_stack(64), surface_path="coons", caps="flat", samples=2)
     solid, union = rec.solid_mesh()
     assert union and solid.is_watertight()
     # the internal caps at the branching plane are gone: less area, same volume
@@ -169,7 +169,7 @@ def test_branching_phantom_solid_has_no_inner_caps():
     # two overlapping spheres whose section splits: every vertex of the united solid lies on
     # the outside (coplanar half caps at the split used to survive as an inner wall 6 mm deep)
     ph, conts, truth = phantom_stack("lobes", spacing=2.5, n_points=64)
-    rec = reconstruct_contours(conts, caps="flat", samples=2)
+    rec = reconstruct_contours(conts, surface_path="coons", caps="flat", samples=2)
     assert any(b.body.stop != "end" for b in rec.bodies)
     solid, union = rec.solid_mesh()
     assert union and solid.is_watertight() and solid.is_oriented()
@@ -178,11 +178,11 @@ def test_branching_phantom_solid_has_no_inner_caps():
 
 
 def test_union_needs_closed_meshes():
-    rec = reconstruct_contours(branching_stack(), caps="none", samples=2)
+    rec = reconstruct_contours(branching_stack(), surface_path="coons", caps="none", samples=2)
     assert solid_union(rec.bodies) is None
     mesh, united = rec.solid_mesh()
     assert not united and mesh.n_triangles == rec.mesh.n_triangles
-    assert reconstruct_contours(branching_stack(), mesh=False).solid_mesh() == (None, False)
+    assert reconstruct_contours(branching_stack(), surface_path="coons", mesh=False).solid_mesh() == (None, False)
 
 
 def _write_contours(path, contours):
@@ -213,10 +213,14 @@ def test_reconstruct_roi_resample_blends_contour_files_at_their_planes(ellipsoid
 def test_reconstruct_roi_with_only_single_contours(tmp_path):
     path = _write_contours(tmp_path / "one.json", [Contour(0.0, circle(0, 0, 5)), Contour(3.0, circle(20, 0, 5))])
     # flat caps (the default) give a single contour no thickness: it gets the half-cap slab instead
-    _, flat = reconstruct_roi(path)
-    _, rec = reconstruct_roi(path, options=SurfaceOptions(caps="half"))
+    _, flat = reconstruct_roi(path, options=SurfaceOptions(surface_path="coons"))
+    _, rec = reconstruct_roi(path, options=SurfaceOptions(caps="half", surface_path="coons"))
     assert len(rec.bodies) == len(flat.bodies) == 2
     assert flat.volume_mm3 == pytest.approx(rec.volume_mm3) == pytest.approx(rec.slab_volume_mm3 * 2, rel=0.02)
+    # the implicit surface (two bodies: the default path) gives each its slab too, to the rounding of its rims
+    _, implicit = reconstruct_roi(path)
+    assert implicit.surface_path == "implicit"
+    assert implicit.volume_mm3 == pytest.approx(rec.volume_mm3, rel=0.03)
 
 
 def test_volume_by_caps_and_offset_sensitivity():
@@ -251,9 +255,9 @@ def test_messages_name_the_real_problem(tmp_path):
     with pytest.raises(ValueError, match="check the units"):
         reconstruct_roi(tiny)
     one = _write_contours(tmp_path / "one.json", [Contour(0.0, disc)])
-    with pytest.raises(ValueError, match="give spacing"):
+    with pytest.raises(ValueError, match="slice-thickness"):
         reconstruct_roi(one)
-    # --spacing given: its z is the single plane's slab (no "give spacing")
+    # --spacing given: its z is the single plane's slab (no "give it")
     for given in ("2,1,1", "2", 2.0):
         _, rec = reconstruct_roi(one, reading=ReadOptions(spacing=given), options=SurfaceOptions(samples=1))
         assert rec.spacing == 2.0 and rec.volume_mm3 == pytest.approx(abs(signed_area(disc)) * 2.0, rel=1e-2)

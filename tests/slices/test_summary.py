@@ -17,7 +17,7 @@ from tests.slices._stacks import branching_stack, circle
 def fork():
     conts = branching_stack() + [Contour(10.0, circle(40, 0, 5))]
     return ContourStack(conts, "json", "fork", ["read from memory"]), reconstruct_contours(
-        conts, caps="flat", samples=1, start_angle=0.1)
+        conts, caps="flat", samples=1, start_angle=0.1, surface_path="coons")
 
 
 def test_body_table(fork):

@@ -46,7 +46,7 @@ def test_library_options_renames_once():
 def test_folder_holds_the_library_result(fork, tmp_path):
     out = tmp_path / "out"
     summary = run.reconstruct_to_folder(fork, out, rays=32, lattice=2.5, ray_start="2.5", samples=2,
-                                        reference=False)
+                                        reference=False, surface_path="coons")
     assert sorted(p.name for p in out.iterdir()) == ["_COMPLETE", "patches.npz", "render.png", "summary.json",
                                                      "surface.ply", "surface.stl"]
     assert json.loads((out / "summary.json").read_text()) == summary
@@ -61,7 +61,7 @@ def test_folder_holds_the_library_result(fork, tmp_path):
     assert keys.index("reference_time_s") + 1 == keys.index("render_time_s") and keys[-1] == "time_s"
     # the same figures as the library's, for the same options in its own names
     lib = reconstruct(fork, n_rays=32, lattice_factor=2.5, start_angle=np.radians(2.5), samples=2,
-                      reference=False)
+                      reference=False, surface_path="coons")
     for key in ("volume_mm3", "area_mm2", "n_patches", "mesh_triangles", "mesh_union", "bodies"):
         assert summary[key] == lib.summary[key], key
     mesh = read_mesh(out / "surface.ply")

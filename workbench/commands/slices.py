@@ -39,6 +39,11 @@ def register(sub) -> None:
                    "folder of PNGs), NIfTI label or mask volume (.nii, .nii.gz) or contour .json")
     p.add_argument("--roi", default=None, metavar="NAME",
                    help="ROI name (case-insensitive) or number of an RT structure set")
+    p.add_argument("--roi-number", type=int, default=None, metavar="N",
+                   help="ROI number of an RT structure set (to pick one of several ROIs with the same name)")
+    p.add_argument("--slice-thickness", type=float, default=None, metavar="MM",
+                   help="slab thickness of a structure drawn on a single plane (default: the structure set's "
+                   "ContourSlabThickness, else the SliceThickness of the CT images beside it)")
     p.add_argument("--label", default=None, metavar="N",
                    help="NIfTI input: the voxel value of the structure (default: every non-zero voxel); "
                    "with --minus/--plus, those name labels too")
@@ -46,6 +51,10 @@ def register(sub) -> None:
                    help="side surface: blending (seed 000 parabolic blending), coons "
                    "(seed 001 Coons patches over the lattice nodes), bspline (interpolating "
                    f"cubic B-spline over the lattice nodes); default {defaults.method}")
+    p.add_argument("--surface-path", default=defaults.surface_path, choices=("auto", "coons", "implicit"),
+                   help="auto (default): the seed's patches for a single chain of contours, an implicit surface "
+                   "(blended signed distances, marching cubes) for branching, multi-body and holed structures and "
+                   "for chains whose patches fold; coons or implicit force one")
     p.add_argument("--rays", type=int, default=defaults.n_rays,
                    help=f"rays from each contour's centroid (seed 000 eq. 1, N1 >= 3; default {defaults.n_rays})")
     p.add_argument("--caps", default=defaults.caps, choices=CAP_KINDS,
@@ -86,8 +95,8 @@ def register(sub) -> None:
     p.add_argument("--plus", action="append", default=[], metavar="NAME",
                    help="structure sets: add (unite) this ROI to --roi before any --minus; repeatable")
     p.add_argument("--repair", action="store_true",
-                   help="with --minus/--plus: repair each mesh (weld, orient, fill small holes) before "
-                   "the set operations; what was repaired goes into summary.json")
+                   help="repair the written solid (weld, orient, fill small holes); with --minus/--plus, each "
+                   "mesh before the set operations; what was repaired goes into summary.json")
     p.add_argument("--samples", type=int, default=defaults.samples, metavar="N",
                    help="tessellation subdivisions per patch side (default: adapted so that the mesh "
                    f"has about {MESH_BUDGET:,} vertices)")
@@ -138,17 +147,23 @@ def _reconstruct(args: argparse.Namespace) -> int:
             correspondence=args.correspondence, union=args.union, minus=args.minus, plus=args.plus,
             repair=args.repair, ray_start=args.ray_start, reference=args.reference, export_mask=args.export_mask,
             mask_spacing=args.mask_spacing, reference_image=args.reference_image, mask_origin=args.mask_origin,
-            mask_size=args.mask_size,
+            mask_size=args.mask_size, slice_thickness=args.slice_thickness, surface_path=args.surface_path,
         )
     finally:
         for bar in bars:
             bar.close()
     ref = summary.get("reference_bspline", {})
+    for r in summary.get("contour_repairs", []):
+        change = "n/a" if r["area_change_pct"] is None else f"{r['area_change_pct']:+.4f} %"
+        print(f"repaired contour {r['contour']} at z={r['z_mm']:.2f} mm: {r['parts']} part(s), {r['holes']} hole(s), "
+              f"area {r['area_before_mm2']:.2f} -> {r['area_after_mm2']:.2f} mm^2 ({change})")
     print(f"{summary['roi']}: {summary['n_contours']} contours on {summary['n_slices']} planes, "
           f"{count(summary['n_bodies'], 'body', 'bodies')} ({summary['chaining']})")
+    made = (f"{summary['n_patches']} patches" if summary.get("surface_path", "coons") == "coons" else
+            f"implicit surface ({summary['mesh_triangles']} triangles)")
     print(f"volume {summary['volume_mm3']:.1f} mm^3 = {summary['volume_ml']:.3f} ml "
           f"(slab {summary['slab_volume_mm3'] / 1000:.3f} ml, end planes half), area {summary['area_mm2']:.1f} mm^2, "
-          f"{summary['n_patches']} patches")
+          f"{made}")
     print(f"  {summary['volume_caps']}")
     if summary.get("volume_U_mm3") is not None:
         from slices.volume import format_volume
@@ -173,6 +188,10 @@ def _roi_or_label(args: argparse.Namespace):
     """``--label`` for NIfTI input, ``--roi`` for the others (the library takes either as ``roi``)."""
     from slices.io import is_nifti
 
+    if args.roi_number is not None:
+        if args.roi is not None or args.label is not None:
+            raise InputError("--roi-number: give either --roi NAME or --roi-number N (or --label), not both")
+        return int(args.roi_number)
     if args.label is None:
         return args.roi
     if not is_nifti(args.input):

@@ -29,7 +29,7 @@ from workbench.runs.folder import result_folder
 OPTIONS = frozenset({
     "method", "rays", "caps", "hu_min", "hu_max", "spacing", "resample", "lattice", "samples", "correspondence",
     "ray_start", "union", "minus", "plus", "repair", "render", "reference", "export_mask", "mask_spacing",
-    "reference_image", "mask_origin", "mask_size",
+    "reference_image", "mask_origin", "mask_size", "slice_thickness", "surface_path",
 })
 
 #: Files written into the output folder (``render.png`` only when rendering).
@@ -100,12 +100,15 @@ def save_body_patches(result: SlicesReconstruction, path) -> None:
     result : SlicesReconstruction
     path : str or os.PathLike
         Destination; holds ``body<i>_control`` per body, ``control`` (the
-        largest body's), ``closed_u`` (True), ``closed_v`` (False) and
-        ``body_kind`` ("outer"/"hole" per body).
+        largest body's; an empty (0, 0, 4, 4, 3) grid for an implicit surface), ``closed_u`` (True),
+        ``closed_v`` (False), ``body_kind`` ("outer"/"hole" per body) and ``surface_path``.
     """
     bodies = result.reconstruction.bodies
     arrays = {f"body{i}_control": b.patches.control for i, b in enumerate(bodies)}
-    arrays["control"] = max(bodies, key=lambda b: b.patches.n_patches).patches.control
+    # an implicit surface has no patches (surface_path "implicit"): an empty grid
+    arrays["control"] = (max(bodies, key=lambda b: b.patches.n_patches).patches.control if bodies
+                         else np.zeros((0, 0, 4, 4, 3)))
+    arrays["surface_path"] = np.array(result.reconstruction.surface_path)
     arrays["closed_u"] = np.array(True)
     arrays["closed_v"] = np.array(False)
     arrays["body_kind"] = np.array([b.body.kind for b in bodies])
@@ -324,6 +327,8 @@ def reconstruct_to_folder(input_path, out_dir, *, roi=None, progress=None, atomi
         ``mask_origin`` (x,y,z mm of voxel 0) and ``mask_size`` (voxels x,y,z); by default
         the CT series found beside an RT Structure Set, else planes on the contour planes.
         The grid's size is checked before any work (:data:`slices.mask.MASK_VOXEL_LIMIT`).
+        ``slice_thickness`` (mm: the slab of a single plane), ``surface_path`` (auto, coons
+        or implicit, :class:`slices.options.SurfaceOptions`).
         Defaults are those of :class:`slices.options.SurfaceOptions`
         and :func:`slices.pipeline.reconstruct`.
 
