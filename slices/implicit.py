@@ -461,7 +461,7 @@ def implicit_surface(contours: list[Contour], spacing: float, *, caps: str = "fl
     surface = 0.5 * float(np.sqrt(np.einsum("ij,ij->i", cross, cross)).sum())
     if enclosed < 0:
         faces, enclosed = np.ascontiguousarray(faces[:, ::-1]), -enclosed
-    mesh = TriangleMesh._trusted(xyz, faces)
+    mesh = TriangleMesh.unchecked(xyz, faces)
     sign = np.where(outlines.hole, -1.0, 1.0)
     area = np.abs(outlines.area) * sign
     # the end planes' areas that got the caps asked for (single contours there got a whole slab)

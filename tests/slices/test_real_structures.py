@@ -167,19 +167,6 @@ def test_duplicated_roi_names_and_roi_number(tmp_path):
         io.load(path, 5)
 
 
-def test_cli_roi_number(tmp_path, capsys):
-    from workbench.cli import main
-
-    path = _rtstruct(tmp_path / "rs.dcm", [(3, "GTV", _cylinder([0.0, 2.0, 4.0])),
-                                           (7, "GTV", _cylinder([0.0, 2.0, 4.0, 6.0]))])
-    assert main(["slices", "reconstruct", str(path), "--roi", "GTV", "--out", str(tmp_path / "a")]) == 2
-    assert "ROI numbers 3, 7" in capsys.readouterr().err
-    assert main(["slices", "reconstruct", str(path), "--roi-number", "7", "--no-render",
-                 "--out", str(tmp_path / "b")]) == 0
-    summary = json.loads((tmp_path / "b" / "summary.json").read_text())
-    assert summary["n_slices"] == 4
-
-
 def test_open_planar_and_point_contours_are_named(tmp_path):
     contours = _cylinder([0.0, 2.0, 4.0]) + [("OPEN_PLANAR", np.array([[0, 0, 2.0], [5, 0, 2.0], [5, 5, 2.0]])),
                                               ("POINT", np.array([[1.0, 1.0, 4.0]])),
