@@ -3,25 +3,28 @@
 Meshes are written with numpy alone (binary little-endian PLY with vertex
 normals and colours, Wavefront OBJ with normals, binary STL with facet
 normals), atomically: into a temporary file beside the target, renamed when
-complete. Reading imports open3d inside the function; the open3d conversion for
-viewing is :func:`surfaces.convert.to_open3d`.
+complete. Reading parses the three formats with numpy and checks every size,
+index and coordinate (no bytes go unchecked to a C reader); the open3d conversion
+for viewing is :func:`surfaces.convert.to_open3d`.
 """
 
 from __future__ import annotations
 
 import json
 import os
+import re
 import tempfile
 import zipfile
 from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from surfaces.bezier import BezierPatches
-from surfaces.mesh import PATCH_SAMPLES, TriangleMesh, as_mesh, weld
+from surfaces.mesh import PATCH_SAMPLES, TriangleMesh, as_mesh, vertex_normals, weld
 from surfaces.vectors import cross, unit
-from surfaces.validate import InputError
+from surfaces.validate import InputError, reading
 
 MESH_FORMATS = (".ply", ".obj", ".stl")
 
@@ -471,10 +474,22 @@ def write_mesh(mesh, path, samples: int = PATCH_SAMPLES) -> Path:
 
 
 def read_mesh(path) -> TriangleMesh:
-    """Read a triangle mesh from PLY, OBJ or STL (through open3d).
+    """Read a triangle mesh from PLY, OBJ or STL.
+
+    The files are parsed here with numpy (no foreign C reader sees bytes that
+    were not checked): PLY in ASCII or binary of either byte order, with vertex
+    ``x, y, z`` and optional ``nx, ny, nz`` and ``red, green, blue``, faces from
+    the ``vertex_indices`` (or ``vertex_index``) list; Wavefront OBJ ``v`` and
+    ``f`` lines (``v x y z [r g b]``, ``f v``, ``f v/vt``, ``f v//vn``,
+    ``f v/vt/vn``, negative indices counted back from the last ``v`` line,
+    ``vn`` normals); binary or ASCII STL. Polygons are split into triangle fans
+    ``(0, i, i + 1)``. Sizes are checked against the header, indices against the
+    vertex count, coordinates for finiteness.
 
     STL files store every triangle's corners separately; their coincident
-    vertices are welded so that the mesh is indexed again.
+    vertices are welded so that the mesh is indexed again, and the vertex
+    normals are the area-weighted normals of the welded triangles
+    (:func:`surfaces.mesh.vertex_normals`).
 
     Parameters
     ----------
@@ -484,7 +499,17 @@ def read_mesh(path) -> TriangleMesh:
     Returns
     -------
     TriangleMesh
-        With vertex normals and colours when the file has them.
+        With vertex normals and colours when the file has them (colours in
+        [0, 1]: integer PLY colours are divided by their type's maximum).
+
+    Raises
+    ------
+    FileNotFoundError
+        When ``path`` is not a file.
+    InputError
+        An unknown suffix, or a damaged file: the message names the file and
+        what is wrong (``file ends after 3 of 4 face records``, an index out of
+        range, a NaN coordinate, no triangles).
 
     Examples
     --------
@@ -495,49 +520,353 @@ def read_mesh(path) -> TriangleMesh:
     >>> square = TriangleMesh([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], [[0, 1, 2], [0, 2, 3]])
     >>> read_mesh(write_mesh(square, Path(tempfile.mkdtemp()) / "square.stl")).n_vertices
     4
+
+    A damaged file is one clean error:
+
+    >>> path = Path(tempfile.mkdtemp()) / "cut.ply"
+    >>> _ = path.write_bytes(write_mesh(square, path).read_bytes()[:-5])
+    >>> read_mesh(path)
+    Traceback (most recent call last):
+    ...
+    surfaces.validate.InputError: ...cut.ply: file ends after 1 of 2 face records
     """
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such mesh file")
-    if path.suffix.lower() not in MESH_FORMATS:
+    suffix = path.suffix.lower()
+    if suffix not in MESH_FORMATS:
         raise InputError(f"{path}: unsupported mesh format; use one of {', '.join(MESH_FORMATS)}")
-    import open3d as o3d
-
-    # open3d and its RPly reader print their own complaints about a bad file straight to the
-    # process's stderr; they are caught and the ValueError below says it once
-    with o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error), _captured_stderr() as said:
-        m = o3d.io.read_triangle_mesh(str(path))
-    verts = np.asarray(m.vertices, dtype=np.float64)
-    tri = np.asarray(m.triangles, dtype=np.int64)
-    if len(verts) == 0 or len(tri) == 0:
-        reason = next((line.strip() for line in said if line.strip()), "")
-        raise InputError(f"{path}: no triangles could be read" + (f" ({reason})" if reason else ""))
-    normals = np.asarray(m.vertex_normals, dtype=np.float64) if m.has_vertex_normals() else None
-    colors = np.asarray(m.vertex_colors, dtype=np.float64) if m.has_vertex_colors() else None
-    mesh = TriangleMesh(verts, tri, normals, colors)
-    if path.suffix.lower() == ".stl":
+    data = path.read_bytes()
+    name = str(path)
+    read = {".ply": _read_ply, ".obj": _read_obj, ".stl": _read_stl}[suffix]
+    with reading(path, f"{suffix[1:].upper()} file"):
+        verts, tri, normals, colors = read(data, name)
+    _check_mesh_arrays(verts, tri, normals, colors, name)
+    mesh = TriangleMesh.unchecked(verts, tri, normals, colors)
+    if suffix == ".stl":
         mesh = weld(mesh)
+        mesh.vertex_normals = vertex_normals(mesh.vertices, mesh.triangles)
     return mesh
 
 
-@contextmanager
-def _captured_stderr():
-    """Redirect the process's file descriptor 2 (C libraries write there) into a list of lines."""
-    lines: list[str] = []
+def _check_mesh_arrays(verts, tri, normals, colors, name: str) -> None:
+    """The checks of :class:`TriangleMesh`, with the file named in the message."""
+    if len(tri) == 0:
+        raise InputError(f"{name}: no triangles could be read (the file holds {len(verts)} vertices and no faces)")
+    finite = np.isfinite(verts).all(axis=1)
+    if not finite.all():
+        raise InputError(f"{name}: {np.count_nonzero(~finite)} of {len(verts)} vertices have a NaN or infinite "
+                         f"coordinate (first: vertex {np.argmin(finite)})")
+    low, high = int(tri.min()), int(tri.max())
+    if low < 0 or high >= len(verts):
+        bad = low if low < 0 else high
+        raise InputError(f"{name}: a face refers to vertex {bad}; the file has vertices 0 to {len(verts) - 1}")
+    for what, values in (("normal", normals), ("colour", colors)):
+        if values is not None and not np.isfinite(values).all():
+            raise InputError(f"{name}: vertex {what}s hold NaN or infinite values")
+
+
+# ---- PLY -----------------------------------------------------------------------------------------
+
+#: PLY scalar types (the classic and the sized spellings) as numpy type codes, without byte order
+_PLY_TYPES = {"char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short": "i2", "int16": "i2",
+              "ushort": "u2", "uint16": "u2", "int": "i4", "int32": "i4", "uint": "u4", "uint32": "u4",
+              "float": "f4", "float32": "f4", "double": "f8", "float64": "f8"}
+_PLY_ORDERS = {"ascii": None, "binary_little_endian": "<", "binary_big_endian": ">"}
+_PLY_END = re.compile(rb"end_header[ \t]*(\r\n|\r|\n)")
+#: records read at once while the list lengths of a PLY element stay the same (doubles up to the cap)
+_PLY_RUN = (64, 1 << 20)
+
+
+@dataclass(frozen=True)
+class _PlyProperty:
+    name: str
+    type: str  #: numpy code of the value (of the items, for a list)
+    count: str | None = None  #: numpy code of a list's length; None for a scalar
+
+
+@dataclass(frozen=True)
+class _PlyElement:
+    name: str
+    count: int
+    properties: tuple[_PlyProperty, ...]
+
+
+def _ply_header(data: bytes, name: str) -> tuple[str, list[_PlyElement], int]:
+    """Format, elements and where the body starts."""
+    if data[:3] != b"ply" or data[3:4] not in (b"\n", b"\r"):
+        raise InputError(f"{name}: not a PLY file (the first line is not 'ply')")
+    end = _PLY_END.search(data)
+    if end is None:
+        raise InputError(f"{name}: the PLY header has no 'end_header' line")
     try:
-        saved = os.dup(2)
-    except OSError:  # no stderr to redirect
-        yield lines
-        return
-    with tempfile.TemporaryFile() as sink:
-        os.dup2(sink.fileno(), 2)
-        try:
-            yield lines
-        finally:
-            os.dup2(saved, 2)
-            os.close(saved)
-            sink.seek(0)
-            lines.extend(sink.read().decode("utf-8", "replace").splitlines())
+        text = data[:end.start()].decode("ascii")
+    except UnicodeDecodeError:
+        raise InputError(f"{name}: the PLY header is not ASCII text") from None
+    fmt, elements, props = None, [], []
+
+    def close():
+        if elements:
+            elements[-1] = _PlyElement(elements[-1].name, elements[-1].count, tuple(props))
+
+    for number, line in enumerate(text.splitlines()[1:], 2):
+        words = line.split()
+        if not words or words[0] in ("comment", "obj_info"):
+            continue
+        bad = f"{name}: PLY header line {number} {line.strip()!r}"
+        if words[0] == "format":
+            if len(words) != 3 or words[1] not in _PLY_ORDERS:
+                raise InputError(f"{bad}: expected 'format ascii|binary_little_endian|binary_big_endian 1.0'")
+            fmt = words[1]
+        elif words[0] == "element":
+            if len(words) != 3 or not words[2].isdigit():
+                raise InputError(f"{bad}: expected 'element NAME COUNT'")
+            close()
+            elements.append(_PlyElement(words[1], int(words[2]), ()))
+            props = []
+        elif words[0] == "property" and elements:
+            if len(words) == 5 and words[1] == "list" and words[2] in _PLY_TYPES and words[3] in _PLY_TYPES \
+                    and _PLY_TYPES[words[2]][0] in "iu":
+                prop = _PlyProperty(words[4], _PLY_TYPES[words[3]], _PLY_TYPES[words[2]])
+            elif len(words) == 3 and words[1] in _PLY_TYPES:
+                prop = _PlyProperty(words[2], _PLY_TYPES[words[1]])
+            else:
+                raise InputError(f"{bad}: expected 'property TYPE NAME' or 'property list INTTYPE TYPE NAME'")
+            if any(p.name == prop.name for p in props):
+                raise InputError(f"{bad}: property {prop.name!r} appears twice")
+            props.append(prop)
+        else:
+            raise InputError(f"{bad}: not a PLY header line")
+    close()
+    if fmt is None:
+        raise InputError(f"{name}: the PLY header has no 'format' line")
+    return fmt, elements, end.end()
+
+
+class _PlyBody:
+    """Reads records of one element from a PLY body: bytes (binary) or a float array of tokens (ASCII).
+
+    Positions count bytes (binary) or tokens (ASCII). A block of records with the
+    same list lengths has a fixed layout: a structured dtype (binary) or a
+    ``(k, width)`` view of the tokens (ASCII).
+    """
+
+    def __init__(self, data: bytes, start: int, order: str | None) -> None:
+        self.order = order
+        if order is None:
+            self.buf = np.array(data[start:].split(), dtype=np.float64)
+        else:
+            self.buf = data
+        self.start = 0 if order is None else start
+
+    def size(self, code: str) -> int:
+        return 1 if self.order is None else np.dtype(code).itemsize
+
+    def length_at(self, pos: int, code: str) -> int | None:
+        """A list length stored at ``pos``; None past the end."""
+        if pos + self.size(code) > len(self.buf):
+            return None
+        if self.order is None:
+            value = self.buf[pos]
+            return int(value) if value >= 0 and float(value).is_integer() else -1
+        return int(np.frombuffer(self.buf, self.order + code, 1, pos)[0])
+
+    def lengths_at(self, pos: int, props) -> tuple[int, ...] | None:
+        """The list lengths of the record at ``pos``; None when it runs past the end."""
+        lengths = []
+        for p in props:
+            if p.count is None:
+                pos += self.size(p.type)
+                continue
+            n = self.length_at(pos, p.count)
+            if n is None or n < 0:
+                return None if n is None else (-1,)
+            lengths.append(n)
+            pos += self.size(p.count) + n * self.size(p.type)
+        return tuple(lengths) if pos <= len(self.buf) else None
+
+    def block(self, pos: int, k: int, props, lengths) -> tuple[list[np.ndarray], list[np.ndarray], int]:
+        """``k`` records from ``pos`` laid out by ``lengths``: columns, their stored lengths, the record size."""
+        counts = iter(lengths)
+        shape = [None if p.count is None else next(counts) for p in props]
+        if self.order is None:
+            width = sum(1 if n is None else 1 + n for n in shape)
+            rows = self.buf[pos:pos + k * width].reshape(k, width)
+            cols, stored, at = [], [], 0
+            for n in shape:
+                if n is None:
+                    cols.append(rows[:, at])
+                    at += 1
+                else:
+                    stored.append(rows[:, at])
+                    cols.append(rows[:, at + 1:at + 1 + n])
+                    at += 1 + n
+            return cols, stored, width
+        fields = []
+        for i, (p, n) in enumerate(zip(props, shape)):
+            if n is not None:
+                fields.append((f"n{i}", self.order + p.count))
+            fields.append((f"p{i}", self.order + p.type, () if n is None else (n,)))
+        dtype = np.dtype(fields)
+        rec = np.frombuffer(self.buf, dtype, k, pos)
+        stored = [rec[f"n{i}"] for i, n in enumerate(shape) if n is not None]
+        return [rec[f"p{i}"] for i in range(len(props))], stored, dtype.itemsize
+
+    def element(self, pos: int, element: _PlyElement, name: str) -> tuple[list[list[np.ndarray]], int]:
+        """All records of ``element`` from ``pos``: per property, its blocks of columns; the next position."""
+        props, count = element.properties, element.count
+        blocks: list[list[np.ndarray]] = [[] for _ in props]
+        done, run = 0, _PLY_RUN[0]
+        while done < count and props:
+            lengths = () if all(p.count is None for p in props) else self.lengths_at(pos, props)
+            if lengths == (-1,):
+                raise InputError(f"{name}: {element.name} record {done} has a negative or broken list length")
+            width = None if lengths is None else self.block(pos, 0, props, lengths)[2]
+            fits = 0 if width is None else (len(self.buf) - pos) // width
+            k = min(count - done, fits if not lengths else min(run, fits))
+            if k == 0:
+                raise InputError(f"{name}: file ends after {done} of {count} {element.name} records")
+            cols, stored, _ = self.block(pos, k, props, lengths)
+            same = np.ones(k, bool)
+            for column, n in zip(stored, lengths):
+                same &= column == n
+            k = int(np.argmin(same)) if not same.all() else k  # the first record of other lengths ends the run
+            run = min(2 * run, _PLY_RUN[1]) if same.all() else _PLY_RUN[0]
+            for i, column in enumerate(cols):
+                blocks[i].append(column[:k])
+            pos += k * width
+            done += k
+        return blocks, pos
+
+
+def _fan(polygons: np.ndarray) -> np.ndarray:
+    """Triangle fans ``(0, i, i + 1)`` of polygons of one size, shape (k, n) -> (k * (n - 2), 3)."""
+    k, n = polygons.shape
+    if n < 3:
+        return np.empty((0, 3), np.int64)
+    first = np.broadcast_to(polygons[:, :1], (k, n - 2))
+    return np.stack([first, polygons[:, 1:-1], polygons[:, 2:]], axis=-1).reshape(-1, 3)
+
+
+def _as_indices(values: np.ndarray, name: str, what: str) -> np.ndarray:
+    """Integer indices; float tokens of an ASCII file must be whole numbers."""
+    if values.dtype.kind == "f" and not np.array_equal(values, np.floor(values)):
+        raise InputError(f"{name}: {what} holds numbers that are not whole")
+    return values.astype(np.int64)
+
+
+def _read_ply(data: bytes, name: str):
+    fmt, elements, start = _ply_header(data, name)
+    body = _PlyBody(data, start, _PLY_ORDERS[fmt])
+    pos, found = body.start, {}
+    for element in elements:
+        blocks, pos = body.element(pos, element, name)
+        found.setdefault(element.name, (element, blocks))
+    if "vertex" not in found:
+        raise InputError(f"{name}: the PLY file has no 'vertex' element")
+    element, blocks = found["vertex"]
+    columns = {p.name: (p, blocks[i]) for i, p in enumerate(element.properties) if p.count is None}
+
+    def stack(names):
+        if not all(n in columns for n in names):
+            return None
+        if element.count == 0:
+            return np.zeros((0, len(names)))
+        return np.stack([np.concatenate(columns[n][1]).astype(np.float64) for n in names], axis=1)
+
+    verts = stack(("x", "y", "z"))
+    if verts is None:
+        raise InputError(f"{name}: the PLY vertex element has no x, y, z properties")
+    normals = stack(("nx", "ny", "nz"))
+    colors = stack(("red", "green", "blue"))
+    if colors is not None and np.dtype(columns["red"][0].type).kind in "iu":
+        colors /= np.iinfo(np.dtype(columns["red"][0].type)).max
+    tri = np.empty((0, 3), np.int64)
+    if "face" in found:
+        element, blocks = found["face"]
+        index = [i for i, p in enumerate(element.properties)
+                 if p.count is not None and p.name in ("vertex_indices", "vertex_index")]
+        if not index:
+            raise InputError(f"{name}: the PLY face element has no 'vertex_indices' list")
+        fans = [_fan(_as_indices(b, name, "a face")) for b in blocks[index[0]]]
+        tri = np.concatenate(fans) if fans else tri
+    return verts, tri, normals, colors
+
+
+# ---- STL -----------------------------------------------------------------------------------------
+
+_STL_RECORD = np.dtype([("n", "<f4", (3,)), ("v", "<f4", (3, 3)), ("attr", "<u2")])
+_STL_VERTEX = re.compile(rb"vertex\s+(\S+)\s+(\S+)\s+(\S+)", re.IGNORECASE)
+_STL_FACET = re.compile(rb"(?<![a-z])facet\b", re.IGNORECASE)
+
+
+def _read_stl(data: bytes, name: str):
+    n = int.from_bytes(data[80:84], "little") if len(data) >= 84 else None
+    if n is not None and len(data) == 84 + _STL_RECORD.itemsize * n:
+        corners = np.frombuffer(data, _STL_RECORD, n, 84)["v"].reshape(-1, 3).astype(np.float64)
+    elif data.lstrip()[:5].lower() == b"solid":
+        found = _STL_VERTEX.findall(data)
+        facets = len(_STL_FACET.findall(data))
+        if len(found) != 3 * facets:
+            raise InputError(f"{name}: ASCII STL with {facets} facets and {len(found)} vertices (3 per facet expected)")
+        if re.search(rb"endsolid", data, re.IGNORECASE) is None:
+            raise InputError(f"{name}: ASCII STL without 'endsolid' (the file is cut short)")
+        corners = np.array(found, dtype=np.float64).reshape(-1, 3)
+    elif n is None:
+        raise InputError(f"{name}: {len(data)} bytes, shorter than the 84-byte header of a binary STL")
+    else:
+        raise InputError(f"{name}: a binary STL of {n} triangles has {84 + _STL_RECORD.itemsize * n} bytes, "
+                         f"the file has {len(data)}")
+    return corners, np.arange(len(corners), dtype=np.int64).reshape(-1, 3), None, None
+
+
+# ---- OBJ -----------------------------------------------------------------------------------------
+
+_OBJ_KINDS = {b"v": 1, b"vn": 2, b"f": 3}
+
+
+def _obj_index(tokens: list[bytes], before: np.ndarray, total: int, name: str, what: str) -> np.ndarray:
+    """0-based indices of 1-based OBJ references; negative ones count back from ``before``."""
+    idx = np.array(tokens, dtype=np.int64) if tokens else np.zeros(0, np.int64)
+    if np.any(idx == 0):
+        raise InputError(f"{name}: a face refers to {what} 0 (OBJ counts from 1)")
+    idx = np.where(idx < 0, idx + before, idx - 1)
+    if idx.size and (idx.min() < 0 or idx.max() >= total):
+        raise InputError(f"{name}: a face refers to a {what} outside the {total} of the file")
+    return idx
+
+
+def _read_obj(data: bytes, name: str):
+    rows = [line.split() for line in data.splitlines()]
+    kind = np.fromiter((_OBJ_KINDS.get(r[0], 0) if r else 0 for r in rows), np.int8, len(rows))
+    v_rows = [rows[i] for i in np.flatnonzero(kind == 1)]
+    sizes = {len(r) for r in v_rows}
+    if sizes - {4, 5, 7}:
+        raise InputError(f"{name}: a 'v' line has {min(sizes - {4, 5, 7}) - 1} numbers (3, 4 or 6 expected)")
+    verts = np.array([r[1:4] for r in v_rows], dtype=np.float64).reshape(-1, 3)
+    colors = np.array([r[4:7] for r in v_rows], dtype=np.float64) if sizes == {7} else None
+    vn = np.array([r[1:4] for r in (rows[i] for i in np.flatnonzero(kind == 2))], dtype=np.float64)
+    if vn.size and vn.shape[1:] != (3,):
+        raise InputError(f"{name}: every 'vn' line needs 3 numbers")
+    face_lines = np.flatnonzero(kind == 3)
+    corners = [[c.split(b"/") for c in rows[i][1:]] for i in face_lines]
+    sides = np.fromiter(map(len, corners), np.int64, len(corners))
+    flat = [c for face in corners for c in face]
+    # negative references count back from the last v (vn) line above the face
+    per_corner = np.repeat(face_lines, sides)
+    vi = _obj_index([c[0] for c in flat], np.cumsum(kind == 1)[per_corner], len(verts), name, "vertex")
+    normals = None
+    if len(vn) and flat and all(len(c) == 3 and c[2] for c in flat):
+        ni = _obj_index([c[2] for c in flat], np.cumsum(kind == 2)[per_corner], len(vn), name, "normal")
+        normals = np.zeros_like(verts)
+        normals[vi] = vn[ni]
+    # fans (0, j, j + 1) of every polygon, without a loop over faces
+    n_tri = np.maximum(sides - 2, 0)
+    face = np.repeat(np.arange(len(sides)), n_tri)
+    first = (np.cumsum(sides) - sides)[face]
+    j = np.arange(len(face)) - np.repeat(np.cumsum(n_tri) - n_tri, n_tri) + 1
+    tri = vi[np.stack([first, first + j, first + j + 1], axis=1)] if len(face) else np.empty((0, 3), np.int64)
+    return verts, tri, normals, colors
 
 
 def save_patches(patches: BezierPatches, path) -> Path:
