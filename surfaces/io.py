@@ -545,6 +545,8 @@ def read_mesh(path) -> TriangleMesh:
     mesh = TriangleMesh.unchecked(verts, tri, normals, colors)
     if suffix == ".stl":
         mesh = weld(mesh)
+        if mesh.n_triangles == 0:
+            raise InputError(f"{name}: every triangle collapses when coincident corners are welded")
         mesh.vertex_normals = vertex_normals(mesh.vertices, mesh.triangles)
     return mesh
 
