@@ -337,8 +337,7 @@ def test_binary_mesh_cut_at_every_byte_is_an_input_error(tmp_path, suffix):
 @pytest.mark.parametrize("kind", ["binary ply", "ascii ply", "stl", "ascii stl", "obj"])
 def test_damaged_mesh_files_read_or_give_an_input_error(tmp_path, kind):
     """Every cut and every byte set to 0, 255 or '9' (a digit, in text): a mesh or an InputError, never a crash."""
-    import trimesh
-
+    trimesh = pytest.importorskip("trimesh")
     suffix = {"binary ply": ".ply", "ascii ply": ".ply", "stl": ".stl", "ascii stl": ".stl", "obj": ".obj"}[kind]
     if kind == "ascii ply":
         data = _ascii_ply(tmp_path)
