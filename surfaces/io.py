@@ -539,7 +539,8 @@ def read_mesh(path) -> TriangleMesh:
     data = path.read_bytes()
     name = str(path)
     read = {".ply": _read_ply, ".obj": _read_obj, ".stl": _read_stl}[suffix]
-    with reading(path, f"{suffix[1:].upper()} file"):
+    # an integer past int64 in a text file raises OverflowError in numpy's conversion
+    with reading(path, f"{suffix[1:].upper()} file", also=(OverflowError,)):
         verts, tri, normals, colors = read(data, name)
     _check_mesh_arrays(verts, tri, normals, colors, name)
     mesh = TriangleMesh.unchecked(verts, tri, normals, colors)
@@ -751,9 +752,11 @@ def _fan(polygons: np.ndarray) -> np.ndarray:
 
 
 def _as_indices(values: np.ndarray, name: str, what: str) -> np.ndarray:
-    """Integer indices; float tokens of an ASCII file must be whole numbers."""
-    if values.dtype.kind == "f" and not np.array_equal(values, np.floor(values)):
-        raise InputError(f"{name}: {what} holds numbers that are not whole")
+    """Integer indices; float tokens of an ASCII file must be whole numbers within int64."""
+    if values.dtype.kind == "f":
+        whole = np.isfinite(values) & (np.abs(values) < 2.0**62)
+        if not whole.all() or not np.array_equal(values, np.floor(values)):
+            raise InputError(f"{name}: {what} holds numbers that are not vertex indices (not whole, or too large)")
     return values.astype(np.int64)
 
 
@@ -824,42 +827,82 @@ def _read_stl(data: bytes, name: str):
 
 # ---- OBJ -----------------------------------------------------------------------------------------
 
-_OBJ_KINDS = {b"v": 1, b"vn": 2, b"f": 3}
+def _obj_lines(lines: list[bytes], key: bytes, name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The values of the lines starting with ``key`` (an object array of bytes), how many each line has,
+    and the lines' numbers; one split of the joined lines instead of one per line."""
+    prefixes = (key + b" ", key + b"\t")
+    at = np.fromiter((i for i, line in enumerate(lines) if line.startswith(prefixes)), np.int64)
+    tokens = np.array(b" ".join([lines[i] for i in at]).split(), dtype=object)
+    marks = np.flatnonzero(tokens == key)
+    if len(marks) != len(at):
+        raise InputError(f"{name}: a '{key.decode()}' line holds '{key.decode()}' as a value")
+    lengths = np.diff(np.append(marks, len(tokens))) - 1
+    return np.delete(tokens, marks), lengths, at
 
 
-def _obj_index(tokens: list[bytes], before: np.ndarray, total: int, name: str, what: str) -> np.ndarray:
-    """0-based indices of 1-based OBJ references; negative ones count back from ``before``."""
-    idx = np.array(tokens, dtype=np.int64) if tokens else np.zeros(0, np.int64)
+def _obj_columns(values: np.ndarray, lengths: np.ndarray, first: int, count: int, dtype) -> np.ndarray:
+    """Values ``first:first + count`` of every line, shape (lines, count); every line has that many."""
+    starts = np.cumsum(lengths) - lengths
+    return values[starts[:, None] + np.arange(first, first + count)].astype(dtype).reshape(-1, count)
+
+
+def _obj_index(idx: np.ndarray, before: np.ndarray | None, total: int, name: str, what: str) -> np.ndarray:
+    """0-based indices of 1-based OBJ references; negative ones count back from ``before`` (per reference)."""
     if np.any(idx == 0):
         raise InputError(f"{name}: a face refers to {what} 0 (OBJ counts from 1)")
-    idx = np.where(idx < 0, idx + before, idx - 1)
+    idx = np.where(idx < 0, idx + (0 if before is None else before), idx - 1)
     if idx.size and (idx.min() < 0 or idx.max() >= total):
         raise InputError(f"{name}: a face refers to a {what} outside the {total} of the file")
     return idx
 
 
+def _obj_corners(values: np.ndarray, name: str) -> tuple[np.ndarray, np.ndarray | None]:
+    """Vertex and normal references of face corners ``v``, ``v/vt``, ``v//vn`` or ``v/vt/vn``."""
+    if not len(values):
+        return np.zeros(0, np.int64), None
+    joined = b" ".join(values.tolist())
+    if b"/" not in joined:
+        return values.astype(np.int64), None
+    pattern = values[0].split(b"/")
+    numbers = joined.replace(b"/", b" ").split()
+    k = sum(1 for part in pattern if part)
+    uniform = (joined.count(b"/") == (len(pattern) - 1) * len(values) and len(numbers) == k * len(values)
+               and joined.count(b"//") == (pattern[1:2] == [b""]) * len(values))
+    if uniform:  # every corner has the first one's form: one split of the whole text
+        refs = np.array(numbers, dtype=object).reshape(-1, k)
+        normal = len(pattern) == 3 and pattern[2]
+        return refs[:, 0].astype(np.int64), refs[:, k - 1].astype(np.int64) if normal else None
+    parts = [corner.split(b"/") for corner in values.tolist()]
+    vi = np.array([p[0] for p in parts], dtype=np.int64)
+    if all(len(p) == 3 and p[2] for p in parts):
+        return vi, np.array([p[2] for p in parts], dtype=np.int64)
+    return vi, None
+
+
 def _read_obj(data: bytes, name: str):
-    rows = [line.split() for line in data.splitlines()]
-    kind = np.fromiter((_OBJ_KINDS.get(r[0], 0) if r else 0 for r in rows), np.int8, len(rows))
-    v_rows = [rows[i] for i in np.flatnonzero(kind == 1)]
-    sizes = {len(r) for r in v_rows}
-    if sizes - {4, 5, 7}:
-        raise InputError(f"{name}: a 'v' line has {min(sizes - {4, 5, 7}) - 1} numbers (3, 4 or 6 expected)")
-    verts = np.array([r[1:4] for r in v_rows], dtype=np.float64).reshape(-1, 3)
-    colors = np.array([r[4:7] for r in v_rows], dtype=np.float64) if sizes == {7} else None
-    vn = np.array([r[1:4] for r in (rows[i] for i in np.flatnonzero(kind == 2))], dtype=np.float64)
-    if vn.size and vn.shape[1:] != (3,):
+    lines = data.splitlines()
+    if re.search(rb"^[ \t]+[vf]", data, re.MULTILINE):
+        lines = [line.lstrip() for line in lines]
+    values, lengths, v_at = _obj_lines(lines, b"v", name)
+    if len(lengths) and (lengths.min() < 3 or lengths.max() > 7):
+        bad = lengths[(lengths < 3) | (lengths > 7)][0]
+        raise InputError(f"{name}: a 'v' line has {bad} numbers (3, 4 or 6 expected)")
+    verts = _obj_columns(values, lengths, 0, 3, np.float64)
+    colors = _obj_columns(values, lengths, 3, 3, np.float64) if len(lengths) and (lengths == 6).all() else None
+    values, lengths, vn_at = _obj_lines(lines, b"vn", name)
+    if len(lengths) and (lengths != 3).any():
         raise InputError(f"{name}: every 'vn' line needs 3 numbers")
-    face_lines = np.flatnonzero(kind == 3)
-    corners = [[c.split(b"/") for c in rows[i][1:]] for i in face_lines]
-    sides = np.fromiter(map(len, corners), np.int64, len(corners))
-    flat = [c for face in corners for c in face]
-    # negative references count back from the last v (vn) line above the face
-    per_corner = np.repeat(face_lines, sides)
-    vi = _obj_index([c[0] for c in flat], np.cumsum(kind == 1)[per_corner], len(verts), name, "vertex")
+    vn = _obj_columns(values, lengths, 0, 3, np.float64)
+    values, sides, f_at = _obj_lines(lines, b"f", name)
+    vi, ni = _obj_corners(values, name)
+    before = None
+    if np.any(vi < 0) or (ni is not None and np.any(ni < 0)):
+        # negative references count back from the last v (vn) line above the face
+        before = np.repeat(f_at, sides)
+    vi = _obj_index(vi, None if before is None else np.searchsorted(v_at, before), len(verts), name, "vertex")
     normals = None
-    if len(vn) and flat and all(len(c) == 3 and c[2] for c in flat):
-        ni = _obj_index([c[2] for c in flat], np.cumsum(kind == 2)[per_corner], len(vn), name, "normal")
+    if ni is not None and len(vn):
+        ni = _obj_index(ni, None if before is None else np.searchsorted(vn_at, before), len(vn), name, "normal")
         normals = np.zeros_like(verts)
         normals[vi] = vn[ni]
     # fans (0, j, j + 1) of every polygon, without a loop over faces
