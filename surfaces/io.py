@@ -666,7 +666,7 @@ class _PlyBody:
         return 1 if self.order is None else np.dtype(code).itemsize
 
     def length_at(self, pos: int, code: str) -> int | None:
-        """A list length stored at ``pos``; None past the end."""
+        """A list length stored at ``pos``; None past the end, -1 when it is not a count."""
         if pos + self.size(code) > len(self.buf):
             return None
         if self.order is None:
@@ -674,7 +674,7 @@ class _PlyBody:
             return int(value) if value >= 0 and float(value).is_integer() else -1
         return int(np.frombuffer(self.buf, self.order + code, 1, pos)[0])
 
-    def lengths_at(self, pos: int, props) -> tuple[int, ...] | None:
+    def lengths_at(self, pos: int, props, where: str) -> tuple[int, ...] | None:
         """The list lengths of the record at ``pos``; None when it runs past the end."""
         lengths = []
         for p in props:
@@ -682,14 +682,22 @@ class _PlyBody:
                 pos += self.size(p.type)
                 continue
             n = self.length_at(pos, p.count)
-            if n is None or n < 0:
-                return None if n is None else (-1,)
+            if n is None:
+                return None
+            if n < 0:
+                raise InputError(f"{where} has a negative or broken list length")
             lengths.append(n)
             pos += self.size(p.count) + n * self.size(p.type)
         return tuple(lengths) if pos <= len(self.buf) else None
 
-    def block(self, pos: int, k: int, props, lengths) -> tuple[list[np.ndarray], list[np.ndarray], int]:
-        """``k`` records from ``pos`` laid out by ``lengths``: columns, their stored lengths, the record size."""
+    def width(self, props, lengths) -> int:
+        """Size of a record whose lists have ``lengths`` (bytes, or tokens in ASCII)."""
+        counts = iter(lengths)
+        return sum(self.size(p.type) if p.count is None else self.size(p.count) + next(counts) * self.size(p.type)
+                   for p in props)
+
+    def block(self, pos: int, k: int, props, lengths) -> tuple[list[np.ndarray], list[np.ndarray]]:
+        """``k`` records from ``pos`` laid out by ``lengths``: the columns and the stored list lengths."""
         counts = iter(lengths)
         shape = [None if p.count is None else next(counts) for p in props]
         if self.order is None:
@@ -704,7 +712,7 @@ class _PlyBody:
                     stored.append(rows[:, at])
                     cols.append(rows[:, at + 1:at + 1 + n])
                     at += 1 + n
-            return cols, stored, width
+            return cols, stored
         fields = []
         for i, (p, n) in enumerate(zip(props, shape)):
             if n is not None:
@@ -713,7 +721,7 @@ class _PlyBody:
         dtype = np.dtype(fields)
         rec = np.frombuffer(self.buf, dtype, k, pos)
         stored = [rec[f"n{i}"] for i, n in enumerate(shape) if n is not None]
-        return [rec[f"p{i}"] for i in range(len(props))], stored, dtype.itemsize
+        return [rec[f"p{i}"] for i in range(len(props))], stored
 
     def element(self, pos: int, element: _PlyElement, name: str) -> tuple[list[list[np.ndarray]], int]:
         """All records of ``element`` from ``pos``: per property, its blocks of columns; the next position."""
@@ -721,15 +729,14 @@ class _PlyBody:
         blocks: list[list[np.ndarray]] = [[] for _ in props]
         done, run = 0, _PLY_RUN[0]
         while done < count and props:
-            lengths = () if all(p.count is None for p in props) else self.lengths_at(pos, props)
-            if lengths == (-1,):
-                raise InputError(f"{name}: {element.name} record {done} has a negative or broken list length")
-            width = None if lengths is None else self.block(pos, 0, props, lengths)[2]
+            lengths = () if all(p.count is None for p in props) else \
+                self.lengths_at(pos, props, f"{name}: {element.name} record {done}")
+            width = None if lengths is None else self.width(props, lengths)
             fits = 0 if width is None else (len(self.buf) - pos) // width
             k = min(count - done, fits if not lengths else min(run, fits))
             if k == 0:
                 raise InputError(f"{name}: file ends after {done} of {count} {element.name} records")
-            cols, stored, _ = self.block(pos, k, props, lengths)
+            cols, stored = self.block(pos, k, props, lengths)
             same = np.ones(k, bool)
             for column, n in zip(stored, lengths):
                 same &= column == n

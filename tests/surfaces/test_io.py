@@ -358,3 +358,30 @@ def test_damaged_mesh_files_read_or_give_an_input_error(tmp_path, kind):
             assert str(err).startswith(str(path))
         else:
             assert mesh.n_triangles > 0 and np.isfinite(mesh.vertices).all()
+
+
+_PLY_HEAD = ("ply\nformat {fmt} 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+             "element face 1\nproperty list {count} int vertex_indices\nend_header\n")
+
+
+@pytest.mark.parametrize("data, message", [
+    (b"plx\n", "not a PLY file"),
+    (b"ply\nformat ascii 1.0\nelement vertex 3\n", "no 'end_header' line"),
+    (_PLY_HEAD.format(fmt="ascii", count="uchar").replace("format ascii 1.0\n", "") + "0 0 0\n", "no 'format' line"),
+    (_PLY_HEAD.format(fmt="binary_middle_endian", count="uchar"), "header line 2"),
+    (_PLY_HEAD.format(fmt="ascii", count="float"), "header line 8 .*INTTYPE"),
+    (_PLY_HEAD.format(fmt="ascii", count="uchar").replace("element vertex 3", "element vertex three"), "header line 3"),
+    (_PLY_HEAD.format(fmt="ascii", count="uchar") + "0 0 0\n1 0 0\n0 1 0\n3.5 0 1 2\n", "face record 0 has a negative"),
+    (_PLY_HEAD.format(fmt="ascii", count="uchar") + "0 0 0\n1 0 0\n0 1 0\n3 0 1 2.5\n", "not vertex indices"),
+    (_PLY_HEAD.format(fmt="ascii", count="uchar") + "0 0 0\n1 0 0\n0 1 0\n3 0 1 3\n", "refers to vertex 3"),
+    (_PLY_HEAD.format(fmt="ascii", count="uchar") + "0 0 0\n1 inf 0\n0 1 0\n3 0 1 2\n", "1 of 3 vertices have a NaN"),
+    (_PLY_HEAD.format(fmt="ascii", count="uchar") + "0 0 0\n1 0 0\n0 1 0\n", "file ends after 0 of 1 face"),
+    (_PLY_HEAD.format(fmt="ascii", count="uchar") + "0 0 0\n1 0 zero\n", "not a readable PLY file"),
+    (_PLY_HEAD.format(fmt="binary_little_endian", count="char").encode() + np.zeros(9, "<f4").tobytes()
+     + b"\xfd" + np.zeros(3, "<i4").tobytes(), "face record 0 has a negative"),
+])
+def test_bad_ply_files_say_what_is_wrong(tmp_path, data, message):
+    path = tmp_path / "bad.ply"
+    path.write_bytes(data if isinstance(data, bytes) else data.encode())
+    with pytest.raises(InputError, match=rf"bad.ply: .*{message}"):
+        read_mesh(path)
