@@ -336,7 +336,7 @@ def test_binary_mesh_cut_at_every_byte_is_an_input_error(tmp_path, suffix):
 
 @pytest.mark.parametrize("kind", ["binary ply", "ascii ply", "stl", "ascii stl", "obj"])
 def test_damaged_mesh_files_read_or_give_an_input_error(tmp_path, kind):
-    """Every cut and every byte set to 0, 255 or '9' (a digit, in text): a mesh or an InputError, never a crash."""
+    """Every cut, and every byte set to 0 or 255 (binary) or '9' or '-' (text): a mesh or an InputError."""
     trimesh = pytest.importorskip("trimesh")
     suffix = {"binary ply": ".ply", "ascii ply": ".ply", "stl": ".stl", "ascii stl": ".stl", "obj": ".obj"}[kind]
     if kind == "ascii ply":
@@ -347,9 +347,10 @@ def test_damaged_mesh_files_read_or_give_an_input_error(tmp_path, kind):
     else:
         data = _tetra_bytes(tmp_path, suffix)
     path = tmp_path / f"bad{suffix}"
+    values = (ord("9"), ord("-")) if "ascii" in kind or kind == "obj" else (0, 255)
     copies = [data[:end] for end in range(len(data))]
     for where in range(len(data)):
-        copies += [data[:where] + bytes([value]) + data[where + 1:] for value in (0, 255, ord("9"))]
+        copies += [data[:where] + bytes([value]) + data[where + 1:] for value in values]
     for copy in copies:
         path.write_bytes(copy)
         try:
