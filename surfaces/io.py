@@ -577,8 +577,8 @@ _PLY_TYPES = {"char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short":
               "float": "f4", "float32": "f4", "double": "f8", "float64": "f8"}
 _PLY_ORDERS = {"ascii": None, "binary_little_endian": "<", "binary_big_endian": ">"}
 _PLY_END = re.compile(rb"end_header[ \t]*(\r\n|\r|\n)")
-#: records read at once while the list lengths of a PLY element stay the same (doubles up to the cap)
-_PLY_RUN = (64, 1 << 20)
+#: records read at once after a change of list lengths in a PLY element (doubles while they stay the same)
+_PLY_RUN = 64
 
 
 @dataclass(frozen=True)
@@ -727,7 +727,7 @@ class _PlyBody:
         """All records of ``element`` from ``pos``: per property, its blocks of columns; the next position."""
         props, count = element.properties, element.count
         blocks: list[list[np.ndarray]] = [[] for _ in props]
-        done, run = 0, _PLY_RUN[0]
+        done, run = 0, count  # first all records at once: one np.frombuffer when every face has the same size
         while done < count and props:
             lengths = () if all(p.count is None for p in props) else \
                 self.lengths_at(pos, props, f"{name}: {element.name} record {done}")
@@ -741,7 +741,7 @@ class _PlyBody:
             for column, n in zip(stored, lengths):
                 same &= column == n
             k = int(np.argmin(same)) if not same.all() else k  # the first record of other lengths ends the run
-            run = min(2 * run, _PLY_RUN[1]) if same.all() else _PLY_RUN[0]
+            run = 2 * run if same.all() else _PLY_RUN
             for i, column in enumerate(cols):
                 blocks[i].append(column[:k])
             pos += k * width
