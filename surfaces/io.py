@@ -3,25 +3,28 @@
 Meshes are written with numpy alone (binary little-endian PLY with vertex
 normals and colours, Wavefront OBJ with normals, binary STL with facet
 normals), atomically: into a temporary file beside the target, renamed when
-complete. Reading imports open3d inside the function; the open3d conversion for
-viewing is :func:`surfaces.convert.to_open3d`.
+complete. Reading parses the three formats with numpy and checks every size,
+index and coordinate (no bytes go unchecked to a C reader); the open3d conversion
+for viewing is :func:`surfaces.convert.to_open3d`.
 """
 
 from __future__ import annotations
 
 import json
 import os
+import re
 import tempfile
 import zipfile
 from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from surfaces.bezier import BezierPatches
-from surfaces.mesh import PATCH_SAMPLES, TriangleMesh, as_mesh, weld
+from surfaces.mesh import PATCH_SAMPLES, TriangleMesh, as_mesh, vertex_normals, weld
 from surfaces.vectors import cross, unit
-from surfaces.validate import InputError
+from surfaces.validate import InputError, reading
 
 MESH_FORMATS = (".ply", ".obj", ".stl")
 
@@ -471,10 +474,22 @@ def write_mesh(mesh, path, samples: int = PATCH_SAMPLES) -> Path:
 
 
 def read_mesh(path) -> TriangleMesh:
-    """Read a triangle mesh from PLY, OBJ or STL (through open3d).
+    """Read a triangle mesh from PLY, OBJ or STL.
+
+    The files are parsed here with numpy (no foreign C reader sees bytes that
+    were not checked): PLY in ASCII or binary of either byte order, with vertex
+    ``x, y, z`` and optional ``nx, ny, nz`` and ``red, green, blue``, faces from
+    the ``vertex_indices`` (or ``vertex_index``) list; Wavefront OBJ ``v`` and
+    ``f`` lines (``v x y z [r g b]``, ``f v``, ``f v/vt``, ``f v//vn``,
+    ``f v/vt/vn``, negative indices counted back from the last ``v`` line,
+    ``vn`` normals); binary or ASCII STL. Polygons are split into triangle fans
+    ``(0, i, i + 1)``. Sizes are checked against the header, indices against the
+    vertex count, coordinates for finiteness.
 
     STL files store every triangle's corners separately; their coincident
-    vertices are welded so that the mesh is indexed again.
+    vertices are welded so that the mesh is indexed again, and the vertex
+    normals are the area-weighted normals of the welded triangles
+    (:func:`surfaces.mesh.vertex_normals`).
 
     Parameters
     ----------
@@ -484,7 +499,17 @@ def read_mesh(path) -> TriangleMesh:
     Returns
     -------
     TriangleMesh
-        With vertex normals and colours when the file has them.
+        With vertex normals and colours when the file has them (colours in
+        [0, 1]: integer PLY colours are divided by their type's maximum).
+
+    Raises
+    ------
+    FileNotFoundError
+        When ``path`` is not a file.
+    InputError
+        An unknown suffix, or a damaged file: the message names the file and
+        what is wrong (``file ends after 3 of 4 face records``, an index out of
+        range, a NaN coordinate, no triangles).
 
     Examples
     --------
@@ -495,49 +520,405 @@ def read_mesh(path) -> TriangleMesh:
     >>> square = TriangleMesh([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], [[0, 1, 2], [0, 2, 3]])
     >>> read_mesh(write_mesh(square, Path(tempfile.mkdtemp()) / "square.stl")).n_vertices
     4
+
+    A damaged file is one clean error:
+
+    >>> path = Path(tempfile.mkdtemp()) / "cut.ply"
+    >>> _ = path.write_bytes(write_mesh(square, path).read_bytes()[:-5])
+    >>> read_mesh(path)
+    Traceback (most recent call last):
+    ...
+    surfaces.validate.InputError: ...cut.ply: file ends after 1 of 2 face records
     """
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such mesh file")
-    if path.suffix.lower() not in MESH_FORMATS:
+    suffix = path.suffix.lower()
+    if suffix not in MESH_FORMATS:
         raise InputError(f"{path}: unsupported mesh format; use one of {', '.join(MESH_FORMATS)}")
-    import open3d as o3d
-
-    # open3d and its RPly reader print their own complaints about a bad file straight to the
-    # process's stderr; they are caught and the ValueError below says it once
-    with o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error), _captured_stderr() as said:
-        m = o3d.io.read_triangle_mesh(str(path))
-    verts = np.asarray(m.vertices, dtype=np.float64)
-    tri = np.asarray(m.triangles, dtype=np.int64)
-    if len(verts) == 0 or len(tri) == 0:
-        reason = next((line.strip() for line in said if line.strip()), "")
-        raise InputError(f"{path}: no triangles could be read" + (f" ({reason})" if reason else ""))
-    normals = np.asarray(m.vertex_normals, dtype=np.float64) if m.has_vertex_normals() else None
-    colors = np.asarray(m.vertex_colors, dtype=np.float64) if m.has_vertex_colors() else None
-    mesh = TriangleMesh(verts, tri, normals, colors)
-    if path.suffix.lower() == ".stl":
+    data = path.read_bytes()
+    name = str(path)
+    read = {".ply": _read_ply, ".obj": _read_obj, ".stl": _read_stl}[suffix]
+    # an integer past int64 in a text file raises OverflowError in numpy's conversion
+    with reading(path, f"{suffix[1:].upper()} file", also=(OverflowError,)):
+        verts, tri, normals, colors = read(data, name)
+    _check_mesh_arrays(verts, tri, normals, colors, name)
+    mesh = TriangleMesh.unchecked(verts, tri, normals, colors)
+    if suffix == ".stl":
         mesh = weld(mesh)
+        if mesh.n_triangles == 0:
+            raise InputError(f"{name}: every triangle collapses when coincident corners are welded")
+        mesh.vertex_normals = vertex_normals(mesh.vertices, mesh.triangles)
     return mesh
 
 
-@contextmanager
-def _captured_stderr():
-    """Redirect the process's file descriptor 2 (C libraries write there) into a list of lines."""
-    lines: list[str] = []
+def _check_mesh_arrays(verts, tri, normals, colors, name: str) -> None:
+    """The checks of :class:`TriangleMesh`, with the file named in the message."""
+    if len(tri) == 0:
+        raise InputError(f"{name}: no triangles could be read (the file holds {len(verts)} vertices and no faces)")
+    finite = np.isfinite(verts).all(axis=1)
+    if not finite.all():
+        raise InputError(f"{name}: {np.count_nonzero(~finite)} of {len(verts)} vertices have a NaN or infinite "
+                         f"coordinate (first: vertex {np.argmin(finite)})")
+    low, high = int(tri.min()), int(tri.max())
+    if low < 0 or high >= len(verts):
+        bad = low if low < 0 else high
+        raise InputError(f"{name}: a face refers to vertex {bad}; the file has vertices 0 to {len(verts) - 1}")
+    for what, values in (("normal", normals), ("colour", colors)):
+        if values is not None and not np.isfinite(values).all():
+            raise InputError(f"{name}: vertex {what}s hold NaN or infinite values")
+
+
+# ---- PLY -----------------------------------------------------------------------------------------
+
+#: PLY scalar types (the classic and the sized spellings) as numpy type codes, without byte order
+_PLY_TYPES = {"char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short": "i2", "int16": "i2",
+              "ushort": "u2", "uint16": "u2", "int": "i4", "int32": "i4", "uint": "u4", "uint32": "u4",
+              "float": "f4", "float32": "f4", "double": "f8", "float64": "f8"}
+_PLY_ORDERS = {"ascii": None, "binary_little_endian": "<", "binary_big_endian": ">"}
+_PLY_END = re.compile(rb"end_header[ \t]*(\r\n|\r|\n)")
+#: records read at once after a change of list lengths in a PLY element (doubles while they stay the same)
+_PLY_RUN = 64
+
+
+@dataclass(frozen=True)
+class _PlyProperty:
+    name: str
+    type: str  #: numpy code of the value (of the items, for a list)
+    count: str | None = None  #: numpy code of a list's length; None for a scalar
+
+
+@dataclass(frozen=True)
+class _PlyElement:
+    name: str
+    count: int
+    properties: tuple[_PlyProperty, ...]
+
+
+def _ply_header(data: bytes, name: str) -> tuple[str, list[_PlyElement], int]:
+    """Format, elements and where the body starts."""
+    if data[:3] != b"ply" or data[3:4] not in (b"\n", b"\r"):
+        raise InputError(f"{name}: not a PLY file (the first line is not 'ply')")
+    end = _PLY_END.search(data)
+    if end is None:
+        raise InputError(f"{name}: the PLY header has no 'end_header' line")
     try:
-        saved = os.dup(2)
-    except OSError:  # no stderr to redirect
-        yield lines
-        return
-    with tempfile.TemporaryFile() as sink:
-        os.dup2(sink.fileno(), 2)
-        try:
-            yield lines
-        finally:
-            os.dup2(saved, 2)
-            os.close(saved)
-            sink.seek(0)
-            lines.extend(sink.read().decode("utf-8", "replace").splitlines())
+        text = data[:end.start()].decode("ascii")
+    except UnicodeDecodeError:
+        raise InputError(f"{name}: the PLY header is not ASCII text") from None
+    fmt, elements, props = None, [], []
+
+    def close():
+        if elements:
+            elements[-1] = _PlyElement(elements[-1].name, elements[-1].count, tuple(props))
+
+    for number, line in enumerate(text.splitlines()[1:], 2):
+        words = line.split()
+        if not words or words[0] in ("comment", "obj_info"):
+            continue
+        bad = f"{name}: PLY header line {number} {line.strip()!r}"
+        if words[0] == "format":
+            if len(words) != 3 or words[1] not in _PLY_ORDERS:
+                raise InputError(f"{bad}: expected 'format ascii|binary_little_endian|binary_big_endian 1.0'")
+            fmt = words[1]
+        elif words[0] == "element":
+            if len(words) != 3 or not words[2].isdigit():
+                raise InputError(f"{bad}: expected 'element NAME COUNT'")
+            close()
+            elements.append(_PlyElement(words[1], int(words[2]), ()))
+            props = []
+        elif words[0] == "property" and elements:
+            if len(words) == 5 and words[1] == "list" and words[2] in _PLY_TYPES and words[3] in _PLY_TYPES \
+                    and _PLY_TYPES[words[2]][0] in "iu":
+                prop = _PlyProperty(words[4], _PLY_TYPES[words[3]], _PLY_TYPES[words[2]])
+            elif len(words) == 3 and words[1] in _PLY_TYPES:
+                prop = _PlyProperty(words[2], _PLY_TYPES[words[1]])
+            else:
+                raise InputError(f"{bad}: expected 'property TYPE NAME' or 'property list INTTYPE TYPE NAME'")
+            if any(p.name == prop.name for p in props):
+                raise InputError(f"{bad}: property {prop.name!r} appears twice")
+            props.append(prop)
+        else:
+            raise InputError(f"{bad}: not a PLY header line")
+    close()
+    if fmt is None:
+        raise InputError(f"{name}: the PLY header has no 'format' line")
+    return fmt, elements, end.end()
+
+
+class _PlyBody:
+    """Reads records of one element from a PLY body: bytes (binary) or a float array of tokens (ASCII).
+
+    Positions count bytes (binary) or tokens (ASCII). A block of records with the
+    same list lengths has a fixed layout: a structured dtype (binary) or a
+    ``(k, width)`` view of the tokens (ASCII).
+    """
+
+    def __init__(self, data: bytes, start: int, order: str | None) -> None:
+        self.order = order
+        if order is None:
+            self.buf = np.array(data[start:].split(), dtype=np.float64)
+        else:
+            self.buf = data
+        self.start = 0 if order is None else start
+
+    def size(self, code: str) -> int:
+        return 1 if self.order is None else np.dtype(code).itemsize
+
+    def length_at(self, pos: int, code: str) -> int | None:
+        """A list length stored at ``pos``; None past the end, -1 when it is not a count."""
+        if pos + self.size(code) > len(self.buf):
+            return None
+        if self.order is None:
+            value = self.buf[pos]
+            return int(value) if value >= 0 and float(value).is_integer() else -1
+        return int(np.frombuffer(self.buf, self.order + code, 1, pos)[0])
+
+    def lengths_at(self, pos: int, props, where: str) -> tuple[int, ...] | None:
+        """The list lengths of the record at ``pos``; None when it runs past the end."""
+        lengths = []
+        for p in props:
+            if p.count is None:
+                pos += self.size(p.type)
+                continue
+            n = self.length_at(pos, p.count)
+            if n is None:
+                return None
+            if n < 0:
+                raise InputError(f"{where} has a negative or broken list length")
+            lengths.append(n)
+            pos += self.size(p.count) + n * self.size(p.type)
+        return tuple(lengths) if pos <= len(self.buf) else None
+
+    def width(self, props, lengths) -> int:
+        """Size of a record whose lists have ``lengths`` (bytes, or tokens in ASCII)."""
+        counts = iter(lengths)
+        return sum(self.size(p.type) if p.count is None else self.size(p.count) + next(counts) * self.size(p.type)
+                   for p in props)
+
+    def block(self, pos: int, k: int, props, lengths) -> tuple[list[np.ndarray], list[np.ndarray]]:
+        """``k`` records from ``pos`` laid out by ``lengths``: the columns and the stored list lengths."""
+        counts = iter(lengths)
+        shape = [None if p.count is None else next(counts) for p in props]
+        if self.order is None:
+            width = sum(1 if n is None else 1 + n for n in shape)
+            rows = self.buf[pos:pos + k * width].reshape(k, width)
+            cols, stored, at = [], [], 0
+            for n in shape:
+                if n is None:
+                    cols.append(rows[:, at])
+                    at += 1
+                else:
+                    stored.append(rows[:, at])
+                    cols.append(rows[:, at + 1:at + 1 + n])
+                    at += 1 + n
+            return cols, stored
+        fields = []
+        for i, (p, n) in enumerate(zip(props, shape)):
+            if n is not None:
+                fields.append((f"n{i}", self.order + p.count))
+            fields.append((f"p{i}", self.order + p.type, () if n is None else (n,)))
+        dtype = np.dtype(fields)
+        rec = np.frombuffer(self.buf, dtype, k, pos)
+        stored = [rec[f"n{i}"] for i, n in enumerate(shape) if n is not None]
+        return [rec[f"p{i}"] for i in range(len(props))], stored
+
+    def element(self, pos: int, element: _PlyElement, name: str) -> tuple[list[list[np.ndarray]], int]:
+        """All records of ``element`` from ``pos``: per property, its blocks of columns; the next position."""
+        props, count = element.properties, element.count
+        blocks: list[list[np.ndarray]] = [[] for _ in props]
+        done, run = 0, count  # first all records at once: one np.frombuffer when every face has the same size
+        while done < count and props:
+            lengths = () if all(p.count is None for p in props) else \
+                self.lengths_at(pos, props, f"{name}: {element.name} record {done}")
+            width = None if lengths is None else self.width(props, lengths)
+            fits = 0 if width is None else (len(self.buf) - pos) // width
+            k = min(count - done, fits if not lengths else min(run, fits))
+            if k == 0:
+                raise InputError(f"{name}: file ends after {done} of {count} {element.name} records")
+            cols, stored = self.block(pos, k, props, lengths)
+            same = np.ones(k, bool)
+            for column, n in zip(stored, lengths):
+                same &= column == n
+            k = int(np.argmin(same)) if not same.all() else k  # the first record of other lengths ends the run
+            run = 2 * run if same.all() else _PLY_RUN
+            for i, column in enumerate(cols):
+                blocks[i].append(column[:k])
+            pos += k * width
+            done += k
+        return blocks, pos
+
+
+def _fan(polygons: np.ndarray) -> np.ndarray:
+    """Triangle fans ``(0, i, i + 1)`` of polygons of one size, shape (k, n) -> (k * (n - 2), 3)."""
+    k, n = polygons.shape
+    if n < 3:
+        return np.empty((0, 3), np.int64)
+    first = np.broadcast_to(polygons[:, :1], (k, n - 2))
+    return np.stack([first, polygons[:, 1:-1], polygons[:, 2:]], axis=-1).reshape(-1, 3)
+
+
+def _as_indices(values: np.ndarray, name: str, what: str) -> np.ndarray:
+    """Integer indices; float tokens of an ASCII file must be whole numbers within int64."""
+    if values.dtype.kind == "f":
+        whole = np.isfinite(values) & (np.abs(values) < 2.0**62)
+        if not whole.all() or not np.array_equal(values, np.floor(values)):
+            raise InputError(f"{name}: {what} holds numbers that are not vertex indices (not whole, or too large)")
+    return values.astype(np.int64)
+
+
+def _read_ply(data: bytes, name: str):
+    fmt, elements, start = _ply_header(data, name)
+    body = _PlyBody(data, start, _PLY_ORDERS[fmt])
+    pos, found = body.start, {}
+    for element in elements:
+        blocks, pos = body.element(pos, element, name)
+        found.setdefault(element.name, (element, blocks))
+    if "vertex" not in found:
+        raise InputError(f"{name}: the PLY file has no 'vertex' element")
+    element, blocks = found["vertex"]
+    columns = {p.name: (p, blocks[i]) for i, p in enumerate(element.properties) if p.count is None}
+
+    def stack(names):
+        if not all(n in columns for n in names):
+            return None
+        if element.count == 0:
+            return np.zeros((0, len(names)))
+        return np.stack([np.concatenate(columns[n][1]).astype(np.float64) for n in names], axis=1)
+
+    verts = stack(("x", "y", "z"))
+    if verts is None:
+        raise InputError(f"{name}: the PLY vertex element has no x, y, z properties")
+    normals = stack(("nx", "ny", "nz"))
+    colors = stack(("red", "green", "blue"))
+    if colors is not None and np.dtype(columns["red"][0].type).kind in "iu":
+        colors /= np.iinfo(np.dtype(columns["red"][0].type)).max
+    tri = np.empty((0, 3), np.int64)
+    if "face" in found:
+        element, blocks = found["face"]
+        index = [i for i, p in enumerate(element.properties)
+                 if p.count is not None and p.name in ("vertex_indices", "vertex_index")]
+        if not index:
+            raise InputError(f"{name}: the PLY face element has no 'vertex_indices' list")
+        fans = [_fan(_as_indices(b, name, "a face")) for b in blocks[index[0]]]
+        tri = np.concatenate(fans) if fans else tri
+    return verts, tri, normals, colors
+
+
+# ---- STL -----------------------------------------------------------------------------------------
+
+_STL_RECORD = np.dtype([("n", "<f4", (3,)), ("v", "<f4", (3, 3)), ("attr", "<u2")])
+_STL_VERTEX = re.compile(rb"vertex\s+(\S+)\s+(\S+)\s+(\S+)", re.IGNORECASE)
+_STL_FACET = re.compile(rb"(?<![a-z])facet\b", re.IGNORECASE)
+
+
+def _read_stl(data: bytes, name: str):
+    n = int.from_bytes(data[80:84], "little") if len(data) >= 84 else None
+    if n is not None and len(data) == 84 + _STL_RECORD.itemsize * n:
+        corners = np.frombuffer(data, _STL_RECORD, n, 84)["v"].reshape(-1, 3).astype(np.float64)
+    elif data.lstrip()[:5].lower() == b"solid":
+        found = _STL_VERTEX.findall(data)
+        facets = len(_STL_FACET.findall(data))
+        if len(found) != 3 * facets:
+            raise InputError(f"{name}: ASCII STL with {facets} facets and {len(found)} vertices (3 per facet expected)")
+        if re.search(rb"endsolid", data, re.IGNORECASE) is None:
+            raise InputError(f"{name}: ASCII STL without 'endsolid' (the file is cut short)")
+        corners = np.array(found, dtype=np.float64).reshape(-1, 3)
+    elif n is None:
+        raise InputError(f"{name}: {len(data)} bytes, shorter than the 84-byte header of a binary STL")
+    else:
+        raise InputError(f"{name}: a binary STL of {n} triangles has {84 + _STL_RECORD.itemsize * n} bytes, "
+                         f"the file has {len(data)}")
+    return corners, np.arange(len(corners), dtype=np.int64).reshape(-1, 3), None, None
+
+
+# ---- OBJ -----------------------------------------------------------------------------------------
+
+def _obj_lines(lines: list[bytes], key: bytes, name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The values of the lines starting with ``key`` (an object array of bytes), how many each line has,
+    and the lines' numbers; one split of the joined lines instead of one per line."""
+    prefixes = (key + b" ", key + b"\t")
+    at = np.fromiter((i for i, line in enumerate(lines) if line.startswith(prefixes)), np.int64)
+    tokens = np.array(b" ".join([lines[i] for i in at]).split(), dtype=object)
+    marks = np.flatnonzero(tokens == key)
+    if len(marks) != len(at):
+        raise InputError(f"{name}: a '{key.decode()}' line holds '{key.decode()}' as a value")
+    lengths = np.diff(np.append(marks, len(tokens))) - 1
+    return np.delete(tokens, marks), lengths, at
+
+
+def _obj_columns(values: np.ndarray, lengths: np.ndarray, first: int, count: int, dtype) -> np.ndarray:
+    """Values ``first:first + count`` of every line, shape (lines, count); every line has that many."""
+    starts = np.cumsum(lengths) - lengths
+    return values[starts[:, None] + np.arange(first, first + count)].astype(dtype).reshape(-1, count)
+
+
+def _obj_index(idx: np.ndarray, before: np.ndarray | None, total: int, name: str, what: str) -> np.ndarray:
+    """0-based indices of 1-based OBJ references; negative ones count back from ``before`` (per reference)."""
+    if np.any(idx == 0):
+        raise InputError(f"{name}: a face refers to {what} 0 (OBJ counts from 1)")
+    idx = np.where(idx < 0, idx + (0 if before is None else before), idx - 1)
+    if idx.size and (idx.min() < 0 or idx.max() >= total):
+        raise InputError(f"{name}: a face refers to a {what} outside the {total} of the file")
+    return idx
+
+
+def _obj_corners(values: np.ndarray, name: str) -> tuple[np.ndarray, np.ndarray | None]:
+    """Vertex and normal references of face corners ``v``, ``v/vt``, ``v//vn`` or ``v/vt/vn``."""
+    if not len(values):
+        return np.zeros(0, np.int64), None
+    joined = b" ".join(values.tolist())
+    if b"/" not in joined:
+        return values.astype(np.int64), None
+    pattern = values[0].split(b"/")
+    numbers = joined.replace(b"/", b" ").split()
+    k = sum(1 for part in pattern if part)
+    uniform = (joined.count(b"/") == (len(pattern) - 1) * len(values) and len(numbers) == k * len(values)
+               and joined.count(b"//") == (pattern[1:2] == [b""]) * len(values))
+    if uniform:  # every corner has the first one's form: one split of the whole text
+        refs = np.array(numbers, dtype=object).reshape(-1, k)
+        normal = len(pattern) == 3 and pattern[2]
+        return refs[:, 0].astype(np.int64), refs[:, k - 1].astype(np.int64) if normal else None
+    parts = [corner.split(b"/") for corner in values.tolist()]
+    vi = np.array([p[0] for p in parts], dtype=np.int64)
+    if all(len(p) == 3 and p[2] for p in parts):
+        return vi, np.array([p[2] for p in parts], dtype=np.int64)
+    return vi, None
+
+
+def _read_obj(data: bytes, name: str):
+    lines = data.splitlines()
+    if re.search(rb"^[ \t]+[vf]", data, re.MULTILINE):
+        lines = [line.lstrip() for line in lines]
+    values, lengths, v_at = _obj_lines(lines, b"v", name)
+    if len(lengths) and (lengths.min() < 3 or lengths.max() > 7):
+        bad = lengths[(lengths < 3) | (lengths > 7)][0]
+        raise InputError(f"{name}: a 'v' line has {bad} numbers (3, 4 or 6 expected)")
+    verts = _obj_columns(values, lengths, 0, 3, np.float64)
+    colors = _obj_columns(values, lengths, 3, 3, np.float64) if len(lengths) and (lengths == 6).all() else None
+    values, lengths, vn_at = _obj_lines(lines, b"vn", name)
+    if len(lengths) and (lengths != 3).any():
+        raise InputError(f"{name}: every 'vn' line needs 3 numbers")
+    vn = _obj_columns(values, lengths, 0, 3, np.float64)
+    values, sides, f_at = _obj_lines(lines, b"f", name)
+    vi, ni = _obj_corners(values, name)
+    before = None
+    if np.any(vi < 0) or (ni is not None and np.any(ni < 0)):
+        # negative references count back from the last v (vn) line above the face
+        before = np.repeat(f_at, sides)
+    vi = _obj_index(vi, None if before is None else np.searchsorted(v_at, before), len(verts), name, "vertex")
+    normals = None
+    if ni is not None and len(vn):
+        ni = _obj_index(ni, None if before is None else np.searchsorted(vn_at, before), len(vn), name, "normal")
+        normals = np.zeros_like(verts)
+        normals[vi] = vn[ni]
+    # fans (0, j, j + 1) of every polygon, without a loop over faces
+    n_tri = np.maximum(sides - 2, 0)
+    face = np.repeat(np.arange(len(sides)), n_tri)
+    first = (np.cumsum(sides) - sides)[face]
+    j = np.arange(len(face)) - np.repeat(np.cumsum(n_tri) - n_tri, n_tri) + 1
+    tri = vi[np.stack([first, first + j, first + j + 1], axis=1)] if len(face) else np.empty((0, 3), np.int64)
+    return verts, tri, normals, colors
 
 
 def save_patches(patches: BezierPatches, path) -> Path:
