@@ -9,12 +9,17 @@ image sees the ray through its centre:
   ``x = (col - (W - 1) / 2) h``, ``y = ((H - 1) / 2 - row) h``, the project's pixel grid
   (:data:`surfaces.grid.GRID_CONVENTION`).
 * ``perspective`` (pinhole; focal length ``f`` in pixels, principal point ``(cx, cy)``
-  (column, row), by default ``((W - 1) / 2, (H - 1) / 2)``, camera centre
-  ``C = (0, 0, H_c)`` with ``H_c`` = ``camera_height_mm``, looking down ``-z``): the ray
-  from ``C`` along ``(u / f, v / f, -1)`` with the pixel offsets ``u = col - cx`` and
-  ``v = cy - row``. The surface point at depth ``w = H_c - z`` below the camera is
-  ``X = (u w / f, v w / f, z)``; the reference plane is seen at ``H_c / f`` mm per pixel
-  at the principal point.
+  (column, row; **0-based**: the centre of the top-left pixel is ``(0, 0)``), by default
+  ``((W - 1) / 2, (H - 1) / 2)``, camera centre ``C = (0, 0, H_c)`` with ``H_c`` =
+  ``camera_height_mm``, looking down ``-z``): the ray from ``C`` along
+  ``(u / f, v / f, -1)`` with the pixel offsets ``u = col - cx`` and
+  ``v = (cy - row) f / f_y``. The surface point at depth ``w = H_c - z`` below the camera
+  is ``X = (u w / f, v w / f, z)``; the reference plane is seen at ``H_c / f`` mm per
+  pixel at the principal point. ``f`` is the focal length along the rows (``fx``,
+  OpenCV's ``K[0, 0]``); a camera whose pixels are not square also has ``f_y``
+  (``K[1, 1]``, ``focal_length_y_px``; default ``f``): :func:`pixel_offsets` scales the
+  row offsets by ``f / f_y``, so every formula below keeps one ``f``, and
+  :func:`gradient_field`'s row derivative is per row of pixels.
 
 A surface seen by every pixel is one depth per pixel: ``height.npy`` holds ``z`` (mm) of
 the point each pixel sees and ``xy.npy`` its ``x, y`` (:func:`surface_xy`). Normals come
@@ -86,15 +91,30 @@ class Perspective:
     camera_height_mm : float
         Height ``H_c`` of the camera centre above the reference plane, mm (> 0).
     principal_point_px : tuple of float or None
-        ``(cx, cy)`` (column, row) in pixels; ``None``: the image centre
-        ``((W - 1) / 2, (H - 1) / 2)``.
+        ``(cx, cy)`` (column, row) in pixels, 0-based (the top-left pixel's centre is
+        ``(0, 0)``; a MATLAB calibration's is ``(1, 1)``: subtract 1); ``None``: the image
+        centre ``((W - 1) / 2, (H - 1) / 2)``.
+    focal_length_y_px : float or None
+        Focal length along the columns ``f_y`` in pixels (OpenCV's ``K[1, 1]``) when it
+        differs from ``focal_length_px`` (``K[0, 0]``); ``None``: square pixels.
     """
 
     focal_length_px: float
     camera_height_mm: float
     principal_point_px: tuple[float, float] | None = None
+    focal_length_y_px: float | None = None
 
     model = "perspective"
+
+    @property
+    def fy(self) -> float:
+        """Focal length along the columns, pixels (``focal_length_px`` for square pixels)."""
+        return float(self.focal_length_px if self.focal_length_y_px is None else self.focal_length_y_px)
+
+    @property
+    def aspect(self) -> float:
+        """``f / f_y``: the factor :func:`pixel_offsets` applies to the row offsets (1 for square pixels)."""
+        return float(self.focal_length_px) / self.fy
 
     def centre(self, shape) -> tuple[float, float]:
         """``(cx, cy)`` for an image of ``shape`` (H, W)."""
@@ -110,6 +130,8 @@ class Perspective:
                "camera_height_mm": float(self.camera_height_mm)}
         if self.principal_point_px is not None or shape is not None:
             out["principal_point_px"] = list(self.centre(shape))
+        if self.focal_length_y_px is not None:
+            out["focal_length_y_px"] = float(self.focal_length_y_px)
         return out
 
     def nominal_pixel_mm(self) -> float:
@@ -127,6 +149,7 @@ def make_camera(
     focal_length_px: float | None = None,
     camera_height_mm: float | None = None,
     principal_point_px=None,
+    focal_length_y_px: float | None = None,
 ) -> Camera:
     """Build and check a camera from the user's options.
 
@@ -136,11 +159,15 @@ def make_camera(
         Camera model.
     pixel_size_mm : float, optional
         Orthographic pixel size, mm (required for ``"orthographic"``).
-    focal_length_px, camera_height_mm : float, optional
-        Perspective focal length (pixels) and camera height above the reference plane
-        (mm); both required for ``"perspective"``.
+    focal_length_px : float or (float, float), optional
+        Perspective focal length in pixels, or ``(fx, fy)`` for pixels that are not square
+        (OpenCV's ``K[0, 0]``, ``K[1, 1]``); required for ``"perspective"``.
+    camera_height_mm : float, optional
+        Camera height above the reference plane, mm; required for ``"perspective"``.
     principal_point_px : (cx, cy), optional
-        Perspective principal point (column, row); default the image centre.
+        Perspective principal point (column, row), 0-based; default the image centre.
+    focal_length_y_px : float, optional
+        ``fy`` when ``focal_length_px`` is one number (default: square pixels).
 
     Returns
     -------
@@ -155,6 +182,8 @@ def make_camera(
     --------
     >>> make_camera("perspective", focal_length_px=2400, camera_height_mm=300).nominal_pixel_mm()
     0.125
+    >>> make_camera("perspective", focal_length_px=(3043, 3026), camera_height_mm=200).to_dict()["focal_length_y_px"]
+    3026.0
     >>> make_camera("perspective", focal_length_px=2400)
     Traceback (most recent call last):
     ...
@@ -163,7 +192,7 @@ def make_camera(
     if model not in MODELS:
         raise InputError(f"camera: expected one of {MODELS}, got {model!r}")
     if model == "orthographic":
-        if focal_length_px is not None or camera_height_mm is not None or principal_point_px is not None:
+        if any(v is not None for v in (focal_length_px, camera_height_mm, principal_point_px, focal_length_y_px)):
             raise InputError("camera: --focal-length-px, --camera-height and a principal point need "
                              "--camera perspective")
         if pixel_size_mm is None:
@@ -180,8 +209,14 @@ def make_camera(
     pp = None
     if principal_point_px is not None:
         pp = tuple(float(c) for c in as_array(principal_point_px, "principal_point_px", shape=(2,)))
+    if np.ndim(focal_length_px) == 1:
+        pair = as_array(focal_length_px, "focal_length_px", shape=(2,))
+        if focal_length_y_px is not None:
+            raise InputError("focal_length_px: give (fx, fy) or focal_length_y_px, not both")
+        focal_length_px, focal_length_y_px = float(pair[0]), float(pair[1])
+    fy = None if focal_length_y_px is None else positive(focal_length_y_px, "focal_length_y_px")
     return Perspective(positive(focal_length_px, "focal_length_px"),
-                       positive(camera_height_mm, "camera_height_mm"), pp)
+                       positive(camera_height_mm, "camera_height_mm"), pp, fy)
 
 
 def camera_from_dict(entry, name: str = "camera") -> Camera:
@@ -209,6 +244,7 @@ def camera_from_dict(entry, name: str = "camera") -> Camera:
             focal_length_px=entry.get("focal_length_px") if entry["model"] == "perspective" else None,
             camera_height_mm=entry.get("camera_height_mm") if entry["model"] == "perspective" else None,
             principal_point_px=entry.get("principal_point_px") if entry["model"] == "perspective" else None,
+            focal_length_y_px=entry.get("focal_length_y_px") if entry["model"] == "perspective" else None,
         )
     except ValueError as exc:
         raise InputError(f"{name}: {exc}") from None
@@ -229,14 +265,15 @@ def pixel_offsets(camera: Camera, shape) -> tuple[np.ndarray, np.ndarray]:
         ``col - cx`` (right); for the orthographic camera multiplied by the pixel size
         (mm, so ``u`` is ``x``).
     v : numpy.ndarray, shape (H,), float64
-        ``cy - row`` (up); orthographic: ``y`` in mm.
+        ``(cy - row) f / f_y`` (up; ``cy - row`` for square pixels); orthographic: ``y`` in mm.
     """
     h, w = image_shape(shape, "shape")
     if isinstance(camera, Orthographic):
         ps = camera.pixel_size_mm
         return (np.arange(w) - (w - 1) / 2.0) * ps, ((h - 1) / 2.0 - np.arange(h)) * ps
     cx, cy = camera.centre((h, w))
-    return np.arange(w) - cx, cy - np.arange(h, dtype=np.float64)
+    v = cy - np.arange(h, dtype=np.float64)
+    return np.arange(w) - cx, v if camera.focal_length_y_px is None else v * camera.aspect
 
 
 def surface_xy(camera: Camera, z) -> np.ndarray:
@@ -320,8 +357,7 @@ def pixel_rays(camera: Camera, shape, rows, cols) -> tuple[np.ndarray, np.ndarra
         origins = np.stack([(c - (w - 1) / 2.0) * ps, ((h - 1) / 2.0 - r) * ps, np.zeros_like(r)], axis=1)
         return origins, np.tile([0.0, 0.0, -1.0], (r.size, 1))
     cx, cy = camera.centre((h, w))
-    f = camera.focal_length_px
-    d = np.stack([(c - cx) / f, (cy - r) / f, -np.ones_like(r)], axis=1)
+    d = np.stack([(c - cx) / camera.focal_length_px, (cy - r) / camera.fy, -np.ones_like(r)], axis=1)
     origins = np.tile([0.0, 0.0, camera.camera_height_mm], (r.size, 1))
     return origins, d / np.linalg.norm(d, axis=1, keepdims=True)
 
@@ -406,6 +442,8 @@ def _gradient(camera: Camera, nx, ny, nz, u, v) -> tuple[np.ndarray, np.ndarray,
             den[~ok] = 0.0
             p *= den
             q *= den
+            if camera.focal_length_y_px is not None:  # per row of pixels, not per f-scaled row offset
+                q *= f32(camera.aspect)
         # a grazing normal (n_z a denormal) overflows: no slope there. A float64 sum of float32 values
         # cannot overflow, so it is finite exactly when every value is (one pass, no temporary)
         for g in (p, q):
@@ -513,10 +551,12 @@ def footprint_area(camera: Camera, z, p=None, q=None) -> np.ndarray | float:
     if isinstance(camera, Orthographic):
         return camera.pixel_size_mm**2
     zz = as_array(z, "z", ndim=2, finite=False)
-    scale = ((camera.camera_height_mm - zz) / camera.focal_length_px) ** 2
+    w = camera.camera_height_mm - zz
+    scale = w * w / (camera.focal_length_px * camera.fy)
     if p is None or q is None:
         return scale
     u, v = pixel_offsets(camera, zz.shape)
+    v = v / camera.aspect  # cy - row: q is per row of pixels
     lu = as_array(p, "p", shape=zz.shape, finite=False)
     lv = as_array(q, "q", shape=zz.shape, finite=False)
     return scale * np.abs(1.0 + u[None, :] * lu + v[:, None] * lv)
