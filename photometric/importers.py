@@ -41,7 +41,7 @@ from photometric.rig import Rig
 from surfaces.validate import as_array, InputError, positive
 
 __all__ = ["CameraFrameCalibration", "read_queau", "read_text_calibration", "read_calibration", "to_rig",
-           "camera_to_rig_points", "camera_to_rig_axes"]
+           "camera_to_rig_points", "camera_to_rig_axes", "load_axes", "TEXT_NAMES"]
 
 
 @dataclass(frozen=True)
@@ -181,7 +181,8 @@ def _loadmat(path: Path, keys: tuple[str, ...], required: tuple[str, ...]) -> di
         raise InputError(f"calibration: {path} is not a MATLAB .mat file scipy can read ({exc})") from None
     missing = [k for k in required if k not in doc]
     if missing:
-        raise InputError(f"calibration: {path} lacks {missing} (has {sorted(k for k in doc if not k.startswith('__'))})")
+        has = sorted(k for k in doc if not k.startswith("__"))
+        raise InputError(f"calibration: {path} lacks {missing} (has {has})")
     return {k: doc.get(k) for k in keys}
 
 
@@ -251,6 +252,27 @@ def read_text_calibration(folder, *, k_origin: int = 1) -> CameraFrameCalibratio
         found[key] = path.name
     return _assemble(values["S"], values["Dir"], values["Phi"],
                      None if values["mu"] is None else values["mu"].ravel(), values["K"], found, k_origin, "text")
+
+
+def load_axes(path) -> np.ndarray:
+    """LED axes from a text file, ``x y z`` per LED (``--led-axes``; any length, normalised by :func:`to_rig`).
+
+    Parameters
+    ----------
+    path : str or Path
+
+    Returns
+    -------
+    numpy.ndarray, shape (N, 3)
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise FileNotFoundError(f"led axes: file {p} does not exist")
+    try:
+        a = np.loadtxt(p, ndmin=2, delimiter="," if "," in p.read_text() else None)
+    except ValueError as exc:
+        raise InputError(f"led axes: {p} is not a table of numbers ({exc})") from None
+    return _rows(a, None, f"led axes ({p.name})", (3,))
 
 
 def read_calibration(path, camera_mat=None, *, k_origin: int = 1) -> CameraFrameCalibration:

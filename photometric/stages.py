@@ -35,7 +35,8 @@ from pathlib import Path
 import numpy as np
 
 from photometric.camera import Camera, Orthographic, Perspective, make_camera
-from photometric.io import PhotometricData, full_scale_of, read_folder, read_images, read_mask
+from photometric.io import (PhotometricData, exposure_note, full_scale_of, read_ambient, read_folder, read_images,
+                            read_mask)
 from photometric.io import load_intensities, load_light_positions, load_lights
 from photometric.leds import PointLights, point_lights
 from photometric.lights import as_intensities, validate_lights
@@ -265,12 +266,12 @@ def _mask(mask, shape) -> np.ndarray:
     return as_array(mask, "mask", shape=shape, dtype=bool)
 
 
-def _load_input(source, lights, intensities, mask, select) -> tuple[PhotometricData, dict]:
+def _load_input(source, lights, intensities, mask, select, bayer=None) -> tuple[PhotometricData, dict]:
     """PhotometricData from a folder, a list of image files or an image array."""
     if isinstance(source, PhotometricData):
         return source, {"kind": "data"}
     if isinstance(source, (str, Path)) and Path(source).is_dir():
-        data = read_folder(source, select=select)
+        data = read_folder(source, select=select, bayer=bayer)
         folder = Path(source)
         extra = {}
         if (folder / "scene.json").is_file():
@@ -300,7 +301,7 @@ def _load_input(source, lights, intensities, mask, select) -> tuple[PhotometricD
     if lights is None:
         raise InputError("lights: required when the input is a list of images or an array")
     if isinstance(source, Sequence) and all(isinstance(s, (str, Path)) for s in source):
-        images = read_images(list(source))
+        images = read_images(list(source), bayer=bayer)
         names = tuple(Path(s).name for s in source)
         kind = {"kind": "files", "paths": [str(s) for s in source]}
     else:
@@ -550,7 +551,7 @@ def read(source, options: PhotometricOptions | None = None, *, lights=None, inte
          select: str | Sequence[str] | None = None, pixel_size: float | None = None, light_positions=None,
          led_mu=None, flat_field=None, flat_albedo: float | None = None, camera=None,
          focal_length_px: float | None = None, camera_height_mm: float | None = None, principal_point_px=None,
-         rig=None) -> PhotometricInput:
+         rig=None, ambient=None, bayer: str | None = None) -> PhotometricInput:
     """Read and check the input of a solve: images, lights, mask, light model and camera.
 
     Parameters
@@ -592,6 +593,11 @@ def read(source, options: PhotometricOptions | None = None, *, lights=None, inte
     rig : str, Path or photometric.rig.Rig, optional
         A calibrated rig (``rig.json``): LED positions, camera, flat-field gains; must match
         the images' count and size.
+    ambient : str, Path, sequence of them or array_like, optional
+        Dark frame(s) (all LEDs off, same exposure): one for every image or one per image,
+        subtracted and clipped at 0 (:func:`photometric.io.subtract_ambient`).
+    bayer : {"RGGB", "BGGR", "GRBG", "GBRG"}, optional
+        Image files (and dark frames) are Bayer mosaics of this layout, demosaiced when read.
 
     Returns
     -------
@@ -617,7 +623,21 @@ def read(source, options: PhotometricOptions | None = None, *, lights=None, inte
         if lights is not None and isinstance(source, (Sequence, np.ndarray)) and not isinstance(source, str) \
                 and len(source) != len(lights):
             raise InputError(f"{name}: {len(lights)} LEDs for {len(source)} images")
-    data, info = _load_input(source, lights, intensities, mask, select)
+    data, info = _load_input(source, lights, intensities, mask, select, bayer)
+    if bayer is not None and info["kind"] not in ("files", "folder"):
+        raise InputError("bayer: only image files are read as mosaics (an array is already demosaiced)")
+    if ambient is not None:
+        if isinstance(ambient, (str, Path)) or (isinstance(ambient, Sequence) and ambient
+                                                and all(isinstance(a, (str, Path)) for a in ambient)):
+            read_ambient(ambient, data.images, bayer)
+            info["ambient"] = [str(a) for a in ([ambient] if isinstance(ambient, (str, Path)) else ambient)]
+        else:
+            from photometric.io import subtract_ambient
+
+            subtract_ambient(data.images, ambient)
+            info["ambient"] = "array"
+    if bayer is not None:
+        info["bayer"] = bayer
     scene_h = info.pop("scene_pixel_size_mm", None)
     near = _near_setup(data, light_model=opts.light_model, light_positions=light_positions, led_mu=led_mu,
                        flat_field=flat_field, flat_albedo=flat_albedo, camera=camera, pixel_size=pixel_size,
@@ -712,6 +732,9 @@ def solve(inp: PhotometricInput, options: PhotometricOptions | None = None, *,
     directions = data.lights if near is None or near.model == "directional" else near.lights.directions
     cond, light_notes = _light_matrix(directions, opts.force)  # the lights were checked by read
     notes += light_notes
+    dark = exposure_note(data.images, data.mask, data.full_scale)
+    if dark is not None:
+        notes.append(dark)
     for note in notes:
         warnings.warn(note, UserWarning, stacklevel=3)
     timings = {"screen": time.perf_counter() - t0}

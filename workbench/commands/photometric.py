@@ -27,12 +27,14 @@ def _add_camera(p: argparse.ArgumentParser, pixel_help: str) -> None:
                    "orthographic = telecentric (--pixel-size), perspective = pinhole looking down from "
                    "--camera-height with --focal-length-px")
     p.add_argument("--pixel-size", type=float, default=None, metavar="MM", help=pixel_help)
-    p.add_argument("--focal-length-px", type=float, default=None, metavar="F",
-                   help="perspective: focal length in pixels")
+    p.add_argument("--focal-length-px", default=None, metavar="F",
+                   help="perspective: focal length in pixels, or FX,FY when the pixels are not square (OpenCV's "
+                   "K[0,0], K[1,1])")
     p.add_argument("--camera-height", type=float, default=None, metavar="MM",
                    help="perspective: camera centre height above the reference plane z = 0, mm")
-    p.add_argument("--principal-point", default=None, metavar="CX,CY",
-                   help="perspective: principal point (column, row) in pixels (default the image centre)")
+    p.add_argument("--principal-point-px", "--principal-point", dest="principal_point", default=None, metavar="CX,CY",
+                   help="perspective: principal point (column, row) in pixels, 0-based: the top-left pixel's centre "
+                   "is 0,0 (a MATLAB calibration's 1-based point minus 1); default the image centre")
 
 
 def _add_rig_options(p: argparse.ArgumentParser) -> None:
@@ -46,13 +48,23 @@ def _add_rig_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", default="rig.json", help="rig file to write (default rig.json)")
 
 
+def _focal(text: str | None):
+    """``--focal-length-px``: F or FX,FY."""
+    if text is None:
+        return None
+    f = _numbers(text, "--focal-length-px")
+    if isinstance(f, list) and len(f) != 2:
+        raise InputError(f"--focal-length-px: expected F or FX,FY, got {text!r}")
+    return f
+
+
 def _camera_options(args: argparse.Namespace) -> dict:
     pp = None
     if args.principal_point is not None:
-        pp = _numbers(args.principal_point, "--principal-point")
+        pp = _numbers(args.principal_point, "--principal-point-px")
         if not isinstance(pp, list) or len(pp) != 2:
-            raise InputError(f"--principal-point: expected 'CX,CY', got {args.principal_point!r}")
-    return {"camera": args.camera, "focal_length_px": args.focal_length_px,
+            raise InputError(f"--principal-point-px: expected 'CX,CY', got {args.principal_point!r}")
+    return {"camera": args.camera, "focal_length_px": _focal(args.focal_length_px),
             "camera_height_mm": args.camera_height, "principal_point_px": pp}
 
 
@@ -235,8 +247,50 @@ def register(sub) -> None:
                    help="mesh subdivisions per (largest) patch side (default min(step, 8))")
     p.add_argument("--background", default=DEFAULTS.background, choices=BACKGROUNDS,
                    help=f"background removed before measuring defects (default {DEFAULTS.background})")
+    _add_capture(p)
+    p.add_argument("--no-distance-estimate", action="store_true",
+                   help="with an imported calibration (--rig light.mat) and --camera-height: trust the height, do not "
+                   "estimate it from the photometric residual")
     add_uncertainty_options(p)
     p.set_defaults(func=_reconstruct)
+
+    r = sub.add_parser(
+        "import-rig",
+        help="rig.json from another tool's calibration: Quéau's light.mat + camera.mat, or its text (LUCES-style) form",
+        description="Convert a near-field calibration in the camera frame of computer vision (x right, y down, "
+        "z forward, origin at the camera centre, mm) into rig.json (the workbench's frame: origin on the optical "
+        "axis in the reference plane, x right, y up, z towards the camera; principal point 0-based). CAL is "
+        "light.mat (S positions, Dir axes, Phi intensities, mu lobes; camera.mat beside it with K, stored "
+        "transposed, 1-based principal point), a folder holding both, or a folder of text tables "
+        "(led_positions.txt or S.txt, led_directions.txt or Dir.txt, led_intensities.txt/light_intensities.txt "
+        "or Phi.txt, led_mu.txt or mu.txt, K.txt). The files do not hold the working distance: give "
+        "--camera-height, or --images (with --mask, --ambient) to estimate it from the photometric residual "
+        "(printed and stored with its uncertainty; a given height far from the estimate is warned about).",
+    )
+    r.add_argument("calibration", metavar="CAL", help="light.mat, a folder with light.mat + camera.mat, or a "
+                   "folder of text tables")
+    r.add_argument("--camera-mat", default=None, metavar="FILE", help="camera.mat (default: beside light.mat)")
+    r.add_argument("--k-origin", type=int, default=1, choices=(0, 1),
+                   help="origin of the principal point in K (default 1: MATLAB's; 0 for a 0-based file)")
+    r.add_argument("--camera-height", type=float, default=None, metavar="MM",
+                   help="working distance: camera centre height above the reference plane, mm (default: estimated "
+                   "from --images)")
+    r.add_argument("--images", nargs="+", default=None, metavar="IMG",
+                   help="the capture, one image per LED in the calibration's order: its size, and the working "
+                   "distance estimate")
+    r.add_argument("--image-size", default=None, metavar="H,W",
+                   help="image size in pixels when no --images are given")
+    r.add_argument("--mask", default=None, metavar="M", help="the part's mask for the working-distance estimate")
+    _add_capture(r)
+    r.add_argument("--led-axes", default=None, metavar="FILE",
+                   help="LED axes 'x y z' per LED in the calibration's camera frame (replaces the file's Dir)")
+    r.add_argument("--led-mu", default=None, metavar="MU", help="LED lobe exponent(s), replacing the file's mu")
+    r.add_argument("--focal-length-px", default=None, metavar="F",
+                   help="replaces the file's focal length: F or FX,FY (pixels)")
+    r.add_argument("--principal-point-px", default=None, metavar="X,Y",
+                   help="replaces the file's principal point: column,row in pixels, 0-based")
+    r.add_argument("--out", default="rig.json", help="rig file to write (default rig.json)")
+    r.set_defaults(func=_import_rig)
 
     c = sub.add_parser(
         "calibrate",
@@ -269,7 +323,7 @@ def _calibrate(args: argparse.Namespace) -> int:
     camera = None
     if any(v is not None for v in (*opts.values(), args.pixel_size)):
         model = opts["camera"] or ("perspective" if args.focal_length_px or args.camera_height else "orthographic")
-        camera = make_camera(model, pixel_size_mm=args.pixel_size, focal_length_px=args.focal_length_px,
+        camera = make_camera(model, pixel_size_mm=args.pixel_size, focal_length_px=opts["focal_length_px"],
                              camera_height_mm=args.camera_height, principal_point_px=opts["principal_point_px"])
     rig = calibrate_to_rig(
         args.out,
@@ -297,6 +351,162 @@ def _calibrate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _add_capture(p: argparse.ArgumentParser) -> None:
+    """The capture's realities: a dark frame and Bayer mosaics."""
+    from photometric.io import BAYER_PATTERNS
+
+    p.add_argument("--ambient", nargs="+", default=None, metavar="IMG",
+                   help="dark frame(s) (all LEDs off, same exposure) subtracted from the images, clipped at 0: one "
+                   "for all images or one per image")
+    p.add_argument("--bayer", default=None, choices=BAYER_PATTERNS,
+                   help="the image files (and dark frames) are raw Bayer mosaics of this layout (top-left 2 x 2 "
+                   "cell, row by row), demosaiced to RGB at full resolution (OpenCV bilinear) when read")
+
+
+def _pair(text: str | None, flag: str, what: str):
+    if text is None:
+        return None
+    v = _numbers(text, flag)
+    if not isinstance(v, list) or len(v) != 2:
+        raise InputError(f"{flag}: expected {what}, got {text!r}")
+    return v
+
+
+def _is_calibration(path) -> bool:
+    """A calibration of another tool (light.mat, or a folder of them or of text tables), not rig.json."""
+    from pathlib import Path
+
+    p = Path(path)
+    return p.suffix.lower() == ".mat" or p.is_dir()
+
+
+def _capture(images, mask, ambient, bayer):
+    """Grey-or-colour image stack (ambient subtracted) and mask, as the working-distance search needs them."""
+    from photometric.io import read_ambient, read_images, read_mask
+
+    imgs = read_images(list(images), bayer=bayer)
+    if ambient:
+        read_ambient(ambient, imgs, bayer)
+    m = None if mask is None else read_mask(mask, imgs.shape[1:3])
+    return imgs, m
+
+
+def _imported(cal, *, camera_height, images, mask, ambient, bayer, image_size=None, axes=None, focal=None,
+              pp=None, estimate=True):
+    """Rig of an imported calibration at the given or estimated working distance, and the estimate (or None)."""
+    from photometric.distance import estimate_camera_height, height_warning
+    from photometric.importers import to_rig
+
+    est, warning = None, None
+    if images is None:
+        if camera_height is None:
+            raise InputError("--camera-height: the calibration does not hold the working distance; give it, or the "
+                             "images (--images) to estimate it")
+        size = image_size
+        return to_rig(cal, camera_height, size, axes=axes, focal_length_px=focal, principal_point_px=pp), None, None
+    imgs, m = _capture(images, mask, ambient, bayer)
+    size = imgs.shape[1:3]
+    start = camera_height if camera_height is not None else 2.5 * float(cal.positions_mm[:, 2].max())
+    rig = to_rig(cal, start, size, axes=axes, focal_length_px=focal, principal_point_px=pp)
+    if estimate or camera_height is None:
+        est = estimate_camera_height(imgs, rig, mask=m)
+        if camera_height is None:
+            rig = to_rig(cal, est.camera_height_mm, size, axes=axes, focal_length_px=focal, principal_point_px=pp)
+        else:
+            warning = height_warning(camera_height, est)
+        rig.calibration["working_distance"] = {**est.to_dict(), "source": "estimated" if camera_height is None
+                                               else "given", "given_mm": camera_height}
+    return rig, est, warning
+
+
+def _print_estimate(est, given) -> None:
+    if est is None:
+        return
+    print(f"working distance: {est.camera_height_mm:.1f} mm +- {2 * est.u_mm:.1f} mm (U, k = 2; curvature "
+          f"u {est.u_curvature_mm:.2g} mm, spatial jackknife u {est.u_jackknife_mm:.2g} mm), photometric residual "
+          f"{est.residual_rms:.4g} of full scale at {est.binning}x{est.binning} binning"
+          + ("" if given is None else f"; using the given {given:g} mm"))
+
+
+def _import_rig(args: argparse.Namespace) -> int:
+    import sys
+
+    from photometric.importers import read_calibration
+    from photometric.importers import load_axes
+    from workbench.runs.photometric import write_rig
+
+    cal = read_calibration(args.calibration, args.camera_mat, k_origin=args.k_origin)
+    size = _pair(args.image_size, "--image-size", "H,W")
+    if args.images is None and size is None:
+        raise InputError("--image-size: give the image size (H,W) or the images (--images)")
+    axes = None if args.led_axes is None else load_axes(args.led_axes)
+    if args.led_mu is not None:
+        from dataclasses import replace
+
+        import numpy as np
+
+        mu = _numbers(args.led_mu, "--led-mu")
+        cal = replace(cal, mu=np.broadcast_to(np.asarray(mu, float), (len(cal),)).copy())
+    rig, est, warning = _imported(cal, camera_height=args.camera_height, images=args.images, mask=args.mask,
+                                  ambient=args.ambient, bayer=args.bayer, image_size=size, axes=axes,
+                                  focal=_focal(args.focal_length_px),
+                                  pp=_pair(args.principal_point_px, "--principal-point-px", "X,Y (0-based)"))
+    content = write_rig(rig, args.out)
+    cam = content["camera"]
+    print(f"{len(rig.lights)} LEDs from {cal.source.get('format')} calibration, perspective camera f "
+          f"{cam['focal_length_px']:.2f}" + (f" x {cam['focal_length_y_px']:.2f}" if "focal_length_y_px" in cam else "")
+          + f" px, principal point ({cam['principal_point_px'][0]:.2f}, {cam['principal_point_px'][1]:.2f}) px "
+          f"(0-based), {rig.image_size[0]} x {rig.image_size[1]} px, camera height {cam['camera_height_mm']:.1f} mm")
+    _print_estimate(est, args.camera_height)
+    if warning:
+        print(f"warning: {warning}", file=sys.stderr)
+    print(f"wrote {args.out}")
+    return 0
+
+
+def _rig_option(args: argparse.Namespace):
+    """``--rig`` as ``reconstruct`` gets it: rig.json (moved to ``--camera-height`` when only that is given), or an
+    imported calibration (light.mat) at the given or estimated working distance; the camera options left."""
+    from photometric.importers import read_calibration
+    from photometric.rig import at_camera_height, read_rig
+
+    opts = _camera_options(args)
+    if args.rig is None:
+        return None, opts, None, None
+    if _is_calibration(args.rig):
+        if args.images is None:
+            raise InputError("--rig: an imported calibration (light.mat or a calibration folder) needs --images")
+        if args.camera not in (None, "perspective"):
+            raise InputError("--camera: an imported calibration is a perspective camera")
+        cal = read_calibration(args.rig)
+        rig, est, warning = _imported(cal, camera_height=args.camera_height, images=args.images, mask=args.mask,
+                                      ambient=args.ambient, bayer=args.bayer, focal=opts["focal_length_px"],
+                                      pp=opts["principal_point_px"], estimate=not args.no_distance_estimate)
+        return rig, dict.fromkeys(opts), est, warning
+    if args.camera_height is not None and all(opts[k] is None for k in ("camera", "focal_length_px",
+                                                                         "principal_point_px")):
+        return at_camera_height(read_rig(args.rig), args.camera_height), dict.fromkeys(opts), None, None
+    return args.rig, opts, None, None
+
+
+def _add_to_summary(out, summary: dict, rig, est, warning) -> dict:
+    """summary.json with the imported rig's source and the working distance (the CLI composed them)."""
+    from pathlib import Path
+
+    from surfaces.io import write_json
+
+    cal = getattr(rig, "calibration", {}) or {}
+    summary = dict(summary)
+    summary["rig_source"] = {k: cal[k] for k in ("method", "source", "conversion", "camera_height_mm_moved_from")
+                             if k in cal}
+    if est is not None:
+        summary["working_distance"] = cal.get("working_distance", est.to_dict())
+    if warning:
+        summary["warnings"] = [*summary.get("warnings", []), warning]
+    write_json(Path(out) / "summary.json", summary)
+    return summary
+
+
 def _pm(value: float, expanded: float | None) -> str:
     """``0.100 ± 0.006 mm (k = 2)``."""
     from photometric.uncertainty import format_value
@@ -321,6 +531,7 @@ def _reconstruct(args: argparse.Namespace) -> int:
         raise InputError("--triad/--select: only apply to a folder input")
     select = "triad" if args.triad else args.select
     tolerances = _uncertainty_options(args)
+    rig, camera_opts, est, warning = _rig_option(args)
     stages = ["read", "normals", "height", "surface", "defects", *(["uncertainty"] if tolerances else []), "write"]
     with tqdm(total=len(stages), desc="photometric", unit="stage", leave=False) as bar:
         def progress(stage: str) -> None:
@@ -350,7 +561,9 @@ def _reconstruct(args: argparse.Namespace) -> int:
             led_mu=None if args.led_mu is None else _numbers(args.led_mu, "--led-mu"),
             flat_field=False if args.no_flat_field else args.flat_field,
             flat_albedo=args.flat_albedo,
-            rig=args.rig,
+            rig=rig,
+            ambient=args.ambient,
+            bayer=args.bayer,
             light_model=args.light_model,
             reference_height_mm=args.reference_height,
             tolerance_mm=DEFAULTS.tolerance_mm if args.tolerance is None else args.tolerance,
@@ -358,9 +571,11 @@ def _reconstruct(args: argparse.Namespace) -> int:
             uncertainty=tolerances,
             force=args.force,
             progress=progress,
-            **_camera_options(args),
+            **camera_opts,
         )
         bar.update(bar.total - bar.n)
+    if est is not None or not isinstance(rig, (str, type(None))):
+        summary = _add_to_summary(args.out, summary, rig, est, warning)
     size = summary["size"]
     print(
         f"{size['images']} images of {size['width']} x {size['height']} px, "
@@ -395,5 +610,10 @@ def _reconstruct(args: argparse.Namespace) -> int:
                       f"depth {_pm(rec['max_depth_mm'], k2.get('max_depth_mm'))}, "
                       f"width {_pm(rec['mean_width_mm'], k2.get('mean_width_mm'))}, "
                       f"length {_pm(rec['length_mm'], k2.get('length_mm'))}")
+    _print_estimate(est, args.camera_height)
+    if warning:
+        import sys
+
+        print(f"warning: {warning}", file=sys.stderr)
     print(f"total {summary['timings_s']['total']:.2f} s; wrote {args.out} (summary.json holds every number above)")
     return 0
