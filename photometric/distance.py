@@ -15,7 +15,7 @@ over the valid pixels and the lights of ``I_k - albedo * max(0, s_k(X) . n)`` in
 units (full scale 1), ``s_k`` the LED's light vector at the solved point ``X`` with
 ``E_k = I_k^rad / |P_k - X|^2 ...`` (the radiant intensities ``e_k d0_k^2`` kept as ``H``
 moves, :func:`photometric.rig.at_camera_height`; equal radiant intensities when the rig
-has none). A coarse geometric grid brackets the minimum, a bounded Brent search refines
+has none). A coarse geometric grid brackets the lowest interior minimum, a bounded Brent search refines
 it, and five heights around it (``+-2.5 %``, ``+-5 %``) give the curvature and the
 uncertainty:
 
@@ -184,7 +184,7 @@ def _vertex(h: np.ndarray, f: np.ndarray) -> tuple[float, float]:
 
 def estimate_camera_height(images, rig: Rig, *, mask=None, bounds_mm=None, integrator: str = "lsq",
                            max_iterations: int = MAX_ITERATIONS, binning: int | None = None,
-                           grid: int = 7) -> DistanceEstimate:
+                           grid: int = 11) -> DistanceEstimate:
     """Estimate the camera's height above the reference plane from the photometric residual.
 
     Parameters
@@ -213,8 +213,8 @@ def estimate_camera_height(images, rig: Rig, *, mask=None, bounds_mm=None, integ
     Raises
     ------
     InputError
-        An orthographic rig, a flat field, images that do not match, or a residual whose
-        minimum lies on the bounds (the data do not tell the height there).
+        An orthographic rig, a flat field, images that do not match, or a residual without
+        a minimum inside the bounds (the data do not tell the height there).
     """
     from scipy.optimize import minimize_scalar
 
@@ -250,10 +250,14 @@ def estimate_camera_height(images, rig: Rig, *, mask=None, bounds_mm=None, integ
 
     coarse = np.geomspace(lo, hi, int(grid))
     values = np.array([rms(x) for x in coarse])
-    k = int(np.argmin(values))
-    if k in (0, len(coarse) - 1):
-        raise InputError(f"working distance: the photometric residual is lowest at the bound {coarse[k]:.4g} mm of "
-                         f"[{lo:.4g}, {hi:.4g}] mm; give bounds_mm or the camera height")
+    # the lowest interior local minimum: near the LEDs' own depth the residual can fall again (grazing light
+    # explains little), which is no working distance
+    interior = [j for j in range(1, len(coarse) - 1) if values[j] <= values[j - 1] and values[j] <= values[j + 1]]
+    if not interior:
+        k = int(np.argmin(values))
+        raise InputError(f"working distance: the photometric residual has no minimum inside [{lo:.4g}, {hi:.4g}] mm "
+                         f"(lowest at {coarse[k]:.4g} mm); give bounds_mm or the camera height")
+    k = min(interior, key=lambda j: values[j])
     best = minimize_scalar(rms, bounds=(coarse[k - 1], coarse[k + 1]), method="bounded",
                            options={"xatol": 5e-3 * coarse[k]})
     h0 = float(best.x)
