@@ -338,15 +338,26 @@ def _trimmed_mesh(patches, region: np.ndarray, pixel_size: float, samples: int):
     return TriangleMesh(mesh.vertices[used], remap[tri], normals)
 
 
-def _light_positions(value, n: int, led_mu) -> PointLights:
+def _light_positions(value, n: int, led_mu, led_axes=None) -> PointLights:
     pos = load_light_positions(value) if isinstance(value, (str, Path)) else value
-    lights = point_lights(pos, mu=led_mu)
+    lights = point_lights(pos, _axes(led_axes), led_mu)
     if len(lights) != n:
         raise InputError(f"light_positions: {len(lights)} LED positions for {n} images")
     return lights
 
 
-def _with_mu(lights: PointLights, led_mu) -> PointLights:
+def _axes(led_axes):
+    if isinstance(led_axes, (str, Path)):
+        from photometric.importers import load_axes
+
+        return load_axes(led_axes)
+    return led_axes
+
+
+def _with_mu(lights: PointLights, led_mu, led_axes=None) -> PointLights:
+    if led_axes is not None:
+        mu = led_mu if led_mu is not None else (lights.mu if lights.mu_known else None)
+        return point_lights(lights.positions, _axes(led_axes), mu)
     return lights if led_mu is None else point_lights(lights.positions, lights.axes, led_mu)
 
 
@@ -370,7 +381,7 @@ def _flat_images(flat_field, n: int, shape) -> np.ndarray:
 
 def _near_setup(data: PhotometricData, *, light_model, light_positions, led_mu, flat_field, flat_albedo, camera,
                 pixel_size, scene_h, focal_length_px, camera_height_mm, principal_point_px, rig, rig_obj,
-                intensities) -> LightSetup | None:
+                intensities, led_axes=None) -> LightSetup | None:
     """Decide the light model and camera; None means the far-field orthographic path of today.
 
     Precedence: the options, then ``rig.json``, then the folder's own files
@@ -380,15 +391,16 @@ def _near_setup(data: PhotometricData, *, light_model, light_positions, led_mu, 
     if rig_obj is not None:
         check_rig(rig_obj, n, shape)
     if light_positions is not None:
-        lights = _light_positions(light_positions, n, led_mu)
+        lights = _light_positions(light_positions, n, led_mu, led_axes)
     elif rig_obj is not None:
-        lights = _with_mu(rig_obj.lights, led_mu)
+        lights = _with_mu(rig_obj.lights, led_mu, led_axes)
     elif data.point_lights is not None:
-        lights = _with_mu(data.point_lights, led_mu)
+        lights = _with_mu(data.point_lights, led_mu, led_axes)
     else:
         lights = None
-    if led_mu is not None and lights is None:
-        raise InputError("led_mu: the LED lobe needs LED positions (--light-positions or --rig)")
+    if (led_mu is not None or led_axes is not None) and lights is None:
+        raise InputError(f"{'led_mu' if led_mu is not None else 'led_axes'}: the LED lobe needs LED positions "
+                         "(--light-positions or --rig)")
 
     explicit = [v is not None for v in (camera, focal_length_px, camera_height_mm, principal_point_px)]
     cam_source = "option"
@@ -551,7 +563,7 @@ def read(source, options: PhotometricOptions | None = None, *, lights=None, inte
          select: str | Sequence[str] | None = None, pixel_size: float | None = None, light_positions=None,
          led_mu=None, flat_field=None, flat_albedo: float | None = None, camera=None,
          focal_length_px: float | None = None, camera_height_mm: float | None = None, principal_point_px=None,
-         rig=None, ambient=None, bayer: str | None = None) -> PhotometricInput:
+         rig=None, ambient=None, bayer: str | None = None, led_axes=None) -> PhotometricInput:
     """Read and check the input of a solve: images, lights, mask, light model and camera.
 
     Parameters
@@ -598,6 +610,10 @@ def read(source, options: PhotometricOptions | None = None, *, lights=None, inte
         subtracted and clipped at 0 (:func:`photometric.io.subtract_ambient`).
     bayer : {"RGGB", "BGGR", "GRBG", "GBRG"}, optional
         Image files (and dark frames) are Bayer mosaics of this layout, demosaiced when read.
+    led_axes : str, Path or array_like, shape (N, 3), optional
+        LED axes in the rig frame (from the LED into the scene; a text file ``x y z`` per
+        LED), replacing the default aim at the origin or the rig's; needs the lobes ``mu``
+        (``led_mu``, or the rig's).
 
     Returns
     -------
@@ -642,7 +658,8 @@ def read(source, options: PhotometricOptions | None = None, *, lights=None, inte
     near = _near_setup(data, light_model=opts.light_model, light_positions=light_positions, led_mu=led_mu,
                        flat_field=flat_field, flat_albedo=flat_albedo, camera=camera, pixel_size=pixel_size,
                        scene_h=scene_h, focal_length_px=focal_length_px, camera_height_mm=camera_height_mm,
-                       principal_point_px=principal_point_px, rig=rig, rig_obj=rig_obj, intensities=intensities)
+                       principal_point_px=principal_point_px, rig=rig, rig_obj=rig_obj, intensities=intensities,
+                       led_axes=led_axes)
     if near is not None:
         h = near.camera.nominal_pixel_mm()
         h_source = near.camera_source

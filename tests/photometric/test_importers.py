@@ -124,3 +124,17 @@ def test_real_capture_calibration(shared_data):
     assert np.all(pos[:, 2] > 100) and np.all(axes[:, 2] < 0)  # above the part, shining down
     # each LED leans towards the optical axis: its axis' horizontal part points back across the axis
     assert np.all(np.sum(axes[:, :2] * -pos[:, :2], axis=1) > 0)
+
+
+def test_led_axes_reach_the_solve(tmp_path):
+    from photometric import stages
+
+    pos = np.array([[60.0, 0.0, 100.0], [-30.0, 52.0, 100.0], [-30.0, -52.0, 100.0]])
+    axes = np.array([[0.0, 0.0, -1.0], [0.1, 0.0, -1.0], [0.0, 0.1, -1.0]])
+    np.savetxt(tmp_path / "axes.txt", axes)
+    images = np.full((3, 8, 8), 0.3, np.float32)
+    inp = stages.read(images, light_positions=pos, led_axes=tmp_path / "axes.txt", led_mu=1.0, pixel_size=0.1)
+    assert np.allclose(inp.setup.lights.axes, axes / np.linalg.norm(axes, axis=1, keepdims=True))
+    assert inp.setup.lights.mu.tolist() == [1.0, 1.0, 1.0]
+    with pytest.raises(InputError, match="led_axes"):
+        stages.read(images, lights=pos / np.linalg.norm(pos, axis=1, keepdims=True), led_axes=axes)

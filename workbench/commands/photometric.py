@@ -189,6 +189,9 @@ def register(sub) -> None:
     p.add_argument("--led-mu", default=None, metavar="MU",
                    help="LED lobe exponent mu (cos^mu about the LED axis; 0 isotropic), one value or one "
                    "per light 'm1,m2,...' (default: the rig's or scene.json's, else unknown)")
+    p.add_argument("--led-axes", default=None, metavar="FILE",
+                   help="LED axes, one 'x y z' row per light in the rig frame (from the LED into the scene; default: "
+                   "aimed at the origin, or the rig's); the lobe needs --led-mu (or the rig's)")
     p.add_argument("--flat-field", nargs="+", default=None, metavar="F",
                    help="flat-field images (flat matte target in the reference plane), one per light in "
                    "light order")
@@ -559,6 +562,7 @@ def _reconstruct(args: argparse.Namespace) -> int:
             background=args.background,
             light_positions=args.light_positions,
             led_mu=None if args.led_mu is None else _numbers(args.led_mu, "--led-mu"),
+            led_axes=args.led_axes,
             flat_field=False if args.no_flat_field else args.flat_field,
             flat_albedo=args.flat_albedo,
             rig=rig,
