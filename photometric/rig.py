@@ -38,7 +38,7 @@ from photometric.stereo import _check_images, _grey_planes
 from surfaces.validate import as_array, InputError, positive
 
 __all__ = ["RIG_FORMAT", "RIG_VERSION", "GAINS_FILE", "FLAT_SMOOTHING_PX", "Rig", "flat_field_gains",
-           "rig_to_dict", "read_rig", "check_rig", "at_camera_height"]
+           "rig_to_dict", "read_rig", "check_rig", "at_camera_height", "position_u_mm"]
 
 RIG_FORMAT = "workbench-rig"
 RIG_VERSION = 1
@@ -330,3 +330,38 @@ def at_camera_height(rig: Rig, camera_height_mm: float) -> Rig:
     calibration.setdefault("camera_height_mm_moved_from", float(rig.camera.camera_height_mm))
     return replace(rig, lights=moved, camera=replace(rig.camera, camera_height_mm=new), intensities=intens,
                    calibration=calibration)
+
+
+def position_u_mm(rig: Rig) -> float | None:
+    """The rig's LED position standard uncertainty for the budget: the largest per-coordinate u of its LEDs.
+
+    The uncertainty budget takes one standard uncertainty for every LED coordinate
+    (``light_position_tolerance_mm``, :class:`photometric.uncertainty.Tolerances`); the rig's
+    calibration states one per LED and axis (``calibration.uncertainty_mm``, mirror-sphere
+    calibration). The largest is taken, so that no LED is stated better than it was measured.
+
+    Parameters
+    ----------
+    rig : Rig
+
+    Returns
+    -------
+    float or None
+        mm; None when the calibration states none (known positions, imported files).
+
+    Examples
+    --------
+    >>> from photometric.camera import make_camera
+    >>> rig = Rig(point_lights([[30.0, 0.0, 120.0], [0.0, 30.0, 120.0], [-30.0, 0.0, 120.0]]),
+    ...           make_camera("orthographic", pixel_size_mm=0.1), (10, 10),
+    ...           calibration={"uncertainty_mm": [[0.02, 0.03, 0.25], [0.02, 0.02, 0.1], [0.01, 0.02, 0.2]]})
+    >>> position_u_mm(rig)
+    0.25
+    """
+    u = rig.calibration.get("uncertainty_mm") if isinstance(rig.calibration, dict) else None
+    if u is None:
+        return None
+    arr = np.asarray(u, dtype=np.float64)
+    if arr.size == 0 or not np.all(np.isfinite(arr)) or np.any(arr < 0):
+        raise InputError(f"rig calibration.uncertainty_mm: expected non-negative finite values per LED, got {u}")
+    return float(arr.max())
