@@ -559,6 +559,12 @@ def _options(options) -> PhotometricOptions:
     return options
 
 
+def _resolved(inp: PhotometricInput, options) -> PhotometricOptions:
+    """The options with the input's defaults decided: outliers from the image count, the integrator from the
+    mask (:meth:`photometric.options.PhotometricOptions.resolved`)."""
+    return _options(options).resolved(n_images=inp.size["images"], masked=not bool(inp.data.mask.all()))
+
+
 def read(source, options: PhotometricOptions | None = None, *, lights=None, intensities=None, mask=None,
          select: str | Sequence[str] | None = None, pixel_size: float | None = None, light_positions=None,
          led_mu=None, flat_field=None, flat_albedo: float | None = None, camera=None,
@@ -731,7 +737,7 @@ def solve(inp: PhotometricInput, options: PhotometricOptions | None = None, *,
     """
     from photometric.normals import angular_error_deg
 
-    opts = _options(options)
+    opts = _resolved(inp, options)
     t0 = time.perf_counter()
     data, near = inp.data, inp.setup
     n_img, rows, cols = data.images.shape[:3]
@@ -821,7 +827,7 @@ def integrate(inp: PhotometricInput, sol: Solution, options: PhotometricOptions 
         return Height(sol.fit.height, sol.fit.timings_s["integrate"])
     t0 = time.perf_counter()
     fit = sol.fit
-    height = integrate_slopes(fit.p, fit.q, _options(options).integrator, mask=fit.valid,
+    height = integrate_slopes(fit.p, fit.q, _resolved(inp, options).integrator, mask=fit.valid,
                               pixel_size=inp.pixel_size_mm, dtype=np.float32)
     return Height(height, time.perf_counter() - t0)
 
@@ -905,7 +911,7 @@ def uncertainty(inp: PhotometricInput, sol: Solution, height: Height, defects: D
     -------
     photometric.uncertainty.UncertaintyResult
     """
-    opts = _options(options)
+    opts = _resolved(inp, options)
     if opts.uncertainty is None:
         raise InputError("uncertainty: the options state no input uncertainties (options.uncertainty is None)")
     if defects.labels is None:
@@ -944,7 +950,7 @@ def summarize(inp: PhotometricInput, sol: Solution, height: Height, defects: Def
         ``final_depth_change_mm``, ``converged``, ``tolerance_mm``, ``anchor`` and
         ``iteration_history``.
     """
-    opts = _options(options)
+    opts = _resolved(inp, options)
     fit, data, h = sol.fit, sol.data, inp.pixel_size_mm
     mask = data.mask
     n_mask = int(mask.sum())

@@ -177,10 +177,10 @@ def register(sub) -> None:
     p.add_argument("--intensities", default=None, metavar="I",
                    help="light intensities: one value or 'r g b' per row (text, .npy or .json)")
     p.add_argument("--mask", default=None, metavar="M", help="object mask image (non-zero inside)")
-    p.add_argument("--integrator", default=DEFAULTS.integrator, choices=("dct", "fc", "lsq", "robust"),
-                   help="height integrator: dct (Simchony, free boundary; default), fc "
-                   "(Frankot-Chellappa, periodic), lsq (masked least squares, multigrid CG), robust "
-                   "(lsq reweighted per edge: keeps depth jumps and silhouettes local)")
+    p.add_argument("--integrator", default=DEFAULTS.integrator, choices=("auto", "dct", "fc", "lsq", "robust"),
+                   help="height integrator: dct (Simchony, free boundary; default), auto (dct on a full rectangle, "
+                   "lsq when a mask cuts it), fc (Frankot-Chellappa, periodic), lsq (masked least squares, "
+                   "multigrid CG), robust (lsq reweighted per edge: keeps depth jumps and silhouettes local)")
     _add_camera(p, "orthographic pixel size in mm (default: the folder's scene.json, else 1; required "
                 "with point lights unless the rig or folder states the camera)")
     p.add_argument("--light-positions", default=None, metavar="P",
@@ -220,9 +220,10 @@ def register(sub) -> None:
                      help="use only the three images named in the folder's triad.txt")
     sel.add_argument("--select", nargs="+", default=None, metavar="NAME",
                      help="use only these image names of the folder (in this order)")
-    p.add_argument("--outliers", action="store_true",
+    p.add_argument("--outliers", action=argparse.BooleanOptionalAction, default=DEFAULTS.outliers,
                    help="shadow/highlight mode: drop dark or saturated observations and re-solve "
-                   "(N >= 4); a triad marks such pixels invalid")
+                   "(N >= 4); a triad marks such pixels invalid. Default: on with 6 or more images; "
+                   "--no-outliers turns it off")
     p.add_argument("--dark", type=float, default=DEFAULTS.dark,
                    help=f"outlier mode: an observation below DARK x albedo is a shadow (default {DEFAULTS.dark:g})")
     p.add_argument("--saturation", type=float, default=DEFAULTS.saturation,
