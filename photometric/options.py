@@ -42,8 +42,9 @@ OUTLIER_MIN_IMAGES = 6
 MASKED_INTEGRATOR = "lsq"
 
 #: Surface methods: the least-squares fit (:func:`surfaces.fit.fit_height`) and the Coons
-#: interpolation of a decimated grid (:func:`photometric.integrate.height_to_patches`).
-SURFACES = ("fit", "coons")
+#: interpolation of a decimated grid (:func:`photometric.integrate.height_to_patches`); ``"none"``: no
+#: surface model and no mesh (a normals-and-height run, for big captures).
+SURFACES = ("fit", "coons", "none")
 #: ``light_model`` choices: from the input (point lights when LED positions are known), or forced.
 LIGHT_MODELS = ("auto", "point", "directional")
 #: Backgrounds removed before the defects are measured (:func:`photometric.defects.fit_background`).
@@ -112,11 +113,12 @@ class PhotometricOptions:
         :func:`photometric.nearfield.solve_nearfield`).
     max_iterations : int
         Near-field passes per resolution (at least 1).
-    surface : {"fit", "coons"}
+    surface : {"fit", "coons", "none"}
         ``"fit"``: bicubic patches fitted by least squares to the height and the slopes of
         every pixel, refined where they miss ``surface_tolerance``
         (:func:`surfaces.fit.fit_height`); ``"coons"``: Coons patches through the
-        decimated height (:func:`photometric.integrate.height_to_patches`).
+        decimated height (:func:`photometric.integrate.height_to_patches`); ``"none"``: no
+        surface model and no mesh.
     step : int or None
         Pixels per patch of the surface model: the largest patch side of the fit
         (default :func:`surfaces.fit.default_step`, about 64 patches across) or the

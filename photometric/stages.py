@@ -974,7 +974,9 @@ def summarize(inp: PhotometricInput, sol: Solution, height: Height, defects: Def
         "mean_residual": sol.mean_residual,
         "height_range_mm": float(np.nanmax(z) - np.nanmin(z)) if fit.valid.any() else 0.0,
     }
-    if surf is not None:
+    if surf is None:
+        summary["surface"] = "none"
+    else:
         summary.update({
             "patches": list(surf.patches.shape),
             "patch_step_px": surf.step_px,

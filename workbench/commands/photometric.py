@@ -234,8 +234,9 @@ def register(sub) -> None:
                    "prediction by more than HIGHLIGHT x albedo (default off)")
     p.add_argument("--surface", default=DEFAULTS.surface, choices=SURFACES,
                    help="surface model: fit (bicubic patches fitted by least squares to the height and "
-                   "the slopes of every pixel, smaller where they miss --surface-tolerance; default) or "
-                   "coons (Coons patches through every STEP-th height, tangents from single pixels)")
+                   "the slopes of every pixel, smaller where they miss --surface-tolerance; default), "
+                   "coons (Coons patches through every STEP-th height, tangents from single pixels) or none "
+                   "(normals and height only: no surface model, no surface.ply; big captures)")
     p.add_argument("--surface-tolerance", type=float, default=None, metavar="MM",
                    help="fit: largest deviation of the surface from the integrated height, mm "
                    "(default 0.5 %% of the height range, or 0.01 px, or four times the height's noise at "
@@ -598,12 +599,11 @@ def _reconstruct(args: argparse.Namespace) -> int:
     unit = "px" if summary["pixel_size_source"].startswith("default") else "mm"
     if "height_rmse_mm" in summary:
         print(f"height RMSE vs height_gt: {summary['height_rmse_mm']:.4g} {unit}")
-    print(
-        f"height range {summary['height_range_mm']:.4g} {unit} ({summary['integrator']}), "
-        f"{summary['n_patches']} patches ({summary['surface']}, surface within "
-        f"{summary['surface_max_dev_mm']:.3g} {unit} of the height), "
-        f"{summary['mesh']['triangles']} triangles, {summary['n_defects']} defect(s)"
-    )
+    surface = ("no surface model (--surface none)" if summary["surface"] == "none" else
+               f"{summary['n_patches']} patches ({summary['surface']}, surface within "
+               f"{summary['surface_max_dev_mm']:.3g} {unit} of the height), {summary['mesh']['triangles']} triangles")
+    print(f"height range {summary['height_range_mm']:.4g} {unit} ({summary['integrator']}), {surface}, "
+          f"{summary['n_defects']} defect(s)")
     if "uncertainty" in summary:
         unc = summary["uncertainty"]
         print(f"uncertainty ({unc['method']}, k = 2): noise sigma {unc['noise_sigma']:.3g} "
