@@ -36,7 +36,7 @@ import numpy as np
 
 from photometric.camera import Camera, Orthographic, Perspective, make_camera
 from photometric.io import (PhotometricData, exposure_note, full_scale_of, read_ambient, read_folder, read_images,
-                            read_mask)
+                            read_mask, subtract_ambient)
 from photometric.io import load_intensities, load_light_positions, load_lights
 from photometric.leds import PointLights, point_lights
 from photometric.lights import as_intensities, validate_lights
@@ -649,13 +649,13 @@ def read(source, options: PhotometricOptions | None = None, *, lights=None, inte
     if bayer is not None and info["kind"] not in ("files", "folder"):
         raise InputError("bayer: only image files are read as mosaics (an array is already demosaiced)")
     if ambient is not None:
+        if info["kind"] not in ("files", "folder"):  # the caller's array stays as it was
+            data = replace(data, images=np.array(data.images, np.float32))
         if isinstance(ambient, (str, Path)) or (isinstance(ambient, Sequence) and ambient
                                                 and all(isinstance(a, (str, Path)) for a in ambient)):
             read_ambient(ambient, data.images, bayer)
             info["ambient"] = [str(a) for a in ([ambient] if isinstance(ambient, (str, Path)) else ambient)]
         else:
-            from photometric.io import subtract_ambient
-
             subtract_ambient(data.images, ambient)
             info["ambient"] = "array"
     if bayer is not None:

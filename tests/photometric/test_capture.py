@@ -66,3 +66,13 @@ def test_dark_capture_warns():
     assert note is not None and "of 255 DN" in note and "dark capture" in note
     assert exposure_note(np.clip(dark8 * 2.2, 0, 1).astype(np.float32)) is None
     assert exposure_note(dark8.astype(np.float32), full_scale=None) is None  # float input: no full scale
+
+
+def test_read_subtracts_an_array_ambient_without_touching_the_input():
+    from photometric import stages
+
+    images = np.full((3, 6, 6), 0.5, np.float32)
+    lights = np.array([[0.5, 0.0, 0.866], [-0.25, 0.433, 0.866], [-0.25, -0.433, 0.866]])
+    inp = stages.read(images, lights=lights, ambient=np.full((6, 6), 0.2, np.float32))
+    assert np.allclose(inp.data.images, 0.3) and np.all(images == 0.5)
+    assert inp.info["ambient"] == "array"
