@@ -51,6 +51,8 @@ __all__ = [
     "gradient_field",
     "depth_from_field",
     "footprint_area",
+    "intrinsic_matrix",
+    "undistort_images",
 ]
 
 #: Camera model names (``--camera``; ``"model"`` in ``scene.json`` and ``rig.json``).
@@ -97,12 +99,17 @@ class Perspective:
     focal_length_y_px : float or None
         Focal length along the columns ``f_y`` in pixels (OpenCV's ``K[1, 1]``) when it
         differs from ``focal_length_px`` (``K[0, 0]``); ``None``: square pixels.
+    distortion : tuple of float or None
+        OpenCV's lens distortion ``(k1, k2, p1, p2, k3)`` of this camera's images; the read
+        stage resamples them to the distortion-free pinhole camera of the same ``K``
+        (:func:`undistort_images`), so every formula here stays a pinhole's. None: none.
     """
 
     focal_length_px: float
     camera_height_mm: float
     principal_point_px: tuple[float, float] | None = None
     focal_length_y_px: float | None = None
+    distortion: tuple[float, ...] | None = None
 
     model = "perspective"
 
@@ -132,6 +139,8 @@ class Perspective:
             out["principal_point_px"] = list(self.centre(shape))
         if self.focal_length_y_px is not None:
             out["focal_length_y_px"] = float(self.focal_length_y_px)
+        if self.distortion is not None:
+            out["distortion"] = [float(c) for c in self.distortion]
         return out
 
     def nominal_pixel_mm(self) -> float:
@@ -150,6 +159,7 @@ def make_camera(
     camera_height_mm: float | None = None,
     principal_point_px=None,
     focal_length_y_px: float | None = None,
+    distortion=None,
 ) -> Camera:
     """Build and check a camera from the user's options.
 
@@ -168,6 +178,8 @@ def make_camera(
         Perspective principal point (column, row), 0-based; default the image centre.
     focal_length_y_px : float, optional
         ``fy`` when ``focal_length_px`` is one number (default: square pixels).
+    distortion : sequence of float, optional
+        Perspective lens distortion, OpenCV's ``(k1, k2, p1, p2, k3)`` (fewer: the rest 0).
 
     Returns
     -------
@@ -192,7 +204,8 @@ def make_camera(
     if model not in MODELS:
         raise InputError(f"camera: expected one of {MODELS}, got {model!r}")
     if model == "orthographic":
-        if any(v is not None for v in (focal_length_px, camera_height_mm, principal_point_px, focal_length_y_px)):
+        if any(v is not None for v in (focal_length_px, camera_height_mm, principal_point_px, focal_length_y_px,
+                                       distortion)):
             raise InputError("camera: --focal-length-px, --camera-height and a principal point need "
                              "--camera perspective")
         if pixel_size_mm is None:
@@ -215,8 +228,15 @@ def make_camera(
             raise InputError("focal_length_px: give (fx, fy) or focal_length_y_px, not both")
         focal_length_px, focal_length_y_px = float(pair[0]), float(pair[1])
     fy = None if focal_length_y_px is None else positive(focal_length_y_px, "focal_length_y_px")
+    dist = None
+    if distortion is not None:
+        d = as_array(distortion, "distortion", ndim=1)
+        if not 1 <= d.size <= 5:
+            raise InputError(f"distortion: expected k1[,k2[,p1[,p2[,k3]]]] (OpenCV's order), got {d.size} values")
+        dist = tuple(float(c) for c in np.concatenate([d, np.zeros(5 - d.size)]))
+        dist = None if not any(dist) else dist
     return Perspective(positive(focal_length_px, "focal_length_px"),
-                       positive(camera_height_mm, "camera_height_mm"), pp, fy)
+                       positive(camera_height_mm, "camera_height_mm"), pp, fy, dist)
 
 
 def camera_from_dict(entry, name: str = "camera") -> Camera:
@@ -245,6 +265,7 @@ def camera_from_dict(entry, name: str = "camera") -> Camera:
             camera_height_mm=entry.get("camera_height_mm") if entry["model"] == "perspective" else None,
             principal_point_px=entry.get("principal_point_px") if entry["model"] == "perspective" else None,
             focal_length_y_px=entry.get("focal_length_y_px") if entry["model"] == "perspective" else None,
+            distortion=entry.get("distortion") if entry["model"] == "perspective" else None,
         )
     except ValueError as exc:
         raise InputError(f"{name}: {exc}") from None
@@ -560,3 +581,62 @@ def footprint_area(camera: Camera, z, p=None, q=None) -> np.ndarray | float:
     lu = as_array(p, "p", shape=zz.shape, finite=False)
     lv = as_array(q, "q", shape=zz.shape, finite=False)
     return scale * np.abs(1.0 + u[None, :] * lu + v[:, None] * lv)
+
+
+def intrinsic_matrix(camera: Perspective, shape) -> np.ndarray:
+    """OpenCV's intrinsic matrix ``K`` of a perspective camera (0-based principal point).
+
+    Parameters
+    ----------
+    camera : Perspective
+    shape : (H, W)
+        Image size (for the default principal point).
+
+    Returns
+    -------
+    numpy.ndarray, shape (3, 3), float64
+        ``[[fx, 0, cx], [0, fy, cy], [0, 0, 1]]``.
+    """
+    cx, cy = camera.centre(shape)
+    return np.array([[camera.focal_length_px, 0.0, cx], [0.0, camera.fy, cy], [0.0, 0.0, 1.0]])
+
+
+def undistort_images(camera: Camera, images, mask=None):
+    """Resample images through a distorting lens to the distortion-free pinhole camera of the same ``K``.
+
+    Each output pixel looks up where its pinhole ray lands in the distorted image
+    (``cv2.initUndistortRectifyMap`` with OpenCV's distortion model, bilinear
+    interpolation); a pixel whose ray falls outside the distorted image is 0 and leaves
+    the mask.
+
+    Parameters
+    ----------
+    camera : Orthographic or Perspective
+        Without ``distortion`` the images come back as they are.
+    images : numpy.ndarray, shape (N, H, W) or (N, H, W, 3), float32
+    mask : numpy.ndarray, shape (H, W), bool, optional
+
+    Returns
+    -------
+    images : numpy.ndarray
+        The resampled stack (a new array when resampled).
+    mask : numpy.ndarray or None
+        The mask resampled (nearest) and cut to the pixels seen; None when none was given
+        and nothing was cut.
+    """
+    import cv2
+
+    if not isinstance(camera, Perspective) or camera.distortion is None:
+        return images, mask
+    h, w = images.shape[1:3]
+    K = intrinsic_matrix(camera, (h, w))
+    map_x, map_y = cv2.initUndistortRectifyMap(K, np.asarray(camera.distortion), None, K, (w, h), cv2.CV_32FC1)
+    out = np.empty_like(images)
+    for k in range(images.shape[0]):
+        out[k] = cv2.remap(images[k], map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+    seen = (map_x >= 0) & (map_x <= w - 1) & (map_y >= 0) & (map_y <= h - 1)
+    if mask is not None:
+        m = cv2.remap(np.asarray(mask, np.uint8), map_x, map_y, cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT,
+                      borderValue=0) > 0
+        return out, m & seen
+    return out, (None if seen.all() else seen)

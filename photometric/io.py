@@ -322,11 +322,12 @@ def exposure_note(images: np.ndarray, mask=None, full_scale: float | None = 1.0,
     if full_scale is None:
         return None
     m = np.ones(images.shape[1:3], bool) if mask is None else np.asarray(mask, bool)
-    vals = images[:, m]
+    # a strided sample of at most about 2 million values: no copy of the whole stack (the solve's memory)
+    s = max(1, int(np.ceil(np.sqrt(images.size / 2_000_000))))
+    vals = images[:, ::s, ::s][:, m[::s, ::s]]
     if vals.size == 0:
         return None
-    step = max(1, vals.size // 2_000_000)
-    peak = float(np.percentile(vals.reshape(-1)[::step], 99.9))
+    peak = float(np.percentile(vals, 99.9))
     if peak >= DARK_PEAK * full_scale:
         return None
     dn = f" of {2**bits - 1} DN" if bits else ""

@@ -56,7 +56,7 @@ U_NAMES = {"light_u_deg": "light_tolerance_deg", "light_position_u_mm": "light_p
 #: Keywords of :func:`photometric.stages.read` (the input), beside the options.
 READ_KEYWORDS = ("lights", "intensities", "mask", "select", "pixel_size", "light_positions", "led_mu",
                  "flat_field", "flat_albedo", "camera", "focal_length_px", "camera_height_mm",
-                 "principal_point_px", "rig", "ambient", "bayer", "led_axes")
+                 "principal_point_px", "rig", "ambient", "bayer", "led_axes", "distortion")
 
 
 def _choice(value, name: str, allowed: tuple[str, ...]) -> None:

@@ -34,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from photometric.camera import Camera, Orthographic, Perspective, make_camera
+from photometric.camera import Camera, Orthographic, Perspective, make_camera, undistort_images
 from photometric.io import (PhotometricData, exposure_note, full_scale_of, read_ambient, read_folder, read_images,
                             read_mask, subtract_ambient)
 from photometric.io import load_intensities, load_light_positions, load_lights
@@ -381,7 +381,7 @@ def _flat_images(flat_field, n: int, shape) -> np.ndarray:
 
 def _near_setup(data: PhotometricData, *, light_model, light_positions, led_mu, flat_field, flat_albedo, camera,
                 pixel_size, scene_h, focal_length_px, camera_height_mm, principal_point_px, rig, rig_obj,
-                intensities, led_axes=None) -> LightSetup | None:
+                intensities, led_axes=None, distortion=None) -> LightSetup | None:
     """Decide the light model and camera; None means the far-field orthographic path of today.
 
     Precedence: the options, then ``rig.json``, then the folder's own files
@@ -423,6 +423,13 @@ def _near_setup(data: PhotometricData, *, light_model, light_positions, led_mu, 
     else:
         cam = None
 
+    if distortion is not None:
+        if not isinstance(cam, Perspective):
+            raise InputError("distortion: lens distortion needs a perspective camera (--camera perspective, or a "
+                             "perspective rig)")
+        cam = make_camera("perspective", focal_length_px=(cam.focal_length_px, cam.fy),
+                          camera_height_mm=cam.camera_height_mm, principal_point_px=cam.principal_point_px,
+                          distortion=distortion)
     if light_model == "directional" or lights is None:
         if light_model == "point":
             raise InputError("light_model: 'point' needs LED positions (--light-positions, --rig or the "
@@ -439,14 +446,14 @@ def _near_setup(data: PhotometricData, *, light_model, light_positions, led_mu, 
     gains, flat = None, None
     if flat_field is not None and flat_field is not False:
         albedo = 1.0 if flat_albedo is None else flat_albedo
-        gains = flat_field_gains(_flat_images(flat_field, n, shape), lights, cam, albedo)
+        gains = flat_field_gains(undistort_images(cam, _flat_images(flat_field, n, shape))[0], lights, cam, albedo)
         flat = {"source": "option", "albedo": float(albedo)}
     elif flat_field is None and rig_obj is not None and rig_obj.gains is not None:
         gains = rig_obj.gains
         flat = {"source": "rig", "albedo": rig_obj.flat_albedo, "smoothing_px": rig_obj.flat_smoothing_px}
     elif flat_field is None and data.flat_images is not None:
         albedo = flat_albedo if flat_albedo is not None else (data.flat_albedo or 1.0)
-        gains = flat_field_gains(data.flat_images, lights, cam, albedo)
+        gains = flat_field_gains(undistort_images(cam, data.flat_images)[0], lights, cam, albedo)
         flat = {"source": "folder", "albedo": float(albedo)}
     if flat is not None and flat["source"] != "rig":
         flat["smoothing_px"] = FLAT_SMOOTHING_PX
@@ -569,7 +576,7 @@ def read(source, options: PhotometricOptions | None = None, *, lights=None, inte
          select: str | Sequence[str] | None = None, pixel_size: float | None = None, light_positions=None,
          led_mu=None, flat_field=None, flat_albedo: float | None = None, camera=None,
          focal_length_px: float | None = None, camera_height_mm: float | None = None, principal_point_px=None,
-         rig=None, ambient=None, bayer: str | None = None, led_axes=None) -> PhotometricInput:
+         rig=None, ambient=None, bayer: str | None = None, led_axes=None, distortion=None) -> PhotometricInput:
     """Read and check the input of a solve: images, lights, mask, light model and camera.
 
     Parameters
@@ -620,6 +627,10 @@ def read(source, options: PhotometricOptions | None = None, *, lights=None, inte
         LED axes in the rig frame (from the LED into the scene; a text file ``x y z`` per
         LED), replacing the default aim at the origin or the rig's; needs the lobes ``mu``
         (``led_mu``, or the rig's).
+    distortion : sequence of float, optional
+        OpenCV's lens distortion ``(k1, k2, p1, p2, k3)`` of the perspective camera (default the
+        rig's or none): the images, mask and flat fields are resampled to the pinhole camera
+        (:func:`photometric.camera.undistort_images`).
 
     Returns
     -------
@@ -665,7 +676,12 @@ def read(source, options: PhotometricOptions | None = None, *, lights=None, inte
                        flat_field=flat_field, flat_albedo=flat_albedo, camera=camera, pixel_size=pixel_size,
                        scene_h=scene_h, focal_length_px=focal_length_px, camera_height_mm=camera_height_mm,
                        principal_point_px=principal_point_px, rig=rig, rig_obj=rig_obj, intensities=intensities,
-                       led_axes=led_axes)
+                       led_axes=led_axes, distortion=distortion)
+    if near is not None and getattr(near.camera, "distortion", None) is not None:
+        # through the lens: the images (and mask) resampled to the pinhole camera every formula assumes
+        imgs, m = undistort_images(near.camera, data.images, data.mask)
+        data = replace(data, images=imgs, mask=m)
+        info["undistorted"] = list(near.camera.distortion)
     if near is not None:
         h = near.camera.nominal_pixel_mm()
         h_source = near.camera_source

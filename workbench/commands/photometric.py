@@ -32,6 +32,9 @@ def _add_camera(p: argparse.ArgumentParser, pixel_help: str) -> None:
                    "K[0,0], K[1,1])")
     p.add_argument("--camera-height", type=float, default=None, metavar="MM",
                    help="perspective: camera centre height above the reference plane z = 0, mm")
+    p.add_argument("--distortion", default=None, metavar="K1,K2,P1,P2,K3",
+                   help="perspective: lens distortion in OpenCV's model and order (fewer values: the rest 0); the "
+                   "images are resampled to the distortion-free pinhole camera before anything is measured")
     p.add_argument("--principal-point-px", "--principal-point", dest="principal_point", default=None, metavar="CX,CY",
                    help="perspective: principal point (column, row) in pixels, 0-based: the top-left pixel's centre "
                    "is 0,0 (a MATLAB calibration's 1-based point minus 1); default the image centre")
@@ -64,8 +67,10 @@ def _camera_options(args: argparse.Namespace) -> dict:
         pp = _numbers(args.principal_point, "--principal-point-px")
         if not isinstance(pp, list) or len(pp) != 2:
             raise InputError(f"--principal-point-px: expected 'CX,CY', got {args.principal_point!r}")
+    dist = None if getattr(args, "distortion", None) is None else _numbers(args.distortion, "--distortion")
     return {"camera": args.camera, "focal_length_px": _focal(args.focal_length_px),
-            "camera_height_mm": args.camera_height, "principal_point_px": pp}
+            "camera_height_mm": args.camera_height, "principal_point_px": pp,
+            **({} if dist is None else {"distortion": [dist] if isinstance(dist, float) else dist})}
 
 
 #: what the uncertainty options add to ``photometric reconstruct``'s result folder
@@ -325,6 +330,9 @@ def _calibrate(args: argparse.Namespace) -> int:
     from workbench.runs.photometric import calibrate_to_rig
 
     opts = _camera_options(args)
+    if opts.pop("distortion", None) is not None:
+        raise InputError("--distortion: the calibration does not undistort its sphere and flat-field images yet; "
+                         "give the lens distortion to reconstruct instead")
     camera = None
     if any(v is not None for v in (*opts.values(), args.pixel_size)):
         model = opts["camera"] or ("perspective" if args.focal_length_px or args.camera_height else "orthographic")
@@ -487,10 +495,11 @@ def _rig_option(args: argparse.Namespace):
         rig, est, warning = _imported(cal, camera_height=args.camera_height, images=args.images, mask=args.mask,
                                       ambient=args.ambient, bayer=args.bayer, focal=opts["focal_length_px"],
                                       pp=opts["principal_point_px"], estimate=not args.no_distance_estimate)
-        return rig, dict.fromkeys(opts), est, warning
+        return rig, {**dict.fromkeys(opts), "distortion": opts.get("distortion")}, est, warning
     if args.camera_height is not None and all(opts[k] is None for k in ("camera", "focal_length_px",
                                                                          "principal_point_px")):
-        return at_camera_height(read_rig(args.rig), args.camera_height), dict.fromkeys(opts), None, None
+        return (at_camera_height(read_rig(args.rig), args.camera_height),
+                {**dict.fromkeys(opts), "distortion": opts.get("distortion")}, None, None)
     return args.rig, opts, None, None
 
 
