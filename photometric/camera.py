@@ -53,6 +53,7 @@ __all__ = [
     "footprint_area",
     "intrinsic_matrix",
     "undistort_images",
+    "calibrate_checkerboard",
 ]
 
 #: Camera model names (``--camera``; ``"model"`` in ``scene.json`` and ``rig.json``).
@@ -640,3 +641,78 @@ def undistort_images(camera: Camera, images, mask=None):
                       borderValue=0) > 0
         return out, m & seen
     return out, (None if seen.all() else seen)
+
+
+def calibrate_checkerboard(images, board, square_mm: float, *, camera_height_mm: float | None = None):
+    """A perspective camera with lens distortion from checkerboard images (OpenCV's calibration).
+
+    The inner corners are found (``cv2.findChessboardCorners``, refined with
+    ``cv2.cornerSubPix``) and ``cv2.calibrateCamera`` fits ``fx``, ``fy``, the principal point
+    and ``(k1, k2, p1, p2, k3)``. The camera height above the reference plane is
+    ``camera_height_mm`` when given, else the distance of the camera centre from the board
+    of the **first** image (the board lying on the reference plane).
+
+    Parameters
+    ----------
+    images : sequence of numpy.ndarray, each (H, W) or (H, W, 3)
+        Views of the board (one size), values in [0, 1] or integers; at least 3 views for
+        a stable fit.
+    board : (int, int)
+        Inner corners per row and per column ``(COLS, ROWS)`` (``--board COLSxROWS``).
+    square_mm : float
+        Side of one square, mm.
+    camera_height_mm : float, optional
+
+    Returns
+    -------
+    camera : Perspective
+    info : dict
+        ``rms_reprojection_px`` (OpenCV's RMS over every corner), ``views`` (images whose
+        corners were found), ``board``, ``square_mm``, ``camera_height_source``.
+
+    Raises
+    ------
+    InputError
+        No corners in some image, fewer than 3 usable views, a bad board or square size.
+    """
+    import cv2
+
+    cols, rows = (int(board[0]), int(board[1]))
+    if cols < 2 or rows < 2:
+        raise InputError(f"board: expected at least 2 x 2 inner corners, got {cols} x {rows}")
+    sq = positive(square_mm, "square_mm")
+    obj = np.zeros((cols * rows, 3), np.float32)
+    obj[:, :2] = np.mgrid[0:cols, 0:rows].T.reshape(-1, 2) * sq
+    found, shape = [], None
+    for k, img in enumerate(images):
+        a = np.asarray(img)
+        grey = a.mean(axis=2) if a.ndim == 3 else a
+        if shape is None:
+            shape = grey.shape
+        elif grey.shape != shape:
+            raise InputError(f"checkerboard: image {k} is {grey.shape}, image 0 is {shape}")
+        g8 = np.clip(grey * (255.0 if grey.dtype.kind == "f" else 255.0 / np.iinfo(grey.dtype).max), 0, 255)
+        g8 = g8.astype(np.uint8)
+        ok, corners = cv2.findChessboardCorners(g8, (cols, rows), cv2.CALIB_CB_ADAPTIVE_THRESH
+                                                | cv2.CALIB_CB_NORMALIZE_IMAGE)
+        if not ok:
+            raise InputError(f"checkerboard: image {k}: no {cols} x {rows} inner corners found")
+        corners = cv2.cornerSubPix(g8, corners, (5, 5), (-1, -1),
+                                   (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 50, 1e-4))
+        found.append(corners)
+    if len(found) < 3:
+        raise InputError(f"checkerboard: {len(found)} view(s); give at least 3 (tilted differently)")
+    h, w = shape
+    rms, K, dist, rvecs, tvecs = cv2.calibrateCamera([obj] * len(found), found, (w, h), None, None)
+    source = "option"
+    if camera_height_mm is None:
+        R, _ = cv2.Rodrigues(rvecs[0])
+        centre = -R.T @ tvecs[0].ravel()  # the camera centre in the first board's frame
+        camera_height_mm, source = float(abs(centre[2])), "first checkerboard view (board on the reference plane)"
+    cam = make_camera("perspective", focal_length_px=(float(K[0, 0]), float(K[1, 1])),
+                      camera_height_mm=camera_height_mm, principal_point_px=(float(K[0, 2]), float(K[1, 2])),
+                      distortion=np.asarray(dist).ravel()[:5])
+    info = {"method": "checkerboard (cv2.findChessboardCorners + cv2.calibrateCamera)",
+            "rms_reprojection_px": float(rms), "views": len(found), "board": [cols, rows], "square_mm": sq,
+            "camera_height_source": source}
+    return cam, info
