@@ -321,8 +321,43 @@ def register(sub) -> None:
     _add_camera(c, "orthographic pixel size in mm (default: the sphere folders' scene.json)")
     c.add_argument("--flat-field", nargs="+", default=None, metavar="F",
                    help="flat-field images (flat matte target on z = 0), one per light in light order")
+    _add_checkerboard(c)
     _add_rig_options(c)
     c.set_defaults(func=_calibrate)
+
+
+def _add_checkerboard(c: argparse.ArgumentParser) -> None:
+    """The camera from checkerboard views (shared by ``photometric calibrate`` and ``inspect calibrate``)."""
+    c.add_argument("--checkerboard", nargs="+", default=None, metavar="IMG",
+                   help="checkerboard views (3 or more, tilted differently; the first lying on the reference plane "
+                   "unless --camera-height is given): the perspective camera with its lens distortion, calibrated "
+                   "by OpenCV (fx, fy, principal point, k1,k2,p1,p2,k3) and its RMS reprojection error, into rig.json; "
+                   "the sphere and flat-field images are undistorted with it")
+    c.add_argument("--board", default=None, metavar="COLSxROWS", help="inner corners of the checkerboard, e.g. 9x6")
+    c.add_argument("--square-mm", type=float, default=None, metavar="S", help="side of one checkerboard square, mm")
+
+
+def _checkerboard_camera(args: argparse.Namespace):
+    """The camera of ``--checkerboard`` (and its calibration record), or (None, None)."""
+    if getattr(args, "checkerboard", None) is None:
+        if getattr(args, "board", None) is not None or getattr(args, "square_mm", None) is not None:
+            raise InputError("--board/--square-mm: only with --checkerboard")
+        return None, None
+    from photometric.camera import calibrate_checkerboard
+    from photometric.io import read_images
+
+    if args.board is None or args.square_mm is None:
+        raise InputError("--checkerboard: needs --board COLSxROWS and --square-mm S")
+    parts = args.board.lower().split("x")
+    if len(parts) != 2 or not all(p.strip().isdigit() for p in parts):
+        raise InputError(f"--board: expected COLSxROWS inner corners (e.g. 9x6), got {args.board!r}")
+    if any(getattr(args, k, None) is not None for k in ("pixel_size", "focal_length_px", "principal_point",
+                                                         "distortion")) or args.camera == "orthographic":
+        raise InputError("--checkerboard: calibrates the perspective camera itself (leave out --pixel-size, "
+                         "--focal-length-px, --principal-point-px, --distortion)")
+    images = read_images(list(args.checkerboard))
+    return calibrate_checkerboard(list(images), (int(parts[0]), int(parts[1])), args.square_mm,
+                                  camera_height_mm=args.camera_height)
 
 
 def _calibrate(args: argparse.Namespace) -> int:
@@ -331,25 +366,46 @@ def _calibrate(args: argparse.Namespace) -> int:
 
     opts = _camera_options(args)
     if opts.pop("distortion", None) is not None:
-        raise InputError("--distortion: the calibration does not undistort its sphere and flat-field images yet; "
-                         "give the lens distortion to reconstruct instead")
-    camera = None
-    if any(v is not None for v in (*opts.values(), args.pixel_size)):
+        raise InputError("--distortion: give the lens through --checkerboard (the sphere and flat-field images are "
+                         "then undistorted with it), or to reconstruct")
+    camera, board = _checkerboard_camera(args)
+    spheres, flats = args.spheres, args.flat_field
+    if camera is not None and camera.distortion is not None:
+        from dataclasses import replace
+
+        from photometric.calibrate import read_sphere_set
+        from photometric.camera import undistort_images
+        from photometric.io import read_images
+
+        if spheres is not None:
+            spheres = [read_sphere_set(d, camera)[0] for d in spheres]
+            spheres = [replace(s, images=undistort_images(camera, s.images)[0]) for s in spheres]
+        if flats is not None:
+            flats = undistort_images(camera, read_images(list(flats)))[0]
+    if camera is None and any(v is not None for v in (*opts.values(), args.pixel_size)):
         model = opts["camera"] or ("perspective" if args.focal_length_px or args.camera_height else "orthographic")
         camera = make_camera(model, pixel_size_mm=args.pixel_size, focal_length_px=opts["focal_length_px"],
                              camera_height_mm=args.camera_height, principal_point_px=opts["principal_point_px"])
     rig = calibrate_to_rig(
         args.out,
-        spheres=args.spheres,
+        spheres=spheres,
         light_positions=args.light_positions,
         camera=camera,
-        flat_field=args.flat_field,
+        flat_field=flats,
         flat_albedo=args.flat_albedo,
         led_mu=None if args.led_mu is None else _numbers(args.led_mu, "--led-mu"),
         intensities=args.intensities,
         window_px=args.window,
     )
     cal = rig["calibration"]
+    if board is not None:
+        from surfaces.io import write_json
+
+        cal = rig["calibration"] = {**cal, "camera_calibration": board}
+        write_json(args.out, rig)
+        print(f"camera from {board['views']} checkerboard views: RMS reprojection error "
+              f"{board['rms_reprojection_px']:.3f} px, height {rig['camera']['camera_height_mm']:.2f} mm "
+              f"({board['camera_height_source']}), distortion {rig['camera'].get('distortion')}")
     print(f"{len(rig['lights']['positions_mm'])} LEDs, {rig['camera']['model']} camera, "
           f"{rig['image_size'][0]} x {rig['image_size'][1]} px, flat field "
           f"{'yes' if rig['flat_field'] else 'no'} ({cal['method']})")
