@@ -142,7 +142,7 @@ def _project(camera: Camera, shape, centre: np.ndarray, radius: float) -> tuple[
         raise InputError(f"sphere: centre {centre.tolist()} mm with radius {radius} mm reaches the camera")
     f = camera.focal_length_px
     dist = float(np.linalg.norm([centre[0], centre[1], depth]))
-    return cy - f * centre[1] / depth, cx + f * centre[0] / depth, f * radius / np.sqrt(dist**2 - radius**2)
+    return cy - camera.fy * centre[1] / depth, cx + f * centre[0] / depth, f * radius / np.sqrt(dist**2 - radius**2)
 
 
 def sphere_from_outline(images, camera: Camera, *, threshold: float | None = None) -> tuple[np.ndarray, float]:

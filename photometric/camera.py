@@ -9,12 +9,17 @@ image sees the ray through its centre:
   ``x = (col - (W - 1) / 2) h``, ``y = ((H - 1) / 2 - row) h``, the project's pixel grid
   (:data:`surfaces.grid.GRID_CONVENTION`).
 * ``perspective`` (pinhole; focal length ``f`` in pixels, principal point ``(cx, cy)``
-  (column, row), by default ``((W - 1) / 2, (H - 1) / 2)``, camera centre
-  ``C = (0, 0, H_c)`` with ``H_c`` = ``camera_height_mm``, looking down ``-z``): the ray
-  from ``C`` along ``(u / f, v / f, -1)`` with the pixel offsets ``u = col - cx`` and
-  ``v = cy - row``. The surface point at depth ``w = H_c - z`` below the camera is
-  ``X = (u w / f, v w / f, z)``; the reference plane is seen at ``H_c / f`` mm per pixel
-  at the principal point.
+  (column, row; **0-based**: the centre of the top-left pixel is ``(0, 0)``), by default
+  ``((W - 1) / 2, (H - 1) / 2)``, camera centre ``C = (0, 0, H_c)`` with ``H_c`` =
+  ``camera_height_mm``, looking down ``-z``): the ray from ``C`` along
+  ``(u / f, v / f, -1)`` with the pixel offsets ``u = col - cx`` and
+  ``v = (cy - row) f / f_y``. The surface point at depth ``w = H_c - z`` below the camera
+  is ``X = (u w / f, v w / f, z)``; the reference plane is seen at ``H_c / f`` mm per
+  pixel at the principal point. ``f`` is the focal length along the rows (``fx``,
+  OpenCV's ``K[0, 0]``); a camera whose pixels are not square also has ``f_y``
+  (``K[1, 1]``, ``focal_length_y_px``; default ``f``): :func:`pixel_offsets` scales the
+  row offsets by ``f / f_y``, so every formula below keeps one ``f``, and
+  :func:`gradient_field`'s row derivative is per row of pixels.
 
 A surface seen by every pixel is one depth per pixel: ``height.npy`` holds ``z`` (mm) of
 the point each pixel sees and ``xy.npy`` its ``x, y`` (:func:`surface_xy`). Normals come
@@ -46,6 +51,9 @@ __all__ = [
     "gradient_field",
     "depth_from_field",
     "footprint_area",
+    "intrinsic_matrix",
+    "undistort_images",
+    "calibrate_checkerboard",
 ]
 
 #: Camera model names (``--camera``; ``"model"`` in ``scene.json`` and ``rig.json``).
@@ -86,15 +94,35 @@ class Perspective:
     camera_height_mm : float
         Height ``H_c`` of the camera centre above the reference plane, mm (> 0).
     principal_point_px : tuple of float or None
-        ``(cx, cy)`` (column, row) in pixels; ``None``: the image centre
-        ``((W - 1) / 2, (H - 1) / 2)``.
+        ``(cx, cy)`` (column, row) in pixels, 0-based (the top-left pixel's centre is
+        ``(0, 0)``; a MATLAB calibration's is ``(1, 1)``: subtract 1); ``None``: the image
+        centre ``((W - 1) / 2, (H - 1) / 2)``.
+    focal_length_y_px : float or None
+        Focal length along the columns ``f_y`` in pixels (OpenCV's ``K[1, 1]``) when it
+        differs from ``focal_length_px`` (``K[0, 0]``); ``None``: square pixels.
+    distortion : tuple of float or None
+        OpenCV's lens distortion ``(k1, k2, p1, p2, k3)`` of this camera's images; the read
+        stage resamples them to the distortion-free pinhole camera of the same ``K``
+        (:func:`undistort_images`), so every formula here stays a pinhole's. None: none.
     """
 
     focal_length_px: float
     camera_height_mm: float
     principal_point_px: tuple[float, float] | None = None
+    focal_length_y_px: float | None = None
+    distortion: tuple[float, ...] | None = None
 
     model = "perspective"
+
+    @property
+    def fy(self) -> float:
+        """Focal length along the columns, pixels (``focal_length_px`` for square pixels)."""
+        return float(self.focal_length_px if self.focal_length_y_px is None else self.focal_length_y_px)
+
+    @property
+    def aspect(self) -> float:
+        """``f / f_y``: the factor :func:`pixel_offsets` applies to the row offsets (1 for square pixels)."""
+        return float(self.focal_length_px) / self.fy
 
     def centre(self, shape) -> tuple[float, float]:
         """``(cx, cy)`` for an image of ``shape`` (H, W)."""
@@ -110,6 +138,10 @@ class Perspective:
                "camera_height_mm": float(self.camera_height_mm)}
         if self.principal_point_px is not None or shape is not None:
             out["principal_point_px"] = list(self.centre(shape))
+        if self.focal_length_y_px is not None:
+            out["focal_length_y_px"] = float(self.focal_length_y_px)
+        if self.distortion is not None:
+            out["distortion"] = [float(c) for c in self.distortion]
         return out
 
     def nominal_pixel_mm(self) -> float:
@@ -127,6 +159,8 @@ def make_camera(
     focal_length_px: float | None = None,
     camera_height_mm: float | None = None,
     principal_point_px=None,
+    focal_length_y_px: float | None = None,
+    distortion=None,
 ) -> Camera:
     """Build and check a camera from the user's options.
 
@@ -136,11 +170,17 @@ def make_camera(
         Camera model.
     pixel_size_mm : float, optional
         Orthographic pixel size, mm (required for ``"orthographic"``).
-    focal_length_px, camera_height_mm : float, optional
-        Perspective focal length (pixels) and camera height above the reference plane
-        (mm); both required for ``"perspective"``.
+    focal_length_px : float or (float, float), optional
+        Perspective focal length in pixels, or ``(fx, fy)`` for pixels that are not square
+        (OpenCV's ``K[0, 0]``, ``K[1, 1]``); required for ``"perspective"``.
+    camera_height_mm : float, optional
+        Camera height above the reference plane, mm; required for ``"perspective"``.
     principal_point_px : (cx, cy), optional
-        Perspective principal point (column, row); default the image centre.
+        Perspective principal point (column, row), 0-based; default the image centre.
+    focal_length_y_px : float, optional
+        ``fy`` when ``focal_length_px`` is one number (default: square pixels).
+    distortion : sequence of float, optional
+        Perspective lens distortion, OpenCV's ``(k1, k2, p1, p2, k3)`` (fewer: the rest 0).
 
     Returns
     -------
@@ -155,6 +195,8 @@ def make_camera(
     --------
     >>> make_camera("perspective", focal_length_px=2400, camera_height_mm=300).nominal_pixel_mm()
     0.125
+    >>> make_camera("perspective", focal_length_px=(3043, 3026), camera_height_mm=200).to_dict()["focal_length_y_px"]
+    3026.0
     >>> make_camera("perspective", focal_length_px=2400)
     Traceback (most recent call last):
     ...
@@ -163,7 +205,8 @@ def make_camera(
     if model not in MODELS:
         raise InputError(f"camera: expected one of {MODELS}, got {model!r}")
     if model == "orthographic":
-        if focal_length_px is not None or camera_height_mm is not None or principal_point_px is not None:
+        if any(v is not None for v in (focal_length_px, camera_height_mm, principal_point_px, focal_length_y_px,
+                                       distortion)):
             raise InputError("camera: --focal-length-px, --camera-height and a principal point need "
                              "--camera perspective")
         if pixel_size_mm is None:
@@ -180,8 +223,21 @@ def make_camera(
     pp = None
     if principal_point_px is not None:
         pp = tuple(float(c) for c in as_array(principal_point_px, "principal_point_px", shape=(2,)))
+    if np.ndim(focal_length_px) == 1:
+        pair = as_array(focal_length_px, "focal_length_px", shape=(2,))
+        if focal_length_y_px is not None:
+            raise InputError("focal_length_px: give (fx, fy) or focal_length_y_px, not both")
+        focal_length_px, focal_length_y_px = float(pair[0]), float(pair[1])
+    fy = None if focal_length_y_px is None else positive(focal_length_y_px, "focal_length_y_px")
+    dist = None
+    if distortion is not None:
+        d = as_array(distortion, "distortion", ndim=1)
+        if not 1 <= d.size <= 5:
+            raise InputError(f"distortion: expected k1[,k2[,p1[,p2[,k3]]]] (OpenCV's order), got {d.size} values")
+        dist = tuple(float(c) for c in np.concatenate([d, np.zeros(5 - d.size)]))
+        dist = None if not any(dist) else dist
     return Perspective(positive(focal_length_px, "focal_length_px"),
-                       positive(camera_height_mm, "camera_height_mm"), pp)
+                       positive(camera_height_mm, "camera_height_mm"), pp, fy, dist)
 
 
 def camera_from_dict(entry, name: str = "camera") -> Camera:
@@ -209,6 +265,8 @@ def camera_from_dict(entry, name: str = "camera") -> Camera:
             focal_length_px=entry.get("focal_length_px") if entry["model"] == "perspective" else None,
             camera_height_mm=entry.get("camera_height_mm") if entry["model"] == "perspective" else None,
             principal_point_px=entry.get("principal_point_px") if entry["model"] == "perspective" else None,
+            focal_length_y_px=entry.get("focal_length_y_px") if entry["model"] == "perspective" else None,
+            distortion=entry.get("distortion") if entry["model"] == "perspective" else None,
         )
     except ValueError as exc:
         raise InputError(f"{name}: {exc}") from None
@@ -229,14 +287,15 @@ def pixel_offsets(camera: Camera, shape) -> tuple[np.ndarray, np.ndarray]:
         ``col - cx`` (right); for the orthographic camera multiplied by the pixel size
         (mm, so ``u`` is ``x``).
     v : numpy.ndarray, shape (H,), float64
-        ``cy - row`` (up); orthographic: ``y`` in mm.
+        ``(cy - row) f / f_y`` (up; ``cy - row`` for square pixels); orthographic: ``y`` in mm.
     """
     h, w = image_shape(shape, "shape")
     if isinstance(camera, Orthographic):
         ps = camera.pixel_size_mm
         return (np.arange(w) - (w - 1) / 2.0) * ps, ((h - 1) / 2.0 - np.arange(h)) * ps
     cx, cy = camera.centre((h, w))
-    return np.arange(w) - cx, cy - np.arange(h, dtype=np.float64)
+    v = cy - np.arange(h, dtype=np.float64)
+    return np.arange(w) - cx, v if camera.focal_length_y_px is None else v * camera.aspect
 
 
 def surface_xy(camera: Camera, z) -> np.ndarray:
@@ -320,8 +379,7 @@ def pixel_rays(camera: Camera, shape, rows, cols) -> tuple[np.ndarray, np.ndarra
         origins = np.stack([(c - (w - 1) / 2.0) * ps, ((h - 1) / 2.0 - r) * ps, np.zeros_like(r)], axis=1)
         return origins, np.tile([0.0, 0.0, -1.0], (r.size, 1))
     cx, cy = camera.centre((h, w))
-    f = camera.focal_length_px
-    d = np.stack([(c - cx) / f, (cy - r) / f, -np.ones_like(r)], axis=1)
+    d = np.stack([(c - cx) / camera.focal_length_px, (cy - r) / camera.fy, -np.ones_like(r)], axis=1)
     origins = np.tile([0.0, 0.0, camera.camera_height_mm], (r.size, 1))
     return origins, d / np.linalg.norm(d, axis=1, keepdims=True)
 
@@ -406,6 +464,8 @@ def _gradient(camera: Camera, nx, ny, nz, u, v) -> tuple[np.ndarray, np.ndarray,
             den[~ok] = 0.0
             p *= den
             q *= den
+            if camera.focal_length_y_px is not None:  # per row of pixels, not per f-scaled row offset
+                q *= f32(camera.aspect)
         # a grazing normal (n_z a denormal) overflows: no slope there. A float64 sum of float32 values
         # cannot overflow, so it is finite exactly when every value is (one pass, no temporary)
         for g in (p, q):
@@ -513,10 +573,146 @@ def footprint_area(camera: Camera, z, p=None, q=None) -> np.ndarray | float:
     if isinstance(camera, Orthographic):
         return camera.pixel_size_mm**2
     zz = as_array(z, "z", ndim=2, finite=False)
-    scale = ((camera.camera_height_mm - zz) / camera.focal_length_px) ** 2
+    w = camera.camera_height_mm - zz
+    scale = w * w / (camera.focal_length_px * camera.fy)
     if p is None or q is None:
         return scale
     u, v = pixel_offsets(camera, zz.shape)
+    v = v / camera.aspect  # cy - row: q is per row of pixels
     lu = as_array(p, "p", shape=zz.shape, finite=False)
     lv = as_array(q, "q", shape=zz.shape, finite=False)
     return scale * np.abs(1.0 + u[None, :] * lu + v[:, None] * lv)
+
+
+def intrinsic_matrix(camera: Perspective, shape) -> np.ndarray:
+    """OpenCV's intrinsic matrix ``K`` of a perspective camera (0-based principal point).
+
+    Parameters
+    ----------
+    camera : Perspective
+    shape : (H, W)
+        Image size (for the default principal point).
+
+    Returns
+    -------
+    numpy.ndarray, shape (3, 3), float64
+        ``[[fx, 0, cx], [0, fy, cy], [0, 0, 1]]``.
+    """
+    cx, cy = camera.centre(shape)
+    return np.array([[camera.focal_length_px, 0.0, cx], [0.0, camera.fy, cy], [0.0, 0.0, 1.0]])
+
+
+def undistort_images(camera: Camera, images, mask=None):
+    """Resample images through a distorting lens to the distortion-free pinhole camera of the same ``K``.
+
+    Each output pixel looks up where its pinhole ray lands in the distorted image
+    (``cv2.initUndistortRectifyMap`` with OpenCV's distortion model, bilinear
+    interpolation); a pixel whose ray falls outside the distorted image is 0 and leaves
+    the mask.
+
+    Parameters
+    ----------
+    camera : Orthographic or Perspective
+        Without ``distortion`` the images come back as they are.
+    images : numpy.ndarray, shape (N, H, W) or (N, H, W, 3), float32
+    mask : numpy.ndarray, shape (H, W), bool, optional
+
+    Returns
+    -------
+    images : numpy.ndarray
+        The resampled stack (a new array when resampled).
+    mask : numpy.ndarray or None
+        The mask resampled (nearest) and cut to the pixels seen; None when none was given
+        and nothing was cut.
+    """
+    import cv2
+
+    if not isinstance(camera, Perspective) or camera.distortion is None:
+        return images, mask
+    h, w = images.shape[1:3]
+    K = intrinsic_matrix(camera, (h, w))
+    map_x, map_y = cv2.initUndistortRectifyMap(K, np.asarray(camera.distortion), None, K, (w, h), cv2.CV_32FC1)
+    out = np.empty_like(images)
+    for k in range(images.shape[0]):
+        out[k] = cv2.remap(images[k], map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+    seen = (map_x >= 0) & (map_x <= w - 1) & (map_y >= 0) & (map_y <= h - 1)
+    if mask is not None:
+        m = cv2.remap(np.asarray(mask, np.uint8), map_x, map_y, cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT,
+                      borderValue=0) > 0
+        return out, m & seen
+    return out, (None if seen.all() else seen)
+
+
+def calibrate_checkerboard(images, board, square_mm: float, *, camera_height_mm: float | None = None):
+    """A perspective camera with lens distortion from checkerboard images (OpenCV's calibration).
+
+    The inner corners are found (``cv2.findChessboardCorners``, refined with
+    ``cv2.cornerSubPix``) and ``cv2.calibrateCamera`` fits ``fx``, ``fy``, the principal point
+    and ``(k1, k2, p1, p2, k3)``. The camera height above the reference plane is
+    ``camera_height_mm`` when given, else the distance of the camera centre from the board
+    of the **first** image (the board lying on the reference plane).
+
+    Parameters
+    ----------
+    images : sequence of numpy.ndarray, each (H, W) or (H, W, 3)
+        Views of the board (one size), values in [0, 1] or integers; at least 3 views for
+        a stable fit.
+    board : (int, int)
+        Inner corners per row and per column ``(COLS, ROWS)`` (``--board COLSxROWS``).
+    square_mm : float
+        Side of one square, mm.
+    camera_height_mm : float, optional
+
+    Returns
+    -------
+    camera : Perspective
+    info : dict
+        ``rms_reprojection_px`` (OpenCV's RMS over every corner), ``views`` (images whose
+        corners were found), ``board``, ``square_mm``, ``camera_height_source``.
+
+    Raises
+    ------
+    InputError
+        No corners in some image, fewer than 3 usable views, a bad board or square size.
+    """
+    import cv2
+
+    cols, rows = (int(board[0]), int(board[1]))
+    if cols < 2 or rows < 2:
+        raise InputError(f"board: expected at least 2 x 2 inner corners, got {cols} x {rows}")
+    sq = positive(square_mm, "square_mm")
+    obj = np.zeros((cols * rows, 3), np.float32)
+    obj[:, :2] = np.mgrid[0:cols, 0:rows].T.reshape(-1, 2) * sq
+    found, shape = [], None
+    for k, img in enumerate(images):
+        a = np.asarray(img)
+        grey = a.mean(axis=2) if a.ndim == 3 else a
+        if shape is None:
+            shape = grey.shape
+        elif grey.shape != shape:
+            raise InputError(f"checkerboard: image {k} is {grey.shape}, image 0 is {shape}")
+        g8 = np.clip(grey * (255.0 if grey.dtype.kind == "f" else 255.0 / np.iinfo(grey.dtype).max), 0, 255)
+        g8 = g8.astype(np.uint8)
+        ok, corners = cv2.findChessboardCorners(g8, (cols, rows), cv2.CALIB_CB_ADAPTIVE_THRESH
+                                                | cv2.CALIB_CB_NORMALIZE_IMAGE)
+        if not ok:
+            raise InputError(f"checkerboard: image {k}: no {cols} x {rows} inner corners found")
+        corners = cv2.cornerSubPix(g8, corners, (5, 5), (-1, -1),
+                                   (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 50, 1e-4))
+        found.append(corners)
+    if len(found) < 3:
+        raise InputError(f"checkerboard: {len(found)} view(s); give at least 3 (tilted differently)")
+    h, w = shape
+    rms, K, dist, rvecs, tvecs = cv2.calibrateCamera([obj] * len(found), found, (w, h), None, None)
+    source = "option"
+    if camera_height_mm is None:
+        R, _ = cv2.Rodrigues(rvecs[0])
+        centre = -R.T @ tvecs[0].ravel()  # the camera centre in the first board's frame
+        camera_height_mm, source = float(abs(centre[2])), "first checkerboard view (board on the reference plane)"
+    cam = make_camera("perspective", focal_length_px=(float(K[0, 0]), float(K[1, 1])),
+                      camera_height_mm=camera_height_mm, principal_point_px=(float(K[0, 2]), float(K[1, 2])),
+                      distortion=np.asarray(dist).ravel()[:5])
+    info = {"method": "checkerboard (cv2.findChessboardCorners + cv2.calibrateCamera)",
+            "rms_reprojection_px": float(rms), "views": len(found), "board": [cols, rows], "square_mm": sq,
+            "camera_height_source": source}
+    return cam, info

@@ -187,13 +187,168 @@ def _scaled(arr: np.ndarray, p: Path, out: np.ndarray) -> np.ndarray:
     return out
 
 
-def read_images(paths: Sequence) -> np.ndarray:
+#: Bayer mosaic layouts (``--bayer``): the colours of the sensor's top-left 2 x 2 cell, row by row.
+BAYER_PATTERNS = ("RGGB", "BGGR", "GRBG", "GBRG")
+# OpenCV names a mosaic by the cell one pixel down and right of the top-left: the sensor's RGGB is
+# OpenCV's "BG" (checked in tests/photometric/test_capture.py by a red image's mosaic coming back red)
+_CV_BAYER = {"RGGB": cv2.COLOR_BayerBG2RGB, "BGGR": cv2.COLOR_BayerRG2RGB, "GRBG": cv2.COLOR_BayerGB2RGB,
+             "GBRG": cv2.COLOR_BayerGR2RGB}
+#: A capture whose brightest observations (99.9th percentile in the mask, over the images) stay below
+#: this fraction of full scale gets a warning (:func:`exposure_note`).
+DARK_PEAK = 0.5
+
+
+def demosaic(raw: np.ndarray, pattern: str, name: str = "image") -> np.ndarray:
+    """RGB image of a single-channel Bayer mosaic (OpenCV's bilinear demosaicing, full resolution).
+
+    Parameters
+    ----------
+    raw : numpy.ndarray, shape (H, W), uint8 or uint16
+        The sensor's values, not demosaiced.
+    pattern : {"RGGB", "BGGR", "GRBG", "GBRG"}
+        Colours of the top-left 2 x 2 cell, row by row.
+    name : str, optional
+        For messages.
+
+    Returns
+    -------
+    numpy.ndarray, shape (H, W, 3), same dtype, RGB order
+
+    Examples
+    --------
+    >>> mosaic = np.zeros((6, 6), np.uint8)
+    >>> mosaic[0::2, 0::2] = 200  # red sites of an RGGB sensor under red light
+    >>> demosaic(mosaic, "RGGB")[3, 3].tolist()
+    [200, 0, 0]
+    """
+    if pattern not in _CV_BAYER:
+        raise InputError(f"bayer: expected one of {BAYER_PATTERNS}, got {pattern!r}")
+    if raw.ndim != 2:
+        raise InputError(f"{name}: a Bayer mosaic has one channel, got shape {raw.shape} (already demosaiced?)")
+    if raw.dtype not in (np.uint8, np.uint16):
+        raise InputError(f"{name}: a Bayer mosaic must be 8 or 16 bit integers, got {raw.dtype}")
+    return cv2.cvtColor(np.ascontiguousarray(raw), _CV_BAYER[pattern])
+
+
+def subtract_ambient(images: np.ndarray, ambient) -> np.ndarray:
+    """Images minus a dark (ambient) frame, clipped at 0, in place.
+
+    Parameters
+    ----------
+    images : numpy.ndarray, shape (N, H, W) or (N, H, W, 3), float32
+        Linear images (full scale 1).
+    ambient : array_like, shape (H, W[, 3]) or (N, H, W[, 3])
+        One frame for every image, or one per image (all LEDs off, same exposure).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``images`` itself.
+
+    Examples
+    --------
+    >>> imgs = np.full((3, 2, 2), 0.5, np.float32)
+    >>> round(float(subtract_ambient(imgs, np.full((2, 2), 0.1, np.float32))[0, 0, 0]), 3)
+    0.4
+    """
+    amb = np.asarray(ambient, np.float32)
+    hw = images.shape[1:3]
+    per_image = amb.ndim >= 3 and amb.shape[0] == images.shape[0] and amb.shape[1:3] == hw
+    frame = amb.shape[1:] if per_image else amb.shape
+    if frame[:2] != hw or len(frame) > 3 or (len(frame) == 3 and frame[2] != 3):
+        raise InputError(f"ambient: shape {amb.shape} fits neither one image {images.shape[1:]} nor the stack "
+                         f"{images.shape}")
+    if len(frame) == 3 and images.ndim == 3:  # a colour dark frame for grey images: its grey
+        amb = amb.mean(axis=-1)
+    elif len(frame) == 2 and images.ndim == 4:  # a grey dark frame for colour images: every channel
+        amb = amb[..., None]
+    if not np.all(np.isfinite(amb)) or np.any(amb < 0):
+        raise InputError("ambient: the dark frame must be finite and non-negative")
+    np.subtract(images, amb, out=images)
+    np.maximum(images, 0.0, out=images)
+    return images
+
+
+def read_ambient(paths, images: np.ndarray, bayer: str | None = None) -> np.ndarray:
+    """Read dark frame(s) and subtract them from ``images`` (:func:`subtract_ambient`).
+
+    Parameters
+    ----------
+    paths : str, Path or sequence of them
+        One file for every image or one per image (light order).
+    images : numpy.ndarray, shape (N, H, W[, 3]), float32
+    bayer : str, optional
+        The mosaic layout when the frames are mosaics like the images.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``images``, ambient subtracted.
+    """
+    if isinstance(paths, (str, Path)):
+        paths = [paths]
+    paths = list(paths)
+    if len(paths) not in (1, images.shape[0]):
+        raise InputError(f"ambient: {len(paths)} dark frames for {images.shape[0]} images (give one, or one per image)")
+    frames = read_images(paths, bayer=bayer)
+    return subtract_ambient(images, frames[0] if len(paths) == 1 else frames)
+
+
+def exposure_note(images: np.ndarray, mask=None, full_scale: float | None = 1.0,
+                  bits: int | None = None) -> str | None:
+    """A warning for a dark or low-bit capture: its brightest observations far below full scale.
+
+    Parameters
+    ----------
+    images : numpy.ndarray, shape (N, H, W[, 3])
+        Images, full scale 1.
+    mask : array_like, shape (H, W), optional
+    full_scale : float or None, optional
+        None (float input): nothing is said.
+    bits : int, optional
+        The files' bit depth, for the message (8 or 16).
+
+    Returns
+    -------
+    str or None
+        Set when the 99.9th percentile over the images and the mask is below
+        :data:`DARK_PEAK` of full scale: the quantisation step is then a larger part of
+        every value (noise, banding in the normals).
+
+    Examples
+    --------
+    >>> imgs = np.full((3, 4, 4), 100 / 255, np.float32)
+    >>> exposure_note(imgs, bits=8)[:58]
+    'images: dark capture: the brightest observations reach 100'
+    """
+    if full_scale is None:
+        return None
+    m = np.ones(images.shape[1:3], bool) if mask is None else np.asarray(mask, bool)
+    # a strided sample of at most about 2 million values: no copy of the whole stack (the solve's memory)
+    s = max(1, int(np.ceil(np.sqrt(images.size / 2_000_000))))
+    vals = images[:, ::s, ::s][:, m[::s, ::s]]
+    if vals.size == 0:
+        return None
+    peak = float(np.percentile(vals, 99.9))
+    if peak >= DARK_PEAK * full_scale:
+        return None
+    dn = f" of {2**bits - 1} DN" if bits else ""
+    value = f"{peak * (2**bits - 1):.0f}{dn}" if bits else f"{peak:.3f}"
+    return (f"images: dark capture: the brightest observations reach {value} ({100 * peak:.0f} % of full scale, "
+            f"99.9th percentile): each value carries a larger quantisation and noise share; expose longer or "
+            "use more bits")
+
+
+def read_images(paths: Sequence, bayer: str | None = None) -> np.ndarray:
     """Read several images of one size into a stack.
 
     Parameters
     ----------
     paths : sequence of str or Path
         Image files (see :func:`read_image`).
+    bayer : {"RGGB", "BGGR", "GRBG", "GBRG"}, optional
+        The files are single-channel Bayer mosaics of this layout: each is demosaiced to
+        RGB (:func:`demosaic`) before scaling.
 
     Returns
     -------
@@ -201,6 +356,18 @@ def read_images(paths: Sequence) -> np.ndarray:
     """
     if len(paths) == 0:
         raise InputError("images: no image files given")
+    if bayer is not None:
+        if bayer not in _CV_BAYER:
+            raise InputError(f"bayer: expected one of {BAYER_PATTERNS}, got {bayer!r}")
+        first = demosaic(_read_raw(Path(paths[0])), bayer, str(paths[0]))
+        out = np.empty((len(paths),) + first.shape, np.float32)
+        _scaled(first, Path(paths[0]), out[0])
+        for k, path in enumerate(paths[1:], start=1):
+            img = demosaic(_read_raw(Path(path)), bayer, str(path))
+            if img.shape != out.shape[1:]:
+                raise InputError(f"images: {path} has shape {img.shape}, {paths[0]} has {out.shape[1:]}")
+            _scaled(img, Path(path), out[k])
+        return out
     # each file is converted straight into its plane of the stack: the peak is the stack
     # plus one stored (e.g. uint16) image, not a float copy per image
     first = _read_raw(Path(paths[0]))
@@ -268,7 +435,7 @@ def _read_normal_gt(folder: Path, shape: tuple[int, int]) -> np.ndarray | None:
 
 
 @reads_file("photometric folder")
-def read_folder(folder, select: str | Sequence[str] | None = None) -> PhotometricData:
+def read_folder(folder, select: str | Sequence[str] | None = None, bayer: str | None = None) -> PhotometricData:
     """Read a DiLiGenT-style (or RobustPhotometricStereo-style) folder.
 
     Parameters
@@ -278,6 +445,8 @@ def read_folder(folder, select: str | Sequence[str] | None = None) -> Photometri
     select : None, "triad" or sequence of str, optional
         ``"triad"``: only the images named in ``triad.txt``; a sequence: only these
         image names (in the given order); ``None``: all images.
+    bayer : {"RGGB", "BGGR", "GRBG", "GBRG"}, optional
+        The images are Bayer mosaics of this layout (:func:`read_images`).
 
     Returns
     -------
@@ -330,7 +499,7 @@ def read_folder(folder, select: str | Sequence[str] | None = None) -> Photometri
         names, lights, intens = wanted, lights[order], intens[order]
         lights = validate_lights(lights, "lights (selected)")
 
-    images = read_images([d / n for n in names])
+    images = read_images([d / n for n in names], bayer=bayer)
     shape = images.shape[1:3]
     mask = read_mask(d / "mask.png", shape) if (d / "mask.png").is_file() else np.ones(shape, bool)
     near = _read_nearfield(d, all_names, names, images.shape)

@@ -48,12 +48,13 @@ class PhotometricReconstruction:
     height : numpy.ndarray, shape (H, W), float32 (far field) or float64 (near field)
         Height in mm (NaN outside the valid pixels); near-field: ``z`` of the point each
         pixel sees, in the rig frame.
-    patches : surfaces.bezier.BezierPatches
+    patches : surfaces.bezier.BezierPatches or None
         The bicubic surface: patches of mixed sizes fitted to the height and slopes
         (:class:`surfaces.mixed.MixedPatches` from :func:`surfaces.fit.fit_height`,
         ``surface="fit"``) or the Coons grid through the height
-        (:func:`photometric.integrate.height_to_patches`, ``surface="coons"``).
-    mesh : surfaces.mesh.TriangleMesh
+        (:func:`photometric.integrate.height_to_patches`, ``surface="coons"``); None with
+        ``surface="none"`` (and no mesh).
+    mesh : surfaces.mesh.TriangleMesh or None
         The tessellated surface, trimmed to the fitted pixels along their sub-pixel outline
         (fit) or to the mask by triangle centroids (coons); coordinates in mm on the
         centred pixel grid of :data:`surfaces.grid.GRID_CONVENTION`.
@@ -90,8 +91,8 @@ class PhotometricReconstruction:
     valid: np.ndarray
     mask: np.ndarray
     height: np.ndarray
-    patches: BezierPatches
-    mesh: TriangleMesh
+    patches: BezierPatches | None
+    mesh: TriangleMesh | None
     defects: list
     background: str
     summary: dict
@@ -138,11 +139,11 @@ def reconstruct(source, options: PhotometricOptions | None = None, *, progress: 
     say("height")
     height = stages.integrate(inp, sol, opts)
     say("surface")
-    surf = stages.surface(inp, sol, height, opts)
+    surf = None if opts.surface == "none" else stages.surface(inp, sol, height, opts)
     say("defects")
     found = stages.measure(inp, sol, height, opts)
     timings = {"read": inp.seconds, "solve": sol.timings_s["solve"], "integrate": height.seconds,
-               "surface": surf.seconds, "defects": found.seconds}
+               **({} if surf is None else {"surface": surf.seconds}), "defects": found.seconds}
     unc = None
     if opts.uncertainty is not None:
         say("uncertainty")
@@ -154,7 +155,8 @@ def reconstruct(source, options: PhotometricOptions | None = None, *, progress: 
     fit, streamed = sol.fit, out is not None
     return PhotometricReconstruction(
         normals=None if streamed else fit.normals, albedo=None if streamed else fit.albedo, p=fit.p, q=fit.q,
-        valid=fit.valid, mask=sol.data.mask, height=height.height, patches=surf.patches, mesh=surf.mesh,
+        valid=fit.valid, mask=sol.data.mask, height=height.height, patches=None if surf is None else surf.patches,
+        mesh=None if surf is None else surf.mesh,
         defects=found.defects, background=found.background, summary=summary,
         xy=None if inp.setup is None else fit.xy, uncertainty=unc)
 

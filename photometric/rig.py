@@ -38,7 +38,7 @@ from photometric.stereo import _check_images, _grey_planes
 from surfaces.validate import as_array, InputError, positive, reads_file
 
 __all__ = ["RIG_FORMAT", "RIG_VERSION", "GAINS_FILE", "FLAT_SMOOTHING_PX", "RIG_KEYS", "Rig", "flat_field_gains",
-           "rig_to_dict", "read_rig", "check_rig", "loads_unique"]
+           "rig_to_dict", "read_rig", "check_rig", "loads_unique", "at_camera_height", "position_u_mm"]
 
 #: the keys rig.json may hold: top level, ``lights``, ``flat_field`` and ``camera``
 RIG_KEYS = {
@@ -331,3 +331,103 @@ def check_rig(rig: Rig, n_images: int, shape) -> None:
     if tuple(shape) != tuple(rig.image_size):
         raise InputError(f"rig: calibrated for {rig.image_size[0]} x {rig.image_size[1]} px images, "
                          f"the images are {shape[0]} x {shape[1]} px")
+
+
+def at_camera_height(rig: Rig, camera_height_mm: float) -> Rig:
+    """The same rig with its reference plane moved: the camera ``camera_height_mm`` above it.
+
+    The LEDs are fixed to the camera, so moving the reference plane (the working distance)
+    moves every LED's height by the same amount as the camera's; the LED axes and lobes stay.
+    The intensities ``e_k`` are irradiances at the reference distance ``d0_k = |P_k|``
+    (:mod:`photometric.leds`), so each LED's radiant intensity ``e_k d0_k^2`` is kept.
+
+    Parameters
+    ----------
+    rig : Rig
+        A rig with a perspective camera and no flat field (gains are measured on one plane).
+    camera_height_mm : float
+        The new camera height above the reference plane, mm (> 0; every LED must stay
+        above the plane).
+
+    Returns
+    -------
+    Rig
+        ``calibration["camera_height_mm_moved_from"]`` records the height the rig had.
+
+    Raises
+    ------
+    InputError
+        An orthographic camera (no camera centre), a flat field, or an LED that would
+        end at or below the reference plane.
+
+    Examples
+    --------
+    >>> from photometric.camera import make_camera
+    >>> rig = Rig(point_lights([[30.0, 0.0, 120.0], [0.0, 30.0, 120.0], [-30.0, 0.0, 120.0]]),
+    ...           make_camera("perspective", focal_length_px=1000, camera_height_mm=200), (10, 10))
+    >>> moved = at_camera_height(rig, 250)
+    >>> moved.lights.positions[0].tolist(), moved.camera.camera_height_mm
+    ([30.0, 0.0, 170.0], 250.0)
+    """
+    from dataclasses import replace
+
+    from photometric.camera import Perspective
+
+    if not isinstance(rig.camera, Perspective):
+        raise InputError("camera_height_mm: moving the reference plane needs a perspective rig (an orthographic "
+                         "camera has no camera centre)")
+    if rig.gains is not None:
+        raise InputError("camera_height_mm: the rig's flat-field gains were measured on its reference plane; "
+                         "re-measure them (photometric calibrate --flat-field) instead of moving the plane")
+    new = positive(camera_height_mm, "camera_height_mm")
+    shift = new - float(rig.camera.camera_height_mm)
+    lights = rig.lights
+    pos = lights.positions + np.array([0.0, 0.0, shift])
+    if np.any(pos[:, 2] <= 0):
+        raise InputError(f"camera_height_mm: at {new:g} mm LED(s) {np.flatnonzero(pos[:, 2] <= 0).tolist()} "
+                         "would be at or below the reference plane")
+    moved = PointLights(pos, lights.axes, lights.mu, lights.mu_known,
+                        None if lights.intensities is None else lights.intensities * (lights.d0 ** 2 /
+                        np.sum(pos**2, axis=1)).reshape((-1,) + (1,) * (lights.intensities.ndim - 1)))
+    intens = rig.intensities
+    if intens is not None:
+        intens = intens * (lights.d0 ** 2 / np.sum(pos**2, axis=1))[:, None]
+    calibration = dict(rig.calibration)
+    calibration.setdefault("camera_height_mm_moved_from", float(rig.camera.camera_height_mm))
+    return replace(rig, lights=moved, camera=replace(rig.camera, camera_height_mm=new), intensities=intens,
+                   calibration=calibration)
+
+
+def position_u_mm(rig: Rig) -> float | None:
+    """The rig's LED position standard uncertainty for the budget: the largest per-coordinate u of its LEDs.
+
+    The uncertainty budget takes one standard uncertainty for every LED coordinate
+    (``light_position_tolerance_mm``, :class:`photometric.uncertainty.Tolerances`); the rig's
+    calibration states one per LED and axis (``calibration.uncertainty_mm``, mirror-sphere
+    calibration). The largest is taken, so that no LED is stated better than it was measured.
+
+    Parameters
+    ----------
+    rig : Rig
+
+    Returns
+    -------
+    float or None
+        mm; None when the calibration states none (known positions, imported files).
+
+    Examples
+    --------
+    >>> from photometric.camera import make_camera
+    >>> rig = Rig(point_lights([[30.0, 0.0, 120.0], [0.0, 30.0, 120.0], [-30.0, 0.0, 120.0]]),
+    ...           make_camera("orthographic", pixel_size_mm=0.1), (10, 10),
+    ...           calibration={"uncertainty_mm": [[0.02, 0.03, 0.25], [0.02, 0.02, 0.1], [0.01, 0.02, 0.2]]})
+    >>> position_u_mm(rig)
+    0.25
+    """
+    u = rig.calibration.get("uncertainty_mm") if isinstance(rig.calibration, dict) else None
+    if u is None:
+        return None
+    arr = np.asarray(u, dtype=np.float64)
+    if arr.size == 0 or not np.all(np.isfinite(arr)) or np.any(arr < 0):
+        raise InputError(f"rig calibration.uncertainty_mm: expected non-negative finite values per LED, got {u}")
+    return float(arr.max())

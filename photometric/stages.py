@@ -34,8 +34,9 @@ from pathlib import Path
 
 import numpy as np
 
-from photometric.camera import Camera, Orthographic, Perspective, make_camera
-from photometric.io import PhotometricData, full_scale_of, read_folder, read_images, read_mask
+from photometric.camera import Camera, Orthographic, Perspective, make_camera, undistort_images
+from photometric.io import (PhotometricData, exposure_note, full_scale_of, read_ambient, read_folder, read_images,
+                            read_mask, subtract_ambient)
 from photometric.io import load_intensities, load_light_positions, load_lights
 from photometric.leds import PointLights, point_lights
 from photometric.lights import as_intensities, validate_lights
@@ -265,12 +266,12 @@ def _mask(mask, shape) -> np.ndarray:
     return as_array(mask, "mask", shape=shape, dtype=bool)
 
 
-def _load_input(source, lights, intensities, mask, select) -> tuple[PhotometricData, dict]:
+def _load_input(source, lights, intensities, mask, select, bayer=None) -> tuple[PhotometricData, dict]:
     """PhotometricData from a folder, a list of image files or an image array."""
     if isinstance(source, PhotometricData):
         return source, {"kind": "data"}
     if isinstance(source, (str, Path)) and Path(source).is_dir():
-        data = read_folder(source, select=select)
+        data = read_folder(source, select=select, bayer=bayer)
         folder = Path(source)
         extra = {}
         if (folder / "scene.json").is_file():
@@ -300,7 +301,7 @@ def _load_input(source, lights, intensities, mask, select) -> tuple[PhotometricD
     if lights is None:
         raise InputError("lights: required when the input is a list of images or an array")
     if isinstance(source, Sequence) and all(isinstance(s, (str, Path)) for s in source):
-        images = read_images(list(source))
+        images = read_images(list(source), bayer=bayer)
         names = tuple(Path(s).name for s in source)
         kind = {"kind": "files", "paths": [str(s) for s in source]}
     else:
@@ -337,15 +338,26 @@ def _trimmed_mesh(patches, region: np.ndarray, pixel_size: float, samples: int):
     return TriangleMesh(mesh.vertices[used], remap[tri], normals)
 
 
-def _light_positions(value, n: int, led_mu) -> PointLights:
+def _light_positions(value, n: int, led_mu, led_axes=None) -> PointLights:
     pos = load_light_positions(value) if isinstance(value, (str, Path)) else value
-    lights = point_lights(pos, mu=led_mu)
+    lights = point_lights(pos, _axes(led_axes), led_mu)
     if len(lights) != n:
         raise InputError(f"light_positions: {len(lights)} LED positions for {n} images")
     return lights
 
 
-def _with_mu(lights: PointLights, led_mu) -> PointLights:
+def _axes(led_axes):
+    if isinstance(led_axes, (str, Path)):
+        from photometric.importers import load_axes
+
+        return load_axes(led_axes)
+    return led_axes
+
+
+def _with_mu(lights: PointLights, led_mu, led_axes=None) -> PointLights:
+    if led_axes is not None:
+        mu = led_mu if led_mu is not None else (lights.mu if lights.mu_known else None)
+        return point_lights(lights.positions, _axes(led_axes), mu)
     return lights if led_mu is None else point_lights(lights.positions, lights.axes, led_mu)
 
 
@@ -369,7 +381,7 @@ def _flat_images(flat_field, n: int, shape) -> np.ndarray:
 
 def _near_setup(data: PhotometricData, *, light_model, light_positions, led_mu, flat_field, flat_albedo, camera,
                 pixel_size, scene_h, focal_length_px, camera_height_mm, principal_point_px, rig, rig_obj,
-                intensities) -> LightSetup | None:
+                intensities, led_axes=None, distortion=None) -> LightSetup | None:
     """Decide the light model and camera; None means the far-field orthographic path of today.
 
     Precedence: the options, then ``rig.json``, then the folder's own files
@@ -379,15 +391,16 @@ def _near_setup(data: PhotometricData, *, light_model, light_positions, led_mu, 
     if rig_obj is not None:
         check_rig(rig_obj, n, shape)
     if light_positions is not None:
-        lights = _light_positions(light_positions, n, led_mu)
+        lights = _light_positions(light_positions, n, led_mu, led_axes)
     elif rig_obj is not None:
-        lights = _with_mu(rig_obj.lights, led_mu)
+        lights = _with_mu(rig_obj.lights, led_mu, led_axes)
     elif data.point_lights is not None:
-        lights = _with_mu(data.point_lights, led_mu)
+        lights = _with_mu(data.point_lights, led_mu, led_axes)
     else:
         lights = None
-    if led_mu is not None and lights is None:
-        raise InputError("led_mu: the LED lobe needs LED positions (--light-positions or --rig)")
+    if (led_mu is not None or led_axes is not None) and lights is None:
+        raise InputError(f"{'led_mu' if led_mu is not None else 'led_axes'}: the LED lobe needs LED positions "
+                         "(--light-positions or --rig)")
 
     explicit = [v is not None for v in (camera, focal_length_px, camera_height_mm, principal_point_px)]
     cam_source = "option"
@@ -410,6 +423,13 @@ def _near_setup(data: PhotometricData, *, light_model, light_positions, led_mu, 
     else:
         cam = None
 
+    if distortion is not None:
+        if not isinstance(cam, Perspective):
+            raise InputError("distortion: lens distortion needs a perspective camera (--camera perspective, or a "
+                             "perspective rig)")
+        cam = make_camera("perspective", focal_length_px=(cam.focal_length_px, cam.fy),
+                          camera_height_mm=cam.camera_height_mm, principal_point_px=cam.principal_point_px,
+                          distortion=distortion)
     if light_model == "directional" or lights is None:
         if light_model == "point":
             raise InputError("light_model: 'point' needs LED positions (--light-positions, --rig or the "
@@ -426,14 +446,14 @@ def _near_setup(data: PhotometricData, *, light_model, light_positions, led_mu, 
     gains, flat = None, None
     if flat_field is not None and flat_field is not False:
         albedo = 1.0 if flat_albedo is None else flat_albedo
-        gains = flat_field_gains(_flat_images(flat_field, n, shape), lights, cam, albedo)
+        gains = flat_field_gains(undistort_images(cam, _flat_images(flat_field, n, shape))[0], lights, cam, albedo)
         flat = {"source": "option", "albedo": float(albedo)}
     elif flat_field is None and rig_obj is not None and rig_obj.gains is not None:
         gains = rig_obj.gains
         flat = {"source": "rig", "albedo": rig_obj.flat_albedo, "smoothing_px": rig_obj.flat_smoothing_px}
     elif flat_field is None and data.flat_images is not None:
         albedo = flat_albedo if flat_albedo is not None else (data.flat_albedo or 1.0)
-        gains = flat_field_gains(data.flat_images, lights, cam, albedo)
+        gains = flat_field_gains(undistort_images(cam, data.flat_images)[0], lights, cam, albedo)
         flat = {"source": "folder", "albedo": float(albedo)}
     if flat is not None and flat["source"] != "rig":
         flat["smoothing_px"] = FLAT_SMOOTHING_PX
@@ -546,11 +566,17 @@ def _options(options) -> PhotometricOptions:
     return options
 
 
+def _resolved(inp: PhotometricInput, options) -> PhotometricOptions:
+    """The options with the input's defaults decided: outliers from the image count, the integrator from the
+    mask (:meth:`photometric.options.PhotometricOptions.resolved`)."""
+    return _options(options).resolved(n_images=inp.size["images"], masked=not bool(inp.data.mask.all()))
+
+
 def read(source, options: PhotometricOptions | None = None, *, lights=None, intensities=None, mask=None,
          select: str | Sequence[str] | None = None, pixel_size: float | None = None, light_positions=None,
          led_mu=None, flat_field=None, flat_albedo: float | None = None, camera=None,
          focal_length_px: float | None = None, camera_height_mm: float | None = None, principal_point_px=None,
-         rig=None) -> PhotometricInput:
+         rig=None, ambient=None, bayer: str | None = None, led_axes=None, distortion=None) -> PhotometricInput:
     """Read and check the input of a solve: images, lights, mask, light model and camera.
 
     Parameters
@@ -592,6 +618,19 @@ def read(source, options: PhotometricOptions | None = None, *, lights=None, inte
     rig : str, Path or photometric.rig.Rig, optional
         A calibrated rig (``rig.json``): LED positions, camera, flat-field gains; must match
         the images' count and size.
+    ambient : str, Path, sequence of them or array_like, optional
+        Dark frame(s) (all LEDs off, same exposure): one for every image or one per image,
+        subtracted and clipped at 0 (:func:`photometric.io.subtract_ambient`).
+    bayer : {"RGGB", "BGGR", "GRBG", "GBRG"}, optional
+        Image files (and dark frames) are Bayer mosaics of this layout, demosaiced when read.
+    led_axes : str, Path or array_like, shape (N, 3), optional
+        LED axes in the rig frame (from the LED into the scene; a text file ``x y z`` per
+        LED), replacing the default aim at the origin or the rig's; needs the lobes ``mu``
+        (``led_mu``, or the rig's).
+    distortion : sequence of float, optional
+        OpenCV's lens distortion ``(k1, k2, p1, p2, k3)`` of the perspective camera (default the
+        rig's or none): the images, mask and flat fields are resampled to the pinhole camera
+        (:func:`photometric.camera.undistort_images`).
 
     Returns
     -------
@@ -617,12 +656,32 @@ def read(source, options: PhotometricOptions | None = None, *, lights=None, inte
         if lights is not None and isinstance(source, (Sequence, np.ndarray)) and not isinstance(source, str) \
                 and len(source) != len(lights):
             raise InputError(f"{name}: {len(lights)} LEDs for {len(source)} images")
-    data, info = _load_input(source, lights, intensities, mask, select)
+    data, info = _load_input(source, lights, intensities, mask, select, bayer)
+    if bayer is not None and info["kind"] not in ("files", "folder"):
+        raise InputError("bayer: only image files are read as mosaics (an array is already demosaiced)")
+    if ambient is not None:
+        if info["kind"] not in ("files", "folder"):  # the caller's array stays as it was
+            data = replace(data, images=np.array(data.images, np.float32))
+        if isinstance(ambient, (str, Path)) or (isinstance(ambient, Sequence) and ambient
+                                                and all(isinstance(a, (str, Path)) for a in ambient)):
+            read_ambient(ambient, data.images, bayer)
+            info["ambient"] = [str(a) for a in ([ambient] if isinstance(ambient, (str, Path)) else ambient)]
+        else:
+            subtract_ambient(data.images, ambient)
+            info["ambient"] = "array"
+    if bayer is not None:
+        info["bayer"] = bayer
     scene_h = info.pop("scene_pixel_size_mm", None)
     near = _near_setup(data, light_model=opts.light_model, light_positions=light_positions, led_mu=led_mu,
                        flat_field=flat_field, flat_albedo=flat_albedo, camera=camera, pixel_size=pixel_size,
                        scene_h=scene_h, focal_length_px=focal_length_px, camera_height_mm=camera_height_mm,
-                       principal_point_px=principal_point_px, rig=rig, rig_obj=rig_obj, intensities=intensities)
+                       principal_point_px=principal_point_px, rig=rig, rig_obj=rig_obj, intensities=intensities,
+                       led_axes=led_axes, distortion=distortion)
+    if near is not None and getattr(near.camera, "distortion", None) is not None:
+        # through the lens: the images (and mask) resampled to the pinhole camera every formula assumes
+        imgs, m = undistort_images(near.camera, data.images, data.mask)
+        data = replace(data, images=imgs, mask=m)
+        info["undistorted"] = list(near.camera.distortion)
     if near is not None:
         h = near.camera.nominal_pixel_mm()
         h_source = near.camera_source
@@ -696,7 +755,7 @@ def solve(inp: PhotometricInput, options: PhotometricOptions | None = None, *,
     """
     from photometric.normals import angular_error_deg
 
-    opts = _options(options)
+    opts = _resolved(inp, options)
     t0 = time.perf_counter()
     data, near = inp.data, inp.setup
     n_img, rows, cols = data.images.shape[:3]
@@ -714,6 +773,9 @@ def solve(inp: PhotometricInput, options: PhotometricOptions | None = None, *,
     directions = data.lights if near is None or near.model == "directional" else near.lights.directions
     cond, light_notes = _light_matrix(directions, opts.force)  # the lights were checked by read
     notes += light_notes
+    dark = exposure_note(data.images, data.mask, data.full_scale)
+    if dark is not None:
+        notes.append(dark)
     for note in notes:
         warnings.warn(note, UserWarning, stacklevel=3)
     timings = {"screen": time.perf_counter() - t0}
@@ -783,7 +845,7 @@ def integrate(inp: PhotometricInput, sol: Solution, options: PhotometricOptions 
         return Height(sol.fit.height, sol.fit.timings_s["integrate"])
     t0 = time.perf_counter()
     fit = sol.fit
-    height = integrate_slopes(fit.p, fit.q, _options(options).integrator, mask=fit.valid,
+    height = integrate_slopes(fit.p, fit.q, _resolved(inp, options).integrator, mask=fit.valid,
                               pixel_size=inp.pixel_size_mm, dtype=np.float32)
     return Height(height, time.perf_counter() - t0)
 
@@ -867,7 +929,7 @@ def uncertainty(inp: PhotometricInput, sol: Solution, height: Height, defects: D
     -------
     photometric.uncertainty.UncertaintyResult
     """
-    opts = _options(options)
+    opts = _resolved(inp, options)
     if opts.uncertainty is None:
         raise InputError("uncertainty: the options state no input uncertainties (options.uncertainty is None)")
     if defects.labels is None:
@@ -906,7 +968,7 @@ def summarize(inp: PhotometricInput, sol: Solution, height: Height, defects: Def
         ``final_depth_change_mm``, ``converged``, ``tolerance_mm``, ``anchor`` and
         ``iteration_history``.
     """
-    opts = _options(options)
+    opts = _resolved(inp, options)
     fit, data, h = sol.fit, sol.data, inp.pixel_size_mm
     mask = data.mask
     n_mask = int(mask.sum())
@@ -930,7 +992,9 @@ def summarize(inp: PhotometricInput, sol: Solution, height: Height, defects: Def
         "mean_residual": sol.mean_residual,
         "height_range_mm": float(np.nanmax(z) - np.nanmin(z)) if fit.valid.any() else 0.0,
     }
-    if surf is not None:
+    if surf is None:
+        summary["surface"] = "none"
+    else:
         summary.update({
             "patches": list(surf.patches.shape),
             "patch_step_px": surf.step_px,

@@ -39,7 +39,7 @@ def register(sub) -> None:
     sub : argparse._SubParsersAction
         The group's sub-parser collection.
     """
-    from workbench.commands.photometric import _add_camera, _add_rig_options
+    from workbench.commands.photometric import _add_camera, _add_checkerboard, _add_rig_options
 
     c = add_command(
         sub, "calibrate", _calibrate,
@@ -56,6 +56,7 @@ def register(sub) -> None:
                      help="LED positions, one 'x y z' row in mm per light")
     src.add_argument("--spheres", nargs="+", default=None, metavar="DIR", help="two or more mirror-sphere folders")
     _add_camera(c, "orthographic (telecentric) pixel size in mm")
+    _add_checkerboard(c)
     _add_rig_options(c)
 
     r = add_command(

@@ -30,12 +30,17 @@ def _add_camera(p: argparse.ArgumentParser, pixel_help: str) -> None:
                    "orthographic = telecentric (--pixel-size), perspective = pinhole looking down from "
                    "--camera-height with --focal-length-px")
     p.add_argument("--pixel-size", type=float, default=None, metavar="MM", help=pixel_help)
-    p.add_argument("--focal-length-px", type=float, default=None, metavar="F",
-                   help="perspective: focal length in pixels")
+    p.add_argument("--focal-length-px", default=None, metavar="F",
+                   help="perspective: focal length in pixels, or FX,FY when the pixels are not square (OpenCV's "
+                   "K[0,0], K[1,1])")
     p.add_argument("--camera-height", type=float, default=None, metavar="MM",
                    help="perspective: camera centre height above the reference plane z = 0, mm")
-    p.add_argument("--principal-point", default=None, metavar="CX,CY",
-                   help="perspective: principal point (column, row) in pixels (default the image centre)")
+    p.add_argument("--distortion", default=None, metavar="K1,K2,P1,P2,K3",
+                   help="perspective: lens distortion in OpenCV's model and order (fewer values: the rest 0); the "
+                   "images are resampled to the distortion-free pinhole camera before anything is measured")
+    p.add_argument("--principal-point-px", "--principal-point", dest="principal_point", default=None, metavar="CX,CY",
+                   help="perspective: principal point (column, row) in pixels, 0-based: the top-left pixel's centre "
+                   "is 0,0 (a MATLAB calibration's 1-based point minus 1); default the image centre")
 
 
 def _add_rig_options(p: argparse.ArgumentParser) -> None:
@@ -49,14 +54,32 @@ def _add_rig_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", default="rig.json", help="rig file to write (default rig.json)")
 
 
+def _focal(text: str | None):
+    """``--focal-length-px``: F or FX,FY."""
+    if text is None:
+        return None
+    f = _numbers(text, "--focal-length-px")
+    if isinstance(f, list) and len(f) != 2:
+        raise InputError(f"--focal-length-px: expected F or FX,FY, got {text!r}")
+    return f
+
+
+def _fx(text: str | None) -> float | None:
+    """The x focal length of ``--focal-length-px`` (F or FX,FY), for comparing with a stated camera."""
+    f = _focal(text)
+    return f[0] if isinstance(f, list) else f
+
+
 def _camera_options(args: argparse.Namespace) -> dict:
     pp = None
     if args.principal_point is not None:
-        pp = _numbers(args.principal_point, "--principal-point")
+        pp = _numbers(args.principal_point, "--principal-point-px")
         if not isinstance(pp, list) or len(pp) != 2:
-            raise InputError(f"--principal-point: expected 'CX,CY', got {args.principal_point!r}")
-    return {"camera": args.camera, "focal_length_px": args.focal_length_px,
-            "camera_height_mm": args.camera_height, "principal_point_px": pp}
+            raise InputError(f"--principal-point-px: expected 'CX,CY', got {args.principal_point!r}")
+    dist = None if getattr(args, "distortion", None) is None else _numbers(args.distortion, "--distortion")
+    return {"camera": args.camera, "focal_length_px": _focal(args.focal_length_px),
+            "camera_height_mm": args.camera_height, "principal_point_px": pp,
+            **({} if dist is None else {"distortion": [dist] if isinstance(dist, float) else dist})}
 
 
 #: what the uncertainty options add to ``photometric reconstruct``'s result folder
@@ -168,10 +191,10 @@ def register(sub) -> None:
     p.add_argument("--intensities", default=None, metavar="I",
                    help="light intensities: one value or 'r g b' per row (text, .npy or .json)")
     p.add_argument("--mask", default=None, metavar="M", help="object mask image (non-zero inside)")
-    p.add_argument("--integrator", default=DEFAULTS.integrator, choices=("dct", "fc", "lsq", "robust"),
-                   help="height integrator: dct (Simchony, free boundary; default), fc "
-                   "(Frankot-Chellappa, periodic), lsq (masked least squares, multigrid CG), robust "
-                   "(lsq reweighted per edge: keeps depth jumps and silhouettes local)")
+    p.add_argument("--integrator", default=DEFAULTS.integrator, choices=("auto", "dct", "fc", "lsq", "robust"),
+                   help="height integrator: dct (Simchony, free boundary; default), auto (dct on a full rectangle, "
+                   "lsq when a mask cuts it), fc (Frankot-Chellappa, periodic), lsq (masked least squares, "
+                   "multigrid CG), robust (lsq reweighted per edge: keeps depth jumps and silhouettes local)")
     _add_camera(p, "orthographic pixel size in mm (default: the folder's scene.json, else 1; required "
                 "with point lights unless the rig or folder states the camera)")
     p.add_argument("--light-positions", default=None, metavar="P",
@@ -180,6 +203,9 @@ def register(sub) -> None:
     p.add_argument("--led-mu", default=None, metavar="MU",
                    help="LED lobe exponent mu (cos^mu about the LED axis; 0 isotropic), one value or one "
                    "per light 'm1,m2,...' (default: the rig's or scene.json's, else unknown)")
+    p.add_argument("--led-axes", default=None, metavar="FILE",
+                   help="LED axes, one 'x y z' row per light in the rig frame (from the LED into the scene; default: "
+                   "aimed at the origin, or the rig's); the lobe needs --led-mu (or the rig's)")
     p.add_argument("--flat-field", nargs="+", default=None, metavar="F",
                    help="flat-field images (flat matte target in the reference plane), one per light in "
                    "light order")
@@ -208,9 +234,10 @@ def register(sub) -> None:
                      help="use only the three images named in the folder's triad.txt")
     sel.add_argument("--select", nargs="+", default=None, metavar="NAME",
                      help="use only these image names of the folder (in this order)")
-    p.add_argument("--outliers", action="store_true",
+    p.add_argument("--outliers", action=argparse.BooleanOptionalAction, default=DEFAULTS.outliers,
                    help="shadow/highlight mode: drop dark or saturated observations and re-solve "
-                   "(N >= 4); a triad marks such pixels invalid")
+                   "(N >= 4); a triad marks such pixels invalid. Default: on with 6 or more images; "
+                   "--no-outliers turns it off")
     p.add_argument("--dark", type=float, default=DEFAULTS.dark,
                    help=f"outlier mode: an observation below DARK x albedo is a shadow (default {DEFAULTS.dark:g})")
     p.add_argument("--saturation", type=float, default=DEFAULTS.saturation,
@@ -221,8 +248,9 @@ def register(sub) -> None:
                    "prediction by more than HIGHLIGHT x albedo (default off)")
     p.add_argument("--surface", default=DEFAULTS.surface, choices=SURFACES,
                    help="surface model: fit (bicubic patches fitted by least squares to the height and "
-                   "the slopes of every pixel, smaller where they miss --surface-tolerance; default) or "
-                   "coons (Coons patches through every STEP-th height, tangents from single pixels)")
+                   "the slopes of every pixel, smaller where they miss --surface-tolerance; default), "
+                   "coons (Coons patches through every STEP-th height, tangents from single pixels) or none "
+                   "(normals and height only: no surface model, no surface.ply; big captures)")
     p.add_argument("--surface-tolerance", type=float, default=None, metavar="MM",
                    help="fit: largest deviation of the surface from the integrated height, mm "
                    "(default 0.5 %% of the height range, or 0.01 px, or four times the height's noise at "
@@ -238,8 +266,50 @@ def register(sub) -> None:
                    help="mesh subdivisions per (largest) patch side (default min(step, 8))")
     p.add_argument("--background", default=DEFAULTS.background, choices=BACKGROUNDS,
                    help=f"background removed before measuring defects (default {DEFAULTS.background})")
+    _add_capture(p)
+    p.add_argument("--no-distance-estimate", action="store_true",
+                   help="with an imported calibration (--rig light.mat) and --camera-height: trust the height, do not "
+                   "estimate it from the photometric residual")
     add_uncertainty_options(p)
     p.set_defaults(func=_reconstruct)
+
+    r = sub.add_parser(
+        "import-rig",
+        help="rig.json from another tool's calibration: Quéau's light.mat + camera.mat, or its text (LUCES-style) form",
+        description="Convert a near-field calibration in the camera frame of computer vision (x right, y down, "
+        "z forward, origin at the camera centre, mm) into rig.json (the workbench's frame: origin on the optical "
+        "axis in the reference plane, x right, y up, z towards the camera; principal point 0-based). CAL is "
+        "light.mat (S positions, Dir axes, Phi intensities, mu lobes; camera.mat beside it with K, stored "
+        "transposed, 1-based principal point), a folder holding both, or a folder of text tables "
+        "(led_positions.txt or S.txt, led_directions.txt or Dir.txt, led_intensities.txt/light_intensities.txt "
+        "or Phi.txt, led_mu.txt or mu.txt, K.txt). The files do not hold the working distance: give "
+        "--camera-height, or --images (with --mask, --ambient) to estimate it from the photometric residual "
+        "(printed and stored with its uncertainty; a given height far from the estimate is warned about).",
+    )
+    r.add_argument("calibration", metavar="CAL", help="light.mat, a folder with light.mat + camera.mat, or a "
+                   "folder of text tables")
+    r.add_argument("--camera-mat", default=None, metavar="FILE", help="camera.mat (default: beside light.mat)")
+    r.add_argument("--k-origin", type=int, default=1, choices=(0, 1),
+                   help="origin of the principal point in K (default 1: MATLAB's; 0 for a 0-based file)")
+    r.add_argument("--camera-height", type=float, default=None, metavar="MM",
+                   help="working distance: camera centre height above the reference plane, mm (default: estimated "
+                   "from --images)")
+    r.add_argument("--images", nargs="+", default=None, metavar="IMG",
+                   help="the capture, one image per LED in the calibration's order: its size, and the working "
+                   "distance estimate")
+    r.add_argument("--image-size", default=None, metavar="H,W",
+                   help="image size in pixels when no --images are given")
+    r.add_argument("--mask", default=None, metavar="M", help="the part's mask for the working-distance estimate")
+    _add_capture(r)
+    r.add_argument("--led-axes", default=None, metavar="FILE",
+                   help="LED axes 'x y z' per LED in the calibration's camera frame (replaces the file's Dir)")
+    r.add_argument("--led-mu", default=None, metavar="MU", help="LED lobe exponent(s), replacing the file's mu")
+    r.add_argument("--focal-length-px", default=None, metavar="F",
+                   help="replaces the file's focal length: F or FX,FY (pixels)")
+    r.add_argument("--principal-point-px", default=None, metavar="X,Y",
+                   help="replaces the file's principal point: column,row in pixels, 0-based")
+    r.add_argument("--out", default="rig.json", help="rig file to write (default rig.json)")
+    r.set_defaults(func=_import_rig)
 
     c = sub.add_parser(
         "calibrate",
@@ -260,8 +330,43 @@ def register(sub) -> None:
     _add_camera(c, "orthographic pixel size in mm (default: the sphere folders' scene.json)")
     c.add_argument("--flat-field", nargs="+", default=None, metavar="F",
                    help="flat-field images (flat matte target on z = 0), one per light in light order")
+    _add_checkerboard(c)
     _add_rig_options(c)
     c.set_defaults(func=_calibrate)
+
+
+def _add_checkerboard(c: argparse.ArgumentParser) -> None:
+    """The camera from checkerboard views (shared by ``photometric calibrate`` and ``inspect calibrate``)."""
+    c.add_argument("--checkerboard", nargs="+", default=None, metavar="IMG",
+                   help="checkerboard views (3 or more, tilted differently; the first lying on the reference plane "
+                   "unless --camera-height is given): the perspective camera with its lens distortion, calibrated "
+                   "by OpenCV (fx, fy, principal point, k1,k2,p1,p2,k3) and its RMS reprojection error, into rig.json; "
+                   "the sphere and flat-field images are undistorted with it")
+    c.add_argument("--board", default=None, metavar="COLSxROWS", help="inner corners of the checkerboard, e.g. 9x6")
+    c.add_argument("--square-mm", type=float, default=None, metavar="S", help="side of one checkerboard square, mm")
+
+
+def _checkerboard_camera(args: argparse.Namespace):
+    """The camera of ``--checkerboard`` (and its calibration record), or (None, None)."""
+    if getattr(args, "checkerboard", None) is None:
+        if getattr(args, "board", None) is not None or getattr(args, "square_mm", None) is not None:
+            raise InputError("--board/--square-mm: only with --checkerboard")
+        return None, None
+    from photometric.camera import calibrate_checkerboard
+    from photometric.io import read_images
+
+    if args.board is None or args.square_mm is None:
+        raise InputError("--checkerboard: needs --board COLSxROWS and --square-mm S")
+    parts = args.board.lower().split("x")
+    if len(parts) != 2 or not all(p.strip().isdigit() for p in parts):
+        raise InputError(f"--board: expected COLSxROWS inner corners (e.g. 9x6), got {args.board!r}")
+    if any(getattr(args, k, None) is not None for k in ("pixel_size", "focal_length_px", "principal_point",
+                                                         "distortion")) or args.camera == "orthographic":
+        raise InputError("--checkerboard: calibrates the perspective camera itself (leave out --pixel-size, "
+                         "--focal-length-px, --principal-point-px, --distortion)")
+    images = read_images(list(args.checkerboard))
+    return calibrate_checkerboard(list(images), (int(parts[0]), int(parts[1])), args.square_mm,
+                                  camera_height_mm=args.camera_height)
 
 
 def _calibrate(args: argparse.Namespace) -> int:
@@ -272,24 +377,48 @@ def _calibrate(args: argparse.Namespace) -> int:
     folders = [*(args.spheres or []), *([Path(args.light_positions).parent] if args.light_positions else []),
                *(Path(f).parent for f in args.flat_field or [])]
     warn_camera_conflicts(dict.fromkeys(folders), pixel_size=args.pixel_size, camera=args.camera,
-                          focal_length_px=args.focal_length_px, camera_height_mm=args.camera_height)
-    camera = None
-    if any(v is not None for v in (*opts.values(), args.pixel_size)):
+                          focal_length_px=_fx(args.focal_length_px), camera_height_mm=args.camera_height)
+    if opts.pop("distortion", None) is not None:
+        raise InputError("--distortion: give the lens through --checkerboard (the sphere and flat-field images are "
+                         "then undistorted with it), or to reconstruct")
+    camera, board = _checkerboard_camera(args)
+    spheres, flats = args.spheres, args.flat_field
+    if camera is not None and camera.distortion is not None:
+        from dataclasses import replace
+
+        from photometric.calibrate import read_sphere_set
+        from photometric.camera import undistort_images
+        from photometric.io import read_images
+
+        if spheres is not None:
+            spheres = [read_sphere_set(d, camera)[0] for d in spheres]
+            spheres = [replace(s, images=undistort_images(camera, s.images)[0]) for s in spheres]
+        if flats is not None:
+            flats = undistort_images(camera, read_images(list(flats)))[0]
+    if camera is None and any(v is not None for v in (*opts.values(), args.pixel_size)):
         model = opts["camera"] or ("perspective" if args.focal_length_px or args.camera_height else "orthographic")
-        camera = make_camera(model, pixel_size_mm=args.pixel_size, focal_length_px=args.focal_length_px,
+        camera = make_camera(model, pixel_size_mm=args.pixel_size, focal_length_px=opts["focal_length_px"],
                              camera_height_mm=args.camera_height, principal_point_px=opts["principal_point_px"])
     rig = calibrate_to_rig(
         args.out,
-        spheres=args.spheres,
+        spheres=spheres,
         light_positions=args.light_positions,
         camera=camera,
-        flat_field=args.flat_field,
+        flat_field=flats,
         flat_albedo=args.flat_albedo,
         led_mu=None if args.led_mu is None else _numbers(args.led_mu, "--led-mu"),
         intensities=args.intensities,
         window_px=args.window,
     )
     cal = rig["calibration"]
+    if board is not None:
+        from surfaces.io import write_json
+
+        cal = rig["calibration"] = {**cal, "camera_calibration": board}
+        write_json(args.out, rig)
+        print(f"camera from {board['views']} checkerboard views: RMS reprojection error "
+              f"{board['rms_reprojection_px']:.3f} px, height {rig['camera']['camera_height_mm']:.2f} mm "
+              f"({board['camera_height_source']}), distortion {rig['camera'].get('distortion')}")
     print(f"{len(rig['lights']['positions_mm'])} LEDs, {rig['camera']['model']} camera, "
           f"{rig['image_size'][0]} x {rig['image_size'][1]} px, flat field "
           f"{'yes' if rig['flat_field'] else 'no'} ({cal['method']})")
@@ -302,6 +431,163 @@ def _calibrate(args: argparse.Namespace) -> int:
         print(line)
     print(f"wrote {args.out} (every number above is in it)")
     return 0
+
+
+def _add_capture(p: argparse.ArgumentParser) -> None:
+    """The capture's realities: a dark frame and Bayer mosaics."""
+    from photometric.io import BAYER_PATTERNS
+
+    p.add_argument("--ambient", nargs="+", default=None, metavar="IMG",
+                   help="dark frame(s) (all LEDs off, same exposure) subtracted from the images, clipped at 0: one "
+                   "for all images or one per image")
+    p.add_argument("--bayer", default=None, choices=BAYER_PATTERNS,
+                   help="the image files (and dark frames) are raw Bayer mosaics of this layout (top-left 2 x 2 "
+                   "cell, row by row), demosaiced to RGB at full resolution (OpenCV bilinear) when read")
+
+
+def _pair(text: str | None, flag: str, what: str):
+    if text is None:
+        return None
+    v = _numbers(text, flag)
+    if not isinstance(v, list) or len(v) != 2:
+        raise InputError(f"{flag}: expected {what}, got {text!r}")
+    return v
+
+
+def _is_calibration(path) -> bool:
+    """A calibration of another tool (light.mat, or a folder of them or of text tables), not rig.json."""
+    from pathlib import Path
+
+    p = Path(path)
+    return p.suffix.lower() == ".mat" or p.is_dir()
+
+
+def _capture(images, mask, ambient, bayer):
+    """Grey-or-colour image stack (ambient subtracted) and mask, as the working-distance search needs them."""
+    from photometric.io import read_ambient, read_images, read_mask
+
+    imgs = read_images(list(images), bayer=bayer)
+    if ambient:
+        read_ambient(ambient, imgs, bayer)
+    m = None if mask is None else read_mask(mask, imgs.shape[1:3])
+    return imgs, m
+
+
+def _imported(cal, *, camera_height, images, mask, ambient, bayer, image_size=None, axes=None, focal=None,
+              pp=None, estimate=True):
+    """Rig of an imported calibration at the given or estimated working distance, and the estimate (or None)."""
+    from photometric.distance import estimate_camera_height, height_warning
+    from photometric.importers import to_rig
+
+    est, warning = None, None
+    if images is None:
+        if camera_height is None:
+            raise InputError("--camera-height: the calibration does not hold the working distance; give it, or the "
+                             "images (--images) to estimate it")
+        size = image_size
+        return to_rig(cal, camera_height, size, axes=axes, focal_length_px=focal, principal_point_px=pp), None, None
+    imgs, m = _capture(images, mask, ambient, bayer)
+    size = imgs.shape[1:3]
+    start = camera_height if camera_height is not None else 2.5 * float(cal.positions_mm[:, 2].max())
+    rig = to_rig(cal, start, size, axes=axes, focal_length_px=focal, principal_point_px=pp)
+    if estimate or camera_height is None:
+        est = estimate_camera_height(imgs, rig, mask=m)
+        if camera_height is None:
+            rig = to_rig(cal, est.camera_height_mm, size, axes=axes, focal_length_px=focal, principal_point_px=pp)
+        else:
+            warning = height_warning(camera_height, est)
+        rig.calibration["working_distance"] = {**est.to_dict(), "source": "estimated" if camera_height is None
+                                               else "given", "given_mm": camera_height}
+    return rig, est, warning
+
+
+def _print_estimate(est, given) -> None:
+    if est is None:
+        return
+    print(f"working distance: {est.camera_height_mm:.1f} mm +- {2 * est.u_mm:.1f} mm (U, k = 2; curvature "
+          f"u {est.u_curvature_mm:.2g} mm, spatial jackknife u {est.u_jackknife_mm:.2g} mm), photometric residual "
+          f"{est.residual_rms:.4g} of full scale at {est.binning}x{est.binning} binning"
+          + ("" if given is None else f"; using the given {given:g} mm"))
+
+
+def _import_rig(args: argparse.Namespace) -> int:
+    import sys
+
+    from photometric.importers import read_calibration
+    from photometric.importers import load_axes
+    from workbench.runs.photometric import write_rig
+
+    cal = read_calibration(args.calibration, args.camera_mat, k_origin=args.k_origin)
+    size = _pair(args.image_size, "--image-size", "H,W")
+    if args.images is None and size is None:
+        raise InputError("--image-size: give the image size (H,W) or the images (--images)")
+    axes = None if args.led_axes is None else load_axes(args.led_axes)
+    if args.led_mu is not None:
+        from dataclasses import replace
+
+        import numpy as np
+
+        mu = _numbers(args.led_mu, "--led-mu")
+        cal = replace(cal, mu=np.broadcast_to(np.asarray(mu, float), (len(cal),)).copy())
+    rig, est, warning = _imported(cal, camera_height=args.camera_height, images=args.images, mask=args.mask,
+                                  ambient=args.ambient, bayer=args.bayer, image_size=size, axes=axes,
+                                  focal=_focal(args.focal_length_px),
+                                  pp=_pair(args.principal_point_px, "--principal-point-px", "X,Y (0-based)"))
+    content = write_rig(rig, args.out)
+    cam = content["camera"]
+    print(f"{len(rig.lights)} LEDs from {cal.source.get('format')} calibration, perspective camera f "
+          f"{cam['focal_length_px']:.2f}" + (f" x {cam['focal_length_y_px']:.2f}" if "focal_length_y_px" in cam else "")
+          + f" px, principal point ({cam['principal_point_px'][0]:.2f}, {cam['principal_point_px'][1]:.2f}) px "
+          f"(0-based), {rig.image_size[0]} x {rig.image_size[1]} px, camera height {cam['camera_height_mm']:.1f} mm")
+    _print_estimate(est, args.camera_height)
+    if warning:
+        print(f"warning: {warning}", file=sys.stderr)
+    print(f"wrote {args.out}")
+    return 0
+
+
+def _rig_option(args: argparse.Namespace):
+    """``--rig`` as ``reconstruct`` gets it: rig.json (moved to ``--camera-height`` when only that is given), or an
+    imported calibration (light.mat) at the given or estimated working distance; the camera options left."""
+    from photometric.importers import read_calibration
+    from photometric.rig import at_camera_height, read_rig
+
+    opts = _camera_options(args)
+    if args.rig is None:
+        return None, opts, None, None
+    if _is_calibration(args.rig):
+        if args.images is None:
+            raise InputError("--rig: an imported calibration (light.mat or a calibration folder) needs --images")
+        if args.camera not in (None, "perspective"):
+            raise InputError("--camera: an imported calibration is a perspective camera")
+        cal = read_calibration(args.rig)
+        rig, est, warning = _imported(cal, camera_height=args.camera_height, images=args.images, mask=args.mask,
+                                      ambient=args.ambient, bayer=args.bayer, focal=opts["focal_length_px"],
+                                      pp=opts["principal_point_px"], estimate=not args.no_distance_estimate)
+        return rig, {**dict.fromkeys(opts), "distortion": opts.get("distortion")}, est, warning
+    if args.camera_height is not None and all(opts[k] is None for k in ("camera", "focal_length_px",
+                                                                         "principal_point_px")):
+        return (at_camera_height(read_rig(args.rig), args.camera_height),
+                {**dict.fromkeys(opts), "distortion": opts.get("distortion")}, None, None)
+    return args.rig, opts, None, None
+
+
+def _add_to_summary(out, summary: dict, rig, est, warning) -> dict:
+    """summary.json with the imported rig's source and the working distance (the CLI composed them)."""
+    from pathlib import Path
+
+    from surfaces.io import write_json
+
+    cal = getattr(rig, "calibration", {}) or {}
+    summary = dict(summary)
+    summary["rig_source"] = {k: cal[k] for k in ("method", "source", "conversion", "camera_height_mm_moved_from")
+                             if k in cal}
+    if est is not None:
+        summary["working_distance"] = cal.get("working_distance", est.to_dict())
+    if warning:
+        summary["warnings"] = [*summary.get("warnings", []), warning]
+    write_json(Path(out) / "summary.json", summary)
+    return summary
 
 
 def _pm(value: float, expanded: float | None) -> str:
@@ -374,9 +660,10 @@ def _reconstruct(args: argparse.Namespace) -> int:
         raise InputError("--triad/--select: only apply to a folder input")
     select = "triad" if args.triad else args.select
     warn_camera_conflicts([] if args.folder is None else [args.folder], rig=args.rig, pixel_size=args.pixel_size,
-                          camera=args.camera, focal_length_px=args.focal_length_px,
+                          camera=args.camera, focal_length_px=_fx(args.focal_length_px),
                           camera_height_mm=args.camera_height)
     tolerances = _uncertainty_options(args)
+    rig, camera_opts, est, warning = _rig_option(args)
     stages = ["read", "normals", "height", "surface", "defects", *(["uncertainty"] if tolerances else []), "write"]
     # delay: no bar at all before an error in the first half second
     with tqdm(total=len(stages), desc="photometric", unit="stage", leave=False, delay=0.5) as bar:
@@ -405,9 +692,12 @@ def _reconstruct(args: argparse.Namespace) -> int:
             background=args.background,
             light_positions=args.light_positions,
             led_mu=None if args.led_mu is None else _numbers(args.led_mu, "--led-mu"),
+            led_axes=args.led_axes,
             flat_field=False if args.no_flat_field else args.flat_field,
             flat_albedo=args.flat_albedo,
-            rig=args.rig,
+            rig=rig,
+            ambient=args.ambient,
+            bayer=args.bayer,
             light_model=args.light_model,
             reference_height_mm=args.reference_height,
             tolerance_mm=DEFAULTS.tolerance_mm if args.tolerance is None else args.tolerance,
@@ -415,9 +705,11 @@ def _reconstruct(args: argparse.Namespace) -> int:
             uncertainty=tolerances,
             force=args.force,
             progress=progress,
-            **_camera_options(args),
+            **camera_opts,
         )
         bar.update(bar.total - bar.n)
+    if est is not None or not isinstance(rig, (str, type(None))):
+        summary = _add_to_summary(args.out, summary, rig, est, warning)
     size = summary["size"]
     print(
         f"{size['images']} images of {size['width']} x {size['height']} px, "
@@ -435,12 +727,11 @@ def _reconstruct(args: argparse.Namespace) -> int:
     unit = "px" if summary["pixel_size_source"].startswith("default") else "mm"
     if "height_rmse_mm" in summary:
         print(_height_rmse_line(summary, args, unit))
-    print(
-        f"height range {summary['height_range_mm']:.4g} {unit} ({summary['integrator']}), "
-        f"{summary['n_patches']} patches ({summary['surface']}, surface within "
-        f"{summary['surface_max_dev_mm']:.3g} {unit} of the height), "
-        f"{summary['mesh']['triangles']} triangles, {summary['n_defects']} defect(s)"
-    )
+    surface = ("no surface model (--surface none)" if summary["surface"] == "none" else
+               f"{summary['n_patches']} patches ({summary['surface']}, surface within "
+               f"{summary['surface_max_dev_mm']:.3g} {unit} of the height), {summary['mesh']['triangles']} triangles")
+    print(f"height range {summary['height_range_mm']:.4g} {unit} ({summary['integrator']}), {surface}, "
+          f"{summary['n_defects']} defect(s)")
     if "uncertainty" in summary:
         unc = summary["uncertainty"]
         print(f"uncertainty ({unc['method']}, k = 2): noise sigma {unc['noise_sigma']:.3g} "
@@ -452,5 +743,10 @@ def _reconstruct(args: argparse.Namespace) -> int:
                       f"depth {_pm(rec['max_depth_mm'], k2.get('max_depth_mm'))}, "
                       f"width {_pm(rec['mean_width_mm'], k2.get('mean_width_mm'))}, "
                       f"length {_pm(rec['length_mm'], k2.get('length_mm'))}")
+    _print_estimate(est, args.camera_height)
+    if warning:
+        import sys
+
+        print(f"warning: {warning}", file=sys.stderr)
     print(f"total {summary['timings_s']['total']:.2f} s; wrote {args.out} (summary.json holds every number above)")
     return 0

@@ -292,6 +292,22 @@ def _frames(paths: list, mask_path, rig: Rig):
     return frames
 
 
+def _rig_position_u(options: dict, rig: Rig) -> tuple[dict, str | None]:
+    """The uncertainty options with the rig's LED position u when the user gave none (issue 33: the
+    calibration's own u, :func:`photometric.rig.position_u_mm`, instead of 0); the source said."""
+    from photometric.rig import position_u_mm
+
+    unc = options.get("uncertainty")
+    if not isinstance(unc, dict):
+        return options, None
+    if {"light_position_tolerance_mm", "light_position_u_mm"} & set(unc):
+        return options, "option"
+    u = position_u_mm(rig)
+    if u is None:
+        return options, None
+    return {**options, "uncertainty": {**unc, "light_position_tolerance_mm": u}}, "rig"
+
+
 def _summary_figures(decision) -> dict:
     """The part's key figures (the results.csv row of :data:`workbench.batch.FIGURES` ``inspect``)."""
     counted = [r for r in decision.imperfections if r["region"] == "inspected"]
@@ -351,6 +367,7 @@ def inspect_part(folder, out_dir, rig, spec, *, keep_arrays: bool = False, part_
     t_all, cpu_all = time.perf_counter(), time.process_time()
     check_options(options)
     rig_obj = load_rig(rig)
+    options, u_source = _rig_position_u(options, rig_obj)
     spec_obj = _spec(spec)
     root = Path(folder)
     paths = part_images(root, len(rig_obj.lights))
@@ -363,6 +380,8 @@ def inspect_part(folder, out_dir, rig, spec, *, keep_arrays: bool = False, part_
     else:
         m = _measure_direct(paths, mask, rig_obj, options, threads)
     t_measure = time.perf_counter() - t0
+    if u_source is not None and isinstance(m.summary.get("uncertainty"), dict):
+        m.summary["uncertainty"] = {**m.summary["uncertainty"], "light_position_u_source": u_source}
     pixel = m.pixel_size_mm
     t0 = time.perf_counter()
     decision = judge(m.defects, spec_obj, m.valid.shape, pixel)
