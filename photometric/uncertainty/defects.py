@@ -274,7 +274,12 @@ def _quantisation(rec: dict, h: float, rng: np.random.Generator) -> dict:
     # large outlines (many pixels) quantise finely: fewer stadiums bound the work
     count = int(np.clip(_QUANTISATION_WORK / ((length + 4.0) * (width + 3.0)), _QUANTISATION_OFFSETS // 3,
                         _QUANTISATION_OFFSETS))
-    values = _rasterised(width, length, axis, h, rng.uniform(-0.5, 0.5, (count, 4)))
+    # plus the four placements on the grid's symmetry points (centre on a pixel centre or
+    # between two, along each axis): an axis-aligned outline's largest errors lie there
+    draws = np.concatenate([rng.uniform(-0.5, 0.5, (count, 4)),
+                            [[dx, dy, *rng.uniform(-0.5, 0.5, 2)] for dx in (0.0, 0.5) for dy in (0.0, 0.5)
+                             for _ in range(6)]])
+    values = _rasterised(width, length, axis, h, draws)
     model = dict(zip(("mean_width_mm", "length_mm", "area_mm2"), np.asarray(values.pop("model")).T))
     out = {}
     for key, v in values.items():
@@ -311,6 +316,26 @@ def _coverage_half_width(errors, others: float, level: float = 0.95) -> float:
     return 0.5 * (lo + hi)
 
 
+def _every_phase_half_width(errors, others: float, level: float = 0.95) -> float:
+    """Half-width ``U`` that holds ``level`` of ``e + N(0, others^2)`` for EVERY sample ``e`` of
+    ``errors``, not on average over them.
+
+    The samples are a grid error at random sub-pixel places (phases) of one outline or groove.
+    For one defect the phase is fixed, not random: an axis-aligned groove whose bottom or rim
+    lies between two pixel rows reads the same error at every trial, the tail of the
+    phase-averaged distribution. An interval that must hold at every phase is set by the
+    largest error: the 95 % half-width of ``Normal(max |e|, others)`` (with ``others = 0``,
+    ``max |e|``). Over random phases it then covers more than ``level``.
+    """
+    e = np.asarray(errors, float).ravel()
+    if e.size == 0:
+        raise InputError("errors: need at least one error sample")
+    worst = float(np.abs(e).max())
+    if others <= 0.0:
+        return worst
+    return 2.0 * math.sqrt(others * others + _bias_term(others, worst) ** 2)
+
+
 def _quantisation_term(errors, others: float) -> float:
     """Effective standard uncertainty of the outline's quantisation next to the other terms'
     combined standard uncertainty ``others``: the ``u_q`` for which ``2 sqrt(others^2 +
@@ -318,7 +343,7 @@ def _quantisation_term(errors, others: float) -> float:
     convolved with the Gaussian of the others. A bounded, flat-topped error has a 95 %
     half-width below twice its standard deviation (a uniform one 0.95 x its half-range
     against 1.15), so this ``u_q`` is below the errors' spread there."""
-    U = _coverage_half_width(errors, others)
+    U = _every_phase_half_width(errors, others)
     return float(math.sqrt(max(0.25 * U * U - others * others, 0.0)))
 
 
@@ -406,12 +431,13 @@ def _groove_depth_errors(depth: float, width: float, length: float, axis_deg: fl
     return errors
 
 
-def _depth_grid(rec: dict, h: float, integrator: str, rng: np.random.Generator) -> tuple[float, float]:
+def _depth_grid(rec: dict, h: float, integrator: str, rng: np.random.Generator) -> tuple[float, float, np.ndarray]:
     """The depth's pixel-grid error on the model of the defect (:func:`_groove_depth_errors`
     with the measured depth, mean width, length and axis; random sub-pixel centre, width and
-    length): ``(mean, spread)``, mm. The mean is the method's bias at this axis (not
+    length): ``(mean, spread, errors)``, mm. The mean is the method's bias at this axis (not
     corrected: the model's section is an assumption), the spread the discretisation's
-    standard uncertainty."""
+    standard uncertainty; the errors themselves (one per placement) bound the bias at the
+    defect's own, unknown phase (:func:`_every_phase_half_width`)."""
     width = max(float(rec["mean_width_mm"]) / h, 1.0)
     length = max(float(rec["length_mm"]) / h, width)
     section = _section_exponent(rec)
@@ -426,7 +452,7 @@ def _depth_grid(rec: dict, h: float, integrator: str, rng: np.random.Generator) 
     depth = float(rec["max_depth_mm"])
     if depth > 0:
         errors = errors / max(1.0 + float(errors.mean()) / depth, 0.5)
-    return float(errors.mean()), float(errors.std(ddof=1))
+    return float(errors.mean()), float(errors.std(ddof=1)), errors
 
 
 def _section_exponent(rec: dict) -> float:

@@ -22,6 +22,7 @@ from photometric.uncertainty.defects import (
     _Background,
     _bias_term,
     _depth_grid,
+    _every_phase_half_width,
     _figures,
     _grown,
     _noise_functionals,
@@ -277,10 +278,15 @@ def propagate(
         # the deepest pixel's grid error on the defect's model: its spread, and its mean
         # (a bias that depends on the axis) stated as the uncorrected bias that, with every
         # other term, a k = 2 interval must still cover (GUM F.2.4.5)
-        bias, spread = _depth_grid(rec, h, integrator, rng)
-        others = math.sqrt(sum(e["contribution"] ** 2 for e in terms["max_depth_mm"].values()) + spread**2)
+        # The phase of the defect on the grid is fixed, not random: the interval must hold at
+        # the placement of the largest error, not on average over placements
+        bias, spread, grid_errors = _depth_grid(rec, h, integrator, rng)
+        rest = math.sqrt(sum(e["contribution"] ** 2 for e in terms["max_depth_mm"].values()))
+        others = math.sqrt(rest**2 + spread**2)
+        U_grid = _every_phase_half_width(grid_errors, rest)
         terms["max_depth_mm"]["discretisation"] = _entry(spread, 1.0)
-        terms["max_depth_mm"]["method_bias"] = _entry(_bias_term(others, bias), 1.0)
+        terms["max_depth_mm"]["method_bias"] = _entry(
+            max(_bias_term(others, bias), math.sqrt(max(0.25 * U_grid**2 - others**2, 0.0))), 1.0)
         terms["volume_mm3"]["discretisation"] = _entry(_volume_edge(z, fig, bg, coef0, h), 1.0)
         budget, expanded = _budget(rec, terms)
         out_defects.append({"id": rec["id"], "uncertainty_k2": expanded, "budget": budget})
