@@ -94,6 +94,12 @@ class Tolerances:
         Monte Carlo repetitions (at least 2).
     seed : int
         Seed of the Monte Carlo draws.
+    blur_px : float
+        Gaussian standard deviation of the images' blur, pixels (the lens's point spread and
+        the pixel's own area: a box pixel alone is about 0.29 px). Narrow grooves read
+        shallower, wider and longer under blur; the depth's grid model blurs the groove's
+        slopes by it, and the outline's budget states the footprint's widening as a bias.
+        0: images sampled at the pixel centres.
     """
 
     noise_sigma: float | None = None
@@ -104,12 +110,13 @@ class Tolerances:
     method: str = "linear"
     mc_samples: int = 50
     seed: int = 0
+    blur_px: float = 0.0
 
     def __post_init__(self):
         if self.noise_sigma is not None:
             positive(self.noise_sigma, "noise_sigma", allow_zero=True)
         for name in ("light_tolerance_deg", "light_position_tolerance_mm", "intensity_tolerance",
-                     "pixel_size_tolerance"):
+                     "pixel_size_tolerance", "blur_px"):
             value = getattr(self, name)
             if not np.isfinite(value) or value < 0:
                 raise InputError(f"{name}: must be a non-negative number (a standard uncertainty), got {value}")

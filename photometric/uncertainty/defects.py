@@ -245,7 +245,7 @@ def _rasterised(width: float, length: float, axis_deg: float, h: float, offsets:
     return values
 
 
-def _quantisation(rec: dict, h: float, rng: np.random.Generator) -> dict:
+def _quantisation(rec: dict, h: float, rng: np.random.Generator, grow_mm: float = 0.0) -> dict:
     """Pixel quantisation of the outline: width, length and area measured (as
     :func:`photometric.defects.measure_defects` does) on a stadium of the defect's axis
     rasterised at random sub-pixel offsets.
@@ -257,11 +257,14 @@ def _quantisation(rec: dict, h: float, rng: np.random.Generator) -> dict:
     (the outline moves in steps of the pixel pitch projected on the axis), far from normal:
     they are returned as samples for :func:`_quantisation_term`, not as a standard deviation.
 
+    ``grow_mm``: the blurred footprint's widening (:func:`_blur_widening`), taken off the
+    measured width and length before the stadium is set (its errors then add to these).
+
     Returns ``{figure: errors}``: the errors ``measure - stadium`` over the offsets (mm or
     mm^2, shape (n,)); a defect too small to rasterise gets ``±h`` (``±h^2``), the pixel.
     """
-    width = max(float(rec["mean_width_mm"]) / h, 1.0)
-    length = max(float(rec["length_mm"]) / h, width)
+    width = max((float(rec["mean_width_mm"]) - grow_mm) / h, 1.0)
+    length = max((float(rec["length_mm"]) - grow_mm) / h, width)
     axis = float(rec["axis_deg"])
     first = _rasterised(width, length, axis, h, rng.uniform(-0.5, 0.5, (16, 4)))
     if len(first["mean_width_mm"]) > 2:
@@ -367,7 +370,8 @@ def _bias_term(spread: float, bias: float) -> float:
 
 
 def _groove_depth_errors(depth: float, width: float, length: float, axis_deg: float, h: float,
-                         offsets: np.ndarray, integrator: str = "dct", section: float = 2.0) -> np.ndarray:
+                         offsets: np.ndarray, integrator: str = "dct", section: float = 2.0,
+                         blur_px: float = 0.0) -> np.ndarray:
     """Errors of the measured depth (mm) of a groove on the pixel grid.
 
     The groove ``z = -D (1 - (2 d / w)^p)`` for ``d < w / 2``, ``p = section`` (2: a
@@ -382,6 +386,10 @@ def _groove_depth_errors(depth: float, width: float, length: float, axis_deg: fl
     that depends on where the rim falls between two centres; it wanders along the groove
     and the deepest pixel picks its largest excursion (deeper on average; strongest for
     axes near 45 deg and other small rational slopes of the grid).
+
+    ``blur_px`` (Gaussian standard deviation, pixels) blurs the slopes before they are
+    integrated, as the optics and the pixel's area blur the images (for small slopes the
+    images are linear in the slopes): a narrow groove then reads shallower still.
 
     ``offsets`` is (n, 4): ``dx, dy`` of the centre and ``dwidth, dlength`` (pixels).
     Returns the n errors (measured minus ``depth``).
@@ -417,10 +425,15 @@ def _groove_depth_errors(depth: float, width: float, length: float, axis_deg: fl
             # dz/dd = D p (2 / w)^p d^(p - 1) along (ex, ey) / d (d floored: (ex, ey) is 0 there)
             d = np.maximum(np.sqrt(d2), f(1e-6))
             g = np.where(inside, f(depth * section * (2.0 / w) ** section / h) * d ** f(section - 2.0), f(0.0))
+        gx, gy = g * ex, g * ey
+        if blur_px > 0:
+            # the images' blur, on the slopes (linear in the slopes for small ones)
+            gx = ndimage.gaussian_filter(gx, blur_px, mode="nearest")
+            gy = ndimage.gaussian_filter(gy, blur_px, mode="nearest")
         if integrator == "dct":
-            z = dct_poisson(g * ex, g * ey, None, h, dtype=np.float32)
+            z = dct_poisson(gx, gy, None, h, dtype=np.float32)
         else:
-            z = integrate(g * ex, g * ey, integrator, pixel_size=h)
+            z = integrate(gx, gy, integrator, pixel_size=h)
         plate = d2 > f((0.5 * w + 3.0) ** 2)
         # the plane's normal equations (the window's coordinates are centred: well conditioned)
         px, py, pz = xs[plate].astype(float), ys[plate].astype(float), z[plate].astype(float)
@@ -431,22 +444,54 @@ def _groove_depth_errors(depth: float, width: float, length: float, axis_deg: fl
     return errors
 
 
-def _depth_grid(rec: dict, h: float, integrator: str, rng: np.random.Generator) -> tuple[float, float, np.ndarray]:
+#: The slope footprint's threshold where a record does not state it (the floor of
+#: :func:`photometric.defects._slope_footprint`'s automatic one).
+_FOOTPRINT_SLOPE = 0.02
+
+
+def _blur_widening(rec: dict, h: float, blur_px: float, section: float) -> float:
+    """How much wider (and longer) the blurred footprint reads than the groove, pixels.
+
+    The footprint is where the slope exceeds its threshold ``t``. Blurred by a Gaussian of
+    ``blur_px``, the rim's step of the slope (``s = p D / (w / 2)``, ``p`` the section's
+    exponent) becomes the ramp ``s Phi(d / blur_px)``, above ``t`` from ``d = blur_px
+    Phi^-1(t / s)`` outside the rim: both rims move out by ``-blur_px Phi^-1(t / s)``. The
+    groove's width ``w`` is solved from the measured one (a few fixed-point steps). 0 without blur.
+    """
+    if blur_px <= 0:
+        return 0.0
+    measured = max(float(rec["mean_width_mm"]) / h, 1.0)
+    depth = max(float(rec["max_depth_mm"]), 0.0) / h  # pixels, as the width
+    threshold = float(rec.get("slope_threshold", _FOOTPRINT_SLOPE))
+    width, grow = measured, 0.0
+    for _ in range(6):
+        rim = section * depth / max(0.5 * width, 0.5)
+        if rim <= threshold:
+            return 0.0
+        grow = -2.0 * blur_px * float(special.ndtri(threshold / rim))
+        width = max(measured - grow, 1.0)
+    return max(grow, 0.0)
+
+
+def _depth_grid(rec: dict, h: float, integrator: str, rng: np.random.Generator,
+                blur_px: float = 0.0) -> tuple[float, float, np.ndarray]:
     """The depth's pixel-grid error on the model of the defect (:func:`_groove_depth_errors`
     with the measured depth, mean width, length and axis; random sub-pixel centre, width and
-    length): ``(mean, spread, errors)``, mm. The mean is the method's bias at this axis (not
+    length, the blurred footprint's widening taken off them (:func:`_blur_widening`); the
+    slopes blurred by ``blur_px``): ``(mean, spread, errors)``, mm. The mean is the method's bias at this axis (not
     corrected: the model's section is an assumption), the spread the discretisation's
     standard uncertainty; the errors themselves (one per placement) bound the bias at the
     defect's own, unknown phase (:func:`_every_phase_half_width`)."""
-    width = max(float(rec["mean_width_mm"]) / h, 1.0)
-    length = max(float(rec["length_mm"]) / h, width)
     section = _section_exponent(rec)
+    grow = _blur_widening(rec, h, blur_px, section)
+    width = max(float(rec["mean_width_mm"]) / h - grow, 1.0)
+    length = max(float(rec["length_mm"]) / h - grow, width)
     a = math.radians(float(rec["axis_deg"]))
     frame = width + 2.0 * max(8.0, 0.5 * width) + 4.0
     window = (abs(math.cos(a)) * (length - width) + frame) * (abs(math.sin(a)) * (length - width) + frame)
     count = int(np.clip(_DEPTH_GRID_WORK / window, _DEPTH_GRID_OFFSETS // 3, _DEPTH_GRID_OFFSETS))
     errors = _groove_depth_errors(float(rec["max_depth_mm"]), width, length, float(rec["axis_deg"]), h,
-                                  rng.uniform(-0.5, 0.5, (count, 4)), integrator, section)
+                                  rng.uniform(-0.5, 0.5, (count, 4)), integrator, section, blur_px)
     # the errors are linear in the depth and the model ran at the measured one: the true depth is
     # measured / (1 + mean relative error), so are the errors' scale (a V's -9 % then reads -10 %)
     depth = float(rec["max_depth_mm"])
