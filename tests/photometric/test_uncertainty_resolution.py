@@ -56,3 +56,46 @@ def test_spec_meets_the_rig():
         parse_spec({"max_depth_mm": 0.08, "min_width_mm": 0})
     assert require_resolution(1.0, 0.05).status == "ok"
     assert np.isfinite(check_resolution(0.3, 0.05).depth_shortfall)
+
+
+def _line_cover(n: int, h: float, width: float, length: float, axis_deg: float, centre, sub: int = 8) -> np.ndarray:
+    """Fraction of each pixel covered by a stadium ``width`` x ``length`` mm (8 x 8 samples per pixel)."""
+    import math
+
+    o = (np.arange(sub) + 0.5) / sub - 0.5
+    r, c = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
+    a = math.radians(axis_deg)
+    ux, uy = math.cos(a), math.sin(a)
+    frac = np.zeros((n, n))
+    for dr in o:
+        for dc in o:
+            x, y = (c + dc - centre[1]) * h, -(r + dr - centre[0]) * h
+            along = np.clip(x * ux + y * uy, -0.5 * (length - width), 0.5 * (length - width))
+            frac += np.hypot(x - along * ux, y - along * uy) < 0.5 * width
+    return frac / sub**2
+
+
+@pytest.mark.parametrize("axis_deg", [0.0, 30.0])
+def test_hairline_crack_is_reported_from_the_albedo_with_its_length(axis_deg):
+    """Issue 32: a crack 0.035 mm wide (a third of a 0.1 mm pixel) is a dark line in the images
+    (each pixel darkened by the part of it the crack covers) but no groove in the height: the
+    height finds nothing, the albedo's ridges find one crack of the right length and axis, its
+    depth "not resolved"; a clean textured plate gives none."""
+    from datasets_synthetic.heightfields import plane
+    from datasets_synthetic.render import texture_albedo
+    from photometric.defects import find_hairline_cracks
+
+    n, h, L = 120, 0.1, ring_lights(4, 45.0)
+    texture = texture_albedo(n, 0.6, 0.85, 12.0, seed=1)
+    cover = _line_cover(n, h, 0.035, 6.0, axis_deg, (60.3, 59.6))
+    res = reconstruct(render(plane(n, h), L, albedo=texture * (1.0 - 0.5 * cover), noise=0.004, seed=0),
+                      lights=L, pixel_size=h)
+    assert res.defects == []  # the height does not resolve it
+    cracks = find_hairline_cracks(res.albedo, h)
+    assert len(cracks) == 1
+    crack = cracks[0]
+    assert crack["length_mm"] == pytest.approx(6.0, abs=h)
+    assert abs((crack["axis_deg"] - axis_deg + 90.0) % 180.0 - 90.0) < 2.0
+    assert crack["max_depth_mm"] is None and crack["depth_status"] == "not resolved"
+    clean = reconstruct(render(plane(n, h), L, albedo=texture, noise=0.004, seed=0), lights=L, pixel_size=h)
+    assert find_hairline_cracks(clean.albedo, h) == []
