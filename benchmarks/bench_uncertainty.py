@@ -16,11 +16,13 @@
    size and width, and the coverage of the depth for a 0.10 mm and a 0.02 mm scratch.
 3. Width, length, area: the coverage of the outline's quantisation term by its rule, on
    rasterised stadiums of the scratch.
-4. Not padded: the mean U of the depth next to the actual spread of the error.
-5. Cost: a 4 MP reconstruction with and without the linear uncertainty, same run, best of 3.
+4. Every orientation and sub-pixel place (issue 32): coverage of depth, width and length over
+   random axes (axis-aligned included) and places, and at the worst place of an axis-aligned groove.
+5. Not padded: the mean U of the depth next to the actual spread of the error.
+6. Cost: a 4 MP reconstruction with and without the linear uncertainty, same run, best of 3.
 
 Run: ``.venv/bin/python benchmarks/bench_uncertainty.py [--trials 200] [--mc-trials 200]
-[--mc-samples 30] [--near-trials 200] [--size-trials 100] [--workers 1]``
+[--mc-samples 30] [--near-trials 200] [--size-trials 100] [--sweep-trials 200] [--workers 1]``
 """
 
 from __future__ import annotations
@@ -151,6 +153,73 @@ def outline_rule_rows(trials: int = 400, rng_seed: int = 0) -> list[list[str]]:
     return rows
 
 
+SWEEP_FIGS = (("max_depth_mm", "depth_mm", "depth"), ("mean_width_mm", "width_mm", "mean width"),
+              ("length_mm", "length_mm", "length"))
+#: The sweep's grooves: kind, width (mm); 0.05 mm deep, 3 mm long, 0.05 mm pixels.
+SWEEP_GROOVES = (("V-scratch", 0.3), ("V-scratch", 0.6), ("U-scratch", 0.4))
+
+
+def sweep_trial(rng, kind: str, width_mm: float, axis_deg: float, phase) -> dict | None:
+    """One rendered groove at ``axis_deg`` and sub-pixel place ``phase`` (rows, cols), lights
+    deviated by 0.5 deg per tangent axis and 0.2 % noise, reconstructed with the nominal lights:
+    per figure ``(error, U)``."""
+    import math
+
+    from datasets_synthetic.heightfields import u_scratch, v_crack
+    from datasets_synthetic.render import render
+    from photometric.lights import ring_lights
+    from photometric.pipeline import reconstruct
+    from photometric.uncertainty.propagation import perturbed_lights
+
+    h, L = 0.05, ring_lights(3, 45.0)
+    make = v_crack if kind.startswith("V") else u_scratch
+    centre = (60.0 + float(rng.integers(-3, 4)) + phase[0], 60.0 + float(rng.integers(-3, 4)) + phase[1])
+    hf = make(120, h, depth_mm=0.05, width_mm=width_mm, length_mm=3.0, center_px=centre, axis_deg=axis_deg)
+    images = render(hf, perturbed_lights(L, math.radians(0.5), rng), albedo=0.8, noise=0.002, seed=rng)
+    tol = {"noise_sigma": 0.002, "light_tolerance_deg": 0.5, "seed": int(rng.integers(1 << 31))}
+    res = reconstruct(images, lights=L, pixel_size=h, uncertainty=tol)
+    if not res.defects:
+        return None
+    rec, k2, truth = res.defects[0], res.uncertainty.defects[0]["uncertainty_k2"], hf.defects[0]
+    return {fig: (rec[fig] - truth[key], k2[fig]) for fig, key, _ in SWEEP_FIGS}
+
+
+def sweep_rows(trials: int = 200, rng_seed: int = 32) -> tuple[list[list[str]], list[list[str]], float]:
+    """Coverage of depth, width and length over random orientations (0-180 deg; one trial in
+    four exactly axis-aligned, 0 or 90 deg) and random sub-pixel places, per groove of
+    :data:`SWEEP_GROOVES`; and at the worst place of an axis-aligned groove (bottom between
+    two pixel rows or columns, 24 trials each). Returns the two tables' rows and the seconds."""
+    import numpy as np
+
+    from workbench.studies.uncertainty import coverage_interval
+
+    rng = np.random.default_rng(rng_seed)
+    t0 = time.perf_counter()
+    rows, worst = [], []
+    for kind, width in SWEEP_GROOVES:
+        for label, n, table in (("random", trials, rows), ("worst", 24, worst)):
+            results = []
+            for i in range(n):
+                if label == "random":
+                    axis = float(rng.choice([0.0, 90.0])) if i % 4 == 0 else float(rng.uniform(0.0, 180.0))
+                    phase = rng.uniform(0.0, 1.0, 2)
+                else:
+                    axis, phase = (0.0, 90.0)[i % 2], (0.5, 0.5)
+                out = sweep_trial(rng, kind, width, axis, phase)
+                if out is not None:
+                    results.append(out)
+            row = [f"{kind} {width} mm ({width / 0.05:g} px)", f"{len(results)} / {n}"]
+            for fig, _, _ in SWEEP_FIGS:
+                e = np.array([r[fig][0] for r in results])
+                U_ = np.array([r[fig][1] for r in results])
+                hits = int(np.sum(np.abs(e) <= U_))
+                low, high = coverage_interval(hits, len(results))
+                row += [f"{100 * hits / len(results):.1f} % [{100 * low:.1f}, {100 * high:.1f}]",
+                        f"{U_.mean():.5f}", f"{e.mean():+.5f}", f"{np.abs(e).max():.5f}"]
+            table.append(row)
+    return rows, worst, time.perf_counter() - t0
+
+
 def cost(size: int = 2048, repeat: int = 3) -> tuple[float, float, dict]:
     """Best-of times of the reconstruction without and with the linear uncertainty (4 MP)."""
     from datasets_synthetic.heightfields import u_scratch
@@ -188,6 +257,8 @@ def main(argv=None) -> str:
     ap.add_argument("--near-trials", type=int, default=200)
     ap.add_argument("--size-trials", type=int, default=100, help="trials of the 0.10 and 0.02 mm scratches")
     ap.add_argument("--size", type=int, default=2048, help="image side of the cost benchmark")
+    ap.add_argument("--sweep-trials", type=int, default=200,
+                    help="trials per groove of the orientation x phase sweep (issue 32)")
     ap.add_argument("--workers", type=int, default=1, help="processes for the coverage studies (the cost runs alone)")
     args = ap.parse_args(argv)
 
@@ -210,6 +281,7 @@ def main(argv=None) -> str:
     by_axis, by_size = grid_model_rows()
     by_length = length_rows()
     by_rule = outline_rule_rows()
+    sweep, sweep_worst, sweep_s = sweep_rows(args.sweep_trials)
     t_plain, t_unc, stages = cost(args.size)
 
     def head(runs):
@@ -312,6 +384,25 @@ def main(argv=None) -> str:
                "error sd", "95 % |error|"], by_rule, "lrrrrrr"),
         "Stadiums of 8 x 100 px (0.05 mm pixels) at 400 random axes and sub-pixel places; the truth is the "
         "stadium's own width, length and area.",
+        "## Every orientation and sub-pixel place (issue 32)",
+        "The coverage figures above use oblique grooves at random places, which average the grid error over "
+        "the phase. For one defect the phase is fixed: an axis-aligned V-scratch whose bottom lies between two "
+        "pixel rows reads the same shallow depth at every trial (9-12 % here), and a 6 px one the same long "
+        "length (+0.6 px); the 95 % quantile of the errors over random placements, the former rule, held them "
+        "in 6 of 20 trials (depth) and never (that length). The grid terms of depth, width, length and area "
+        "now take U from the LARGEST error of the model's placements (the 95 % half-width of "
+        "Normal(max |e|, others); the outline model adds placements on the grid's symmetry points), so the "
+        "interval holds at every placement; over random placements it then covers more than 95 %.",
+        Table(["groove", "trials", *[f"{name}: {col}" for _, _, name in SWEEP_FIGS
+                                     for col in ("coverage [95 % interval]", "mean U", "error mean", "max |error|")]],
+              sweep, "lr" + "rrrr" * len(SWEEP_FIGS)),
+        f"Random orientations in 0-180 deg (one trial in four exactly 0 or 90 deg) and random sub-pixel "
+        f"places; 0.05 mm deep, 3 mm long grooves, 0.05 mm pixels, 3 lights at 45 deg deviated by 0.5 deg, "
+        f"0.2 % noise, linear propagation ({sweep_s:.0f} s for the sweep, both tables).",
+        Table(["groove", "trials", *[f"{name}: {col}" for _, _, name in SWEEP_FIGS
+                                     for col in ("coverage [95 % interval]", "mean U", "error mean", "max |error|")]],
+              sweep_worst, "lr" + "rrrr" * len(SWEEP_FIGS)),
+        "The worst place: axis exactly 0 or 90 deg, the groove's centre between two pixel rows and columns.",
         "## Near field (LEDs 150 mm away, 0.5 mm standard uncertainty per coordinate, orthographic camera)",
         Table(head(near), coverage_rows(near), "l" + "rrrr" * len(near)),
         timing(near),
