@@ -70,7 +70,7 @@ class ResolutionCheck:
         return {name: getattr(self, name) for name in self.__dataclass_fields__}
 
 
-def _v_groove_shortfall(width_px: float, blur_px: float) -> float:
+def _v_groove_shortfall(width_px: float, blur_px: float, pixel_area: bool = False) -> float:
     """Relative depth shortfall of a long V-groove ``width_px`` wide along the grid's rows, its
     bottom between two rows or a quarter of a pixel off one (the worse), on the groove model."""
     from photometric.uncertainty.defects import _groove_depth_errors
@@ -78,11 +78,11 @@ def _v_groove_shortfall(width_px: float, blur_px: float) -> float:
     offsets = np.array([[0.3, 0.5, 0.0, 0.0], [0.3, 0.25, 0.0, 0.0]])
     depth, h = 1.0, 1.0  # the error is linear in the depth and scales with the pixel
     length = max(8.0 * width_px, 40.0)
-    errors = _groove_depth_errors(depth, width_px, length, 0.0, h, offsets, "dct", 1.0, blur_px)
+    errors = _groove_depth_errors(depth, width_px, length, 0.0, h, offsets, "dct", 1.0, blur_px, pixel_area)
     return float(max(-errors.min(), 0.0) / depth)
 
 
-def check_resolution(narrowest_mm: float, pixel_size_mm: float, *, blur_px: float = 0.0,
+def check_resolution(narrowest_mm: float, pixel_size_mm: float, *, blur_px: float = 0.0, pixel_area: bool = False,
                      min_pixels: float = MIN_PIXELS_ACROSS, warn_shortfall: float = DEPTH_BIAS_WARN
                      ) -> ResolutionCheck:
     """Check the narrowest imperfection of interest against what the pixel size resolves.
@@ -95,6 +95,8 @@ def check_resolution(narrowest_mm: float, pixel_size_mm: float, *, blur_px: floa
         Pixel size on the part, mm (> 0).
     blur_px : float
         Gaussian standard deviation of the images' blur, pixels (>= 0).
+    pixel_area : bool
+        Whether the pixels integrate their area (a camera) rather than sample their centre.
     min_pixels : float
         Pixels across below which the depth is not resolved: ``refuse``.
     warn_shortfall : float
@@ -122,7 +124,7 @@ def check_resolution(narrowest_mm: float, pixel_size_mm: float, *, blur_px: floa
         return ResolutionCheck(w, h, n, blur, None, "refuse",
                                f"the narrowest imperfection of interest ({w:g} mm) is {n:.2g} px across at "
                                f"{h:g} mm pixels, below {min_pixels:g} px: its depth is not resolved")
-    shortfall = _v_groove_shortfall(n, blur)
+    shortfall = _v_groove_shortfall(n, blur, bool(pixel_area))
     if shortfall > warn_shortfall:
         return ResolutionCheck(w, h, n, blur, shortfall, "warn",
                                f"the narrowest imperfection of interest ({w:g} mm) is {n:.3g} px across at {h:g} mm "

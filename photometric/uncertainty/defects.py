@@ -369,9 +369,32 @@ def _bias_term(spread: float, bias: float) -> float:
     return float(math.sqrt(max((0.25 * (lo + hi)) ** 2 - s * s, 0.0)))
 
 
+#: Standard deviation (pixels) of a box pixel's own area, and its sample offsets in the groove model.
+_BOX_SIGMA = 1.0 / math.sqrt(12.0)
+_AREA_SAMPLES = (np.arange(4, dtype=np.float32) + np.float32(0.5)) / np.float32(4.0) - np.float32(0.5)
+
+
+def _groove_slopes(x, y, ux: float, uy: float, half, w: float, depth: float, h: float, section: float):
+    """Exact slopes ``(p, q)`` of the groove model of :func:`_groove_depth_errors` at points
+    ``x, y`` (pixels, float32), with the squared distance to its central segment and its footprint."""
+    f = np.float32
+    along = np.clip(x * f(ux) + y * f(uy), -half, half)
+    ex, ey = x - along * f(ux), y - along * f(uy)
+    d2 = ex * ex + ey * ey
+    inside = d2 < f(0.25 * w * w)
+    if section == 2.0:
+        # dz/dd = 8 D d / w^2 along (ex, ey) / d: the slope is 8 D / (w^2 h) (ex, ey)
+        g = np.where(inside, f(8.0 * depth / (w * w * h)), f(0.0))
+    else:
+        # dz/dd = D p (2 / w)^p d^(p - 1) along (ex, ey) / d (d floored: (ex, ey) is 0 there)
+        d = np.maximum(np.sqrt(d2), f(1e-6))
+        g = np.where(inside, f(depth * section * (2.0 / w) ** section / h) * d ** f(section - 2.0), f(0.0))
+    return g * ex, g * ey, d2, inside
+
+
 def _groove_depth_errors(depth: float, width: float, length: float, axis_deg: float, h: float,
                          offsets: np.ndarray, integrator: str = "dct", section: float = 2.0,
-                         blur_px: float = 0.0) -> np.ndarray:
+                         blur_px: float = 0.0, pixel_area: bool = False) -> np.ndarray:
     """Errors of the measured depth (mm) of a groove on the pixel grid.
 
     The groove ``z = -D (1 - (2 d / w)^p)`` for ``d < w / 2``, ``p = section`` (2: a
@@ -387,9 +410,10 @@ def _groove_depth_errors(depth: float, width: float, length: float, axis_deg: fl
     and the deepest pixel picks its largest excursion (deeper on average; strongest for
     axes near 45 deg and other small rational slopes of the grid).
 
-    ``blur_px`` (Gaussian standard deviation, pixels) blurs the slopes before they are
-    integrated, as the optics and the pixel's area blur the images (for small slopes the
-    images are linear in the slopes): a narrow groove then reads shallower still.
+    ``pixel_area``: each pixel sees the slopes' mean over its area (4 x 4 samples), as a
+    camera's pixel (and a render with several samples per pixel) does; ``blur_px`` (Gaussian
+    standard deviation, pixels) then blurs them further, as the optics blur the images (for
+    small slopes the images are linear in the slopes): a narrow groove reads shallower still.
 
     ``offsets`` is (n, 4): ``dx, dy`` of the centre and ``dwidth, dlength`` (pixels).
     Returns the n errors (measured minus ``depth``).
@@ -414,20 +438,17 @@ def _groove_depth_errors(depth: float, width: float, length: float, axis_deg: fl
         w = max(width + dw, 1.0)
         half = f(0.5 * (max(length + dl, w) - w))
         x, y = xs - f(dx), ys - f(dy)
-        along = np.clip(x * f(ux) + y * f(uy), -half, half)
-        ex, ey = x - along * f(ux), y - along * f(uy)
-        d2 = ex * ex + ey * ey
-        inside = d2 < f(0.25 * w * w)
-        if section == 2.0:
-            # dz/dd = 8 D d / w^2 along (ex, ey) / d: the slope is 8 D / (w^2 h) (ex, ey)
-            g = np.where(inside, f(8.0 * depth / (w * w * h)), f(0.0))
-        else:
-            # dz/dd = D p (2 / w)^p d^(p - 1) along (ex, ey) / d (d floored: (ex, ey) is 0 there)
-            d = np.maximum(np.sqrt(d2), f(1e-6))
-            g = np.where(inside, f(depth * section * (2.0 / w) ** section / h) * d ** f(section - 2.0), f(0.0))
-        gx, gy = g * ex, g * ey
+        gx, gy, d2, inside = _groove_slopes(x, y, ux, uy, half, w, depth, h, section)
+        if pixel_area:
+            # each pixel sees the slopes' mean over its area (4 x 4 samples)
+            gx, gy = np.zeros_like(gx), np.zeros_like(gy)
+            for oy in _AREA_SAMPLES:
+                for ox in _AREA_SAMPLES:
+                    sx, sy, _, _ = _groove_slopes(x + ox, y + oy, ux, uy, half, w, depth, h, section)
+                    gx += sx / f(_AREA_SAMPLES.size ** 2)
+                    gy += sy / f(_AREA_SAMPLES.size ** 2)
         if blur_px > 0:
-            # the images' blur, on the slopes (linear in the slopes for small ones)
+            # the optics' blur, on the slopes (the images are linear in the slopes for small ones)
             gx = ndimage.gaussian_filter(gx, blur_px, mode="nearest")
             gy = ndimage.gaussian_filter(gy, blur_px, mode="nearest")
         if integrator == "dct":
@@ -449,15 +470,18 @@ def _groove_depth_errors(depth: float, width: float, length: float, axis_deg: fl
 _FOOTPRINT_SLOPE = 0.02
 
 
-def _blur_widening(rec: dict, h: float, blur_px: float, section: float) -> float:
+def _blur_widening(rec: dict, h: float, blur_px: float, section: float, pixel_area: bool = False) -> float:
     """How much wider (and longer) the blurred footprint reads than the groove, pixels.
 
     The footprint is where the slope exceeds its threshold ``t``. Blurred by a Gaussian of
     ``blur_px``, the rim's step of the slope (``s = p D / (w / 2)``, ``p`` the section's
     exponent) becomes the ramp ``s Phi(d / blur_px)``, above ``t`` from ``d = blur_px
     Phi^-1(t / s)`` outside the rim: both rims move out by ``-blur_px Phi^-1(t / s)``. The
-    groove's width ``w`` is solved from the measured one (a few fixed-point steps). 0 without blur.
+    groove's width ``w`` is solved from the measured one (a few fixed-point steps). A pixel that
+    integrates its area (``pixel_area``) adds its box's variance, ``1/12`` px^2, to the blur's
+    (the ramp taken as a Gaussian of the summed variance). 0 without blur.
     """
+    blur_px = math.sqrt(blur_px**2 + (_BOX_SIGMA**2 if pixel_area else 0.0))
     if blur_px <= 0:
         return 0.0
     measured = max(float(rec["mean_width_mm"]) / h, 1.0)
@@ -474,16 +498,17 @@ def _blur_widening(rec: dict, h: float, blur_px: float, section: float) -> float
 
 
 def _depth_grid(rec: dict, h: float, integrator: str, rng: np.random.Generator,
-                blur_px: float = 0.0) -> tuple[float, float, np.ndarray]:
+                blur_px: float = 0.0, pixel_area: bool = False) -> tuple[float, float, np.ndarray]:
     """The depth's pixel-grid error on the model of the defect (:func:`_groove_depth_errors`
     with the measured depth, mean width, length and axis; random sub-pixel centre, width and
     length, the blurred footprint's widening taken off them (:func:`_blur_widening`); the
-    slopes blurred by ``blur_px``): ``(mean, spread, errors)``, mm. The mean is the method's bias at this axis (not
+    slopes averaged over each pixel with ``pixel_area``, blurred by ``blur_px``):
+    ``(mean, spread, errors)``, mm. The mean is the method's bias at this axis (not
     corrected: the model's section is an assumption), the spread the discretisation's
     standard uncertainty; the errors themselves (one per placement) bound the bias at the
     defect's own, unknown phase (:func:`_every_phase_half_width`)."""
     section = _section_exponent(rec)
-    grow = _blur_widening(rec, h, blur_px, section)
+    grow = _blur_widening(rec, h, blur_px, section, pixel_area)
     width = max(float(rec["mean_width_mm"]) / h - grow, 1.0)
     length = max(float(rec["length_mm"]) / h - grow, width)
     a = math.radians(float(rec["axis_deg"]))
@@ -491,7 +516,15 @@ def _depth_grid(rec: dict, h: float, integrator: str, rng: np.random.Generator,
     window = (abs(math.cos(a)) * (length - width) + frame) * (abs(math.sin(a)) * (length - width) + frame)
     count = int(np.clip(_DEPTH_GRID_WORK / window, _DEPTH_GRID_OFFSETS // 3, _DEPTH_GRID_OFFSETS))
     errors = _groove_depth_errors(float(rec["max_depth_mm"]), width, length, float(rec["axis_deg"]), h,
-                                  rng.uniform(-0.5, 0.5, (count, 4)), integrator, section, blur_px)
+                                  rng.uniform(-0.5, 0.5, (count, 4)), integrator, section, blur_px,
+                                  pixel_area)
+    if pixel_area:
+        # the images are not linear in steep slopes: the mean intensity over a pixel is not that
+        # of its mean slope. Two linearisations bracket it (the slopes' mean over the pixel; the
+        # centre's slopes under a Gaussian of the box's variance): both models' errors count
+        errors = np.concatenate([errors, _groove_depth_errors(
+            float(rec["max_depth_mm"]), width, length, float(rec["axis_deg"]), h, rng.uniform(-0.5, 0.5, (count, 4)),
+            integrator, section, math.sqrt(blur_px**2 + _BOX_SIGMA**2), False)])
     # the errors are linear in the depth and the model ran at the measured one: the true depth is
     # measured / (1 + mean relative error), so are the errors' scale (a V's -9 % then reads -10 %)
     depth = float(rec["max_depth_mm"])

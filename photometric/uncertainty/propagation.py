@@ -274,7 +274,7 @@ def propagate(
         # blur widens the slope footprint by a known amount (a bias of width and length, and
         # of the area by the perimeter's band): stated with the pixel grid's errors, whose
         # model then rasterises the narrower, true outline
-        grow = _blur_widening(rec, h, tol.blur_px, _section_exponent(rec)) * h
+        grow = _blur_widening(rec, h, tol.blur_px, _section_exponent(rec), tol.pixel_area) * h
         shift = {"mean_width_mm": grow, "length_mm": grow,
                  "area_mm2": grow * (rec["length_mm"] + rec["mean_width_mm"] - 2.0 * grow)}
         for figname, errors in _quantisation(rec, h, rng, grow).items():
@@ -288,7 +288,7 @@ def propagate(
         # other term, a k = 2 interval must still cover (GUM F.2.4.5)
         # The phase of the defect on the grid is fixed, not random: the interval must hold at
         # the placement of the largest error, not on average over placements
-        bias, spread, grid_errors = _depth_grid(rec, h, integrator, rng, tol.blur_px)
+        bias, spread, grid_errors = _depth_grid(rec, h, integrator, rng, tol.blur_px, tol.pixel_area)
         rest = math.sqrt(sum(e["contribution"] ** 2 for e in terms["max_depth_mm"].values()))
         others = math.sqrt(rest**2 + spread**2)
         U_grid = _every_phase_half_width(grid_errors, rest)
