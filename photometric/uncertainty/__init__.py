@@ -59,7 +59,8 @@ The far-field solve is ``m = C x`` with ``C = L^+`` (3, N), ``x_k = I_k / E_k`` 
   standard uncertainty: the ``u_q`` for which ``2 sqrt(u_q^2 + sum of the others' u^2)``
   is that half-width, so the budget still sums with k = 2. Over random phases it covers
   more than 95 % (benchmarks/results/uncertainty.md, "Every orientation and sub-pixel place").
-  A stated image blur (``Tolerances.blur_px``) widens the slope footprint by a known amount
+  A stated image blur (``Tolerances.blur_px``) or pixels that integrate their area
+  (``Tolerances.pixel_area``, a camera) widen the slope footprint by a known amount
   (``defects._blur_widening``): the model rasterises the narrower outline and the widening
   is added to its errors as a bias. The length is measured to a
   sub-pixel (:func:`photometric.defects._stadium_length`), so it carries no known bias to
@@ -78,7 +79,10 @@ The far-field solve is ``m = C x`` with ``C = L^+`` (3, N), ``x_k = I_k / E_k`` 
   (GUM F.2.4.5; the defect's phase is fixed, so the mean error is not enough: an
   axis-aligned V whose bottom lies between two rows reads its largest shortfall at every
   trial). With ``Tolerances.blur_px`` the model blurs its slopes (a 6 px V reads ~21 %
-  shallow under 0.6 px blur) on the groove's width, the footprint's widening taken off.
+  shallow under 0.6 px blur) on the groove's width, the footprint's widening taken off;
+  with ``Tolerances.pixel_area`` it averages them over each pixel, and as the images are
+  not linear in steep slopes, also runs the centre's slopes under the box's variance: both
+  linearisations' errors count.
   :mod:`photometric.resolution` predicts the same shortfall before any part is measured.
 
 Monte Carlo (``method="montecarlo"``) repeats the fast solve (normals, integration,
