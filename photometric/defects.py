@@ -853,3 +853,176 @@ def _measure_points(reg: _Region, z: np.ndarray, base: _Background, sign: float,
         "extent_mm": float(low),
         "background_sigma_mm": float(sigma),
     }
+
+
+def _line_length(dark: np.ndarray, rows: np.ndarray, cols: np.ndarray, ux: float, uy: float, s_lo: float,
+                 s_hi: float) -> float:
+    """Length (pixels) of a thin dark line from its darkening profile along its axis.
+
+    The darkening summed across the line per pixel of its length is the same at every phase
+    (each pixel darkens by the part of it the line covers): the pixels within 1.5 px of the
+    component's axis are binned by their centre's place along it (1 px bins, from 3 px before
+    its extent to 3 px after), the profile's plateau is its median over the component's
+    extent, and each end is where the profile falls to half the plateau (linear between the
+    bins). The extent of the centres plus one pixel when the profile has no clear plateau."""
+    r0, r1 = max(int(rows.min()) - 4, 0), min(int(rows.max()) + 5, dark.shape[0])
+    c0, c1 = max(int(cols.min()) - 4, 0), min(int(cols.max()) + 5, dark.shape[1])
+    rr, cc = np.mgrid[r0:r1, c0:c1]
+    mr, mc = rows.mean(), cols.mean()
+    x, y = cc - mc, -(rr - mr)
+    s = x * ux + y * uy
+    t = -x * uy + y * ux
+    near = (np.abs(t) <= 1.5) & (s >= s_lo - 3.0) & (s <= s_hi + 3.0)
+    edges = np.arange(np.floor(s_lo) - 3.0, np.ceil(s_hi) + 4.0)
+    profile = np.histogram(s[near], edges, weights=dark[rr[near], cc[near]])[0]
+    centres = 0.5 * (edges[:-1] + edges[1:])
+    inside = (centres >= s_lo) & (centres <= s_hi)
+    plateau = float(np.median(profile[inside])) if inside.any() else 0.0
+    fallback = s_hi - s_lo + 1.0
+    if not plateau > 0:
+        return fallback
+    above = np.flatnonzero(profile >= 0.5 * plateau)
+    if above.size == 0:
+        return fallback
+    i, j = int(above[0]), int(above[-1])
+
+    def crossing(k_in: int, k_out: int) -> float:
+        if k_out < 0 or k_out >= profile.size:
+            return float(centres[k_in])
+        a, b = profile[k_in], profile[k_out]
+        f = (a - 0.5 * plateau) / max(a - b, 1e-12)
+        return float(centres[k_in] + np.clip(f, 0.0, 1.0) * (centres[k_out] - centres[k_in]))
+
+    return max(crossing(j, j + 1) - crossing(i, i - 1), 1.0)
+
+
+#: Ridge scale (pixels) of :func:`find_hairline_cracks`: a line narrower than a pixel blurs
+#: to about a pixel in the images.
+_HAIRLINE_SCALE_PX = 1.0
+
+
+def find_hairline_cracks(
+    albedo: np.ndarray,
+    pixel_size: float,
+    *,
+    mask: np.ndarray | None = None,
+    exclude: np.ndarray | None = None,
+    threshold: float = 6.0,
+    min_length_px: float = 8.0,
+    min_elongation: float = 4.0,
+) -> list[dict]:
+    """Cracks narrower than the pixel, found as dark lines in the albedo (or a shading residual).
+
+    A hairline crack a fraction of a pixel wide leaves no groove the height can resolve: its
+    walls fall between the pixel centres, so the slopes and the integrated height miss it.
+    Each pixel that covers part of it still sees it dark (its walls shadow and absorb), so it
+    is a dark line in every image and in the solved albedo. It is found there: the relative
+    darkening ``1 - albedo / local mean`` (a Gaussian of 4 px), its ridges at the scale of a
+    pixel (:func:`skimage.filters.sato`, bright ridges of the darkening), thresholded with
+    hysteresis at ``threshold`` and half of it times the ridge response's robust standard
+    deviation (median absolute deviation over the inspected pixels), 8-connected; a component
+    is a crack when it is at least ``min_length_px`` long and ``min_elongation`` times longer
+    than wide. Its length runs between the points where the darkening summed across it falls
+    to half its plateau along its principal axis (:func:`_line_length`); its depth is not
+    measured (``max_depth_mm`` None, ``depth_status`` ``"not resolved"``).
+
+    Parameters
+    ----------
+    albedo : numpy.ndarray, shape (H, W) or (H, W, C)
+        Albedo (or any image in which the crack is dark: a shading residual's magnitude
+        negated, one of the images divided by its shading); channels are averaged.
+    pixel_size : float
+        Pixel size, mm (> 0).
+    mask : numpy.ndarray of bool, shape (H, W), optional
+        Pixels to inspect (default: every finite pixel).
+    exclude : numpy.ndarray of bool, shape (H, W), optional
+        Pixels of defects the height already resolves (their components are left out).
+    threshold : float
+        Detection threshold in robust standard deviations of the ridge response (> 0).
+    min_length_px, min_elongation : float
+        Smallest length (pixels) and length / width of a crack.
+
+    Returns
+    -------
+    list of dict
+        Longest first, each: ``kind`` ("crack"), ``length_mm``, ``mean_width_mm`` (an upper
+        bound: the line's pixel footprint), ``axis_deg`` (from +x towards +y, y up, in
+        [0, 180)), ``center_px`` (row, col), ``bbox_px`` (r0, c0, r1, c1), ``area_px``,
+        ``contrast`` (mean relative darkening on the line), ``max_depth_mm`` (None),
+        ``depth_status`` ("not resolved"), ``source`` ("albedo").
+
+    Raises
+    ------
+    InputError
+        A bad shape, pixel size or threshold.
+    """
+    from skimage.filters import apply_hysteresis_threshold, sato
+
+    a = np.asarray(albedo, dtype=np.float64)
+    if a.ndim == 3:
+        a = a.mean(axis=2)
+    if a.ndim != 2 or min(a.shape) < 8:
+        raise InputError(f"albedo: expected an (H, W) or (H, W, C) image of at least 8 x 8 pixels, got {a.shape}")
+    h = positive(pixel_size, "pixel_size")
+    thr = positive(threshold, "threshold")
+    ok = np.isfinite(a)
+    if mask is not None:
+        m = np.asarray(mask, bool)
+        if m.shape != a.shape:
+            raise InputError(f"mask: expected shape {a.shape}, got {m.shape}")
+        ok &= m
+    if ok.sum() < 64:
+        return []
+    filled = np.where(ok, a, 0.0)
+    weight = ndimage.gaussian_filter(ok.astype(np.float64), 4.0)
+    local = ndimage.gaussian_filter(filled, 4.0) / np.maximum(weight, 1e-9)
+    dark = np.where(ok, 1.0 - filled / np.maximum(local, 1e-9), 0.0)
+    ridge = sato(dark, sigmas=[_HAIRLINE_SCALE_PX], black_ridges=False, mode="nearest")
+    inner = ndimage.binary_erosion(ok, iterations=3, border_value=0)  # the filters' edges left out
+    values = ridge[inner]
+    med = float(np.median(values))
+    sigma = _MAD_TO_SIGMA * float(np.median(np.abs(values - med)))
+    if not sigma > 0:
+        return []
+    lines = apply_hysteresis_threshold(np.where(inner, ridge - med, 0.0), 0.5 * thr * sigma, thr * sigma)
+    lines &= dark > 0
+    labels, count = ndimage.label(lines, structure=np.ones((3, 3), bool))
+    if exclude is not None:
+        ex = np.asarray(exclude, bool)
+        if ex.shape != a.shape:
+            raise InputError(f"exclude: expected shape {a.shape}, got {ex.shape}")
+        drop = np.unique(labels[ex & (labels > 0)])
+        labels[np.isin(labels, drop)] = 0
+    out = []
+    for i, box in enumerate(ndimage.find_objects(labels), start=1):
+        if box is None:
+            continue
+        rr, cc = np.nonzero(labels[box] == i)
+        n = rr.size
+        if n < 3:
+            continue
+        rows, cols = rr + box[0].start, cc + box[1].start
+        x, y = cols - cols.mean(), -(rows - rows.mean())
+        cov = np.cov(np.stack([x, y]))
+        evals, evecs = np.linalg.eigh(cov)
+        ux, uy = evecs[:, 1]
+        s = x * ux + y * uy
+        length_px = _line_length(dark, rows, cols, ux, uy, float(s.min()), float(s.max()))
+        width_px = n / max(float(s.max() - s.min()) + 1.0, 1.0)
+        if length_px < min_length_px or length_px < min_elongation * width_px:
+            continue
+        out.append({
+            "kind": "crack",
+            "length_mm": length_px * h,
+            "mean_width_mm": width_px * h,
+            "axis_deg": float(np.degrees(np.arctan2(uy, ux)) % 180.0),
+            "center_px": [float(rows.mean()), float(cols.mean())],
+            "bbox_px": [int(box[0].start), int(box[1].start), int(box[0].stop), int(box[1].stop)],
+            "area_px": int(n),
+            "contrast": float(dark[rows, cols].mean()),
+            "max_depth_mm": None,
+            "depth_status": "not resolved",
+            "source": "albedo",
+        })
+    out.sort(key=lambda r: -r["length_mm"])
+    return out

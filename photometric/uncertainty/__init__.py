@@ -49,12 +49,20 @@ The far-field solve is ``m = C x`` with ``C = L^+`` (3, N), ``x_k = I_k / E_k`` 
 * Width, length and area depend on the segmentation: their budget holds the pixel size
   and the pixel quantisation of the outline, from the same measures over the measured
   outline, a stadium, rasterised at random sub-pixel offsets, widths and lengths. Those
-  errors are bounded, flat-topped and skewed, not normal, so U is the 95 % half-width of
-  their distribution (bias included) convolved with the Gaussian of the other terms
-  (GUM-S1 coverage interval; a uniform error of half-range ``a`` alone gives ``0.95 a``,
-  where ``2 sd`` would give ``1.15 a``), stated as the ``discretisation`` term's effective
+  errors are bounded, flat-topped and skewed, not normal, and for one defect they are not
+  random: its place on the grid (the phase) is fixed, so an axis-aligned outline whose rim
+  lies between two pixel rows reads the same error at every trial. U must hold at every
+  phase: it is the 95 % half-width of ``Normal(max |e|, others)``, the largest error of the
+  model's placements (random ones plus the grid's symmetry points) with the Gaussian of the
+  other terms (``defects._every_phase_half_width``; a uniform error of half-range ``a``
+  alone gives ``a``), stated as the ``discretisation`` term's effective
   standard uncertainty: the ``u_q`` for which ``2 sqrt(u_q^2 + sum of the others' u^2)``
-  is that half-width, so the budget still sums with k = 2. The length is measured to a
+  is that half-width, so the budget still sums with k = 2. Over random phases it covers
+  more than 95 % (benchmarks/results/uncertainty.md, "Every orientation and sub-pixel place").
+  A stated image blur (``Tolerances.blur_px``) or pixels that integrate their area
+  (``Tolerances.pixel_area``, a camera) widen the slope footprint by a known amount
+  (``defects._blur_widening``): the model rasterises the narrower outline and the widening
+  is added to its errors as a bias. The length is measured to a
   sub-pixel (:func:`photometric.defects._stadium_length`), so it carries no known bias to
   correct.
   The volume gets the place of its outline.
@@ -65,9 +73,17 @@ The far-field solve is ``m = C x`` with ``C = L^+`` (3, N), ``x_k = I_k / E_k`` 
   first-order error that depends on where the rim falls between two pixel centres; it
   wanders along the groove and the deepest pixel picks its largest excursion (a bias that
   depends on the axis, largest near 45 deg), and the deepest centre misses the bottom by
-  up to half a pixel. The spread is the depth's ``discretisation``; the mean is stated,
+  up to half a pixel. The spread is the depth's ``discretisation``; the bias is stated,
   not corrected (the section is an assumption), as ``method_bias``: the ``u_b`` whose
-  k = 2 interval, with every other term, holds 95 % of the shifted errors (GUM F.2.4.5).
+  k = 2 interval, with every other term, holds 95 % at the placement of the largest error
+  (GUM F.2.4.5; the defect's phase is fixed, so the mean error is not enough: an
+  axis-aligned V whose bottom lies between two rows reads its largest shortfall at every
+  trial). With ``Tolerances.blur_px`` the model blurs its slopes (a 6 px V reads ~21 %
+  shallow under 0.6 px blur) on the groove's width, the footprint's widening taken off;
+  with ``Tolerances.pixel_area`` it averages them over each pixel, and as the images are
+  not linear in steep slopes, also runs the centre's slopes under the box's variance: both
+  linearisations' errors count.
+  :mod:`photometric.resolution` predicts the same shortfall before any part is measured.
 
 Monte Carlo (``method="montecarlo"``) repeats the fast solve (normals, integration,
 defects) with perturbed lights, intensities and noise added to the images, and reports

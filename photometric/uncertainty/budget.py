@@ -94,6 +94,18 @@ class Tolerances:
         Monte Carlo repetitions (at least 2).
     seed : int
         Seed of the Monte Carlo draws.
+    blur_px : float
+        Gaussian standard deviation of the images' optical blur, pixels (the lens's point
+        spread; the pixel's own area is ``pixel_area``). Narrow grooves read
+        shallower, wider and longer under blur; the depth's grid model blurs the groove's
+        slopes by it, and the outline's budget states the footprint's widening as a bias.
+        0: no optical blur.
+    pixel_area : bool
+        Whether each pixel integrates the light over its area (a camera; a render with several
+        samples per pixel, as Mitsuba's) rather than sampling its centre (our renderer): the
+        footprint reads about a pixel wider and longer and narrow grooves shallower; the groove
+        model then averages its slopes over each pixel and the outline's budget states the
+        widening (as with ``blur_px``).
     """
 
     noise_sigma: float | None = None
@@ -104,15 +116,19 @@ class Tolerances:
     method: str = "linear"
     mc_samples: int = 50
     seed: int = 0
+    blur_px: float = 0.0
+    pixel_area: bool = False
 
     def __post_init__(self):
         if self.noise_sigma is not None:
             positive(self.noise_sigma, "noise_sigma", allow_zero=True)
         for name in ("light_tolerance_deg", "light_position_tolerance_mm", "intensity_tolerance",
-                     "pixel_size_tolerance"):
+                     "pixel_size_tolerance", "blur_px"):
             value = getattr(self, name)
             if not np.isfinite(value) or value < 0:
                 raise InputError(f"{name}: must be a non-negative number (a standard uncertainty), got {value}")
+        if not isinstance(self.pixel_area, (bool, np.bool_)):
+            raise InputError(f"pixel_area: expected true or false, got {self.pixel_area!r}")
         if self.method not in METHODS:
             raise InputError(f"method: expected one of {METHODS}, got {self.method!r}")
         if int(self.mc_samples) < 2:

@@ -245,7 +245,7 @@ def _rasterised(width: float, length: float, axis_deg: float, h: float, offsets:
     return values
 
 
-def _quantisation(rec: dict, h: float, rng: np.random.Generator) -> dict:
+def _quantisation(rec: dict, h: float, rng: np.random.Generator, grow_mm: float = 0.0) -> dict:
     """Pixel quantisation of the outline: width, length and area measured (as
     :func:`photometric.defects.measure_defects` does) on a stadium of the defect's axis
     rasterised at random sub-pixel offsets.
@@ -257,11 +257,14 @@ def _quantisation(rec: dict, h: float, rng: np.random.Generator) -> dict:
     (the outline moves in steps of the pixel pitch projected on the axis), far from normal:
     they are returned as samples for :func:`_quantisation_term`, not as a standard deviation.
 
+    ``grow_mm``: the blurred footprint's widening (:func:`_blur_widening`), taken off the
+    measured width and length before the stadium is set (its errors then add to these).
+
     Returns ``{figure: errors}``: the errors ``measure - stadium`` over the offsets (mm or
     mm^2, shape (n,)); a defect too small to rasterise gets ``±h`` (``±h^2``), the pixel.
     """
-    width = max(float(rec["mean_width_mm"]) / h, 1.0)
-    length = max(float(rec["length_mm"]) / h, width)
+    width = max((float(rec["mean_width_mm"]) - grow_mm) / h, 1.0)
+    length = max((float(rec["length_mm"]) - grow_mm) / h, width)
     axis = float(rec["axis_deg"])
     first = _rasterised(width, length, axis, h, rng.uniform(-0.5, 0.5, (16, 4)))
     if len(first["mean_width_mm"]) > 2:
@@ -274,7 +277,12 @@ def _quantisation(rec: dict, h: float, rng: np.random.Generator) -> dict:
     # large outlines (many pixels) quantise finely: fewer stadiums bound the work
     count = int(np.clip(_QUANTISATION_WORK / ((length + 4.0) * (width + 3.0)), _QUANTISATION_OFFSETS // 3,
                         _QUANTISATION_OFFSETS))
-    values = _rasterised(width, length, axis, h, rng.uniform(-0.5, 0.5, (count, 4)))
+    # plus the four placements on the grid's symmetry points (centre on a pixel centre or
+    # between two, along each axis): an axis-aligned outline's largest errors lie there
+    draws = np.concatenate([rng.uniform(-0.5, 0.5, (count, 4)),
+                            [[dx, dy, *rng.uniform(-0.5, 0.5, 2)] for dx in (0.0, 0.5) for dy in (0.0, 0.5)
+                             for _ in range(6)]])
+    values = _rasterised(width, length, axis, h, draws)
     model = dict(zip(("mean_width_mm", "length_mm", "area_mm2"), np.asarray(values.pop("model")).T))
     out = {}
     for key, v in values.items():
@@ -311,6 +319,26 @@ def _coverage_half_width(errors, others: float, level: float = 0.95) -> float:
     return 0.5 * (lo + hi)
 
 
+def _every_phase_half_width(errors, others: float, level: float = 0.95) -> float:
+    """Half-width ``U`` that holds ``level`` of ``e + N(0, others^2)`` for EVERY sample ``e`` of
+    ``errors``, not on average over them.
+
+    The samples are a grid error at random sub-pixel places (phases) of one outline or groove.
+    For one defect the phase is fixed, not random: an axis-aligned groove whose bottom or rim
+    lies between two pixel rows reads the same error at every trial, the tail of the
+    phase-averaged distribution. An interval that must hold at every phase is set by the
+    largest error: the 95 % half-width of ``Normal(max |e|, others)`` (with ``others = 0``,
+    ``max |e|``). Over random phases it then covers more than ``level``.
+    """
+    e = np.asarray(errors, float).ravel()
+    if e.size == 0:
+        raise InputError("errors: need at least one error sample")
+    worst = float(np.abs(e).max())
+    if others <= 0.0:
+        return worst
+    return 2.0 * math.sqrt(others * others + _bias_term(others, worst) ** 2)
+
+
 def _quantisation_term(errors, others: float) -> float:
     """Effective standard uncertainty of the outline's quantisation next to the other terms'
     combined standard uncertainty ``others``: the ``u_q`` for which ``2 sqrt(others^2 +
@@ -318,7 +346,7 @@ def _quantisation_term(errors, others: float) -> float:
     convolved with the Gaussian of the others. A bounded, flat-topped error has a 95 %
     half-width below twice its standard deviation (a uniform one 0.95 x its half-range
     against 1.15), so this ``u_q`` is below the errors' spread there."""
-    U = _coverage_half_width(errors, others)
+    U = _every_phase_half_width(errors, others)
     return float(math.sqrt(max(0.25 * U * U - others * others, 0.0)))
 
 
@@ -341,8 +369,32 @@ def _bias_term(spread: float, bias: float) -> float:
     return float(math.sqrt(max((0.25 * (lo + hi)) ** 2 - s * s, 0.0)))
 
 
+#: Standard deviation (pixels) of a box pixel's own area, and its sample offsets in the groove model.
+_BOX_SIGMA = 1.0 / math.sqrt(12.0)
+_AREA_SAMPLES = (np.arange(4, dtype=np.float32) + np.float32(0.5)) / np.float32(4.0) - np.float32(0.5)
+
+
+def _groove_slopes(x, y, ux: float, uy: float, half, w: float, depth: float, h: float, section: float):
+    """Exact slopes ``(p, q)`` of the groove model of :func:`_groove_depth_errors` at points
+    ``x, y`` (pixels, float32), with the squared distance to its central segment and its footprint."""
+    f = np.float32
+    along = np.clip(x * f(ux) + y * f(uy), -half, half)
+    ex, ey = x - along * f(ux), y - along * f(uy)
+    d2 = ex * ex + ey * ey
+    inside = d2 < f(0.25 * w * w)
+    if section == 2.0:
+        # dz/dd = 8 D d / w^2 along (ex, ey) / d: the slope is 8 D / (w^2 h) (ex, ey)
+        g = np.where(inside, f(8.0 * depth / (w * w * h)), f(0.0))
+    else:
+        # dz/dd = D p (2 / w)^p d^(p - 1) along (ex, ey) / d (d floored: (ex, ey) is 0 there)
+        d = np.maximum(np.sqrt(d2), f(1e-6))
+        g = np.where(inside, f(depth * section * (2.0 / w) ** section / h) * d ** f(section - 2.0), f(0.0))
+    return g * ex, g * ey, d2, inside
+
+
 def _groove_depth_errors(depth: float, width: float, length: float, axis_deg: float, h: float,
-                         offsets: np.ndarray, integrator: str = "dct", section: float = 2.0) -> np.ndarray:
+                         offsets: np.ndarray, integrator: str = "dct", section: float = 2.0,
+                         blur_px: float = 0.0, pixel_area: bool = False) -> np.ndarray:
     """Errors of the measured depth (mm) of a groove on the pixel grid.
 
     The groove ``z = -D (1 - (2 d / w)^p)`` for ``d < w / 2``, ``p = section`` (2: a
@@ -357,6 +409,11 @@ def _groove_depth_errors(depth: float, width: float, length: float, axis_deg: fl
     that depends on where the rim falls between two centres; it wanders along the groove
     and the deepest pixel picks its largest excursion (deeper on average; strongest for
     axes near 45 deg and other small rational slopes of the grid).
+
+    ``pixel_area``: each pixel sees the slopes' mean over its area (4 x 4 samples), as a
+    camera's pixel (and a render with several samples per pixel) does; ``blur_px`` (Gaussian
+    standard deviation, pixels) then blurs them further, as the optics blur the images (for
+    small slopes the images are linear in the slopes): a narrow groove reads shallower still.
 
     ``offsets`` is (n, 4): ``dx, dy`` of the centre and ``dwidth, dlength`` (pixels).
     Returns the n errors (measured minus ``depth``).
@@ -381,21 +438,23 @@ def _groove_depth_errors(depth: float, width: float, length: float, axis_deg: fl
         w = max(width + dw, 1.0)
         half = f(0.5 * (max(length + dl, w) - w))
         x, y = xs - f(dx), ys - f(dy)
-        along = np.clip(x * f(ux) + y * f(uy), -half, half)
-        ex, ey = x - along * f(ux), y - along * f(uy)
-        d2 = ex * ex + ey * ey
-        inside = d2 < f(0.25 * w * w)
-        if section == 2.0:
-            # dz/dd = 8 D d / w^2 along (ex, ey) / d: the slope is 8 D / (w^2 h) (ex, ey)
-            g = np.where(inside, f(8.0 * depth / (w * w * h)), f(0.0))
-        else:
-            # dz/dd = D p (2 / w)^p d^(p - 1) along (ex, ey) / d (d floored: (ex, ey) is 0 there)
-            d = np.maximum(np.sqrt(d2), f(1e-6))
-            g = np.where(inside, f(depth * section * (2.0 / w) ** section / h) * d ** f(section - 2.0), f(0.0))
+        gx, gy, d2, inside = _groove_slopes(x, y, ux, uy, half, w, depth, h, section)
+        if pixel_area:
+            # each pixel sees the slopes' mean over its area (4 x 4 samples)
+            gx, gy = np.zeros_like(gx), np.zeros_like(gy)
+            for oy in _AREA_SAMPLES:
+                for ox in _AREA_SAMPLES:
+                    sx, sy, _, _ = _groove_slopes(x + ox, y + oy, ux, uy, half, w, depth, h, section)
+                    gx += sx / f(_AREA_SAMPLES.size ** 2)
+                    gy += sy / f(_AREA_SAMPLES.size ** 2)
+        if blur_px > 0:
+            # the optics' blur, on the slopes (the images are linear in the slopes for small ones)
+            gx = ndimage.gaussian_filter(gx, blur_px, mode="nearest")
+            gy = ndimage.gaussian_filter(gy, blur_px, mode="nearest")
         if integrator == "dct":
-            z = dct_poisson(g * ex, g * ey, None, h, dtype=np.float32)
+            z = dct_poisson(gx, gy, None, h, dtype=np.float32)
         else:
-            z = integrate(g * ex, g * ey, integrator, pixel_size=h)
+            z = integrate(gx, gy, integrator, pixel_size=h)
         plate = d2 > f((0.5 * w + 3.0) ** 2)
         # the plane's normal equations (the window's coordinates are centred: well conditioned)
         px, py, pz = xs[plate].astype(float), ys[plate].astype(float), z[plate].astype(float)
@@ -406,27 +465,72 @@ def _groove_depth_errors(depth: float, width: float, length: float, axis_deg: fl
     return errors
 
 
-def _depth_grid(rec: dict, h: float, integrator: str, rng: np.random.Generator) -> tuple[float, float]:
+#: The slope footprint's threshold where a record does not state it (the floor of
+#: :func:`photometric.defects._slope_footprint`'s automatic one).
+_FOOTPRINT_SLOPE = 0.02
+
+
+def _blur_widening(rec: dict, h: float, blur_px: float, section: float, pixel_area: bool = False) -> float:
+    """How much wider (and longer) the blurred footprint reads than the groove, pixels.
+
+    The footprint is where the slope exceeds its threshold ``t``. Blurred by a Gaussian of
+    ``blur_px``, the rim's step of the slope (``s = p D / (w / 2)``, ``p`` the section's
+    exponent) becomes the ramp ``s Phi(d / blur_px)``, above ``t`` from ``d = blur_px
+    Phi^-1(t / s)`` outside the rim: both rims move out by ``-blur_px Phi^-1(t / s)``. The
+    groove's width ``w`` is solved from the measured one (a few fixed-point steps). A pixel that
+    integrates its area (``pixel_area``) adds its box's variance, ``1/12`` px^2, to the blur's
+    (the ramp taken as a Gaussian of the summed variance). 0 without blur.
+    """
+    blur_px = math.sqrt(blur_px**2 + (_BOX_SIGMA**2 if pixel_area else 0.0))
+    if blur_px <= 0:
+        return 0.0
+    measured = max(float(rec["mean_width_mm"]) / h, 1.0)
+    depth = max(float(rec["max_depth_mm"]), 0.0) / h  # pixels, as the width
+    threshold = float(rec.get("slope_threshold", _FOOTPRINT_SLOPE))
+    width, grow = measured, 0.0
+    for _ in range(6):
+        rim = section * depth / max(0.5 * width, 0.5)
+        if rim <= threshold:
+            return 0.0
+        grow = -2.0 * blur_px * float(special.ndtri(threshold / rim))
+        width = max(measured - grow, 1.0)
+    return max(grow, 0.0)
+
+
+def _depth_grid(rec: dict, h: float, integrator: str, rng: np.random.Generator,
+                blur_px: float = 0.0, pixel_area: bool = False) -> tuple[float, float, np.ndarray]:
     """The depth's pixel-grid error on the model of the defect (:func:`_groove_depth_errors`
     with the measured depth, mean width, length and axis; random sub-pixel centre, width and
-    length): ``(mean, spread)``, mm. The mean is the method's bias at this axis (not
+    length, the blurred footprint's widening taken off them (:func:`_blur_widening`); the
+    slopes averaged over each pixel with ``pixel_area``, blurred by ``blur_px``):
+    ``(mean, spread, errors)``, mm. The mean is the method's bias at this axis (not
     corrected: the model's section is an assumption), the spread the discretisation's
-    standard uncertainty."""
-    width = max(float(rec["mean_width_mm"]) / h, 1.0)
-    length = max(float(rec["length_mm"]) / h, width)
+    standard uncertainty; the errors themselves (one per placement) bound the bias at the
+    defect's own, unknown phase (:func:`_every_phase_half_width`)."""
     section = _section_exponent(rec)
+    grow = _blur_widening(rec, h, blur_px, section, pixel_area)
+    width = max(float(rec["mean_width_mm"]) / h - grow, 1.0)
+    length = max(float(rec["length_mm"]) / h - grow, width)
     a = math.radians(float(rec["axis_deg"]))
     frame = width + 2.0 * max(8.0, 0.5 * width) + 4.0
     window = (abs(math.cos(a)) * (length - width) + frame) * (abs(math.sin(a)) * (length - width) + frame)
     count = int(np.clip(_DEPTH_GRID_WORK / window, _DEPTH_GRID_OFFSETS // 3, _DEPTH_GRID_OFFSETS))
     errors = _groove_depth_errors(float(rec["max_depth_mm"]), width, length, float(rec["axis_deg"]), h,
-                                  rng.uniform(-0.5, 0.5, (count, 4)), integrator, section)
+                                  rng.uniform(-0.5, 0.5, (count, 4)), integrator, section, blur_px,
+                                  pixel_area)
+    if pixel_area:
+        # the images are not linear in steep slopes: the mean intensity over a pixel is not that
+        # of its mean slope. Two linearisations bracket it (the slopes' mean over the pixel; the
+        # centre's slopes under a Gaussian of the box's variance): both models' errors count
+        errors = np.concatenate([errors, _groove_depth_errors(
+            float(rec["max_depth_mm"]), width, length, float(rec["axis_deg"]), h, rng.uniform(-0.5, 0.5, (count, 4)),
+            integrator, section, math.sqrt(blur_px**2 + _BOX_SIGMA**2), False)])
     # the errors are linear in the depth and the model ran at the measured one: the true depth is
     # measured / (1 + mean relative error), so are the errors' scale (a V's -9 % then reads -10 %)
     depth = float(rec["max_depth_mm"])
     if depth > 0:
         errors = errors / max(1.0 + float(errors.mean()) / depth, 0.5)
-    return float(errors.mean()), float(errors.std(ddof=1))
+    return float(errors.mean()), float(errors.std(ddof=1)), errors
 
 
 def _section_exponent(rec: dict) -> float:

@@ -21,7 +21,9 @@ from photometric.uncertainty.budget import (
 from photometric.uncertainty.defects import (
     _Background,
     _bias_term,
+    _blur_widening,
     _depth_grid,
+    _every_phase_half_width,
     _figures,
     _grown,
     _noise_functionals,
@@ -29,6 +31,7 @@ from photometric.uncertainty.defects import (
     _quantisation,
     _quantisation_term,
     _sampler,
+    _section_exponent,
     _systematic,
     _volume_edge,
 )
@@ -268,19 +271,30 @@ def propagate(
         if tol.pixel_size_tolerance > 0:
             for figname in FIGURES:
                 terms[figname]["pixel_size"] = _entry(tol.pixel_size_tolerance, _H_POWER[figname] * rec[figname])
-        for figname, errors in _quantisation(rec, h, rng).items():
-            # the outline's errors are bounded and flat-topped, not normal: U is the 95 %
-            # half-width of their distribution convolved with the Gaussian of the other
-            # terms, stated as the discretisation's effective standard uncertainty
+        # blur widens the slope footprint by a known amount (a bias of width and length, and
+        # of the area by the perimeter's band): stated with the pixel grid's errors, whose
+        # model then rasterises the narrower, true outline
+        grow = _blur_widening(rec, h, tol.blur_px, _section_exponent(rec), tol.pixel_area) * h
+        shift = {"mean_width_mm": grow, "length_mm": grow,
+                 "area_mm2": grow * (rec["length_mm"] + rec["mean_width_mm"] - 2.0 * grow)}
+        for figname, errors in _quantisation(rec, h, rng, grow).items():
+            # the outline's errors are bounded and flat-topped, not normal: U holds at the
+            # largest of them (the defect's place on the grid is fixed, not random) with the
+            # Gaussian of the other terms, stated as the discretisation's effective uncertainty
             others = math.sqrt(sum(e["contribution"] ** 2 for e in terms[figname].values()))
-            terms[figname]["discretisation"] = _entry(_quantisation_term(errors, others), 1.0)
+            terms[figname]["discretisation"] = _entry(_quantisation_term(errors + shift[figname], others), 1.0)
         # the deepest pixel's grid error on the defect's model: its spread, and its mean
         # (a bias that depends on the axis) stated as the uncorrected bias that, with every
         # other term, a k = 2 interval must still cover (GUM F.2.4.5)
-        bias, spread = _depth_grid(rec, h, integrator, rng)
-        others = math.sqrt(sum(e["contribution"] ** 2 for e in terms["max_depth_mm"].values()) + spread**2)
+        # The phase of the defect on the grid is fixed, not random: the interval must hold at
+        # the placement of the largest error, not on average over placements
+        bias, spread, grid_errors = _depth_grid(rec, h, integrator, rng, tol.blur_px, tol.pixel_area)
+        rest = math.sqrt(sum(e["contribution"] ** 2 for e in terms["max_depth_mm"].values()))
+        others = math.sqrt(rest**2 + spread**2)
+        U_grid = _every_phase_half_width(grid_errors, rest)
         terms["max_depth_mm"]["discretisation"] = _entry(spread, 1.0)
-        terms["max_depth_mm"]["method_bias"] = _entry(_bias_term(others, bias), 1.0)
+        terms["max_depth_mm"]["method_bias"] = _entry(
+            max(_bias_term(others, bias), math.sqrt(max(0.25 * U_grid**2 - others**2, 0.0))), 1.0)
         terms["volume_mm3"]["discretisation"] = _entry(_volume_edge(z, fig, bg, coef0, h), 1.0)
         budget, expanded = _budget(rec, terms)
         out_defects.append({"id": rec["id"], "uncertainty_k2": expanded, "budget": budget})

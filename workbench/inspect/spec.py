@@ -6,7 +6,7 @@ least one limit must be given)::
     {"max_depth_mm": 0.10, "max_length_mm": 5.0, "max_width_mm": 0.5, "max_area_mm2": 2.0,
      "max_count": 3, "max_total_area_mm2": 4.0, "min_distance_mm": 2.0,
      "roi_mm": [[x, y], ...], "exclusion_zones_mm": [[[x, y], ...], ...],
-     "decision_rule": "guard_band", "name": "cover plate A"}
+     "decision_rule": "guard_band", "name": "cover plate A", "min_width_mm": 0.2}
 
 Per imperfection (ISO 8785): ``max_depth_mm`` limits its maximum depth, ``max_length_mm``
 its length along its axis, ``max_width_mm`` its mean width, ``max_area_mm2`` its area.
@@ -15,7 +15,10 @@ Per part: ``max_count`` imperfections, ``max_total_area_mm2`` their summed area 
 frame, mm, x right, y up) is the inspected region; imperfections whose centre lies outside
 it, or inside an exclusion zone, are listed but do not decide. ``decision_rule`` is
 ``simple`` (value against limit, the default) or ``guard_band`` (ISO 14253-1, see
-:mod:`workbench.inspect.decide`).
+:mod:`workbench.inspect.decide`). ``min_width_mm`` (optional, not a limit) is the width of
+the narrowest imperfection the inspection must judge: :func:`check_spec_field` refuses a rig
+whose pixels do not resolve it and warns where its depth would read markedly shallow
+(:func:`photometric.resolution.require_resolution`).
 """
 
 from __future__ import annotations
@@ -51,7 +54,8 @@ PART_LIMITS: dict[str, str] = {
     "min_distance_mm": "min_distance_mm",
 }
 #: every key spec.json may hold
-SPEC_KEYS = (*IMPERFECTION_LIMITS, *PART_LIMITS, "roi_mm", "exclusion_zones_mm", "decision_rule", "name")
+SPEC_KEYS = (*IMPERFECTION_LIMITS, *PART_LIMITS, "roi_mm", "exclusion_zones_mm", "decision_rule", "name",
+             "min_width_mm")
 
 
 @dataclass(frozen=True)
@@ -69,6 +73,8 @@ class Spec:
     decision_rule : {"simple", "guard_band"}
     name : str
         Free text naming the spec ("" when not given).
+    min_width_mm : float or None
+        Width of the narrowest imperfection of interest, mm (None when not given).
     """
 
     limits: dict
@@ -76,6 +82,7 @@ class Spec:
     exclusions: tuple
     decision_rule: str
     name: str = ""
+    min_width_mm: float | None = None
 
     def to_dict(self) -> dict:
         """Return the spec as in ``spec.json`` (JSON-ready; what ``result.json`` records)."""
@@ -87,6 +94,8 @@ class Spec:
         out["decision_rule"] = self.decision_rule
         if self.name:
             out["name"] = self.name
+        if self.min_width_mm is not None:
+            out["min_width_mm"] = self.min_width_mm
         return out
 
     @property
@@ -178,7 +187,8 @@ def parse_spec(doc, source: str = "spec") -> Spec:
     Traceback (most recent call last):
     ...
     surfaces.validate.InputError: spec: unknown key 'max_depth' (known: max_depth_mm, max_length_mm, max_width_mm, \
-max_area_mm2, max_count, max_total_area_mm2, min_distance_mm, roi_mm, exclusion_zones_mm, decision_rule, name)
+max_area_mm2, max_count, max_total_area_mm2, min_distance_mm, roi_mm, exclusion_zones_mm, decision_rule, name, \
+min_width_mm)
     """
     if not isinstance(doc, dict):
         raise InputError(f"{source}: expected a JSON object of limits, got {type(doc).__name__}")
@@ -200,7 +210,10 @@ max_area_mm2, max_count, max_total_area_mm2, min_distance_mm, roi_mm, exclusion_
     name = doc.get("name", "")
     if not isinstance(name, str):
         raise InputError(f"{source} name: expected text, got {name!r}")
-    return Spec(limits, roi, exclusions, rule, name)
+    narrowest = _limit(doc, "min_width_mm", source) if "min_width_mm" in doc else None
+    if narrowest is not None and narrowest <= 0:
+        raise InputError(f"{source} min_width_mm: must be positive, got {narrowest!r}")
+    return Spec(limits, roi, exclusions, rule, name, narrowest)
 
 
 def load_spec(path) -> Spec:
@@ -243,7 +256,7 @@ def _raster(polygon: np.ndarray, x0: float, y0: float, pixel: float, shape) -> n
     return mask.astype(bool)
 
 
-def check_spec_field(spec: Spec, image_size, pixel_size_mm: float) -> None:
+def check_spec_field(spec: Spec, image_size, pixel_size_mm: float, *, blur_px: float = 0.0) -> None:
     """Check the spec's regions against the camera's field of view before any part is measured.
 
     Parameters
@@ -253,10 +266,15 @@ def check_spec_field(spec: Spec, image_size, pixel_size_mm: float) -> None:
         The rig's image size, pixels.
     pixel_size_mm : float
         Pixel size on the reference plane, mm (the rig camera's nominal pixel).
+    blur_px : float
+        The images' blur (Gaussian standard deviation, pixels), for ``min_width_mm``.
 
     Raises
     ------
     InputError
+        ``min_width_mm`` is below two pixels across: its depth is not resolved
+        (:func:`photometric.resolution.require_resolution`, which warns with a
+        :class:`photometric.resolution.ResolutionWarning` where it reads markedly shallow).
         ``roi_mm`` or an exclusion zone lies wholly outside the field of view (every part would
         pass, nothing of it being inspected), or the exclusion zones cover the whole inspected
         region. The message gives the field of view in mm (x right, y up, pixel centres on
@@ -271,6 +289,10 @@ def check_spec_field(spec: Spec, image_size, pixel_size_mm: float) -> None:
     surfaces.validate.InputError: spec roi_mm: lies wholly outside the field of view (x -4.95..4.95 mm, \
 y -4.95..4.95 mm); nothing of a part would be inspected
     """
+    if spec.min_width_mm is not None:
+        from photometric.resolution import require_resolution
+
+        require_resolution(spec.min_width_mm, pixel_size_mm, blur_px=blur_px, where="spec min_width_mm")
     if spec.roi is None and not spec.exclusions:
         return
     shape = (int(image_size[0]), int(image_size[1]))

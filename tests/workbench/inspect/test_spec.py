@@ -16,9 +16,10 @@ def test_full_spec_round_trips():
     doc = {"max_depth_mm": 0.1, "max_length_mm": 5, "max_width_mm": 0.5, "max_area_mm2": 2.0, "max_count": 3,
            "max_total_area_mm2": 4.0, "min_distance_mm": 2.0, "roi_mm": SQUARE,
            "exclusion_zones_mm": [[[0, 0], [1, 0], [1, 1], [0, 1], [0, 0]]], "decision_rule": "guard_band",
-           "name": "plate A"}
+           "name": "plate A", "min_width_mm": 0.4}
     spec = parse_spec(doc)
     assert set(doc) == set(SPEC_KEYS)
+    assert spec.min_width_mm == 0.4 and parse_spec(spec.to_dict()).min_width_mm == 0.4
     assert spec.decision_rule == "guard_band" and spec.limits["max_count"] == 3
     assert isinstance(spec.limits["max_count"], int) and spec.limits["max_length_mm"] == 5.0
     np.testing.assert_array_equal(spec.roi, SQUARE)
