@@ -57,7 +57,7 @@ def make_phantom(shape: str, **params) -> Phantom:
     >>> make_phantom("cube")
     Traceback (most recent call last):
     ...
-    surfaces.validate.InputError: shape: unknown phantom 'cube'; expected one of ellipsoid, kidney, ring, lobes, tilted_cylinder
+    surfaces.validate.InputError: shape: unknown phantom 'cube'; expected one of ellipsoid, kidney, ring, lobes, ...
     """
     if shape in PRESETS:
         shape, base = PRESETS[shape]
