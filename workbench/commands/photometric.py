@@ -127,6 +127,38 @@ def _uncertainty_options(args: argparse.Namespace):
     return Tolerances(**{k: v for k, v in given.items() if v is not None})
 
 
+def _add_texture_options(p: argparse.ArgumentParser) -> None:
+    """``--texture`` and its filters (the defaults of :data:`workbench.runs.texture.TEXTURE_DEFAULTS`)."""
+    from workbench.runs.texture import FORMS, TEXTURE_DEFAULTS
+
+    g = p.add_argument_group("areal texture (ISO 25178-2)",
+                             "--texture adds texture.json (every parameter with U, k = 2, when an uncertainty option "
+                             "is given) and texture.png (the S-L surface) to --out; needs the pixel size. The same "
+                             "computation as 'workbench photometric texture OUT'.")
+    g.add_argument("--texture", action="store_true", help="also measure the areal texture of the height")
+    g.add_argument("--texture-s-filter-mm", type=float, default=TEXTURE_DEFAULTS["s_filter_mm"], metavar="X",
+                   help="S-filter nesting index lambda_s, mm (default none: the band starts at two pixels)")
+    g.add_argument("--texture-l-filter-mm", type=float, default=TEXTURE_DEFAULTS["l_filter_mm"], metavar="Y",
+                   help="L-filter nesting index lambda_c, mm (default none: the band ends at the field size)")
+    g.add_argument("--texture-form", default=TEXTURE_DEFAULTS["form"], choices=FORMS,
+                   help=f"F-operator: least-squares plane or second-degree polynomial (default "
+                   f"{TEXTURE_DEFAULTS['form']})")
+
+
+def _texture_options(args: argparse.Namespace) -> dict | None:
+    """The ``texture`` of :func:`workbench.runs.photometric.reconstruct_to_folder`, checked before any work."""
+    from workbench.runs.texture import TEXTURE_DEFAULTS, texture_options
+
+    given = {"s_filter_mm": args.texture_s_filter_mm, "l_filter_mm": args.texture_l_filter_mm,
+             "form": args.texture_form}
+    if not args.texture:
+        changed = [f"--texture-{k.replace('_', '-')}" for k, v in given.items() if v != TEXTURE_DEFAULTS[k]]
+        if changed:
+            raise InputError(f"{changed[0]}: only applies with --texture")
+        return None
+    return texture_options(given, "--texture")
+
+
 def register(sub) -> None:
     """Add ``reconstruct`` and ``calibrate`` to the ``photometric`` group.
 
@@ -239,6 +271,7 @@ def register(sub) -> None:
     p.add_argument("--background", default=DEFAULTS.background, choices=BACKGROUNDS,
                    help=f"background removed before measuring defects (default {DEFAULTS.background})")
     add_uncertainty_options(p)
+    _add_texture_options(p)
     p.set_defaults(func=_reconstruct)
 
     c = sub.add_parser(
@@ -377,6 +410,7 @@ def _reconstruct(args: argparse.Namespace) -> int:
                           camera=args.camera, focal_length_px=args.focal_length_px,
                           camera_height_mm=args.camera_height)
     tolerances = _uncertainty_options(args)
+    texture = _texture_options(args)
     stages = ["read", "normals", "height", "surface", "defects", *(["uncertainty"] if tolerances else []), "write"]
     # delay: no bar at all before an error in the first half second
     with tqdm(total=len(stages), desc="photometric", unit="stage", leave=False, delay=0.5) as bar:
@@ -415,6 +449,7 @@ def _reconstruct(args: argparse.Namespace) -> int:
             uncertainty=tolerances,
             force=args.force,
             progress=progress,
+            texture=texture,
             **_camera_options(args),
         )
         bar.update(bar.total - bar.n)
@@ -452,5 +487,13 @@ def _reconstruct(args: argparse.Namespace) -> int:
                       f"depth {_pm(rec['max_depth_mm'], k2.get('max_depth_mm'))}, "
                       f"width {_pm(rec['mean_width_mm'], k2.get('mean_width_mm'))}, "
                       f"length {_pm(rec['length_mm'], k2.get('length_mm'))}")
+    if "texture" in summary:
+        from workbench.runs.texture import format_parameter
+
+        tex = summary["texture"]
+        band = tex["band"]
+        print(f"texture (ISO 25178-2, band {band['short_mm'] * 1000:.4g} um to {band['long_mm']:.4g} mm, form "
+              f"{tex['filters']['form']}): " + ", ".join(f"{n} {format_parameter(tex[n])}" for n in ("Sa", "Sq", "Sz"))
+              + f"; every parameter in {args.out}/texture.json")
     print(f"total {summary['timings_s']['total']:.2f} s; wrote {args.out} (summary.json holds every number above)")
     return 0

@@ -18,6 +18,7 @@ from workbench.commands.common import add_command
 from workbench.runs.texture import (  # noqa: F401
     NO_U_REASON,
     TEXTURE_LIMITS,
+    format_parameter,
     judge_texture,
     measure_texture,
     read_height_source,
@@ -78,17 +79,6 @@ def register(subparsers) -> None:
     p.add_argument("--out", default="texture_out", help="output folder (default texture_out)")
 
 
-def _pm(rec: dict) -> str:
-    """``0.81 +- 0.12 um``: the value to the decimal of U's second significant digit (4 digits without U)."""
-    from workbench.batch.results import round_to_u
-
-    if rec["value"] is None:
-        return "not determined"
-    value, U = round_to_u(rec["value"], rec.get("U"))
-    text = value if U is None else f"{value} +- {U}"
-    return text + ("" if rec["unit"] == "1" else f" {rec['unit']}")
-
-
 def run(args: argparse.Namespace) -> int:
     """Compute the texture and write ``texture.json`` and ``texture.png`` (the ``texture`` sub-command).
 
@@ -109,7 +99,7 @@ def run(args: argparse.Namespace) -> int:
           f"({band['long_limit']}), form {summary['form']}, {summary['evaluation_area_px']} pixels")
     pars = summary["parameters"]
     for group in (("Sa", "Sq", "Sz", "Ssk", "Sku"), ("Sdq", "Sdr", "Sal", "Str"), ("Sk", "Spk", "Svk", "Vmp", "Vvv")):
-        print("  " + ", ".join(f"{name} {_pm(pars[name])}" for name in group))
+        print("  " + ", ".join(f"{name} {format_parameter(pars[name])}" for name in group))
     print(f"wrote {out / 'texture.json'} (every parameter, value, U (k = 2), unit) and {out / 'texture.png'}")
     return 0
 

@@ -20,7 +20,8 @@ import numpy as np
 from surfaces.validate import InputError
 
 __all__ = ["TEXTURE_FILES", "TEXTURE_LIMITS", "TEXTURE_DEFAULTS", "FORMS", "texture_options", "read_height_source",
-           "default_edge", "measure_texture", "write_texture", "texture_of_result", "judge_texture"]
+           "default_edge", "measure_texture", "write_texture", "texture_of_result", "format_parameter",
+           "judge_texture"]
 
 #: files ``texture.json`` and ``texture.png`` (the S-L surface with a colour bar)
 TEXTURE_FILES = ("texture.json", "texture.png")
@@ -334,6 +335,34 @@ def texture_of_result(folder, out=None, *, s_filter_mm: float | None, l_filter_m
     doc["pixel_size_source"] = pixel_source
     write_texture(tex, doc, folder if out is None else out)
     return doc
+
+
+def format_parameter(rec: dict) -> str:
+    """One parameter of ``texture.json`` as text: the value to the decimal of U's second significant digit.
+
+    Parameters
+    ----------
+    rec : dict
+        ``{"value", "U", "unit"}`` (``U`` may be missing or None: 4 significant digits).
+
+    Returns
+    -------
+    str
+
+    Examples
+    --------
+    >>> format_parameter({"value": 0.81234, "U": 0.1234, "unit": "um"})
+    '0.81 +- 0.12 um'
+    >>> format_parameter({"value": 0.4567891, "U": None, "unit": "1"})
+    '0.4568'
+    """
+    from workbench.batch.results import round_to_u
+
+    if rec.get("value") is None:
+        return "not determined"
+    value, U = round_to_u(rec["value"], rec.get("U"))
+    text = value if U is None else f"{value} +- {U}"
+    return text + ("" if rec.get("unit") in (None, "1") else f" {rec['unit']}")
 
 
 def judge_texture(texture_json: dict, limits: dict, rule: str) -> list[dict]:
