@@ -16,6 +16,15 @@ frame, mm, x right, y up) is the inspected region; imperfections whose centre li
 it, or inside an exclusion zone, are listed but do not decide. ``decision_rule`` is
 ``simple`` (value against limit, the default) or ``guard_band`` (ISO 14253-1, see
 :mod:`workbench.inspect.decide`).
+
+Areal texture (ISO 25178-2, :mod:`workbench.runs.texture`): the keys of
+:data:`TEXTURE_LIMITS` (``max_Sa_um``, ``max_Sq_um``, ``max_Sz_um``, ``max_Sp_um``,
+``max_Sv_um``, ``max_Sdq``, ``max_Sdr_pct``, ``max_Sk_um``, ``max_Spk_um``, ``max_Svk_um``,
+``max_Vmp_ml_m2``, ``max_Vvv_ml_m2``) are upper limits of the part's texture parameters,
+decided with the same rules; ``texture: {"s_filter_mm": X, "l_filter_mm": Y, "form":
+"plane"|"poly2"}`` states the filters and the F-operator (defaults
+:data:`workbench.runs.texture.TEXTURE_DEFAULTS`). With either, every part's texture is
+measured over its valid pixels and recorded in ``result.json``.
 """
 
 from __future__ import annotations
@@ -31,9 +40,10 @@ import numpy as np
 from photometric.rig import loads_unique
 from surfaces.grid import pixel_axes
 from surfaces.validate import InputError
+from workbench.runs.texture import TEXTURE_LIMITS, texture_options
 
-__all__ = ["DECISION_RULES", "IMPERFECTION_LIMITS", "PART_LIMITS", "SPEC_KEYS", "Spec", "check_spec_field",
-           "load_spec", "parse_spec"]
+__all__ = ["DECISION_RULES", "IMPERFECTION_LIMITS", "PART_LIMITS", "TEXTURE_LIMITS", "SPEC_KEYS", "Spec",
+           "check_spec_field", "load_spec", "parse_spec"]
 
 #: decision rules a spec may name
 DECISION_RULES = ("simple", "guard_band")
@@ -51,7 +61,10 @@ PART_LIMITS: dict[str, str] = {
     "min_distance_mm": "min_distance_mm",
 }
 #: every key spec.json may hold
-SPEC_KEYS = (*IMPERFECTION_LIMITS, *PART_LIMITS, "roi_mm", "exclusion_zones_mm", "decision_rule", "name")
+SPEC_KEYS = (*IMPERFECTION_LIMITS, *PART_LIMITS, "roi_mm", "exclusion_zones_mm", "decision_rule", "name",
+             *TEXTURE_LIMITS, "texture")
+#: every limit key (imperfection, part, texture)
+_LIMIT_KEYS = (*IMPERFECTION_LIMITS, *PART_LIMITS, *TEXTURE_LIMITS)
 
 
 @dataclass(frozen=True)
@@ -69,6 +82,12 @@ class Spec:
     decision_rule : {"simple", "guard_band"}
     name : str
         Free text naming the spec ("" when not given).
+    texture : dict or None
+        The texture's filters and form (``s_filter_mm``, ``l_filter_mm``, ``form``) when
+        the spec limits a texture parameter or gives a ``texture`` key; None: no texture
+        is measured.
+    texture_given : bool
+        ``spec.json`` held the ``texture`` key (it is then recorded as given).
     """
 
     limits: dict
@@ -76,6 +95,8 @@ class Spec:
     exclusions: tuple
     decision_rule: str
     name: str = ""
+    texture: dict | None = None
+    texture_given: bool = False
 
     def to_dict(self) -> dict:
         """Return the spec as in ``spec.json`` (JSON-ready; what ``result.json`` records)."""
@@ -87,6 +108,8 @@ class Spec:
         out["decision_rule"] = self.decision_rule
         if self.name:
             out["name"] = self.name
+        if self.texture_given:
+            out["texture"] = dict(self.texture)
         return out
 
     @property
@@ -174,21 +197,22 @@ def parse_spec(doc, source: str = "spec") -> Spec:
     --------
     >>> parse_spec({"max_depth_mm": 0.1, "decision_rule": "guard_band"}).limits
     {'max_depth_mm': 0.1}
-    >>> parse_spec({"max_depth": 0.1})
+    >>> parse_spec({"max_depth": 0.1})  # doctest: +ELLIPSIS
     Traceback (most recent call last):
     ...
-    surfaces.validate.InputError: spec: unknown key 'max_depth' (known: max_depth_mm, max_length_mm, max_width_mm, \
-max_area_mm2, max_count, max_total_area_mm2, min_distance_mm, roi_mm, exclusion_zones_mm, decision_rule, name)
+    surfaces.validate.InputError: spec: unknown key 'max_depth' (known: max_depth_mm, max_length_mm, ..., texture)
+    >>> parse_spec({"max_Sa_um": 0.8}).texture
+    {'s_filter_mm': None, 'l_filter_mm': None, 'form': 'plane'}
     """
     if not isinstance(doc, dict):
         raise InputError(f"{source}: expected a JSON object of limits, got {type(doc).__name__}")
     unknown = [k for k in doc if k not in SPEC_KEYS]
     if unknown:
         raise InputError(f"{source}: unknown key {unknown[0]!r} (known: {', '.join(SPEC_KEYS)})")
-    limits = {k: _limit(doc, k, source) for k in (*IMPERFECTION_LIMITS, *PART_LIMITS) if k in doc}
+    limits = {k: _limit(doc, k, source) for k in _LIMIT_KEYS if k in doc}
     if not limits:
         raise InputError(f"{source}: no limit given (give at least one of "
-                         f"{', '.join((*IMPERFECTION_LIMITS, *PART_LIMITS))})")
+                         f"{', '.join(_LIMIT_KEYS)})")
     rule = doc.get("decision_rule", "simple")
     if rule not in DECISION_RULES:
         raise InputError(f"{source} decision_rule: expected one of {', '.join(DECISION_RULES)}, got {rule!r}")
@@ -200,7 +224,11 @@ max_area_mm2, max_count, max_total_area_mm2, min_distance_mm, roi_mm, exclusion_
     name = doc.get("name", "")
     if not isinstance(name, str):
         raise InputError(f"{source} name: expected text, got {name!r}")
-    return Spec(limits, roi, exclusions, rule, name)
+    given = doc.get("texture") is not None
+    texture = None
+    if given or any(k in TEXTURE_LIMITS for k in limits):
+        texture = texture_options(doc.get("texture"), f"{source} texture")
+    return Spec(limits, roi, exclusions, rule, name, texture, given)
 
 
 def load_spec(path) -> Spec:

@@ -21,7 +21,7 @@ from surfaces.validate import InputError
 
 __all__ = ["TEXTURE_FILES", "TEXTURE_LIMITS", "TEXTURE_DEFAULTS", "FORMS", "texture_options", "read_height_source",
            "default_edge", "measure_texture", "write_texture", "texture_of_result", "format_parameter",
-           "judge_texture"]
+           "judged_value", "judge_texture"]
 
 #: files ``texture.json`` and ``texture.png`` (the S-L surface with a colour bar)
 TEXTURE_FILES = ("texture.json", "texture.png")
@@ -365,6 +365,33 @@ def format_parameter(rec: dict) -> str:
     return text + ("" if rec.get("unit") in (None, "1") else f" {rec['unit']}")
 
 
+def judged_value(rec: dict) -> tuple[float | None, float | None]:
+    """The value a texture parameter is judged by, and its U (k = 2).
+
+    The noise-bias ``corrected`` value with ``U_corrected`` when the texture has an
+    uncertainty, else the value as measured with its ``U`` (None without a noise model).
+
+    Parameters
+    ----------
+    rec : dict
+        One parameter of ``texture.json``.
+
+    Returns
+    -------
+    (float or None, float or None)
+
+    Examples
+    --------
+    >>> judged_value({"value": 0.8, "U": 0.05, "corrected": 0.79, "U_corrected": 0.02})
+    (0.79, 0.02)
+    >>> judged_value({"value": 0.8, "U": None})
+    (0.8, None)
+    """
+    if rec.get("corrected") is not None and rec.get("U_corrected") is not None:
+        return rec["corrected"], rec["U_corrected"]
+    return rec.get("value"), rec.get("U")
+
+
 def judge_texture(texture_json: dict, limits: dict, rule: str) -> list[dict]:
     """Check texture parameters against spec limits with the inspection's decision rules.
 
@@ -409,10 +436,7 @@ def judge_texture(texture_json: dict, limits: dict, rule: str) -> list[dict]:
             continue
         name = TEXTURE_LIMITS[key]
         rec = texture_json["parameters"].get(name, {})
-        if rec.get("corrected") is not None and rec.get("U_corrected") is not None:
-            value, U = rec["corrected"], rec["U_corrected"]
-        else:
-            value, U = rec.get("value"), rec.get("U")
+        value, U = judged_value(rec)
         if value is None:
             verdict = "uncertain"
         else:
