@@ -193,6 +193,50 @@ def format_figures(figures: Mapping[str, Any]) -> dict[str, str]:
     return out
 
 
+def column_text(row: Mapping[str, str], name: str, missing: str = "-") -> str:
+    """One figure of a results.csv row as a report shows it: with its U, to the precision U supports.
+
+    Rows written before the figures were rounded (10 significant digits) read the same.
+
+    Parameters
+    ----------
+    row : mapping
+        A results.csv row (:func:`read_results`).
+    name : str
+        Its column.
+    missing : str
+        Text of an empty cell.
+
+    Returns
+    -------
+    str
+        ``"0.0916 +- 0.0043"`` for a figure with a U column (:data:`U_COLUMNS`) and a U, the
+        column's fixed decimals (:data:`DECIMALS`) otherwise, or the text as it is.
+
+    Examples
+    --------
+    >>> column_text({"max_depth_mm": "0.09158301113", "max_depth_U_mm": "0.0043217"}, "max_depth_mm")
+    '0.0916 +- 0.0043'
+    >>> column_text({"max_depth_mm": "0.09158301113", "max_depth_U_mm": ""}, "max_depth_mm")
+    '0.0916'
+    """
+    text = row.get(name) or ""
+    if not text:
+        return missing
+    try:
+        value = float(text)
+    except ValueError:
+        return text
+    if "." not in text and "e" not in text.lower():
+        return text  # a whole number (a count)
+    u_text = row.get(U_COLUMNS.get(name, ""), "") or ""
+    if u_text:
+        shown, U = round_to_u(value, float(u_text))
+        if U is not None:
+            return f"{shown} +- {U}"
+    return format_figures({name: value})[name]
+
+
 def key_figures(kind: str, summary: Mapping[str, Any]) -> dict[str, Any]:
     """Pick the key figures of a job's summary for its results.csv row.
 

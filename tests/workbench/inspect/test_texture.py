@@ -7,6 +7,7 @@ its closed forms (ISO 25178-2 over whole periods, plane removed) are Sq = A / sq
 from __future__ import annotations
 
 import json
+import re
 from dataclasses import dataclass
 
 import numpy as np
@@ -114,3 +115,18 @@ def test_texture_with_u_under_guard_band(small_lot, ripple_part, tmp_path):
                  texture=doc).decided_by == ["texture Sa"]
     with pytest.raises(ValueError, match="texture was not measured"):
         judge([], parse_spec({"max_Sa_um": 1.0}), (8, 8), 0.1)
+
+
+def test_lot_report_shows_the_texture(small_lot, ripple_part, tmp_path):
+    from workbench.batch import key_figures
+    from workbench.batch.results import write_results
+    from workbench.inspect.report import write_inspection_report
+
+    spec = parse_spec({"max_depth_mm": 0.1, "max_Sa_um": 0.5 * SA_UM, "texture": {"form": "poly2"}})
+    fig = inspect_part(ripple_part, tmp_path / "ripple", small_lot["rig"], spec)
+    row = result_row(Job("ripple", "inspect", str(ripple_part)), "ok", "", 1.0, key_figures("inspect", fig))
+    write_results(tmp_path / "results.csv", [row])
+    page = write_inspection_report(tmp_path, "workbench inspect run ...").read_text()
+    assert "Areal texture (ISO 25178-2)" in page and "Form removed: poly2" in page and "max_Sa_um = " in page
+    assert f"{fig['Sa_um']:.4g} um" in page and "<th>Sa (um)</th>" in page
+    assert not re.search(r"\d\.\d{7,}", page)
