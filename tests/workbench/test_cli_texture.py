@@ -139,9 +139,14 @@ def test_reconstruct_texture_writes_beside_the_height(tmp_path, plate, capsys):
     (["--texture-l-filter-mm", "0.25"], "--texture-l-filter-mm: only applies with --texture"),
     (["--texture", "--texture-s-filter-mm", "0.3", "--texture-l-filter-mm", "0.25"], "must be below l_filter_mm"),
     (["--texture", "--texture-l-filter-mm", "-1"], "l_filter_mm: expected a positive number"),
+    (["--texture"], "--texture: needs the pixel size in mm"),
 ])
 def test_reconstruct_texture_bad_options_exit_2(tmp_path, capsys, extra, message):
-    code = main(["photometric", "reconstruct", str(tmp_path), *extra, "--out", str(tmp_path / "o")])
+    plate = textured_plate("ground", size=32, pixel_size=D, sq_um=2.0, seed=1)
+    L = ring_lights(4, 40.0)
+    write_diligent_folder(tmp_path / "in", render(plate, L), L, np.ones(4), np.ones(plate.shape, bool), plate.normals,
+                          plate.height, {})  # no pixel size in scene.json
+    code = main(["photometric", "reconstruct", str(tmp_path / "in"), *extra, "--out", str(tmp_path / "o")])
     err = capsys.readouterr().err
     assert code == 2 and message in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "o").exists()

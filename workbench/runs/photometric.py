@@ -48,6 +48,7 @@ from photometric.rig import Rig, rig_to_dict
 from surfaces.colormap import scalar_range
 from surfaces.io import atomic_path, npy_row_writer, read_npy_rows, save_npy, write_json, write_mesh, write_png
 from workbench import images
+from surfaces.validate import InputError
 from workbench.runs.folder import result_folder
 from workbench.runs.texture import TEXTURE_FILES  # files added by ``texture`` (photometric reconstruct --texture)
 
@@ -218,6 +219,9 @@ def _add_texture(out: Path, summary: dict, texture: dict) -> dict:
     summary lists them and states the band and the height parameters, and is written again."""
     from workbench.runs.texture import texture_of_result
 
+    if str(summary.get("pixel_size_source", "")).startswith("default"):
+        raise InputError("--texture: needs the pixel size in mm (give --pixel-size, a rig, or a folder whose "
+                         "scene.json states it); without it the heights are in pixel units")
     t0 = time.perf_counter()
     doc = texture_of_result(out, **texture)
     pars = doc["parameters"]
