@@ -19,7 +19,7 @@ from slices.io import ContourStack
 from slices.options import ReadOptions, SurfaceOptions, split_options
 from slices.reference import compare
 from slices.structure import Reconstruction, read_roi, reconstruct_contours
-from slices.summary import summarize
+from slices.summary import count_noun, summarize
 from surfaces.bezier import BezierPatches
 from surfaces.mesh import TriangleMesh
 from surfaces.threads import prepare as prepare_threads
@@ -186,16 +186,19 @@ def reconstruct(input_path, *, roi=None, union="auto", minus=(), plus=(), repair
     rebuilt = [b for b in rec.bodies if b.self_intersecting_faces is not None
                and not b.surface.startswith(opts.method)]
     if rebuilt:
-        stack.notes.append(f"{len(rebuilt)} body(ies) folded with the seed's surface and were rebuilt "
+        stack.notes.append(f"{count_noun(len(rebuilt), 'body', 'bodies')} folded with the seed's surface and "
+                           f"{'was' if len(rebuilt) == 1 else 'were'} rebuilt "
                            f"({', '.join(sorted({b.surface for b in rebuilt}))})")
     folded = sum(b.self_intersecting_faces or 0 for b in rec.bodies)
     if folded:
-        stack.notes.append(f"WARNING: {folded} self-intersecting face(s) remain in the bodies' meshes "
+        stack.notes.append(f"WARNING: {count_noun(folded, 'self-intersecting face')} "
+                           f"{'remains' if folded == 1 else 'remain'} in the bodies' meshes "
                            "after every fallback")
     limited = sum(b.n_limited for b in rec.bodies)
     if limited:
         stack.notes.append(f"the blend across slices was limited (monotone, shape-preserving) at {limited} "
-                           "curve point(s) where the seed's parabolic blending would overshoot")
+                           f"{'curve point' if limited == 1 else 'curve points'} where the seed's parabolic blending "
+                           "would overshoot")
     composition = None
     t_union = time.perf_counter()
     n_tri = sum(b.mesh.n_triangles for b in rec.bodies)

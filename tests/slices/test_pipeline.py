@@ -191,3 +191,12 @@ def test_the_stage_clocks_time_no_imports(ellipsoid):
     out = subprocess.run([sys.executable, "-c", script], cwd=root, capture_output=True, text=True, check=True)
     seen = ast.literal_eval(out.stdout.strip().splitlines()[-1])
     assert seen == {"surface": [], "union": []}
+
+
+def test_notes_count_in_words(ellipsoid):
+    """Issue 37: the notes say "1 curve point" / "N curve points", never "point(s)" or "body(ies)"."""
+    path, _, _ = ellipsoid
+    notes = reconstruct(path, n_rays=32, samples=2, monotone=True).summary["notes"]
+    limited = [n for n in notes if n.startswith("the blend across slices was limited")]
+    assert limited and " curve points where" in limited[0]
+    assert not any("(s)" in n or "(ies)" in n for n in notes)

@@ -85,7 +85,7 @@ def test_bad_input_exits_2(tmp_path, capsys, plate, args, message):
 
 
 def test_spec_limits_and_the_reconstruct_hook(tmp_path, plate):
-    from workbench.commands.texture import judge_texture, texture_of_result
+    from workbench.runs.texture import judge_texture, texture_of_result
 
     np.save(tmp_path / "height.npy", plate.height)
     (tmp_path / "summary.json").write_text(json.dumps({"pixel_size_mm": D, "pixel_size_source": "option",
@@ -103,3 +103,50 @@ def test_spec_limits_and_the_reconstruct_hook(tmp_path, plate):
     assert checks["max_Sa_um"]["verdict"] == "pass" and checks["max_Sq_um"]["verdict"] == "fail"
     assert judge_texture(doc, {"max_Sa_um": v + 0.5 * U}, "guard_band")[0]["verdict"] == "uncertain"
     assert judge_texture(doc, {"max_Sa_um": v + 0.5 * U}, "simple")[0]["verdict"] == "pass"
+
+
+def test_reconstruct_texture_writes_beside_the_height(tmp_path, plate, capsys):
+    """``photometric reconstruct --texture``: texture.json and texture.png in --out, listed, and a rerun is accepted."""
+    L = ring_lights(4, 40.0)
+    images = render(plate, L, noise=0.01, seed=2)
+    write_diligent_folder(tmp_path / "plate", images, L, np.ones(4), np.ones(plate.shape, bool), plate.normals,
+                          plate.height, {"pixel_size_mm": D})
+    rec = tmp_path / "rec"
+    args = ["photometric", "reconstruct", str(tmp_path / "plate"), "--noise-sigma", "0.01", "--texture",
+            "--texture-s-filter-mm", "0.04", "--texture-l-filter-mm", "0.25", "--texture-form", "poly2",
+            "--out", str(rec)]
+    assert main(args) == 0
+    out = capsys.readouterr().out
+    assert "texture (ISO 25178-2" in out and "Sa " in out
+    summary = json.loads((rec / "summary.json").read_text())
+    assert {"texture.json", "texture.png"} <= set(summary["files"])
+    assert summary["texture"]["filters"] == {"s_filter_mm": 0.04, "l_filter_mm": 0.25, "form": "poly2"}
+    doc = json.loads((rec / "texture.json").read_text())
+    assert doc["form"] == "poly2" and doc["band"]["long_mm"] == 0.25
+    assert summary["texture"]["Sq"]["value"] == doc["parameters"]["Sq"]["value"]
+    # the same numbers as the texture command on the folder
+    assert main(["photometric", "texture", str(rec), "--s-filter-mm", "0.04", "--l-filter-mm", "0.25", "--form",
+                 "poly2", "--out", str(tmp_path / "tex")]) == 0
+    again = json.loads((tmp_path / "tex" / "texture.json").read_text())
+    assert again["parameters"]["Sq"]["value"] == pytest.approx(doc["parameters"]["Sq"]["value"], rel=1e-12)
+    truth = texture(plate.height, D, s_filter_mm=0.04, l_filter_mm=0.25, form="poly2", edge="drop").values
+    assert doc["parameters"]["Sq"]["value"] == pytest.approx(truth["Sq"], rel=0.05)
+    # a rerun into the same folder is not refused (texture files belong to a result folder)
+    assert main(args) == 0
+
+
+@pytest.mark.parametrize("extra, message", [
+    (["--texture-l-filter-mm", "0.25"], "--texture-l-filter-mm: only applies with --texture"),
+    (["--texture", "--texture-s-filter-mm", "0.3", "--texture-l-filter-mm", "0.25"], "must be below l_filter_mm"),
+    (["--texture", "--texture-l-filter-mm", "-1"], "l_filter_mm: expected a positive number"),
+    (["--texture"], "--texture: needs the pixel size in mm"),
+])
+def test_reconstruct_texture_bad_options_exit_2(tmp_path, capsys, extra, message):
+    plate = textured_plate("ground", size=32, pixel_size=D, sq_um=2.0, seed=1)
+    L = ring_lights(4, 40.0)
+    write_diligent_folder(tmp_path / "in", render(plate, L), L, np.ones(4), np.ones(plate.shape, bool), plate.normals,
+                          plate.height, {})  # no pixel size in scene.json
+    code = main(["photometric", "reconstruct", str(tmp_path / "in"), *extra, "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err
+    assert code == 2 and message in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "o").exists()

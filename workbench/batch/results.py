@@ -12,6 +12,7 @@ from __future__ import annotations
 import csv
 import io
 import json
+import math
 import os
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
@@ -31,8 +32,20 @@ FIGURES: dict[str, tuple[str, ...]] = {
     "inspect": ("verdict", "n_imperfections", "n_fail", "n_uncertain", "max_depth_mm", "max_depth_U_mm",
                 "total_area_mm2", "invalid_fraction", "spec_sha256"),
 }
+#: texture parameters of an inspected part (ISO 25178-2, micrometres) given as columns, each with its U (k = 2)
+TEXTURE_COLUMNS: tuple[str, ...] = ("Sa", "Sq", "Sz")
+FIGURES["inspect"] = (*FIGURES["inspect"][:-1], "texture_verdict",
+                      *(f"{name}{suffix}" for name in TEXTURE_COLUMNS for suffix in ("_um", "_U_um")),
+                      FIGURES["inspect"][-1])
+#: column -> the column holding its expanded uncertainty (k = 2): both are written to two significant digits of U
+U_COLUMNS: dict[str, str] = {"max_depth_mm": "max_depth_U_mm",
+                             **{f"{name}_um": f"{name}_U_um" for name in TEXTURE_COLUMNS}}
+#: fixed decimals of the float columns without a U (their resolution); any other float keeps 4 significant digits
+DECIMALS: dict[str, int] = {"max_depth_mm": 4, "invalid_fraction": 4, "light_condition_number": 3,
+                            "volume_mm3": 2, "volume_ml": 4, "area_mm2": 2, "total_area_mm2": 4,
+                            **{f"{name}{suffix}": 3 for name in TEXTURE_COLUMNS for suffix in ("_um", "_U_um")}}
 #: figures whose value is text (every other figure is a number)
-TEXT_FIGURES: tuple[str, ...] = ("verdict", "spec_sha256")
+TEXT_FIGURES: tuple[str, ...] = ("verdict", "spec_sha256", "texture_verdict")
 #: the verdict of an inspected part that could not be measured (its row's status is ``failed``)
 NOT_MEASURED = "not_measured"
 RESULT_COLUMNS: tuple[str, ...] = tuple(dict.fromkeys((
@@ -80,6 +93,148 @@ class BatchReport:
     wall_s: float
     jobs_per_minute: float
     rows: tuple[dict[str, str], ...]
+
+
+def u_decimals(U: float, significant: int = 2) -> int:
+    """Decimals that keep ``significant`` significant digits of an expanded uncertainty.
+
+    Parameters
+    ----------
+    U : float
+        Expanded uncertainty (> 0, finite).
+    significant : int
+        Significant digits of U (2: what the GUM's section 7.2.6 allows at most).
+
+    Returns
+    -------
+    int
+        Decimal places (0 for U >= 10 ** (significant - 1)).
+
+    Examples
+    --------
+    >>> u_decimals(0.0043), u_decimals(0.012), u_decimals(37.0)
+    (4, 3, 0)
+    """
+    return max(0, significant - 1 - math.floor(math.log10(abs(float(U)))))
+
+
+def round_to_u(value: float, U: float | None, digits: int = 4) -> tuple[str, str | None]:
+    """A value and its U as text, both to the decimal of U's second significant digit.
+
+    Parameters
+    ----------
+    value : float
+    U : float or None
+        Expanded uncertainty (k = 2); None, zero or not finite: the value keeps ``digits``
+        significant digits and U is None.
+    digits : int
+        Significant digits of a value without a usable U.
+
+    Returns
+    -------
+    (str, str or None)
+
+    Examples
+    --------
+    >>> round_to_u(0.09158301113, 0.0043217)
+    ('0.0916', '0.0043')
+    >>> round_to_u(12.3456, None)
+    ('12.35', None)
+    """
+    v = float(value)
+    if U is None or not math.isfinite(float(U)) or float(U) <= 0 or not math.isfinite(v):
+        return f"{v:.{digits}g}", None
+    d = u_decimals(U)
+    return _no_negative_zero(f"{v:.{d}f}"), f"{float(U):.{d}f}"
+
+
+def _no_negative_zero(text: str) -> str:
+    return text[1:] if text.startswith("-") and float(text) == 0 else text
+
+
+def format_figures(figures: Mapping[str, Any]) -> dict[str, str]:
+    """The results.csv text of key figures: to the precision their U supports.
+
+    A figure with a U column (:data:`U_COLUMNS`) and a positive U is written with U to two
+    significant digits and the value to the same decimal; other floats take their column's
+    fixed decimals (:data:`DECIMALS`) or 4 significant digits; integers and text as they are.
+    The full numbers stay in each job's JSON.
+
+    Parameters
+    ----------
+    figures : mapping
+        Figure name -> value (:func:`key_figures`).
+
+    Returns
+    -------
+    dict
+        Figure name -> text.
+
+    Examples
+    --------
+    >>> format_figures({"max_depth_mm": 0.09158301113, "max_depth_U_mm": 0.0043217, "n_fail": 1})
+    {'max_depth_mm': '0.0916', 'max_depth_U_mm': '0.0043', 'n_fail': '1'}
+    >>> format_figures({"max_depth_mm": 0.09158301113, "invalid_fraction": 0.00012})
+    {'max_depth_mm': '0.0916', 'invalid_fraction': '0.0001'}
+    """
+    out: dict[str, str] = {}
+    for name, value in figures.items():
+        if isinstance(value, bool) or not isinstance(value, float):
+            out[name] = str(value)
+        elif name in DECIMALS:
+            out[name] = _no_negative_zero(f"{value:.{DECIMALS[name]}f}")
+        else:
+            out[name] = f"{value:.4g}"
+    for name, u_name in U_COLUMNS.items():
+        if isinstance(figures.get(name), float) and isinstance(figures.get(u_name), float):
+            value, U = round_to_u(figures[name], figures[u_name])
+            if U is not None:
+                out[name], out[u_name] = value, U
+    return out
+
+
+def column_text(row: Mapping[str, str], name: str, missing: str = "-") -> str:
+    """One figure of a results.csv row as a report shows it: with its U, to the precision U supports.
+
+    Rows written before the figures were rounded (10 significant digits) read the same.
+
+    Parameters
+    ----------
+    row : mapping
+        A results.csv row (:func:`read_results`).
+    name : str
+        Its column.
+    missing : str
+        Text of an empty cell.
+
+    Returns
+    -------
+    str
+        ``"0.0916 +- 0.0043"`` for a figure with a U column (:data:`U_COLUMNS`) and a U, the
+        column's fixed decimals (:data:`DECIMALS`) otherwise, or the text as it is.
+
+    Examples
+    --------
+    >>> column_text({"max_depth_mm": "0.09158301113", "max_depth_U_mm": "0.0043217"}, "max_depth_mm")
+    '0.0916 +- 0.0043'
+    >>> column_text({"max_depth_mm": "0.09158301113", "max_depth_U_mm": ""}, "max_depth_mm")
+    '0.0916'
+    """
+    text = row.get(name) or ""
+    if not text:
+        return missing
+    try:
+        value = float(text)
+    except ValueError:
+        return text
+    if "." not in text and "e" not in text.lower():
+        return text  # a whole number (a count)
+    u_text = row.get(U_COLUMNS.get(name, ""), "") or ""
+    if u_text:
+        shown, U = round_to_u(value, float(u_text))
+        if U is not None:
+            return f"{shown} +- {U}"
+    return format_figures({name: value})[name]
 
 
 def key_figures(kind: str, summary: Mapping[str, Any]) -> dict[str, Any]:
@@ -211,7 +366,8 @@ def result_row(job: Job, status: str, error: str, time_s: float, figures: Mappin
     time_s : float
         Time the job took, in seconds.
     figures : mapping
-        Key figures (:func:`key_figures`); floats are written with 10 significant digits.
+        Key figures (:func:`key_figures`); written by :func:`format_figures` (to the
+        precision their U supports, or their column's fixed decimals).
 
     Returns
     -------
@@ -222,7 +378,7 @@ def result_row(job: Job, status: str, error: str, time_s: float, figures: Mappin
     --------
     >>> row = result_row(Job("k1", "slices", "/d/k1.json"), "ok", "", 1.23456, {"volume_ml": 2.5})
     >>> row["time_s"], row["volume_ml"], row["volume_mm3"], row["input"]
-    ('1.235', '2.5', '', '/d/k1.json')
+    ('1.235', '2.5000', '', '/d/k1.json')
     """
     row: dict[str, Any] = {name: "" for name in RESULT_COLUMNS}
     row.update(
@@ -233,8 +389,7 @@ def result_row(job: Job, status: str, error: str, time_s: float, figures: Mappin
         time_s=f"{time_s:.3f}",
         input=job.describe(),
     )
-    for name, value in figures.items():
-        row[name] = f"{value:.10g}" if isinstance(value, float) else str(value)
+    row.update(format_figures(figures))
     return row
 
 

@@ -150,6 +150,38 @@ def _uncertainty_options(args: argparse.Namespace):
     return Tolerances(**{k: v for k, v in given.items() if v is not None})
 
 
+def _add_texture_options(p: argparse.ArgumentParser) -> None:
+    """``--texture`` and its filters (the defaults of :data:`workbench.runs.texture.TEXTURE_DEFAULTS`)."""
+    from workbench.runs.texture import FORMS, TEXTURE_DEFAULTS
+
+    g = p.add_argument_group("areal texture (ISO 25178-2)",
+                             "--texture adds texture.json (every parameter with U, k = 2, when an uncertainty option "
+                             "is given) and texture.png (the S-L surface) to --out; needs the pixel size. The same "
+                             "computation as 'workbench photometric texture OUT'.")
+    g.add_argument("--texture", action="store_true", help="also measure the areal texture of the height")
+    g.add_argument("--texture-s-filter-mm", type=float, default=TEXTURE_DEFAULTS["s_filter_mm"], metavar="X",
+                   help="S-filter nesting index lambda_s, mm (default none: the band starts at two pixels)")
+    g.add_argument("--texture-l-filter-mm", type=float, default=TEXTURE_DEFAULTS["l_filter_mm"], metavar="Y",
+                   help="L-filter nesting index lambda_c, mm (default none: the band ends at the field size)")
+    g.add_argument("--texture-form", default=TEXTURE_DEFAULTS["form"], choices=FORMS,
+                   help=f"F-operator: least-squares plane or second-degree polynomial (default "
+                   f"{TEXTURE_DEFAULTS['form']})")
+
+
+def _texture_options(args: argparse.Namespace) -> dict | None:
+    """The ``texture`` of :func:`workbench.runs.photometric.reconstruct_to_folder`, checked before any work."""
+    from workbench.runs.texture import TEXTURE_DEFAULTS, texture_options
+
+    given = {"s_filter_mm": args.texture_s_filter_mm, "l_filter_mm": args.texture_l_filter_mm,
+             "form": args.texture_form}
+    if not args.texture:
+        changed = [f"--texture-{k.replace('_', '-')}" for k, v in given.items() if v != TEXTURE_DEFAULTS[k]]
+        if changed:
+            raise InputError(f"{changed[0]}: only applies with --texture")
+        return None
+    return texture_options(given, "--texture")
+
+
 def register(sub) -> None:
     """Add ``reconstruct`` and ``calibrate`` to the ``photometric`` group.
 
@@ -271,6 +303,7 @@ def register(sub) -> None:
                    help="with an imported calibration (--rig light.mat) and --camera-height: trust the height, do not "
                    "estimate it from the photometric residual")
     add_uncertainty_options(p)
+    _add_texture_options(p)
     p.set_defaults(func=_reconstruct)
 
     r = sub.add_parser(
@@ -664,6 +697,7 @@ def _reconstruct(args: argparse.Namespace) -> int:
                           camera_height_mm=args.camera_height)
     tolerances = _uncertainty_options(args)
     rig, camera_opts, est, warning = _rig_option(args)
+    texture = _texture_options(args)
     stages = ["read", "normals", "height", "surface", "defects", *(["uncertainty"] if tolerances else []), "write"]
     # delay: no bar at all before an error in the first half second
     with tqdm(total=len(stages), desc="photometric", unit="stage", leave=False, delay=0.5) as bar:
@@ -705,6 +739,7 @@ def _reconstruct(args: argparse.Namespace) -> int:
             uncertainty=tolerances,
             force=args.force,
             progress=progress,
+            texture=texture,
             **camera_opts,
         )
         bar.update(bar.total - bar.n)
@@ -748,5 +783,13 @@ def _reconstruct(args: argparse.Namespace) -> int:
         import sys
 
         print(f"warning: {warning}", file=sys.stderr)
+    if "texture" in summary:
+        from workbench.runs.texture import format_parameter
+
+        tex = summary["texture"]
+        band = tex["band"]
+        print(f"texture (ISO 25178-2, band {band['short_mm'] * 1000:.4g} um to {band['long_mm']:.4g} mm, form "
+              f"{tex['filters']['form']}): " + ", ".join(f"{n} {format_parameter(tex[n])}" for n in ("Sa", "Sq", "Sz"))
+              + f"; every parameter in {args.out}/texture.json")
     print(f"total {summary['timings_s']['total']:.2f} s; wrote {args.out} (summary.json holds every number above)")
     return 0

@@ -21,17 +21,24 @@ and ``min_distance_mm`` (the smallest gap between two imperfection outlines, eac
 the rectangle of its length along its axis by its maximum width; ``U`` propagated from the
 two outlines' extents: half of each one's larger length or width ``U``).
 
-A part's verdict is the worst of its checks: ``fail`` over ``uncertain`` over ``pass``.
+Texture (ISO 25178-2): the spec's texture limits (:data:`workbench.runs.texture.TEXTURE_LIMITS`)
+are checked against the part's texture parameters with the same rules
+(:func:`workbench.runs.texture.judge_texture`; the noise-bias corrected value and its U when
+the texture has an uncertainty).
+
+A part's verdict is the worst of all its checks (imperfections, part, texture): ``fail`` over
+``uncertain`` over ``pass``.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from surfaces.grid import pixel_axes
 from workbench.inspect.spec import IMPERFECTION_LIMITS, Spec
+from workbench.runs.texture import TEXTURE_LIMITS, judge_texture
 from surfaces.validate import InputError
 
 __all__ = ["VERDICTS", "Decision", "decide_value", "center_mm", "outline_mm", "inside_polygon", "outline_gap",
@@ -228,6 +235,9 @@ class Decision:
         The part quantities checked.
     decided_by : list of str
         The checks that gave the verdict (empty for a pass: every check passed).
+    texture_checks : list of dict
+        The texture parameters checked (:func:`workbench.runs.texture.judge_texture`: each
+        also with ``limit_key`` and ``unit``); empty when the spec limits none.
 
     Each check is ``{"quantity", "value", "U", "limit", "limit_kind" ("max" or "min"),
     "rule", "verdict"}``.
@@ -238,6 +248,7 @@ class Decision:
     imperfections: list
     part_checks: list
     decided_by: list
+    texture_checks: list = field(default_factory=list)
 
 
 #: imperfection quantities recorded in result.json (value and U), whether limited or not
@@ -258,7 +269,7 @@ def _check(quantity, value, U, limit, rule, lower=False, where="") -> dict:
             "rule": rule, "verdict": decide_value(value, U, limit, rule, lower)}
 
 
-def judge(defects, spec: Spec, shape, pixel_size: float) -> Decision:
+def judge(defects, spec: Spec, shape, pixel_size: float, texture: dict | None = None) -> Decision:
     """Decide one part: every imperfection and the part quantities against the spec.
 
     Parameters
@@ -271,6 +282,9 @@ def judge(defects, spec: Spec, shape, pixel_size: float) -> Decision:
         Image size, pixels (centres from ``center_px``).
     pixel_size : float
         Pixel size, mm.
+    texture : dict, optional
+        The part's texture (what ``texture.json`` holds); required when the spec limits a
+        texture parameter.
 
     Returns
     -------
@@ -279,7 +293,8 @@ def judge(defects, spec: Spec, shape, pixel_size: float) -> Decision:
     Raises
     ------
     ValueError
-        ``guard_band`` and an imperfection quantity the spec limits has no ``U``.
+        ``guard_band`` and an imperfection quantity or texture parameter the spec limits has
+        no ``U``; a texture limit without a texture.
     """
     rule = spec.decision_rule
     records = []
@@ -325,11 +340,17 @@ def judge(defects, spec: Spec, shape, pixel_size: float) -> Decision:
                     best = gap
         part.append(_check("min_distance_mm", float(best), U, spec.limits["min_distance_mm"], rule, lower=True,
                            where="part "))
-    verdicts = [r["verdict"] for r, _ in counted] + [c["verdict"] for c in part]
+    texture_checks = []
+    if any(k in TEXTURE_LIMITS for k in spec.limits):
+        if texture is None:
+            raise InputError("spec: limits a texture parameter, but the part's texture was not measured")
+        texture_checks = judge_texture(texture, spec.limits, rule)
+    verdicts = [r["verdict"] for r, _ in counted] + [c["verdict"] for c in part + texture_checks]
     verdict = _worst(verdicts)
     decided_by = []
     if verdict != "pass":
         for r, _ in counted:
             decided_by += [f"imperfection {r['id']} {c['quantity']}" for c in r["checks"] if c["verdict"] == verdict]
         decided_by += [f"part {c['quantity']}" for c in part if c["verdict"] == verdict]
-    return Decision(verdict, rule, records, part, decided_by)
+        decided_by += [f"texture {c['quantity']}" for c in texture_checks if c["verdict"] == verdict]
+    return Decision(verdict, rule, records, part, decided_by, texture_checks)

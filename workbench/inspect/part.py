@@ -208,6 +208,8 @@ class _Measured:
     result: object = None  # the full PhotometricReconstruction (pipeline path only)
     height: np.ndarray | None = None  # mm, NaN where not measured (the overlay's shaded panel)
     labels: np.ndarray | None = None  # id + 1 on each defect's pixels (the overlay's outlines)
+    slope_u: tuple | None = None  # (p_u, q_u) standard uncertainties of the slopes (the texture's noise model)
+    integrator: str = "dct"  # the integrator that made the height (the texture divides out its transfer)
 
 
 def _measure_direct(paths: list, mask_path, rig: Rig, options: dict, threads: int | None) -> _Measured:
@@ -241,7 +243,8 @@ def _measure_direct(paths: list, mask_path, rig: Rig, options: dict, threads: in
     summary = {k: s.get(k) for k in _SUMMARY_KEYS}
     summary["flat_field"] = s.get("flat_field") is not None
     return _Measured(sol.fit.albedo, sol.data.mask, sol.fit.valid, defects, inp.pixel_size_mm, summary,
-                     height=height.height, labels=found.labels)
+                     height=height.height, labels=found.labels,
+                     slope_u=None if unc is None else (unc.p_u, unc.q_u), integrator=opts.integrator)
 
 
 def _with_u(defects: list, unc) -> list:
@@ -265,8 +268,10 @@ def _measure_pipeline(paths: list, mask_path, rig: Rig, options: dict, keep_arra
     defects = res.defects if res.uncertainty is None else _with_u(res.defects, res.uncertainty)
     summary = {k: s.get(k) for k in _SUMMARY_KEYS}
     summary["flat_field"] = s.get("flat_field") is not None
+    unc = res.uncertainty
     return _Measured(res.albedo, res.mask, res.valid, defects, float(s["pixel_size_mm"]), summary, res,
-                     height=res.height, labels=_labels_of(res, rig))
+                     height=res.height, labels=_labels_of(res, rig),
+                     slope_u=None if unc is None else (unc.p_u, unc.q_u), integrator=str(s.get("integrator", "dct")))
 
 
 def _labels_of(res, rig: Rig) -> np.ndarray | None:
@@ -306,6 +311,53 @@ def _rig_position_u(options: dict, rig: Rig) -> tuple[dict, str | None]:
     if u is None:
         return options, None
     return {**options, "uncertainty": {**unc, "light_position_tolerance_mm": u}}, "rig"
+
+
+def _texture(m: _Measured, spec: Spec) -> tuple:
+    """The part's areal texture (:func:`workbench.runs.texture.measure_texture`) with the spec's filters:
+    ``(Texture, texture.json document)``, or ``(None, None)`` when the spec asks for none."""
+    if spec.texture is None:
+        return None, None
+    from workbench.runs.texture import measure_texture
+
+    noise = {} if m.slope_u is None else {"slope_u": m.slope_u}
+    return measure_texture(m.height, m.pixel_size_mm, m.valid & np.isfinite(m.height), noise=noise,
+                           integrator=m.integrator, **spec.texture,
+                           no_uncertainty_reason="the part was measured without an uncertainty option")
+
+
+def _texture_record(doc: dict, checks: list) -> dict:
+    """result.json's ``texture``: standard, filters, form, band, every parameter (value, U, unit) and the checks."""
+    from workbench.runs.texture import judged_value
+
+    params = {}
+    for name, rec in doc["parameters"].items():
+        value, U = judged_value(rec)
+        params[name] = {"value": value, "U": U, "unit": rec["unit"], "as_measured": rec["value"]}
+    return {"standard": doc["standard"], "form": doc["form"], "filters": doc["filters"], "band": doc["band"],
+            "evaluation_area_px": doc["evaluation_area_px"], "uncertainty": doc["uncertainty"],
+            "parameters": params, "checks": checks,
+            "note": "value: the noise-bias corrected value with its U (k = 2) when the texture has an uncertainty, "
+                    "else the value as measured (as_measured); every figure of texture.json"}
+
+
+def _texture_figures(record: dict | None, checks: list) -> dict:
+    """The texture's results.csv figures: Sa, Sq, Sz (um) with U, and the texture checks' verdict."""
+    from workbench.batch.results import TEXTURE_COLUMNS
+    from workbench.inspect.decide import VERDICTS
+
+    if record is None:
+        return {}
+    out: dict = {}
+    if checks:
+        out["texture_verdict"] = max((c["verdict"] for c in checks), key=VERDICTS.index)
+    for name in TEXTURE_COLUMNS:
+        rec = record["parameters"][name]
+        if rec["value"] is not None:
+            out[f"{name}_um"] = float(rec["value"])
+            if rec["U"] is not None:
+                out[f"{name}_U_um"] = float(rec["U"])
+    return out
 
 
 def _summary_figures(decision) -> dict:
@@ -384,7 +436,10 @@ def inspect_part(folder, out_dir, rig, spec, *, keep_arrays: bool = False, part_
         m.summary["uncertainty"] = {**m.summary["uncertainty"], "light_position_u_source": u_source}
     pixel = m.pixel_size_mm
     t0 = time.perf_counter()
-    decision = judge(m.defects, spec_obj, m.valid.shape, pixel)
+    tex, tex_doc = _texture(m, spec_obj)
+    t_texture = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    decision = judge(m.defects, spec_obj, m.valid.shape, pixel, texture=tex_doc)
     t_decide = time.perf_counter() - t0
 
     out = Path(out_dir)
@@ -394,6 +449,12 @@ def inspect_part(folder, out_dir, rig, spec, *, keep_arrays: bool = False, part_
                                                  labels=m.labels))
     t_overlay = time.perf_counter() - t0
     files = ["overlay.png", "result.json"]
+    texture_record = None
+    if tex is not None:
+        from workbench.runs.texture import write_texture
+
+        files += write_texture(tex, tex_doc, out)
+        texture_record = _texture_record(tex_doc, decision.texture_checks)
     t0 = time.perf_counter()
     if keep_arrays:
         from workbench.runs.photometric import write_result
@@ -403,7 +464,10 @@ def inspect_part(folder, out_dir, rig, spec, *, keep_arrays: bool = False, part_
     figures = _summary_figures(decision)
     s = m.summary
     figures["invalid_fraction"] = s["invalid_fraction"]
+    figures.update(_texture_figures(texture_record, decision.texture_checks))
     timings = {"reconstruct": round(t_measure, 4), "decide": round(t_decide, 4), "overlay": round(t_overlay, 4)}
+    if tex is not None:
+        timings["texture"] = round(t_texture, 4)
     if keep_arrays:
         timings["arrays"] = round(t_arrays, 4)
     timings["stages"] = s["timings_s"]
@@ -420,6 +484,7 @@ def inspect_part(folder, out_dir, rig, spec, *, keep_arrays: bool = False, part_
         "imperfections": decision.imperfections,
         "part_checks": decision.part_checks,
         "overlay_text": overlay_text(decision),
+        **({"texture": texture_record} if texture_record is not None else {}),
         **{k: v for k, v in figures.items() if k != "verdict"},
         "spec": spec_obj.to_dict(),
         "spec_sha256": spec_obj.sha256,

@@ -15,6 +15,7 @@ import cv2
 import numpy as np
 
 from workbench.batch import RESULTS_NAME, read_results
+from workbench.batch.results import TEXTURE_COLUMNS, column_text, round_to_u
 from workbench.inspect.overlay import REPORT_WIDTH
 from workbench.report import Report
 
@@ -95,6 +96,34 @@ def _thumbnail(path: Path, width: int = REPORT_WIDTH) -> np.ndarray:
     return np.ascontiguousarray(img)
 
 
+def _texture_section(report: Report, results: list) -> None:
+    """The areal texture of the parts that have one: the judged value +- U of each limited (or headline)
+    parameter, and the texture checks' verdict."""
+    from workbench.runs.texture import format_parameter
+
+    first = results[-1]["texture"]
+    limited = list(dict.fromkeys(c["quantity"] for r in results for c in r["texture"]["checks"]))
+    names = limited or list(TEXTURE_COLUMNS)
+    band = first["band"]
+    filters = first["filters"]
+    report.section(
+        "Areal texture (ISO 25178-2)",
+        f"Form removed: {first['form']}; S-filter "
+        + ("none" if filters.get("s_filter_mm") is None else f"{filters['s_filter_mm']:g} mm")
+        + ", L-filter " + ("none" if filters.get("l_filter_mm") is None else f"{filters['l_filter_mm']:g} mm")
+        + f"; band measured {band['short_mm'] * 1000:.3g} um to {band['long_mm']:.3g} mm. Each value is the "
+        "noise-bias corrected value with its U (k = 2) when the part was measured with an uncertainty, else the "
+        "value as measured (no U); limits: "
+        + (", ".join(f"{c['limit_key']} = {c['limit']:g}" for c in first["checks"]) or "none") + ".")
+    rows = []
+    for r in results:
+        tex = r["texture"]
+        verdicts = [c["verdict"] for c in tex["checks"]]
+        worst = max(verdicts, key=list(_SEVERITY)[::-1].index) if verdicts else "not limited"
+        rows.append([r["part"], *(format_parameter(tex["parameters"][n]) for n in names), worst])
+    report.table(["part", *names, "texture verdict"], rows)
+
+
 def write_inspection_report(out, command: str, title: str = "Inspection run") -> Path:
     """Write ``OUT/report.html`` from the run's files.
 
@@ -125,7 +154,7 @@ def write_inspection_report(out, command: str, title: str = "Inspection run") ->
         spec = results[-1]["spec"]
         rule = results[-1]["decision_rule"]
         report.paragraph(f"Decision rule: {rule}. Limits: "
-                         + ", ".join(f"{k} = {v}" for k, v in spec.items() if k.startswith(("max_", "min_")))
+                         + ", ".join(f"{k} = {v:g}" for k, v in spec.items() if k.startswith(("max_", "min_")))
                          + ".")
         depths = [im["values"]["max_depth_mm"]["value"] for r in results for im in r["imperfections"]
                   if im["region"] == "inspected"]
@@ -142,21 +171,31 @@ def write_inspection_report(out, command: str, title: str = "Inspection run") ->
                        "value, its U (k = 2) and the limit it is compared with.")
         table = []
         for r in worst[:WORST_PARTS]:
-            depth = r.get("max_depth_mm") or 0.0
-            u = r.get("max_depth_U_mm")
-            table.append([r["part"], r["verdict"], r["n_imperfections"], float(depth),
-                          "not stated" if u is None else float(u), ", ".join(r["decided_by"]) or "every check passed"])
+            # each figure to the precision its U supports (two significant digits of U); the JSON keeps them full
+            depth, u = round_to_u(float(r.get("max_depth_mm") or 0.0), r.get("max_depth_U_mm"))
+            if u is None:
+                depth = f"{float(r.get('max_depth_mm') or 0.0):.4f}"
+            table.append([r["part"], r["verdict"], r["n_imperfections"], depth,
+                          "not stated" if u is None else u, ", ".join(r["decided_by"]) or "every check passed"])
         report.table(["part", "verdict", "imperfections", "max depth (mm)", "U (mm, k = 2)", "decided by"], table)
         for r in worst[:WORST_PARTS]:
             overlay = out / r["part"] / "overlay.png"
             if overlay.is_file():
                 report.figure(_thumbnail(overlay), f"overlay_{r['part']}".replace(".", "_").replace("+", "_"),
                               f"{r['part']}: {r['verdict']}", command)
+    textured = [r for r in results if r.get("texture")]
+    if textured:
+        _texture_section(report, textured)
     if failed:
         report.section("Parts that could not be measured")
         report.table(["part", "error"], [[row["id"], row["error"] or "see failed/"] for row in failed])
-    report.section("All parts")
-    report.table(["part", "status", "verdict", "imperfections", "max depth (mm)", "time (s)"],
+    report.section("All parts", "Each figure to the precision its U (k = 2) supports: U to two significant digits, "
+                   "the value to the same decimal; without a U, a fixed number of decimals per column. "
+                   f"{RESULTS_NAME} holds the same text, each part's result.json the full numbers.")
+    texture_cols = [n for n in TEXTURE_COLUMNS if any(row.get(f"{n}_um") for row in rows.values())]
+    report.table(["part", "status", "verdict", "imperfections", "max depth (mm)",
+                  *(f"{n} (um)" for n in texture_cols), "time (s)"],
                  [[pid, row["status"], row["verdict"] or "-", row["n_imperfections"] or "-",
-                   row["max_depth_mm"] or "-", row["time_s"] or "-"] for pid, row in rows.items()])
+                   column_text(row, "max_depth_mm"), *(column_text(row, f"{n}_um") for n in texture_cols),
+                   row["time_s"] or "-"] for pid, row in rows.items()])
     return report.write(meta=f"{n} parts measured; results in {RESULTS_NAME}")

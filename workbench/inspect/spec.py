@@ -19,6 +19,15 @@ it, or inside an exclusion zone, are listed but do not decide. ``decision_rule``
 the narrowest imperfection the inspection must judge: :func:`check_spec_field` refuses a rig
 whose pixels do not resolve it and warns where its depth would read markedly shallow
 (:func:`photometric.resolution.require_resolution`).
+
+Areal texture (ISO 25178-2, :mod:`workbench.runs.texture`): the keys of
+:data:`TEXTURE_LIMITS` (``max_Sa_um``, ``max_Sq_um``, ``max_Sz_um``, ``max_Sp_um``,
+``max_Sv_um``, ``max_Sdq``, ``max_Sdr_pct``, ``max_Sk_um``, ``max_Spk_um``, ``max_Svk_um``,
+``max_Vmp_ml_m2``, ``max_Vvv_ml_m2``) are upper limits of the part's texture parameters,
+decided with the same rules; ``texture: {"s_filter_mm": X, "l_filter_mm": Y, "form":
+"plane"|"poly2"}`` states the filters and the F-operator (defaults
+:data:`workbench.runs.texture.TEXTURE_DEFAULTS`). With either, every part's texture is
+measured over its valid pixels and recorded in ``result.json``.
 """
 
 from __future__ import annotations
@@ -34,9 +43,10 @@ import numpy as np
 from photometric.rig import loads_unique
 from surfaces.grid import pixel_axes
 from surfaces.validate import InputError
+from workbench.runs.texture import TEXTURE_LIMITS, texture_options
 
-__all__ = ["DECISION_RULES", "IMPERFECTION_LIMITS", "PART_LIMITS", "SPEC_KEYS", "Spec", "check_spec_field",
-           "load_spec", "parse_spec"]
+__all__ = ["DECISION_RULES", "IMPERFECTION_LIMITS", "PART_LIMITS", "TEXTURE_LIMITS", "SPEC_KEYS", "Spec",
+           "check_spec_field", "load_spec", "parse_spec"]
 
 #: decision rules a spec may name
 DECISION_RULES = ("simple", "guard_band")
@@ -55,7 +65,9 @@ PART_LIMITS: dict[str, str] = {
 }
 #: every key spec.json may hold
 SPEC_KEYS = (*IMPERFECTION_LIMITS, *PART_LIMITS, "roi_mm", "exclusion_zones_mm", "decision_rule", "name",
-             "min_width_mm")
+             "min_width_mm", *TEXTURE_LIMITS, "texture")
+#: every limit key (imperfection, part, texture)
+_LIMIT_KEYS = (*IMPERFECTION_LIMITS, *PART_LIMITS, *TEXTURE_LIMITS)
 
 
 @dataclass(frozen=True)
@@ -75,6 +87,12 @@ class Spec:
         Free text naming the spec ("" when not given).
     min_width_mm : float or None
         Width of the narrowest imperfection of interest, mm (None when not given).
+    texture : dict or None
+        The texture's filters and form (``s_filter_mm``, ``l_filter_mm``, ``form``) when
+        the spec limits a texture parameter or gives a ``texture`` key; None: no texture
+        is measured.
+    texture_given : bool
+        ``spec.json`` held the ``texture`` key (it is then recorded as given).
     """
 
     limits: dict
@@ -83,6 +101,8 @@ class Spec:
     decision_rule: str
     name: str = ""
     min_width_mm: float | None = None
+    texture: dict | None = None
+    texture_given: bool = False
 
     def to_dict(self) -> dict:
         """Return the spec as in ``spec.json`` (JSON-ready; what ``result.json`` records)."""
@@ -96,6 +116,8 @@ class Spec:
             out["name"] = self.name
         if self.min_width_mm is not None:
             out["min_width_mm"] = self.min_width_mm
+        if self.texture_given:
+            out["texture"] = dict(self.texture)
         return out
 
     @property
@@ -183,22 +205,22 @@ def parse_spec(doc, source: str = "spec") -> Spec:
     --------
     >>> parse_spec({"max_depth_mm": 0.1, "decision_rule": "guard_band"}).limits
     {'max_depth_mm': 0.1}
-    >>> parse_spec({"max_depth": 0.1})
+    >>> parse_spec({"max_depth": 0.1})  # doctest: +ELLIPSIS
     Traceback (most recent call last):
     ...
-    surfaces.validate.InputError: spec: unknown key 'max_depth' (known: max_depth_mm, max_length_mm, max_width_mm, \
-max_area_mm2, max_count, max_total_area_mm2, min_distance_mm, roi_mm, exclusion_zones_mm, decision_rule, name, \
-min_width_mm)
+    surfaces.validate.InputError: spec: unknown key 'max_depth' (known: max_depth_mm, max_length_mm, ..., texture)
+    >>> parse_spec({"max_Sa_um": 0.8}).texture
+    {'s_filter_mm': None, 'l_filter_mm': None, 'form': 'plane'}
     """
     if not isinstance(doc, dict):
         raise InputError(f"{source}: expected a JSON object of limits, got {type(doc).__name__}")
     unknown = [k for k in doc if k not in SPEC_KEYS]
     if unknown:
         raise InputError(f"{source}: unknown key {unknown[0]!r} (known: {', '.join(SPEC_KEYS)})")
-    limits = {k: _limit(doc, k, source) for k in (*IMPERFECTION_LIMITS, *PART_LIMITS) if k in doc}
+    limits = {k: _limit(doc, k, source) for k in _LIMIT_KEYS if k in doc}
     if not limits:
         raise InputError(f"{source}: no limit given (give at least one of "
-                         f"{', '.join((*IMPERFECTION_LIMITS, *PART_LIMITS))})")
+                         f"{', '.join(_LIMIT_KEYS)})")
     rule = doc.get("decision_rule", "simple")
     if rule not in DECISION_RULES:
         raise InputError(f"{source} decision_rule: expected one of {', '.join(DECISION_RULES)}, got {rule!r}")
@@ -213,7 +235,11 @@ min_width_mm)
     narrowest = _limit(doc, "min_width_mm", source) if "min_width_mm" in doc else None
     if narrowest is not None and narrowest <= 0:
         raise InputError(f"{source} min_width_mm: must be positive, got {narrowest!r}")
-    return Spec(limits, roi, exclusions, rule, name, narrowest)
+    given = doc.get("texture") is not None
+    texture = None
+    if given or any(k in TEXTURE_LIMITS for k in limits):
+        texture = texture_options(doc.get("texture"), f"{source} texture")
+    return Spec(limits, roi, exclusions, rule, name, narrowest, texture, given)
 
 
 def load_spec(path) -> Spec:

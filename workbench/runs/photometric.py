@@ -48,10 +48,12 @@ from photometric.rig import Rig, rig_to_dict
 from surfaces.colormap import scalar_range
 from surfaces.io import atomic_path, npy_row_writer, read_npy_rows, save_npy, write_json, write_mesh, write_png
 from workbench import images
+from surfaces.validate import InputError
 from workbench.runs.folder import result_folder
+from workbench.runs.texture import TEXTURE_FILES  # files added by ``texture`` (photometric reconstruct --texture)
 
-__all__ = ["FILES", "NEARFIELD_FILES", "UNCERTAINTY_FILES", "reconstruct_to_folder", "write_result", "write_rig",
-           "calibrate_to_rig"]
+__all__ = ["FILES", "NEARFIELD_FILES", "UNCERTAINTY_FILES", "TEXTURE_FILES", "reconstruct_to_folder", "write_result",
+           "write_rig", "calibrate_to_rig"]
 
 #: Files written into the output folder (``summary.json`` lists them under ``files``).
 FILES = (
@@ -215,8 +217,37 @@ def _gather(blocks: Callable, select: Callable) -> np.ndarray:
     return vals
 
 
+def _add_texture(out: Path, summary: dict, texture: dict) -> dict:
+    """``texture.json`` and ``texture.png`` of the height just written (:mod:`workbench.runs.texture`); the
+    summary lists them and states the band and the height parameters, and is written again."""
+    from workbench.runs.texture import texture_of_result
+
+    if str(summary.get("pixel_size_source", "")).startswith("default"):
+        raise InputError("--texture: needs the pixel size in mm (give --pixel-size, a rig, or a folder whose "
+                         "scene.json states it); without it the heights are in pixel units")
+    t0 = time.perf_counter()
+    doc = texture_of_result(out, **texture)
+    pars = doc["parameters"]
+    summary["texture"] = {
+        "filters": {k: texture[k] for k in ("s_filter_mm", "l_filter_mm", "form")},
+        "band": doc["band"],
+        **{name: {"value": pars[name]["value"], "U": pars[name].get("U"), "unit": pars[name]["unit"]}
+           for name in ("Sa", "Sq", "Sz")},
+        "file": "texture.json",
+    }
+    summary["files"] = sorted({*summary["files"], *TEXTURE_FILES})
+    timings = dict(summary["timings_s"])
+    seconds = round(time.perf_counter() - t0, 4)
+    timings = {**{k: v for k, v in timings.items() if k != "total"}, "texture": seconds,
+               "total": round(timings["total"] + seconds, 4)}
+    summary["timings_s"] = timings
+    write_json(out / "summary.json", summary)
+    return summary
+
+
 def reconstruct_to_folder(
-    source, out_dir, *, progress: Callable[[str], None] | None = None, atomic: bool = True, **options
+    source, out_dir, *, progress: Callable[[str], None] | None = None, atomic: bool = True,
+    texture: dict | None = None, **options
 ) -> dict:
     """Run :func:`photometric.pipeline.reconstruct` and write its result files into ``out_dir``.
 
@@ -234,6 +265,12 @@ def reconstruct_to_folder(
         Build the folder beside ``out_dir`` and swap it in (default). ``False``
         writes straight into ``out_dir``, for callers that already write into a
         temporary folder of their own (batch jobs).
+    texture : dict, optional
+        Also measure the areal texture of the height (``photometric reconstruct
+        --texture``): ``s_filter_mm``, ``l_filter_mm``, ``form`` (defaults
+        :data:`workbench.runs.texture.TEXTURE_DEFAULTS`); adds ``texture.json`` and
+        ``texture.png`` (:func:`workbench.runs.texture.texture_of_result`) and a ``texture``
+        entry (filters, band, Sa, Sq, Sz with U) to the summary. Needs the pixel size.
     **options
         Keyword options of :func:`photometric.pipeline.reconstruct` (``lights``,
         ``intensities``, ``mask``, ``select``, ``integrator``, ``pixel_size``,
@@ -257,23 +294,30 @@ def reconstruct_to_folder(
     photometric.nearfield.NotConvergedError
         After writing only ``summary.json`` (``converged: false``).
     """
+    if texture is not None:
+        from workbench.runs.texture import texture_options
+
+        texture = texture_options(texture, "texture")
     if not atomic:
         out = Path(out_dir)
         if out.exists() and not out.is_dir():
             raise NotADirectoryError(f"out_dir: {out} exists and is not a folder")
         out.mkdir(parents=True, exist_ok=True)
         result = _reconstruct_or_summary(source, out, progress, options)
-        return write_result(result, out)
+        summary = write_result(result, out)
+        return summary if texture is None else _add_texture(out, summary, texture)
     # the folder is checked and locked before the work, so a bad --out or a second writer is refused at once;
     # a run that does not converge swaps in a folder that holds only its summary.json
     failure = None
-    with result_folder(out_dir, owned=(*NEARFIELD_FILES, *UNCERTAINTY_FILES)) as tmp:
+    with result_folder(out_dir, owned=(*NEARFIELD_FILES, *UNCERTAINTY_FILES, *TEXTURE_FILES)) as tmp:
         try:
             result = _reconstruct_or_summary(source, tmp, progress, options)
         except NotConvergedError as exc:
             failure = exc
         else:
             summary = write_result(result, tmp)
+            if texture is not None:
+                summary = _add_texture(tmp, summary, texture)
     if failure is not None:
         where = Path(out_dir) / "summary.json"
         raise NotConvergedError(f"{failure} (nothing else written; see {where})", failure.summary) from None
@@ -309,7 +353,12 @@ def _signature() -> inspect.Signature:
     lib = inspect.signature(reconstruct)
     head = [inspect.Parameter(name, inspect.Parameter.POSITIONAL_OR_KEYWORD) for name in ("source", "out_dir")]
     options = [p for name, p in lib.parameters.items() if name not in ("source", "out")]
-    return lib.replace(parameters=head + options, return_annotation=dict)
+    # the run's own keyword (before the library's **keywords, when it has them)
+    extra = [inspect.Parameter("texture", inspect.Parameter.KEYWORD_ONLY, default=None)]
+    at = next((i for i, p in enumerate(options) if p.kind is inspect.Parameter.VAR_KEYWORD), len(options))
+    if any(p.name == "texture" for p in options):
+        extra = []
+    return lib.replace(parameters=head + options[:at] + extra + options[at:], return_annotation=dict)
 
 
 reconstruct_to_folder.__signature__ = _signature()

@@ -89,7 +89,7 @@ def test_run_records_rows_skips_on_rerun_and_retries_failures(threads_client, tm
     assert sorted(r["id"] for r in seen) == ["j0", "j1", "j2"] and all("traceback" not in r for r in seen)
     rows = read_results(out / RESULTS_NAME)
     assert {k: r["status"] for k, r in rows.items()} == {"j0": "ok", "j1": "failed", "j2": "ok"}
-    assert rows["j2"]["volume_mm3"] == "200" and rows["j1"]["error"] == "ValueError: j1: told to fail"
+    assert rows["j2"]["volume_mm3"] == "200.00" and rows["j1"]["error"] == "ValueError: j1: told to fail"
     assert (out / "j2" / "volume.txt").read_text() == "200" and not (out / "j1").exists()
     assert json.loads((out / FAILED_DIR / "j1.json").read_text())["attempts"] == 1
 

@@ -35,7 +35,7 @@ def test_result_row_text_cells():
     job = Job("t1", "photometric", ("/t/1.png", "/t/2.png", "/t/3.png"))
     row = result_row(job, "ok", "", 0.1234, {"n_defects": 3, "max_depth_mm": 1 / 3})
     assert list(row) == list(RESULT_COLUMNS)
-    assert (row["n_defects"], row["max_depth_mm"], row["time_s"]) == ("3", "0.3333333333", "0.123")
+    assert (row["n_defects"], row["max_depth_mm"], row["time_s"]) == ("3", "0.3333", "0.123")
     assert row["input"] == "/t/1.png;/t/2.png;/t/3.png" and row["volume_mm3"] == ""
 
 
@@ -66,7 +66,7 @@ def test_results_roundtrip_keeps_the_last_row_of_each_id(tmp_path):
     assert path.read_text().splitlines()[0] == ",".join(RESULT_COLUMNS)
     back = read_results(path)
     assert list(back) == ["j0", "j1"]
-    assert back["j0"] == rows[2] and back["j1"]["volume_ml"] == "2"
+    assert back["j0"] == rows[2] and back["j1"]["volume_ml"] == "2.0000"
     assert read_results(tmp_path / "missing.csv") == {}
 
 
@@ -115,3 +115,17 @@ def test_write_report(tmp_path):
     assert (content["scheduler"], content["n_workers"]) == ("local", 2) and content["finished_utc"].endswith("+00:00")
     with pytest.raises(ValueError, match="kind"):
         write_report(report, tmp_path, "ct")
+
+
+def test_figures_to_the_precision_of_their_u():
+    """Issue 37: a value to the decimal of its U's second significant digit, fixed decimals without U."""
+    job = Job("p1", "inspect", "/lot/p1")
+    row = result_row(job, "ok", "", 1.0, {"max_depth_mm": 0.09158301113, "max_depth_U_mm": 0.0043217,
+                                           "total_area_mm2": 0.123456789, "Sa_um": 0.81234, "Sa_U_um": 0.1234,
+                                           "invalid_fraction": -0.00001, "texture_verdict": "pass"})
+    assert (row["max_depth_mm"], row["max_depth_U_mm"]) == ("0.0916", "0.0043")
+    assert (row["Sa_um"], row["Sa_U_um"]) == ("0.81", "0.12")
+    assert row["total_area_mm2"] == "0.1235" and row["invalid_fraction"] == "0.0000"
+    assert row["texture_verdict"] == "pass"
+    # without a U the column's fixed decimals
+    assert result_row(job, "ok", "", 1.0, {"max_depth_mm": 0.09158301113})["max_depth_mm"] == "0.0916"

@@ -96,7 +96,10 @@ def test_guard_band_states_the_uncertainty(small_lot, tmp_path, cluster, capsys)
     assert doc["measurement"]["uncertainty"]["method"] == "linear"
     with open(out / "results.csv", newline="") as fh:
         row = next(csv.DictReader(fh))
-    assert float(row["max_depth_U_mm"]) == pytest.approx(check["U"], rel=1e-6)
+    # results.csv: U to two significant digits, the depth to the same decimal (issue 37); result.json keeps them full
+    decimals = len(row["max_depth_U_mm"].split(".")[1])
+    assert float(row["max_depth_U_mm"]) == pytest.approx(check["U"], rel=0.06) and 10 <= check["U"] * 10**decimals < 100
+    assert row["max_depth_mm"] == f"{doc['max_depth_mm']:.{decimals}f}"
     capsys.readouterr()
     assert main(["inspect", "run", "--rig", str(small_lot["rig"]), "--spec", str(spec), str(parts), "--out",
                  str(tmp_path / "o2"), "--option", "uncertainty=linear"]) == 2

@@ -31,3 +31,7 @@ def test_report_shows_overlays_unshrunk(small_lot, tmp_path):
         assert shown.shape == drawn.shape and shown.shape[1] == REPORT_WIDTH
         assert REPORT_WIDTH + 2 + 16 <= column
     assert TEXT_PX >= 11  # so every label reads at >= 11 px in the report
+    # issue 37: no figure printed to 10 digits (0.09158301113); the depth to 4 decimals without a U
+    assert not re.search(r"\d\.\d{7,}", page)
+    depth = key_figures("inspect", figures)["max_depth_mm"]
+    assert f">{depth:.4f}<" in page
