@@ -45,7 +45,7 @@ from datasets_synthetic.point_lights import ring_point_lights  # noqa: E402
 from photometric.defects import measure_defects  # noqa: E402
 from photometric.glossy import fit_glossy, ggx_lobe, lobe_weight  # noqa: E402
 from photometric.integrate import integrate  # noqa: E402
-from photometric.lights import light_field, point_lights  # noqa: E402
+from photometric.leds import light_field, point_lights  # noqa: E402
 from photometric.pipeline import reconstruct  # noqa: E402
 from photometric.quality import QualityLimits, check, quality_figures  # noqa: E402
 

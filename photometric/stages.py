@@ -60,7 +60,7 @@ from surfaces.mesh import TriangleMesh
 from surfaces.validate import InputError, as_array, positive
 
 __all__ = ["TARGET_PATCHES", "LightSetup", "PhotometricInput", "Solution", "Height", "Surface", "Defects",
-           "read", "solve", "integrate", "surface", "measure", "uncertainty", "summarize"]
+           "read", "solve", "integrate", "surface", "measure", "uncertainty", "quality", "summarize"]
 
 #: Patches per image side aimed at when ``step`` is not given (Coons surface).
 TARGET_PATCHES = 64
@@ -86,6 +86,9 @@ class LightSetup:
     intensities : numpy.ndarray, shape (N, 3)
     rig : str or None
         The rig file, when one was read.
+    quality : dict or None
+        The rig's ``quality`` entry (limits and reference slopes set from a reference part,
+        :attr:`photometric.rig.Rig.quality`), when the rig has one.
     """
 
     model: str
@@ -96,6 +99,7 @@ class LightSetup:
     flat: dict | None
     intensities: np.ndarray
     rig: str | None
+    quality: dict | None = None
 
 
 @dataclass(frozen=True)
@@ -441,7 +445,8 @@ def _near_setup(data: PhotometricData, *, light_model, light_positions, led_mu, 
     if intensities is None and rig_obj is not None and rig_obj.intensities is not None:
         intens = rig_obj.intensities
     rig_name = None if rig is None or isinstance(rig, Rig) else str(rig)
-    return LightSetup("point", lights, cam, cam_source, gains, flat, intens, rig_name)
+    return LightSetup("point", lights, cam, cam_source, gains, flat, intens, rig_name,
+                      None if rig_obj is None else rig_obj.quality)
 
 
 def _near_summary(near: LightSetup, res: NearFieldResult, tolerance_mm: float) -> dict:
@@ -878,9 +883,81 @@ def uncertainty(inp: PhotometricInput, sol: Solution, height: Height, defects: D
                         defects.labels, inp.pixel_size_mm, inp.pixel_size_source, opts)
 
 
+def quality(inp: PhotometricInput, sol: Solution, height: Height, defects: Defects,
+            options: PhotometricOptions | None = None, *, limits=None, reference_slopes=None) -> dict:
+    """Does the measurement deserve trust? Its quality figures against their limits (issue 32).
+
+    :func:`photometric.quality.quality_figures` of the height (flatness about the options'
+    background model, outside the defects found), the slopes (bias against a reference
+    part's) and the valid pixels; :func:`photometric.quality.check` against the limits.
+    The per-light Lambertian residual is not computed here (it needs the solve's light
+    vectors at every point, flat-field gains included): ``figures.lambertian_residual`` is
+    empty, which :func:`~photometric.quality.check` skips; the per-frame dark, saturated and
+    exposure checks are :mod:`photometric.frames`'.
+
+    Parameters
+    ----------
+    inp, sol, height, defects :
+        The stages' results (``defects.labels`` marks the defects when given; otherwise
+        each defect's bounding box).
+    options : PhotometricOptions, optional
+        ``background``.
+    limits : photometric.quality.QualityLimits or dict, optional
+        Default: the rig's (``rig.json`` ``quality.limits``) when the input has a rig with
+        them, the stated :class:`photometric.quality.QualityLimits` defaults otherwise.
+    reference_slopes : (float, float), optional
+        A reference part's mean slopes ``p, q``; default the rig's; without one no slope bias.
+
+    Returns
+    -------
+    dict
+        :func:`photometric.quality.quality_report`: ``figures``, ``limits``,
+        ``limits_source`` (``"option"``, ``"rig"`` or ``"default"``), ``failed`` (each with
+        its ``reason``) and ``trusted``.
+    """
+    from photometric.quality import QualityLimits, quality_figures, quality_report
+
+    opts = _options(options)
+    fit = sol.fit
+    rig_q = inp.setup.quality if inp.setup is not None else None
+    source = "default"
+    if limits is not None:
+        source = "option"
+        limits = limits if isinstance(limits, QualityLimits) else QualityLimits(**dict(limits))
+    elif rig_q is not None:
+        source, limits = "rig", QualityLimits(**rig_q["limits"])
+    if reference_slopes is None and rig_q is not None and rig_q.get("reference_slopes") is not None:
+        reference_slopes = tuple(float(v) for v in rig_q["reference_slopes"])
+    exclude = _defect_pixels(defects, fit.valid.shape)
+    figures = quality_figures(height.height, fit.valid, p=fit.p, q=fit.q, exclude=exclude, mask=sol.data.mask,
+                              background=opts.background, xy=None if inp.orthographic else fit.xy,
+                              reference_slopes=reference_slopes)
+    return quality_report(figures, limits, source)
+
+
+def _defect_pixels(defects: Defects, shape, margin: int = 3) -> np.ndarray:
+    """The defects' pixels (their labels, or their bounding boxes), grown by ``margin`` pixels."""
+    import cv2
+
+    out = np.zeros(shape, bool)
+    if defects.labels is not None:
+        out = defects.labels > 0
+    else:
+        for d in defects.defects:
+            box = d.get("bbox_px")
+            if box is not None:
+                r0, c0, r1, c1 = (int(v) for v in box)
+                out[max(r0, 0):r1 + 1, max(c0, 0):c1 + 1] = True
+    if margin and out.any():
+        k = np.ones((2 * margin + 1, 2 * margin + 1), np.uint8)
+        out = cv2.dilate(out.astype(np.uint8), k).astype(bool)
+    return out
+
+
 def summarize(inp: PhotometricInput, sol: Solution, height: Height, defects: Defects,
               options: PhotometricOptions | None = None, *, surf: Surface | None = None,
-              unc: UncertaintyResult | None = None, timings: dict | None = None) -> dict:
+              unc: UncertaintyResult | None = None, timings: dict | None = None,
+              quality_report: dict | None = None) -> dict:
     """The JSON-ready summary of the stages' results (``summary.json`` of a reconstruction).
 
     Parameters
@@ -894,11 +971,14 @@ def summarize(inp: PhotometricInput, sol: Solution, height: Height, defects: Def
         Adds ``uncertainty``.
     timings : dict, optional
         Stage wall times in seconds (``timings_s``).
+    quality_report : dict, optional
+        :func:`quality`'s result when already computed (default: computed here).
 
     Returns
     -------
     dict
-        Input, sizes, options, ``light_model`` and ``camera``, light condition number,
+        ``quality`` (:func:`quality`: figures, limits, failed limits with reasons, ``trusted``),
+        input, sizes, options, ``light_model`` and ``camera``, light condition number,
         invalid fraction, mean residual, height range, timings, number of defects,
         ``warnings`` and, with ``normal_gt``, ``mean_angular_error_deg`` and
         ``median_angular_error_deg`` (over the mask). Near-field and perspective solves add
@@ -948,6 +1028,12 @@ def summarize(inp: PhotometricInput, sol: Solution, height: Height, defects: Def
     if sol.angular_errors_deg is not None:
         summary["mean_angular_error_deg"] = float(sol.angular_errors_deg.mean())
         summary["median_angular_error_deg"] = float(np.median(sol.angular_errors_deg))
+    report = quality_report if quality_report is not None else quality(inp, sol, height, defects, opts)
+    summary["quality"] = report
+    for failed in report["failed"]:
+        line = f"quality: {failed['reason']}"
+        if line not in summary["warnings"]:
+            summary["warnings"].append(line)
     return summary
 
 
