@@ -898,8 +898,8 @@ def quality(inp: PhotometricInput, sol: Solution, height: Height, defects: Defec
     Parameters
     ----------
     inp, sol, height, defects :
-        The stages' results (``defects.labels`` marks the defects when given; otherwise
-        each defect's bounding box).
+        The stages' results (each defect's bounding box, grown by 3 pixels, is left out of
+        the background figures).
     options : PhotometricOptions, optional
         ``background``.
     limits : photometric.quality.QualityLimits or dict, optional
@@ -936,21 +936,13 @@ def quality(inp: PhotometricInput, sol: Solution, height: Height, defects: Defec
 
 
 def _defect_pixels(defects: Defects, shape, margin: int = 3) -> np.ndarray:
-    """The defects' pixels (their labels, or their bounding boxes), grown by ``margin`` pixels."""
-    import cv2
-
+    """Each defect's bounding box grown by ``margin`` pixels (the same whether or not the labels were kept)."""
     out = np.zeros(shape, bool)
-    if defects.labels is not None:
-        out = defects.labels > 0
-    else:
-        for d in defects.defects:
-            box = d.get("bbox_px")
-            if box is not None:
-                r0, c0, r1, c1 = (int(v) for v in box)
-                out[max(r0, 0):r1 + 1, max(c0, 0):c1 + 1] = True
-    if margin and out.any():
-        k = np.ones((2 * margin + 1, 2 * margin + 1), np.uint8)
-        out = cv2.dilate(out.astype(np.uint8), k).astype(bool)
+    for d in defects.defects:
+        box = d.get("bbox_px")
+        if box is not None:
+            r0, c0, r1, c1 = (int(v) for v in box)
+            out[max(r0 - margin, 0):r1 + margin, max(c0 - margin, 0):c1 + margin] = True
     return out
 
 

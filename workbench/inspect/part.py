@@ -58,7 +58,7 @@ DIRECT_OPTIONS = ("integrator", "background", "outliers", "dark", "saturation", 
                   "tolerance_mm", "max_iterations", "force", "uncertainty")
 # what result.json reports of a measurement's summary (photometric.stages.summarize)
 _SUMMARY_KEYS = ("pixel_size_mm", "light_model", "camera", "converged", "iterations", "n_defects", "invalid_fraction",
-                 "size", "uncertainty", "timings_s")
+                 "size", "uncertainty", "timings_s", "quality")
 # files of a captured or rendered folder that are not part images
 _NOT_IMAGES = ("mask.png",)
 
@@ -292,6 +292,25 @@ def _frames(paths: list, mask_path, rig: Rig):
     return frames
 
 
+def _quality_gate(report: dict | None, part: str) -> None:
+    """Refuse a measurement that fails a quality limit (:func:`photometric.stages.quality`): the part is
+    ``not_measured`` with the reasons (it never passes on a result that cannot be trusted)."""
+    if report is None:
+        raise InputError(f"part {part} not measured: its quality figures could not be computed")
+    if not report["trusted"]:
+        reasons = "; ".join(f["reason"] for f in report["failed"])
+        raise InputError(f"part {part} not measured: the measurement fails its quality limits "
+                         f"({report['limits_source']} limits): {reasons}")
+
+
+def _quality_figures(report: dict) -> dict:
+    """The quality figures of a results.csv row (:data:`workbench.batch.FIGURES` ``inspect``)."""
+    fig = report["figures"]
+    bias = fig.get("slope_bias_mrad")
+    return {"background_rms_mm": fig.get("background_rms_mm"),
+            "slope_bias_mrad": None if bias is None else bias[2]}
+
+
 def _summary_figures(decision) -> dict:
     """The part's key figures (the results.csv row of :data:`workbench.batch.FIGURES` ``inspect``)."""
     counted = [r for r in decision.imperfections if r["region"] == "inspected"]
@@ -338,7 +357,8 @@ def inspect_part(folder, out_dir, rig, spec, *, keep_arrays: bool = False, part_
     dict
         The part's key figures (``verdict``, ``n_imperfections``, ``n_fail``,
         ``n_uncertain``, ``max_depth_mm``, ``max_depth_U_mm``, ``total_area_mm2``,
-        ``invalid_fraction``) and ``timings_s`` (wall seconds of ``reconstruct`` (the
+        ``invalid_fraction``, the quality figures ``background_rms_mm`` and ``slope_bias_mrad``)
+        and ``timings_s`` (wall seconds of ``reconstruct`` (the
         measurement), ``decide``, ``overlay``, ``arrays`` (with ``keep_arrays``), the
         measurement's ``stages``, ``total``, and ``cpu``: the process's CPU seconds over the part).
 
@@ -346,7 +366,9 @@ def inspect_part(folder, out_dir, rig, spec, *, keep_arrays: bool = False, part_
     ------
     FileNotFoundError, ValueError
         A missing or extra image, an image of another size than the rig's, a spec the
-        measurement cannot decide (``guard_band`` without U), ...: nothing is written.
+        measurement cannot decide (``guard_band`` without U), a measurement that fails a
+        quality limit (:func:`photometric.stages.quality`; limits from ``rig.json`` or the
+        stated defaults), ...: nothing is written and the part is ``not_measured``.
     """
     t_all, cpu_all = time.perf_counter(), time.process_time()
     check_options(options)
@@ -363,6 +385,7 @@ def inspect_part(folder, out_dir, rig, spec, *, keep_arrays: bool = False, part_
     else:
         m = _measure_direct(paths, mask, rig_obj, options, threads)
     t_measure = time.perf_counter() - t0
+    _quality_gate(m.summary.get("quality"), part_id or root.name)  # a measurement out of its limits: not measured
     pixel = m.pixel_size_mm
     t0 = time.perf_counter()
     decision = judge(m.defects, spec_obj, m.valid.shape, pixel)
@@ -384,6 +407,7 @@ def inspect_part(folder, out_dir, rig, spec, *, keep_arrays: bool = False, part_
     figures = _summary_figures(decision)
     s = m.summary
     figures["invalid_fraction"] = s["invalid_fraction"]
+    figures.update(_quality_figures(s["quality"]))
     timings = {"reconstruct": round(t_measure, 4), "decide": round(t_decide, 4), "overlay": round(t_overlay, 4)}
     if keep_arrays:
         timings["arrays"] = round(t_arrays, 4)
@@ -405,6 +429,7 @@ def inspect_part(folder, out_dir, rig, spec, *, keep_arrays: bool = False, part_
         "spec": spec_obj.to_dict(),
         "spec_sha256": spec_obj.sha256,
         "frames": frames.to_dict()["frames"],
+        "quality": s["quality"],
         "measurement": {
             "pixel_size_mm": pixel,
             "light_model": s.get("light_model"),
@@ -416,6 +441,7 @@ def inspect_part(folder, out_dir, rig, spec, *, keep_arrays: bool = False, part_
             "invalid_fraction": s.get("invalid_fraction"),
             "image_size": [s["size"]["height"], s["size"]["width"]],
             "uncertainty": s.get("uncertainty"),
+            "quality_trusted": s["quality"]["trusted"],
         },
         "files": sorted(set(files)),
     }
