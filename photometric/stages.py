@@ -913,9 +913,10 @@ def quality(inp: PhotometricInput, sol: Solution, height: Height, defects: Defec
     dict
         :func:`photometric.quality.quality_report`: ``figures``, ``limits``,
         ``limits_source`` (``"option"``, ``"rig"`` or ``"default"``), ``failed`` (each with
-        its ``reason``) and ``trusted``.
+        its ``reason``), ``trusted``, ``mean_slopes`` (``p, q`` over the background: what a
+        reference part stores) and ``reference_slopes`` (None without a reference).
     """
-    from photometric.quality import QualityLimits, quality_figures, quality_report
+    from photometric.quality import QualityLimits, mean_slopes, quality_figures, quality_report
 
     opts = _options(options)
     fit = sol.fit
@@ -932,7 +933,11 @@ def quality(inp: PhotometricInput, sol: Solution, height: Height, defects: Defec
     figures = quality_figures(height.height, fit.valid, p=fit.p, q=fit.q, exclude=exclude, mask=sol.data.mask,
                               background=opts.background, xy=None if inp.orthographic else fit.xy,
                               reference_slopes=reference_slopes)
-    return quality_report(figures, limits, source)
+    report = quality_report(figures, limits, source)
+    slopes = mean_slopes(fit.p, fit.q, fit.valid, exclude)
+    report["mean_slopes"] = [v if np.isfinite(v) else None for v in slopes]
+    report["reference_slopes"] = None if reference_slopes is None else [float(v) for v in reference_slopes]
+    return report
 
 
 def _defect_pixels(defects: Defects, shape, margin: int = 3) -> np.ndarray:

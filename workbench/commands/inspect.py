@@ -57,6 +57,13 @@ def register(sub) -> None:
     src.add_argument("--spheres", nargs="+", default=None, metavar="DIR", help="two or more mirror-sphere folders")
     _add_camera(c, "orthographic (telecentric) pixel size in mm")
     _add_rig_options(c)
+    c.add_argument("--reference-part", default=None, metavar="DIR",
+                   help="a clean reference part folder (one image per light): measured with the new rig, its "
+                   "quality figures set the measurement-validity limits and its slopes the slope-bias reference "
+                   "(rig.json 'quality'); without it the stated defaults apply. A reference that fails the "
+                   "stated limits is refused")
+    c.add_argument("--background", default=None, choices=("plane", "smooth"),
+                   help="background model of the reference part's flatness (default: the options' default, plane)")
 
     r = add_command(
         sub, "run", _run,
@@ -149,7 +156,43 @@ def _options(args: argparse.Namespace) -> dict:
 def _calibrate(args: argparse.Namespace) -> int:
     from workbench.commands.photometric import _calibrate as calibrate
 
-    return calibrate(args)
+    if args.reference_part is None:
+        return calibrate(args)
+    import contextlib
+    import copy
+    import io
+    import tempfile
+    from dataclasses import replace
+    from pathlib import Path
+
+    from photometric.rig import read_rig
+    from workbench.inspect.part import reference_quality
+    from workbench.runs.photometric import write_rig
+
+    if not Path(args.reference_part).is_dir():
+        raise FileNotFoundError(f"--reference-part: folder {args.reference_part} does not exist")
+    # calibrate into a scratch folder, measure the reference with that rig, then write rig.json once
+    with tempfile.TemporaryDirectory(prefix="rig-") as tmp:
+        scratch = copy.copy(args)
+        scratch.out = str(Path(tmp) / "rig.json")
+        printed = io.StringIO()
+        with contextlib.redirect_stdout(printed):
+            code = calibrate(scratch)
+        print(printed.getvalue().replace(scratch.out, str(args.out)), end="")
+        if code:
+            return code
+        rig = read_rig(scratch.out)
+        options = {} if args.background is None else {"background": args.background}
+        quality = reference_quality(args.reference_part, rig, **options)
+        write_rig(replace(rig, quality=quality), args.out)
+    lim = quality["limits"]
+    fig = quality["reference_figures"]
+    print(f"reference part {args.reference_part}: background {1e3 * fig['background_rms_mm']:.3g} um RMS, invalid "
+          f"{100 * fig['invalid_fraction']:.2g} %, mean slopes {quality['reference_slopes']}")
+    print(f"quality limits -> {args.out}: background {1e3 * lim['background_rms_mm']:.3g} um, slope bias "
+          f"{lim['slope_bias_mrad']:g} mrad, invalid {100 * lim['invalid_fraction']:.2g} %, Lambertian residual "
+          f"{lim['lambertian_residual']:g}")
+    return 0
 
 
 def _progress_bar(total: int):

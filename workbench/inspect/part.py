@@ -44,7 +44,7 @@ from workbench.inspect.spec import Spec, load_spec
 from surfaces.validate import InputError
 
 __all__ = ["IMAGE_SUFFIXES", "RESULT_FORMAT", "RESERVED_OPTIONS", "DIRECT_OPTIONS", "check_options", "part_images",
-           "load_rig", "inspect_part"]
+           "load_rig", "inspect_part", "reference_quality"]
 
 #: image files a part folder may hold (one per light)
 IMAGE_SUFFIXES = (".png", ".tif", ".tiff", ".npy")
@@ -451,3 +451,73 @@ def inspect_part(folder, out_dir, rig, spec, *, keep_arrays: bool = False, part_
     result["timings_s"] = timings
     write_json(out / "result.json", result)
     return {**figures, "timings_s": timings}
+
+
+def reference_quality(folder, rig, **options) -> dict:
+    """Measure a reference part on the rig and set the quality limits from it (``rig.json`` ``quality``).
+
+    The part (a clean part of the kind to be inspected, :func:`part_images`' layout) is
+    measured as :func:`inspect_part` measures (the library's stages), judged against the
+    stated :class:`photometric.quality.QualityLimits` defaults (a reference that fails them
+    cannot vouch for anything: refused), and its figures widened into limits by
+    :func:`photometric.quality.reference_limits`; its mean background slopes become the
+    reference of the slope bias.
+
+    Parameters
+    ----------
+    folder : str or Path
+        The reference part folder.
+    rig : str, Path or photometric.rig.Rig
+        The calibrated rig (its own ``quality`` entry is ignored).
+    **options
+        Reconstruction options of :data:`DIRECT_OPTIONS` (``background``, ``outliers``, ...).
+
+    Returns
+    -------
+    dict
+        The ``quality`` entry of ``rig.json``: ``limits``, ``reference_slopes`` ``[p, q]``,
+        ``reference_part``, ``reference_figures``, ``rule``.
+
+    Raises
+    ------
+    FileNotFoundError, ValueError
+        A missing folder, bad frames, an option outside :data:`DIRECT_OPTIONS`, or a
+        reference whose measurement fails the stated limits (the reasons named).
+    """
+    from dataclasses import replace
+
+    from photometric import stages
+    from photometric.options import photometric_options
+    from photometric.quality import REFERENCE_FACTOR, QualityFigures, QualityLimits, reference_limits
+
+    other = sorted(set(options) - set(DIRECT_OPTIONS) - {"uncertainty"})
+    if other:
+        raise InputError(f"--reference-part: option {other[0]} is not one the inspection's measurement takes")
+    check_options(options)
+    rig_obj = replace(load_rig(rig), quality=None)
+    root = Path(folder)
+    paths = part_images(root, len(rig_obj.lights))
+    mask = root / "mask.png"
+    mask = mask if mask.is_file() else None
+    _frames(paths, mask, rig_obj)
+    opts = photometric_options(**{k: v for k, v in options.items() if k != "uncertainty"})
+    inp = stages.read([str(p) for p in paths], opts, rig=rig_obj, mask=None if mask is None else str(mask))
+    sol = stages.solve(inp, opts, residual=False)
+    height = stages.integrate(inp, sol, opts)
+    found = stages.measure(inp, sol, height, opts, labels=False)
+    report = stages.quality(inp, sol, height, found, opts, limits=QualityLimits())
+    if not report["trusted"]:
+        raise InputError(f"--reference-part {root}: its own measurement fails the stated quality limits, so it "
+                         f"cannot set them: {'; '.join(f['reason'] for f in report['failed'])}")
+    fig = report["figures"]
+
+    def num(v):
+        return float("nan") if v is None else float(v)
+
+    figures = QualityFigures(num(fig["background_rms_mm"]), fig["background_model"],
+                             tuple(num(v) for v in fig["lambertian_residual"]), None, num(fig["invalid_fraction"]))
+    limits = reference_limits(figures)
+    return {"limits": limits.as_dict(), "reference_slopes": report["mean_slopes"], "reference_part": str(root),
+            "reference_figures": fig, "background": opts.background,
+            "rule": f"{REFERENCE_FACTOR:g} x the reference's figures, within the stated defaults and floors "
+                    "(photometric.quality.reference_limits)"}
