@@ -100,3 +100,28 @@ def test_a_reference_part_sets_the_limits_in_the_rig(mitsuba_parts, tmp_path, ca
 def test_reference_part_refuses_a_missing_folder(small_lot, tmp_path):
     with pytest.raises(FileNotFoundError):
         reference_quality(tmp_path / "none", small_lot["rig"])
+
+
+def _result(verdict, n, background, limit=0.005):
+    return {"verdict": verdict, "n_imperfections": n,
+            "quality": {"figures": {"background_rms_mm": background, "invalid_fraction": 0.0},
+                        "limits": {"background_rms_mm": limit, "invalid_fraction": 0.05}}}
+
+
+def test_lot_flags_drift_and_a_clean_sweep_on_off_quality():
+    from workbench.inspect.report import lot_quality_flags
+
+    steady = [_result("pass", 0, 3e-4)] * 6 + [_result("fail", 1, 3e-4)] * 2
+    assert lot_quality_flags(steady) == []
+    # a clean sweep is fine on good measurements, flagged when the figures are off or parts were refused
+    assert lot_quality_flags([_result("pass", 0, 3e-4)] * 8) == []
+    sweep = lot_quality_flags([_result("pass", 0, 4e-3)] * 8)
+    assert len(sweep) == 1 and sweep[0].startswith("100 % yield")
+    refused = [{"id": "p9", "status": "failed", "error": "part p9 not measured: the measurement fails its quality "
+                "limits (default limits): ..."}]
+    flags = lot_quality_flags([_result("pass", 0, 3e-4)] * 8, refused)
+    assert len(flags) == 2 and "1 part(s) could not be measured" in flags[0] and "100 % yield" in flags[1]
+    # a frame error is not a quality refusal
+    assert lot_quality_flags([_result("pass", 0, 3e-4)] * 8, [{"error": "frame 002 is dark"}]) == []
+    drift = lot_quality_flags([_result("fail", 1, 3e-4)] * 4 + [_result("pass", 0, 3.5e-3)] * 4)
+    assert len(drift) == 1 and drift[0].startswith("quality drift: background_rms_mm")
