@@ -42,7 +42,8 @@ __all__ = ["RIG_FORMAT", "RIG_VERSION", "GAINS_FILE", "FLAT_SMOOTHING_PX", "RIG_
 
 #: the keys rig.json may hold: top level, ``lights``, ``flat_field`` and ``camera``
 RIG_KEYS = {
-    "": ("format", "version", "lights", "camera", "image_size", "flat_field", "calibration", "quality"),
+    "": ("format", "version", "lights", "camera", "image_size", "flat_field", "calibration", "quality",
+         "reflectance"),
     "lights": ("positions_mm", "axes", "mu", "intensities"),
     "flat_field": ("gains", "albedo", "smoothing_px"),
     "camera": ("model", "pixel_size_mm", "focal_length_px", "camera_height_mm", "principal_point_px"),
@@ -146,6 +147,7 @@ class Rig:
     flat_smoothing_px: float = 0.0
     calibration: dict = field(default_factory=dict)
     quality: dict | None = None
+    reflectance: dict | None = None
 
 
 def flat_field_gains(flat_images, lights: PointLights, camera: Camera, albedo: float = 1.0, *,
@@ -239,6 +241,7 @@ def rig_to_dict(rig: Rig, gains_file: str = GAINS_FILE) -> dict:
         "flat_field": flat,
         "calibration": rig.calibration,
         **({} if rig.quality is None else {"quality": rig.quality}),
+        **({} if rig.reflectance is None else {"reflectance": rig.reflectance}),
     }
 
 
@@ -319,7 +322,25 @@ def read_rig(path) -> Rig:
     quality = doc.get("quality")
     if quality is not None:
         quality = _quality_doc(quality, p)
-    return Rig(lights, camera, shape, intens, gains, albedo, smoothing, calibration, quality)
+    reflectance = doc.get("reflectance")
+    if reflectance is not None:
+        reflectance = _reflectance_doc(reflectance, p)
+    return Rig(lights, camera, shape, intens, gains, albedo, smoothing, calibration, quality, reflectance)
+
+
+def _reflectance_doc(doc, p: Path) -> dict:
+    """``rig.json``'s ``reflectance`` entry, checked through :class:`photometric.options.PhotometricOptions`."""
+    from photometric.options import PhotometricOptions
+
+    if not isinstance(doc, dict) or "model" not in doc:
+        raise InputError(f"rig: {p} 'reflectance' needs 'model' ('lambertian' or 'glossy')")
+    try:
+        PhotometricOptions(reflectance=doc["model"], gloss_alpha=doc.get("alpha"), gloss_weight=doc.get("weight"))
+    except InputError as exc:
+        raise InputError(f"rig reflectance: {exc}") from None
+    if doc["model"] == "glossy" and (doc.get("alpha") is None or doc.get("weight") is None):
+        raise InputError(f"rig: {p} 'reflectance' glossy needs 'alpha' and 'weight'")
+    return dict(doc)
 
 
 def _quality_doc(doc, p: Path) -> dict:
