@@ -62,6 +62,11 @@ def register(sub) -> None:
                    "quality figures set the measurement-validity limits and its slopes the slope-bias reference "
                    "(rig.json 'quality'); without it the stated defaults apply. A reference that fails the "
                    "stated limits is refused")
+    c.add_argument("--reflectance", default="lambertian", choices=("lambertian", "glossy"),
+                   help="with --reference-part: the parts' reflectance model stored in rig.json; glossy measures "
+                   "the lobe weight on the reference part (a level, flat part of the material) for --gloss-alpha")
+    c.add_argument("--gloss-alpha", type=float, default=None, metavar="A",
+                   help="glossy: GGX roughness of the parts' material (0 < A <= 1)")
     c.add_argument("--background", default=None, choices=("plane", "smooth"),
                    help="background model of the reference part's flatness (default: the options' default, plane)")
 
@@ -157,7 +162,12 @@ def _calibrate(args: argparse.Namespace) -> int:
     from workbench.commands.photometric import _calibrate as calibrate
 
     if args.reference_part is None:
+        if args.reflectance != "lambertian" or args.gloss_alpha is not None:
+            raise InputError("--reflectance/--gloss-alpha: the lobe weight is measured on a reference part "
+                             "(--reference-part DIR)")
         return calibrate(args)
+    if args.reflectance == "glossy" and args.gloss_alpha is None:
+        raise InputError("--reflectance glossy: give the material's roughness (--gloss-alpha A)")
     import contextlib
     import copy
     import io
@@ -166,7 +176,7 @@ def _calibrate(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from photometric.rig import read_rig
-    from workbench.inspect.part import reference_quality
+    from workbench.inspect.part import reference_quality, reference_reflectance
     from workbench.runs.photometric import write_rig
 
     if not Path(args.reference_part).is_dir():
@@ -183,6 +193,10 @@ def _calibrate(args: argparse.Namespace) -> int:
             return code
         rig = read_rig(scratch.out)
         options = {} if args.background is None else {"background": args.background}
+        if args.reflectance == "glossy":
+            rig = replace(rig, reflectance=reference_reflectance(args.reference_part, rig, args.gloss_alpha))
+            print(f"reflectance glossy: alpha {rig.reflectance['alpha']:g}, lobe weight "
+                  f"{rig.reflectance['weight']:.4g} (measured on the reference part)")
         quality = reference_quality(args.reference_part, rig, **options)
         write_rig(replace(rig, quality=quality), args.out)
     lim = quality["limits"]

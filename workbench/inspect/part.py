@@ -44,7 +44,7 @@ from workbench.inspect.spec import Spec, load_spec
 from surfaces.validate import InputError
 
 __all__ = ["IMAGE_SUFFIXES", "RESULT_FORMAT", "RESERVED_OPTIONS", "DIRECT_OPTIONS", "check_options", "part_images",
-           "load_rig", "inspect_part", "reference_quality"]
+           "load_rig", "inspect_part", "reference_quality", "reference_reflectance"]
 
 #: image files a part folder may hold (one per light)
 IMAGE_SUFFIXES = (".png", ".tif", ".tiff", ".npy")
@@ -55,10 +55,11 @@ RESERVED_OPTIONS = ("source", "rig", "lights", "light_positions", "mask", "progr
 #: reconstruct options the inspection's own composition of the stages takes (any other option, or
 #: ``keep_arrays``, runs :func:`photometric.pipeline.reconstruct`)
 DIRECT_OPTIONS = ("integrator", "background", "outliers", "dark", "saturation", "highlight", "reference_height_mm",
-                  "tolerance_mm", "max_iterations", "force", "uncertainty")
+                  "tolerance_mm", "max_iterations", "force", "uncertainty", "reflectance", "gloss_alpha",
+                  "gloss_weight")
 # what result.json reports of a measurement's summary (photometric.stages.summarize)
 _SUMMARY_KEYS = ("pixel_size_mm", "light_model", "camera", "converged", "iterations", "n_defects", "invalid_fraction",
-                 "size", "uncertainty", "timings_s", "quality")
+                 "size", "uncertainty", "timings_s", "quality", "reflectance")
 # files of a captured or rendered folder that are not part images
 _NOT_IMAGES = ("mask.png",)
 
@@ -442,6 +443,7 @@ def inspect_part(folder, out_dir, rig, spec, *, keep_arrays: bool = False, part_
             "image_size": [s["size"]["height"], s["size"]["width"]],
             "uncertainty": s.get("uncertainty"),
             "quality_trusted": s["quality"]["trusted"],
+            "reflectance": s.get("reflectance"),
         },
         "files": sorted(set(files)),
     }
@@ -521,3 +523,56 @@ def reference_quality(folder, rig, **options) -> dict:
             "reference_figures": fig, "background": opts.background,
             "rule": f"{REFERENCE_FACTOR:g} x the reference's figures, within the stated defaults and floors "
                     "(photometric.quality.reference_limits)"}
+
+
+def reference_reflectance(folder, rig, alpha: float) -> dict:
+    """The glossy reflectance of a material, measured on a level reference part (``rig.json`` ``reflectance``).
+
+    The reference is a flat part of the material lying level on the reference plane
+    (``z = 0``, normals ``(0, 0, 1)``): :func:`photometric.glossy.lobe_weight` of its
+    images with the solver's own light vectors there (flat-field strengths included,
+    :func:`photometric.stages.glossy_light_vectors`).
+
+    Parameters
+    ----------
+    folder : str or Path
+        The reference part folder.
+    rig : str, Path or photometric.rig.Rig
+    alpha : float
+        GGX roughness of the material (0 < alpha <= 1), from its datasheet or a fit.
+
+    Returns
+    -------
+    dict
+        ``{"model": "glossy", "alpha": alpha, "weight": c, "reference_part": folder}``.
+
+    Raises
+    ------
+    ValueError
+        Fewer than 4 lights, a perspective camera, or no pixel to measure ``c`` on.
+    """
+    from dataclasses import replace
+
+    from photometric import stages
+    from photometric.camera import plane_points
+    from photometric.glossy import lobe_weight
+    from photometric.options import photometric_options
+
+    opts = photometric_options(gloss_alpha=alpha)
+    rig_obj = replace(load_rig(rig), quality=None, reflectance=None)
+    if rig_obj.camera.model != "orthographic" or len(rig_obj.lights) < 4:
+        raise InputError("--reflectance glossy: the glossy model needs an orthographic camera and 4 or more LEDs")
+    root = Path(folder)
+    paths = part_images(root, len(rig_obj.lights))
+    mask = root / "mask.png"
+    mask = mask if mask.is_file() else None
+    _frames(paths, mask, rig_obj)
+    inp = stages.read([str(p) for p in paths], opts, rig=rig_obj, mask=None if mask is None else str(mask))
+    shape = inp.data.images.shape[1:3]
+    grey, S = stages.glossy_light_vectors(inp.data, inp.setup, plane_points(rig_obj.camera, shape))
+    normals = np.zeros(shape + (3,))
+    normals[..., 2] = 1.0
+    c = lobe_weight(grey, S, normals, (0.0, 0.0, 1.0), opts.gloss_alpha, inp.data.mask)
+    if not np.isfinite(c) or c < 0:
+        raise InputError(f"--reference-part {root}: no lobe weight could be measured on it (got {c})")
+    return {"model": "glossy", "alpha": float(opts.gloss_alpha), "weight": float(c), "reference_part": str(root)}

@@ -125,3 +125,56 @@ def test_lot_flags_drift_and_a_clean_sweep_on_off_quality():
     assert lot_quality_flags([_result("pass", 0, 3e-4)] * 8, [{"error": "frame 002 is dark"}]) == []
     drift = lot_quality_flags([_result("fail", 1, 3e-4)] * 4 + [_result("pass", 0, 3.5e-3)] * 4)
     assert len(drift) == 1 and drift[0].startswith("quality drift: background_rms_mm")
+
+
+@pytest.fixture(scope="module")
+def glossy_rig(tmp_path_factory):
+    """8 LEDs, Mitsuba 3 rough plastic (alpha 0.3, specular 0.3): flats, a level reference plate, a clean part."""
+    pytest.importorskip("mitsuba", reason="Mitsuba 3 renders the glossy plate")
+    from datasets_synthetic.cameras import orthographic_camera
+    from datasets_synthetic.heightfields import plane
+    from datasets_synthetic.mitsuba_scenes import material, render_mitsuba
+    from datasets_synthetic.point_lights import ring_point_lights
+
+    root = tmp_path_factory.mktemp("gloss8")
+    size, pixel_mm = 96, 0.5
+    lights = ring_point_lights(8, 45.0, 150.0, 90.0, 0.0)
+    cam = orthographic_camera((size, size), pixel_mm)
+    fx = {"read_noise": 0.002, "bit_depth": 12}
+    bsdf = material("roughplastic", 0.7, alpha=0.3, specular=0.3)
+    ref = render_mitsuba(plane((size, size), pixel_mm), cam, lights, bsdf, spp=8, flats=True, effects=fx, seed=3)
+    part = render_mitsuba(plane((size, size), pixel_mm), cam, lights, bsdf, spp=8, flats=False, effects=fx,
+                          exposure=ref.exposure, seed=4)
+    _folder(root / "flats", ref.flats, [f"flat_{k + 1:03d}.png" for k in range(8)])
+    np.savetxt(root / "light_positions.txt", lights.positions)
+    spec = root / "spec.json"
+    spec.write_text(json.dumps({"max_depth_mm": 0.08}))
+    return {"root": root, "reference": _folder(root / "reference", ref.images), "part": _folder(root / "part",
+            part.images), "spec": spec, "flats": sorted(str(p) for p in (root / "flats").glob("flat_*.png"))}
+
+
+def test_a_glossy_rig_measures_the_glossy_part_the_lambertian_one_refuses(glossy_rig, tmp_path, capsys):
+    from workbench.cli import main
+
+    g = glossy_rig
+    base = ["inspect", "calibrate", "--flat", *g["flats"], "--light-positions", str(g["root"] / "light_positions.txt"),
+            "--pixel-size", "0.5", "--flat-albedo", "0.8"]
+    plain = tmp_path / "plain.json"
+    assert main([*base, "--out", str(plain)]) == 0
+    with pytest.raises(InputError, match="quality limits"):
+        inspect_part(g["part"], tmp_path / "p0", plain, g["spec"])
+    # without a roughness the glossy model is refused before anything is written
+    assert main([*base, "--out", str(tmp_path / "x.json"), "--reference-part", str(g["reference"]),
+                 "--reflectance", "glossy"]) == 2
+    assert "--gloss-alpha" in capsys.readouterr().err and not (tmp_path / "x.json").exists()
+    glossy = tmp_path / "glossy.json"
+    assert main([*base, "--out", str(glossy), "--reference-part", str(g["reference"]), "--reflectance", "glossy",
+                 "--gloss-alpha", "0.3"]) == 0
+    refl = read_rig(glossy).reflectance
+    # the weight of Mitsuba's roughplastic coat (specular 0.3 of the diffuse) measured by bench_glossy: 0.317
+    assert refl["model"] == "glossy" and refl["alpha"] == 0.3 and 0.2 < refl["weight"] < 0.45
+    figures = inspect_part(g["part"], tmp_path / "p1", glossy, g["spec"])
+    assert figures["verdict"] == "pass" and figures["background_rms_mm"] < 0.005
+    result = json.loads((tmp_path / "p1" / "result.json").read_text())
+    assert result["measurement"]["reflectance"]["model"] == "glossy"
+    assert result["quality"]["limits_source"] == "rig"
