@@ -61,6 +61,7 @@ def test_summary_states_the_quality_of_a_matte_solve():
         _run(r.images[:3], three, reflectance="glossy", gloss_alpha=0.3, gloss_weight=0.3)
 
 
+@pytest.mark.slow
 def test_glossy_reflectance_flattens_a_mitsuba_rough_plastic_plate():
     """8 LEDs, Mitsuba 3 roughplastic (alpha 0.3, specular 0.3): the Lambertian solve bends the plate and its
     quality says so; the glossy model with the lobe weight of a reference plate brings it within 5 um."""

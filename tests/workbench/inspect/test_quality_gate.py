@@ -153,6 +153,7 @@ def glossy_rig(tmp_path_factory):
             part.images), "spec": spec, "flats": sorted(str(p) for p in (root / "flats").glob("flat_*.png"))}
 
 
+@pytest.mark.slow
 def test_a_glossy_rig_measures_the_glossy_part_the_lambertian_one_refuses(glossy_rig, tmp_path, capsys):
     from workbench.cli import main
 
