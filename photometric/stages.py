@@ -1100,8 +1100,9 @@ def summarize(inp: PhotometricInput, sol: Solution, height: Height, defects: Def
     Returns
     -------
     dict
-        ``quality`` (:func:`quality`: figures, limits, failed limits with reasons, ``trusted``),
-        input, sizes, options, ``light_model`` and ``camera``, light condition number,
+        ``quality`` (:func:`quality`: figures, limits, failed limits with reasons, ``trusted``;
+        each failed limit is also a line of ``warnings`` for a near-field or perspective
+        solve, while a far-field solve only states them with a ``note``), input, sizes, options, ``light_model`` and ``camera``, light condition number,
         invalid fraction, mean residual, height range, timings, number of defects,
         ``warnings`` and, with ``normal_gt``, ``mean_angular_error_deg`` and
         ``median_angular_error_deg`` (over the mask). Near-field and perspective solves add
@@ -1157,6 +1158,11 @@ def summarize(inp: PhotometricInput, sol: Solution, height: Height, defects: Def
         summary["median_angular_error_deg"] = float(np.median(sol.angular_errors_deg))
     report = quality_report if quality_report is not None else quality(inp, sol, height, defects, opts)
     summary["quality"] = report
+    if inp.setup is None:
+        # a far-field object (a sculpture, a ball) is no flat part: its flatness is a shape, not an error
+        report["note"] = ("far-field solve: the limits assume a flat part on an inspection rig (near field); "
+                          "the figures are stated, no warning is raised")
+        return summary
     for failed in report["failed"]:
         line = f"quality: {failed['reason']}"
         if line not in summary["warnings"]:
