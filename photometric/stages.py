@@ -1103,7 +1103,8 @@ def summarize(inp: PhotometricInput, sol: Solution, height: Height, defects: Def
         ``quality`` (:func:`quality`: figures, limits, failed limits with reasons, ``trusted``;
         each failed limit is also a line of ``warnings`` for a near-field or perspective
         solve, while a far-field solve only states them with a ``note``), input, sizes,
-        options, ``light_model`` and ``camera``, light condition number, invalid fraction, mean residual, height range, timings, number of defects,
+        options, ``light_model`` and ``camera``, light condition number, invalid fraction,
+        mean residual, height range, timings, number of defects,
         ``warnings`` and, with ``normal_gt``, ``mean_angular_error_deg`` and
         ``median_angular_error_deg`` (over the mask). Near-field and perspective solves add
         ``light_positions_mm``, ``led_mu``, ``flat_field``, ``iterations``,
