@@ -42,10 +42,9 @@ from datasets_synthetic.heightfields import inspection_part, plane  # noqa: E402
 from datasets_synthetic.mitsuba_scenes import material, render_mitsuba  # noqa: E402
 from datasets_synthetic.nearfield import render_near_field  # noqa: E402
 from datasets_synthetic.point_lights import ring_point_lights  # noqa: E402
-from photometric.defects import measure_defects  # noqa: E402
-from photometric.glossy import fit_glossy, ggx_lobe, lobe_weight  # noqa: E402
+from photometric.glossy import ggx_lobe, lobe_weight  # noqa: E402
 from photometric.integrate import integrate  # noqa: E402
-from photometric.lights import light_field, point_lights  # noqa: E402
+from photometric.leds import light_field, point_lights  # noqa: E402
 from photometric.pipeline import reconstruct  # noqa: E402
 from photometric.quality import QualityLimits, check, quality_figures  # noqa: E402
 
@@ -127,29 +126,26 @@ def _today(images, rig, pixel_mm, part, outliers: bool):
                     res.mask, seconds, res.summary.get("converged")), res
 
 
-def _glossy(images, rig, pixel_mm, part, res, alpha: float, weight: float, passes: int = 2) -> dict:
-    """The Lambertian + GGX model (:mod:`photometric.glossy`) from today's near-field result.
+def _glossy(images, rig, pixel_mm, part, res, alpha: float, weight: float) -> dict:
+    """The pipeline's glossy reflectance (``reconstruct(..., reflectance="glossy")``, :mod:`photometric.glossy`).
 
-    Each pass evaluates the light vectors at the current points, refines normals and albedo per
-    pixel and integrates (DCT, median height 0 as the pipeline's anchor); then the defects are
-    measured as the pipeline does. The quality residual is that of the images minus the fitted lobe.
+    The near-field solve, then per pixel the Lambertian + GGX fit from its normals, two passes of light
+    vectors at the current points and integration, then the defects as the pipeline measures them. The
+    quality residual is that of the images minus the fitted lobe; ``quality_trusted`` is the pipeline's
+    own verdict (``summary.json`` ``quality``).
     """
-    lights = point_lights(rig.positions, mu=rig.mu)
     t0 = time.perf_counter()
-    height, normals, albedo = res.height, res.normals, res.albedo
-    for _ in range(passes):
-        s = light_field(lights, _points(res.xy, height))
-        normals, albedo, _ = fit_glossy(images, s, VIEW, alpha, weight, normals, albedo, res.valid)
-        p = np.where(res.valid, -normals[..., 0] / normals[..., 2], 0.0)
-        q = np.where(res.valid, -normals[..., 1] / normals[..., 2], 0.0)
-        z = integrate(p, q, "dct", mask=res.valid, pixel_size=pixel_mm)
-        height = np.where(res.valid, z - np.median(z[res.valid]), np.nan)
-    defects = measure_defects(height, pixel_mm, res.valid, background="plane", p=p, q=q)
+    out = reconstruct(images, lights=rig.directions, light_positions=rig.positions, led_mu=rig.mu,
+                      camera="orthographic", pixel_size=pixel_mm, flat_field=False, reflectance="glossy",
+                      gloss_alpha=alpha, gloss_weight=weight, surface="coons")
     seconds = time.perf_counter() - t0
-    s = light_field(lights, _points(res.xy, height))
-    lobe = albedo * weight * ggx_lobe(normals, s, VIEW, alpha)
-    return _figures(part, images - lobe, s, height, p, q, res.valid, normals, albedo, defects, res.mask, seconds,
-                    None)
+    lights = point_lights(rig.positions, mu=rig.mu)
+    s = light_field(lights, _points(out.xy, out.height))
+    lobe = out.albedo * weight * ggx_lobe(out.normals, s, VIEW, alpha)
+    m = _figures(part, images - lobe, s, out.height, out.p, out.q, out.valid, out.normals, out.albedo, out.defects,
+                 out.mask, seconds, out.summary.get("converged"))
+    m["pipeline_quality"] = out.summary["quality"]
+    return m
 
 
 def _calibrate(kind, alpha, specular, n, size, spp) -> float:
@@ -208,7 +204,8 @@ def cases(size: int, spp: int) -> tuple[list, list]:
             study = rejection_study(part, r, pixel_mm)
         if alpha is not None:
             c = _calibrate(kind, alpha, specular, 8, size, spp)
-            solves.append((f"glossy model (c = {c:.3f})", _glossy(r.images, r.lights, pixel_mm, part, res, alpha, c)))
+            solves.append((f"reconstruct --reflectance glossy (c = {c:.3f})",
+                           _glossy(r.images, r.lights, pixel_mm, part, res, alpha, c)))
         for solve, m in solves:
             q = m["quality"]
             verdict = "pass" if not m["failed"] else "FLAGGED: " + ", ".join(f["figure"] for f in m["failed"])
@@ -233,10 +230,11 @@ def cases(size: int, spp: int) -> tuple[list, list]:
         f"Mitsuba 3 `direct` integrator (cast shadows), {spp} samples per pixel, box pixel filter; read noise "
         f"{100 * READ_NOISE:g} % of full scale, {BIT_DEPTH}-bit. The solver (`photometric.pipeline.reconstruct`, "
         "default plane background) gets the true LED positions and `mu`, no flat field; `outliers` is its "
-        "per-pixel rejection of dark and saturated observations. Glossy model rows: `photometric.glossy` "
-        "(Lambertian albedo + GGX lobe, the material's `alpha`, the lobe weight `c` measured by `lobe_weight` on a "
+        "per-pixel rejection of dark and saturated observations. Glossy rows: the pipeline with "
+        "`reflectance=\"glossy\"` (`photometric.stages.solve` -> `photometric.glossy.fit_glossy`: Lambertian albedo "
+        "+ GGX lobe, the material's `alpha`, the lobe weight `c` measured by `lobe_weight` on a "
         "level reference plate of the same material rendered on the same rig) refines the plain solve's normals "
-        "and albedo per pixel, two passes of light vectors at the current points and DCT integration, then the "
+        "and albedo per pixel, two passes of light vectors at the current points and integration, then the "
         "pipeline's defect measurement; its quality residual is that of the images minus the fitted lobe. "
         "Truth columns: background "
         "RMS of the height error after removing its best-fit plane, outside the scratch (target of issue 32 with "

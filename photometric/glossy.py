@@ -8,7 +8,7 @@ images show instead::
     I_k = albedo * (s_k . n + c * F_k(n)),   F_k(n) = |s_k| D(n . h_k) G(n, l_k, v) / (4 n . v)
 
 with the scaled light vectors ``s_k`` of the solve (far field ``e_k l_k``, near field
-:func:`photometric.lights.light_field`), the view direction ``v``, the half vector
+:func:`photometric.leds.light_field`), the view direction ``v``, the half vector
 ``h_k = (l_k + v) / |l_k + v|``, the GGX (Trowbridge-Reitz) distribution ``D`` and
 Smith's masking ``G`` of roughness ``alpha`` (Walter et al., "Microfacet models for
 refraction through rough surfaces", EGSR 2007, eqs. 33-34), and one lobe weight

@@ -18,7 +18,7 @@ import numpy as np
 from surfaces.validate import InputError, positive
 
 __all__ = ["PhotometricOptions", "READ_KEYWORDS", "SURFACES", "LIGHT_MODELS", "BACKGROUNDS", "DARK", "SATURATION",
-           "TOLERANCE_MM", "MAX_ITERATIONS", "U_NAMES", "OUTLIER_MIN_IMAGES", "MASKED_INTEGRATOR",
+           "TOLERANCE_MM", "MAX_ITERATIONS", "U_NAMES", "OUTLIER_MIN_IMAGES", "MASKED_INTEGRATOR", "REFLECTANCES",
            "photometric_options", "split_keywords"]
 
 # The numbers are held here, where nothing heavy is imported (the command line reads them at start-up);
@@ -49,6 +49,9 @@ SURFACES = ("fit", "coons", "none")
 LIGHT_MODELS = ("auto", "point", "directional")
 #: Backgrounds removed before the defects are measured (:func:`photometric.defects.fit_background`).
 BACKGROUNDS = ("plane", "smooth")
+#: Reflectance models of the near-field solve: Lambert's law, or a Lambertian albedo plus a GGX lobe
+#: (:mod:`photometric.glossy`) whose normals refine the Lambertian solve's.
+REFLECTANCES = ("lambertian", "glossy")
 #: Names of the input standard uncertainties that say ``u`` (a ``tolerance`` is a limit): accepted in an
 #: ``uncertainty`` dict beside the older :class:`photometric.uncertainty.Tolerances` field names they map to.
 U_NAMES = {"light_u_deg": "light_tolerance_deg", "light_position_u_mm": "light_position_tolerance_mm",
@@ -134,6 +137,19 @@ class PhotometricOptions:
         Input standard uncertainties and the method (:mod:`photometric.uncertainty`); a
         dict is turned into ``Tolerances`` and may use the ``u`` names of :data:`U_NAMES`
         (``light_u_deg`` for ``light_tolerance_deg``, ...). None: no uncertainty stage.
+    reflectance : {"lambertian", "glossy"} or None
+        None: the rig's model (``rig.json`` ``reflectance``), else ``lambertian``.
+        ``glossy``: the near-field solve's normals are refined per pixel under a
+        Lambertian albedo plus a GGX lobe (:func:`photometric.glossy.fit_glossy`, from the
+        Lambertian solve) and integrated again; point lights, an orthographic camera and
+        4 or more lights. Valid for a dielectric with a broad lobe (GGX ``alpha`` about
+        0.2-0.6) of known roughness and weight; ``lambertian`` for matte parts.
+    gloss_alpha : float or None
+        GGX roughness of the part's material (0 < alpha <= 1); default: the rig's
+        (``rig.json`` ``reflectance``).
+    gloss_weight : float or None
+        Lobe weight ``c`` (>= 0, :func:`photometric.glossy.lobe_weight` on a reference
+        part); default: the rig's.
 
     Examples
     --------
@@ -164,6 +180,9 @@ class PhotometricOptions:
     surface_tolerance: float | None = None
     background: str = "plane"
     uncertainty: object = None
+    reflectance: str | None = None
+    gloss_alpha: float | None = None
+    gloss_weight: float | None = None
 
     def __post_init__(self) -> None:
         from photometric.integrate import METHODS
@@ -174,6 +193,15 @@ class PhotometricOptions:
         _choice(self.light_model, "light_model", LIGHT_MODELS)
         _choice(self.surface, "surface", SURFACES)
         _choice(self.background, "background", BACKGROUNDS)
+        if self.reflectance is not None:
+            _choice(self.reflectance, "reflectance", REFLECTANCES)
+        if self.gloss_alpha is not None:
+            a = positive(self.gloss_alpha, "gloss_alpha")
+            if a > 1.0:
+                raise InputError(f"gloss_alpha: a GGX roughness is at most 1, got {a}")
+            object.__setattr__(self, "gloss_alpha", a)
+        if self.gloss_weight is not None:
+            object.__setattr__(self, "gloss_weight", positive(self.gloss_weight, "gloss_weight", allow_zero=True))
         for name in ("outliers", "force"):
             if name == "outliers" and self.outliers is None:
                 continue

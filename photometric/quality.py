@@ -40,6 +40,8 @@ __all__ = [
     "lambertian_residual",
     "mean_slopes",
     "quality_figures",
+    "quality_report",
+    "reference_limits",
     "slope_bias",
 ]
 
@@ -99,7 +101,7 @@ def lambertian_residual(images, albedo, normals, light_vectors, valid=None, usab
 
     The prediction of image ``k`` is ``albedo max(0, s_k . n)`` with the scaled light
     vectors ``s_k`` the solve used (far field: ``e_k l_k``; near field:
-    :func:`photometric.lights.light_field` at the reconstructed points, times any
+    :func:`photometric.leds.light_field` at the reconstructed points, times any
     flat-field gain), in the units of the images.
 
     Parameters
@@ -440,3 +442,79 @@ def check(figures: QualityFigures, limits: QualityLimits | None = None) -> list[
     if not np.isfinite(figures.invalid_fraction) or figures.invalid_fraction > lim.invalid_fraction:
         fail("invalid_fraction", figures.invalid_fraction, lim.invalid_fraction)
     return failed
+
+
+#: How :func:`reference_limits` widens a reference part's figures into limits: a part of the same
+#: kind measured on the same rig may be this many times worse than the reference before it is
+#: distrusted (noise, texture and placement vary from part to part).
+REFERENCE_FACTOR = 4.0
+#: The smallest limits :func:`reference_limits` sets (a reference that is nearly perfect must
+#: not make every later part fail on noise): 1 um background, 0.01 residual, 1 mrad, 1 %.
+REFERENCE_FLOORS = {"background_rms_mm": 0.001, "lambertian_residual": 0.01, "slope_bias_mrad": 1.0,
+                    "invalid_fraction": 0.01}
+
+
+def reference_limits(figures: QualityFigures, defaults: QualityLimits | None = None) -> QualityLimits:
+    """Quality limits set from a reference part measured on the rig (``inspect calibrate --reference-part``).
+
+    Each limit is ``REFERENCE_FACTOR`` x the reference's figure (the invalid fraction:
+    the reference's plus the floor), at least :data:`REFERENCE_FLOORS` and never looser
+    than ``defaults``: a reference tightens the stated limits, it cannot excuse a rig
+    whose measurements are not trusted (:func:`check` of the reference against
+    ``defaults`` must pass first, which the caller enforces).
+
+    Parameters
+    ----------
+    figures : QualityFigures
+        The reference part's figures.
+    defaults : QualityLimits, optional
+        The stated limits (default :class:`QualityLimits` ()).
+
+    Returns
+    -------
+    QualityLimits
+
+    Examples
+    --------
+    >>> ref = QualityFigures(0.0003, "plane", (0.004, 0.006), (0.1, 0.0, 0.1), 0.0)
+    >>> reference_limits(ref)
+    QualityLimits(background_rms_mm=0.0012, lambertian_residual=0.024, slope_bias_mrad=2.0, invalid_fraction=0.01)
+    """
+    lim = QualityLimits() if defaults is None else defaults
+
+    def widen(name, value):
+        if value is None or not np.isfinite(value):
+            return getattr(lim, name)
+        return float(min(getattr(lim, name), max(REFERENCE_FLOORS[name], REFERENCE_FACTOR * value)))
+
+    return QualityLimits(
+        background_rms_mm=widen("background_rms_mm", figures.background_rms_mm),
+        lambertian_residual=widen("lambertian_residual", figures.worst_lambertian_residual),
+        # the bias is measured against the reference itself (0 there): the stated limit stays
+        slope_bias_mrad=lim.slope_bias_mrad,
+        invalid_fraction=float(min(lim.invalid_fraction,
+                                   figures.invalid_fraction + REFERENCE_FLOORS["invalid_fraction"])),
+    )
+
+
+def quality_report(figures: QualityFigures, limits: QualityLimits | None = None, source: str = "default") -> dict:
+    """The JSON-ready ``quality`` entry of ``summary.json`` and ``result.json``.
+
+    Parameters
+    ----------
+    figures : QualityFigures
+    limits : QualityLimits, optional
+        Default: :class:`QualityLimits` ().
+    source : str
+        Where the limits came from (``"default"``, ``"rig"``, ``"option"``).
+
+    Returns
+    -------
+    dict
+        ``figures`` (:meth:`QualityFigures.as_dict`), ``limits``, ``limits_source``,
+        ``failed`` (:func:`check`) and ``trusted`` (no limit failed).
+    """
+    lim = QualityLimits() if limits is None else limits
+    failed = check(figures, lim)
+    return {"figures": figures.as_dict(), "limits": lim.as_dict(), "limits_source": source, "failed": failed,
+            "trusted": not failed}

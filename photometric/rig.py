@@ -42,7 +42,8 @@ __all__ = ["RIG_FORMAT", "RIG_VERSION", "GAINS_FILE", "FLAT_SMOOTHING_PX", "RIG_
 
 #: the keys rig.json may hold: top level, ``lights``, ``flat_field`` and ``camera``
 RIG_KEYS = {
-    "": ("format", "version", "lights", "camera", "image_size", "flat_field", "calibration"),
+    "": ("format", "version", "lights", "camera", "image_size", "flat_field", "calibration", "quality",
+         "reflectance"),
     "lights": ("positions_mm", "axes", "mu", "intensities"),
     "flat_field": ("gains", "albedo", "smoothing_px"),
     "camera": ("model", "pixel_size_mm", "focal_length_px", "camera_height_mm", "principal_point_px"),
@@ -130,6 +131,11 @@ class Rig:
         Gaussian sigma the gains were smoothed with (0: none).
     calibration : dict
         How the positions were found (method, residuals, uncertainties).
+    quality : dict or None
+        The measurement-validity limits set from a reference part (``rig.json`` key
+        ``quality``: ``limits``, a :class:`photometric.quality.QualityLimits` as a dict,
+        ``reference_slopes`` ``[p, q]`` of the reference part, ``reference_part`` and
+        ``reference_figures``); None: the stated defaults apply.
     """
 
     lights: PointLights
@@ -140,6 +146,8 @@ class Rig:
     flat_albedo: float | None = None
     flat_smoothing_px: float = 0.0
     calibration: dict = field(default_factory=dict)
+    quality: dict | None = None
+    reflectance: dict | None = None
 
 
 def flat_field_gains(flat_images, lights: PointLights, camera: Camera, albedo: float = 1.0, *,
@@ -232,6 +240,8 @@ def rig_to_dict(rig: Rig, gains_file: str = GAINS_FILE) -> dict:
         "image_size": list(rig.image_size),
         "flat_field": flat,
         "calibration": rig.calibration,
+        **({} if rig.quality is None else {"quality": rig.quality}),
+        **({} if rig.reflectance is None else {"reflectance": rig.reflectance}),
     }
 
 
@@ -309,7 +319,44 @@ def read_rig(path) -> Rig:
         albedo = positive(flat.get("albedo", 1.0) if flat.get("albedo") is not None else 1.0, "rig flat_field.albedo")
         smoothing = positive(flat.get("smoothing_px", 0.0) or 0.0, "rig flat_field.smoothing_px", allow_zero=True)
     calibration = doc.get("calibration") or {}
-    return Rig(lights, camera, shape, intens, gains, albedo, smoothing, calibration)
+    quality = doc.get("quality")
+    if quality is not None:
+        quality = _quality_doc(quality, p)
+    reflectance = doc.get("reflectance")
+    if reflectance is not None:
+        reflectance = _reflectance_doc(reflectance, p)
+    return Rig(lights, camera, shape, intens, gains, albedo, smoothing, calibration, quality, reflectance)
+
+
+def _reflectance_doc(doc, p: Path) -> dict:
+    """``rig.json``'s ``reflectance`` entry, checked through :class:`photometric.options.PhotometricOptions`."""
+    from photometric.options import PhotometricOptions
+
+    if not isinstance(doc, dict) or "model" not in doc:
+        raise InputError(f"rig: {p} 'reflectance' needs 'model' ('lambertian' or 'glossy')")
+    try:
+        PhotometricOptions(reflectance=doc["model"], gloss_alpha=doc.get("alpha"), gloss_weight=doc.get("weight"))
+    except InputError as exc:
+        raise InputError(f"rig reflectance: {exc}") from None
+    if doc["model"] == "glossy" and (doc.get("alpha") is None or doc.get("weight") is None):
+        raise InputError(f"rig: {p} 'reflectance' glossy needs 'alpha' and 'weight'")
+    return dict(doc)
+
+
+def _quality_doc(doc, p: Path) -> dict:
+    """``rig.json``'s ``quality`` entry, checked (its limits through :class:`photometric.quality.QualityLimits`)."""
+    from photometric.quality import QualityLimits
+
+    if not isinstance(doc, dict) or not isinstance(doc.get("limits"), dict):
+        raise InputError(f"rig: {p} 'quality' needs 'limits' (a dict of QualityLimits fields)")
+    try:
+        QualityLimits(**doc["limits"])
+    except TypeError as exc:
+        raise InputError(f"rig quality.limits: {exc}") from None
+    ref = doc.get("reference_slopes")
+    if ref is not None:
+        as_array(ref, "rig quality.reference_slopes", shape=(2,))
+    return dict(doc)
 
 
 def check_rig(rig: Rig, n_images: int, shape) -> None:

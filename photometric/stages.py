@@ -61,7 +61,7 @@ from surfaces.mesh import TriangleMesh
 from surfaces.validate import InputError, as_array, positive
 
 __all__ = ["TARGET_PATCHES", "LightSetup", "PhotometricInput", "Solution", "Height", "Surface", "Defects",
-           "read", "solve", "integrate", "surface", "measure", "uncertainty", "summarize"]
+           "read", "solve", "integrate", "surface", "measure", "uncertainty", "quality", "summarize"]
 
 #: Patches per image side aimed at when ``step`` is not given (Coons surface).
 TARGET_PATCHES = 64
@@ -87,6 +87,11 @@ class LightSetup:
     intensities : numpy.ndarray, shape (N, 3)
     rig : str or None
         The rig file, when one was read.
+    quality : dict or None
+        The rig's ``quality`` entry (limits and reference slopes set from a reference part,
+        :attr:`photometric.rig.Rig.quality`), when the rig has one.
+    reflectance : dict or None
+        The rig's ``reflectance`` entry (:attr:`photometric.rig.Rig.reflectance`).
     """
 
     model: str
@@ -97,6 +102,8 @@ class LightSetup:
     flat: dict | None
     intensities: np.ndarray
     rig: str | None
+    quality: dict | None = None
+    reflectance: dict | None = None
 
 
 @dataclass(frozen=True)
@@ -461,7 +468,8 @@ def _near_setup(data: PhotometricData, *, light_model, light_positions, led_mu, 
     if intensities is None and rig_obj is not None and rig_obj.intensities is not None:
         intens = rig_obj.intensities
     rig_name = None if rig is None or isinstance(rig, Rig) else str(rig)
-    return LightSetup("point", lights, cam, cam_source, gains, flat, intens, rig_name)
+    return LightSetup("point", lights, cam, cam_source, gains, flat, intens, rig_name,
+                      None if rig_obj is None else rig_obj.quality, None if rig_obj is None else rig_obj.reflectance)
 
 
 def _near_summary(near: LightSetup, res: NearFieldResult, tolerance_mm: float) -> dict:
@@ -806,6 +814,11 @@ def solve(inp: PhotometricInput, options: PhotometricOptions | None = None, *,
         fit = _nearfield(replace(data, mask=data.mask & screen.enough), near, opts, base, threads=threads,
                          setup=setup, residual=residual)
         timings.update(solve=fit.timings_s["solve"], integrate=fit.timings_s["integrate"])
+        model, alpha, weight = reflectance(inp, opts)
+        if model == "glossy":
+            t1 = time.perf_counter()
+            fit = _refine_glossy(data, near, fit, opts, alpha, weight, inp.pixel_size_mm)
+            timings["glossy"] = time.perf_counter() - t1
     del screen
     mean_residual = None
     if fit.residual is not None:
@@ -822,6 +835,124 @@ def solve(inp: PhotometricInput, options: PhotometricOptions | None = None, *,
             errors = angular_error_deg(fit.normals, data.normal_gt)[data.mask]
     timings["total"] = time.perf_counter() - t0
     return Solution(fit, data, float(cond), np.asarray(directions), notes, mean_residual, errors, timings)
+
+
+def reflectance(inp: PhotometricInput, options: PhotometricOptions | None = None) -> tuple[str, float, float]:
+    """The reflectance model of the solve and its parameters: the options', else the rig's, else Lambertian.
+
+    Parameters
+    ----------
+    inp : PhotometricInput
+    options : PhotometricOptions, optional
+        ``reflectance``, ``gloss_alpha``, ``gloss_weight``.
+
+    Returns
+    -------
+    (str, float, float)
+        ``"lambertian"`` or ``"glossy"``, the GGX roughness ``alpha`` and the lobe weight
+        (NaN for Lambertian).
+
+    Raises
+    ------
+    InputError
+        ``glossy`` without point lights and an orthographic camera, with fewer than 4
+        lights, or without a roughness and a lobe weight (options or rig).
+    """
+    opts = _options(options)
+    rig = inp.setup.reflectance if inp.setup is not None and inp.setup.reflectance else {}
+    model = opts.reflectance or rig.get("model") or "lambertian"
+    if model == "lambertian":
+        return "lambertian", float("nan"), float("nan")
+    alpha = opts.gloss_alpha if opts.gloss_alpha is not None else rig.get("alpha")
+    weight = opts.gloss_weight if opts.gloss_weight is not None else rig.get("weight")
+    if inp.setup is None or inp.setup.model != "point" or not isinstance(inp.setup.camera, Orthographic):
+        raise InputError("reflectance: 'glossy' refines the near-field solve: it needs point lights (LED "
+                         "positions or a rig) and an orthographic camera")
+    if len(inp.setup.lights) < 4:
+        raise InputError(f"reflectance: 'glossy' needs at least 4 lights, got {len(inp.setup.lights)}")
+    if alpha is None or weight is None:
+        raise InputError("reflectance: 'glossy' needs the material's roughness and lobe weight: --gloss-alpha and "
+                         "--gloss-weight, or a rig calibrated on a reference part (workbench inspect calibrate "
+                         "--reference-part DIR --reflectance glossy --gloss-alpha A)")
+    return "glossy", float(alpha), float(weight)
+
+
+def glossy_light_vectors(data: PhotometricData, near: LightSetup, points) -> tuple[np.ndarray, np.ndarray]:
+    """The grey observations and the scaled light vectors the near-field solve uses, at given points.
+
+    The same model as :func:`photometric.nearfield.solve_nearfield`: ``E_k = strength_k
+    lobe_k(X) / |P_k - X|^2`` with the flat-field strengths when the set-up has gains
+    (intensities then not divided out), ``e_k d0_k^2`` otherwise.
+
+    Parameters
+    ----------
+    data : photometric.io.PhotometricData
+        Images (N, H, W[, 3]).
+    near : LightSetup
+        Point lights.
+    points : (H, W, 3) array_like
+        ``x, y, z`` of each pixel's point, mm.
+
+    Returns
+    -------
+    grey : (N, H, W) float32 array
+    light_vectors : (N, H, W, 3) float64 array
+    """
+    from photometric.leds import _scaled_vectors
+    from photometric.nearfield import _strengths
+    from photometric.stereo import _grey_planes
+
+    lights, cam = near.lights, near.camera
+    shape = data.images.shape[1:3]
+    flat = near.gains is not None
+    divide = np.ones_like(near.intensities) if flat else near.intensities
+    grey = np.stack(_grey_planes(data.images, divide)).astype(np.float32, copy=False)
+    strength = _strengths(lights, cam, shape, near.gains, near.intensities)
+    X = np.asarray(points, np.float64)
+    lobe = lights.mu_known or not flat
+    S = np.empty((len(lights),) + tuple(shape) + (3,))
+    for k in range(len(lights)):
+        comps = _scaled_vectors(lights.positions[k], lights.axes[k], float(lights.mu[k]),
+                                np.asarray(strength[k], np.float64), X[..., 0], X[..., 1], X[..., 2], lobe=lobe)
+        for c in range(3):
+            S[k, ..., c] = comps[c]
+    return grey, S
+
+
+def _refine_glossy(data: PhotometricData, near: LightSetup, fit, opts: PhotometricOptions, alpha: float,
+                   weight: float, h: float, passes: int = 2):
+    """Refine the near-field solve's normals and albedo under the Lambertian + GGX model and integrate again.
+
+    Each pass evaluates the light vectors at the current points, fits
+    :func:`photometric.glossy.fit_glossy` from the current normals and integrates the
+    slopes (the options' integrator, the median height of the valid pixels at
+    ``reference_height_mm``: the near-field anchor).
+    """
+    from photometric.glossy import fit_glossy
+    from photometric.integrate import integrate as integrate_slopes
+
+    valid = fit.valid
+    if not valid.any():
+        return fit
+    height, normals = fit.height, fit.normals.astype(np.float64)
+    albedo = fit.albedo if fit.albedo.ndim == 2 else fit.albedo.mean(axis=-1)
+    view = np.array([0.0, 0.0, 1.0])
+    for _ in range(passes):
+        points = np.concatenate([fit.xy, np.nan_to_num(height)[..., None]], axis=-1)
+        grey, S = glossy_light_vectors(data, near, points)
+        normals, albedo, _ = fit_glossy(grey, S, view, alpha, weight, normals, albedo, valid)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            p = np.where(valid, -normals[..., 0] / normals[..., 2], 0.0)
+            q = np.where(valid, -normals[..., 1] / normals[..., 2], 0.0)
+        z = integrate_slopes(p, q, opts.integrator, mask=valid, pixel_size=h)
+        height = np.where(valid, z - np.median(z[valid]) + opts.reference_height_mm, np.nan)
+    alb = albedo.astype(fit.albedo.dtype)
+    if fit.albedo.ndim == 3:  # the colour albedo scaled by the grey refinement
+        grey0 = fit.albedo.mean(axis=-1)
+        ratio = np.divide(albedo, grey0, out=np.ones_like(albedo), where=grey0 > 0)
+        alb = (fit.albedo * ratio[..., None]).astype(fit.albedo.dtype)
+    return replace(fit, normals=normals.astype(fit.normals.dtype), albedo=alb, p=p.astype(fit.p.dtype),
+                   q=q.astype(fit.q.dtype), height=height.astype(fit.height.dtype))
 
 
 def integrate(inp: PhotometricInput, sol: Solution, options: PhotometricOptions | None = None) -> Height:
@@ -940,9 +1071,78 @@ def uncertainty(inp: PhotometricInput, sol: Solution, height: Height, defects: D
                         defects.labels, inp.pixel_size_mm, inp.pixel_size_source, opts)
 
 
+def quality(inp: PhotometricInput, sol: Solution, height: Height, defects: Defects,
+            options: PhotometricOptions | None = None, *, limits=None, reference_slopes=None) -> dict:
+    """Does the measurement deserve trust? Its quality figures against their limits (issue 32).
+
+    :func:`photometric.quality.quality_figures` of the height (flatness about the options'
+    background model, outside the defects found), the slopes (bias against a reference
+    part's) and the valid pixels; :func:`photometric.quality.check` against the limits.
+    The per-light Lambertian residual is not computed here (it needs the solve's light
+    vectors at every point, flat-field gains included): ``figures.lambertian_residual`` is
+    empty, which :func:`~photometric.quality.check` skips; the per-frame dark, saturated and
+    exposure checks are :mod:`photometric.frames`'.
+
+    Parameters
+    ----------
+    inp, sol, height, defects :
+        The stages' results (each defect's bounding box, grown by 3 pixels, is left out of
+        the background figures).
+    options : PhotometricOptions, optional
+        ``background``.
+    limits : photometric.quality.QualityLimits or dict, optional
+        Default: the rig's (``rig.json`` ``quality.limits``) when the input has a rig with
+        them, the stated :class:`photometric.quality.QualityLimits` defaults otherwise.
+    reference_slopes : (float, float), optional
+        A reference part's mean slopes ``p, q``; default the rig's; without one no slope bias.
+
+    Returns
+    -------
+    dict
+        :func:`photometric.quality.quality_report`: ``figures``, ``limits``,
+        ``limits_source`` (``"option"``, ``"rig"`` or ``"default"``), ``failed`` (each with
+        its ``reason``), ``trusted``, ``mean_slopes`` (``p, q`` over the background: what a
+        reference part stores) and ``reference_slopes`` (None without a reference).
+    """
+    from photometric.quality import QualityLimits, mean_slopes, quality_figures, quality_report
+
+    opts = _options(options)
+    fit = sol.fit
+    rig_q = inp.setup.quality if inp.setup is not None else None
+    source = "default"
+    if limits is not None:
+        source = "option"
+        limits = limits if isinstance(limits, QualityLimits) else QualityLimits(**dict(limits))
+    elif rig_q is not None:
+        source, limits = "rig", QualityLimits(**rig_q["limits"])
+    if reference_slopes is None and rig_q is not None and rig_q.get("reference_slopes") is not None:
+        reference_slopes = tuple(float(v) for v in rig_q["reference_slopes"])
+    exclude = _defect_pixels(defects, fit.valid.shape)
+    figures = quality_figures(height.height, fit.valid, p=fit.p, q=fit.q, exclude=exclude, mask=sol.data.mask,
+                              background=opts.background, xy=None if inp.orthographic else fit.xy,
+                              reference_slopes=reference_slopes)
+    report = quality_report(figures, limits, source)
+    slopes = mean_slopes(fit.p, fit.q, fit.valid, exclude)
+    report["mean_slopes"] = [v if np.isfinite(v) else None for v in slopes]
+    report["reference_slopes"] = None if reference_slopes is None else [float(v) for v in reference_slopes]
+    return report
+
+
+def _defect_pixels(defects: Defects, shape, margin: int = 3) -> np.ndarray:
+    """Each defect's bounding box grown by ``margin`` pixels (the same whether or not the labels were kept)."""
+    out = np.zeros(shape, bool)
+    for d in defects.defects:
+        box = d.get("bbox_px")
+        if box is not None:
+            r0, c0, r1, c1 = (int(v) for v in box)
+            out[max(r0 - margin, 0):r1 + margin, max(c0 - margin, 0):c1 + margin] = True
+    return out
+
+
 def summarize(inp: PhotometricInput, sol: Solution, height: Height, defects: Defects,
               options: PhotometricOptions | None = None, *, surf: Surface | None = None,
-              unc: UncertaintyResult | None = None, timings: dict | None = None) -> dict:
+              unc: UncertaintyResult | None = None, timings: dict | None = None,
+              quality_report: dict | None = None) -> dict:
     """The JSON-ready summary of the stages' results (``summary.json`` of a reconstruction).
 
     Parameters
@@ -956,12 +1156,17 @@ def summarize(inp: PhotometricInput, sol: Solution, height: Height, defects: Def
         Adds ``uncertainty``.
     timings : dict, optional
         Stage wall times in seconds (``timings_s``).
+    quality_report : dict, optional
+        :func:`quality`'s result when already computed (default: computed here).
 
     Returns
     -------
     dict
-        Input, sizes, options, ``light_model`` and ``camera``, light condition number,
-        invalid fraction, mean residual, height range, timings, number of defects,
+        ``quality`` (:func:`quality`: figures, limits, failed limits with reasons, ``trusted``;
+        each failed limit is also a line of ``warnings`` for a near-field or perspective
+        solve, while a far-field solve only states them with a ``note``), input, sizes,
+        options, ``light_model`` and ``camera``, light condition number, invalid fraction,
+        mean residual, height range, timings, number of defects,
         ``warnings`` and, with ``normal_gt``, ``mean_angular_error_deg`` and
         ``median_angular_error_deg`` (over the mask). Near-field and perspective solves add
         ``light_positions_mm``, ``led_mu``, ``flat_field``, ``iterations``,
@@ -1007,11 +1212,26 @@ def summarize(inp: PhotometricInput, sol: Solution, height: Height, defects: Def
     summary["warnings"] = list(sol.warnings)
     if inp.setup is not None:
         summary.update(_near_summary(inp.setup, fit, opts.tolerance_mm))
+        model, alpha, weight = reflectance(inp, opts)
+        summary["reflectance"] = {"model": model} if model == "lambertian" else {
+            "model": model, "alpha": alpha, "weight": weight,
+            "source": "option" if opts.gloss_alpha is not None and opts.gloss_weight is not None else "rig"}
     if unc is not None:
         summary["uncertainty"] = unc.summary
     if sol.angular_errors_deg is not None:
         summary["mean_angular_error_deg"] = float(sol.angular_errors_deg.mean())
         summary["median_angular_error_deg"] = float(np.median(sol.angular_errors_deg))
+    report = quality_report if quality_report is not None else quality(inp, sol, height, defects, opts)
+    summary["quality"] = report
+    if inp.setup is None:
+        # a far-field object (a sculpture, a ball) is no flat part: its flatness is a shape, not an error
+        report["note"] = ("far-field solve: the limits assume a flat part on an inspection rig (near field); "
+                          "the figures are stated, no warning is raised")
+        return summary
+    for failed in report["failed"]:
+        line = f"quality: {failed['reason']}"
+        if line not in summary["warnings"]:
+            summary["warnings"].append(line)
     return summary
 
 

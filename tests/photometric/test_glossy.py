@@ -9,7 +9,7 @@ from datasets_synthetic.cameras import orthographic_camera
 from datasets_synthetic.heightfields import gaussian_bumps, plane
 from datasets_synthetic.point_lights import ring_point_lights
 from photometric.glossy import fit_glossy, ggx_lobe, lobe_weight
-from photometric.lights import light_field, point_lights
+from photometric.leds import light_field, point_lights
 from photometric.normals import angular_error_deg
 from surfaces.validate import InputError
 

@@ -10,7 +10,7 @@ from datasets_synthetic.heightfields import inspection_part, plane
 from datasets_synthetic.nearfield import render_near_field
 from datasets_synthetic.point_lights import ring_point_lights
 from photometric.camera import make_camera
-from photometric.lights import light_field, point_lights
+from photometric.leds import light_field, point_lights
 from photometric.nearfield import solve_nearfield
 from photometric.quality import (
     QualityFigures,

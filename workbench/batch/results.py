@@ -30,7 +30,7 @@ FIGURES: dict[str, tuple[str, ...]] = {
     "slices": ("volume_mm3", "volume_ml", "area_mm2", "n_bodies", "n_patches"),
     # parts of ``workbench inspect run`` (workbench.inspect): photometric jobs with a verdict
     "inspect": ("verdict", "n_imperfections", "n_fail", "n_uncertain", "max_depth_mm", "max_depth_U_mm",
-                "total_area_mm2", "invalid_fraction", "spec_sha256"),
+                "total_area_mm2", "invalid_fraction", "spec_sha256", "background_rms_mm", "slope_bias_mrad"),
 }
 #: texture parameters of an inspected part (ISO 25178-2, micrometres) given as columns, each with its U (k = 2)
 TEXTURE_COLUMNS: tuple[str, ...] = ("Sa", "Sq", "Sz")

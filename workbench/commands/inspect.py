@@ -22,7 +22,8 @@ _RUN_EPILOG = (
     "that decided) and overlay.png; OUT/results.csv gets one row per part as it finishes, OUT/report.html and "
     "OUT/inspect_run.json are written at the end. A rerun skips finished parts and parts that failed before (a "
     "failed part whose images changed is measured again; --retry-failed measures every failed part again); a "
-    "part that cannot be measured (a dark, saturated, wrong-size or mixed-bit-depth frame, ...) is recorded "
+    "part that cannot be measured (a dark, saturated, wrong-size or mixed-bit-depth frame, a measurement out of its "
+    "quality limits, ...) is recorded "
     "(OUT/failed/<part>.json, verdict not_measured) and the run goes on (exit code 1). The spec is read once "
     "per run; its sha256 is in every result.json and row (spec_sha256). Part ids: letters, digits, . _ + - "
     "(a letter or digit first); nothing is written outside OUT. "
@@ -58,6 +59,18 @@ def register(sub) -> None:
     _add_camera(c, "orthographic (telecentric) pixel size in mm")
     _add_checkerboard(c)
     _add_rig_options(c)
+    c.add_argument("--reference-part", default=None, metavar="DIR",
+                   help="a clean reference part folder (one image per light): measured with the new rig, its "
+                   "quality figures set the measurement-validity limits and its slopes the slope-bias reference "
+                   "(rig.json 'quality'); without it the stated defaults apply. A reference that fails the "
+                   "stated limits is refused")
+    c.add_argument("--reflectance", default="lambertian", choices=("lambertian", "glossy"),
+                   help="with --reference-part: the parts' reflectance model stored in rig.json; glossy measures "
+                   "the lobe weight on the reference part (a level, flat part of the material) for --gloss-alpha")
+    c.add_argument("--gloss-alpha", type=float, default=None, metavar="A",
+                   help="glossy: GGX roughness of the parts' material (0 < A <= 1)")
+    c.add_argument("--background", default=None, choices=("plane", "smooth"),
+                   help="background model of the reference part's flatness (default: the options' default, plane)")
 
     r = add_command(
         sub, "run", _run,
@@ -150,7 +163,52 @@ def _options(args: argparse.Namespace) -> dict:
 def _calibrate(args: argparse.Namespace) -> int:
     from workbench.commands.photometric import _calibrate as calibrate
 
-    return calibrate(args)
+    if args.reference_part is None:
+        if args.reflectance != "lambertian" or args.gloss_alpha is not None:
+            raise InputError("--reflectance/--gloss-alpha: the lobe weight is measured on a reference part "
+                             "(--reference-part DIR)")
+        return calibrate(args)
+    if args.reflectance == "glossy" and args.gloss_alpha is None:
+        raise InputError("--reflectance glossy: give the material's roughness (--gloss-alpha A)")
+    import contextlib
+    import copy
+    import io
+    import tempfile
+    from dataclasses import replace
+    from pathlib import Path
+
+    from photometric.rig import read_rig
+    from workbench.inspect.part import reference_quality, reference_reflectance
+    from workbench.runs.photometric import write_rig
+
+    if not Path(args.reference_part).is_dir():
+        raise FileNotFoundError(f"--reference-part: folder {args.reference_part} does not exist")
+    # calibrate into a scratch folder, measure the reference with that rig, then write rig.json once
+    with tempfile.TemporaryDirectory(prefix="rig-") as tmp:
+        scratch = copy.copy(args)
+        scratch.out = str(Path(tmp) / "rig.json")
+        printed = io.StringIO()
+        with contextlib.redirect_stdout(printed):
+            code = calibrate(scratch)
+        print(printed.getvalue().replace(scratch.out, str(args.out)), end="")
+        if code:
+            return code
+        rig = read_rig(scratch.out)
+        options = {} if args.background is None else {"background": args.background}
+        if args.reflectance == "glossy":
+            rig = replace(rig, reflectance=reference_reflectance(args.reference_part, rig, args.gloss_alpha))
+            print(f"reflectance glossy: alpha {rig.reflectance['alpha']:g}, lobe weight "
+                  f"{rig.reflectance['weight']:.4g} (measured on the reference part)")
+        quality = reference_quality(args.reference_part, rig, **options)
+        write_rig(replace(rig, quality=quality), args.out)
+    lim = quality["limits"]
+    fig = quality["reference_figures"]
+    print(f"reference part {args.reference_part}: background {1e3 * fig['background_rms_mm']:.3g} um RMS, invalid "
+          f"{100 * fig['invalid_fraction']:.2g} %, mean slopes {quality['reference_slopes']}")
+    print(f"quality limits -> {args.out}: background {1e3 * lim['background_rms_mm']:.3g} um, slope bias "
+          f"{lim['slope_bias_mrad']:g} mrad, invalid {100 * lim['invalid_fraction']:.2g} %, Lambertian residual "
+          f"{lim['lambertian_residual']:g}")
+    return 0
 
 
 def _progress_bar(total: int):

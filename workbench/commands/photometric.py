@@ -7,7 +7,7 @@ import argparse
 import json
 from pathlib import Path
 
-from photometric.options import BACKGROUNDS, LIGHT_MODELS, SURFACES, PhotometricOptions
+from photometric.options import BACKGROUNDS, LIGHT_MODELS, REFLECTANCES, SURFACES, PhotometricOptions
 from surfaces.validate import InputError
 from workbench.commands.camera_check import warn_camera_conflicts
 
@@ -251,6 +251,16 @@ def register(sub) -> None:
     p.add_argument("--light-model", default=DEFAULTS.light_model, choices=LIGHT_MODELS,
                    help="auto (default): point lights when LED positions are known; directional: today's "
                    "far-field model even then")
+    p.add_argument("--reflectance", default=DEFAULTS.reflectance, choices=REFLECTANCES,
+                   help="near-field reflectance model (default: the rig's 'reflectance', else lambertian): "
+                   "lambertian for matte parts; glossy refines the normals under a Lambertian albedo plus a GGX "
+                   "lobe (dielectrics with a broad lobe; point lights, orthographic camera, 4 or more LEDs; needs "
+                   "--gloss-alpha and --gloss-weight or a rig calibrated with them)")
+    p.add_argument("--gloss-alpha", type=float, default=DEFAULTS.gloss_alpha, metavar="A",
+                   help="glossy: GGX roughness of the material, 0 < A <= 1 (default: the rig's)")
+    p.add_argument("--gloss-weight", type=float, default=DEFAULTS.gloss_weight, metavar="C",
+                   help="glossy: lobe weight of the material, measured on a level reference part "
+                   "(photometric.glossy.lobe_weight; default: the rig's)")
     p.add_argument("--reference-height", type=float, default=DEFAULTS.reference_height_mm, metavar="MM",
                    help=f"near-field anchor: median height of the valid pixels, mm (default "
                    f"{DEFAULTS.reference_height_mm:g}: the part lies "
@@ -733,6 +743,9 @@ def _reconstruct(args: argparse.Namespace) -> int:
             ambient=args.ambient,
             bayer=args.bayer,
             light_model=args.light_model,
+            reflectance=args.reflectance,
+            gloss_alpha=args.gloss_alpha,
+            gloss_weight=args.gloss_weight,
             reference_height_mm=args.reference_height,
             tolerance_mm=DEFAULTS.tolerance_mm if args.tolerance is None else args.tolerance,
             max_iterations=args.max_iterations,

@@ -44,7 +44,7 @@ from workbench.inspect.spec import Spec, load_spec
 from surfaces.validate import InputError
 
 __all__ = ["IMAGE_SUFFIXES", "RESULT_FORMAT", "RESERVED_OPTIONS", "DIRECT_OPTIONS", "check_options", "part_images",
-           "load_rig", "inspect_part"]
+           "load_rig", "inspect_part", "reference_quality", "reference_reflectance"]
 
 #: image files a part folder may hold (one per light)
 IMAGE_SUFFIXES = (".png", ".tif", ".tiff", ".npy")
@@ -55,10 +55,11 @@ RESERVED_OPTIONS = ("source", "rig", "lights", "light_positions", "mask", "progr
 #: reconstruct options the inspection's own composition of the stages takes (any other option, or
 #: ``keep_arrays``, runs :func:`photometric.pipeline.reconstruct`)
 DIRECT_OPTIONS = ("integrator", "background", "outliers", "dark", "saturation", "highlight", "reference_height_mm",
-                  "tolerance_mm", "max_iterations", "force", "uncertainty")
+                  "tolerance_mm", "max_iterations", "force", "uncertainty", "reflectance", "gloss_alpha",
+                  "gloss_weight")
 # what result.json reports of a measurement's summary (photometric.stages.summarize)
 _SUMMARY_KEYS = ("pixel_size_mm", "light_model", "camera", "converged", "iterations", "n_defects", "invalid_fraction",
-                 "size", "uncertainty", "timings_s")
+                 "size", "uncertainty", "timings_s", "quality", "reflectance")
 # files of a captured or rendered folder that are not part images
 _NOT_IMAGES = ("mask.png",)
 
@@ -360,6 +361,25 @@ def _texture_figures(record: dict | None, checks: list) -> dict:
     return out
 
 
+def _quality_gate(report: dict | None, part: str) -> None:
+    """Refuse a measurement that fails a quality limit (:func:`photometric.stages.quality`): the part is
+    ``not_measured`` with the reasons (it never passes on a result that cannot be trusted)."""
+    if report is None:
+        raise InputError(f"part {part} not measured: its quality figures could not be computed")
+    if not report["trusted"]:
+        reasons = "; ".join(f["reason"] for f in report["failed"])
+        raise InputError(f"part {part} not measured: the measurement fails its quality limits "
+                         f"({report['limits_source']} limits): {reasons}")
+
+
+def _quality_figures(report: dict) -> dict:
+    """The quality figures of a results.csv row (:data:`workbench.batch.FIGURES` ``inspect``)."""
+    fig = report["figures"]
+    bias = fig.get("slope_bias_mrad")
+    return {"background_rms_mm": fig.get("background_rms_mm"),
+            "slope_bias_mrad": None if bias is None else bias[2]}
+
+
 def _summary_figures(decision) -> dict:
     """The part's key figures (the results.csv row of :data:`workbench.batch.FIGURES` ``inspect``)."""
     counted = [r for r in decision.imperfections if r["region"] == "inspected"]
@@ -406,7 +426,8 @@ def inspect_part(folder, out_dir, rig, spec, *, keep_arrays: bool = False, part_
     dict
         The part's key figures (``verdict``, ``n_imperfections``, ``n_fail``,
         ``n_uncertain``, ``max_depth_mm``, ``max_depth_U_mm``, ``total_area_mm2``,
-        ``invalid_fraction``) and ``timings_s`` (wall seconds of ``reconstruct`` (the
+        ``invalid_fraction``, the quality figures ``background_rms_mm`` and ``slope_bias_mrad``)
+        and ``timings_s`` (wall seconds of ``reconstruct`` (the
         measurement), ``decide``, ``overlay``, ``arrays`` (with ``keep_arrays``), the
         measurement's ``stages``, ``total``, and ``cpu``: the process's CPU seconds over the part).
 
@@ -414,7 +435,9 @@ def inspect_part(folder, out_dir, rig, spec, *, keep_arrays: bool = False, part_
     ------
     FileNotFoundError, ValueError
         A missing or extra image, an image of another size than the rig's, a spec the
-        measurement cannot decide (``guard_band`` without U), ...: nothing is written.
+        measurement cannot decide (``guard_band`` without U), a measurement that fails a
+        quality limit (:func:`photometric.stages.quality`; limits from ``rig.json`` or the
+        stated defaults), ...: nothing is written and the part is ``not_measured``.
     """
     t_all, cpu_all = time.perf_counter(), time.process_time()
     check_options(options)
@@ -434,6 +457,7 @@ def inspect_part(folder, out_dir, rig, spec, *, keep_arrays: bool = False, part_
     t_measure = time.perf_counter() - t0
     if u_source is not None and isinstance(m.summary.get("uncertainty"), dict):
         m.summary["uncertainty"] = {**m.summary["uncertainty"], "light_position_u_source": u_source}
+    _quality_gate(m.summary.get("quality"), part_id or root.name)  # a measurement out of its limits: not measured
     pixel = m.pixel_size_mm
     t0 = time.perf_counter()
     tex, tex_doc = _texture(m, spec_obj)
@@ -465,6 +489,7 @@ def inspect_part(folder, out_dir, rig, spec, *, keep_arrays: bool = False, part_
     s = m.summary
     figures["invalid_fraction"] = s["invalid_fraction"]
     figures.update(_texture_figures(texture_record, decision.texture_checks))
+    figures.update(_quality_figures(s["quality"]))
     timings = {"reconstruct": round(t_measure, 4), "decide": round(t_decide, 4), "overlay": round(t_overlay, 4)}
     if tex is not None:
         timings["texture"] = round(t_texture, 4)
@@ -489,6 +514,7 @@ def inspect_part(folder, out_dir, rig, spec, *, keep_arrays: bool = False, part_
         "spec": spec_obj.to_dict(),
         "spec_sha256": spec_obj.sha256,
         "frames": frames.to_dict()["frames"],
+        "quality": s["quality"],
         "measurement": {
             "pixel_size_mm": pixel,
             "light_model": s.get("light_model"),
@@ -500,6 +526,8 @@ def inspect_part(folder, out_dir, rig, spec, *, keep_arrays: bool = False, part_
             "invalid_fraction": s.get("invalid_fraction"),
             "image_size": [s["size"]["height"], s["size"]["width"]],
             "uncertainty": s.get("uncertainty"),
+            "quality_trusted": s["quality"]["trusted"],
+            "reflectance": s.get("reflectance"),
         },
         "files": sorted(set(files)),
     }
@@ -509,3 +537,126 @@ def inspect_part(folder, out_dir, rig, spec, *, keep_arrays: bool = False, part_
     result["timings_s"] = timings
     write_json(out / "result.json", result)
     return {**figures, "timings_s": timings}
+
+
+def reference_quality(folder, rig, **options) -> dict:
+    """Measure a reference part on the rig and set the quality limits from it (``rig.json`` ``quality``).
+
+    The part (a clean part of the kind to be inspected, :func:`part_images`' layout) is
+    measured as :func:`inspect_part` measures (the library's stages), judged against the
+    stated :class:`photometric.quality.QualityLimits` defaults (a reference that fails them
+    cannot vouch for anything: refused), and its figures widened into limits by
+    :func:`photometric.quality.reference_limits`; its mean background slopes become the
+    reference of the slope bias.
+
+    Parameters
+    ----------
+    folder : str or Path
+        The reference part folder.
+    rig : str, Path or photometric.rig.Rig
+        The calibrated rig (its own ``quality`` entry is ignored).
+    **options
+        Reconstruction options of :data:`DIRECT_OPTIONS` (``background``, ``outliers``, ...).
+
+    Returns
+    -------
+    dict
+        The ``quality`` entry of ``rig.json``: ``limits``, ``reference_slopes`` ``[p, q]``,
+        ``reference_part``, ``reference_figures``, ``rule``.
+
+    Raises
+    ------
+    FileNotFoundError, ValueError
+        A missing folder, bad frames, an option outside :data:`DIRECT_OPTIONS`, or a
+        reference whose measurement fails the stated limits (the reasons named).
+    """
+    from dataclasses import replace
+
+    from photometric import stages
+    from photometric.options import photometric_options
+    from photometric.quality import REFERENCE_FACTOR, QualityFigures, QualityLimits, reference_limits
+
+    other = sorted(set(options) - set(DIRECT_OPTIONS) - {"uncertainty"})
+    if other:
+        raise InputError(f"--reference-part: option {other[0]} is not one the inspection's measurement takes")
+    check_options(options)
+    rig_obj = replace(load_rig(rig), quality=None)
+    root = Path(folder)
+    paths = part_images(root, len(rig_obj.lights))
+    mask = root / "mask.png"
+    mask = mask if mask.is_file() else None
+    _frames(paths, mask, rig_obj)
+    opts = photometric_options(**{k: v for k, v in options.items() if k != "uncertainty"})
+    inp = stages.read([str(p) for p in paths], opts, rig=rig_obj, mask=None if mask is None else str(mask))
+    sol = stages.solve(inp, opts, residual=False)
+    height = stages.integrate(inp, sol, opts)
+    found = stages.measure(inp, sol, height, opts, labels=False)
+    report = stages.quality(inp, sol, height, found, opts, limits=QualityLimits())
+    if not report["trusted"]:
+        raise InputError(f"--reference-part {root}: its own measurement fails the stated quality limits, so it "
+                         f"cannot set them: {'; '.join(f['reason'] for f in report['failed'])}")
+    fig = report["figures"]
+
+    def num(v):
+        return float("nan") if v is None else float(v)
+
+    figures = QualityFigures(num(fig["background_rms_mm"]), fig["background_model"],
+                             tuple(num(v) for v in fig["lambertian_residual"]), None, num(fig["invalid_fraction"]))
+    limits = reference_limits(figures)
+    return {"limits": limits.as_dict(), "reference_slopes": report["mean_slopes"], "reference_part": str(root),
+            "reference_figures": fig, "background": opts.background,
+            "rule": f"{REFERENCE_FACTOR:g} x the reference's figures, within the stated defaults and floors "
+                    "(photometric.quality.reference_limits)"}
+
+
+def reference_reflectance(folder, rig, alpha: float) -> dict:
+    """The glossy reflectance of a material, measured on a level reference part (``rig.json`` ``reflectance``).
+
+    The reference is a flat part of the material lying level on the reference plane
+    (``z = 0``, normals ``(0, 0, 1)``): :func:`photometric.glossy.lobe_weight` of its
+    images with the solver's own light vectors there (flat-field strengths included,
+    :func:`photometric.stages.glossy_light_vectors`).
+
+    Parameters
+    ----------
+    folder : str or Path
+        The reference part folder.
+    rig : str, Path or photometric.rig.Rig
+    alpha : float
+        GGX roughness of the material (0 < alpha <= 1), from its datasheet or a fit.
+
+    Returns
+    -------
+    dict
+        ``{"model": "glossy", "alpha": alpha, "weight": c, "reference_part": folder}``.
+
+    Raises
+    ------
+    ValueError
+        Fewer than 4 lights, a perspective camera, or no pixel to measure ``c`` on.
+    """
+    from dataclasses import replace
+
+    from photometric import stages
+    from photometric.camera import plane_points
+    from photometric.glossy import lobe_weight
+    from photometric.options import photometric_options
+
+    opts = photometric_options(gloss_alpha=alpha)
+    rig_obj = replace(load_rig(rig), quality=None, reflectance=None)
+    if rig_obj.camera.model != "orthographic" or len(rig_obj.lights) < 4:
+        raise InputError("--reflectance glossy: the glossy model needs an orthographic camera and 4 or more LEDs")
+    root = Path(folder)
+    paths = part_images(root, len(rig_obj.lights))
+    mask = root / "mask.png"
+    mask = mask if mask.is_file() else None
+    _frames(paths, mask, rig_obj)
+    inp = stages.read([str(p) for p in paths], opts, rig=rig_obj, mask=None if mask is None else str(mask))
+    shape = inp.data.images.shape[1:3]
+    grey, S = stages.glossy_light_vectors(inp.data, inp.setup, plane_points(rig_obj.camera, shape))
+    normals = np.zeros(shape + (3,))
+    normals[..., 2] = 1.0
+    c = lobe_weight(grey, S, normals, (0.0, 0.0, 1.0), opts.gloss_alpha, inp.data.mask)
+    if not np.isfinite(c) or c < 0:
+        raise InputError(f"--reference-part {root}: no lobe weight could be measured on it (got {c})")
+    return {"model": "glossy", "alpha": float(opts.gloss_alpha), "weight": float(c), "reference_part": str(root)}

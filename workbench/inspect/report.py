@@ -19,11 +19,89 @@ from workbench.batch.results import TEXTURE_COLUMNS, column_text, round_to_u
 from workbench.inspect.overlay import REPORT_WIDTH
 from workbench.report import Report
 
-__all__ = ["WORST_PARTS", "collect_results", "depth_histogram", "write_inspection_report"]
+__all__ = ["WORST_PARTS", "DRIFT_FACTOR", "OFF_FRACTION", "collect_results", "depth_histogram", "lot_quality_flags",
+           "write_inspection_report"]
 
 #: parts shown with their overlays
 WORST_PARTS = 6
 _SEVERITY = {"fail": 0, "uncertain": 1, "pass": 2}
+#: a lot's quality figure drifts when the median of its later half exceeds this many times its earlier half's
+#: (and half the limit's worth of room is used)
+DRIFT_FACTOR = 2.0
+#: a quality figure is "off" in a part above this fraction of its limit (still trusted, but no longer clean)
+OFF_FRACTION = 0.5
+# the quality figures a lot is watched on (result.json quality.figures -> limit key)
+_WATCHED = {"background_rms_mm": "background_rms_mm", "invalid_fraction": "invalid_fraction"}
+
+
+def _figure(result: dict, name: str):
+    fig = ((result.get("quality") or {}).get("figures") or {}).get(name)
+    return None if fig is None else float(fig)
+
+
+def lot_quality_flags(results: list, failed_rows: list | None = None) -> list[str]:
+    """Warnings about a whole lot's measurement quality (issue 32): drift, and a clean yield that cannot be trusted.
+
+    Parameters
+    ----------
+    results : list of dict
+        The finished parts' ``result.json`` in run order (:func:`collect_results`).
+    failed_rows : list of dict, optional
+        The results.csv rows of the parts that could not be measured (their ``error``).
+
+    Returns
+    -------
+    list of str
+        One sentence per flag (empty: nothing to report):
+
+        * a part refused for its quality limits (``not_measured``): how many;
+        * **drift**: a watched figure (background flatness, invalid fraction) whose median
+          over the later half of the lot is more than :data:`DRIFT_FACTOR` times the
+          earlier half's and above :data:`OFF_FRACTION` of its limit;
+        * **100 % yield without a single imperfection while the quality is off**: every
+          part passed, none has an imperfection, and the lot's median of a watched
+          figure is above :data:`OFF_FRACTION` of its limit, or some parts were refused
+          for quality: a measurement that hides defects looks exactly like this.
+
+    Examples
+    --------
+    >>> r = lambda b: {"verdict": "pass", "n_imperfections": 0, "quality": {"figures": {"background_rms_mm": b},
+    ...                "limits": {"background_rms_mm": 0.005}}}
+    >>> lot_quality_flags([r(0.0003), r(0.0003)])
+    []
+    >>> [f.split(":")[0] for f in lot_quality_flags([r(0.0003), r(0.0004), r(0.003), r(0.004)])]
+    ['quality drift']
+    >>> [f[:29] for f in lot_quality_flags([r(0.003), r(0.003)])]
+    ['100 % yield with no imperfect']
+    """
+    flags = []
+    refused = [row for row in failed_rows or [] if "quality limits" in (row.get("error") or "")]
+    if refused:
+        flags.append(f"{len(refused)} part(s) could not be measured because their measurement failed its quality "
+                     "limits (see 'Parts that could not be measured'): check the parts' surface finish and the rig")
+    off = []
+    for name, key in _WATCHED.items():
+        values = [(_figure(r, name), (r.get("quality") or {}).get("limits", {}).get(key)) for r in results]
+        values = [(v, lim) for v, lim in values if v is not None and lim is not None]
+        if not values:
+            continue
+        v = np.array([x for x, _ in values])
+        limit = float(np.median([lim for _, lim in values]))
+        if np.median(v) > OFF_FRACTION * limit:
+            off.append(f"{name} median {np.median(v):.3g} against a limit of {limit:.3g}")
+        half = len(v) // 2
+        if half >= 2:
+            early, late = float(np.median(v[:half])), float(np.median(v[half:]))
+            if late > DRIFT_FACTOR * early and late > OFF_FRACTION * limit:
+                flags.append(f"quality drift: {name} rose from a median of {early:.3g} over the first {half} parts "
+                             f"to {late:.3g} over the last {len(v) - half} (limit {limit:.3g}): the measurement is "
+                             "degrading (rig, lighting, surface finish)")
+    clean = results and all(r["verdict"] == "pass" and not r.get("n_imperfections") for r in results)
+    if clean and (off or refused):
+        why = "; ".join(off) if off else f"{len(refused)} part(s) refused for quality"
+        flags.append(f"100 % yield with no imperfection at all while the quality figures are off ({why}): do not "
+                     "trust this lot's verdicts before checking the measurement on a part with a known defect")
+    return flags
 
 
 def collect_results(out) -> tuple[dict, list]:
@@ -150,6 +228,21 @@ def write_inspection_report(out, command: str, title: str = "Inspection run") ->
     report.table(["parts measured", "pass", "fail", "uncertain", "yield (%)", "could not be measured"],
                  [[n, counts["pass"], counts["fail"], counts["uncertain"],
                    100.0 * counts["pass"] / n if n else "no part measured", len(failed)]])
+    flags = lot_quality_flags(results, failed)
+    report.section("Measurement quality",
+                   "Whether the lot's measurements can be trusted (photometric.quality: background flatness about "
+                   "the background model, slope bias against the rig's reference part, invalid fraction). A part "
+                   "whose measurement fails a limit is not measured (never passed). "
+                   + ("FLAGS: " + " ".join(f"({k + 1}) {f}" for k, f in enumerate(flags)) if flags
+                      else "No flag: no drift, and the yield is not a clean sweep on off-quality measurements."))
+    if results:
+        bg = [v for v in (_figure(r, "background_rms_mm") for r in results) if v is not None]
+        lim = (results[-1].get("quality") or {}).get("limits", {})
+        if bg:
+            report.table(["figure", "median", "max", "limit", "limits from"],
+                         [["background flatness (um RMS)", 1e3 * float(np.median(bg)), 1e3 * float(np.max(bg)),
+                           1e3 * lim["background_rms_mm"] if "background_rms_mm" in lim else "-",
+                           (results[-1].get("quality") or {}).get("limits_source", "-")]])
     if results:
         spec = results[-1]["spec"]
         rule = results[-1]["decision_rule"]

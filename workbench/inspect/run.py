@@ -453,9 +453,11 @@ def run_inspection(
     verdicts = {v: sum(row.get("verdict") == v for row in report.rows)
                 for v in ("pass", "fail", "uncertain", NOT_MEASURED)}
     rate = report.ran / report.wall_s if report.wall_s > 0 else 0.0
-    from workbench.inspect.report import write_inspection_report
+    from workbench.inspect.report import collect_results, lot_quality_flags, write_inspection_report
 
     page = write_inspection_report(out, command)
+    rows, results = collect_results(out)
+    quality_flags = lot_quality_flags(results, [row for row in rows.values() if row["status"] == "failed"])
     write_json(Path(out) / RUN_FILE, {
         "n_parts": report.n_jobs, "ran": report.ran, "ok": report.ok, "failed": report.failed,
         "skipped": report.skipped, "verdicts": verdicts, "wall_s": round(report.wall_s, 3),
@@ -463,5 +465,6 @@ def run_inspection(
         "rig": str(Path(rig).resolve()), "spec": str(Path(spec).resolve()) if not isinstance(spec, Spec) else None,
         "spec_sha256": frozen.sha256, "keep_arrays": bool(keep_arrays),
         "options": opts, "scheduler": scheduler if client is None else "client",
+        "quality_flags": quality_flags,
     })
     return InspectionRun(report, verdicts, rate, page)

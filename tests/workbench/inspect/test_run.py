@@ -154,7 +154,7 @@ def test_inspect_figures_in_the_batch_rows():
 
     summary = {"verdict": "uncertain", "n_imperfections": 2, "n_fail": 0, "n_uncertain": 1, "max_depth_mm": 0.1,
                "max_depth_U_mm": 0.01, "total_area_mm2": 3.5, "invalid_fraction": 0.0, "spec_sha256": "ab" * 32,
-               "timings_s": {"total": 1.0}}
+               "background_rms_mm": 0.0003, "slope_bias_mrad": 0.1, "timings_s": {"total": 1.0}}
     assert key_figures("inspect", summary) == {k: summary[k] for k in FIGURES["inspect"] if k in summary}
     texture = {"texture_verdict": "pass", "Sa_um": 0.8, "Sa_U_um": 0.1, "Sq_um": 1.0, "Sq_U_um": 0.1, "Sz_um": 9.0,
                "Sz_U_um": 1.0}
