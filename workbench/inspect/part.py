@@ -361,13 +361,28 @@ def _texture_figures(record: dict | None, checks: list) -> dict:
     return out
 
 
-def _quality_gate(report: dict | None, part: str) -> None:
+#: the quality figure a part's own texture makes large: its background flatness (the flatness limit
+#: assumes a smooth part; a spec that measures the texture states that the part is not smooth)
+TEXTURE_EXEMPT = ("background_rms_mm",)
+
+
+def _quality_gate(report: dict | None, part: str, texture: bool = False) -> None:
     """Refuse a measurement that fails a quality limit (:func:`photometric.stages.quality`): the part is
-    ``not_measured`` with the reasons (it never passes on a result that cannot be trusted)."""
+    ``not_measured`` with the reasons (it never passes on a result that cannot be trusted). With
+    ``texture`` (the spec measures the part's texture) the background flatness is not a limit: the
+    texture itself is in it; it is recorded in ``report["not_applied"]`` with the reason."""
     if report is None:
         raise InputError(f"part {part} not measured: its quality figures could not be computed")
+    failed = report["failed"]
+    if texture:
+        exempt = [f for f in failed if f.get("figure") in TEXTURE_EXEMPT]
+        failed = [f for f in failed if f.get("figure") not in TEXTURE_EXEMPT]
+        if exempt:
+            report["not_applied"] = [{**f, "why": "the spec measures the part's texture, which the background "
+                                      "flatness holds"} for f in exempt]
+            report["failed"], report["trusted"] = failed, not failed
     if not report["trusted"]:
-        reasons = "; ".join(f["reason"] for f in report["failed"])
+        reasons = "; ".join(f["reason"] for f in failed)
         raise InputError(f"part {part} not measured: the measurement fails its quality limits "
                          f"({report['limits_source']} limits): {reasons}")
 
@@ -457,7 +472,8 @@ def inspect_part(folder, out_dir, rig, spec, *, keep_arrays: bool = False, part_
     t_measure = time.perf_counter() - t0
     if u_source is not None and isinstance(m.summary.get("uncertainty"), dict):
         m.summary["uncertainty"] = {**m.summary["uncertainty"], "light_position_u_source": u_source}
-    _quality_gate(m.summary.get("quality"), part_id or root.name)  # a measurement out of its limits: not measured
+    # a measurement out of its limits: not measured
+    _quality_gate(m.summary.get("quality"), part_id or root.name, texture=spec_obj.texture is not None)
     pixel = m.pixel_size_mm
     t0 = time.perf_counter()
     tex, tex_doc = _texture(m, spec_obj)
