@@ -479,6 +479,13 @@ def build_body_once(body: Body, spacing: float, options: SurfaceOptions | None =
     # rings of dome caps, and of trend caps that close within a spacing (shaped as the area trend says);
     # the other trend ends are prisms of the trend's volume (resolve_trend)
     stack, prepend, append, low_shape, high_shape = capmod._add_cap_rings(curves, centers, d, low, high)
+    contour_at = np.arange(prepend, prepend + len(curves))  # each slice curve's index in the stack
+    if len(curves) == 2 and low == high == "trend" and not ruled:
+        # two planes: a virtual slice half-way whose area follows the sphere's curvature that the volume
+        # model gives the two planes (slices.volume), so the side bulges as that model does
+        stack = np.concatenate([stack[:prepend + 1], capmod._mid_ring(curves[0], curves[1])[None],
+                                stack[prepend + 1:]])
+        contour_at[1] += 1
     heights = capmod.resolve_trend(curves, d, low_shape, high_shape)  # extrusions: half caps d/2, trend prisms
     n_limited = 0
     buffer = None
@@ -516,7 +523,7 @@ def build_body_once(body: Body, spacing: float, options: SurfaceOptions | None =
     cap_volumes = capmod.cap_volumes(grid, curves, prepend, append)
     # deviation at the control points, evaluated on the final surface
     j = np.concatenate(sc.nodes)
-    kk = np.repeat(np.arange(prepend, prepend + len(sc.nodes)), [len(n) for n in sc.nodes])
+    kk = np.repeat(contour_at, [len(n) for n in sc.nodes])
     pts = np.concatenate(sc.points)
     # the largest distance as the root of the largest sum of squares (np.linalg.norm's sum, in its order)
     gap = node_eval(j, kk) - pts

@@ -560,6 +560,40 @@ def _trend_rings(c: np.ndarray, d: float, upward: bool, n_rings: int) -> np.ndar
     return rings
 
 
+def mid_ring(lower, upper) -> np.ndarray:
+    """A virtual slice half-way between two slice curves whose area follows a sphere's curvature.
+
+    The mean of the two curves (on their common lattice), scaled about its centroid so that
+    its area is ``(A0 + A1) / 2 - c h^2 / 8`` with ``c`` = :data:`SPHERE_CURVATURE`: the
+    parabola :mod:`slices.volume` integrates between the planes of a two-plane structure.
+    Blended through it, the side bulges as that parabola does instead of running straight.
+
+    Parameters
+    ----------
+    lower, upper : array_like, shape (M, 4, 3)
+        The two slice curves (lower first).
+
+    Returns
+    -------
+    numpy.ndarray, shape (M, 4, 3)
+    """
+    a = as_array(lower, "lower", shape=(None, 4, 3))
+    b = as_array(upper, "upper", shape=a.shape)
+    return _mid_ring(a, b)
+
+
+def _mid_ring(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """:func:`mid_ring` of validated curves."""
+    mid = (a + b) / 2
+    h = float(b[0, 0, 2] - a[0, 0, 2])
+    target = (abs(_curve_area(a)) + abs(_curve_area(b))) / 2 - SPHERE_CURVATURE * h * h / 8
+    area = abs(_curve_area(mid))
+    if area <= 0 or target <= 0:
+        return mid
+    p = np.append(_fan_apex(mid, _curve_centroid(mid)), mid[0, 0, 2])
+    return p + np.sqrt(target / area) * (mid - p)
+
+
 def add_cap_rings(curves, centers, spacing: float, low: str, high: str) -> tuple[np.ndarray, int, int, str, str]:
     """The slice curves with the rings of dome and trend caps added below and above.
 
