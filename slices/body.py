@@ -94,6 +94,10 @@ class BodySurface:
         Volume the surface encloses beyond the low and the high end plane (mm^3, positive): the
         prism of a half cap, the rings of a trend cap (:func:`slices.caps.trend_rings`) or a dome;
         0 for flat caps and none (:func:`slices.caps.cap_volumes`).
+    mid_bulge_mm3 : float
+        A two-plane trend body's side blends through a virtual mid slice (:func:`slices.caps.mid_ring`):
+        the volume that adds to the side blended straight between the two planes (mm^3; 0 otherwise).
+        :meth:`volume_with_caps` takes it off, so other caps count the side they would get.
     """
 
     body: Body
@@ -117,6 +121,7 @@ class BodySurface:
     mesh_samples: tuple[int, int] | None = None
     extrusions_mm: tuple[float, float] = (0.0, 0.0)
     cap_volumes_mm3: tuple[float, float] = (0.0, 0.0)
+    mid_bulge_mm3: float = 0.0
 
     def volume_with_caps(self, caps: str) -> float | None:
         """The body's volume had it been capped with ``caps`` (none, flat or half).
@@ -143,6 +148,7 @@ class BodySurface:
         # what half and trend caps enclose beyond the end planes off, the wanted half caps' prisms on
         extra = sum(a * (w == "half") * self.spacing / 2 - (u in capmod.PRISM_KINDS) * v
                     for a, w, u, v in zip(self.end_areas_mm2, wanted, self.caps_used, self.cap_volumes_mm3))
+        extra -= self.mid_bulge_mm3
         return float(self.volume_mm3 + extra)
 
 
@@ -521,6 +527,15 @@ def build_body_once(body: Body, spacing: float, options: SurfaceOptions | None =
     side_patches = BezierPatches.unchecked(grid.control[:, grid.side_columns], closed_u=True)
     volume, area = capmod.grid_integrals(grid)
     cap_volumes = capmod.cap_volumes(grid, curves, prepend, append)
+    bulge = 0.0
+    if len(curves) == 2 and contour_at[1] - contour_at[0] == 2:
+        # the mid slice's share: the side's flux over its two columns against the side blended straight
+        from surfaces.measure import side_integrals
+
+        start = grid.side_columns.start + (grid.extrusions[0] > 0)  # the stack's first interval's column
+        cols = slice(start + contour_at[0], start + contour_at[1])
+        straight = _side_surface(curves, opts.method, z, opts.monotone)[0].control
+        bulge = side_integrals(grid.control[:, cols])[0] - side_integrals(straight)[0]
     # deviation at the control points, evaluated on the final surface
     j = np.concatenate(sc.nodes)
     kk = np.repeat(contour_at, [len(n) for n in sc.nodes])
@@ -551,4 +566,5 @@ def build_body_once(body: Body, spacing: float, options: SurfaceOptions | None =
         float(sc.start_angle), n_limited, (low, high),
         (abs(capmod._curve_area(curves[0])), abs(capmod._curve_area(curves[-1]))), float(d),
         mesh_samples=density, extrusions_mm=grid.extrusions, cap_volumes_mm3=cap_volumes,
+        mid_bulge_mm3=float(bulge),
     )

@@ -131,3 +131,42 @@ def test_trend_mesh_has_no_self_intersections_by_independent_checks(name, solid,
     topo = ms.get_topological_measures()
     assert topo["boundary_edges"] == 0 and topo["non_two_manifold_edges"] == 0
     assert topo["non_two_manifold_vertices"] == 0 and topo["connected_components_number"] == 1
+
+
+@pytest.mark.parametrize("radius, offset", [(2.5, 0.9), (1.8, 1.5)])
+def test_two_plane_trend_body_counts_other_caps_over_the_straight_side(radius, offset):
+    ph = make_phantom("ellipsoid", a=radius, b=radius, c=radius)
+    cs = _contours(ph, 3.0, offset)
+    assert len({c.z for c in cs}) == 2
+    body = _body(cs)
+    trend = build_body(body, 3.0, SurfaceOptions(), mesh=False)
+    flat = build_body(body, 3.0, SurfaceOptions(caps="flat"), mesh=False)
+    assert trend.mid_bulge_mm3 > 0
+    assert trend.volume_with_caps("flat") == pytest.approx(flat.volume_mm3, rel=1e-9)
+
+
+def test_three_plane_trend_body_has_no_mid_bulge():
+    ph = make_phantom("ellipsoid", a=3.0, b=3.0, c=3.0)
+    cs = _contours(ph, 2.0, 0.55)
+    assert len({c.z for c in cs}) == 3
+    trend = build_body(_body(cs), 2.0, SurfaceOptions(), mesh=False)
+    flat = build_body(_body(cs), 2.0, SurfaceOptions(caps="flat"), mesh=False)
+    assert trend.mid_bulge_mm3 == 0.0
+    assert trend.volume_with_caps("flat") == pytest.approx(flat.volume_mm3, rel=1e-9)
+
+
+def test_summary_states_which_caps_the_surface_got():
+    from slices.structure import reconstruct_contours
+    from slices.summary import caps_notes
+
+    ph = make_phantom("ellipsoid", a=4.0, b=4.0, c=4.0)
+    rec = reconstruct_contours(_contours(ph, 2.0, 0.55), spacing=2.0, mesh=False)
+    (note,) = caps_notes(rec)
+    assert "at 2 end(s), prisms" in note and "at 0;" in note
+    # a ring with a hole takes the implicit path, which closes its own way
+    ring = [Contour(float(z), p) for z in (0.0, 2.0, 4.0) for p in (circle(0, 0, 8, 64), circle(0, 0, 3, 64)[::-1])]
+    rec = reconstruct_contours(ring, spacing=2.0)
+    if rec.implicit is not None:
+        assert "implicit" in caps_notes(rec)[0]
+    assert caps_notes(reconstruct_contours(_contours(ph, 2.0, 0.55), spacing=2.0, mesh=False,
+                                           options=SurfaceOptions(caps="half"))) == []
