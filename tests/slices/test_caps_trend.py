@@ -166,7 +166,6 @@ def test_summary_states_which_caps_the_surface_got():
     # a ring with a hole takes the implicit path, which closes its own way
     ring = [Contour(float(z), p) for z in (0.0, 2.0, 4.0) for p in (circle(0, 0, 8, 64), circle(0, 0, 3, 64)[::-1])]
     rec = reconstruct_contours(ring, spacing=2.0)
-    if rec.implicit is not None:
-        assert "implicit" in caps_notes(rec)[0]
+    assert rec.implicit is not None and "implicit" in caps_notes(rec)[0]
     assert caps_notes(reconstruct_contours(_contours(ph, 2.0, 0.55), spacing=2.0, mesh=False,
                                            options=SurfaceOptions(caps="half"))) == []
