@@ -7,10 +7,14 @@
   (:func:`trend_cap_volume`: exact for spheres and ellipsoids, whatever the
   planes' offset). Where it does not vanish within one slice spacing (a
   structure cut off, a cylinder's end), the end is unknown between the end
-  plane and the next: the half cap, the expected end. The surface is the end
-  contour extruded by that volume over its area (:func:`resolve_trend`), so
-  it encloses the trend's volume; :mod:`slices.volume` integrates the same
-  model over the whole structure's areas.
+  plane and the next: the half cap, the expected end. The surface is shaped
+  as the trend says (:func:`trend_rings`: the end contour scaled about its
+  centroid so that each ring's area follows the trend, closing in an apex;
+  :func:`add_cap_rings`), so it encloses the trend's volume to the blend's
+  accuracy and follows the true surface's slope; where the trend does not
+  close, the end contour is extruded by that volume over its area
+  (:func:`resolve_trend`). :mod:`slices.volume` integrates the same model
+  over the whole structure's areas.
 * ``flat``: planar caps in the first and last contour planes.
 * ``half``: the end contour extruded by half a slice spacing, then a flat cap
   (the volume treatment-planning systems count, which gives each contour a
