@@ -415,7 +415,8 @@ def _pieced_side(stack: np.ndarray, split: tuple[int, int], opts: SurfaceOptions
 
     The pieces share their boundary curves, so the columns join exactly (C0 at the end planes). Returns
     the patches (written into ``out`` when given), the corner evaluator of :func:`slices.surface.side_surface`
-    and the count of limited tangents (:func:`slices.surface.blend_overshoot`, 0 unless monotone blending).
+    and the count of limited tangents between the slice curves (:func:`slices.surface.blend_overshoot`, 0 unless
+    monotone blending). The rings are always blended monotone (limited tangents: no overshoot, no fold).
     """
     from slices.surface import _corner_eval
 
@@ -429,10 +430,12 @@ def _pieced_side(stack: np.ndarray, split: tuple[int, int], opts: SurfaceOptions
     controls, n_limited = [], 0
     for a, b in zip(bounds[:-1], bounds[1:]):
         piece = stack[a:b + 1]
-        part, _ = _side_surface(piece, opts.method, z[a:b + 1], opts.monotone,
+        # the rings always monotone: a cap flatter than its outline is wide folds where the blend overshoots
+        ring = (a == 0 and split[0] > 0) or (b == last and split[1] > 0)
+        part, _ = _side_surface(piece, opts.method, z[a:b + 1], opts.monotone or ring,
                                 out=None if out is None else out[:, a:b])
         controls.append(part.control)
-        if monotone:
+        if monotone and not ring:
             n_limited += blend_overshoot(piece, z[a:b + 1])
     control = out if out is not None else np.concatenate(controls, axis=1)
     side = BezierPatches.unchecked(control, closed_u=True)

@@ -534,14 +534,29 @@ def trend_rings(curves, spacing: float, upward: bool, n_rings: int = TREND_RINGS
     -------
     numpy.ndarray, shape (n_rings, M, 4, 3) or None
         Rings from the one next to the end curve to the apex; None where the trend
-        does not close within one spacing (the end gets a half cap's prism).
+        does not close within one spacing, or where no point sees the whole end
+        curve (no kernel: scaled copies would fold); the end then gets a prism of
+        the trend's volume (:func:`resolve_trend`).
     """
     c = as_array(curves, "curves", shape=(None, None, 4, 3))
     return _trend_rings(c[:3], positive(spacing, "spacing"), upward, int(n_rings))
 
 
+def _sees_all(c: np.ndarray, p: np.ndarray) -> bool:
+    """Whether the point ``p`` (2,) sees the whole closed curve (M, 4, 3) turning one way (it lies in the
+    curve's kernel, tested at :data:`APEX_SAMPLES` points per segment as :func:`fan_apex` tests it)."""
+    sampled = c[:, :, :2].transpose(2, 0, 1) @ _APEX_MATRIX
+    (qx, qy), (tx, ty) = (sampled[:, :, :APEX_SAMPLES].reshape(2, -1), sampled[:, :, APEX_SAMPLES:].reshape(2, -1))
+    length = np.sqrt(tx * tx + ty * ty)
+    keep = length > 1e-12 * max(1.0, float(length.max(initial=0.0)))
+    orient = 1.0 if _curve_area(c) > 0 else -1.0
+    cross = orient * ((qx - p[0]) * ty - (qy - p[1]) * tx)
+    return bool((cross[keep] > 0).all())
+
+
 def _trend_rings(c: np.ndarray, d: float, upward: bool, n_rings: int) -> np.ndarray | None:
-    """:func:`trend_rings` of validated curves (end first)."""
+    """:func:`trend_rings` of validated curves (end first); None also where no point sees the whole end curve
+    (scaled copies of it would fold: the end gets the prism)."""
     areas = [abs(_curve_area(x)) for x in c[:3]]
     prof = trend_profile(areas, d)
     if prof is None or n_rings < 1:
@@ -549,6 +564,8 @@ def _trend_rings(c: np.ndarray, d: float, upward: bool, n_rings: int) -> np.ndar
     a0, c1, c2 = prof
     end = c[0]
     p2 = _fan_apex(end, _curve_centroid(end))
+    if not _sees_all(end, p2):
+        return None
     p = np.array([p2[0], p2[1], end[0, 0, 2]])
     s = np.cos(np.arange(1, n_rings + 1) * np.pi / (2 * n_rings))
     s[-1] = 0.0

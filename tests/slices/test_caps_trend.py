@@ -169,3 +169,24 @@ def test_summary_states_which_caps_the_surface_got():
     assert rec.implicit is not None and "implicit" in caps_notes(rec)[0]
     assert caps_notes(reconstruct_contours(_contours(ph, 2.0, 0.55), spacing=2.0, mesh=False,
                                            options=SurfaceOptions(caps="half"))) == []
+
+
+def _polygon(corners, z: float) -> np.ndarray:
+    a, b = corners, np.roll(corners, -1, axis=0)
+    w = np.arange(4) / 3.0
+    curve = a[:, None, :] + w[None, :, None] * (b - a)[:, None, :]
+    return np.concatenate([curve, np.full(curve.shape[:2] + (1,), z)], axis=2)
+
+
+@pytest.mark.parametrize("corners, ringed", [
+    ([(0, 0), (4, 0), (4, 4), (0, 4)], True),
+    ([(0, 0), (4, 0), (4, 4), (3, 4), (3, 1), (1, 1), (1, 4), (0, 4)], False),  # a U: no point sees it all
+])
+def test_trend_rings_only_where_a_point_sees_the_whole_end(corners, ringed):
+    c = np.asarray(corners, float) - 2.0
+    # areas A, 4 A, 9 A one spacing apart: the trend A (1 - t)^2 closes one spacing beyond
+    curves = np.stack([_polygon(c * k, -float(k - 1)) for k in (1, 2, 3)])
+    rings = caps.trend_rings(curves, 1.0, upward=True)
+    assert (rings is not None) == ringed
+    if ringed:
+        assert rings[-1, 0, 0, 2] == pytest.approx(1.0)
