@@ -637,8 +637,8 @@ def add_cap_rings(curves, centers, spacing: float, low: str, high: str) -> tuple
         Rings below the first and above the last slice curve.
     low_shape, high_shape : str
         The shape each end is built with: ``"dome"`` for an end closed by rings (a dome,
-        or a trend cap that closes within one spacing), else its kind (a trend cap that
-        does not close is a prism, as a half cap).
+        or a trend cap that closes within one spacing, :func:`trend_rings`), else its kind
+        (a trend cap that does not close, and those of a single contour, are prisms).
     """
     c = as_array(curves, "curves", shape=(None, None, 4, 3))
     p = as_array(centers, "centers", shape=(len(c), 3))
@@ -654,7 +654,7 @@ def _add_cap_rings(c: np.ndarray, p: np.ndarray, d: float, low: str, high: str) 
         rings = None
         if kind == "dome":
             rings = dome_rings(c[0] if end == 0 else c[-1], p[0] if end == 0 else p[-1], d / 2, upward=end == 1)
-        elif kind == "trend":
+        elif kind == "trend" and len(c) >= 2:  # a single contour keeps its prisms (the slab it is reported as)
             rings = _trend_rings(c[:3] if end == 0 else c[::-1][:3], d, upward=end == 1, n_rings=TREND_RINGS)
         parts.append(rings)
         shapes.append("dome" if rings is not None else kind)

@@ -106,10 +106,11 @@ def test_trend_volume_with_flat_caps_is_the_flat_capped_body():
         flat.volume_mm3 + sum(trend.end_areas_mm2) * 1.0, rel=1e-9)
 
 
-def test_single_contour_trend_body_is_a_closed_sphere():
+def test_single_contour_trend_body_keeps_its_prisms():
     body = Body("outer", (Contour(0.0, circle(0, 0, 1.2, 96)),), "end", "end")
     b = build_body(body, 3.0, SurfaceOptions(samples=3))
     assert b.caps_used == ("trend", "trend") and b.mesh.is_watertight() and b.mesh.is_oriented()
+    assert min(b.extrusions_mm) > 0  # the slab a single plane is reported as, as thick as the trend's volume
     # a sphere through its outline: 4/3 pi r^3 with r the outline's radius (equator)
     assert b.volume_mm3 == pytest.approx(4 / 3 * np.pi * 1.2**3, rel=0.03)
 
@@ -162,7 +163,7 @@ def test_summary_states_which_caps_the_surface_got():
     ph = make_phantom("ellipsoid", a=4.0, b=4.0, c=4.0)
     rec = reconstruct_contours(_contours(ph, 2.0, 0.55), spacing=2.0, mesh=False)
     (note,) = caps_notes(rec)
-    assert "at 2 end(s), prisms" in note and "at 0;" in note
+    assert "at 2 end(s), prisms" in note and "at 0 (" in note
     # a ring with a hole takes the implicit path, which closes its own way
     ring = [Contour(float(z), p) for z in (0.0, 2.0, 4.0) for p in (circle(0, 0, 8, 64), circle(0, 0, 3, 64)[::-1])]
     rec = reconstruct_contours(ring, spacing=2.0)
