@@ -88,7 +88,16 @@ class BodySurface:
         (:func:`mesh_samples` with ``samples=None``); None without a mesh.
     extrusions_mm : (float, float)
         Heights of the low and the high end's prism (half caps: half a spacing; trend
-        caps: the trend's volume over the end area, :func:`slices.caps.resolve_trend`); 0 where none.
+        caps that do not close within a spacing: the trend's volume over the end area,
+        :func:`slices.caps.resolve_trend`); 0 where none.
+    cap_volumes_mm3 : (float, float)
+        Volume the surface encloses beyond the low and the high end plane (mm^3, positive): the
+        prism of a half cap, the rings of a trend cap (:func:`slices.caps.trend_rings`) or a dome;
+        0 for flat caps and none (:func:`slices.caps.cap_volumes`).
+    mid_bulge_mm3 : float
+        A two-plane trend body's side blends through a virtual mid slice (:func:`slices.caps.mid_ring`):
+        the volume that adds to the side blended straight between the two planes (mm^3; 0 otherwise).
+        :meth:`volume_with_caps` takes it off, so other caps count the side they would get.
     """
 
     body: Body
@@ -111,6 +120,8 @@ class BodySurface:
     self_intersecting_faces: int | None = None
     mesh_samples: tuple[int, int] | None = None
     extrusions_mm: tuple[float, float] = (0.0, 0.0)
+    cap_volumes_mm3: tuple[float, float] = (0.0, 0.0)
+    mid_bulge_mm3: float = 0.0
 
     def volume_with_caps(self, caps: str) -> float | None:
         """The body's volume had it been capped with ``caps`` (none, flat or half).
@@ -134,9 +145,10 @@ class BodySurface:
         if "dome" in self.caps_used:
             return None
         wanted = capmod.end_kinds(caps, self.body.start, self.body.stop, len(self.body.contours))
-        # the prisms of half and trend caps (their extrusions) off, those of the wanted half caps on
-        extra = sum(a * ((w == "half") * self.spacing / 2 - (u in capmod.PRISM_KINDS) * h)
-                    for a, w, u, h in zip(self.end_areas_mm2, wanted, self.caps_used, self.extrusions_mm))
+        # what half and trend caps enclose beyond the end planes off, the wanted half caps' prisms on
+        extra = sum(a * (w == "half") * self.spacing / 2 - (u in capmod.PRISM_KINDS) * v
+                    for a, w, u, v in zip(self.end_areas_mm2, wanted, self.caps_used, self.cap_volumes_mm3))
+        extra -= self.mid_bulge_mm3
         return float(self.volume_mm3 + extra)
 
 
@@ -396,6 +408,40 @@ def build_stepped(body: Body, spacing: float, options: SurfaceOptions | None = N
     return out
 
 
+def _pieced_side(stack: np.ndarray, split: tuple[int, int], opts: SurfaceOptions,
+                 out: np.ndarray | None) -> tuple[BezierPatches, object, int]:
+    """The side surface over ``stack`` (K', M, 4, 3), blended in pieces: the first ``split[0]`` and the last
+    ``split[1]`` intervals (trend caps' rings) apart from the ones between (the slice curves).
+
+    The pieces share their boundary curves, so the columns join exactly (C0 at the end planes). Returns
+    the patches (written into ``out`` when given), the corner evaluator of :func:`slices.surface.side_surface`
+    and the count of limited tangents between the slice curves (:func:`slices.surface.blend_overshoot`, 0 unless
+    monotone blending). The rings are always blended monotone (limited tangents: no overshoot, no fold).
+    """
+    from slices.surface import _corner_eval
+
+    z = stack[:, 0, 0, 2]
+    last = len(stack) - 1
+    bounds = sorted({0, split[0], last - split[1], last})
+    monotone = opts.monotone and opts.method == "blending"
+    if len(bounds) == 2:
+        side, node_eval = _side_surface(stack, opts.method, z, opts.monotone, out=out)
+        return side, node_eval, (blend_overshoot(stack, z) if monotone else 0)
+    controls, n_limited = [], 0
+    for a, b in zip(bounds[:-1], bounds[1:]):
+        piece = stack[a:b + 1]
+        # the rings always monotone: a cap flatter than its outline is wide folds where the blend overshoots
+        ring = (a == 0 and split[0] > 0) or (b == last and split[1] > 0)
+        part, _ = _side_surface(piece, opts.method, z[a:b + 1], opts.monotone or ring,
+                                out=None if out is None else out[:, a:b])
+        controls.append(part.control)
+        if monotone and not ring:
+            n_limited += blend_overshoot(piece, z[a:b + 1])
+    control = out if out is not None else np.concatenate(controls, axis=1)
+    side = BezierPatches.unchecked(control, closed_u=True)
+    return side, _corner_eval(side, len(stack)), n_limited
+
+
 def build_body_once(body: Body, spacing: float, options: SurfaceOptions | None = None,
                     mesh: bool = True, ruled: bool = False) -> BodySurface:
     """Surface, volume and area of one body (seed 000 sections II-III).
@@ -439,21 +485,31 @@ def build_body_once(body: Body, spacing: float, options: SurfaceOptions | None =
     centers = np.empty((len(z), 3))
     centers[:, :2] = [p.center for p in sc.params]
     centers[:, 2] = z
-    stack, prepend = capmod._add_dome_rings(curves, centers, d / 2, low, high)
-    heights = capmod.resolve_trend(curves, d, low, high)  # extrusions: half caps d/2, trend caps their volume
+    # rings of dome caps, and of trend caps that close within a spacing (shaped as the area trend says);
+    # the other trend ends are prisms of the trend's volume (resolve_trend)
+    stack, prepend, append, low_shape, high_shape = capmod._add_cap_rings(curves, centers, d, low, high)
+    contour_at = np.arange(prepend, prepend + len(curves))  # each slice curve's index in the stack
+    if len(curves) == 2 and low == high == "trend" and not ruled:
+        # two planes: a virtual slice half-way whose area follows the sphere's curvature that the volume
+        # model gives the two planes (slices.volume), so the side bulges as that model does
+        stack = np.concatenate([stack[:prepend + 1], capmod._mid_ring(curves[0], curves[1])[None],
+                                stack[prepend + 1:]])
+        contour_at[1] += 1
+    heights = capmod.resolve_trend(curves, d, low_shape, high_shape)  # extrusions: half caps d/2, trend prisms
     n_limited = 0
     buffer = None
     if len(stack) >= 2 and not ruled and opts.method == "blending":
         # the blend writes the side straight into the capped grid's columns (no copy of the ~1.5 MB side)
-        buffer, mid = capmod._grid_buffer(stack.shape[1], len(stack) - 1, low, high)
+        buffer, mid = capmod._grid_buffer(stack.shape[1], len(stack) - 1, low_shape, high_shape)
     if len(stack) >= 2:
         if ruled:
             side, node_eval = ruled_surface(stack)
         else:
-            side, node_eval = _side_surface(stack, opts.method, stack[:, 0, 0, 2], opts.monotone,
-                                            out=None if buffer is None else buffer[:, mid])
-        if opts.monotone and opts.method == "blending" and not ruled:
-            n_limited = blend_overshoot(stack, stack[:, 0, 0, 2])
+            # a trend cap's rings are blended on their own, from the end curve to the apex: the side between
+            # the planes keeps the contours' own tangents (the rings' steep fall would bulge it)
+            split = (prepend if low == "trend" and low_shape == "dome" else 0,
+                     append if high == "trend" and high_shape == "dome" else 0)
+            side, node_eval, n_limited = _pieced_side(stack, split, opts, None if buffer is None else buffer[:, mid])
         side_ctrl, bottom, top = side.control, side.control[:, 0, :, 0], side.control[:, -1, :, 3]
     else:
         side_ctrl, bottom = None, curves[0]
@@ -463,17 +519,29 @@ def build_body_once(body: Body, spacing: float, options: SurfaceOptions | None =
             return curves[0][j, 0]
 
     if buffer is None:
-        grid = capmod.close_side(side_ctrl, bottom, top, centers[0, :2], centers[-1, :2], heights, low, high)
+        grid = capmod.close_side(side_ctrl, bottom, top, centers[0, :2], centers[-1, :2], heights, low_shape,
+                                 high_shape)
     else:
-        grid = capmod._close_grid(buffer, bottom, top, centers[0, :2], centers[-1, :2], heights, low, high)
+        grid = capmod._close_grid(buffer, bottom, top, centers[0, :2], centers[-1, :2], heights, low_shape,
+                                  high_shape)
     # the grid's columns are the checked side's and caps over its end curves: finite and closed as the
     # side is (close_side checks its inputs)
     patches = BezierPatches.unchecked(grid.control, closed_u=True)
     side_patches = BezierPatches.unchecked(grid.control[:, grid.side_columns], closed_u=True)
     volume, area = capmod.grid_integrals(grid)
+    cap_volumes = capmod.cap_volumes(grid, curves, prepend, append)
+    bulge = 0.0
+    if len(curves) == 2 and contour_at[1] - contour_at[0] == 2:
+        # the mid slice's share: the side's flux over its two columns against the side blended straight
+        from surfaces.measure import side_integrals
+
+        start = grid.side_columns.start + (grid.extrusions[0] > 0)  # the stack's first interval's column
+        cols = slice(start + contour_at[0], start + contour_at[1])
+        straight = _side_surface(curves, opts.method, z, opts.monotone)[0].control
+        bulge = side_integrals(grid.control[:, cols])[0] - side_integrals(straight)[0]
     # deviation at the control points, evaluated on the final surface
     j = np.concatenate(sc.nodes)
-    kk = np.repeat(np.arange(prepend, prepend + len(sc.nodes)), [len(n) for n in sc.nodes])
+    kk = np.repeat(contour_at, [len(n) for n in sc.nodes])
     pts = np.concatenate(sc.points)
     # the largest distance as the root of the largest sum of squares (np.linalg.norm's sum, in its order)
     gap = node_eval(j, kk) - pts
@@ -500,5 +568,6 @@ def build_body_once(body: Body, spacing: float, options: SurfaceOptions | None =
         int(len(pts)), int(np.count_nonzero(np.concatenate([p.turning for p in sc.params]))), int(curves.shape[1]),
         float(sc.start_angle), n_limited, (low, high),
         (abs(capmod._curve_area(curves[0])), abs(capmod._curve_area(curves[-1]))), float(d),
-        mesh_samples=density, extrusions_mm=grid.extrusions,
+        mesh_samples=density, extrusions_mm=grid.extrusions, cap_volumes_mm3=cap_volumes,
+        mid_bulge_mm3=float(bulge),
     )

@@ -7,10 +7,14 @@
   (:func:`trend_cap_volume`: exact for spheres and ellipsoids, whatever the
   planes' offset). Where it does not vanish within one slice spacing (a
   structure cut off, a cylinder's end), the end is unknown between the end
-  plane and the next: the half cap, the expected end. The surface is the end
-  contour extruded by that volume over its area (:func:`resolve_trend`), so
-  it encloses the trend's volume; :mod:`slices.volume` integrates the same
-  model over the whole structure's areas.
+  plane and the next: the half cap, the expected end. The surface is shaped
+  as the trend says (:func:`trend_rings`: the end contour scaled about its
+  centroid so that each ring's area follows the trend, closing in an apex;
+  :func:`add_cap_rings`), so it encloses the trend's volume to the blend's
+  accuracy and follows the true surface's slope; where the trend does not
+  close, the end contour is extruded by that volume over its area
+  (:func:`resolve_trend`). :mod:`slices.volume` integrates the same model
+  over the whole structure's areas.
 * ``flat``: planar caps in the first and last contour planes.
 * ``half``: the end contour extruded by half a slice spacing, then a flat cap
   (the volume treatment-planning systems count, which gives each contour a
@@ -471,6 +475,195 @@ def trend_cap_volume(areas, spacing: float) -> float:
         return float(abs(np.asarray(areas, float).ravel()[0]) * positive(spacing, "spacing") / 2)
     r = trend_height(prof)
     return float(prof[0] * r + prof[1] * r * r / 2 + prof[2] * r**3 / 3)
+
+
+#: Rings of a trend cap (:func:`trend_rings`): virtual slices between the end plane and the apex.
+TREND_RINGS = 4
+
+
+def curve_centroid(curve) -> np.ndarray:
+    """Centroid (x, y) of the polygon through a closed planar Bezier curve's segment ends (mm).
+
+    Parameters
+    ----------
+    curve : array_like, shape (M, 4, 3)
+        Closed planar Bezier curve.
+
+    Returns
+    -------
+    numpy.ndarray, shape (2,)
+        The polygon's area centroid; the mean of its points when its area vanishes.
+    """
+    return _curve_centroid(as_array(curve, "curve", shape=(None, 4, 3)))
+
+
+def _curve_centroid(c: np.ndarray) -> np.ndarray:
+    """:func:`curve_centroid` of a validated curve."""
+    x, y = c[:, 0, 0], c[:, 0, 1]
+    xn, yn = np.roll(x, -1), np.roll(y, -1)
+    cross = x * yn - xn * y
+    a = cross.sum() / 2
+    if abs(a) <= 1e-12 * max(1.0, float(np.abs(cross).sum())):
+        return np.array([x.mean(), y.mean()])
+    return np.array([((x + xn) * cross).sum(), ((y + yn) * cross).sum()]) / (6 * a)
+
+
+def trend_rings(curves, spacing: float, upward: bool, n_rings: int = TREND_RINGS) -> np.ndarray | None:
+    """Virtual slice curves of a trend cap: the end curve scaled so that each ring's area follows the trend.
+
+    Ring ``k`` (``k = 1 .. n``) is the end curve scaled about its centroid (moved
+    into the curve's kernel, :func:`fan_apex`) by ``s_k = cos(k pi / (2 n))`` at the
+    height ``t_k`` beyond the end plane where the trend's area
+    (:func:`trend_profile`) is ``s_k^2`` times the end area; the last ring is the
+    apex, where the trend's area vanishes. The surface blended through them
+    encloses (to the blend's accuracy) the trend's volume beyond the end plane
+    (:func:`trend_cap_volume`), and follows its shape instead of a flat-topped prism.
+
+    Parameters
+    ----------
+    curves : array_like, shape (K, M, 4, 3)
+        The end curve first, then the curves inward (K >= 1; the first three are used).
+    spacing : float
+        Plane spacing (mm).
+    upward : bool
+        The cap lies above the end curve (a body's high end) or below it.
+    n_rings : int
+        Number of rings.
+
+    Returns
+    -------
+    numpy.ndarray, shape (n_rings, M, 4, 3) or None
+        Rings from the one next to the end curve to the apex; None where the trend
+        does not close within one spacing, or where no point sees the whole end
+        curve (no kernel: scaled copies would fold); the end then gets a prism of
+        the trend's volume (:func:`resolve_trend`).
+    """
+    c = as_array(curves, "curves", shape=(None, None, 4, 3))
+    return _trend_rings(c[:3], positive(spacing, "spacing"), upward, int(n_rings))
+
+
+def _sees_all(c: np.ndarray, p: np.ndarray) -> bool:
+    """Whether the point ``p`` (2,) sees the whole closed curve (M, 4, 3) turning one way (it lies in the
+    curve's kernel, tested at :data:`APEX_SAMPLES` points per segment as :func:`fan_apex` tests it)."""
+    sampled = c[:, :, :2].transpose(2, 0, 1) @ _APEX_MATRIX
+    (qx, qy), (tx, ty) = (sampled[:, :, :APEX_SAMPLES].reshape(2, -1), sampled[:, :, APEX_SAMPLES:].reshape(2, -1))
+    length = np.sqrt(tx * tx + ty * ty)
+    keep = length > 1e-12 * max(1.0, float(length.max(initial=0.0)))
+    orient = 1.0 if _curve_area(c) > 0 else -1.0
+    cross = orient * ((qx - p[0]) * ty - (qy - p[1]) * tx)
+    return bool((cross[keep] > 0).all())
+
+
+def _trend_rings(c: np.ndarray, d: float, upward: bool, n_rings: int) -> np.ndarray | None:
+    """:func:`trend_rings` of validated curves (end first); None also where no point sees the whole end curve
+    (scaled copies of it would fold: the end gets the prism)."""
+    areas = [abs(_curve_area(x)) for x in c[:3]]
+    prof = trend_profile(areas, d)
+    if prof is None or n_rings < 1:
+        return None
+    a0, c1, c2 = prof
+    end = c[0]
+    p2 = _fan_apex(end, _curve_centroid(end))
+    if not _sees_all(end, p2):
+        return None
+    p = np.array([p2[0], p2[1], end[0, 0, 2]])
+    s = np.cos(np.arange(1, n_rings + 1) * np.pi / (2 * n_rings))
+    s[-1] = 0.0
+    t = np.empty(n_rings)
+    for k in range(n_rings):
+        root = _first_root(a0 * (1.0 - s[k] * s[k]), c1, c2)
+        t[k] = trend_height(prof) if root is None else root
+    t = np.maximum.accumulate(t)  # rounding: never below the previous ring
+    rings = p + s[:, None, None, None] * (end[None] - p)
+    rings[..., 2] = end[0, 0, 2] + (1.0 if upward else -1.0) * t[:, None, None]
+    rings[-1] = p
+    rings[-1, ..., 2] = end[0, 0, 2] + (1.0 if upward else -1.0) * t[-1]
+    return rings
+
+
+def mid_ring(lower, upper) -> np.ndarray:
+    """A virtual slice half-way between two slice curves whose area follows a sphere's curvature.
+
+    The mean of the two curves (on their common lattice), scaled about its centroid so that
+    its area is ``(A0 + A1) / 2 - c h^2 / 8`` with ``c`` = :data:`SPHERE_CURVATURE`: the
+    parabola :mod:`slices.volume` integrates between the planes of a two-plane structure.
+    Blended through it, the side bulges as that parabola does instead of running straight.
+
+    Parameters
+    ----------
+    lower, upper : array_like, shape (M, 4, 3)
+        The two slice curves (lower first).
+
+    Returns
+    -------
+    numpy.ndarray, shape (M, 4, 3)
+    """
+    a = as_array(lower, "lower", shape=(None, 4, 3))
+    b = as_array(upper, "upper", shape=a.shape)
+    return _mid_ring(a, b)
+
+
+def _mid_ring(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """:func:`mid_ring` of validated curves."""
+    mid = (a + b) / 2
+    h = float(b[0, 0, 2] - a[0, 0, 2])
+    target = (abs(_curve_area(a)) + abs(_curve_area(b))) / 2 - SPHERE_CURVATURE * h * h / 8
+    area = abs(_curve_area(mid))
+    if area <= 0 or target <= 0:
+        return mid
+    p = np.append(_fan_apex(mid, _curve_centroid(mid)), mid[0, 0, 2])
+    return p + np.sqrt(target / area) * (mid - p)
+
+
+def add_cap_rings(curves, centers, spacing: float, low: str, high: str) -> tuple[np.ndarray, int, int, str, str]:
+    """The slice curves with the rings of dome and trend caps added below and above.
+
+    Parameters
+    ----------
+    curves : array_like, shape (K, M, 4, 3)
+        Slice curves on a common lattice.
+    centers : array_like, shape (K, 3)
+        Centre of each slice (mm, in its plane).
+    spacing : float
+        Plane spacing (mm); dome caps are half of it high.
+    low, high : str
+        Cap kinds of the two ends (:func:`end_kinds`).
+
+    Returns
+    -------
+    stack : numpy.ndarray, shape (K', M, 4, 3)
+        Rings of the low cap (apex first), the curves, rings of the high cap.
+    prepend, append : int
+        Rings below the first and above the last slice curve.
+    low_shape, high_shape : str
+        The shape each end is built with: ``"dome"`` for an end closed by rings (a dome,
+        or a trend cap that closes within one spacing, :func:`trend_rings`), else its kind
+        (a trend cap that does not close, and those of a single contour, are prisms).
+    """
+    c = as_array(curves, "curves", shape=(None, None, 4, 3))
+    p = as_array(centers, "centers", shape=(len(c), 3))
+    stack, prepend, append, lo, hi = _add_cap_rings(c, p, positive(spacing, "spacing"), low, high)
+    return (stack.copy() if stack is c else stack), prepend, append, lo, hi
+
+
+def _add_cap_rings(c: np.ndarray, p: np.ndarray, d: float, low: str, high: str) -> tuple[np.ndarray, int, int, str,
+                                                                                         str]:
+    """:func:`add_cap_rings` of validated inputs; the curves themselves when no end has rings."""
+    parts, shapes = [], []
+    for end, kind in enumerate((low, high)):
+        rings = None
+        if kind == "dome":
+            rings = dome_rings(c[0] if end == 0 else c[-1], p[0] if end == 0 else p[-1], d / 2, upward=end == 1)
+        elif kind == "trend" and len(c) >= 2:  # a single contour keeps its prisms (the slab it is reported as)
+            rings = _trend_rings(c[:3] if end == 0 else c[::-1][:3], d, upward=end == 1, n_rings=TREND_RINGS)
+        parts.append(rings)
+        shapes.append("dome" if rings is not None else kind)
+    if parts[0] is None and parts[1] is None:
+        return c, 0, 0, shapes[0], shapes[1]
+    empty = np.zeros((0,) + c.shape[1:])
+    low_rings = empty if parts[0] is None else parts[0][::-1]
+    high_rings = empty if parts[1] is None else parts[1]
+    return (np.concatenate([low_rings, c, high_rings]), len(low_rings), len(high_rings), shapes[0], shapes[1])
 
 
 def resolve_trend(curves, spacing: float, low: str, high: str) -> tuple[float, float]:
@@ -1033,6 +1226,49 @@ def grid_integrals(grid: CappedGrid, order: int = 5) -> tuple[float, float]:
         area += low_h * float(np.sum(length[:n_seg])) + high_h * float(np.sum(length[n_seg:]))
     area += sum(abs(a_low if out_z < 0 else a_high) for _, out_z in grid.flat_caps)
     return float(volume), float(area)
+
+
+def cap_volumes(grid: CappedGrid, curves, prepend: int, append: int, order: int = 5) -> tuple[float, float]:
+    """Volume a capped grid encloses beyond its low and its high end plane (mm^3, positive outward).
+
+    Prisms (half caps, trend caps that do not close): the end curve's area times the
+    extrusion. Rings (trend caps that close, domes; :func:`add_cap_rings`): the flux
+    of ``(0, 0, z)`` through the ring columns (:func:`surfaces.measure.side_integrals`)
+    plus that through the end curve's plane, closing them. Flat caps and none: 0.
+
+    Parameters
+    ----------
+    grid : CappedGrid
+        From :func:`close_side`.
+    curves : array_like, shape (K, M, 4, 3)
+        The body's slice curves (without the rings), lowest first.
+    prepend, append : int
+        Rings below the first and above the last curve (:func:`add_cap_rings`).
+    order : int
+        Quadrature points per direction (5: exact for the patches).
+
+    Returns
+    -------
+    (float, float)
+    """
+    from surfaces.measure import side_integrals
+
+    c = as_array(curves, "curves", shape=(None, None, 4, 3))
+    side = grid.side_columns
+    out = []
+    for end, (rings, h) in enumerate(zip((int(prepend), int(append)), grid.extrusions)):
+        curve = c[0] if end == 0 else c[-1]
+        a = _curve_area(curve)
+        if h > 0:
+            out.append(abs(a) * h)
+        elif rings > 0:
+            cols = slice(side.start, side.start + rings) if end == 0 else slice(side.stop - rings, side.stop)
+            flux = side_integrals(grid.control[:, cols], order)[0]
+            z0 = float(curve[0, 0, 2])
+            out.append(float(flux + (z0 * a if end == 0 else -z0 * a)))
+        else:
+            out.append(0.0)
+    return out[0], out[1]
 
 
 def weld_flat_caps(side: TriangleMesh, grid: CappedGrid, samples: int,

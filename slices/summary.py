@@ -164,6 +164,39 @@ def chaining_text(rec: Reconstruction) -> str:
 #: The pixel size behind the contour-position terms of the uncertainty budgets.
 PIXEL_NOTE = "1 mm pixels assumed for the contour position (the image's own pixel is not passed to the summary)"
 
+def caps_notes(rec: Reconstruction) -> list[str]:
+    """What the written surface's ends are, by path, when that differs from the volume's cap model.
+
+    With ``caps="trend"`` the volume always integrates the areas' trend (:mod:`slices.volume`); the
+    surface's ends are the trend's shape on the Coons path (rings closing in an apex,
+    :func:`slices.caps.trend_rings`; a prism where the trend does not close within a spacing), and
+    the implicit path's own closing (:mod:`slices.implicit`).
+
+    Parameters
+    ----------
+    rec : Reconstruction
+
+    Returns
+    -------
+    list of str
+        At most one note.
+    """
+    if rec.options.caps != "trend":
+        return []
+    if rec.implicit is not None:
+        return [f"caps: the implicit surface (surface_path implicit) closes its own way, "
+                f"{rec.implicit.cap_offset_mm:.3g} mm beyond the end planes, not in the trend's shape; volume_mm3 "
+                "is the area trend's, surface_volume_mm3 and area_mm2 are the implicit surface's"]
+    ends = [(b.caps_used[i], b.cap_volumes_mm3[i], b.extrusions_mm[i]) for b in rec.bodies for i in (0, 1)]
+    shaped = sum(k == "trend" and h == 0 and v > 0 for k, v, h in ends)
+    prisms = sum(k == "trend" and h > 0 for k, v, h in ends)
+    others = len(ends) - shaped - prisms
+    return [f"caps: the surface's trend ends (surface_path {rec.surface_path}) are shaped as the area trend says "
+            f"(rings closing in an apex) at {shaped} end(s), prisms of the trend's volume at {prisms} (where the trend "
+            f"does not close within one spacing, on single contours, or where no point sees the whole end "
+            f"outline); {others} end(s) at branchings or joints (half or flat caps)"]
+
+
 #: What each ``caps`` choice counts beyond the end planes (named beside every printed volume).
 CAPS_TEXT = {
     "trend": "whole structure: areas integrated between the planes, caps from the areas' trend beyond the end planes",
@@ -319,7 +352,7 @@ def summarize(input_path, stack: ContourStack, rec: Reconstruction, mesh: Triang
         "mesh_union": union,
         "bodies": table,
         "chaining": chaining_text(rec),
-        "notes": list(stack.notes),
+        "notes": list(stack.notes) + (list(whole["model"]["notes"]) if trend else []) + caps_notes(rec),
         "contour_repairs": list(stack.repairs),
         **timings,
     }

@@ -26,7 +26,8 @@ from slices.caps import SPHERE_CURVATURE, trend_cap_volume
 from surfaces.validate import positive
 
 __all__ = ["DELINEATION_PIXELS", "PIXEL_SIZE_REL", "SAMPLING_FACTOR", "CAP_FACTOR", "area_uncertainty",
-           "plane_areas", "whole_volume", "volume_uncertainty", "format_volume"]
+           "plane_areas", "single_plane_range", "single_plane_volume", "whole_volume", "volume_uncertainty",
+           "format_volume"]
 
 #: Delineation: standard uncertainty of a contour's position, in pixels (a systematic offset of every contour,
 #: normal: "about a pixel" at k = 2).
@@ -125,6 +126,52 @@ def single_plane_volume(area: float, spacing: float) -> float:
     return float(np.mean(4.0 / 3.0 * np.pi * (a / np.pi + c * c) ** 1.5))
 
 
+def single_plane_range(area: float, spacing: float) -> tuple[float, float]:
+    """The volumes of the spheres one outline fits (mm^3): cut at its equator, and nearest a pole.
+
+    The sphere's centre from the plane runs from 0 (the outline is its equator) to
+    ``c_max`` of :func:`single_plane_volume` (beyond, it would reach the next plane);
+    the slab ``A d`` for both where no sphere fits.
+
+    Parameters
+    ----------
+    area : float
+        Section area (mm^2).
+    spacing : float
+        Plane spacing (mm).
+
+    Returns
+    -------
+    (float, float)
+        Smallest and largest volume.
+
+    Examples
+    --------
+    >>> lo, hi = single_plane_range(np.pi, 3.0)  # a 2 mm outline at 3 mm spacing: a 1 mm sphere, or more
+    >>> round(lo / np.pi, 6), hi > lo
+    (1.333333, True)
+    """
+    a, d = abs(float(area)), positive(spacing, "spacing")
+    c_max = min(d / 2, (d * d - a / np.pi) / (2 * d))
+    if c_max <= 0:
+        return a * d, a * d
+    return 4.0 / 3.0 * np.pi * (a / np.pi) ** 1.5, 4.0 / 3.0 * np.pi * (a / np.pi + c_max * c_max) ** 1.5
+
+
+def _short_run_note(z: np.ndarray, a: np.ndarray, d: float) -> str:
+    """The note of a run of one or two planes: what the contours cannot tell, and what the volume assumes."""
+    if len(z) == 1:
+        lo, hi = single_plane_range(a[0], d)
+        if lo == hi:
+            return (f"plane z = {z[0]:.6g} mm alone: too wide for a sphere between the planes, counted as the slab "
+                    f"of one spacing ({lo:.4g} mm^3)")
+        return (f"plane z = {z[0]:.6g} mm alone: one outline fits a sphere cut anywhere between its equator and "
+                f"near a pole ({lo:.4g} to {hi:.4g} mm^3 for this outline); the volume is the expectation over a "
+                "uniform cut position, and its U covers the spread")
+    return (f"planes z = {z[0]:.6g} and {z[-1]:.6g} mm alone: the shape between and beyond them is taken from a "
+            "sphere's curvature (two areas cannot give a trend); each end's position within one spacing is in U")
+
+
 def whole_volume(contours, spacing: float | None = None) -> dict:
     """The whole structure's volume from its section areas (see the module text).
 
@@ -158,11 +205,12 @@ def whole_volume(contours, spacing: float | None = None) -> dict:
     d = positive(d, "spacing")
     between = trap = caps = half = 0.0
     runs = _runs(z, d)
-    short = []
+    short, notes = [], []
     for run in runs:
         zr, ar = z[run], a[run]
         if len(zr) <= 2:
             short.append((float(abs(ar[0])), float(abs(ar[-1]))))
+            notes.append(_short_run_note(zr, ar, d))
         m, t = _between(zr, ar)
         between += m
         trap += t
@@ -171,6 +219,7 @@ def whole_volume(contours, spacing: float | None = None) -> dict:
         half += (abs(ar[0]) + abs(ar[-1])) * d / 2
     return {"volume_mm3": between + caps, "between_mm3": between, "caps_mm3": caps, "trapezoid_mm3": trap,
             "half_caps_mm3": half, "n_runs": len(runs), "spacing_mm": d, "short_run_end_areas_mm2": short,
+            "notes": notes,
             "rule": "section areas (outer contours minus holes) integrated with a cubic spline between the planes "
                     "(two planes: a parabola with a sphere's curvature), caps from the areas' trend beyond each "
                     "end plane (half a slab where the trend does not close within one spacing)"}

@@ -144,3 +144,18 @@ def test_area_u_is_in_the_summary_and_covers_spheres(tmp_path):
         assert set(ua["budget"]) == {"slice_sampling", "cap_model", "contour_position", "pixel_size"}
         assert s["area_U_mm2"] == pytest.approx(2 * ua["u_mm2"]) and ua["area_mm2"] == s["area_mm2"]
         assert abs(s["area_mm2"] - ph.area_mm2) <= s["area_U_mm2"] < 0.5 * ph.area_mm2
+
+
+def test_short_runs_are_noted_with_the_range_one_outline_fits():
+    from slices.volume import single_plane_range, single_plane_volume, whole_volume
+
+    t = np.linspace(0, 2 * np.pi, 400, endpoint=False)
+    ring = 1.5 * np.column_stack([np.cos(t), np.sin(t)])
+    w = whole_volume([Contour(0.0, ring)], 3.0)
+    lo, hi = single_plane_range(np.pi * 2.25, 3.0)
+    assert lo == pytest.approx(4 / 3 * np.pi * 1.5**3) and hi > lo
+    assert lo < single_plane_volume(np.pi * 2.25, 3.0) < hi
+    assert len(w["notes"]) == 1 and "equator" in w["notes"][0]
+    two = whole_volume([Contour(0.0, ring), Contour(3.0, ring)], 3.0)
+    assert len(two["notes"]) == 1 and "sphere's curvature" in two["notes"][0]
+    assert whole_volume([Contour(float(z), ring) for z in range(4)], 1.0)["notes"] == []
