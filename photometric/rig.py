@@ -46,7 +46,8 @@ RIG_KEYS = {
          "reflectance"),
     "lights": ("positions_mm", "axes", "mu", "intensities"),
     "flat_field": ("gains", "albedo", "smoothing_px"),
-    "camera": ("model", "pixel_size_mm", "focal_length_px", "camera_height_mm", "principal_point_px"),
+    "camera": ("model", "pixel_size_mm", "focal_length_px", "focal_length_y_px", "camera_height_mm",
+               "principal_point_px", "distortion"),
 }
 
 

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
 import pytest
 
@@ -11,8 +9,7 @@ from datasets_synthetic.heightfields import v_crack
 from datasets_synthetic.render import render
 from photometric.lights import ring_lights
 from photometric.pipeline import reconstruct
-from photometric.resolution import ResolutionWarning, check_resolution, require_resolution
-from workbench.inspect.spec import check_spec_field, parse_spec
+from photometric.resolution import check_resolution
 
 
 def test_resolution_verdicts_follow_the_pixels_across():
@@ -38,24 +35,6 @@ def test_predicted_shortfall_matches_the_rendered_groove():
     rec = reconstruct(render(hf, L, albedo=0.8), lights=L, pixel_size=h).defects[0]
     measured = 1.0 - rec["max_depth_mm"] / 0.05
     assert measured == pytest.approx(check_resolution(0.3, h).depth_shortfall, abs=0.03)
-
-
-def test_spec_meets_the_rig():
-    """spec.json's min_width_mm is checked where the spec meets the rig's pixel: refused below two
-    pixels (one line naming the key), a warning where it reads shallow, silent where resolved."""
-    spec = parse_spec({"max_depth_mm": 0.08, "min_width_mm": 0.035})
-    with pytest.raises(ValueError, match="spec min_width_mm: .* 0.35 px across .* not resolved"):
-        check_spec_field(spec, (100, 100), 0.1)
-    with pytest.warns(ResolutionWarning, match="reads up to"):
-        check_spec_field(parse_spec({"max_depth_mm": 0.08, "min_width_mm": 0.3}), (100, 100), 0.05)
-    with warnings.catch_warnings():
-        warnings.simplefilter("error")
-        check_spec_field(parse_spec({"max_depth_mm": 0.08, "min_width_mm": 1.0}), (100, 100), 0.05)
-        check_spec_field(parse_spec({"max_depth_mm": 0.08}), (100, 100), 1.0)  # not stated: not checked
-    with pytest.raises(ValueError, match="min_width_mm: must be positive"):
-        parse_spec({"max_depth_mm": 0.08, "min_width_mm": 0})
-    assert require_resolution(1.0, 0.05).status == "ok"
-    assert np.isfinite(check_resolution(0.3, 0.05).depth_shortfall)
 
 
 def _line_cover(n: int, h: float, width: float, length: float, axis_deg: float, centre, sub: int = 8) -> np.ndarray:

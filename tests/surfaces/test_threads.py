@@ -66,13 +66,16 @@ def test_reconstruct_contours_builds_its_bodies_on_one_blas_thread(monkeypatch):
     import slices.structure as structure
 
     seen = []
-    build = structure.build_stepped
 
-    def spy(*args, **kwargs):
-        seen.append(_blas_threads())
-        return build(*args, **kwargs)
+    def spying(build):
+        def spy(*args, **kwargs):
+            seen.append(_blas_threads())
+            return build(*args, **kwargs)
+        return spy
 
-    monkeypatch.setattr(structure, "build_stepped", spy)
+    # a single chain is built once (build_body_once), other chains through the fallbacks (build_stepped)
+    for name in ("build_stepped", "build_body_once"):
+        monkeypatch.setattr(structure, name, spying(getattr(structure, name)))
     before = _blas_threads()
     t = np.linspace(0, 2 * np.pi, 32, endpoint=False)
     circle = 10 * np.stack([np.cos(t), np.sin(t)], axis=1)
