@@ -119,6 +119,12 @@ class PhotometricOptions:
         Input standard uncertainties and the method (:mod:`photometric.uncertainty`); a
         dict is turned into ``Tolerances`` and may use the ``u`` names of :data:`U_NAMES`
         (``light_u_deg`` for ``light_tolerance_deg``, ...). None: no uncertainty stage.
+    estimate_intensities : bool
+        Near field (point lights) only: estimate the relative LED intensities from the
+        images (semi-calibrated solve, :func:`photometric.nearfield.solve_nearfield`),
+        reported in ``summary.json`` (``intensities``). False: the given intensities, the
+        flat field's gains, or the stated assumption (equal irradiance ``e_k`` at the
+        field centre).
 
     Examples
     --------
@@ -146,6 +152,7 @@ class PhotometricOptions:
     surface_tolerance: float | None = None
     background: str = "plane"
     uncertainty: object = None
+    estimate_intensities: bool = False
 
     def __post_init__(self) -> None:
         from photometric.integrate import METHODS
@@ -156,7 +163,7 @@ class PhotometricOptions:
         _choice(self.light_model, "light_model", LIGHT_MODELS)
         _choice(self.surface, "surface", SURFACES)
         _choice(self.background, "background", BACKGROUNDS)
-        for name in ("outliers", "force"):
+        for name in ("outliers", "force", "estimate_intensities"):
             object.__setattr__(self, name, _flag(getattr(self, name), name))
         _check_options(self.dark, self.saturation, self.highlight, 2)
         object.__setattr__(self, "tolerance_mm", positive(self.tolerance_mm, "tolerance_mm"))

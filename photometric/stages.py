@@ -452,6 +452,7 @@ def _near_summary(near: LightSetup, res: NearFieldResult, tolerance_mm: float) -
         out["led_mu"] = near.lights.mu.tolist() if near.lights.mu_known else None
         out["flat_field"] = near.flat
         out["rig"] = near.rig
+        out["intensities"] = _intensity_summary(near, res)
     out.update({
         "iterations": res.iterations,
         "final_depth_change_mm": res.depth_change_mm,
@@ -461,6 +462,49 @@ def _near_summary(near: LightSetup, res: NearFieldResult, tolerance_mm: float) -
         "iteration_history": list(res.history),
     })
     return out
+
+
+#: Spread of the LEDs' distances to the field centre (``max d0^2 / min d0^2 - 1``) above which an
+#: assumed equal irradiance at the centre means LEDs of unequal radiant intensity, and a warning says so.
+D0_SPREAD = 0.01
+
+
+def _intensity_summary(near: LightSetup, res: NearFieldResult) -> dict:
+    """How the LED power entered the near-field solve (``summary["intensities"]``): ``source``
+    (``"flat field"``, ``"estimated"``, ``"given"`` or ``"assumed"``), the ``assumption`` when nothing
+    was measured or estimated, the ``e_k`` used and the radiant intensities they imply relative to LED 0."""
+    d0 = near.lights.d0
+    if near.gains is not None:
+        return {"source": "flat field", "note": "the flat-field gains measure each LED's power per pixel"}
+    if res.intensities is not None:
+        return {"source": "estimated", "method": "semi-calibrated alternation (Queau et al., JMIV 2018), "
+                "LED 0's intensity fixed", **res.intensities}
+    e = np.asarray(near.intensities, float).mean(axis=1)
+    out = {"source": "given", "relative": e.tolist(),
+           "radiant_relative": (e * d0**2 / (e[0] * d0[0] ** 2)).tolist()}
+    if np.allclose(e, e[0]):
+        out["source"] = "assumed"
+        out["assumption"] = ("equal irradiance e_k at the field centre (equal radiant intensity only when the "
+                             "LEDs stand equally far from it); estimate_intensities or a flat field measures it")
+    return out
+
+
+def _intensity_note(near: LightSetup | None, opts: PhotometricOptions) -> str | None:
+    """The warning of an assumed LED power in a rig whose LEDs stand at unequal distances from the field
+    centre (None when it does not apply)."""
+    if near is None or near.model != "point" or near.gains is not None or opts.estimate_intensities:
+        return None
+    e = np.asarray(near.intensities, float).mean(axis=1)
+    if not np.allclose(e, e[0]):
+        return None
+    d0 = near.lights.d0
+    spread = float((d0.max() / d0.min()) ** 2 - 1.0)
+    if spread <= D0_SPREAD:
+        return None
+    return (f"intensities: none given and no flat field: the solve assumes equal irradiance at the field centre; "
+            f"the LEDs stand {d0.min():.1f}-{d0.max():.1f} mm from it, so LEDs of equal radiant intensity would "
+            f"differ there by up to {100 * spread:.1f} % and bend a flat part; give the intensities, a flat field "
+            "or --estimate-intensities")
 
 
 def _nearfield(data: PhotometricData, near: LightSetup, opts: PhotometricOptions, base: dict, *, threads=None,
@@ -482,6 +526,7 @@ def _nearfield(data: PhotometricData, near: LightSetup, opts: PhotometricOptions
             data.images, near.lights, near.camera, near.intensities, data.mask, gains, opts.outliers, opts.dark,
             opts.saturation, opts.highlight, opts.integrator, ref, opts.tolerance_mm, opts.max_iterations,
             COARSE_PIXELS, threads, setup=setup, residual=residual,
+            estimate_intensities=opts.estimate_intensities,
         )
     except NotConvergedError as exc:
         summary = {**base, "light_model": near.model, "camera": near.camera.to_dict(data.images.shape[1:3]),
@@ -714,6 +759,12 @@ def solve(inp: PhotometricInput, options: PhotometricOptions | None = None, *,
     directions = data.lights if near is None or near.model == "directional" else near.lights.directions
     cond, light_notes = _light_matrix(directions, opts.force)  # the lights were checked by read
     notes += light_notes
+    if opts.estimate_intensities and (near is None or near.model != "point"):
+        raise InputError("estimate_intensities: needs point lights (LED positions from --light-positions, --rig "
+                         "or the folder)")
+    intensity_note = _intensity_note(near, opts)
+    if intensity_note is not None:
+        notes.append(intensity_note)
     for note in notes:
         warnings.warn(note, UserWarning, stacklevel=3)
     timings = {"screen": time.perf_counter() - t0}
