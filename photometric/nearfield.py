@@ -116,6 +116,14 @@ INTEGRATORS = ("dct", "fc", "lsq", "robust")
 INTENSITY_TOLERANCE = 1e-5
 #: Most rounds of that alternation.
 INTENSITY_ROUNDS = 200
+#: The semi-calibrated solve cannot tell a tilt of the whole part from a ramp of the LED powers across
+#: the ring of LEDs (exactly for distant lights, nearly for near ones: a plate solved from powers with a
+#: 2 deg ramp comes out tilted by 2 deg and bent by a few um). Each round therefore levels the part: the
+#: scales take the ramp that makes the mean slope of the valid pixels zero.
+LEVEL_PART = True
+#: That rule, as ``summary.json`` states it.
+LEVEL_RULE = ("the part's mean slope over the valid pixels is taken as level (the reference plane's): a tilt "
+              "of the whole part and a ramp of the LED powers across the LEDs are not told apart")
 
 
 class NotConvergedError(InputError):
@@ -672,11 +680,20 @@ def _estimate_intensities(level: _Level, state: dict, lights, camera, opts, inte
     change = np.inf
     rounds = 0
     fewest = 0
+    # the LED directions at the field centre: a ramp of the powers across them is what a tilt of the part
+    # trades for (the semi-calibrated problem's near-ambiguity), removed by levelling the part
+    to_led = lights.positions - np.array([0.0, 0.0, ref])
+    ramp = to_led[:, :2] / to_led[:, 2:3]
+    tilt = 0.0
     while rounds < INTENSITY_ROUNDS:
         f, fewest = _intensity_scales(level, lights, camera, state["z"], state["sol"], opts)
         if fewest < 3 or not np.all(np.isfinite(f)) or np.any(f <= 0):
             raise InputError("estimate_intensities: too few lit, valid pixels to estimate every LED's intensity "
                              f"(fewest {fewest}); give the intensities or a flat field")
+        if LEVEL_PART:
+            slope = _mean_slope(state["sol"])
+            tilt = float(np.degrees(np.arctan(np.hypot(*slope))))
+            f = f * np.maximum(1.0 + ramp @ slope, 1e-3)
         f = f / f[0]
         scale *= f
         rounds += 1
@@ -686,8 +703,21 @@ def _estimate_intensities(level: _Level, state: dict, lights, camera, opts, inte
                            timings, history)
         if change < INTENSITY_TOLERANCE:
             break
-    return state, scale, {"rounds": rounds, "final_change": change, "tolerance": INTENSITY_TOLERANCE,
-                          "converged": bool(change < INTENSITY_TOLERANCE), "pixels": int(fewest)}
+    record = {"rounds": rounds, "final_change": change, "tolerance": INTENSITY_TOLERANCE,
+              "converged": bool(change < INTENSITY_TOLERANCE), "pixels": int(fewest)}
+    if LEVEL_PART:
+        record.update(level=LEVEL_RULE, last_tilt_removed_deg=tilt)
+    return state, scale, record
+
+
+def _mean_slope(sol: dict) -> np.ndarray:
+    """Mean ``(n_x / n_z, n_y / n_z)`` of the valid pixels' normals (minus the part's overall slope):
+    a normal tilted by it reads ``1 + l_x n_x / (l_z n_z) + ...`` of a level one's shading."""
+    valid = sol["valid"] & (sol["normals"][2] > 0)
+    if not valid.any():
+        return np.zeros(2)
+    nz = sol["normals"][2][valid].astype(np.float64)
+    return np.array([float(np.mean(sol["normals"][0][valid] / nz)), float(np.mean(sol["normals"][1][valid] / nz))])
 
 
 def _z_dtype(camera: Camera):
