@@ -706,7 +706,7 @@ def _estimate_intensities(level: _Level, state: dict, lights, camera, opts, inte
     record = {"rounds": rounds, "final_change": change, "tolerance": INTENSITY_TOLERANCE,
               "converged": bool(change < INTENSITY_TOLERANCE), "pixels": int(fewest)}
     if LEVEL_PART:
-        record.update(level=LEVEL_RULE, last_tilt_removed_deg=tilt)
+        record.update(levelling=LEVEL_RULE, last_tilt_removed_deg=tilt)
     return state, scale, record
 
 

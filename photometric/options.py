@@ -31,9 +31,10 @@ TOLERANCE_MM = 1e-3
 #: Near-field passes per resolution.
 MAX_ITERATIONS = 30
 
-#: Surface methods: the least-squares fit (:func:`surfaces.fit.fit_height`) and the Coons
-#: interpolation of a decimated grid (:func:`photometric.integrate.height_to_patches`).
-SURFACES = ("fit", "coons")
+#: Surface methods: the least-squares fit (:func:`surfaces.fit.fit_height`), the Coons
+#: interpolation of a decimated grid (:func:`photometric.integrate.height_to_patches`), or none
+#: (a normals-and-height run: no patches, no mesh, no ``surface.ply``).
+SURFACES = ("fit", "coons", "none")
 #: ``light_model`` choices: from the input (point lights when LED positions are known), or forced.
 LIGHT_MODELS = ("auto", "point", "directional")
 #: Backgrounds removed before the defects are measured (:func:`photometric.defects.fit_background`).
@@ -99,11 +100,12 @@ class PhotometricOptions:
         :func:`photometric.nearfield.solve_nearfield`).
     max_iterations : int
         Near-field passes per resolution (at least 1).
-    surface : {"fit", "coons"}
+    surface : {"fit", "coons", "none"}
         ``"fit"``: bicubic patches fitted by least squares to the height and the slopes of
         every pixel, refined where they miss ``surface_tolerance``
         (:func:`surfaces.fit.fit_height`); ``"coons"``: Coons patches through the
-        decimated height (:func:`photometric.integrate.height_to_patches`).
+        decimated height (:func:`photometric.integrate.height_to_patches`); ``"none"``:
+        no surface model (normals, height and defects only).
     step : int or None
         Pixels per patch of the surface model: the largest patch side of the fit
         (default :func:`surfaces.fit.default_step`, about 64 patches across) or the
@@ -119,6 +121,10 @@ class PhotometricOptions:
         Input standard uncertainties and the method (:mod:`photometric.uncertainty`); a
         dict is turned into ``Tolerances`` and may use the ``u`` names of :data:`U_NAMES`
         (``light_u_deg`` for ``light_tolerance_deg``, ...). None: no uncertainty stage.
+    max_patches : int or None
+        Patch budget of the fit (``surfaces.fit.fit_height``'s ``max_patches``). None: without
+        a mask (every pixel solved) :func:`photometric.stages.patch_budget` of the image size,
+        with a mask no budget.
     estimate_intensities : bool
         Near field (point lights) only: estimate the relative LED intensities from the
         images (semi-calibrated solve, :func:`photometric.nearfield.solve_nearfield`),
@@ -153,6 +159,7 @@ class PhotometricOptions:
     background: str = "plane"
     uncertainty: object = None
     estimate_intensities: bool = False
+    max_patches: int | None = None
 
     def __post_init__(self) -> None:
         from photometric.integrate import METHODS
@@ -171,7 +178,7 @@ class PhotometricOptions:
         if not np.isfinite(float(self.reference_height_mm)):
             raise InputError(f"reference_height_mm: must be finite, got {self.reference_height_mm}")
         object.__setattr__(self, "reference_height_mm", float(self.reference_height_mm))
-        for name, what in (("step", "pixel"), ("samples", "subdivision")):
+        for name, what in (("step", "pixel"), ("samples", "subdivision"), ("max_patches", "patch")):
             if getattr(self, name) is not None:
                 object.__setattr__(self, name, _count(getattr(self, name), name, what))
         if self.surface_tolerance is not None:

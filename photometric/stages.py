@@ -60,7 +60,7 @@ from surfaces.mesh import TriangleMesh
 from surfaces.validate import InputError, as_array, positive
 
 __all__ = ["TARGET_PATCHES", "LightSetup", "PhotometricInput", "Solution", "Height", "Surface", "Defects",
-           "read", "solve", "integrate", "surface", "measure", "uncertainty", "summarize"]
+           "read", "solve", "integrate", "surface", "patch_budget", "measure", "uncertainty", "summarize"]
 
 #: Patches per image side aimed at when ``step`` is not given (Coons surface).
 TARGET_PATCHES = 64
@@ -198,10 +198,12 @@ class Surface:
 
     Attributes
     ----------
-    patches : surfaces.bezier.BezierPatches
-        The bicubic surface (the fit's :class:`surfaces.mixed.MixedPatches`, or the Coons grid).
-    mesh : surfaces.mesh.TriangleMesh
-        The tessellated surface trimmed to the fitted pixels (fit) or to the mask (coons), mm.
+    patches : surfaces.bezier.BezierPatches or None
+        The bicubic surface (the fit's :class:`surfaces.mixed.MixedPatches`, or the Coons grid);
+        None with ``surface="none"``.
+    mesh : surfaces.mesh.TriangleMesh or None
+        The tessellated surface trimmed to the fitted pixels (fit) or to the mask (coons), mm;
+        None with ``surface="none"``.
     step_px, samples : int
         Pixels per (largest) patch side, mesh subdivisions per patch side.
     info : dict
@@ -210,8 +212,8 @@ class Surface:
     seconds : float
     """
 
-    patches: BezierPatches
-    mesh: TriangleMesh
+    patches: BezierPatches | None
+    mesh: TriangleMesh | None
     step_px: int
     samples: int
     info: dict
@@ -534,13 +536,43 @@ def _nearfield(data: PhotometricData, near: LightSetup, opts: PhotometricOptions
         raise NotConvergedError(str(exc), summary) from None
 
 
-def _surface_step(method, height, p, q, valid, mask, h, step, samples, tolerance, xy=None):
+#: Default patch budget of the fit without a mask: one patch per this many pixels ...
+PIXELS_PER_PATCH = 256
+#: ... and never fewer than this many patches (small images keep their full refinement).
+MIN_PATCH_BUDGET = 1 << 14
+
+
+def patch_budget(shape) -> int:
+    """The fit's default patch budget for an image without a mask (:data:`PIXELS_PER_PATCH`,
+    :data:`MIN_PATCH_BUDGET`): a big capture's fit stays a few times the normal solve's time.
+
+    Parameters
+    ----------
+    shape : (H, W)
+        Image size, pixels.
+
+    Returns
+    -------
+    int
+
+    Examples
+    --------
+    >>> patch_budget((2040, 2720)), patch_budget((512, 512))
+    (21675, 16384)
+    """
+    return max(MIN_PATCH_BUDGET, int(shape[0]) * int(shape[1]) // PIXELS_PER_PATCH)
+
+
+def _surface_step(method, height, p, q, valid, mask, h, step, samples, tolerance, xy=None, max_patches=None):
     """The surface model, its mesh and their summary entries (the ``surface`` stage).
 
     ``xy`` (H, W, 2), mm: the points a perspective camera's pixels see; the fit then
-    places the surface at them instead of on the orthographic grid.
+    places the surface at them instead of on the orthographic grid. ``max_patches``: the
+    fit's budget (None: :func:`patch_budget` when ``mask`` covers the image, else none).
     """
     shape = height.shape
+    if method == "none":
+        return None, None, 0, 0, {"surface": "none", "n_patches": 0}
     if method == "coons":
         from photometric.integrate import height_to_patches
 
@@ -557,11 +589,14 @@ def _surface_step(method, height, p, q, valid, mask, h, step, samples, tolerance
 
         # the mesh needs only the patches and the fitted region: no per-pixel surface or
         # deviation map is kept (16 bytes per pixel for float32 heights)
+        budget = max_patches if max_patches is not None else (patch_budget(shape) if mask.all() else None)
         fit = fit_height(height, p, q, mask=valid, pixel_size=h, tolerance=tolerance,
-                         step=step if step is not None else default_step(shape), xy=xy, keep_pixels=False)
+                         step=step if step is not None else default_step(shape), xy=xy, keep_pixels=False,
+                         max_patches=budget)
         step_px = fit.step
         n_samples = int(samples) if samples is not None else min(step_px, 8)
         info = {"surface": "fit", "surface_tolerance_mm": fit.tolerance,
+                "surface_max_patches": fit.max_patches, "surface_budget_reached": fit.budget_reached,
                 "surface_patch_sizes_px": {str(k): v for k, v in fit.patch_sizes().items()},
                 "surface_max_dev_mm": fit.max_deviation, "surface_rms_dev_mm": fit.rms_deviation}
         mesh = fit_mesh(fit, spacing=step_px / n_samples)
@@ -860,7 +895,7 @@ def surface(inp: PhotometricInput, sol: Solution, height: Height,
     fit = sol.fit
     patches, mesh, step_px, n_samples, info = _surface_step(
         opts.surface, height.height, fit.p, fit.q, fit.valid, sol.data.mask, inp.pixel_size_mm, opts.step,
-        opts.samples, opts.surface_tolerance, xy=None if inp.orthographic else fit.xy)
+        opts.samples, opts.surface_tolerance, xy=None if inp.orthographic else fit.xy, max_patches=opts.max_patches)
     return Surface(patches, mesh, step_px, n_samples, info, time.perf_counter() - t0)
 
 
@@ -981,7 +1016,9 @@ def summarize(inp: PhotometricInput, sol: Solution, height: Height, defects: Def
         "mean_residual": sol.mean_residual,
         "height_range_mm": float(np.nanmax(z) - np.nanmin(z)) if fit.valid.any() else 0.0,
     }
-    if surf is not None:
+    if surf is not None and surf.patches is None:
+        summary.update(surf.info)
+    elif surf is not None:
         summary.update({
             "patches": list(surf.patches.shape),
             "patch_step_px": surf.step_px,
