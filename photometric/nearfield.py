@@ -86,6 +86,7 @@ __all__ = [
     "solve_nearfield",
     "INTENSITY_TOLERANCE",
     "INTENSITY_ROUNDS",
+    "LEVEL_RULE",
 ]
 
 #: Default convergence tolerance: largest height change of a pixel between passes, mm.
@@ -191,8 +192,10 @@ class NearFieldResult:
         With ``estimate_intensities``: the estimated ``e_k`` (``relative``, LED 0 fixed at
         its given value), the radiant intensities they imply relative to LED 0
         (``radiant_relative``, ``e_k d0_k^2 / (e_0 d0_0^2)``), ``rounds`` of the
-        estimation, its last largest relative change ``final_change``, ``pixels`` used and
-        ``level`` (where it ran); None otherwise.
+        estimation, its last largest relative change ``final_change``, ``tolerance``,
+        ``converged``, the fewest ``pixels`` an LED's scale used, ``levelling``
+        (:data:`LEVEL_RULE`) with ``last_tilt_removed_deg``, and ``level`` ("coarse" or
+        "full") with ``block_px``, where it ran; None otherwise.
     """
 
     normals: np.ndarray
