@@ -98,7 +98,7 @@ def power(size: int) -> list:
             err = "-"
             if est["source"] == "estimated":
                 rel = np.asarray(est["relative"])
-                err = f"{100 * np.max(np.abs(rel / rel[0] / (e / e[0]) - 1.0)):.2f}"
+                err = f"{100 * np.max(np.abs(rel / rel[0] / (e / e[0]) - 1.0)):.3f}"
             if res.defects:
                 d = res.defects[0]
                 depth = f"{d['max_depth_mm']:.4f}"

@@ -580,7 +580,8 @@ def _solve_nearfield(
             z = state["z"]
         state = _alternate(fine, *args, z, pool, timings, history, correction_step)
     if estimate is not None:
-        e = intens.mean(axis=1) * scale
+        # with a flat field the gains hold the power: the scales are relative to them
+        e = (np.ones(n_img) if flat else intens.mean(axis=1)) * scale
         d0 = lights.d0
         estimate.update(relative=e.tolist(), radiant_relative=(e * d0**2 / (e[0] * d0[0] ** 2)).tolist(),
                         level="coarse" if r > 1 else "full", block_px=r)

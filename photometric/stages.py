@@ -476,11 +476,14 @@ def _intensity_summary(near: LightSetup, res: NearFieldResult) -> dict:
     (``"flat field"``, ``"estimated"``, ``"given"`` or ``"assumed"``), the ``assumption`` when nothing
     was measured or estimated, the ``e_k`` used and the radiant intensities they imply relative to LED 0."""
     d0 = near.lights.d0
+    if res.intensities is not None:
+        out = {"source": "estimated", "method": "semi-calibrated alternation (Queau et al., JMIV 2018), "
+               "LED 0's intensity fixed", **res.intensities}
+        if near.gains is not None:
+            out["note"] = "scales on top of the flat-field gains"
+        return out
     if near.gains is not None:
         return {"source": "flat field", "note": "the flat-field gains measure each LED's power per pixel"}
-    if res.intensities is not None:
-        return {"source": "estimated", "method": "semi-calibrated alternation (Queau et al., JMIV 2018), "
-                "LED 0's intensity fixed", **res.intensities}
     e = np.asarray(near.intensities, float).mean(axis=1)
     out = {"source": "given", "relative": e.tolist(),
            "radiant_relative": (e * d0**2 / (e[0] * d0[0] ** 2)).tolist()}
