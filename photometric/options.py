@@ -31,10 +31,9 @@ TOLERANCE_MM = 1e-3
 #: Near-field passes per resolution.
 MAX_ITERATIONS = 30
 
-#: Surface methods: the least-squares fit (:func:`surfaces.fit.fit_height`), the Coons
-#: interpolation of a decimated grid (:func:`photometric.integrate.height_to_patches`), or none
-#: (a normals-and-height run: no patches, no mesh, no ``surface.ply``).
-SURFACES = ("fit", "coons", "none")
+#: Surface methods: the least-squares fit (:func:`surfaces.fit.fit_height`) and the Coons
+#: interpolation of a decimated grid (:func:`photometric.integrate.height_to_patches`).
+SURFACES = ("fit", "coons")
 #: ``light_model`` choices: from the input (point lights when LED positions are known), or forced.
 LIGHT_MODELS = ("auto", "point", "directional")
 #: Backgrounds removed before the defects are measured (:func:`photometric.defects.fit_background`).
@@ -100,12 +99,11 @@ class PhotometricOptions:
         :func:`photometric.nearfield.solve_nearfield`).
     max_iterations : int
         Near-field passes per resolution (at least 1).
-    surface : {"fit", "coons", "none"}
+    surface : {"fit", "coons"}
         ``"fit"``: bicubic patches fitted by least squares to the height and the slopes of
         every pixel, refined where they miss ``surface_tolerance``
         (:func:`surfaces.fit.fit_height`); ``"coons"``: Coons patches through the
-        decimated height (:func:`photometric.integrate.height_to_patches`); ``"none"``:
-        no surface model (normals, height and defects only).
+        decimated height (:func:`photometric.integrate.height_to_patches`).
     step : int or None
         Pixels per patch of the surface model: the largest patch side of the fit
         (default :func:`surfaces.fit.default_step`, about 64 patches across) or the

@@ -52,8 +52,7 @@ class PhotometricReconstruction:
         The bicubic surface: patches of mixed sizes fitted to the height and slopes
         (:class:`surfaces.mixed.MixedPatches` from :func:`surfaces.fit.fit_height`,
         ``surface="fit"``) or the Coons grid through the height
-        (:func:`photometric.integrate.height_to_patches`, ``surface="coons"``); None with
-        ``surface="none"`` (a normals-and-height run; ``mesh`` is None too).
+        (:func:`photometric.integrate.height_to_patches`, ``surface="coons"``).
     mesh : surfaces.mesh.TriangleMesh
         The tessellated surface, trimmed to the fitted pixels along their sub-pixel outline
         (fit) or to the mask by triangle centroids (coons); coordinates in mm on the
@@ -91,8 +90,8 @@ class PhotometricReconstruction:
     valid: np.ndarray
     mask: np.ndarray
     height: np.ndarray
-    patches: BezierPatches | None
-    mesh: TriangleMesh | None
+    patches: BezierPatches
+    mesh: TriangleMesh
     defects: list
     background: str
     summary: dict

@@ -198,12 +198,10 @@ class Surface:
 
     Attributes
     ----------
-    patches : surfaces.bezier.BezierPatches or None
-        The bicubic surface (the fit's :class:`surfaces.mixed.MixedPatches`, or the Coons grid);
-        None with ``surface="none"``.
-    mesh : surfaces.mesh.TriangleMesh or None
-        The tessellated surface trimmed to the fitted pixels (fit) or to the mask (coons), mm;
-        None with ``surface="none"``.
+    patches : surfaces.bezier.BezierPatches
+        The bicubic surface (the fit's :class:`surfaces.mixed.MixedPatches`, or the Coons grid).
+    mesh : surfaces.mesh.TriangleMesh
+        The tessellated surface trimmed to the fitted pixels (fit) or to the mask (coons), mm.
     step_px, samples : int
         Pixels per (largest) patch side, mesh subdivisions per patch side.
     info : dict
@@ -212,8 +210,8 @@ class Surface:
     seconds : float
     """
 
-    patches: BezierPatches | None
-    mesh: TriangleMesh | None
+    patches: BezierPatches
+    mesh: TriangleMesh
     step_px: int
     samples: int
     info: dict
@@ -574,8 +572,6 @@ def _surface_step(method, height, p, q, valid, mask, h, step, samples, tolerance
     fit's budget (None: :func:`patch_budget` when ``mask`` covers the image, else none).
     """
     shape = height.shape
-    if method == "none":
-        return None, None, 0, 0, {"surface": "none", "n_patches": 0}
     if method == "coons":
         from photometric.integrate import height_to_patches
 
@@ -1019,9 +1015,7 @@ def summarize(inp: PhotometricInput, sol: Solution, height: Height, defects: Def
         "mean_residual": sol.mean_residual,
         "height_range_mm": float(np.nanmax(z) - np.nanmin(z)) if fit.valid.any() else 0.0,
     }
-    if surf is not None and surf.patches is None:
-        summary.update(surf.info)
-    elif surf is not None:
+    if surf is not None:
         summary.update({
             "patches": list(surf.patches.shape),
             "patch_step_px": surf.step_px,

@@ -225,9 +225,8 @@ def register(sub) -> None:
                    "prediction by more than HIGHLIGHT x albedo (default off)")
     p.add_argument("--surface", default=DEFAULTS.surface, choices=SURFACES,
                    help="surface model: fit (bicubic patches fitted by least squares to the height and "
-                   "the slopes of every pixel, smaller where they miss --surface-tolerance; default), "
-                   "coons (Coons patches through every STEP-th height, tangents from single pixels) or none "
-                   "(normals, height and defects only: no patches, no surface.ply)")
+                   "the slopes of every pixel, smaller where they miss --surface-tolerance; default) or "
+                   "coons (Coons patches through every STEP-th height, tangents from single pixels)")
     p.add_argument("--max-patches", type=int, default=None, metavar="N",
                    help="fit: patch budget; the worst cells are refined first and the refinement stops at the "
                    "budget (summary.json surface_budget_reached). Default: one patch per 256 pixels (at least "
@@ -451,18 +450,12 @@ def _reconstruct(args: argparse.Namespace) -> int:
     unit = "px" if summary["pixel_size_source"].startswith("default") else "mm"
     if "height_rmse_mm" in summary:
         print(_height_rmse_line(summary, args, unit))
-    if summary["surface"] == "none":
-        print(f"height range {summary['height_range_mm']:.4g} {unit} ({summary['integrator']}), no surface model "
-              f"(--surface none), {summary['n_defects']} defect(s)")
-    else:
-        budget = (f", patch budget {summary['surface_max_patches']} reached"
-                  if summary.get("surface_budget_reached") else "")
-        print(
-            f"height range {summary['height_range_mm']:.4g} {unit} ({summary['integrator']}), "
-            f"{summary['n_patches']} patches ({summary['surface']}, surface within "
-            f"{summary['surface_max_dev_mm']:.3g} {unit} of the height{budget}), "
-            f"{summary['mesh']['triangles']} triangles, {summary['n_defects']} defect(s)"
-        )
+    print(
+        f"height range {summary['height_range_mm']:.4g} {unit} ({summary['integrator']}), "
+        f"{summary['n_patches']} patches ({summary['surface']}, surface within "
+        f"{summary['surface_max_dev_mm']:.3g} {unit} of the height), "
+        f"{summary['mesh']['triangles']} triangles, {summary['n_defects']} defect(s)"
+    )
     if "uncertainty" in summary:
         unc = summary["uncertainty"]
         print(f"uncertainty ({unc['method']}, k = 2): noise sigma {unc['noise_sigma']:.3g} "

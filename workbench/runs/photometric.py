@@ -104,8 +104,7 @@ def write_result(result: PhotometricReconstruction, out_dir) -> dict:
         raise NotADirectoryError(f"out_dir: {out} exists and is not a folder")
     out.mkdir(parents=True, exist_ok=True)
     pixel = result.summary["pixel_size_mm"]
-    if result.mesh is not None:  # surface="none": a normals-and-height run
-        write_mesh(result.mesh, out / "surface.ply")
+    write_mesh(result.mesh, out / "surface.ply")
     streamed = result.normals is None
     if streamed and not ((out / "normals.npy").is_file() and (out / "albedo.npy").is_file()):
         raise FileNotFoundError(f"out_dir: the result carries no normals and albedo, and {out} has no "
@@ -122,8 +121,6 @@ def write_result(result: PhotometricReconstruction, out_dir) -> dict:
     _write_previews(result, out)
     defects = result.defects
     files = list(FILES if result.xy is None else NEARFIELD_FILES)
-    if result.mesh is None:
-        files.remove("surface.ply")
     if result.uncertainty is not None:
         defects = _write_uncertainty(result.uncertainty, defects, pixel, out)
         files += UNCERTAINTY_FILES
