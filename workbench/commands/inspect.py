@@ -189,7 +189,8 @@ def _calibrate_intensities(args: argparse.Namespace) -> int:
     camera = None
     if any(v is not None for v in (*opts.values(), args.pixel_size)):
         model = opts["camera"] or ("perspective" if args.focal_length_px or args.camera_height else "orthographic")
-        camera = make_camera(model, pixel_size_mm=args.pixel_size, focal_length_px=args.focal_length_px,
+        # the parsed focal length (as photometric calibrate builds its camera)
+        camera = make_camera(model, pixel_size_mm=args.pixel_size, focal_length_px=opts["focal_length_px"],
                              camera_height_mm=args.camera_height, principal_point_px=opts["principal_point_px"])
     images = read_images(list(args.intensity_images))
     mu = None if args.led_mu is None else _numbers(args.led_mu, "--led-mu")
