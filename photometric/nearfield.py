@@ -84,6 +84,9 @@ __all__ = [
     "NotConvergedError",
     "nearfield_setup",
     "solve_nearfield",
+    "INTENSITY_TOLERANCE",
+    "INTENSITY_ROUNDS",
+    "LEVEL_RULE",
 ]
 
 #: Default convergence tolerance: largest height change of a pixel between passes, mm.
@@ -109,6 +112,19 @@ CORRECTION_MARGIN = 0.1
 #: The anchoring rule, as stated in ``summary.json``.
 ANCHOR_RULE = "median height of the valid pixels = reference_height_mm"
 INTEGRATORS = ("dct", "fc", "lsq", "robust")
+#: Semi-calibrated solve (``estimate_intensities``): stop when no LED's intensity changes by more than this
+#: fraction in a round of the alternation between the normals/albedo and the per-LED scales.
+INTENSITY_TOLERANCE = 1e-5
+#: Most rounds of that alternation.
+INTENSITY_ROUNDS = 200
+#: The semi-calibrated solve cannot tell a tilt of the whole part from a ramp of the LED powers across
+#: the ring of LEDs (exactly for distant lights, nearly for near ones: a plate solved from powers with a
+#: 2 deg ramp comes out tilted by 2 deg and bent by a few um). Each round therefore levels the part: the
+#: scales take the ramp that makes the mean slope of the valid pixels zero.
+LEVEL_PART = True
+#: That rule, as ``summary.json`` states it.
+LEVEL_RULE = ("the part's mean slope over the valid pixels is taken as level (the reference plane's): a tilt "
+              "of the whole part and a ramp of the LED powers across the LEDs are not told apart")
 
 
 class NotConvergedError(InputError):
@@ -172,6 +188,14 @@ class NearFieldResult:
     timings_s : dict
         ``solve`` (light vectors and normals) and ``integrate`` (integration and
         anchoring), s.
+    intensities : dict or None
+        With ``estimate_intensities``: the estimated ``e_k`` (``relative``, LED 0 fixed at
+        its given value), the radiant intensities they imply relative to LED 0
+        (``radiant_relative``, ``e_k d0_k^2 / (e_0 d0_0^2)``), ``rounds`` of the
+        estimation, its last largest relative change ``final_change``, ``tolerance``,
+        ``converged``, the fewest ``pixels`` an LED's scale used, ``levelling``
+        (:data:`LEVEL_RULE`) with ``last_tilt_removed_deg``, and ``level`` ("coarse" or
+        "full") with ``block_px``, where it ran; None otherwise.
     """
 
     normals: np.ndarray
@@ -189,6 +213,7 @@ class NearFieldResult:
     history: tuple = ()
     anchor: dict = field(default_factory=dict)
     timings_s: dict = field(default_factory=dict)
+    intensities: dict | None = None
 
 
 @dataclass
@@ -346,6 +371,7 @@ def solve_nearfield(
     setup: NearFieldSetup | None = None,
     correction_step: int = CORRECTION_STEP,
     residual: bool = True,
+    estimate_intensities: bool = False,
 ) -> NearFieldResult:
     """Normals, albedo and the surface from images under point lights (or distant ones).
 
@@ -397,6 +423,13 @@ def solve_nearfield(
     residual : bool, optional
         Compute :attr:`NearFieldResult.residual` (False: it is None; a caller that does not
         use it, such as an inspection, saves about a tenth of the normal solves).
+    estimate_intensities : bool, optional
+        Semi-calibrated solve (Queau et al. 2018): the relative LED intensities are
+        estimated from the images, alternating the normals/albedo solve (with its height
+        passes) with a least-squares fit of one scale per LED over the valid, lit,
+        unsaturated pixels, LED 0's scale fixed (``intensities``, when given, are the start
+        and LED 0 keeps its value); on the coarse copy of the images when there is one.
+        Point lights only. The estimate is :attr:`NearFieldResult.intensities`.
 
     Returns
     -------
@@ -436,6 +469,8 @@ def solve_nearfield(
             raise InputError(f"lights: {lights.shape[0]} directions for {n_img} images")
         if gains is not None:
             raise InputError("gains: a flat field needs point lights (LED positions)")
+        if estimate_intensities:
+            raise InputError("estimate_intensities: needs point lights (LED positions), not distant lights")
     intens = as_intensities(intensities, n_img)
     m = None if mask is None else as_array(mask, "mask", shape=(height, width), dtype=bool)
     if m is not None and not m.any():
@@ -468,6 +503,7 @@ def solve_nearfield(
         imgs, lights, camera, intens, m, g, outliers, dark, saturation, highlight, integrator, ref,
         float(tolerance_mm), int(max_iterations), int(coarse_pixels), threads, setup=setup,
         correction_step=int(correction_step), residual=bool(residual),
+        estimate_intensities=bool(estimate_intensities),
     )
 
 
@@ -492,9 +528,12 @@ def _solve_nearfield(
     setup: NearFieldSetup | None = None,
     correction_step: int = CORRECTION_STEP,
     residual: bool = True,
+    estimate_intensities: bool = False,
 ) -> NearFieldResult:
     """:func:`solve_nearfield` on checked input (the pipeline calls this)."""
     if not isinstance(lights, PointLights):
+        if estimate_intensities:
+            raise InputError("estimate_intensities: needs point lights (LED positions), not distant lights")
         res = _directional(imgs, lights, camera, intens, mask, outliers, dark, saturation, highlight,
                            integrator, reference_height_mm)
         return res if residual else replace(res, residual=None)
@@ -526,12 +565,26 @@ def _solve_nearfield(
     z = np.full(shape, reference_height_mm, zt)
     r = _coarse_step(shape, coarse_pixels)
     args = (lights, camera, opts, integrator, reference_height_mm, tolerance_mm, max_iterations)
+    estimate = None
     with ThreadPoolExecutor(max_workers=max(1, int(workers))) as pool:
         if r > 1:
             coarse = _coarsen(fine, r, None if setup is None else setup.coarse.get(r))
             state = _alternate(coarse, *args, np.full(coarse.shape, reference_height_mm, zt), pool, timings, history)
+            if estimate_intensities:
+                state, scale, estimate = _estimate_intensities(coarse, state, *args, pool, timings, history)
+                _rescale(fine, scale)
             z = _upsample(state["z"], r, shape)
+        elif estimate_intensities:
+            state = _alternate(fine, *args, z, pool, timings, history)
+            state, scale, estimate = _estimate_intensities(fine, state, *args, pool, timings, history)
+            z = state["z"]
         state = _alternate(fine, *args, z, pool, timings, history, correction_step)
+    if estimate is not None:
+        # with a flat field the gains hold the power: the scales are relative to them
+        e = (np.ones(n_img) if flat else intens.mean(axis=1)) * scale
+        d0 = lights.d0
+        estimate.update(relative=e.tolist(), radiant_relative=(e * d0**2 / (e[0] * d0[0] ** 2)).tolist(),
+                        level="coarse" if r > 1 else "full", block_px=r)
     sol, z = state["sol"], state["z"]
     valid = sol["valid"]
     normals = cv2.merge(list(sol["normals"]))
@@ -562,7 +615,113 @@ def _solve_nearfield(
         history=tuple(history),
         anchor={"rule": ANCHOR_RULE, "reference_height_mm": reference_height_mm},
         timings_s=timings,
+        intensities=estimate,
     )
+
+
+def _points(level: _Level, camera: Camera, z: np.ndarray):
+    """``x, y, z`` (float32 planes, mm) of the points a level's pixels see at heights ``z``."""
+    f32 = np.float32
+    zz = z.astype(f32)
+    x = np.broadcast_to(level.u[None, :], zz.shape).astype(f32)
+    y = np.broadcast_to(level.v[:, None], zz.shape).astype(f32)
+    if isinstance(camera, Perspective):
+        scale = (f32(camera.camera_height_mm) - zz) * f32(1.0 / camera.focal_length_px)
+        x, y = x * scale, y * scale
+    return x, y, zz
+
+
+def _intensity_scales(level: _Level, lights: PointLights, camera: Camera, z: np.ndarray, sol: dict,
+                      opts: _Options) -> tuple[np.ndarray, int]:
+    """Per LED the least-squares scale ``f_k = sum x_k m_k / sum m_k^2`` of the level's observations
+    ``x_k`` over the model ``m_k = rho max(0, s_k . n)`` of the solved normals and albedo, over the valid
+    pixels that LED lights well (``m_k > dark rho |s_k|``) and does not saturate. Returns the scales
+    (float64, (N,)) and the fewest pixels any LED's scale used."""
+    x, y, zz = _points(level, camera, z)
+    valid = sol["valid"]
+    rho = sol["rho"][valid]
+    nrm = [c[valid] for c in sol["normals"]]
+    x, y, zz = x[valid], y[valid], zz[valid]
+    out = np.ones(len(lights))
+    fewest = valid.size
+    for k in range(len(lights)):
+        strength = level.strength[k]
+        if np.ndim(strength):
+            strength = strength[valid]
+        sx, sy, sz = _scaled_vectors(lights.positions[k], lights.axes[k], float(lights.mu[k]), strength, x, y, zz,
+                                     lobe=opts.lobe)
+        shade = sx * nrm[0] + sy * nrm[1] + sz * nrm[2]
+        e = np.sqrt(sx * sx + sy * sy + sz * sz)
+        use = shade > np.float32(opts.dark) * e
+        if level.saturated is not None:
+            use &= ~level.saturated[k][valid]
+        model = (rho * shade)[use].astype(np.float64)
+        obs = level.planes[k][valid][use].astype(np.float64)
+        fewest = min(fewest, int(use.sum()))
+        den = float(model @ model)
+        if den > 0:
+            out[k] = float(obs @ model) / den
+    return out, fewest
+
+
+def _rescale(level: _Level, scale: np.ndarray, base: tuple | None = None) -> None:
+    """Divide a level's observations (``base``: its planes and colour before any scale, default its
+    own) by per-LED scales (new arrays: the level's planes may be the caller's images)."""
+    planes, colour = (level.planes, level.colour) if base is None else base
+    level.planes = np.stack([planes[k] / np.float32(scale[k]) for k in range(len(scale))])
+    if colour is not None:
+        level.colour = colour / scale[:, None, None, None].astype(np.float32)
+
+
+def _estimate_intensities(level: _Level, state: dict, lights, camera, opts, integrator, ref, tol, max_iterations,
+                          pool, timings, history) -> tuple[dict, np.ndarray, dict]:
+    """The semi-calibrated alternation on one level (Queau et al. 2018): from a converged ``state``, fit
+    one scale per LED (:func:`_intensity_scales`, LED 0 fixed), divide the observations by it and run
+    the normal/height passes again, until no scale changes by :data:`INTENSITY_TOLERANCE`. Returns the
+    last state, the scales (N,) and the estimation's record."""
+    base = (level.planes, level.colour)
+    scale = np.ones(len(lights))
+    change = np.inf
+    rounds = 0
+    fewest = 0
+    # the LED directions at the field centre: a ramp of the powers across them is what a tilt of the part
+    # trades for (the semi-calibrated problem's near-ambiguity), removed by levelling the part
+    to_led = lights.positions - np.array([0.0, 0.0, ref])
+    ramp = to_led[:, :2] / to_led[:, 2:3]
+    tilt = 0.0
+    while rounds < INTENSITY_ROUNDS:
+        f, fewest = _intensity_scales(level, lights, camera, state["z"], state["sol"], opts)
+        if fewest < 3 or not np.all(np.isfinite(f)) or np.any(f <= 0):
+            raise InputError("estimate_intensities: too few lit, valid pixels to estimate every LED's intensity "
+                             f"(fewest {fewest}); give the intensities or a flat field")
+        if LEVEL_PART:
+            slope = _mean_slope(state["sol"])
+            tilt = float(np.degrees(np.arctan(np.hypot(*slope))))
+            f = f * np.maximum(1.0 + ramp @ slope, 1e-3)
+        f = f / f[0]
+        scale *= f
+        rounds += 1
+        change = float(np.max(np.abs(f - 1.0)))
+        _rescale(level, scale, base)
+        state = _alternate(level, lights, camera, opts, integrator, ref, tol, max_iterations, state["z"], pool,
+                           timings, history)
+        if change < INTENSITY_TOLERANCE:
+            break
+    record = {"rounds": rounds, "final_change": change, "tolerance": INTENSITY_TOLERANCE,
+              "converged": bool(change < INTENSITY_TOLERANCE), "pixels": int(fewest)}
+    if LEVEL_PART:
+        record.update(levelling=LEVEL_RULE, last_tilt_removed_deg=tilt)
+    return state, scale, record
+
+
+def _mean_slope(sol: dict) -> np.ndarray:
+    """Mean ``(n_x / n_z, n_y / n_z)`` of the valid pixels' normals (minus the part's overall slope):
+    a normal tilted by it reads ``1 + l_x n_x / (l_z n_z) + ...`` of a level one's shading."""
+    valid = sol["valid"] & (sol["normals"][2] > 0)
+    if not valid.any():
+        return np.zeros(2)
+    nz = sol["normals"][2][valid].astype(np.float64)
+    return np.array([float(np.mean(sol["normals"][0][valid] / nz)), float(np.mean(sol["normals"][1][valid] / nz))])
 
 
 def _z_dtype(camera: Camera):

@@ -150,6 +150,16 @@ class PhotometricOptions:
     gloss_weight : float or None
         Lobe weight ``c`` (>= 0, :func:`photometric.glossy.lobe_weight` on a reference
         part); default: the rig's.
+    max_patches : int or None
+        Patch budget of the fit (``surfaces.fit.fit_height``'s ``max_patches``). None: without
+        a mask (every pixel solved) :func:`photometric.stages.patch_budget` of the image size,
+        with a mask no budget.
+    estimate_intensities : bool
+        Near field (point lights) only: estimate the relative LED intensities from the
+        images (semi-calibrated solve, :func:`photometric.nearfield.solve_nearfield`),
+        reported in ``summary.json`` (``intensities``). False: the given intensities, the
+        flat field's gains, or the stated assumption (equal irradiance ``e_k`` at the
+        field centre).
 
     Examples
     --------
@@ -183,6 +193,8 @@ class PhotometricOptions:
     reflectance: str | None = None
     gloss_alpha: float | None = None
     gloss_weight: float | None = None
+    estimate_intensities: bool = False
+    max_patches: int | None = None
 
     def __post_init__(self) -> None:
         from photometric.integrate import METHODS
@@ -202,7 +214,7 @@ class PhotometricOptions:
             object.__setattr__(self, "gloss_alpha", a)
         if self.gloss_weight is not None:
             object.__setattr__(self, "gloss_weight", positive(self.gloss_weight, "gloss_weight", allow_zero=True))
-        for name in ("outliers", "force"):
+        for name in ("outliers", "force", "estimate_intensities"):
             if name == "outliers" and self.outliers is None:
                 continue
             object.__setattr__(self, name, _flag(getattr(self, name), name))
@@ -212,7 +224,7 @@ class PhotometricOptions:
         if not np.isfinite(float(self.reference_height_mm)):
             raise InputError(f"reference_height_mm: must be finite, got {self.reference_height_mm}")
         object.__setattr__(self, "reference_height_mm", float(self.reference_height_mm))
-        for name, what in (("step", "pixel"), ("samples", "subdivision")):
+        for name, what in (("step", "pixel"), ("samples", "subdivision"), ("max_patches", "patch")):
             if getattr(self, name) is not None:
                 object.__setattr__(self, name, _count(getattr(self, name), name, what))
         if self.surface_tolerance is not None:

@@ -61,7 +61,8 @@ from surfaces.mesh import TriangleMesh
 from surfaces.validate import InputError, as_array, positive
 
 __all__ = ["TARGET_PATCHES", "LightSetup", "PhotometricInput", "Solution", "Height", "Surface", "Defects",
-           "read", "solve", "integrate", "surface", "measure", "uncertainty", "quality", "summarize"]
+           "read", "solve", "integrate", "surface", "patch_budget", "measure", "uncertainty", "quality",
+           "summarize"]
 
 #: Patches per image side aimed at when ``step`` is not given (Coons surface).
 TARGET_PATCHES = 64
@@ -480,6 +481,7 @@ def _near_summary(near: LightSetup, res: NearFieldResult, tolerance_mm: float) -
         out["led_mu"] = near.lights.mu.tolist() if near.lights.mu_known else None
         out["flat_field"] = near.flat
         out["rig"] = near.rig
+        out["intensities"] = _intensity_summary(near, res)
     out.update({
         "iterations": res.iterations,
         "final_depth_change_mm": res.depth_change_mm,
@@ -489,6 +491,52 @@ def _near_summary(near: LightSetup, res: NearFieldResult, tolerance_mm: float) -
         "iteration_history": list(res.history),
     })
     return out
+
+
+#: Spread of the LEDs' distances to the field centre (``max d0^2 / min d0^2 - 1``) above which an
+#: assumed equal irradiance at the centre means LEDs of unequal radiant intensity, and a warning says so.
+D0_SPREAD = 0.01
+
+
+def _intensity_summary(near: LightSetup, res: NearFieldResult) -> dict:
+    """How the LED power entered the near-field solve (``summary["intensities"]``): ``source``
+    (``"flat field"``, ``"estimated"``, ``"given"`` or ``"assumed"``), the ``assumption`` when nothing
+    was measured or estimated, the ``e_k`` used and the radiant intensities they imply relative to LED 0."""
+    d0 = near.lights.d0
+    if res.intensities is not None:
+        out = {"source": "estimated", "method": "semi-calibrated alternation (Queau et al., JMIV 2018), "
+               "LED 0's intensity fixed", **res.intensities}
+        if near.gains is not None:
+            out["note"] = "scales on top of the flat-field gains"
+        return out
+    if near.gains is not None:
+        return {"source": "flat field", "note": "the flat-field gains measure each LED's power per pixel"}
+    e = np.asarray(near.intensities, float).mean(axis=1)
+    out = {"source": "given", "relative": e.tolist(),
+           "radiant_relative": (e * d0**2 / (e[0] * d0[0] ** 2)).tolist()}
+    if np.allclose(e, e[0]):
+        out["source"] = "assumed"
+        out["assumption"] = ("equal irradiance e_k at the field centre (equal radiant intensity only when the "
+                             "LEDs stand equally far from it); estimate_intensities or a flat field measures it")
+    return out
+
+
+def _intensity_note(near: LightSetup | None, opts: PhotometricOptions) -> str | None:
+    """The warning of an assumed LED power in a rig whose LEDs stand at unequal distances from the field
+    centre (None when it does not apply)."""
+    if near is None or near.model != "point" or near.gains is not None or opts.estimate_intensities:
+        return None
+    e = np.asarray(near.intensities, float).mean(axis=1)
+    if not np.allclose(e, e[0]):
+        return None
+    d0 = near.lights.d0
+    spread = float((d0.max() / d0.min()) ** 2 - 1.0)
+    if spread <= D0_SPREAD:
+        return None
+    return (f"intensities: none given and no flat field: the solve assumes equal irradiance at the field centre; "
+            f"the LEDs stand {d0.min():.1f}-{d0.max():.1f} mm from it, so LEDs of equal radiant intensity would "
+            f"differ there by up to {100 * spread:.1f} % and bend a flat part; give the intensities, a flat field "
+            "or --estimate-intensities")
 
 
 def _nearfield(data: PhotometricData, near: LightSetup, opts: PhotometricOptions, base: dict, *, threads=None,
@@ -510,6 +558,7 @@ def _nearfield(data: PhotometricData, near: LightSetup, opts: PhotometricOptions
             data.images, near.lights, near.camera, near.intensities, data.mask, gains, opts.outliers, opts.dark,
             opts.saturation, opts.highlight, opts.integrator, ref, opts.tolerance_mm, opts.max_iterations,
             COARSE_PIXELS, threads, setup=setup, residual=residual,
+            estimate_intensities=opts.estimate_intensities,
         )
     except NotConvergedError as exc:
         summary = {**base, "light_model": near.model, "camera": near.camera.to_dict(data.images.shape[1:3]),
@@ -517,11 +566,39 @@ def _nearfield(data: PhotometricData, near: LightSetup, opts: PhotometricOptions
         raise NotConvergedError(str(exc), summary) from None
 
 
-def _surface_step(method, height, p, q, valid, mask, h, step, samples, tolerance, xy=None):
+#: Default patch budget of the fit without a mask: one patch per this many pixels ...
+PIXELS_PER_PATCH = 256
+#: ... and never fewer than this many patches (small images keep their full refinement).
+MIN_PATCH_BUDGET = 1 << 14
+
+
+def patch_budget(shape) -> int:
+    """The fit's default patch budget for an image without a mask (:data:`PIXELS_PER_PATCH`,
+    :data:`MIN_PATCH_BUDGET`): a big capture's fit stays a few times the normal solve's time.
+
+    Parameters
+    ----------
+    shape : (H, W)
+        Image size, pixels.
+
+    Returns
+    -------
+    int
+
+    Examples
+    --------
+    >>> patch_budget((2040, 2720)), patch_budget((512, 512))
+    (21675, 16384)
+    """
+    return max(MIN_PATCH_BUDGET, int(shape[0]) * int(shape[1]) // PIXELS_PER_PATCH)
+
+
+def _surface_step(method, height, p, q, valid, mask, h, step, samples, tolerance, xy=None, max_patches=None):
     """The surface model, its mesh and their summary entries (the ``surface`` stage).
 
     ``xy`` (H, W, 2), mm: the points a perspective camera's pixels see; the fit then
-    places the surface at them instead of on the orthographic grid.
+    places the surface at them instead of on the orthographic grid. ``max_patches``: the
+    fit's budget (None: :func:`patch_budget` when ``mask`` covers the image, else none).
     """
     shape = height.shape
     if method == "coons":
@@ -540,11 +617,14 @@ def _surface_step(method, height, p, q, valid, mask, h, step, samples, tolerance
 
         # the mesh needs only the patches and the fitted region: no per-pixel surface or
         # deviation map is kept (16 bytes per pixel for float32 heights)
+        budget = max_patches if max_patches is not None else (patch_budget(shape) if mask.all() else None)
         fit = fit_height(height, p, q, mask=valid, pixel_size=h, tolerance=tolerance,
-                         step=step if step is not None else default_step(shape), xy=xy, keep_pixels=False)
+                         step=step if step is not None else default_step(shape), xy=xy, keep_pixels=False,
+                         max_patches=budget)
         step_px = fit.step
         n_samples = int(samples) if samples is not None else min(step_px, 8)
         info = {"surface": "fit", "surface_tolerance_mm": fit.tolerance,
+                "surface_max_patches": fit.max_patches, "surface_budget_reached": fit.budget_reached,
                 "surface_patch_sizes_px": {str(k): v for k, v in fit.patch_sizes().items()},
                 "surface_max_dev_mm": fit.max_deviation, "surface_rms_dev_mm": fit.rms_deviation}
         mesh = fit_mesh(fit, spacing=step_px / n_samples)
@@ -784,6 +864,12 @@ def solve(inp: PhotometricInput, options: PhotometricOptions | None = None, *,
     dark = exposure_note(data.images, data.mask, data.full_scale)
     if dark is not None:
         notes.append(dark)
+    if opts.estimate_intensities and (near is None or near.model != "point"):
+        raise InputError("estimate_intensities: needs point lights (LED positions from --light-positions, --rig "
+                         "or the folder)")
+    intensity_note = _intensity_note(near, opts)
+    if intensity_note is not None:
+        notes.append(intensity_note)
     for note in notes:
         warnings.warn(note, UserWarning, stacklevel=3)
     timings = {"screen": time.perf_counter() - t0}
@@ -1002,7 +1088,7 @@ def surface(inp: PhotometricInput, sol: Solution, height: Height,
     fit = sol.fit
     patches, mesh, step_px, n_samples, info = _surface_step(
         opts.surface, height.height, fit.p, fit.q, fit.valid, sol.data.mask, inp.pixel_size_mm, opts.step,
-        opts.samples, opts.surface_tolerance, xy=None if inp.orthographic else fit.xy)
+        opts.samples, opts.surface_tolerance, xy=None if inp.orthographic else fit.xy, max_patches=opts.max_patches)
     return Surface(patches, mesh, step_px, n_samples, info, time.perf_counter() - t0)
 
 

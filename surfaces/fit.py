@@ -172,6 +172,11 @@ class SurfaceFit:
         The fitted coordinates and their derivatives per pixel step along rows and
         columns at the pixel centres, three ``(H, W, d)`` arrays (``d = 1``: z only;
         ``d = 3`` with ``xy``); :attr:`surface` and :attr:`normals` are built from them.
+    max_patches : int or None
+        The patch budget the refinement kept to (None: none).
+    budget_reached : bool
+        The budget stopped the refinement: some cells miss the tolerance
+        (``max_deviation`` says by how much).
     """
 
     patches: MixedPatches
@@ -185,6 +190,8 @@ class SurfaceFit:
     pixel_size: float
     covered: np.ndarray
     values: tuple
+    max_patches: int | None = None
+    budget_reached: bool = False
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -770,6 +777,7 @@ def fit_height(
     slope_weight: float = 1.0,
     slope_angle: float | None = None,
     keep_pixels: bool = True,
+    max_patches: int | None = None,
 ) -> SurfaceFit:
     """Fit bicubic patches to a height field and its slopes, refining until within a tolerance.
 
@@ -816,6 +824,12 @@ def fit_height(
         patches, the region and the statistics: the fit's running surface is let go before
         the patches are built and no deviation map is made (16 bytes per pixel less at the
         end of a float32 fit).
+    max_patches : int, optional
+        Patch budget (at least the level-0 cells with data): a level refines only the
+        cells that miss the tolerance worst, as many as keep the patch count within the
+        budget, and the refinement stops when none fits (``budget_reached``; the fit then
+        misses the tolerance where the budget ran out). Bounds the time of a big image
+        with much detail: a 5.5 MP capture's fit took 108 s with 305,796 patches.
 
     Returns
     -------
@@ -885,8 +899,13 @@ def fit_height(
     region = m & ~find_discontinuities(z, pp, qq, m, h, jump, xyv)
     if not region.any():
         raise InputError("height: every pixel of the mask lies on a depth discontinuity")
+    budget = None
+    if max_patches is not None:
+        if isinstance(max_patches, bool) or int(max_patches) != max_patches or int(max_patches) < 1:
+            raise InputError(f"max_patches: must be an integer of at least 1, got {max_patches!r}")
+        budget = int(max_patches)
     with one_blas_thread():
-        return _fit(z, pp, qq, region, h, tol, k0, xyv, lam, angle, bool(keep_pixels))
+        return _fit(z, pp, qq, region, h, tol, k0, xyv, lam, angle, bool(keep_pixels), budget)
 
 
 def _cell_angles(fs, ft, ts, tt, h: float, weight: np.ndarray) -> np.ndarray:
@@ -961,7 +980,29 @@ class _Targets:
                 for src, scale in zip(self.sources[:parts], self.scales)]
 
 
-def _fit(z, p, q, region, h, tol, k0, xy, lam, angle=None, keep_pixels: bool = True) -> SurfaceFit:
+def _budget_refine(CI, CJ, fail, worst, region_here, leaves_so_far: int, budget: int) -> np.ndarray | None:
+    """The cells to refine within a patch budget: the failing cells' 3 x 3 neighbourhoods (inside the
+    level's region), the worst failing cells first, as many as keep ``leaves + 4 x refined + kept``
+    within ``budget``; None when not even the worst cell fits."""
+    di, dj = np.meshgrid(np.arange(-1, 2), np.arange(-1, 2), indexing="ij")
+    allowed = (budget - leaves_so_far - CI.size) // 3  # each refined cell adds three patches
+    if allowed < 1:
+        return None
+    order = np.flatnonzero(fail)[np.argsort(-worst[fail], kind="stable")]
+    m = min(order.size, max(1, allowed))
+    while m >= 1:
+        take = order[:m]
+        pos = region_here((CI[take][:, None] + di.ravel()).ravel(), (CJ[take][:, None] + dj.ravel()).ravel())
+        refine = np.zeros(CI.size, bool)
+        refine[pos[pos >= 0]] = True
+        if int(refine.sum()) <= allowed:
+            return refine
+        m = m // 2 if m > 1 else 0
+    return None
+
+
+def _fit(z, p, q, region, h, tol, k0, xy, lam, angle=None, keep_pixels: bool = True,
+         budget: int | None = None) -> SurfaceFit:
     H, W = z.shape
     ns, nt = -(-H // k0), -(-W // k0)
     HP, WP = ns * k0, nt * k0
@@ -980,6 +1021,7 @@ def _fit(z, p, q, region, h, tol, k0, xy, lam, angle=None, keep_pixels: bool = T
     fitted = [np.zeros((d, HP, WP), z.dtype) for _ in range(3)]
     band = max(1, BLOCK_PIXELS // (k0 * WP))  # level-0 cell rows per block
     levels, solved, leaves = [], [], []
+    budget_reached = False
     top = int(np.log2(k0))
     slopes_checked = angle is not None and d == 1
     if slopes_checked:
@@ -1108,6 +1150,14 @@ def _fit(z, p, q, region, h, tol, k0, xy, lam, angle=None, keep_pixels: bool = T
         pos = region_here((CI[fail][:, None] + di.ravel()).ravel(), (CJ[fail][:, None] + dj.ravel()).ravel())
         refine = np.zeros(CI.size, bool)
         refine[pos[pos >= 0]] = True
+        if budget is not None:
+            n_leaves = sum(len(c) for _, c, _ in leaves)
+            if n_leaves + CI.size + 3 * int(refine.sum()) > budget:
+                refine = _budget_refine(CI, CJ, fail, worst, region_here, n_leaves, budget)
+                budget_reached = True
+                if refine is None:
+                    leaves.append((lev, CI, CJ))
+                    break
         leaves.append((lev, CI[~refine], CJ[~refine]))
         CI = (2 * CI[refine][:, None] + np.array([0, 0, 1, 1])).ravel()
         CJ = (2 * CJ[refine][:, None] + np.array([0, 1, 0, 1])).ravel()
@@ -1151,6 +1201,8 @@ def _fit(z, p, q, region, h, tol, k0, xy, lam, angle=None, keep_pixels: bool = T
         pixel_size=float(h),
         covered=covered,
         values=values,
+        max_patches=budget,
+        budget_reached=budget_reached,
     )
 
 

@@ -48,10 +48,16 @@ def register(sub) -> None:
         description="Calibrate a near-field inspection rig (as 'workbench photometric calibrate'): LED positions "
         "from a file or from two or more mirror-sphere folders, flat-field gains from images of a flat matte "
         "target on the reference plane (one per light, in light order), and the camera. Writes rig.json and "
-        "<name>_gains.npz beside it.",
+        "<name>_gains.npz beside it. Without a flat field, --intensity-images estimates the relative LED "
+        "intensities from images of a matte part (semi-calibrated near-field solve) and stores them in rig.json.",
     )
-    c.add_argument("--flat", dest="flat_field", nargs="+", required=True, metavar="F",
-                   help="flat-field images (flat matte target on z = 0), one per light in light order")
+    c.add_argument("--flat", dest="flat_field", nargs="+", default=None, metavar="F",
+                   help="flat-field images (flat matte target on z = 0), one per light in light order (or "
+                   "--intensity-images)")
+    c.add_argument("--intensity-images", nargs="+", default=None, metavar="IMG",
+                   help="without a flat field: images of a matte part (a flat target will do) under each LED, in "
+                   "light order; the relative LED intensities are estimated from them (LED 0's = 1) and stored in "
+                   "rig.json")
     src = c.add_mutually_exclusive_group(required=True)
     src.add_argument("--light-positions", default=None, metavar="P",
                      help="LED positions, one 'x y z' row in mm per light")
@@ -163,6 +169,18 @@ def _options(args: argparse.Namespace) -> dict:
 def _calibrate(args: argparse.Namespace) -> int:
     from workbench.commands.photometric import _calibrate as calibrate
 
+    if args.intensity_images is not None:
+        if args.flat_field is not None:
+            raise InputError("--intensity-images: a flat field measures the LED power itself; give --flat or "
+                             "--intensity-images, not both")
+        if args.intensities is not None:
+            raise InputError("--intensity-images: estimates the intensities; drop --intensities (or the images)")
+        if args.reference_part is not None:
+            raise InputError("--reference-part: measured with a flat-field rig (--flat), not with --intensity-images")
+        return _calibrate_intensities(args)
+    if args.flat_field is None:
+        raise InputError("--flat: give the flat-field images, or --intensity-images to estimate the LED "
+                         "intensities without a flat field")
     if args.reference_part is None:
         if args.reflectance != "lambertian" or args.gloss_alpha is not None:
             raise InputError("--reflectance/--gloss-alpha: the lobe weight is measured on a reference part "
@@ -208,6 +226,63 @@ def _calibrate(args: argparse.Namespace) -> int:
     print(f"quality limits -> {args.out}: background {1e3 * lim['background_rms_mm']:.3g} um, slope bias "
           f"{lim['slope_bias_mrad']:g} mrad, invalid {100 * lim['invalid_fraction']:.2g} %, Lambertian residual "
           f"{lim['lambertian_residual']:g}")
+    return 0
+
+
+def _calibrate_intensities(args: argparse.Namespace) -> int:
+    """``inspect calibrate`` without a flat field: the rig's LEDs and camera, then the relative LED
+    intensities estimated from images of a matte part (:func:`photometric.nearfield.solve_nearfield`
+    with ``estimate_intensities``), stored in rig.json with the estimation's record."""
+    from dataclasses import replace
+
+    import numpy as np
+
+    from photometric.calibrate import calibrate_rig
+    from photometric.camera import make_camera
+    from photometric.io import load_light_positions, read_images
+    from photometric.leds import point_lights
+    from photometric.nearfield import solve_nearfield
+    from photometric.rig import Rig
+    from workbench.commands.photometric import _camera_options, _numbers
+    from workbench.runs.photometric import write_rig
+
+    opts = _camera_options(args)
+    camera = None
+    if any(v is not None for v in (*opts.values(), args.pixel_size)):
+        model = opts["camera"] or ("perspective" if args.focal_length_px or args.camera_height else "orthographic")
+        # the parsed focal length (as photometric calibrate builds its camera)
+        camera = make_camera(model, pixel_size_mm=args.pixel_size, focal_length_px=opts["focal_length_px"],
+                             camera_height_mm=args.camera_height, principal_point_px=opts["principal_point_px"])
+    images = read_images(list(args.intensity_images))
+    mu = None if args.led_mu is None else _numbers(args.led_mu, "--led-mu")
+    if args.spheres is not None:
+        rig = calibrate_rig(spheres=args.spheres, camera=camera, led_mu=mu, window_px=args.window)
+        if tuple(images.shape[1:3]) != tuple(rig.image_size):
+            raise InputError(f"--intensity-images: {images.shape[1]} x {images.shape[2]} px, the sphere images "
+                             f"{rig.image_size[0]} x {rig.image_size[1]} px")
+    else:
+        if camera is None:
+            raise InputError("camera: give --camera with --pixel-size, or --focal-length-px and --camera-height")
+        lights = point_lights(load_light_positions(args.light_positions), mu=mu)
+        rig = Rig(lights, camera, (int(images.shape[1]), int(images.shape[2])),
+                  calibration={"method": "known LED positions"})
+    if images.shape[0] != len(rig.lights):
+        raise InputError(f"--intensity-images: {images.shape[0]} image(s) for {len(rig.lights)} LEDs (one per LED)")
+    res = solve_nearfield(images, rig.lights, rig.camera, estimate_intensities=True, residual=False)
+    est = dict(res.intensities)
+    rel = np.asarray(est["relative"], float)
+    est.update(method="semi-calibrated near-field solve (Queau et al., JMIV 2018), LED 0's intensity fixed",
+               images=[str(p) for p in args.intensity_images])
+    rig = replace(rig, intensities=np.repeat(rel[:, None], 3, axis=1),
+                  calibration={**rig.calibration, "intensities": est})
+    content = write_rig(rig, args.out)
+    print(f"{len(rig.lights)} LEDs, {content['camera']['model']} camera, {rig.image_size[0]} x {rig.image_size[1]} "
+          f"px, no flat field ({rig.calibration['method']}); LED intensities estimated from "
+          f"{images.shape[0]} images in {est['rounds']} round(s)")
+    for k, pos in enumerate(rig.lights.positions):
+        print(f"LED {k}: ({pos[0]:.2f}, {pos[1]:.2f}, {pos[2]:.2f}) mm, intensity {rel[k]:.4f} "
+              f"(radiant {est['radiant_relative'][k]:.4f})")
+    print(f"wrote {args.out} (every number above is in it)")
     return 0
 
 

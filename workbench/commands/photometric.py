@@ -270,6 +270,10 @@ def register(sub) -> None:
                    f"{DEFAULTS.tolerance_mm:g})")
     p.add_argument("--max-iterations", type=int, default=DEFAULTS.max_iterations, metavar="N",
                    help=f"near-field: most passes per resolution (default {DEFAULTS.max_iterations})")
+    p.add_argument("--estimate-intensities", action="store_true",
+                   help="near field without a flat field: estimate the relative LED intensities from the images "
+                   "(semi-calibrated solve, LED 0's fixed; summary.json intensities). Without it and without "
+                   "--intensities or a flat field, the solve assumes equal irradiance at the field centre")
     p.add_argument("--out", default="photometric_out", help="output folder (default photometric_out)")
     sel = p.add_mutually_exclusive_group()
     sel.add_argument("--triad", action="store_true",
@@ -293,6 +297,10 @@ def register(sub) -> None:
                    "the slopes of every pixel, smaller where they miss --surface-tolerance; default), "
                    "coons (Coons patches through every STEP-th height, tangents from single pixels) or none "
                    "(normals and height only: no surface model, no surface.ply; big captures)")
+    p.add_argument("--max-patches", type=int, default=None, metavar="N",
+                   help="fit: patch budget; the worst cells are refined first and the refinement stops at the "
+                   "budget (summary.json surface_budget_reached). Default: one patch per 256 pixels (at least "
+                   "16384) without --mask, none with a mask")
     p.add_argument("--surface-tolerance", type=float, default=None, metavar="MM",
                    help="fit: largest deviation of the surface from the integrated height, mm "
                    "(default 0.5 %% of the height range, or 0.01 px, or four times the height's noise at "
@@ -733,6 +741,7 @@ def _reconstruct(args: argparse.Namespace) -> int:
             samples=args.samples,
             surface=args.surface,
             surface_tolerance=args.surface_tolerance,
+            max_patches=args.max_patches,
             background=args.background,
             light_positions=args.light_positions,
             led_mu=None if args.led_mu is None else _numbers(args.led_mu, "--led-mu"),
@@ -749,6 +758,7 @@ def _reconstruct(args: argparse.Namespace) -> int:
             reference_height_mm=args.reference_height,
             tolerance_mm=DEFAULTS.tolerance_mm if args.tolerance is None else args.tolerance,
             max_iterations=args.max_iterations,
+            estimate_intensities=args.estimate_intensities,
             uncertainty=tolerances,
             force=args.force,
             progress=progress,
@@ -769,6 +779,11 @@ def _reconstruct(args: argparse.Namespace) -> int:
               f"{summary['iterations']} pass(es), final height change "
               + ("-" if summary["final_depth_change_mm"] is None else f"{summary['final_depth_change_mm']:.2g} mm")
               + f" (tolerance {summary['tolerance_mm']:g} mm)")
+        est = summary.get("intensities") or {}
+        if est.get("source") == "estimated":
+            print("estimated LED intensities (LED 0 = 1): "
+                  + ", ".join(f"{v / est['relative'][0]:.4f}" for v in est["relative"])
+                  + f" ({est['rounds']} round(s))")
     if "mean_angular_error_deg" in summary:
         print(f"mean angular error vs normal_gt: {summary['mean_angular_error_deg']:.3f} deg")
     # Without a pixel size the heights are in pixel units, not mm.
