@@ -1026,9 +1026,10 @@ def _uncertainty(tol: Tolerances, data: PhotometricData, near, res, height, defe
     integrator, background = opts.integrator, opts.background
     point, draw, lights, intensities = None, None, data.lights, data.intensities
     if near is not None:
-        if tol.method == "linear" and not (near.model == "point" and isinstance(near.camera, Orthographic)):
-            raise InputError("uncertainty: the linear propagation covers distant lights and point lights with an "
-                             "orthographic camera; use method 'montecarlo' (--uncertainty montecarlo) here")
+        if tol.method == "linear" and near.model != "point":
+            raise InputError("uncertainty: the linear propagation covers distant lights with an orthographic camera "
+                             "and point lights with either camera; use method 'montecarlo' (--uncertainty "
+                             "montecarlo) for distant lights seen by a perspective camera")
         lights, intensities = near.lights, near.intensities
         if near.model == "point":
             point = PointLightModel(
