@@ -307,6 +307,7 @@ def propagate(
         "noise_sigma": float(sigma),
         "noise_sigma_source": sigma_source,
         "coverage_factor": COVERAGE_FACTOR,
+        "pixel_size_mm": h,
         "median_p_u": _median(p_u, ok),
         "median_q_u": _median(q_u, ok),
         "median_height_u_mm": _median(height_u, near),
