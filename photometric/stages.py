@@ -1332,9 +1332,10 @@ def _uncertainty(tol: Tolerances, data: PhotometricData, near, res, height, defe
     integrator, background = opts.integrator, opts.background
     point, draw, lights, intensities = None, None, data.lights, data.intensities
     if near is not None:
-        if tol.method == "linear" and not (near.model == "point" and isinstance(near.camera, Orthographic)):
-            raise InputError("uncertainty: the linear propagation covers distant lights and point lights with an "
-                             "orthographic camera; use method 'montecarlo' (--uncertainty montecarlo) here")
+        if tol.method == "linear" and near.model != "point":
+            raise InputError("uncertainty: the linear propagation covers distant lights with an orthographic camera "
+                             "and point lights with either camera; use method 'montecarlo' (--uncertainty "
+                             "montecarlo) for distant lights seen by a perspective camera")
         lights, intensities = near.lights, near.intensities
         if near.model == "point":
             point = PointLightModel(
@@ -1361,10 +1362,15 @@ def _uncertainty(tol: Tolerances, data: PhotometricData, near, res, height, defe
         found = measure_defects(r.height, h, r.valid, background=background, p=r.p, q=r.q, **on_points)
         return r.p, r.q, r.valid, r.height, found
 
+    h_u = h
+    if near is not None and not isinstance(near.camera, Orthographic) and res.valid.any():
+        # a perspective pixel covers its footprint at the part's height, not the reference-plane pixel:
+        # the slope fields integrate, and the grid terms sample, at that spacing
+        h_u = float(np.sqrt(np.median(np.broadcast_to(res.footprint_mm2, res.valid.shape)[res.valid])))
     return propagate(
         lights=lights.directions if point is not None else lights, intensities=intensities, albedo=res.albedo,
         p=res.p, q=res.q, valid=res.valid,
-        height=height, defects=defects, labels=labels, pixel_size=h, tolerances=tol, integrator=integrator,
+        height=height, defects=defects, labels=labels, pixel_size=h_u, tolerances=tol, integrator=integrator,
         background=background, residual=res.residual,
         channels=data.images.shape[3] if data.images.ndim == 4 else 1, images=data.images,
         pixel_size_given=not h_source.startswith("default"), resolve=resolve, point=point, draw=draw,

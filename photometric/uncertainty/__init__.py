@@ -35,10 +35,13 @@ The far-field solve is ``m = C x`` with ``C = L^+`` (3, N), ``x_k = I_k / E_k`` 
   (``cos^2 = (1 + cos 2x) / 2``), and the variance of any linear figure ``w . z`` (a depth
   against a fitted background, a volume) is ``sum_kl T_kl DCT(w)_kl^2``. ``sigma_p``,
   ``sigma_q`` are the mean slope variances over the valid pixels (stationary model).
-* Point lights (near-field rigs, orthographic camera): per pixel the light vectors
-  ``s_k(X)`` at the solved points give ``m = M^-1 sum_k x_k s_k`` (``M = sum_k s_k s_k^T``);
+* Point lights (near-field rigs, orthographic or perspective camera): per pixel the light
+  vectors ``s_k(X)`` at the solved points give ``m = M^-1 sum_k x_k s_k`` (``M = sum_k s_k s_k^T``);
   an LED coordinate moves the slopes by ``G c_k (n . ds_k/dP)`` with ``c_k = M^-1 s_k``
-  (:class:`PointLightModel`); the noise covariance is ``sum_k w_k c_k c_k^T``.
+  (:class:`PointLightModel`); the noise covariance is ``sum_k w_k c_k c_k^T``. A perspective
+  camera's points ``X`` are the solve's ``xy`` and heights; its slope fields are integrated
+  on the pixel grid with the reference-plane pixel (the pixels' footprints differ from it
+  by ``z / H_c``, second order in a height error).
 * Images above 0.26 MP integrate the systematic fields on blocks of ``r x r`` pixels (the
   far-field fields are linear in ``1, p, q, p^2, pq, q^2``, so the block means are exact;
   the blocks must resolve the narrowest defect) and the noise figures on block sums

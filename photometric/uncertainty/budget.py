@@ -155,8 +155,10 @@ class UncertaintyResult:
         :data:`FIGURES`) and ``budget`` (per figure: value, per source standard
         uncertainty, sensitivity and contribution, combined, k, expanded).
     summary : dict
-        Method, tolerances, the noise sigma used and where it came from, timings (s) and
-        the median ``p_u``, ``q_u``, ``height_u``. JSON-ready.
+        Method, tolerances, the noise sigma used and where it came from, timings (s),
+        the median ``p_u``, ``q_u``, ``height_u`` and ``pixel_size_mm``, the pixel spacing
+        the budget used (a perspective camera: the median footprint's side at the part).
+        JSON-ready.
     """
 
     p_u: np.ndarray

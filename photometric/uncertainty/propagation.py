@@ -140,7 +140,9 @@ def propagate(
         Monte Carlo: ``resolve(images, lights, intensities) -> (p, q, valid, height,
         defects)`` re-runs the fast solve (the pipeline passes its own).
     point : PointLightModel, optional
-        Point lights (near-field rig, orthographic camera): the LED position Jacobian
+        Point lights (near-field rig, orthographic or perspective camera: ``point.xy`` holds
+        the points the pixels see, the slope fields are integrated on the pixel grid with
+        ``pixel_size``, the reference-plane pixel): the LED position Jacobian
         replaces the direction sensitivities; ``lights`` are then their directions.
     draw : callable, optional
         Monte Carlo: ``draw(rng) -> lights`` for ``resolve`` (default: the directions
@@ -305,6 +307,7 @@ def propagate(
         "noise_sigma": float(sigma),
         "noise_sigma_source": sigma_source,
         "coverage_factor": COVERAGE_FACTOR,
+        "pixel_size_mm": h,
         "median_p_u": _median(p_u, ok),
         "median_q_u": _median(q_u, ok),
         "median_height_u_mm": _median(height_u, near),

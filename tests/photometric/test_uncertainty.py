@@ -324,9 +324,10 @@ def test_near_field_budget_and_errors():
     assert res.summary["light_model"] == "point"
     with pytest.raises(ValueError, match="light_position_tolerance_mm"):
         reconstruct(imgs, light_positions=nominal, pixel_size=0.05, uncertainty={"light_tolerance_deg": 0.5})
-    with pytest.raises(ValueError, match="montecarlo"):
-        reconstruct(imgs, light_positions=nominal, camera="perspective", focal_length_px=2000.0,
-                    camera_height_mm=300.0, uncertainty={"light_position_tolerance_mm": 0.5})
+    # a perspective camera takes the linear propagation too (tests/photometric/test_uncertainty_perspective.py)
+    persp = reconstruct(imgs, light_positions=nominal, camera="perspective", focal_length_px=2000.0,
+                        camera_height_mm=300.0, uncertainty={"light_position_tolerance_mm": 0.5})
+    assert persp.uncertainty.summary["method"] == "linear"
 
 
 def test_near_field_monte_carlo_moves_the_leds():
