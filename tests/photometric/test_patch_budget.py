@@ -1,12 +1,10 @@
 """The fit's default patch budget through the pipeline and ``--max-patches`` on the command line (issue 33 item 9)."""
 
-import json
 
 import numpy as np
 
 from photometric.pipeline import reconstruct
 from photometric.stages import MIN_PATCH_BUDGET, patch_budget
-from workbench.cli import main
 
 
 def _lambertian(n=48):
@@ -33,22 +31,3 @@ def test_default_budget_without_a_mask_only():
     masked = reconstruct(images, lights=L, mask=mask)
     assert masked.summary["surface_max_patches"] is None
     assert patch_budget((2040, 2720)) == 2040 * 2720 // 256
-
-
-def test_cli_max_patches(tmp_path):
-    images, L = _lambertian()
-    files = []
-    for k, img in enumerate(images):
-        files.append(str(tmp_path / f"im{k}.npy"))
-        np.save(files[-1], img)
-    np.savetxt(tmp_path / "lights.txt", L)
-    base = ["photometric", "reconstruct", "--images", *files, "--lights", str(tmp_path / "lights.txt"), "--step", "8",
-            "--surface-tolerance", "1e-6"]
-    assert main([*base, "--out", str(tmp_path / "free")]) == 0
-    free = json.loads((tmp_path / "free" / "summary.json").read_text())
-    assert main([*base, "--max-patches", "40", "--out", str(tmp_path / "b")]) == 0
-    budget = json.loads((tmp_path / "b" / "summary.json").read_text())
-    assert free["n_patches"] > 40 and not free["surface_budget_reached"]
-    assert budget["surface_max_patches"] == 40 and budget["surface_budget_reached"]
-    assert 36 <= budget["n_patches"] <= 40  # level 0 (6 x 6 cells) and one refined cell at most
-    assert budget["surface_max_dev_mm"] > free["surface_max_dev_mm"]

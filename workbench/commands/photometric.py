@@ -779,11 +779,11 @@ def _reconstruct(args: argparse.Namespace) -> int:
               f"{summary['iterations']} pass(es), final height change "
               + ("-" if summary["final_depth_change_mm"] is None else f"{summary['final_depth_change_mm']:.2g} mm")
               + f" (tolerance {summary['tolerance_mm']:g} mm)")
-        est = summary.get("intensities") or {}
-        if est.get("source") == "estimated":
+        led = summary.get("intensities") or {}
+        if led.get("source") == "estimated":
             print("estimated LED intensities (LED 0 = 1): "
-                  + ", ".join(f"{v / est['relative'][0]:.4f}" for v in est["relative"])
-                  + f" ({est['rounds']} round(s))")
+                  + ", ".join(f"{v / led['relative'][0]:.4f}" for v in led["relative"])
+                  + f" ({led['rounds']} round(s))")
     if "mean_angular_error_deg" in summary:
         print(f"mean angular error vs normal_gt: {summary['mean_angular_error_deg']:.3f} deg")
     # Without a pixel size the heights are in pixel units, not mm.
