@@ -17,8 +17,9 @@ from pathlib import Path
 from surfaces.io import atomic_write_text
 
 HERE = Path(__file__).resolve().parent
-ORDER = ["surfaces", "bspline", "photometric", "nearfield", "surface_fit", "errors", "uncertainty", "slices",
-         "ct_peers", "render", "boolean", "batch", "inspect", "memory"]
+ORDER = ["surfaces", "bspline", "mesh_read", "photometric", "nearfield", "rig_capture", "calibration", "glossy",
+         "surface_fit", "errors", "uncertainty", "uncertainty_perspective", "texture", "slices", "ct_peers",
+         "ct_volume", "render", "boolean", "batch", "inspect", "watch_kill", "memory"]
 
 HEADER = """# Benchmarks
 
