@@ -29,7 +29,9 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 from scipy import ndimage
-from surfaces.validate import as_array, InputError, positive
+
+from photometric.options import BACKGROUND
+from surfaces.validate import InputError, as_array, positive
 
 _MAD_TO_SIGMA = 1.4826
 _MAX_FIT_POINTS = 250_000
@@ -210,7 +212,7 @@ def measure_defects(
     pixel_size: float = 1.0,
     mask=None,
     *,
-    background: str = "plane",
+    background: str = BACKGROUND,
     degree: int = 3,
     threshold_mm: float | None = None,
     extent_mm: float | None = None,

@@ -33,14 +33,15 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 import numpy as np
-from numpy.typing import DTypeLike
 import scipy.fft as sfft
 import scipy.sparse as sp
+from numpy.typing import DTypeLike
 from scipy import ndimage
 from scipy.sparse.csgraph import connected_components
 from scipy.sparse.linalg import LinearOperator, cg, splu
 
-from surfaces.validate import as_array, InputError, positive
+from photometric.options import INTEGRATOR
+from surfaces.validate import InputError, as_array, positive
 
 if TYPE_CHECKING:
     from surfaces.bezier import BezierPatches
@@ -526,7 +527,7 @@ def robust_least_squares(
 
 
 def integrate(
-    p, q, method: str = "dct", mask=None, pixel_size: float = 1.0, dtype: DTypeLike = np.float64
+    p, q, method: str = INTEGRATOR, mask=None, pixel_size: float = 1.0, dtype: DTypeLike = np.float64
 ) -> np.ndarray:
     """Height field from the surface gradients ``p = dz/dx``, ``q = dz/dy`` (y up).
 

@@ -18,7 +18,8 @@ import numpy as np
 from surfaces.validate import InputError, positive
 
 __all__ = ["PhotometricOptions", "READ_KEYWORDS", "SURFACES", "LIGHT_MODELS", "BACKGROUNDS", "DARK", "SATURATION",
-           "TOLERANCE_MM", "MAX_ITERATIONS", "U_NAMES", "OUTLIER_MIN_IMAGES", "MASKED_INTEGRATOR", "REFLECTANCES",
+           "TOLERANCE_MM", "MAX_ITERATIONS", "U_NAMES", "OUTLIER_MIN_IMAGES", "MASKED_INTEGRATOR", "INTEGRATOR",
+           "BACKGROUND", "REFLECTANCES",
            "photometric_options", "split_keywords"]
 
 # The numbers are held here, where nothing heavy is imported (the command line reads them at start-up);
@@ -40,6 +41,10 @@ OUTLIER_MIN_IMAGES = 6
 #: least-squares multigrid fails ("Factor is exactly singular") on some masked domains, e.g. a sphere's
 #: valid pixels inside an off-centre rectangle (tests/photometric/test_pipeline.py's trimmed-mesh scene).
 MASKED_INTEGRATOR = "lsq"
+#: The default integrator (:func:`photometric.integrate.integrate`'s and the pipeline's).
+INTEGRATOR = "dct"
+#: The default background model (:func:`photometric.defects.measure_defects`'s and the pipeline's).
+BACKGROUND = "plane"
 
 #: Surface methods: the least-squares fit (:func:`surfaces.fit.fit_height`) and the Coons
 #: interpolation of a decimated grid (:func:`photometric.integrate.height_to_patches`); ``"none"``: no
@@ -174,7 +179,7 @@ class PhotometricOptions:
     (True, 'lsq', False)
     """
 
-    integrator: str = "dct"
+    integrator: str = INTEGRATOR
     outliers: bool | None = None
     dark: float = DARK
     saturation: float = SATURATION
@@ -188,7 +193,7 @@ class PhotometricOptions:
     step: int | None = None
     samples: int | None = None
     surface_tolerance: float | None = None
-    background: str = "plane"
+    background: str = BACKGROUND
     uncertainty: object = None
     reflectance: str | None = None
     gloss_alpha: float | None = None

@@ -29,6 +29,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from photometric.defects import fit_background
+from photometric.options import BACKGROUND
 from surfaces.validate import InputError, as_array, positive
 
 __all__ = [
@@ -287,7 +288,7 @@ class QualityFigures:
         return out
 
 
-def quality_figures(height, valid, *, p=None, q=None, exclude=None, mask=None, background: str = "plane",
+def quality_figures(height, valid, *, p=None, q=None, exclude=None, mask=None, background: str = BACKGROUND,
                     xy=None, images=None, albedo=None, normals=None, light_vectors=None, usable=None,
                     reference_slopes=None) -> QualityFigures:
     """Every quality figure the inputs allow (see the module docstring).

@@ -9,6 +9,7 @@ import time
 import numpy as np
 
 from photometric.nearfield import _upsample
+from photometric.options import BACKGROUND
 from photometric.uncertainty.budget import (
     _H_POWER,
     COVERAGE_FACTOR,
@@ -45,7 +46,7 @@ from photometric.uncertainty.slopes import (
     estimate_noise_sigma,
 )
 from surfaces.threads import one_blas_thread
-from surfaces.validate import as_array, InputError, positive
+from surfaces.validate import InputError, as_array, positive
 
 #: Largest image on which the systematic fields are integrated pixel by pixel; larger
 #: images integrate them on blocks of r x r pixels (the fields are smooth at that scale).
@@ -90,7 +91,7 @@ def propagate(
     pixel_size: float,
     tolerances: Tolerances,
     integrator: str = "dct",
-    background: str = "plane",
+    background: str = BACKGROUND,
     residual=None,
     channels: int = 1,
     images=None,
