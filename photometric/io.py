@@ -311,9 +311,10 @@ def exposure_note(images: np.ndarray, mask=None, full_scale: float | None = 1.0,
     Returns
     -------
     str or None
-        Set when the 99.9th percentile over the images and the mask is below
-        :data:`DARK_PEAK` of full scale: the quantisation step is then a larger part of
-        every value (noise, banding in the normals).
+        Set when the 99.9th percentile over the images and the mask uses fewer grey levels
+        than :data:`DARK_PEAK` of an 8-bit range (below 128 DN of an 8-bit file, 128 of 65535 of a
+        16-bit one): the quantisation step is then a larger part of every value (noise, banding
+        in the normals). ``bits`` None: 8 when the values are multiples of 1/255, else 16.
 
     Examples
     --------
@@ -330,7 +331,12 @@ def exposure_note(images: np.ndarray, mask=None, full_scale: float | None = 1.0,
     if vals.size == 0:
         return None
     peak = float(np.percentile(vals, 99.9))
-    if peak >= DARK_PEAK * full_scale:
+    if bits is None:
+        # 8-bit files read as multiples of 1/255; anything finer is taken as 16 bits
+        bits = 8 if np.allclose(vals * 255.0, np.round(vals * 255.0), atol=1e-3) else 16
+    # the grey levels the brightest observations use: a 16-bit capture at 14 % of full scale still has
+    # ~9,000 of them (no warning); an 8-bit one below half of full scale has fewer than 128
+    if peak * (2**bits - 1) >= DARK_PEAK * 255 * full_scale:
         return None
     dn = f" of {2**bits - 1} DN" if bits else ""
     value = f"{peak * (2**bits - 1):.0f}{dn}" if bits else f"{peak:.3f}"

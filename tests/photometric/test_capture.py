@@ -66,6 +66,10 @@ def test_dark_capture_warns():
     assert note is not None and "of 255 DN" in note and "dark capture" in note
     assert exposure_note(np.clip(dark8 * 2.2, 0, 1).astype(np.float32)) is None
     assert exposure_note(dark8.astype(np.float32), full_scale=None) is None  # float input: no full scale
+    # a 16-bit capture peaking at 14 % of full scale still uses ~9,000 grey levels: no warning
+    dark16 = np.round(rng.uniform(100, 9100, (8, 30, 40))) / 65535
+    assert exposure_note(dark16.astype(np.float32)) is None
+    assert exposure_note((dark16 / 100).astype(np.float32)) is not None  # ~91 of 65535 levels: dark
 
 
 def test_read_subtracts_an_array_ambient_without_touching_the_input():
