@@ -1157,6 +1157,10 @@ def uncertainty(inp: PhotometricInput, sol: Solution, height: Height, defects: D
                         defects.labels, inp.pixel_size_mm, inp.pixel_size_source, opts)
 
 
+#: Pixels above which :func:`quality` takes its figures from every s-th pixel of every s-th row.
+QUALITY_PIXELS = 2_000_000
+
+
 def quality(inp: PhotometricInput, sol: Solution, height: Height, defects: Defects,
             options: PhotometricOptions | None = None, *, limits=None, reference_slopes=None) -> dict:
     """Does the measurement deserve trust? Its quality figures against their limits (issue 32).
@@ -1164,6 +1168,8 @@ def quality(inp: PhotometricInput, sol: Solution, height: Height, defects: Defec
     :func:`photometric.quality.quality_figures` of the height (flatness about the options'
     background model, outside the defects found), the slopes (bias against a reference
     part's) and the valid pixels; :func:`photometric.quality.check` against the limits.
+    Above :data:`QUALITY_PIXELS` pixels the figures come from every s-th pixel of every s-th
+    row (``sample_step_px`` in the report).
     The per-light Lambertian residual is not computed here (it needs the solve's light
     vectors at every point, flat-field gains included): ``figures.lambertian_residual`` is
     empty, which :func:`~photometric.quality.check` skips; the per-frame dark, saturated and
@@ -1204,11 +1210,17 @@ def quality(inp: PhotometricInput, sol: Solution, height: Height, defects: Defec
     if reference_slopes is None and rig_q is not None and rig_q.get("reference_slopes") is not None:
         reference_slopes = tuple(float(v) for v in rig_q["reference_slopes"])
     exclude = _defect_pixels(defects, fit.valid.shape)
-    figures = quality_figures(height.height, fit.valid, p=fit.p, q=fit.q, exclude=exclude, mask=sol.data.mask,
-                              background=opts.background, xy=None if inp.orthographic else fit.xy,
+    # statistical figures (an RMS, means, a fraction): on a large image every s-th pixel of every s-th
+    # row gives them without full-size float64 copies (the stage's memory stays that of the defects')
+    s = max(1, int(np.ceil(np.sqrt(fit.valid.size / QUALITY_PIXELS))))
+    cut = (slice(None, None, s), slice(None, None, s))
+    xy = None if inp.orthographic else fit.xy[cut]
+    figures = quality_figures(height.height[cut], fit.valid[cut], p=fit.p[cut], q=fit.q[cut], exclude=exclude[cut],
+                              mask=sol.data.mask[cut], background=opts.background, xy=xy,
                               reference_slopes=reference_slopes)
     report = quality_report(figures, limits, source)
-    slopes = mean_slopes(fit.p, fit.q, fit.valid, exclude)
+    report["sample_step_px"] = s
+    slopes = mean_slopes(fit.p[cut], fit.q[cut], fit.valid[cut], exclude[cut])
     report["mean_slopes"] = [v if np.isfinite(v) else None for v in slopes]
     report["reference_slopes"] = None if reference_slopes is None else [float(v) for v in reference_slopes]
     return report

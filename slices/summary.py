@@ -192,9 +192,9 @@ def caps_notes(rec: Reconstruction) -> list[str]:
     prisms = sum(k == "trend" and h > 0 for k, v, h in ends)
     others = len(ends) - shaped - prisms
     return [f"caps: the surface's trend ends (surface_path {rec.surface_path}) are shaped as the area trend says "
-            f"(rings closing in an apex) at {shaped} end(s), prisms of the trend's volume at {prisms} (where the trend "
-            f"does not close within one spacing, on single contours, or where no point sees the whole end "
-            f"outline); {others} end(s) at branchings or joints (half or flat caps)"]
+            f"(rings closing in an apex) at {count_noun(shaped, 'end')}, prisms of the trend's volume at {prisms} "
+            "(where the trend does not close within one spacing, on single contours, or where no point sees the whole "
+            f"end outline); {count_noun(others, 'end')} at branchings or joints (half or flat caps)"]
 
 
 #: What each ``caps`` choice counts beyond the end planes (named beside every printed volume).
