@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from slices.summary import count_noun
 from surfaces.io import read_mesh
 from surfaces.mesh import TriangleMesh, merge_meshes
 from surfaces.render import render
@@ -82,6 +83,7 @@ def section_breast(ctx: Context) -> None:
         nums[roi] = {"volume_cc": s["volume_ml"], "slab_volume_cc": s["slab_volume_ml"], "caps": s["caps"],
                      "volume_U_cc": s["volume_U_mm3"] / 1000, "volume_caps": s["volume_caps"],
                      "n_contours": s["n_contours"], "n_bodies": s["n_bodies"],
+                     "surface_path": s.get("surface_path", "coons"),
                      "references_cc": refs}
         for name, ref in refs.items():
             rows.append([roi, s["n_contours"], s["volume_ml"], s["slab_volume_ml"], name, ref,
@@ -94,10 +96,18 @@ def section_breast(ctx: Context) -> None:
     lung = ""
     if "Lt Lung" in rois:
         ln = nums["Lt Lung"]
-        lung = (f" The Lt Lung's horizontal ledges are the ends of its {ln['n_outer']} outer bodies and "
-                f"{ln['n_holes']} holes: where a chain of contours starts or stops between two 3 mm planes, "
-                "the surface closes it with a flat-topped cap on that contour (the default caps extrude it by the "
-                "areas' trend) and does not invent shape between the planes.")
+        parts = f"{count_noun(ln['n_outer'], 'outer part')} around {count_noun(ln['n_holes'], 'cavity', 'cavities')}"
+        if ln.get("surface_path") == "implicit":
+            lung = (f" The Lt Lung ({parts}) is one implicit surface (summary.json surface_path implicit): each "
+                    "plane's contours as a signed distance, blended across the 3 mm planes with the seed's parabolic "
+                    "weights and extracted by marching cubes; where a chain of contours starts or stops, the surface "
+                    "closes half-way to the next plane. Its horizontal ribs are the outlines changing from plane to "
+                    "plane; the fine relief within a plane is the contours' own small steps and the distance "
+                    "field's pixel (summary.json bodies pixel_mm).")
+        else:
+            lung = (f" The Lt Lung's horizontal ledges are the ends of its {parts}: where a chain of contours "
+                    "starts or stops between two 3 mm planes, the surface closes it with a cap on that contour and "
+                    "does not invent shape between the planes.")
         if ln["straight_wall_contours"]:
             lung += (f" Its straight vertical edge on the left of 'front' is in the contours themselves: "
                      f"{ln['straight_wall_contours']} contours run straight along x = {ln['straight_wall_x_mm']:.1f}"
