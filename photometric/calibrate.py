@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import json
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import cv2
@@ -51,11 +51,12 @@ __all__ = ["SphereImages", "read_sphere_set", "sphere_from_outline", "highlight_
 
 #: Half width (pixels) of the window around the highlight peak.
 WINDOW_PX = 4
-#: Smallest highlight uncertainty assumed (pixels) for a spot the Gaussian model fits: the model's own
-#: error on a real highlight (an LED disc seen in a mirror, blurred by the lens, resampled by an
-#: undistortion) rather than on a Gaussian. Noise-free pixel-integrated Gaussians of 0.5-1.5 px give
-#: 0.004-0.0001 px; rendered LED discs (datasets_synthetic.spheres) a few hundredths of a pixel.
-MIN_CENTROID_SIGMA_PX = 0.05
+#: Smallest highlight uncertainty assumed (pixels) for a spot the Gaussian model fits, added in quadrature
+#: to the fit's own (noise and misfit) uncertainty: the sampling of a highlight the fit cannot see.
+#: Noise-free pixel-integrated Gaussians 0.5-1.5 px wide give 0.004-0.0001 px; rendered LED discs
+#: (datasets_synthetic.spheres, lens blur 1 px) 0.003-0.008 px, 0.004-0.01 px after an undistortion by
+#: bicubic resampling (bilinear: 0.01-0.04 px, a bias). A spot within one pixel gets SHARP_SIGMA_PX.
+MIN_CENTROID_SIGMA_PX = 0.01
 #: Uncertainty of a highlight too sharp for the fit (all its light in about one pixel): its position is
 #: known to its pixel, a uniform distribution of width 1 px, standard deviation 1 / sqrt(12).
 SHARP_SIGMA_PX = 1.0 / np.sqrt(12.0)
@@ -278,9 +279,9 @@ def highlight_centroids(images, camera: Camera, centre_mm, radius_mm: float, *,
         window's border. A spot too sharp for the fit gives the intensity-weighted centroid
         of the window.
     sigma_px : numpy.ndarray, shape (N,), float64
-        Their standard uncertainty (pixels): the fit's noise propagation from the border's
-        noise, at least :data:`MIN_CENTROID_SIGMA_PX`; :data:`SHARP_SIGMA_PX` for a sharp
-        spot's centroid.
+        Their standard uncertainty (pixels): the fit's propagation of the border's noise (or
+        of the fit's misfit when larger) and :data:`MIN_CENTROID_SIGMA_PX` in quadrature;
+        :data:`SHARP_SIGMA_PX` for a sharp spot's centroid.
 
     Raises
     ------
@@ -316,7 +317,8 @@ def highlight_centroids(images, camera: Camera, centre_mm, radius_mm: float, *,
             raise InputError(f"images: no highlight inside the sphere's disc in image {i}")
         fitted = fit_spot(win - bg, noise)
         if fitted is not None:
-            rows[i], cols[i], sig[i] = lo_r + fitted[0], lo_c + fitted[1], max(MIN_CENTROID_SIGMA_PX, fitted[2])
+            rows[i], cols[i], sig[i] = lo_r + fitted[0], lo_c + fitted[1], float(np.hypot(MIN_CENTROID_SIGMA_PX,
+                                                                                              fitted[2]))
         else:
             yy, xx = np.mgrid[lo_r:hi_r, lo_c:hi_c]
             rows[i] = float((weight * yy).sum() / total)
@@ -346,7 +348,8 @@ def fit_spot(window, noise: float = 0.0) -> tuple[float, float, float, float] | 
     -------
     (row, col, sigma_px, width_px) or None
         Peak position in the window's pixel indices, its standard uncertainty (pixels,
-        root mean of the two axes' variances; 0 without noise) and the fitted Gaussian's
+        root mean of the two axes' variances, propagated from ``noise`` or from the fit's
+        own residual scatter when larger; 0 for an exact Gaussian without noise) and the fitted Gaussian's
         smaller standard deviation (pixels). None when fewer than 6 of the 9 values exceed
         twice the noise, the quadric has no maximum, the peak falls more than one pixel from
         the brightest pixel, or the spot is narrower than :data:`SHARP_WIDTH_PX`.
@@ -382,6 +385,11 @@ def fit_spot(window, noise: float = 0.0) -> tuple[float, float, float, float] | 
     if np.abs(peak).max() > 1.0 or width < SHARP_WIDTH_PX:
         return None
     sigma = 0.0
+    # the values' noise, or the fit's own misfit when larger (a spot that is not quite a Gaussian): the
+    # weighted residuals are in image units, like the noise
+    misfit = np.sum((A @ theta - np.log(v) * v) ** 2)
+    scatter = float(np.sqrt(misfit / (len(v) - 6))) if len(v) > 6 else 0.0
+    noise = max(float(noise), scatter)
     if noise > 0:
         # d peak = -H^-1 (d g + d H peak), g = (b, c): the peak's Jacobian in the six coefficients
         Hi = np.linalg.inv(H)
@@ -495,7 +503,8 @@ def _positions(sets, camera, shape, rows, cols) -> tuple[np.ndarray, np.ndarray,
     return P, dist, resid.transpose(1, 0, 2), r.transpose(1, 0, 2)
 
 
-def calibrate_positions(sets, camera: Camera, *, window_px: int = WINDOW_PX) -> tuple[np.ndarray, dict]:
+def calibrate_positions(sets, camera: Camera, *, window_px: int = WINDOW_PX, pixel_sigma_px: float = 0.0,
+                        principal_point_sigma_px=0.0, focal_length_sigma_px: float = 0.0) -> tuple[np.ndarray, dict]:
     """LED positions from two or more mirror-sphere calibration sets.
 
     Parameters
@@ -505,6 +514,17 @@ def calibrate_positions(sets, camera: Camera, *, window_px: int = WINDOW_PX) -> 
     camera : Orthographic or Perspective
     window_px : int, optional
         Highlight centroid window (:func:`highlight_centroids`).
+    pixel_sigma_px : float, optional
+        A further standard uncertainty of every highlight position (pixels), added in
+        quadrature: the lens calibration's error where the images were undistorted (e.g.
+        the checkerboard's RMS reprojection error). Default 0.
+    principal_point_sigma_px : float or (float, float), optional
+        Standard uncertainty of the camera's principal point (column, row), pixels (e.g.
+        OpenCV's ``stdDeviationsIntrinsics`` of a checkerboard calibration); propagated as a
+        shift common to every highlight (it tilts every camera ray alike). Default 0.
+    focal_length_sigma_px : float, optional
+        Standard uncertainty of a perspective camera's focal length, pixels (the same
+        source); propagated through the whole construction. Default 0.
 
     Returns
     -------
@@ -514,8 +534,13 @@ def calibrate_positions(sets, camera: Camera, *, window_px: int = WINDOW_PX) -> 
         ``method``, ``sets`` (source, centre, radius, where the centre came from),
         ``highlights_px`` (per set, per LED: row, col), ``residuals_mm`` (per LED, the
         distances of its rays to the point), ``rms_residual_mm``,
-        ``uncertainty_mm`` (per LED, standard deviation of x, y, z from the
-        centroids' noise) and ``centroid_sigma_px``.
+        ``uncertainty_mm`` (per LED, standard uncertainty of x, y, z: the highlights'
+        noise propagated, times ``uncertainty_scale``), ``uncertainty_from_noise_mm`` (before
+        the scale), ``covariance_mm2`` (per LED, 3 x 3, scaled), ``birge_ratio``,
+        ``birge_bound`` (its 99 % quantile), ``chi2``, ``dof``, ``uncertainty_scale``
+        (``max(1, birge_ratio)``), ``centroid_sigma_px`` (per set, per LED),
+        ``sensitivity`` (per LED: ``along_ray_mm``, ``across_ray_mm``, ``ray_direction``,
+        ``ray_angle_deg``), ``advice`` and ``warnings`` (lists of sentences).
 
     Raises
     ------
@@ -542,7 +567,7 @@ def calibrate_positions(sets, camera: Camera, *, window_px: int = WINDOW_PX) -> 
     found = [highlight_centroids(s.images, camera, s.centre_mm, s.radius_mm, window_px=window_px) for s in sets]
     rows = np.stack([f[0] for f in found])
     cols = np.stack([f[1] for f in found])
-    sigma = np.stack([f[2] for f in found])
+    sigma = np.hypot(np.stack([f[2] for f in found]), positive(pixel_sigma_px, "pixel_sigma_px", allow_zero=True))
     P, dist, resid, rays = _positions(sets, camera, shape, rows, cols)
     # linear propagation of every highlight's noise (central differences of the whole construction): the
     # LEDs' covariances and the expected squared residual vectors
@@ -561,6 +586,26 @@ def calibrate_positions(sets, camera: Camera, *, window_px: int = WINDOW_PX) -> 
             dP = (P_p - P_m) / (2 * eps) * sigma[i][:, None]
             cov += dP[:, :, None] * dP[:, None, :]
             expect += np.sum(((e_p - e_m) / (2 * eps) * sigma[i][:, None, None]) ** 2, axis=2)
+    pp_sigma = np.broadcast_to(np.asarray(principal_point_sigma_px, np.float64), (2,))
+    if np.any(pp_sigma < 0) or not np.all(np.isfinite(pp_sigma)):
+        raise InputError(f"principal_point_sigma_px: expected values >= 0, got {principal_point_sigma_px!r}")
+    f_sigma = positive(focal_length_sigma_px, "focal_length_sigma_px", allow_zero=True)
+    if f_sigma > 0 and isinstance(camera, Perspective):
+        h_f = 1e-3 * camera.focal_length_px
+        (P_p, _, e_p, _), (P_m, _, e_m, _) = (
+            _positions(sets, replace(camera, focal_length_px=camera.focal_length_px + h_f), shape, rows, cols),
+            _positions(sets, replace(camera, focal_length_px=camera.focal_length_px - h_f), shape, rows, cols))
+        dP = (P_p - P_m) / (2 * h_f) * f_sigma
+        cov += dP[:, :, None] * dP[:, None, :]
+        expect += np.sum(((e_p - e_m) / (2 * h_f) * f_sigma) ** 2, axis=2)
+    for which, sd in ((cols, pp_sigma[0]), (rows, pp_sigma[1])):
+        if sd > 0:  # every highlight of every set moves alike
+            (P_p, _, e_p, _), (P_m, _, e_m, _) = (
+                _positions(sets, camera, shape, *((rows, cols + eps) if which is cols else (rows + eps, cols))),
+                _positions(sets, camera, shape, *((rows, cols - eps) if which is cols else (rows - eps, cols))))
+            dP = (P_p - P_m) / (2 * eps) * sd
+            cov += dP[:, :, None] * dP[:, None, :]
+            expect += np.sum(((e_p - e_m) / (2 * eps) * sd) ** 2, axis=2)
     rms, expected = float(np.sqrt(np.mean(dist**2))), float(np.sqrt(np.mean(expect)))
     if rms > RESIDUAL_FACTOR * expected:
         floating = [s.source for s in sets if s.centre_from == "outline"]
