@@ -728,7 +728,8 @@ def _sensitivity(cov: np.ndarray, rays: np.ndarray, sets) -> tuple[list, list]:
 
 
 def calibrate_rig(*, spheres=None, light_positions=None, camera: Camera | None = None, flat_field=None,
-                  flat_albedo: float | None = None, led_mu=None, intensities=None, window_px: int | None = None):
+                  flat_albedo: float | None = None, led_mu=None, intensities=None, window_px: int | None = None,
+                  pixel_sigma_px: float = 0.0, principal_point_sigma_px=0.0, focal_length_sigma_px: float = 0.0):
     """A calibrated rig from mirror spheres (or known LED positions) and optional flat-field images.
 
     Parameters
@@ -750,6 +751,10 @@ def calibrate_rig(*, spheres=None, light_positions=None, camera: Camera | None =
         LED intensities to store.
     window_px : int, optional
         Highlight window (:func:`highlight_centroids`).
+    pixel_sigma_px, principal_point_sigma_px, focal_length_sigma_px : optional
+        The lens calibration's own uncertainty, propagated into the LED positions'
+        (:func:`calibrate_positions`; e.g. a checkerboard's RMS reprojection error and
+        OpenCV's standard deviations of the principal point and focal length). Default 0.
 
     Returns
     -------
@@ -780,7 +785,10 @@ def calibrate_rig(*, spheres=None, light_positions=None, camera: Camera | None =
         if camera is None:
             raise InputError("camera: the sphere folders state no camera; give --camera with --pixel-size, or "
                              "--focal-length-px and --camera-height")
-        positions, info = calibrate_positions(sets, camera, window_px=window_px or WINDOW_PX)
+        positions, info = calibrate_positions(sets, camera, window_px=window_px or WINDOW_PX,
+                                              pixel_sigma_px=pixel_sigma_px,
+                                              principal_point_sigma_px=principal_point_sigma_px,
+                                              focal_length_sigma_px=focal_length_sigma_px)
         shape = sets[0].images.shape[1:3]
     else:
         positions = load_light_positions(light_positions) if isinstance(light_positions, (str, Path)) else \
