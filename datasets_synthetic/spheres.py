@@ -23,6 +23,13 @@ pixels integrated over each pixel (erf differences), so that the highlight's
 centroid is sub-pixel exact. One radiance scale per render makes the
 highlight term of the brightest highlight pixel ``highlight``.
 
+A lens with OpenCV's distortion (``distortion = (k1, k2, p1, p2, k3)``, stated in the
+perspective camera's ``K``, :func:`datasets_synthetic.mitsuba_scenes.lens_matrix`)
+moves every image point ``u`` to ``u_d = K distort(K^-1 u)``: each highlight ray is
+splatted at its distorted position (``cv2.projectPoints``, so the highlight stays
+sub-pixel exact and ``highlights_px`` are the distorted positions), and the smooth
+diffuse image is resampled (:func:`datasets_synthetic.mitsuba_scenes.distort_image`).
+
 :func:`reflection_points` gives the exact highlight: the point on the sphere
 whose normal bisects the directions to the camera and to the LED centre
 (a one-dimensional root in the plane through ``S``, the camera and ``P_k``).
@@ -186,6 +193,7 @@ def render_mirror_sphere(
     noise: float = 0.0,
     bit_depth: int | None = None,
     seed: int | np.random.Generator = 0,
+    distortion=None,
 ) -> SphereRender:
     """Render one mirror-sphere placement: per LED one image of its highlight.
 
@@ -224,6 +232,9 @@ def render_mirror_sphere(
         Quantisation.
     seed : int or numpy.random.Generator
         Noise seed.
+    distortion : (5,) array_like, optional
+        Lens distortion ``k1, k2, p1, p2, k3`` (OpenCV's model, in the camera's ``K``);
+        None: a distortion-free lens.
 
     Returns
     -------
@@ -258,7 +269,8 @@ def render_mirror_sphere(
         raise InputError(f"bit_depth: expected None, 8 or 16, got {bit_depth!r}")
     noise = positive(noise, "noise", allow_zero=True)
     rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
-    shader = _Shader(camera, lights, c, r, rho, weak, back)
+    lens = _lens(camera, distortion)
+    shader = _Shader(camera, lights, c, r, rho, weak, back, lens)
     h, w = camera.shape
     n = len(lights)
     rows, cols = np.mgrid[0:h, 0:w]
@@ -267,20 +279,71 @@ def render_mirror_sphere(
     lit = np.zeros((n, h, w))
     lit[:, ~inside] = shader.pixels(rows[~inside], cols[~inside], 1)
     lit[:, inside] = shader.pixels(rows[inside], cols[inside], s)
+    if lens is not None:
+        from datasets_synthetic.mitsuba_scenes import distort_image
+
+        lit = distort_image(lit, *lens).astype(np.float64)
     exact = reflection_points(camera, lights, c, r)
-    hr, hc = project(camera, exact)
+    ideal_r, ideal_c = project(camera, exact)  # the spot's ray box is traced about the pinhole position
+    hr, hc = (ideal_r, ideal_c) if lens is None else distort_pixels(ideal_r, ideal_c, *lens)
     visible = (hr > -0.5) & (hr < h - 0.5) & (hc > -0.5) & (hc < w - 0.5)
     if not visible.any():
         raise InputError("center_mm: no LED highlight falls inside the image; move the sphere into the field")
-    spots = np.stack([shader.spot(k, exact[k], (hr[k], hc[k]), f, sigma) if visible[k] else np.zeros((h, w))
+    spots = np.stack([shader.spot(k, exact[k], (ideal_r[k], ideal_c[k]), f, sigma) if visible[k] else np.zeros((h, w))
                       for k in range(n)])
     radiance = level / spots.max()
     clean = (lit + radiance * spots) * vignetting_map(camera, vignetting)
     images = np.stack([sensor(img, rng, noise, 0.0, bit_depth, clip=True) for img in clean]).astype(np.float32)
     settings = {"led_radius_mm": rho, "supersample": s, "highlight_samples": f, "psf_sigma_px": sigma,
                 "highlight": level, "highlight_radiance": radiance, "diffuse": weak, "background": back,
-                "vignetting": vignetting, "noise": noise, "bit_depth": bit_depth}
+                "vignetting": vignetting, "noise": noise, "bit_depth": bit_depth,
+                "distortion": None if lens is None else lens[1].tolist()}
     return SphereRender(images, c, r, exact, np.column_stack([hr, hc]), camera, lights, settings)
+
+
+def _lens(camera: Camera, distortion):
+    """``(K, (k1, k2, p1, p2, k3))`` of a distorting lens, or None."""
+    if distortion is None:
+        return None
+    d = as_array(distortion, "distortion", ndim=1)
+    if not 1 <= d.size <= 5:
+        raise InputError(f"distortion: expected k1[, k2[, p1[, p2[, k3]]]] (OpenCV's order), got {d.size} values")
+    d = np.concatenate([d, np.zeros(5 - d.size)])
+    if not d.any():
+        return None
+    if camera.model != "perspective":
+        raise InputError("distortion: the lens option needs a perspective camera (a focal length in pixels)")
+    from datasets_synthetic.mitsuba_scenes import lens_matrix
+
+    return lens_matrix(camera), d
+
+
+def distort_pixels(rows, cols, camera_matrix, distortion) -> tuple[np.ndarray, np.ndarray]:
+    """Where a lens with OpenCV's distortion records ideal (pinhole) pixel positions.
+
+    Parameters
+    ----------
+    rows, cols : array_like, shape (M,)
+        Ideal pixel positions (pixel centres at whole numbers).
+    camera_matrix : (3, 3) array_like
+        ``K`` (0-based principal point).
+    distortion : (5,) array_like
+        ``k1, k2, p1, p2, k3``.
+
+    Returns
+    -------
+    rows, cols : numpy.ndarray, shape (M,)
+        ``u_d = K distort(K^-1 u)`` (``cv2.projectPoints`` of the normalised rays).
+    """
+    import cv2
+
+    K = as_array(camera_matrix, "camera_matrix", shape=(3, 3))
+    r = np.asarray(rows, np.float64).ravel()
+    c = np.asarray(cols, np.float64).ravel()
+    rays = np.stack([(c - K[0, 2]) / K[0, 0], (r - K[1, 2]) / K[1, 1], np.ones_like(r)], axis=1)
+    out, _ = cv2.projectPoints(rays, np.zeros(3), np.zeros(3), K, as_array(distortion, "distortion", shape=(5,)))
+    out = out.reshape(-1, 2)
+    return out[:, 1].reshape(np.shape(rows)), out[:, 0].reshape(np.shape(cols))
 
 
 def _sphere_box(camera: Camera, c: np.ndarray, r: float) -> tuple[int, int, int, int]:
@@ -295,8 +358,8 @@ def _sphere_box(camera: Camera, c: np.ndarray, r: float) -> tuple[int, int, int,
 class _Shader:
     """Rays through sub-pixel positions, their first hit (sphere or plane), the diffuse values and LED images."""
 
-    def __init__(self, camera, lights, c, r, rho, diffuse, background):
-        self.camera, self.lights, self.c, self.r, self.rho = camera, lights, c, r, rho
+    def __init__(self, camera, lights, c, r, rho, diffuse, background, lens=None):
+        self.camera, self.lights, self.c, self.r, self.rho, self.lens = camera, lights, c, r, rho, lens
         self.diffuse, self.background = diffuse, background
 
     def pixels(self, rows: np.ndarray, cols: np.ndarray, s: int) -> np.ndarray:
@@ -334,7 +397,10 @@ class _Shader:
             raise InputError(f"lights: the highlight of LED {k + 1} could not be enclosed; check the sphere and LED")
         lit = radiance > 0
         weights = radiance[lit] * (2.0 * half / samples) ** 2  # radiance times the ray's area, px^2
-        return _splat(rr[lit], cc[lit], weights, (h, w), sigma)
+        at_r, at_c = rr[lit], cc[lit]
+        if self.lens is not None:  # where the lens records these rays (the spot's brightness scale aside)
+            at_r, at_c = distort_pixels(at_r, at_c, *self.lens)
+        return _splat(at_r, at_c, weights, (h, w), sigma)
 
     def _rays(self, rows: np.ndarray, cols: np.ndarray, only: int | None = None):
         """(N, M) diffuse values and LED-image radiances ``e_k lobe`` (0 off the disc) of single rays."""
@@ -480,6 +546,7 @@ def make_sphere_folders(
     noise: float = 0.0,
     bit_depth: int | None = 16,
     seed: int = 0,
+    distortion=None,
 ) -> dict:
     """Render a mirror sphere at several placements: one calibration folder each.
 
@@ -504,6 +571,9 @@ def make_sphere_folders(
         See :func:`render_mirror_sphere`.
     seed : int
         Noise seed.
+    distortion : (5,) array_like, optional
+        Lens distortion ``k1, k2, p1, p2, k3`` (:func:`render_mirror_sphere`); written to
+        ``scene.json`` as ``lens_distortion`` (the camera entry stays the pinhole's).
 
     Returns
     -------
@@ -519,7 +589,7 @@ def make_sphere_folders(
     rng = np.random.default_rng(seed)
     renders = [render_mirror_sphere(cam, true, centre, radius, led_radius, supersample, highlight_samples,
                                     psf_sigma_px, background=background, vignetting=vignetting, noise=noise,
-                                    bit_depth=bit_depth, seed=rng)
+                                    bit_depth=bit_depth, seed=rng, distortion=distortion)
                for centre in c]
     out = ensure_dir(out_dir)
     spheres = []
@@ -541,6 +611,7 @@ def make_sphere_folders(
         "deviations_deg": dev.tolist(),
         "spheres": spheres,
         "settings": renders[0].settings,
+        "lens_distortion": renders[0].settings["distortion"],
     }
     write_json(out / "scene.json", content)
     return content

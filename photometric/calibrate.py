@@ -5,9 +5,11 @@ A calibration set is one image per LED of a polished sphere of known radius ``R`
 centre ``c`` (``sphere.json``, rig frame, mm), or of a sphere found by its outline and
 taken to rest on the reference plane (``c_z = R``). For each image:
 
-1. the specular highlight: the brightest spot inside the sphere's disc, its
-   intensity-weighted centroid (sub-pixel) over a small window above the local
-   background (the weak diffuse term);
+1. the specular highlight: the brightest spot inside the sphere's disc; its sub-pixel
+   position is the peak of a 2-D Gaussian fitted to the spot (a quadric fitted to the log
+   of the intensity above the local background over the 3 x 3 pixels around the peak,
+   weighted by the intensity), or, for a spot too sharp to fit (within one pixel), the
+   intensity-weighted centroid with the uncertainty of a position known only to its pixel;
 2. the camera ray through the centroid meets the sphere at ``S``; the sphere normal
    there is ``n = (S - c) / R``, the direction to the camera ``v`` (``(0, 0, 1)`` for an
    orthographic camera, ``(C - S) / |C - S|`` for a perspective one);
@@ -17,15 +19,24 @@ taken to rest on the reference plane (``c_z = R``). For each image:
 With two or more sets (spheres at different places, or one sphere at two known
 heights) each LED is the least-squares nearest point of its rays,
 ``(sum_i (I - r_i r_i^T)) P = sum_i (I - r_i r_i^T) S_i``; each ray's distance to it is
-its residual. The uncertainty propagates each centroid's noise (estimated from the image
-noise around the highlight) through the whole construction (the Jacobian of ``P`` with
-respect to every centroid, by central differences).
+its residual. The uncertainty propagates each highlight's noise (estimated from the image
+noise around the highlight, at least a floor for the spot model's own error) through the
+whole construction (the Jacobian of ``P`` with respect to every highlight, by central
+differences), then is scaled by the Birge ratio of the rays' own residuals,
+``max(1, sqrt(chi2 / dof))``, pooled over all LEDs (``dof = N (2 K - 3)``: each ray's
+residual is a 2-vector, each LED 3 unknowns), so that misses the noise does not explain
+(a lens not corrected, a sphere slightly off) widen the stated u instead of being
+ignored. A warning is given when the ratio exceeds what chi2 allows at the 1 % level.
+The covariance of each LED is also reported along its mean reflected ray and across it
+(the along-ray part is the triangulation's weak direction) with advice on where to
+place the spheres.
 """
 
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
+import warnings
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import cv2
@@ -34,13 +45,28 @@ import numpy as np
 from photometric.camera import Camera, Orthographic, Perspective, camera_from_dict, pixel_offsets, pixel_rays
 from surfaces.validate import as_array, InputError, positive, reads_file
 
-__all__ = ["SphereImages", "read_sphere_set", "sphere_from_outline", "highlight_centroids", "reflected_rays",
-           "nearest_point", "calibrate_positions", "calibrate_rig", "sphere_from_mask", "calibrate_mirror_sphere"]
+__all__ = ["SphereImages", "read_sphere_set", "sphere_from_outline", "highlight_centroids", "fit_spot",
+           "reflected_rays", "nearest_point", "birge_check", "calibrate_positions", "calibrate_rig", "sphere_from_mask",
+           "calibrate_mirror_sphere"]
 
 #: Half width (pixels) of the window around the highlight peak.
 WINDOW_PX = 4
-#: Smallest centroid uncertainty assumed (pixels): sampling of a highlight a few pixels wide.
-MIN_CENTROID_SIGMA_PX = 0.02
+#: Smallest highlight uncertainty assumed (pixels) for a spot the Gaussian model fits, added in quadrature
+#: to the fit's own (noise and misfit) uncertainty: the sampling of a highlight the fit cannot see.
+#: Noise-free pixel-integrated Gaussians 0.5-1.5 px wide give 0.004-0.0001 px; rendered LED discs
+#: (datasets_synthetic.spheres, lens blur 1 px) 0.003-0.008 px, 0.004-0.01 px after an undistortion by
+#: bicubic resampling (bilinear: 0.01-0.04 px, a bias). A spot within one pixel gets SHARP_SIGMA_PX.
+MIN_CENTROID_SIGMA_PX = 0.01
+#: Uncertainty of a highlight too sharp for the fit (all its light in about one pixel): its position is
+#: known to its pixel, a uniform distribution of width 1 px, standard deviation 1 / sqrt(12).
+SHARP_SIGMA_PX = 1.0 / np.sqrt(12.0)
+#: A fitted Gaussian narrower than this (standard deviation, pixels) is taken as too sharp to locate
+#: better than its pixel: below 0.5 px the log-quadric's peak is biased by up to 0.2 px (0.3 px wide)
+#: or 0.7 px (0.2 px wide) with the sub-pixel phase.
+SHARP_WIDTH_PX = 0.5
+#: chi2 / dof of the rays' residuals above its 99 % quantile: the warning that the stated u does not
+#: explain the residuals (the u is scaled by the Birge ratio either way).
+BIRGE_QUANTILE = 0.99
 #: Rays whose rms residual exceeds this many times the one the highlight noise explains (linear
 #: propagation of the centroid noise to the residuals) do not meet: a sphere's radius or centre is
 #: wrong. Rendered sets (datasets_synthetic.spheres) with the right geometry give 1.1-1.5 times; a
@@ -233,26 +259,29 @@ def _fit_outline(edge: np.ndarray, camera: Camera, shape) -> tuple:
 
 def highlight_centroids(images, camera: Camera, centre_mm, radius_mm: float, *,
                         window_px: int = WINDOW_PX) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Sub-pixel highlight centroids inside a sphere's image disc.
+    """Sub-pixel highlight positions inside a sphere's image disc.
 
     Parameters
     ----------
     images : array_like, shape (N, H, W) or (N, H, W, 3)
-        One image per LED.
+        One image per LED (of a distortion-free camera: undistort them first).
     camera : Orthographic or Perspective
     centre_mm : array_like, shape (3,)
     radius_mm : float
     window_px : int, optional
-        Half width of the centroid window around the peak.
+        Half width of the window around the peak (background, noise, fallback centroid).
 
     Returns
     -------
     rows, cols : numpy.ndarray, shape (N,), float64
-        Intensity-weighted centroids of ``I - background`` over the window (pixel
-        centres at integers); the background is the median of the window's border.
+        The peak of a 2-D Gaussian fitted to ``I - background`` around the brightest pixel
+        (:func:`fit_spot`; pixel centres at integers); the background is the median of the
+        window's border. A spot too sharp for the fit gives the intensity-weighted centroid
+        of the window.
     sigma_px : numpy.ndarray, shape (N,), float64
-        Their noise (pixels): ``sigma_n sqrt(sum (x - c)^2) / sum w`` from the border's
-        noise ``sigma_n``, at least :data:`MIN_CENTROID_SIGMA_PX`.
+        Their standard uncertainty (pixels): the fit's propagation of the border's noise (or
+        of the fit's misfit when larger) and :data:`MIN_CENTROID_SIGMA_PX` in quadrature;
+        :data:`SHARP_SIGMA_PX` for a sharp spot's centroid.
 
     Raises
     ------
@@ -286,14 +315,92 @@ def highlight_centroids(images, camera: Camera, centre_mm, radius_mm: float, *,
         total = weight.sum()
         if total <= 0 or float(smooth[pr, pc]) <= bg:
             raise InputError(f"images: no highlight inside the sphere's disc in image {i}")
-        yy, xx = np.mgrid[lo_r:hi_r, lo_c:hi_c]
-        rows[i] = float((weight * yy).sum() / total)
-        cols[i] = float((weight * xx).sum() / total)
-        spread = np.sqrt(((weight > 0) * ((yy - rows[i]) ** 2 + (xx - cols[i]) ** 2)).sum() / 2.0)
-        sig[i] = max(MIN_CENTROID_SIGMA_PX, noise * spread / total)
+        fitted = fit_spot(win - bg, noise)
+        if fitted is not None:
+            rows[i], cols[i], sig[i] = lo_r + fitted[0], lo_c + fitted[1], float(np.hypot(MIN_CENTROID_SIGMA_PX,
+                                                                                              fitted[2]))
+        else:
+            yy, xx = np.mgrid[lo_r:hi_r, lo_c:hi_c]
+            rows[i] = float((weight * yy).sum() / total)
+            cols[i] = float((weight * xx).sum() / total)
+            sig[i] = SHARP_SIGMA_PX
         if (rows[i] - r0) ** 2 + (cols[i] - c0) ** 2 >= (0.98 * rad) ** 2:
             raise InputError(f"images: the highlight of image {i} is at the rim of the sphere's disc")
     return rows, cols, sig
+
+
+def fit_spot(window, noise: float = 0.0) -> tuple[float, float, float, float] | None:
+    """Peak of a 2-D Gaussian fitted to a bright spot (sub-pixel), or None when the spot is too sharp.
+
+    ``log v = a + b y + c x + d y^2 + e x^2 + f x y`` is fitted by least squares to the 3 x 3
+    pixels around the brightest one, each weighted by its value ``v`` (the log's noise is
+    ``noise / v``); the peak is where the quadric's gradient vanishes.
+
+    Parameters
+    ----------
+    window : array_like, shape (h, w)
+        Spot values above the background (at least 3 x 3; the brightest pixel not on the
+        border).
+    noise : float, optional
+        Standard deviation of each value (image units), for the peak's uncertainty.
+
+    Returns
+    -------
+    (row, col, sigma_px, width_px) or None
+        Peak position in the window's pixel indices, its standard uncertainty (pixels,
+        root mean of the two axes' variances, propagated from ``noise`` or from the fit's
+        own residual scatter when larger; 0 for an exact Gaussian without noise) and the fitted Gaussian's
+        smaller standard deviation (pixels). None when fewer than 6 of the 9 values exceed
+        twice the noise, the quadric has no maximum, the peak falls more than one pixel from
+        the brightest pixel, or the spot is narrower than :data:`SHARP_WIDTH_PX`.
+
+    Examples
+    --------
+    >>> yy, xx = np.mgrid[0:7, 0:7]
+    >>> spot = np.exp(-((yy - 3.3) ** 2 + (xx - 2.8) ** 2) / (2 * 1.2**2))
+    >>> [round(v, 6) for v in fit_spot(spot)]
+    [3.3, 2.8, 0.0, 1.2]
+    """
+    win = as_array(window, "window", ndim=2)
+    h, w = win.shape
+    pr, pc = np.unravel_index(int(np.argmax(win)), win.shape)
+    if not (0 < pr < h - 1 and 0 < pc < w - 1):
+        return None
+    v = win[pr - 1:pr + 2, pc - 1:pc + 2].ravel()
+    y, x = (a.ravel().astype(np.float64) for a in np.mgrid[-1:2, -1:2])
+    ok = v > max(2.0 * float(noise), 1e-12 * float(v.max()))
+    if ok.sum() < 6 or not (ok[[1, 7]].any() and ok[[3, 5]].any()):
+        return None
+    y, x, v = y[ok], x[ok], v[ok]
+    A = np.stack([np.ones_like(x), y, x, y * y, x * x, x * y], axis=1) * v[:, None]
+    theta, _, rank, _ = np.linalg.lstsq(A, np.log(v) * v, rcond=None)
+    if rank < 6:
+        return None
+    H = np.array([[2.0 * theta[3], theta[5]], [theta[5], 2.0 * theta[4]]])
+    eig = np.linalg.eigvalsh(H)
+    if eig[-1] >= 0:
+        return None
+    peak = -np.linalg.solve(H, theta[1:3])
+    width = float(np.sqrt(-1.0 / eig[0]))  # the narrower axis: log v = -x^2 / (2 s^2), curvature -1/s^2
+    if np.abs(peak).max() > 1.0 or width < SHARP_WIDTH_PX:
+        return None
+    sigma = 0.0
+    # the values' noise, or the fit's own misfit when larger (a spot that is not quite a Gaussian): the
+    # weighted residuals are in image units, like the noise
+    misfit = np.sum((A @ theta - np.log(v) * v) ** 2)
+    scatter = float(np.sqrt(misfit / (len(v) - 6))) if len(v) > 6 else 0.0
+    noise = max(float(noise), scatter)
+    if noise > 0:
+        # d peak = -H^-1 (d g + d H peak), g = (b, c): the peak's Jacobian in the six coefficients
+        Hi = np.linalg.inv(H)
+        J = np.zeros((2, 6))
+        J[:, 1], J[:, 2] = -Hi[:, 0], -Hi[:, 1]
+        J[:, 3] = -Hi[:, 0] * 2.0 * peak[0]
+        J[:, 4] = -Hi[:, 1] * 2.0 * peak[1]
+        J[:, 5] = -(Hi[:, 0] * peak[1] + Hi[:, 1] * peak[0])
+        cov = np.linalg.inv(A.T @ A) * float(noise) ** 2  # rows weighted by v: unit-variance log residuals
+        sigma = float(np.sqrt(np.trace(J @ cov @ J.T) / 2.0))
+    return float(pr + peak[0]), float(pc + peak[1]), sigma, width
 
 
 def reflected_rays(camera: Camera, shape, rows, cols, centre_mm, radius_mm: float) -> tuple[np.ndarray, np.ndarray]:
@@ -379,8 +486,9 @@ def nearest_point(points, directions) -> tuple[np.ndarray, np.ndarray]:
     return P, dist
 
 
-def _positions(sets, camera, shape, rows, cols) -> tuple[np.ndarray, np.ndarray]:
-    """LED positions (N, 3) and ray distances (N, K) from centroids (K, N)."""
+def _positions(sets, camera, shape, rows, cols) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """LED positions (N, 3), ray distances (N, K), residual vectors (N, K, 3) (from each ray's closest
+    point to the LED) and the reflected rays' unit directions (N, K, 3) from highlights (K, N)."""
     n = rows.shape[1]
     S = np.empty((len(sets), n, 3))
     r = np.empty((len(sets), n, 3))
@@ -390,10 +498,13 @@ def _positions(sets, camera, shape, rows, cols) -> tuple[np.ndarray, np.ndarray]
     dist = np.empty((n, len(sets)))
     for k in range(n):
         P[k], dist[k] = nearest_point(S[:, k], r[:, k])
-    return P, dist
+    gap = P[None] - S  # (K, N, 3)
+    resid = gap - np.einsum("kni,kni->kn", gap, r)[..., None] * r
+    return P, dist, resid.transpose(1, 0, 2), r.transpose(1, 0, 2)
 
 
-def calibrate_positions(sets, camera: Camera, *, window_px: int = WINDOW_PX) -> tuple[np.ndarray, dict]:
+def calibrate_positions(sets, camera: Camera, *, window_px: int = WINDOW_PX, pixel_sigma_px: float = 0.0,
+                        principal_point_sigma_px=0.0, focal_length_sigma_px: float = 0.0) -> tuple[np.ndarray, dict]:
     """LED positions from two or more mirror-sphere calibration sets.
 
     Parameters
@@ -403,6 +514,17 @@ def calibrate_positions(sets, camera: Camera, *, window_px: int = WINDOW_PX) -> 
     camera : Orthographic or Perspective
     window_px : int, optional
         Highlight centroid window (:func:`highlight_centroids`).
+    pixel_sigma_px : float, optional
+        A further standard uncertainty of every highlight position (pixels), added in
+        quadrature: the lens calibration's error where the images were undistorted (e.g.
+        the checkerboard's RMS reprojection error). Default 0.
+    principal_point_sigma_px : float or (float, float), optional
+        Standard uncertainty of the camera's principal point (column, row), pixels (e.g.
+        OpenCV's ``stdDeviationsIntrinsics`` of a checkerboard calibration); propagated as a
+        shift common to every highlight (it tilts every camera ray alike). Default 0.
+    focal_length_sigma_px : float, optional
+        Standard uncertainty of a perspective camera's focal length, pixels (the same
+        source); propagated through the whole construction. Default 0.
 
     Returns
     -------
@@ -412,8 +534,13 @@ def calibrate_positions(sets, camera: Camera, *, window_px: int = WINDOW_PX) -> 
         ``method``, ``sets`` (source, centre, radius, where the centre came from),
         ``highlights_px`` (per set, per LED: row, col), ``residuals_mm`` (per LED, the
         distances of its rays to the point), ``rms_residual_mm``,
-        ``uncertainty_mm`` (per LED, standard deviation of x, y, z from the
-        centroids' noise) and ``centroid_sigma_px``.
+        ``uncertainty_mm`` (per LED, standard uncertainty of x, y, z: the highlights'
+        noise propagated, times ``uncertainty_scale``), ``uncertainty_from_noise_mm`` (before
+        the scale), ``covariance_mm2`` (per LED, 3 x 3, scaled), ``birge_ratio``,
+        ``birge_bound`` (its 99 % quantile), ``chi2``, ``dof``, ``uncertainty_scale``
+        (``max(1, birge_ratio)``), ``centroid_sigma_px`` (per set, per LED),
+        ``sensitivity`` (per LED: ``along_ray_mm``, ``across_ray_mm``, ``ray_direction``,
+        ``ray_angle_deg``), ``advice`` and ``warnings`` (lists of sentences).
 
     Raises
     ------
@@ -440,11 +567,12 @@ def calibrate_positions(sets, camera: Camera, *, window_px: int = WINDOW_PX) -> 
     found = [highlight_centroids(s.images, camera, s.centre_mm, s.radius_mm, window_px=window_px) for s in sets]
     rows = np.stack([f[0] for f in found])
     cols = np.stack([f[1] for f in found])
-    sigma = np.stack([f[2] for f in found])
-    P, dist = _positions(sets, camera, shape, rows, cols)
-    # linear propagation of every centroid's noise (central differences of the whole construction)
-    var = np.zeros((n, 3))
-    var_dist = np.zeros_like(dist)  # the residuals' spread from the same noise, by the same differences
+    sigma = np.hypot(np.stack([f[2] for f in found]), positive(pixel_sigma_px, "pixel_sigma_px", allow_zero=True))
+    P, dist, resid, rays = _positions(sets, camera, shape, rows, cols)
+    # linear propagation of every highlight's noise (central differences of the whole construction): the
+    # LEDs' covariances and the expected squared residual vectors
+    cov = np.zeros((n, 3, 3))
+    expect = np.zeros(dist.shape)  # E |e|^2 per LED and ray
     eps = 0.05
     for i in range(len(sets)):
         for which in (rows, cols):
@@ -453,10 +581,32 @@ def calibrate_positions(sets, camera: Camera, *, window_px: int = WINDOW_PX) -> 
             minus[i] -= eps
             args_p = (plus, cols) if which is rows else (rows, plus)
             args_m = (minus, cols) if which is rows else (rows, minus)
-            (P_p, d_p), (P_m, d_m) = _positions(sets, camera, shape, *args_p), _positions(sets, camera, shape, *args_m)
-            var += ((P_p - P_m) / (2 * eps) * sigma[i][:, None]) ** 2
-            var_dist += ((d_p - d_m) / (2 * eps) * sigma[i][:, None]) ** 2
-    rms, expected = float(np.sqrt(np.mean(dist**2))), float(np.sqrt(np.mean(var_dist)))
+            (P_p, _, e_p, _), (P_m, _, e_m, _) = (_positions(sets, camera, shape, *args_p),
+                                                  _positions(sets, camera, shape, *args_m))
+            dP = (P_p - P_m) / (2 * eps) * sigma[i][:, None]
+            cov += dP[:, :, None] * dP[:, None, :]
+            expect += np.sum(((e_p - e_m) / (2 * eps) * sigma[i][:, None, None]) ** 2, axis=2)
+    pp_sigma = np.broadcast_to(np.asarray(principal_point_sigma_px, np.float64), (2,))
+    if np.any(pp_sigma < 0) or not np.all(np.isfinite(pp_sigma)):
+        raise InputError(f"principal_point_sigma_px: expected values >= 0, got {principal_point_sigma_px!r}")
+    f_sigma = positive(focal_length_sigma_px, "focal_length_sigma_px", allow_zero=True)
+    if f_sigma > 0 and isinstance(camera, Perspective):
+        h_f = 1e-3 * camera.focal_length_px
+        (P_p, _, e_p, _), (P_m, _, e_m, _) = (
+            _positions(sets, replace(camera, focal_length_px=camera.focal_length_px + h_f), shape, rows, cols),
+            _positions(sets, replace(camera, focal_length_px=camera.focal_length_px - h_f), shape, rows, cols))
+        dP = (P_p - P_m) / (2 * h_f) * f_sigma
+        cov += dP[:, :, None] * dP[:, None, :]
+        expect += np.sum(((e_p - e_m) / (2 * h_f) * f_sigma) ** 2, axis=2)
+    for which, sd in ((cols, pp_sigma[0]), (rows, pp_sigma[1])):
+        if sd > 0:  # every highlight of every set moves alike
+            (P_p, _, e_p, _), (P_m, _, e_m, _) = (
+                _positions(sets, camera, shape, *((rows, cols + eps) if which is cols else (rows + eps, cols))),
+                _positions(sets, camera, shape, *((rows, cols - eps) if which is cols else (rows - eps, cols))))
+            dP = (P_p - P_m) / (2 * eps) * sd
+            cov += dP[:, :, None] * dP[:, None, :]
+            expect += np.sum(((e_p - e_m) / (2 * eps) * sd) ** 2, axis=2)
+    rms, expected = float(np.sqrt(np.mean(dist**2))), float(np.sqrt(np.mean(expect)))
     if rms > RESIDUAL_FACTOR * expected:
         floating = [s.source for s in sets if s.centre_from == "outline"]
         raise InputError(
@@ -464,23 +614,122 @@ def calibrate_positions(sets, camera: Camera, *, window_px: int = WINDOW_PX) -> 
             f"expected from the highlight noise; a sphere's radius or centre is wrong (check radius_mm and "
             f"center_mm in sphere.json"
             + (f"; {', '.join(floating)} without sphere.json is taken to rest on the reference plane: a sphere "
-               "above it needs sphere.json" if floating else "") + ")")
+               "above it needs sphere.json" if floating else "") + ", or the lens distortion is not corrected)")
+    honest = birge_check(dist, expect)
+    scaled = cov * honest["scale"] ** 2
+    sens, advice = _sensitivity(scaled, rays, sets)
+    notes = []
+    if honest["exceeds"]:
+        notes.append(
+            f"spheres: the rays miss each other by more than the highlight noise allows (rms {rms:.3g} mm, "
+            f"{expected:.2g} mm expected; Birge ratio {honest['birge_ratio']:.2f} above the 99 % bound "
+            f"{honest['bound']:.2f} for {honest['dof']} degrees of freedom): the stated uncertainty is scaled by "
+            f"{honest['scale']:.2f}; check the lens distortion (--checkerboard), the spheres' radius and centre")
+        warnings.warn(notes[-1], UserWarning, stacklevel=2)
     info = {
-        "method": "mirror spheres: highlight centroid, reflected ray 2(n.v)n - v, least-squares nearest point",
+        "method": "mirror spheres: highlight from a 2-D Gaussian fit, reflected ray 2(n.v)n - v, least-squares "
+                  "nearest point; u scaled by the Birge ratio of the rays' residuals",
         "sets": [{"source": s.source, "centre_mm": s.centre_mm.tolist(), "radius_mm": s.radius_mm,
                   "centre_from": s.centre_from} for s in sets],
         "highlights_px": np.stack([rows, cols], axis=2).tolist(),
         "residuals_mm": dist.tolist(),
         "rms_residual_mm": rms,
         "expected_residual_mm": expected,
-        "uncertainty_mm": np.sqrt(var).tolist(),
+        "uncertainty_mm": np.sqrt(np.einsum("kii->ki", scaled)).tolist(),
+        "uncertainty_from_noise_mm": np.sqrt(np.einsum("kii->ki", cov)).tolist(),
+        "covariance_mm2": scaled.tolist(),
+        "uncertainty_note": "standard uncertainty u (k = 1) per axis: the highlights' noise propagated, times "
+                            "max(1, Birge ratio); U = 2 u covers about 95 %",
+        "birge_ratio": honest["birge_ratio"],
+        "birge_bound": honest["bound"],
+        "chi2": honest["chi2"],
+        "dof": honest["dof"],
+        "uncertainty_scale": honest["scale"],
         "centroid_sigma_px": sigma.tolist(),
+        "sensitivity": sens,
+        "advice": advice,
+        "warnings": notes,
     }
     return P, info
 
 
+def birge_check(distances, expected_sq) -> dict:
+    """The Birge ratio of the rays' residuals against what the highlights' noise explains.
+
+    Parameters
+    ----------
+    distances : array_like, shape (N, K)
+        Each LED's ray residuals (distance of each ray to the LED), mm.
+    expected_sq : array_like, shape (N, K)
+        Their expected squares from the propagated highlight noise, mm^2.
+
+    Returns
+    -------
+    dict
+        ``chi2`` (sum of squared residuals over the expected, rescaled to ``dof``),
+        ``dof`` (``N (2 K - 3)``), ``birge_ratio`` ``sqrt(chi2 / dof)``, ``bound`` (the
+        ratio's 99 % quantile for ``dof``), ``exceeds`` (ratio above the bound) and
+        ``scale`` = ``max(1, birge_ratio)``, the factor for the stated u.
+
+    Examples
+    --------
+    >>> r = birge_check(np.full((4, 2), 0.3), np.full((4, 2), 0.01))
+    >>> round(r["birge_ratio"], 3), r["dof"], r["exceeds"], round(r["scale"], 3)
+    (3.0, 4, True, 3.0)
+    """
+    from scipy.stats import chi2 as chi2_dist
+
+    d = as_array(distances, "distances", ndim=2)
+    e = as_array(expected_sq, "expected_sq", shape=d.shape)
+    n, k = d.shape
+    dof = n * (2 * k - 3)
+    total = float(e.sum())
+    if dof < 1 or total <= 0:
+        return {"chi2": None, "dof": dof, "birge_ratio": None, "bound": None, "exceeds": False, "scale": 1.0}
+    # sum |e|^2 / E sum |e|^2 is chi2 / dof for residuals that the noise explains
+    ratio2 = float(np.sum(d**2)) / total
+    bound = float(np.sqrt(chi2_dist.ppf(BIRGE_QUANTILE, dof) / dof))
+    ratio = float(np.sqrt(ratio2))
+    return {"chi2": ratio2 * dof, "dof": int(dof), "birge_ratio": ratio, "bound": bound,
+            "exceeds": bool(ratio > bound), "scale": max(1.0, ratio)}
+
+
+#: Along-ray u above this many times the across-ray u: advise a wider sphere placement.
+ALONG_RAY_FACTOR = 3.0
+
+
+def _sensitivity(cov: np.ndarray, rays: np.ndarray, sets) -> tuple[list, list]:
+    """Per LED: u along and across its mean reflected ray, the widest angle between its rays; advice."""
+    out, weak = [], []
+    for k in range(len(cov)):
+        a = rays[k].sum(axis=0)
+        a /= np.linalg.norm(a)
+        along = float(np.sqrt(max(a @ cov[k] @ a, 0.0)))
+        across = float(np.sqrt(max(np.trace(cov[k]) - along**2, 0.0) / 2.0))
+        cosines = np.clip(rays[k] @ rays[k].T, -1.0, 1.0)
+        angle = float(np.degrees(np.arccos(cosines.min())))
+        out.append({"along_ray_mm": along, "across_ray_mm": across, "ray_direction": a.tolist(),
+                    "ray_angle_deg": angle})
+        if along > ALONG_RAY_FACTOR * max(across, 1e-12):
+            weak.append(k)
+    advice = []
+    if weak:
+        angles = [out[k]["ray_angle_deg"] for k in weak]
+        advice.append(
+            f"LEDs {', '.join(str(k) for k in weak)}: the uncertainty along the ray towards the LED is more than "
+            f"{ALONG_RAY_FACTOR:g} times the one across it (their rays meet at {min(angles):.1f}-{max(angles):.1f} "
+            "deg): place the spheres farther apart across the field, or at clearly different heights, so that "
+            "each LED's rays cross at a wider angle")
+    if len(sets) == 2:
+        advice.append("two sphere placements give each LED one degree of freedom per pair of rays to check the "
+                      "fit; a third placement (away from the line through the first two) makes the residual "
+                      "check and the Birge ratio far more reliable")
+    return out, advice
+
+
 def calibrate_rig(*, spheres=None, light_positions=None, camera: Camera | None = None, flat_field=None,
-                  flat_albedo: float | None = None, led_mu=None, intensities=None, window_px: int | None = None):
+                  flat_albedo: float | None = None, led_mu=None, intensities=None, window_px: int | None = None,
+                  pixel_sigma_px: float = 0.0, principal_point_sigma_px=0.0, focal_length_sigma_px: float = 0.0):
     """A calibrated rig from mirror spheres (or known LED positions) and optional flat-field images.
 
     Parameters
@@ -502,6 +751,10 @@ def calibrate_rig(*, spheres=None, light_positions=None, camera: Camera | None =
         LED intensities to store.
     window_px : int, optional
         Highlight window (:func:`highlight_centroids`).
+    pixel_sigma_px, principal_point_sigma_px, focal_length_sigma_px : optional
+        The lens calibration's own uncertainty, propagated into the LED positions'
+        (:func:`calibrate_positions`; e.g. a checkerboard's RMS reprojection error and
+        OpenCV's standard deviations of the principal point and focal length). Default 0.
 
     Returns
     -------
@@ -532,7 +785,10 @@ def calibrate_rig(*, spheres=None, light_positions=None, camera: Camera | None =
         if camera is None:
             raise InputError("camera: the sphere folders state no camera; give --camera with --pixel-size, or "
                              "--focal-length-px and --camera-height")
-        positions, info = calibrate_positions(sets, camera, window_px=window_px or WINDOW_PX)
+        positions, info = calibrate_positions(sets, camera, window_px=window_px or WINDOW_PX,
+                                              pixel_sigma_px=pixel_sigma_px,
+                                              principal_point_sigma_px=principal_point_sigma_px,
+                                              focal_length_sigma_px=focal_length_sigma_px)
         shape = sets[0].images.shape[1:3]
     else:
         positions = load_light_positions(light_positions) if isinstance(light_positions, (str, Path)) else \

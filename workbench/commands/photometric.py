@@ -479,7 +479,16 @@ def _calibrate(args: argparse.Namespace) -> int:
             sd = cal["uncertainty_mm"][k]
             line += (f", ray residuals {', '.join(f'{r:.3f}' for r in cal['residuals_mm'][k])} mm, "
                      f"uncertainty ({sd[0]:.3f}, {sd[1]:.3f}, {sd[2]:.3f}) mm")
+            if "sensitivity" in cal:
+                sens = cal["sensitivity"][k]
+                line += (f" (along the ray {sens['along_ray_mm']:.3f} mm, across {sens['across_ray_mm']:.3f} mm, "
+                         f"rays {sens['ray_angle_deg']:.1f} deg apart)")
         print(line)
+    if cal.get("birge_ratio") is not None:
+        print(f"Birge ratio of the ray residuals {cal['birge_ratio']:.2f} ({cal['dof']} degrees of freedom, 99 % bound "
+              f"{cal['birge_bound']:.2f}): uncertainties scaled by {cal['uncertainty_scale']:.2f}")
+    for note in cal.get("advice", []):
+        print(f"advice: {note}")
     print(f"wrote {args.out} (every number above is in it)")
     return 0
 
