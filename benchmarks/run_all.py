@@ -17,9 +17,9 @@ from pathlib import Path
 from surfaces.io import atomic_write_text
 
 HERE = Path(__file__).resolve().parent
-ORDER = ["surfaces", "bspline", "mesh_read", "photometric", "nearfield", "rig_capture", "calibration", "sphere_calibration", "glossy",
-         "surface_fit", "errors", "uncertainty", "uncertainty_perspective", "texture", "slices", "ct_peers",
-         "ct_volume", "render", "boolean", "batch", "inspect", "watch_kill", "memory"]
+ORDER = ["surfaces", "bspline", "mesh_read", "photometric", "nearfield", "rig_capture", "calibration",
+         "sphere_calibration", "glossy", "surface_fit", "errors", "uncertainty", "uncertainty_perspective", "texture",
+         "slices", "ct_peers", "ct_volume", "render", "boolean", "batch", "inspect", "watch_kill", "memory"]
 
 HEADER = """# Benchmarks
 
