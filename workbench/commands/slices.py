@@ -134,7 +134,7 @@ def _reconstruct(args: argparse.Namespace) -> int:
 
     def progress(done: int, total: int) -> None:
         if not bars:
-            bars.append(tqdm(total=total, desc="bodies", unit="body", leave=False))
+            bars.append(tqdm(total=total, initial=done, desc="bodies", unit="body", leave=False))  # never 0/N
         bars[0].total = total
         bars[0].n = done
         bars[0].refresh()
