@@ -177,6 +177,7 @@ def _loadmat(path: Path, keys: tuple[str, ...], required: tuple[str, ...]) -> di
         raise FileNotFoundError(f"calibration: file {path} does not exist")
     try:
         doc = loadmat(str(path))
+    # scipy raises NotImplementedError for MATLAB v7.3 files (HDF5): a file it cannot read, not unfinished code
     except (ValueError, OSError, NotImplementedError) as exc:
         raise InputError(f"calibration: {path} is not a MATLAB .mat file scipy can read ({exc})") from None
     missing = [k for k in required if k not in doc]
